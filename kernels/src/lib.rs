@@ -1,0 +1,11 @@
+//! Pure compute kernels of strand: everything here is a function over slices and small values,
+//! with no I/O, no globals and no allocation, so the solver can call it from any thread and the
+//! adjoints can be checked in isolation.
+
+pub mod real;
+pub mod bspline;
+pub mod material;
+pub mod transfer;
+pub mod boundary;
+
+pub use real::{Real, M3, V3};

@@ -1,0 +1,70 @@
+//! Constitutive models. Each material is one file implementing [`Material`]; the solver calls
+//! [`Material::update`] once per particle per step, after G2P, with the particle's new velocity
+//! gradient and volume ratio, and stores the returned Cauchy stress for the next P2G.
+//!
+//! A material's per-particle internal state is a fixed number of reals (`state_names().len()`),
+//! stored contiguously per particle in the particle pool; each material documents its layout.
+//! Parameters are plain serde structs so a scenario's `[material]` table maps onto them directly
+//! (unknown keys are rejected).
+
+use crate::real::{Real, M3};
+
+pub mod eos;
+pub mod newtonian;
+pub mod bingham;
+pub mod papanastasiou_roussel;
+pub mod evp_bingham;
+pub mod drucker_prager;
+
+pub use eos::Eos;
+
+/// Wave and viscous properties the time-step control needs (paper-independent CFL bounds).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StabilityInfo {
+    /// Reference density rho0 [kg/m3].
+    pub density: Real,
+    /// Largest tangent bulk modulus the material can reach in normal use [Pa].
+    pub bulk_modulus: Real,
+    /// Elastic shear modulus [Pa]; 0 for fluids.
+    pub shear_modulus: Real,
+    /// Largest dynamic viscosity an explicit step must resolve [Pa s]; 0 when none.
+    pub max_viscosity: Real,
+}
+
+/// One constitutive model.
+pub trait Material: Send + Sync + std::fmt::Debug {
+    /// Registry name, as written in scenario files.
+    fn name(&self) -> &'static str;
+
+    /// Names of the per-particle internal state variables, in storage order.
+    fn state_names(&self) -> &'static [&'static str];
+
+    /// Initial internal state of a newly created particle (stress-free, at rest).
+    fn init_state(&self, state: &mut [Real]);
+
+    /// Advance the internal state over one step and return the new Cauchy stress.
+    ///
+    /// * `grad_v` — velocity gradient L = dv/dx at the particle (MLS-MPM's C matrix);
+    /// * `j` — volume ratio V / V0 after this step's volume update;
+    /// * `dt` — step length;
+    /// * `state` — this particle's internal state (`state_names().len()` reals).
+    fn update(&self, grad_v: &M3, j: Real, dt: Real, state: &mut [Real]) -> M3;
+
+    /// Data for the automatic time step.
+    fn stability(&self) -> StabilityInfo;
+
+    /// Reference density rho0 [kg/m3].
+    fn density(&self) -> Real {
+        self.stability().density
+    }
+
+    /// Batch form over slices, the one the solver uses: one dynamic dispatch per batch, a
+    /// monomorphic loop inside.
+    fn update_batch(&self, grad_v: &[M3], j: &[Real], dt: Real, state: &mut [Real], stress: &mut [M3]) {
+        let n = self.state_names().len();
+        for p in 0..grad_v.len() {
+            let s = if n == 0 { &mut [][..] } else { &mut state[p * n..(p + 1) * n] };
+            stress[p] = self.update(&grad_v[p], j[p], dt, s);
+        }
+    }
+}

@@ -1,0 +1,1 @@
+//! P2G and G2P block kernels.

@@ -1,0 +1,2 @@
+//! Writers for simulation output.
+pub mod vtu;

@@ -1,0 +1,2 @@
+//! The verification suite: closed-form and experimental references.
+pub mod analytic;
