@@ -3,5 +3,14 @@
 pub use strand_kernels as kernels;
 pub use strand_kernels::{Real, M3, V3};
 
+pub mod bench;
+pub mod grid;
+pub mod materials;
+pub mod memory;
 pub mod output;
+pub mod particles;
+pub mod run;
+pub mod scenario;
+pub mod solver;
+pub mod threads;
 pub mod verify;

@@ -1,1 +1,94 @@
-fn main() {}
+use clap::{Parser, Subcommand};
+use std::path::PathBuf;
+use std::process::ExitCode;
+use strand::run::{run_scenario, RunOptions};
+use strand::scenario::Scenario;
+
+/// strand — fixed-memory MLS-MPM for 3D concrete printing.
+#[derive(Parser)]
+#[command(version, about)]
+struct Cli {
+    #[command(subcommand)]
+    cmd: Cmd,
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// Run a scenario (TOML) to its end time; without SCENARIO, the embedded default.
+    Run {
+        scenario: Option<PathBuf>,
+        /// Output directory (VTU snapshots, globals.csv).
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
+        /// Worker threads (overrides simulation.threads).
+        #[arg(long)]
+        threads: Option<usize>,
+        #[arg(long)]
+        quiet: bool,
+    },
+    /// Check a scenario and print its memory plan without running it.
+    Check { scenario: PathBuf },
+    /// Run the verification suite against closed-form and experimental references.
+    Verify {
+        /// Reduced resolution (looser tolerances, marked in the table).
+        #[arg(long)]
+        quick: bool,
+        #[arg(long)]
+        json: bool,
+        /// Only cases whose name contains this text.
+        #[arg(long)]
+        case: Option<String>,
+        #[arg(long)]
+        threads: Option<usize>,
+    },
+    /// Throughput of the peer benchmark scene (3D J-fluid dam break).
+    Bench {
+        #[arg(long, default_value_t = 262_144)]
+        particles: usize,
+        #[arg(long, default_value_t = 64)]
+        grid: usize,
+        #[arg(long, default_value_t = 30)]
+        steps: usize,
+        #[arg(long, default_value_t = 3)]
+        repeats: usize,
+        #[arg(long)]
+        threads: Option<usize>,
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+const DEFAULT_SCENARIO: &str = include_str!("../fixtures/scenarios/default.toml");
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result: Result<bool, String> = match cli.cmd {
+        Cmd::Run { scenario, out, threads, quiet } => (|| {
+            let sc = match &scenario {
+                Some(p) => Scenario::load(p).map_err(|e| e.to_string())?,
+                None => Scenario::parse(DEFAULT_SCENARIO).map_err(|e| e.to_string())?,
+            };
+            run_scenario(&sc, &RunOptions { out, threads, quiet }).map_err(|e| e.to_string())?;
+            Ok(true)
+        })(),
+        Cmd::Check { scenario } => (|| {
+            let sc = Scenario::load(&scenario).map_err(|e| e.to_string())?;
+            let sim = strand::solver::Simulation::new(&sc).map_err(|e| e.to_string())?;
+            let (dt, lim) = sim.choose_dt(f64::INFINITY);
+            println!("{}: {} particles\nmemory plan:\n{}\ntime step {dt:.3e} s ({lim:?})", sc.name, sim.particles.n, sim.memory);
+            Ok(true)
+        })(),
+        Cmd::Verify { quick, json, case, threads } => strand::verify::run_suite(quick, json, case.as_deref(), threads),
+        Cmd::Bench { particles, grid, steps, repeats, threads, json } => {
+            strand::bench::run_bench(particles, grid, steps, repeats, threads, json).map(|_| true)
+        }
+    };
+    match result {
+        Ok(true) => ExitCode::SUCCESS,
+        Ok(false) => ExitCode::from(1),
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::from(2)
+        }
+    }
+}

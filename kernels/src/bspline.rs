@@ -5,7 +5,7 @@
 //! [0.5, 1.5). The weights of the three nodes along one axis are
 //! `0.5 (1.5 - fx)^2`, `0.75 - (fx - 1)^2`, `0.5 (fx - 0.5)^2`.
 
-use crate::real::{r, Real, V3};
+use crate::real::{r, V3};
 
 /// Stencil base node and the fractional offset of the particle from it.
 #[inline(always)]
@@ -41,6 +41,7 @@ pub fn weight_sum(w: &[V3; 3]) -> V3 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::real::Real;
     use proptest::prelude::*;
 
     proptest! {

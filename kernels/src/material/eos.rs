@@ -50,3 +50,64 @@ impl Eos {
         }
     }
 }
+
+impl Eos {
+    /// Rejects parameter values that make the pressure meaningless; `key` is the table path used
+    /// in the message (e.g. "material.eos").
+    pub fn validate(&self, key: &str) -> Result<(), String> {
+        match *self {
+            Eos::Linear => Ok(()),
+            Eos::Tait { gamma } => {
+                if gamma.is_finite() && gamma > 0.0 {
+                    Ok(())
+                } else {
+                    Err(format!("{key}.gamma must be > 0, got {gamma}"))
+                }
+            }
+        }
+    }
+}
+
+/// Shear modulus from `shear_modulus` (G) or, failing that, `poisson_ratio` (nu) with the
+/// reference bulk modulus K: G = 3 K (1 - 2 nu) / (2 (1 + nu)) (paper 001 eq. 18). NaN when
+/// neither is given; [`resolve_shear_modulus`] is the validating form.
+#[inline]
+pub fn shear_modulus_of(bulk_modulus: f64, shear_modulus: Option<f64>, poisson_ratio: Option<f64>) -> f64 {
+    match (shear_modulus, poisson_ratio) {
+        (Some(g), _) => g,
+        (None, Some(nu)) => 3.0 * bulk_modulus * (1.0 - 2.0 * nu) / (2.0 * (1.0 + nu)),
+        (None, None) => f64::NAN,
+    }
+}
+
+/// Shear modulus of a material whose scenario gives exactly one of `shear_modulus` (G) and
+/// `poisson_ratio` (nu); with nu, G = 3 K (1 - 2 nu) / (2 (1 + nu)) from the reference bulk modulus
+/// K (paper 001 eq. 18). Errors name the keys under `key` (e.g. "material").
+pub fn resolve_shear_modulus(
+    key: &str,
+    bulk_modulus: f64,
+    shear_modulus: Option<f64>,
+    poisson_ratio: Option<f64>,
+) -> Result<f64, String> {
+    match (shear_modulus, poisson_ratio) {
+        (Some(g), None) => {
+            if g.is_finite() && g > 0.0 {
+                Ok(g)
+            } else {
+                Err(format!("{key}.shear_modulus must be > 0, got {g}"))
+            }
+        }
+        (None, Some(nu)) => {
+            // nu -> 0.5 is the incompressible limit G -> 0, which has no elastic shear response.
+            if nu.is_finite() && nu > -1.0 && nu < 0.5 {
+                Ok(shear_modulus_of(bulk_modulus, None, Some(nu)))
+            } else {
+                Err(format!("{key}.poisson_ratio must be in (-1, 0.5), got {nu}"))
+            }
+        }
+        (Some(_), Some(_)) => Err(format!(
+            "{key}: give either shear_modulus or poisson_ratio, not both"
+        )),
+        (None, None) => Err(format!("{key}: one of shear_modulus or poisson_ratio is required")),
+    }
+}

@@ -1,0 +1,126 @@
+//! The particle pool: structure of arrays with a fixed capacity, every array in its own mapped
+//! pool. Positions are stored in grid coordinates (x - origin) / dx, which keeps f32 builds
+//! accurate far from the origin and saves the kernels a multiply.
+
+use crate::kernels::{Real, M3, V3};
+use crate::memory::{Backing, MemoryError, MemoryPlan, Pool};
+
+pub struct Particles {
+    /// Live particles: indices `0..n`.
+    pub n: usize,
+    /// Internal state reals per particle (the material's `state_names().len()`).
+    pub state_len: usize,
+    /// Grid-coordinate position.
+    pub xg: Pool<V3>,
+    /// Velocity [m/s].
+    pub v: Pool<V3>,
+    /// Affine velocity / velocity gradient (APIC C, MLS-MPM L) [1/s].
+    pub c: Pool<M3>,
+    /// Cauchy stress [Pa], produced by the material for the next P2G.
+    pub stress: Pool<M3>,
+    /// Volume ratio V / V0.
+    pub j: Pool<Real>,
+    /// Mass [kg].
+    pub mass: Pool<Real>,
+    /// Initial volume [m3].
+    pub vol0: Pool<Real>,
+    /// Stable identity (creation order), kept through reordering.
+    pub id: Pool<u32>,
+    /// Material internal state, `state_len` reals per particle.
+    pub state: Pool<Real>,
+}
+
+impl Particles {
+    pub fn plan(plan: &mut MemoryPlan, cap: usize, state_len: usize) {
+        plan.add::<V3>("particles.x", cap);
+        plan.add::<V3>("particles.v", cap);
+        plan.add::<M3>("particles.C", cap);
+        plan.add::<M3>("particles.stress", cap);
+        plan.add::<Real>("particles.J", cap);
+        plan.add::<Real>("particles.mass", cap);
+        plan.add::<Real>("particles.vol0", cap);
+        plan.add::<u32>("particles.id", cap);
+        plan.add::<Real>("particles.state", cap * state_len);
+    }
+
+    pub fn new(cap: usize, state_len: usize, backing: &Backing) -> Result<Self, MemoryError> {
+        Ok(Particles {
+            n: 0,
+            state_len,
+            xg: Pool::new("particles.x", cap, backing)?,
+            v: Pool::new("particles.v", cap, backing)?,
+            c: Pool::new("particles.C", cap, backing)?,
+            stress: Pool::new("particles.stress", cap, backing)?,
+            j: Pool::new("particles.J", cap, backing)?,
+            mass: Pool::new("particles.mass", cap, backing)?,
+            vol0: Pool::new("particles.vol0", cap, backing)?,
+            id: Pool::new("particles.id", cap, backing)?,
+            state: Pool::new("particles.state", cap * state_len, backing)?,
+        })
+    }
+
+    pub fn capacity(&self) -> usize {
+        self.xg.len()
+    }
+
+    /// Append one particle at rest-state; fails (naming the pool) when the pool is full.
+    pub fn push(&mut self, xg: V3, v: V3, mass: Real, vol0: Real) -> Result<usize, MemoryError> {
+        let i = self.n;
+        if i >= self.capacity() {
+            return Err(MemoryError::PoolFull {
+                pool: "particles",
+                needed: i + 1,
+                capacity: self.capacity(),
+                hint: "[memory] max_particles",
+            });
+        }
+        self.xg.as_mut_slice()[i] = xg;
+        self.v.as_mut_slice()[i] = v;
+        self.c.as_mut_slice()[i] = M3::ZERO;
+        self.stress.as_mut_slice()[i] = M3::ZERO;
+        self.j.as_mut_slice()[i] = 1.0;
+        self.mass.as_mut_slice()[i] = mass;
+        self.vol0.as_mut_slice()[i] = vol0;
+        self.id.as_mut_slice()[i] = i as u32;
+        self.n += 1;
+        Ok(i)
+    }
+
+    /// Reorder particles `0..n` so that new index k holds old particle `order[k]`; `scratch`
+    /// must hold at least `n * max(size_of::<M3>(), state_len * size_of::<Real>())` bytes.
+    pub fn permute(&mut self, order: &[u32], scratch: &mut [u8]) {
+        let n = self.n;
+        let s = self.state_len;
+        permute_pod(&mut self.xg.as_mut_slice()[..n], order, scratch);
+        permute_pod(&mut self.v.as_mut_slice()[..n], order, scratch);
+        permute_pod(&mut self.c.as_mut_slice()[..n], order, scratch);
+        permute_pod(&mut self.stress.as_mut_slice()[..n], order, scratch);
+        permute_pod(&mut self.j.as_mut_slice()[..n], order, scratch);
+        permute_pod(&mut self.mass.as_mut_slice()[..n], order, scratch);
+        permute_pod(&mut self.vol0.as_mut_slice()[..n], order, scratch);
+        permute_pod(&mut self.id.as_mut_slice()[..n], order, scratch);
+        if s > 0 {
+            let tmp: &mut [Real] = bytemuck::cast_slice_mut(&mut scratch[..n * s * std::mem::size_of::<Real>()]);
+            let st = &mut self.state.as_mut_slice()[..n * s];
+            for (k, &o) in order[..n].iter().enumerate() {
+                let o = o as usize;
+                tmp[k * s..(k + 1) * s].copy_from_slice(&st[o * s..(o + 1) * s]);
+            }
+            st.copy_from_slice(tmp);
+        }
+    }
+
+    /// Bytes of scratch `permute` needs for `cap` particles.
+    pub fn permute_scratch_bytes(cap: usize, state_len: usize) -> usize {
+        cap * std::mem::size_of::<M3>().max(state_len * std::mem::size_of::<Real>())
+    }
+}
+
+fn permute_pod<T: bytemuck::Pod>(data: &mut [T], order: &[u32], scratch: &mut [u8]) {
+    let n = data.len();
+    let tmp: &mut [T] = bytemuck::cast_slice_mut(&mut scratch[..n * std::mem::size_of::<T>()]);
+    for (k, &o) in order[..n].iter().enumerate() {
+        tmp[k] = data[o as usize];
+    }
+    data.copy_from_slice(tmp);
+}

@@ -1,0 +1,368 @@
+//! Scenario files (TOML). Every table rejects unknown keys, and `validate` checks values, so a
+//! typo or a bad number is an error that names the key before anything runs.
+
+use crate::kernels::boundary::WallKind;
+use crate::memory::parse_size;
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scenario {
+    #[serde(default)]
+    pub name: String,
+    pub simulation: Simulation,
+    pub domain: Domain,
+    #[serde(default)]
+    pub boundary: Boundary,
+    /// The material table: `kind = "<registry name>"` plus that material's parameters.
+    pub material: toml::Table,
+    #[serde(default, rename = "body")]
+    pub bodies: Vec<Body>,
+    #[serde(default)]
+    pub output: Output,
+    pub memory: Memory,
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Simulation {
+    /// Grid spacing [m].
+    pub dx: f64,
+    /// Simulated time to reach [s].
+    pub end_time: f64,
+    /// Fixed time step [s]; automatic (CFL) when absent.
+    #[serde(default)]
+    pub dt: Option<f64>,
+    /// Courant number of the automatic step.
+    #[serde(default = "default_cfl")]
+    pub cfl: f64,
+    /// Largest step the automatic control may take [s].
+    #[serde(default)]
+    pub max_dt: Option<f64>,
+    /// Gravitational acceleration [m/s2].
+    #[serde(default = "default_gravity")]
+    pub gravity: [f64; 3],
+    /// Extra body force per unit volume [N/m3] (e.g. a pressure gradient driving a channel).
+    #[serde(default)]
+    pub body_force: [f64; 3],
+    /// Worker threads; 0 = all cores.
+    #[serde(default)]
+    pub threads: usize,
+    /// Physically reorder particles by block every this many steps (between reorders they are
+    /// visited through an index permutation).
+    #[serde(default = "default_reorder")]
+    pub reorder_interval: u64,
+}
+
+fn default_cfl() -> f64 {
+    0.3
+}
+fn default_gravity() -> [f64; 3] {
+    [0.0, 0.0, -9.81]
+}
+fn default_reorder() -> u64 {
+    16
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Domain {
+    /// Lower corner of the region material may occupy [m].
+    pub min: [f64; 3],
+    /// Upper corner [m].
+    pub max: [f64; 3],
+    /// Periodic axes (x, y, z): material leaving one side enters the other; no walls there.
+    #[serde(default)]
+    pub periodic: [bool; 3],
+}
+
+/// Wall conditions on the six faces of the domain and an optional printing platform.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Boundary {
+    #[serde(default = "default_wall")]
+    pub x_min: WallKind,
+    #[serde(default = "default_wall")]
+    pub x_max: WallKind,
+    #[serde(default = "default_wall")]
+    pub y_min: WallKind,
+    #[serde(default = "default_wall")]
+    pub y_max: WallKind,
+    #[serde(default = "default_floor")]
+    pub z_min: WallKind,
+    #[serde(default = "default_wall")]
+    pub z_max: WallKind,
+    #[serde(default)]
+    pub platform: Option<Platform>,
+}
+
+fn default_wall() -> WallKind {
+    WallKind::FreeSlip
+}
+fn default_floor() -> WallKind {
+    WallKind::NoSlip
+}
+
+impl Default for Boundary {
+    fn default() -> Self {
+        Boundary {
+            x_min: default_wall(),
+            x_max: default_wall(),
+            y_min: default_wall(),
+            y_max: default_wall(),
+            z_min: default_floor(),
+            z_max: default_wall(),
+            platform: None,
+        }
+    }
+}
+
+/// A horizontal printing platform: the top face of the box `xy_min..xy_max` at height `z`.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Platform {
+    pub z: f64,
+    pub xy_min: [f64; 2],
+    pub xy_max: [f64; 2],
+    #[serde(default = "default_floor")]
+    pub kind: WallKind,
+}
+
+/// Initial material: a shape filled with particles on a regular lattice of
+/// `particles_per_cell_axis^3` particles per cell, moving at `velocity`.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(tag = "shape", rename_all = "snake_case", deny_unknown_fields)]
+pub enum Body {
+    Box {
+        min: [f64; 3],
+        max: [f64; 3],
+        #[serde(default = "default_ppc")]
+        particles_per_cell_axis: u32,
+        #[serde(default)]
+        velocity: [f64; 3],
+    },
+    /// A vertical frustum (z up) standing on `base_center`: a cylinder when the radii agree, a
+    /// slump cone otherwise.
+    Frustum {
+        base_center: [f64; 3],
+        bottom_radius: f64,
+        top_radius: f64,
+        height: f64,
+        #[serde(default = "default_ppc")]
+        particles_per_cell_axis: u32,
+        #[serde(default)]
+        velocity: [f64; 3],
+    },
+}
+
+fn default_ppc() -> u32 {
+    2
+}
+
+impl Body {
+    pub fn particles_per_cell_axis(&self) -> u32 {
+        match self {
+            Body::Box { particles_per_cell_axis, .. } | Body::Frustum { particles_per_cell_axis, .. } => {
+                *particles_per_cell_axis
+            }
+        }
+    }
+    pub fn velocity(&self) -> [f64; 3] {
+        match self {
+            Body::Box { velocity, .. } | Body::Frustum { velocity, .. } => *velocity,
+        }
+    }
+    /// Bounding box of the shape.
+    pub fn bounds(&self) -> ([f64; 3], [f64; 3]) {
+        match self {
+            Body::Box { min, max, .. } => (*min, *max),
+            Body::Frustum { base_center: c, bottom_radius, top_radius, height, .. } => {
+                let r = bottom_radius.max(*top_radius);
+                ([c[0] - r, c[1] - r, c[2]], [c[0] + r, c[1] + r, c[2] + height])
+            }
+        }
+    }
+    /// Whether a point lies inside the shape.
+    pub fn contains(&self, p: [f64; 3]) -> bool {
+        match self {
+            Body::Box { min, max, .. } => (0..3).all(|a| p[a] >= min[a] && p[a] < max[a]),
+            Body::Frustum { base_center: c, bottom_radius, top_radius, height, .. } => {
+                let h = p[2] - c[2];
+                if !(0.0..*height).contains(&h) {
+                    return false;
+                }
+                let r = bottom_radius + (top_radius - bottom_radius) * h / height;
+                let (dx, dy) = (p[0] - c[0], p[1] - c[1]);
+                dx * dx + dy * dy < r * r
+            }
+        }
+    }
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Output {
+    /// Simulated time between outputs [s].
+    #[serde(default = "default_interval")]
+    pub interval: f64,
+    /// Write VTU particle snapshots.
+    #[serde(default = "default_true")]
+    pub vtu: bool,
+}
+
+fn default_interval() -> f64 {
+    0.1
+}
+fn default_true() -> bool {
+    true
+}
+
+impl Default for Output {
+    fn default() -> Self {
+        Output { interval: default_interval(), vtu: true }
+    }
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Memory {
+    /// Memory budget for every pool, e.g. "2 GiB".
+    pub budget: String,
+    /// Back pools with files in this directory instead of anonymous memory.
+    #[serde(default)]
+    pub dir: Option<PathBuf>,
+    /// Particle capacity; default: the initial particle count.
+    #[serde(default)]
+    pub max_particles: Option<usize>,
+    /// Grid block capacity; default: every block of the domain.
+    #[serde(default)]
+    pub max_blocks: Option<usize>,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum ScenarioError {
+    #[error("cannot read scenario {path}: {source}")]
+    Io { path: PathBuf, source: std::io::Error },
+    #[error("scenario {path}: {message}")]
+    Parse { path: PathBuf, message: String },
+    #[error("scenario: {0}")]
+    Invalid(String),
+}
+
+impl Scenario {
+    pub fn load(path: &Path) -> Result<Scenario, ScenarioError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Io { path: path.into(), source })?;
+        let sc = Scenario::parse(&text).map_err(|e| match e {
+            ScenarioError::Parse { message, .. } => ScenarioError::Parse { path: path.into(), message },
+            other => other,
+        })?;
+        Ok(sc)
+    }
+
+    pub fn parse(text: &str) -> Result<Scenario, ScenarioError> {
+        let sc: Scenario =
+            toml::from_str(text).map_err(|e| ScenarioError::Parse { path: PathBuf::from("<text>"), message: e.to_string() })?;
+        sc.validate()?;
+        Ok(sc)
+    }
+
+    /// Value checks serde cannot express; each message names the key.
+    pub fn validate(&self) -> Result<(), ScenarioError> {
+        let bad = |m: String| Err(ScenarioError::Invalid(m));
+        let s = &self.simulation;
+        if !(s.dx > 0.0 && s.dx.is_finite()) {
+            return bad(format!("simulation.dx must be a positive length, got {}", s.dx));
+        }
+        if !(s.end_time >= 0.0 && s.end_time.is_finite()) {
+            return bad(format!("simulation.end_time must be >= 0, got {}", s.end_time));
+        }
+        if let Some(dt) = s.dt {
+            if !(dt > 0.0 && dt.is_finite()) {
+                return bad(format!("simulation.dt must be > 0, got {dt}"));
+            }
+        }
+        if !(s.cfl > 0.0 && s.cfl <= 1.0) {
+            return bad(format!("simulation.cfl must be in (0, 1], got {}", s.cfl));
+        }
+        if s.reorder_interval == 0 {
+            return bad("simulation.reorder_interval must be >= 1".into());
+        }
+        if s.gravity.iter().chain(s.body_force.iter()).any(|g| !g.is_finite()) {
+            return bad("simulation.gravity and simulation.body_force must be finite".into());
+        }
+        let d = &self.domain;
+        for a in 0..3 {
+            if !(d.max[a] > d.min[a]) {
+                return bad(format!("domain.max[{a}] ({}) must exceed domain.min[{a}] ({})", d.max[a], d.min[a]));
+            }
+            if d.periodic[a] {
+                let cells = (d.max[a] - d.min[a]) / s.dx;
+                let n = cells.round();
+                if (cells - n).abs() > 1e-6 * n.max(1.0) || (n as u64) % 4 != 0 {
+                    return bad(format!(
+                        "domain: periodic axis {a} must span a multiple of 4 cells (got {cells} cells of dx = {})",
+                        s.dx
+                    ));
+                }
+                let blocks = n as u64 / 4;
+                if blocks != 1 && blocks % 2 != 0 {
+                    return bad(format!(
+                        "domain: periodic axis {a} spans {blocks} blocks of 4 cells; it must be 1 or an even number"
+                    ));
+                }
+            }
+        }
+        for (k, w) in [
+            ("x_min", self.boundary.x_min),
+            ("x_max", self.boundary.x_max),
+            ("y_min", self.boundary.y_min),
+            ("y_max", self.boundary.y_max),
+            ("z_min", self.boundary.z_min),
+            ("z_max", self.boundary.z_max),
+        ] {
+            if let WallKind::Friction { mu } = w {
+                if !(mu >= 0.0 && mu.is_finite()) {
+                    return bad(format!("boundary.{k}.friction.mu must be >= 0, got {mu}"));
+                }
+            }
+        }
+        if let Some(p) = &self.boundary.platform {
+            if !(p.xy_max[0] > p.xy_min[0] && p.xy_max[1] > p.xy_min[1]) {
+                return bad("boundary.platform.xy_max must exceed xy_min".into());
+            }
+        }
+        for (i, b) in self.bodies.iter().enumerate() {
+            let ppc = b.particles_per_cell_axis();
+            if ppc == 0 || ppc > 4 {
+                return bad(format!("body[{i}].particles_per_cell_axis must be 1..=4, got {ppc}"));
+            }
+            match b {
+                Body::Box { min, max, .. } => {
+                    if (0..3).any(|a| !(max[a] > min[a])) {
+                        return bad(format!("body[{i}]: box max must exceed min on every axis"));
+                    }
+                }
+                Body::Frustum { bottom_radius, top_radius, height, .. } => {
+                    if !(*bottom_radius > 0.0 && *top_radius >= 0.0 && *height > 0.0) {
+                        return bad(format!("body[{i}]: frustum radii must be >= 0 (bottom > 0) and height > 0"));
+                    }
+                }
+            }
+            let (lo, hi) = b.bounds();
+            for a in 0..3 {
+                if lo[a] < self.domain.min[a] - 1e-12 || hi[a] > self.domain.max[a] + 1e-12 {
+                    return bad(format!("body[{i}] reaches outside the domain on axis {a}"));
+                }
+            }
+        }
+        if !(self.output.interval > 0.0) {
+            return bad(format!("output.interval must be > 0, got {}", self.output.interval));
+        }
+        parse_size(&self.memory.budget).map_err(|e| ScenarioError::Invalid(format!("memory.budget: {e}")))?;
+        if !self.material.contains_key("kind") {
+            return bad("material.kind is missing (one of: newtonian, bingham, papanastasiou_roussel, evp_bingham, drucker_prager)".into());
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,716 @@
+//! The MLS-MPM step (paper 000 eqs. 8-17):
+//!
+//! ```text
+//! bin particles by block ─▶ clear grid ─▶ P2G (8 colours) ─▶ grid update ─▶ G2P ─▶ materials
+//! ```
+//!
+//! Every buffer is a mapped pool sized at start-up; the step allocates nothing. P2G runs the 8
+//! block colours one after the other: blocks of one colour never write the same nodes, so
+//! threads add into the grid without atomics, and each node receives its sums in the same order
+//! whatever the thread count, which makes runs bit-identical for any number of threads.
+
+use crate::grid::{Grid, GridGeom, NODES_PER_BLOCK, PAD};
+use crate::kernels::boundary::{apply_wall, WallKind};
+use crate::kernels::material::Material;
+use crate::kernels::transfer::{g2p_block, local_index, p2g_block, G2pOutput, Node, P2gInput, TransferParams, BS, LN, LNODES};
+use crate::kernels::{Real, M3, V3};
+use crate::materials::build_material;
+use crate::memory::{parse_size, Backing, MemoryError, MemoryPlan, Pool};
+use crate::particles::Particles;
+use crate::scenario::{Body, Scenario};
+use crate::threads::{SharedSlice, ThreadTeam};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+pub const MAX_THREADS: usize = 64;
+
+#[derive(Debug, thiserror::Error)]
+pub enum SimError {
+    #[error(transparent)]
+    Memory(#[from] MemoryError),
+    #[error("{0}")]
+    Setup(String),
+    #[error("blow-up at step {step} (t = {time:.6e} s): particle {index} (id {id}) has {field} = {value}; \
+             try a smaller simulation.cfl or simulation.dt")]
+    BlowUp { step: u64, time: f64, index: usize, id: u32, field: &'static str, value: String },
+}
+
+/// Which bound set the time step.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DtLimit {
+    Fixed,
+    Wave,
+    Viscous,
+    MaxDt,
+    /// Shortened to land exactly on an output time or the end.
+    Schedule,
+}
+
+/// Buffers the binning and the parallel phases share.
+struct Scratch {
+    /// Slot of each particle's block.
+    pslot: Pool<u32>,
+    /// Particle indices grouped by particle block (a stable counting sort).
+    order: Pool<u32>,
+    /// First `order` entry of each particle block; `n_particle_blocks + 1` entries used.
+    slot_start: Pool<u32>,
+    cursor: Pool<u32>,
+    /// Slots of the 2x2x2 block neighbourhood of each particle block.
+    nbr: Pool<[u32; 8]>,
+    /// Particle blocks grouped by colour, and the running particle count before each.
+    colour_blocks: Pool<u32>,
+    colour_cum: Pool<u32>,
+    colour_start: [usize; 9],
+    permute: Pool<u8>,
+}
+
+impl Scratch {
+    fn plan(plan: &mut MemoryPlan, cap: usize, max_blocks: usize, state_len: usize) {
+        plan.add::<u32>("scratch.pslot", cap);
+        plan.add::<u32>("scratch.order", cap);
+        plan.add::<u32>("scratch.slot_start", max_blocks + 1);
+        plan.add::<u32>("scratch.cursor", max_blocks);
+        plan.add::<[u32; 8]>("scratch.neighbours", max_blocks);
+        plan.add::<u32>("scratch.colour_blocks", max_blocks);
+        plan.add::<u32>("scratch.colour_cum", max_blocks);
+        plan.add::<u8>("scratch.permute", Particles::permute_scratch_bytes(cap, state_len));
+    }
+    fn new(cap: usize, max_blocks: usize, state_len: usize, b: &Backing) -> Result<Self, MemoryError> {
+        Ok(Scratch {
+            pslot: Pool::new("scratch.pslot", cap, b)?,
+            order: Pool::new("scratch.order", cap, b)?,
+            slot_start: Pool::new("scratch.slot_start", max_blocks + 1, b)?,
+            cursor: Pool::new("scratch.cursor", max_blocks, b)?,
+            nbr: Pool::new("scratch.neighbours", max_blocks, b)?,
+            colour_blocks: Pool::new("scratch.colour_blocks", max_blocks, b)?,
+            colour_cum: Pool::new("scratch.colour_cum", max_blocks, b)?,
+            colour_start: [0; 9],
+            permute: Pool::new("scratch.permute", Particles::permute_scratch_bytes(cap, state_len), b)?,
+        })
+    }
+}
+
+/// Wall conditions resolved for the grid update.
+#[derive(Clone, Debug)]
+struct Walls {
+    /// [axis][0 = min side, 1 = max side]
+    faces: [[WallKind; 2]; 3],
+    /// Platform: grid-coordinate top z, xy extent in grid coordinates, kind.
+    platform: Option<(Real, [Real; 4], WallKind)>,
+}
+
+pub struct Simulation {
+    pub scenario: Scenario,
+    pub material: Box<dyn Material>,
+    pub particles: Particles,
+    pub grid: Grid,
+    scratch: Scratch,
+    team: ThreadTeam,
+    walls: Walls,
+    /// Gravity plus body force per unit mass.
+    accel: V3,
+    pub time: f64,
+    pub step: u64,
+    /// Largest particle speed after the last G2P.
+    pub vmax: f64,
+    pub last_dt: f64,
+    pub last_limit: DtLimit,
+    pub memory: MemoryPlan,
+    pub budget: u64,
+    thread_out: [AtomicU64; MAX_THREADS],
+}
+
+impl Simulation {
+    /// Size every pool from the scenario, check the budget, map the pools and create the
+    /// initial particles.
+    pub fn new(scenario: &Scenario) -> Result<Self, SimError> {
+        scenario.validate().map_err(|e| SimError::Setup(e.to_string()))?;
+        let material = build_material(&scenario.material).map_err(SimError::Setup)?;
+        let geom = GridGeom::new(scenario);
+        let state_len = material.state_names().len();
+
+        let initial = count_body_particles(scenario);
+        let cap = scenario.memory.max_particles.unwrap_or(initial).max(1);
+        if initial > cap {
+            return Err(MemoryError::PoolFull {
+                pool: "particles",
+                needed: initial,
+                capacity: cap,
+                hint: "[memory] max_particles",
+            }
+            .into());
+        }
+        let max_blocks = scenario.memory.max_blocks.unwrap_or(geom.table_len()).max(8);
+        let budget = parse_size(&scenario.memory.budget)?;
+        let mut memory = MemoryPlan::default();
+        Particles::plan(&mut memory, cap, state_len);
+        Grid::plan(&mut memory, &geom, max_blocks);
+        Scratch::plan(&mut memory, cap, max_blocks, state_len);
+        memory.check(budget)?;
+
+        let backing = Backing { dir: scenario.memory.dir.clone() };
+        if let Some(d) = &backing.dir {
+            std::fs::create_dir_all(d)
+                .map_err(|e| SimError::Setup(format!("memory.dir {}: {e}", d.display())))?;
+        }
+        let particles = Particles::new(cap, state_len, &backing)?;
+        let grid = Grid::new(geom, max_blocks, &backing)?;
+        let scratch = Scratch::new(cap, max_blocks, state_len, &backing)?;
+
+        let threads = match scenario.simulation.threads {
+            0 => std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1),
+            t => t,
+        }
+        .min(MAX_THREADS);
+
+        let s = &scenario.simulation;
+        let rho = material.density() as f64;
+        let accel = V3::new(
+            (s.gravity[0] + s.body_force[0] / rho) as Real,
+            (s.gravity[1] + s.body_force[1] / rho) as Real,
+            (s.gravity[2] + s.body_force[2] / rho) as Real,
+        );
+        let b = &scenario.boundary;
+        let walls = Walls {
+            faces: [[b.x_min, b.x_max], [b.y_min, b.y_max], [b.z_min, b.z_max]],
+            platform: b.platform.as_ref().map(|p| {
+                let g = &grid.geom;
+                let lo = g.to_grid([p.xy_min[0], p.xy_min[1], p.z]);
+                let hi = g.to_grid([p.xy_max[0], p.xy_max[1], p.z]);
+                (lo.z, [lo.x, lo.y, hi.x, hi.y], p.kind)
+            }),
+        };
+
+        let mut sim = Simulation {
+            scenario: scenario.clone(),
+            material,
+            particles,
+            grid,
+            scratch,
+            team: ThreadTeam::new(threads),
+            walls,
+            accel,
+            time: 0.0,
+            step: 0,
+            vmax: 0.0,
+            last_dt: 0.0,
+            last_limit: DtLimit::Fixed,
+            memory,
+            budget,
+            thread_out: std::array::from_fn(|_| AtomicU64::new(0)),
+        };
+        for body in &scenario.bodies {
+            sim.add_body(body)?;
+        }
+        sim.vmax = sim.particles.v.as_slice()[..sim.particles.n].iter().map(|v| v.length() as f64).fold(0.0, f64::max);
+        Ok(sim)
+    }
+
+    pub fn threads(&self) -> usize {
+        self.team.threads()
+    }
+
+    /// Fill a body with particles on a lattice of `ppc^3` points per cell.
+    fn add_body(&mut self, body: &Body) -> Result<(), SimError> {
+        let dx = self.scenario.simulation.dx;
+        let ppc = body.particles_per_cell_axis();
+        let vol = (dx / ppc as f64).powi(3);
+        let vel = body.velocity();
+        let mut err = None;
+        let sc = self.scenario.clone();
+        for_each_lattice_point(&sc, body, |p| {
+            if err.is_none() {
+                err = self.add_particle(p, vel, vol).err();
+            }
+        });
+        err.map_or(Ok(()), Err)
+    }
+
+    /// Add one particle at world position `x` with velocity `v` and initial volume `vol0`.
+    pub fn add_particle(&mut self, x: [f64; 3], v: [f64; 3], vol0: f64) -> Result<usize, SimError> {
+        let xg = self.grid.geom.to_grid(x);
+        let rho = self.material.density() as f64;
+        let i = self.particles.push(xg, V3::new(v[0] as Real, v[1] as Real, v[2] as Real), (rho * vol0) as Real, vol0 as Real)?;
+        let s = self.particles.state_len;
+        self.material.init_state(&mut self.particles.state.as_mut_slice()[i * s..(i + 1) * s]);
+        Ok(i)
+    }
+
+    /// The time step for the next step and the bound that set it.
+    pub fn choose_dt(&self, until: f64) -> (f64, DtLimit) {
+        let s = &self.scenario.simulation;
+        let (mut dt, mut limit) = match s.dt {
+            Some(dt) => (dt, DtLimit::Fixed),
+            None => {
+                let st = self.material.stability();
+                let rho = st.density as f64;
+                let c = ((st.bulk_modulus as f64 + 4.0 / 3.0 * st.shear_modulus as f64) / rho).sqrt();
+                let dt_wave = s.cfl * s.dx / (c + self.vmax);
+                let dt_visc = if st.max_viscosity > 0.0 {
+                    s.cfl * rho * s.dx * s.dx / (2.0 * st.max_viscosity as f64)
+                } else {
+                    f64::INFINITY
+                };
+                let mut best = if dt_visc < dt_wave { (dt_visc, DtLimit::Viscous) } else { (dt_wave, DtLimit::Wave) };
+                if let Some(m) = s.max_dt {
+                    if m < best.0 {
+                        best = (m, DtLimit::MaxDt);
+                    }
+                }
+                best
+            }
+        };
+        let left = until - self.time;
+        if left <= dt * (1.0 + 1e-9) {
+            dt = left;
+            limit = DtLimit::Schedule;
+        }
+        (dt, limit)
+    }
+
+    /// Advance by one step, not going past time `until`.
+    pub fn step_until(&mut self, until: f64) -> Result<(), SimError> {
+        let (dt, limit) = self.choose_dt(until);
+        self.advance(dt)?;
+        self.last_dt = dt;
+        self.last_limit = limit;
+        Ok(())
+    }
+
+    /// One MLS-MPM step of length `dt`.
+    pub fn advance(&mut self, dt: f64) -> Result<(), SimError> {
+        self.bin_particles()?;
+        if self.step % self.scenario.simulation.reorder_interval == 0 {
+            self.reorder_particles();
+        }
+        self.clear_grid();
+        self.p2g(dt as Real);
+        self.grid_update(dt as Real);
+        self.g2p(dt as Real);
+        self.update_materials(dt as Real)?;
+        self.step += 1;
+        self.time += dt;
+        Ok(())
+    }
+
+    /// Bin particles by the block of their stencil base, activate each particle block's 2x2x2
+    /// neighbourhood, and group particle blocks by colour. Serial: it is a few operations per
+    /// particle, and doing it in one order makes slot numbering deterministic.
+    fn bin_particles(&mut self) -> Result<(), SimError> {
+        let n = self.particles.n;
+        let grid = &mut self.grid;
+        let sc = &mut self.scratch;
+        grid.reset();
+        let xg = self.particles.xg.as_slice();
+        let pslot = sc.pslot.as_mut_slice();
+        let count = sc.cursor.as_mut_slice();
+        let mut last_key = u32::MAX;
+        let mut last_slot = 0u32;
+        for p in 0..n {
+            let key = grid.geom.block_index(grid.geom.particle_block(xg[p]));
+            if key != last_key {
+                let before = grid.n_active;
+                last_slot = grid.activate(key)?;
+                if grid.n_active > before {
+                    count[last_slot as usize] = 0;
+                }
+                last_key = key;
+            }
+            count[last_slot as usize] += 1;
+            pslot[p] = last_slot;
+        }
+        let npb = grid.n_active;
+        grid.n_particle_blocks = npb;
+
+        // neighbourhoods and colours
+        let mut per_colour = [0usize; 8];
+        for s in 0..npb {
+            let b = grid.geom.block_coords(grid.slot_block.as_slice()[s]);
+            let mut nb = [0u32; 8];
+            for (d, slot) in nb.iter_mut().enumerate() {
+                let o = [(d >> 2) as i32 & 1, (d >> 1) as i32 & 1, d as i32 & 1];
+                let w = grid.geom.wrap_block([b[0] + o[0], b[1] + o[1], b[2] + o[2]]);
+                *slot = grid.activate(grid.geom.block_index(w))?;
+            }
+            sc.nbr.as_mut_slice()[s] = nb;
+            per_colour[colour(b)] += 1;
+        }
+        let mut cs = [0usize; 9];
+        for c in 0..8 {
+            cs[c + 1] = cs[c] + per_colour[c];
+        }
+        sc.colour_start = cs;
+
+        // counting sort of particles by slot (stable)
+        let starts = sc.slot_start.as_mut_slice();
+        let mut acc = 0u32;
+        for s in 0..npb {
+            let c = count[s];
+            starts[s] = acc;
+            count[s] = acc; // becomes the write cursor
+            acc += c;
+        }
+        starts[npb] = acc;
+        let order = sc.order.as_mut_slice();
+        for p in 0..n {
+            let s = pslot[p] as usize;
+            order[count[s] as usize] = p as u32;
+            count[s] += 1;
+        }
+
+        // colour lists, with running particle counts for load balance
+        let mut fill = cs;
+        let blocks = sc.colour_blocks.as_mut_slice();
+        let cum = sc.colour_cum.as_mut_slice();
+        let mut run = [0u32; 8];
+        for s in 0..npb {
+            let c = colour(grid.geom.block_coords(grid.slot_block.as_slice()[s]));
+            blocks[fill[c]] = s as u32;
+            cum[fill[c]] = run[c];
+            run[c] += starts[s + 1] - starts[s];
+            fill[c] += 1;
+        }
+        Ok(())
+    }
+
+    /// Move particles into block order so the transfers stream through memory.
+    fn reorder_particles(&mut self) {
+        let n = self.particles.n;
+        self.particles.permute(&self.scratch.order.as_slice()[..n], self.scratch.permute.as_mut_slice());
+        for (k, o) in self.scratch.order.as_mut_slice()[..n].iter_mut().enumerate() {
+            *o = k as u32;
+        }
+    }
+
+    fn clear_grid(&mut self) {
+        let n = self.grid.n_active * NODES_PER_BLOCK;
+        let nodes = SharedSlice::new(&mut self.grid.nodes.as_mut_slice()[..n]);
+        let t = self.team.threads();
+        self.team.run(|tid| {
+            let r = ThreadTeam::share(n, tid, t);
+            // SAFETY: shares are disjoint.
+            unsafe { nodes.slice_mut(r) }.fill([0.0; 4]);
+        });
+    }
+
+    fn p2g(&mut self, dt: Real) {
+        let p = &self.particles;
+        let n = p.n;
+        let input = P2gInput {
+            xg: &p.xg.as_slice()[..n],
+            v: &p.v.as_slice()[..n],
+            c: &p.c.as_slice()[..n],
+            stress: &p.stress.as_slice()[..n],
+            mass: &p.mass.as_slice()[..n],
+            vol0: &p.vol0.as_slice()[..n],
+            j: &p.j.as_slice()[..n],
+        };
+        let tp = TransferParams { dx: self.scenario.simulation.dx as Real, dt };
+        let sc = &self.scratch;
+        let geom = &self.grid.geom;
+        let slot_block = self.grid.slot_block.as_slice();
+        let nodes = SharedSlice::new(self.grid.nodes.as_mut_slice());
+        let threads = self.team.threads();
+        for c in 0..8 {
+            let (c0, c1) = (sc.colour_start[c], sc.colour_start[c + 1]);
+            if c0 == c1 {
+                continue;
+            }
+            let blocks = &sc.colour_blocks.as_slice()[c0..c1];
+            let cum = &sc.colour_cum.as_slice()[c0..c1];
+            let starts = sc.slot_start.as_slice();
+            let last = *blocks.last().unwrap() as usize;
+            let total = cum[cum.len() - 1] + (starts[last + 1] - starts[last]);
+            let order = sc.order.as_slice();
+            let nbr = sc.nbr.as_slice();
+            self.team.run(|tid| {
+                let (lo, hi) = balanced(cum, total, tid, threads);
+                let mut local = [[0.0 as Real; 4]; LNODES];
+                for &s in &blocks[lo..hi] {
+                    let s = s as usize;
+                    let b = geom.block_coords(slot_block[s]);
+                    let origin = [b[0] * BS as i32, b[1] * BS as i32, b[2] * BS as i32];
+                    local.iter_mut().for_each(|n| *n = [0.0; 4]);
+                    let ord = &order[starts[s] as usize..starts[s + 1] as usize];
+                    p2g_block(origin, ord, &input, &tp, &mut local);
+                    // SAFETY: blocks of one colour have disjoint 2x2x2 neighbourhoods.
+                    unsafe { flush_local(&local, &nbr[s], &nodes) };
+                }
+            });
+        }
+    }
+
+    fn grid_update(&mut self, dt: Real) {
+        let na = self.grid.n_active;
+        let geom = &self.grid.geom;
+        let slot_block = self.grid.slot_block.as_slice();
+        let nodes = SharedSlice::new(self.grid.nodes.as_mut_slice());
+        let accel = self.accel;
+        let walls = &self.walls;
+        let threads = self.team.threads();
+        self.team.run(|tid| {
+            for s in ThreadTeam::share(na, tid, threads) {
+                let b = geom.block_coords(slot_block[s]);
+                // SAFETY: each slot belongs to one thread.
+                let blk = unsafe { nodes.slice_mut(s * NODES_PER_BLOCK..(s + 1) * NODES_PER_BLOCK) };
+                for (li, node) in blk.iter_mut().enumerate() {
+                    let m = node[0];
+                    if m <= 0.0 {
+                        *node = [0.0; 4];
+                        continue;
+                    }
+                    let mut v = V3::new(node[1], node[2], node[3]) / m + accel * dt;
+                    let g = [
+                        b[0] * BS as i32 + (li / (BS * BS)) as i32,
+                        b[1] * BS as i32 + ((li / BS) % BS) as i32,
+                        b[2] * BS as i32 + (li % BS) as i32,
+                    ];
+                    v = apply_walls(geom, walls, g, v);
+                    *node = [m, v.x, v.y, v.z];
+                }
+            }
+        });
+    }
+
+    fn g2p(&mut self, dt: Real) {
+        let npb = self.grid.n_particle_blocks;
+        let n = self.particles.n;
+        let p = &mut self.particles;
+        let xg = SharedSlice::new(&mut p.xg.as_mut_slice()[..n]);
+        let v = SharedSlice::new(&mut p.v.as_mut_slice()[..n]);
+        let c = SharedSlice::new(&mut p.c.as_mut_slice()[..n]);
+        let j = SharedSlice::new(&mut p.j.as_mut_slice()[..n]);
+        let tp = TransferParams { dx: self.scenario.simulation.dx as Real, dt };
+        let sc = &self.scratch;
+        let starts = &sc.slot_start.as_slice()[..npb + 1];
+        let order = sc.order.as_slice();
+        let nbr = sc.nbr.as_slice();
+        let geom = &self.grid.geom;
+        let slot_block = self.grid.slot_block.as_slice();
+        let nodes = self.grid.nodes.as_slice();
+        let threads = self.team.threads();
+        let platform = self.walls.platform;
+        let out = &self.thread_out;
+        self.team.run(|tid| {
+            let (lo, hi) = balanced(&starts[..npb], starts[npb], tid, threads);
+            let mut local_v = [V3::ZERO; LNODES];
+            let mut vmax: Real = 0.0;
+            for s in lo..hi {
+                let b = geom.block_coords(slot_block[s]);
+                let origin = [b[0] * BS as i32, b[1] * BS as i32, b[2] * BS as i32];
+                gather_local(&mut local_v, &nbr[s], nodes);
+                let ord = &order[starts[s] as usize..starts[s + 1] as usize];
+                // SAFETY: every particle belongs to exactly one particle block, and each block to
+                // one thread, so the indices written here are disjoint across threads.
+                let mut o = unsafe { G2pOutput { xg: xg.slice_mut(0..n), v: v.slice_mut(0..n), c: c.slice_mut(0..n), j: j.slice_mut(0..n) } };
+                vmax = vmax.max(g2p_block(origin, ord, &local_v, &tp, &mut o));
+                for &pi in ord {
+                    keep_inside(geom, platform, &mut o.xg[pi as usize]);
+                }
+            }
+            out[tid].store((vmax as f64).to_bits(), Ordering::Relaxed);
+        });
+        self.vmax = (0..threads).map(|t| f64::from_bits(out[t].load(Ordering::Relaxed))).fold(0.0, f64::max);
+    }
+
+    /// Material update over contiguous particle ranges, then a finiteness check that names the
+    /// first bad particle.
+    fn update_materials(&mut self, dt: Real) -> Result<(), SimError> {
+        let n = self.particles.n;
+        let p = &mut self.particles;
+        let sl = p.state_len;
+        let c = &p.c.as_slice()[..n];
+        let jv = &p.j.as_slice()[..n];
+        let vv = &p.v.as_slice()[..n];
+        let state = SharedSlice::new(&mut p.state.as_mut_slice()[..n * sl]);
+        let stress = SharedSlice::new(&mut p.stress.as_mut_slice()[..n]);
+        let mat = &*self.material;
+        let threads = self.team.threads();
+        let out = &self.thread_out;
+        self.team.run(|tid| {
+            let r = ThreadTeam::share(n, tid, threads);
+            // SAFETY: ranges are disjoint.
+            let (st, sg) = unsafe { (state.slice_mut(r.start * sl..r.end * sl), stress.slice_mut(r.clone())) };
+            mat.update_batch(&c[r.clone()], &jv[r.clone()], dt, st, sg);
+            let mut bad = u64::MAX;
+            for i in r.clone() {
+                let s = &sg[i - r.start];
+                if !(jv[i] > 0.0 && jv[i].is_finite() && vv[i].is_finite() && s.is_finite()) {
+                    bad = i as u64;
+                    break;
+                }
+            }
+            out[tid].store(bad, Ordering::Relaxed);
+        });
+        let bad = (0..threads).map(|t| out[t].load(Ordering::Relaxed)).min().unwrap_or(u64::MAX);
+        if bad != u64::MAX {
+            let i = bad as usize;
+            let p = &self.particles;
+            let (field, value) = if !p.v.as_slice()[i].is_finite() {
+                ("velocity", format!("{:?}", p.v.as_slice()[i]))
+            } else if !(p.j.as_slice()[i] > 0.0 && p.j.as_slice()[i].is_finite()) {
+                ("volume ratio J", format!("{}", p.j.as_slice()[i]))
+            } else {
+                ("stress", format!("{:?}", p.stress.as_slice()[i]))
+            };
+            return Err(SimError::BlowUp { step: self.step, time: self.time, index: i, id: p.id.as_slice()[i], field, value });
+        }
+        Ok(())
+    }
+
+    /// World position of particle `i`.
+    pub fn position(&self, i: usize) -> [f64; 3] {
+        self.grid.geom.to_world(self.particles.xg.as_slice()[i])
+    }
+
+    /// Pressure -tr(sigma)/3 of particle `i`.
+    pub fn pressure(&self, i: usize) -> f64 {
+        let s: M3 = self.particles.stress.as_slice()[i];
+        -((s.x_axis.x + s.y_axis.y + s.z_axis.z) / 3.0) as f64
+    }
+}
+
+#[inline]
+fn colour(b: [i32; 3]) -> usize {
+    ((b[0] & 1) << 2 | (b[1] & 1) << 1 | (b[2] & 1)) as usize
+}
+
+/// Split items with running weights `cum` (exclusive prefix sums, total `total`) into `threads`
+/// contiguous shares of about equal weight; returns thread `tid`'s item range.
+fn balanced(cum: &[u32], total: u32, tid: usize, threads: usize) -> (usize, usize) {
+    let at = |t: usize| {
+        let target = (total as u64 * t as u64 / threads as u64) as u32;
+        if t == threads {
+            cum.len()
+        } else if t == 0 {
+            0
+        } else {
+            cum.partition_point(|&c| c < target)
+        }
+    };
+    (at(tid), at(tid + 1))
+}
+
+/// Add a P2G neighbourhood buffer into the grid's 2x2x2 blocks.
+///
+/// # Safety
+/// No other thread may touch the blocks in `nbr` meanwhile.
+unsafe fn flush_local(local: &[Node; LNODES], nbr: &[u32; 8], nodes: &SharedSlice<Node>) {
+    for (d, &slot) in nbr.iter().enumerate() {
+        let o = [(d >> 2) & 1, (d >> 1) & 1, d & 1];
+        let base = slot as usize * NODES_PER_BLOCK;
+        let ext = |k: usize| if o[k] == 0 { BS } else { LN - BS };
+        for i in 0..ext(0) {
+            for jj in 0..ext(1) {
+                for k in 0..ext(2) {
+                    let src = &local[local_index(o[0] * BS + i, o[1] * BS + jj, o[2] * BS + k)];
+                    let dst = nodes.get_mut(base + (i * BS + jj) * BS + k);
+                    dst[0] += src[0];
+                    dst[1] += src[1];
+                    dst[2] += src[2];
+                    dst[3] += src[3];
+                }
+            }
+        }
+    }
+}
+
+/// Gather node velocities of a particle block's neighbourhood.
+fn gather_local(local: &mut [V3; LNODES], nbr: &[u32; 8], nodes: &[Node]) {
+    for (d, &slot) in nbr.iter().enumerate() {
+        let o = [(d >> 2) & 1, (d >> 1) & 1, d & 1];
+        let base = slot as usize * NODES_PER_BLOCK;
+        let ext = |k: usize| if o[k] == 0 { BS } else { LN - BS };
+        for i in 0..ext(0) {
+            for jj in 0..ext(1) {
+                for k in 0..ext(2) {
+                    let n = &nodes[base + (i * BS + jj) * BS + k];
+                    local[local_index(o[0] * BS + i, o[1] * BS + jj, o[2] * BS + k)] = V3::new(n[1], n[2], n[3]);
+                }
+            }
+        }
+    }
+}
+
+/// Wall conditions for the node at grid index `g`.
+#[inline]
+fn apply_walls(geom: &GridGeom, walls: &Walls, g: [i32; 3], mut v: V3) -> V3 {
+    for a in 0..3 {
+        if geom.periodic[a] {
+            continue;
+        }
+        let mut nrm = V3::ZERO;
+        if g[a] <= PAD {
+            nrm[a] = -1.0;
+            v = apply_wall(walls.faces[a][0], nrm, V3::ZERO, v);
+        } else if g[a] >= geom.cells[a] - PAD {
+            nrm[a] = 1.0;
+            v = apply_wall(walls.faces[a][1], nrm, V3::ZERO, v);
+        }
+    }
+    if let Some((z, xy, kind)) = walls.platform {
+        let (x, y) = (g[0] as Real, g[1] as Real);
+        if (g[2] as Real) <= z && x >= xy[0] && x <= xy[2] && y >= xy[1] && y <= xy[3] {
+            v = apply_wall(kind, V3::new(0.0, 0.0, -1.0), V3::ZERO, v);
+        }
+    }
+    v
+}
+
+/// Keep a particle inside the walls (projected onto them) and wrap it on periodic axes.
+#[inline]
+fn keep_inside(geom: &GridGeom, platform: Option<(Real, [Real; 4], WallKind)>, x: &mut V3) {
+    for a in 0..3 {
+        let (lo, hi) = (geom.lo[a] as Real, geom.hi[a] as Real);
+        if geom.periodic[a] {
+            let n = geom.cells[a] as Real;
+            if x[a] < lo {
+                x[a] += n;
+            } else if x[a] >= hi {
+                x[a] -= n;
+            }
+        } else {
+            x[a] = x[a].clamp(lo, hi);
+        }
+    }
+    if let Some((z, xy, _)) = platform {
+        if x.z < z && x.x >= xy[0] && x.x <= xy[2] && x.y >= xy[1] && x.y <= xy[3] {
+            x.z = z;
+        }
+    }
+}
+
+/// Lattice points of a body: `ppc^3` per cell, on cells aligned with the domain's lower corner.
+pub fn for_each_lattice_point(sc: &Scenario, body: &Body, mut f: impl FnMut([f64; 3])) {
+    let dx = sc.simulation.dx;
+    let ppc = body.particles_per_cell_axis() as usize;
+    let h = dx / ppc as f64;
+    let (lo, hi) = body.bounds();
+    let mut range = [(0i64, 0i64); 3];
+    for a in 0..3 {
+        let m = sc.domain.min[a];
+        range[a] = (((lo[a] - m) / h - 0.5).ceil() as i64, ((hi[a] - m) / h - 0.5).floor() as i64);
+    }
+    for i in range[0].0..=range[0].1 {
+        for jj in range[1].0..=range[1].1 {
+            for k in range[2].0..=range[2].1 {
+                let p = [
+                    sc.domain.min[0] + (i as f64 + 0.5) * h,
+                    sc.domain.min[1] + (jj as f64 + 0.5) * h,
+                    sc.domain.min[2] + (k as f64 + 0.5) * h,
+                ];
+                if body.contains(p) {
+                    f(p);
+                }
+            }
+        }
+    }
+}
+
+pub fn count_body_particles(sc: &Scenario) -> usize {
+    let mut n = 0;
+    for b in &sc.bodies {
+        for_each_lattice_point(sc, b, |_| n += 1);
+    }
+    n
+}
