@@ -2,7 +2,7 @@
 //! `kernels/src/material/` and one line here.
 
 use crate::kernels::material::{
-    bingham::Bingham, newtonian::Newtonian,
+    bingham::Bingham, drucker_prager::DruckerPrager, evp_bingham::EvpBingham, newtonian::Newtonian,
     papanastasiou_roussel::PapanastasiouRoussel, Material,
 };
 use serde::de::DeserializeOwned;
@@ -13,6 +13,8 @@ pub const REGISTRY: &[(&str, Builder)] = &[
     ("newtonian", |t| build::<Newtonian>(t, Newtonian::validate)),
     ("bingham", |t| build::<Bingham>(t, Bingham::validate)),
     ("papanastasiou_roussel", |t| build::<PapanastasiouRoussel>(t, PapanastasiouRoussel::validate)),
+    ("evp_bingham", |t| build::<EvpBingham>(t, EvpBingham::validate)),
+    ("drucker_prager", |t| build::<DruckerPrager>(t, DruckerPrager::validate)),
 ];
 
 fn build<M: Material + DeserializeOwned + 'static>(

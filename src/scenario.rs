@@ -349,10 +349,11 @@ impl Scenario {
                     }
                 }
             }
+            // a body may be cut by the domain (symmetry planes), but must overlap it
             let (lo, hi) = b.bounds();
             for a in 0..3 {
-                if lo[a] < self.domain.min[a] - 1e-12 || hi[a] > self.domain.max[a] + 1e-12 {
-                    return bad(format!("body[{i}] reaches outside the domain on axis {a}"));
+                if hi[a] <= self.domain.min[a] || lo[a] >= self.domain.max[a] {
+                    return bad(format!("body[{i}] lies entirely outside the domain on axis {a}"));
                 }
             }
         }

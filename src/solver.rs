@@ -699,7 +699,8 @@ pub fn for_each_lattice_point(sc: &Scenario, body: &Body, mut f: impl FnMut([f64
                     sc.domain.min[1] + (jj as f64 + 0.5) * h,
                     sc.domain.min[2] + (k as f64 + 0.5) * h,
                 ];
-                if body.contains(p) {
+                let inside = (0..3).all(|a| p[a] >= sc.domain.min[a] && p[a] <= sc.domain.max[a]);
+                if inside && body.contains(p) {
                     f(p);
                 }
             }

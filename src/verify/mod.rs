@@ -1,6 +1,60 @@
-//! The verification suite: closed-form and experimental references.
-pub mod analytic;
+//! The verification suite: closed-form and experimental references, run by `strand verify`.
+//!
+//! Every case builds a scenario, runs the solver, and reduces the particle state to one error
+//! figure compared with a tolerance. `--quick` runs each case at reduced resolution and time so
+//! the suite fits in `make test`; its tolerances are looser and the table marks them.
 
-pub fn run_suite(_quick: bool, _json: bool, _case: Option<&str>, _threads: Option<usize>) -> Result<bool, String> {
-    Err("verify: not yet".into())
+pub mod analytic;
+mod cases;
+
+pub use cases::{CaseResult, CASES};
+use std::time::Instant;
+
+/// Peak resident set size of this process (VmHWM), bytes.
+pub fn peak_rss_bytes() -> Option<u64> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+/// Run the suite; returns whether every selected case passed.
+pub fn run_suite(quick: bool, json: bool, filter: Option<&str>, threads: Option<usize>) -> Result<bool, String> {
+    let mut results = Vec::new();
+    for (name, case) in CASES {
+        if filter.is_some_and(|f| !name.contains(f)) {
+            continue;
+        }
+        let t0 = Instant::now();
+        if !json {
+            eprintln!("verify: running {name}{} ...", if quick { " (quick)" } else { "" });
+        }
+        let mut rs = case(quick, threads.unwrap_or(0)).map_err(|e| format!("case {name}: {e}"))?;
+        let wall = t0.elapsed().as_secs_f64();
+        for r in &mut rs {
+            r.wall_s = wall;
+            r.peak_rss_bytes = peak_rss_bytes();
+        }
+        if !json {
+            for r in &rs {
+                eprintln!("  {}", r.row());
+            }
+        }
+        results.extend(rs);
+    }
+    if results.is_empty() {
+        return Err(format!("no verification case matches '{}'", filter.unwrap_or("")));
+    }
+    let all = results.iter().all(|r| r.pass);
+    if json {
+        let v = serde_json::json!({ "quick": quick, "pass": all, "cases": results });
+        println!("{}", serde_json::to_string_pretty(&v).unwrap_or_default());
+    } else {
+        println!("{}", CaseResult::header());
+        for r in &results {
+            println!("{}", r.row());
+        }
+        println!("{}", if all { "all cases pass" } else { "SOME CASES FAIL" });
+    }
+    Ok(all)
 }

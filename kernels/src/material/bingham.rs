@@ -85,7 +85,8 @@ impl Material for Bingham {
         let d_dev = dev(&sym(grad_v));
         let gamma_dot = (r(2.0) * ddot(&d_dev, &d_dev)).sqrt();
         // max() also keeps gamma_dot = 0 away from the division.
-        let mu_a = r(self.viscosity) + r(self.yield_stress) / gamma_dot.max(r(self.critical_shear_rate));
+        let mu_a =
+            r(self.viscosity) + r(self.yield_stress) / gamma_dot.max(r(self.critical_shear_rate));
         let p = self.eos.pressure(r(self.bulk_modulus), j);
         d_dev * (r(2.0) * mu_a) - M3::from_diagonal(V3::splat(p))
     }
@@ -143,7 +144,10 @@ mod tests {
         for g in [0.0 as Real, 1e-4, 0.005, 0.01] {
             let s = m.update(&simple_shear(g), 1.0, 1e-4, &mut []);
             let expect = (300.0 / 0.01 + 20.0) * g;
-            assert!(close(s.y_axis.x, expect, 1e-6) || (g == 0.0 && s.y_axis.x == 0.0), "g={g}");
+            assert!(
+                close(s.y_axis.x, expect, 1e-6) || (g == 0.0 && s.y_axis.x == 0.0),
+                "g={g}"
+            );
             assert!(s.y_axis.x.is_finite());
         }
     }
@@ -179,18 +183,29 @@ mod tests {
         assert!(concrete().validate().is_ok());
         let mut m = concrete();
         m.critical_shear_rate = 0.0;
-        assert_eq!(m.validate().unwrap_err(), "material.critical_shear_rate must be > 0, got 0");
+        assert_eq!(
+            m.validate().unwrap_err(),
+            "material.critical_shear_rate must be > 0, got 0"
+        );
         let mut m = concrete();
         m.yield_stress = -1.0;
-        assert!(m.validate().unwrap_err().starts_with("material.yield_stress"));
+        assert!(m
+            .validate()
+            .unwrap_err()
+            .starts_with("material.yield_stress"));
     }
 
     #[test]
     fn critical_shear_rate_defaults_to_paper_value() {
         use serde::de::value::{Error, MapDeserializer};
         let m = Bingham::deserialize(MapDeserializer::<_, Error>::new(
-            [("density", 2300.0), ("bulk_modulus", 1e6), ("viscosity", 20.0), ("yield_stress", 300.0)]
-                .into_iter(),
+            [
+                ("density", 2300.0),
+                ("bulk_modulus", 1e6),
+                ("viscosity", 20.0),
+                ("yield_stress", 300.0),
+            ]
+            .into_iter(),
         ))
         .unwrap();
         assert_eq!(m.critical_shear_rate, 0.01);

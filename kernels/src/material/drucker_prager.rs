@@ -1,1 +1,623 @@
-//! TODO
+//! Non-associated Drucker-Prager elastoplasticity with tension cutoff and a hypoelastic Jaumann
+//! trial stress (paper 002 sec. 2.3 eq. 21 and App. A eqs. 37-55; the FLAC formulation).
+//!
+//! With tension positive, sigma_m = tr(sigma)/3, s = dev(sigma), tau = sqrt(s:s / 2):
+//!
+//! ```text
+//! q_phi = 6 sin(phi) / (sqrt3 (3 + sin phi)),  k_phi = 6 c cos(phi) / (sqrt3 (3 + sin phi)),
+//! q_psi = 6 sin(psi) / (sqrt3 (3 + sin psi))                                  (A, params)
+//! f_s = tau + q_phi sigma_m - k_phi       shear yield, plastic potential tau + q_psi sigma_m (41)
+//! f_t = sigma_m - sigma_t                 tension cutoff, associated                        (42)
+//! h   = tau - tau_P - alpha_P (sigma_m - sigma_t),  tau_P = k_phi - q_phi sigma_t,
+//!       alpha_P = sqrt(1 + q_phi^2) - q_phi                                          (43, 44)
+//! ```
+//!
+//! The cone passes through the Mohr-Coulomb triaxial-extension vertices: at yield, q / p =
+//! sqrt3 q_phi = 6 sin(phi) / (3 + sin(phi)) for c = 0, with q = sqrt(3 J2) and p = -sigma_m.
+//! `tension_cutoff` sigma_t defaults to the cone apex c cot(phi) (no cutoff when phi = 0) and may
+//! not exceed it.
+//!
+//! One step:
+//! 1. trial sigma_tr = R sigma R^T + dt (K tr(D) I + 2 G D'), with R the Hughes-Winget rotation
+//!    of the Jaumann rate ([`jaumann_rotation`]; first-order equal to eq. 38's
+//!    sigma + dw sigma - sigma dw, but an exact rotation, so a rigid spin leaves the invariants
+//!    unchanged).
+//! 2. Zones (eqs. 45-47): f_t < 0 and f_s <= 0 elastic; shear return if f_t < 0 and f_s > 0, or
+//!    f_t >= 0 and h > 0; tension return otherwise.
+//! 3. Shear return (48-52): dl = f_s / (G + K q_phi q_psi), sigma_m -= K q_psi dl,
+//!    tau = k_phi - q_phi sigma_m, s scaled radially.
+//!    Tension return (53-55): sigma_m = sigma_t, s unchanged.
+//! 4. Corner (not in 002): the single line h = 0 splits the two returns only approximately, so a
+//!    shear return can land beyond the cutoff (always, when psi = 0 and the trial had
+//!    sigma_m > sigma_t) and a tension return can keep tau > tau_P. Either result violates the other
+//!    surface; the stress then goes to the corner (sigma_t, tau_P) where both hold.
+//!
+//! The equivalent plastic strain increment is sqrt(2/3 de_p:de_p) of the plastic strain
+//! de_p = C^-1 : (sigma_tr - sigma), which is eq. 51 for the shear return, eq. 54 for the tension
+//! return, and also covers the corner.
+//!
+//! The pressure is part of the stress state, not an EOS of J: dilatancy changes the mean stress
+//! plastically, so the solver's `j` is not used and there is no `eos` key (it is rejected as
+//! unknown).
+//!
+//! Per-particle state (7 reals): `[sigma_xx, sigma_yy, sigma_zz, sigma_xy, sigma_yz, sigma_xz,
+//! eps_p]` — the full Cauchy stress [Pa] and the accumulated equivalent plastic strain [-]
+//! (von Mises measure, sum of eqs. 51/54).
+
+use serde::Deserialize;
+
+use crate::material::eos::{resolve_shear_modulus, shear_modulus_of};
+use crate::material::{Material, StabilityInfo};
+use crate::real::{
+    ddot, dev, jaumann_rotation, r, skew, sym, sym_from_slice, sym_to_array, trace, Real, M3, V3,
+};
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DruckerPrager {
+    /// Reference density rho0 [kg/m3].
+    pub density: f64,
+    /// Elastic bulk modulus K [Pa].
+    pub bulk_modulus: f64,
+    /// Elastic shear modulus G [Pa]; give this or `poisson_ratio`.
+    #[serde(default)]
+    pub shear_modulus: Option<f64>,
+    /// Poisson's ratio nu [-], G = 3 K (1 - 2 nu) / (2 (1 + nu)); give this or `shear_modulus`.
+    #[serde(default)]
+    pub poisson_ratio: Option<f64>,
+    /// Internal friction angle phi [deg].
+    pub friction_angle_deg: f64,
+    /// Dilatancy angle psi [deg], 0 <= psi <= phi.
+    #[serde(default)]
+    pub dilatancy_angle_deg: f64,
+    /// Cohesion c [Pa].
+    #[serde(default)]
+    pub cohesion: f64,
+    /// Tensile strength sigma_t of the mean stress [Pa]; defaults to the cone apex c cot(phi).
+    #[serde(default)]
+    pub tension_cutoff: Option<f64>,
+}
+
+/// Constants of the return map, derived once per batch.
+#[derive(Clone, Copy, Debug)]
+struct Consts {
+    k: Real,
+    g: Real,
+    q_phi: Real,
+    k_phi: Real,
+    q_psi: Real,
+    sigma_t: Real,
+    tau_p: Real,
+    alpha_p: Real,
+}
+
+fn cone_slope(angle_deg: f64) -> f64 {
+    let s = angle_deg.to_radians().sin();
+    6.0 * s / (3f64.sqrt() * (3.0 + s))
+}
+
+impl DruckerPrager {
+    pub fn validate(&self) -> Result<(), String> {
+        if !(self.density.is_finite() && self.density > 0.0) {
+            return Err(format!(
+                "material.density must be > 0, got {}",
+                self.density
+            ));
+        }
+        if !(self.bulk_modulus.is_finite() && self.bulk_modulus > 0.0) {
+            return Err(format!(
+                "material.bulk_modulus must be > 0, got {}",
+                self.bulk_modulus
+            ));
+        }
+        resolve_shear_modulus(
+            "material",
+            self.bulk_modulus,
+            self.shear_modulus,
+            self.poisson_ratio,
+        )?;
+        let phi = self.friction_angle_deg;
+        if !(phi.is_finite() && (0.0..90.0).contains(&phi)) {
+            return Err(format!(
+                "material.friction_angle_deg must be in [0, 90), got {phi}"
+            ));
+        }
+        let psi = self.dilatancy_angle_deg;
+        if !(psi.is_finite() && psi >= 0.0 && psi <= phi) {
+            return Err(format!(
+                "material.dilatancy_angle_deg must be in [0, friction_angle_deg = {phi}], got {psi}"
+            ));
+        }
+        if !(self.cohesion.is_finite() && self.cohesion >= 0.0) {
+            return Err(format!(
+                "material.cohesion must be >= 0, got {}",
+                self.cohesion
+            ));
+        }
+        if phi == 0.0 && self.cohesion == 0.0 {
+            return Err("material: friction_angle_deg and cohesion are both 0, so the material has no shear strength".into());
+        }
+        if let Some(t) = self.tension_cutoff {
+            let apex = self.apex();
+            // The relative slack admits a cutoff written as c cot(phi) computed another way.
+            if !(t.is_finite() && t >= 0.0 && t <= apex * (1.0 + 1e-12)) {
+                return Err(format!(
+                    "material.tension_cutoff must be in [0, c cot(phi) = {apex}] (the cone apex), got {t}"
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Elastic shear modulus G [Pa].
+    #[inline]
+    pub fn shear_modulus(&self) -> f64 {
+        shear_modulus_of(self.bulk_modulus, self.shear_modulus, self.poisson_ratio)
+    }
+
+    /// Mean stress of the cone apex, k_phi / q_phi = c cot(phi); infinite for phi = 0.
+    fn apex(&self) -> f64 {
+        let phi = self.friction_angle_deg.to_radians();
+        if phi > 0.0 {
+            self.cohesion * phi.cos() / phi.sin()
+        } else {
+            f64::INFINITY
+        }
+    }
+
+    fn consts(&self) -> Consts {
+        let s = self.friction_angle_deg.to_radians().sin();
+        let q_phi = cone_slope(self.friction_angle_deg);
+        let k_phi = 6.0 * self.cohesion * self.friction_angle_deg.to_radians().cos()
+            / (3f64.sqrt() * (3.0 + s));
+        let sigma_t = self.tension_cutoff.unwrap_or_else(|| self.apex());
+        // q_phi = 0 has an infinite default cutoff; the corner shear stress is then just k_phi.
+        // The floor absorbs the slack validate() allows above the apex.
+        let tau_p = if q_phi > 0.0 {
+            (k_phi - q_phi * sigma_t).max(0.0)
+        } else {
+            k_phi
+        };
+        Consts {
+            k: r(self.bulk_modulus),
+            g: r(self.shear_modulus()),
+            q_phi: r(q_phi),
+            k_phi: r(k_phi),
+            q_psi: r(cone_slope(self.dilatancy_angle_deg)),
+            sigma_t: r(sigma_t),
+            tau_p: r(tau_p),
+            alpha_p: r((1.0 + q_phi * q_phi).sqrt() - q_phi),
+        }
+    }
+
+    #[inline]
+    fn step(&self, c: &Consts, grad_v: &M3, dt: Real, state: &mut [Real]) -> M3 {
+        let d = sym(grad_v);
+        let rot = jaumann_rotation(&skew(grad_v), dt);
+        let sigma_old = sym_from_slice(&state[..6]);
+        // sym() keeps the round-off asymmetry of the product out of the returned stress.
+        let sigma_tr = sym(&(rot * sigma_old * rot.transpose()))
+            + dev(&d) * (r(2.0) * c.g * dt)
+            + M3::from_diagonal(V3::splat(c.k * trace(&d) * dt));
+
+        let sm_tr = trace(&sigma_tr) / r(3.0);
+        let s_tr = dev(&sigma_tr);
+        let tau_tr = (r(0.5) * ddot(&s_tr, &s_tr)).sqrt();
+        let f_s = tau_tr + c.q_phi * sm_tr - c.k_phi;
+        let f_t = sm_tr - c.sigma_t;
+
+        let shear_return = || {
+            let dl = f_s / (c.g + c.k * c.q_phi * c.q_psi);
+            let sm = sm_tr - c.k * c.q_psi * dl;
+            (sm, c.k_phi - c.q_phi * sm)
+        };
+        let (sm, tau) = if f_t < r(0.0) {
+            if f_s <= r(0.0) {
+                state[..6].copy_from_slice(&sym_to_array(&sigma_tr));
+                return sigma_tr;
+            }
+            shear_return()
+        } else if tau_tr - c.tau_p - c.alpha_p * f_t > r(0.0) {
+            let (sm, tau) = shear_return();
+            if sm > c.sigma_t {
+                (c.sigma_t, c.tau_p)
+            } else {
+                (sm, tau)
+            }
+        } else {
+            (c.sigma_t, tau_tr.min(c.tau_p))
+        };
+
+        // tau < tau_tr on every plastic branch, so tau_tr > 0 whenever the ratio is needed.
+        let s = if tau < tau_tr {
+            s_tr * (tau / tau_tr)
+        } else {
+            s_tr
+        };
+        let sigma = s + M3::from_diagonal(V3::splat(sm));
+
+        let dtau = tau_tr - tau;
+        let dsm = sm_tr - sm;
+        let deps = (r(2.0 / 3.0)
+            * (dtau * dtau / (r(2.0) * c.g * c.g) + dsm * dsm / (r(3.0) * c.k * c.k)))
+            .sqrt();
+        state[..6].copy_from_slice(&sym_to_array(&sigma));
+        state[6] += deps;
+        sigma
+    }
+}
+
+impl Material for DruckerPrager {
+    fn name(&self) -> &'static str {
+        "drucker_prager"
+    }
+
+    fn state_names(&self) -> &'static [&'static str] {
+        &[
+            "sigma_xx", "sigma_yy", "sigma_zz", "sigma_xy", "sigma_yz", "sigma_xz", "eps_p",
+        ]
+    }
+
+    fn init_state(&self, state: &mut [Real]) {
+        state[..7].fill(r(0.0));
+    }
+
+    #[inline]
+    fn update(&self, grad_v: &M3, _j: Real, dt: Real, state: &mut [Real]) -> M3 {
+        self.step(&self.consts(), grad_v, dt, state)
+    }
+
+    /// Same as the default, with the trigonometry of the constants done once per batch.
+    fn update_batch(
+        &self,
+        grad_v: &[M3],
+        _j: &[Real],
+        dt: Real,
+        state: &mut [Real],
+        stress: &mut [M3],
+    ) {
+        let c = self.consts();
+        for (p, (l, out)) in grad_v.iter().zip(stress.iter_mut()).enumerate() {
+            *out = self.step(&c, l, dt, &mut state[p * 7..(p + 1) * 7]);
+        }
+    }
+
+    fn stability(&self) -> StabilityInfo {
+        StabilityInfo {
+            density: r(self.density),
+            bulk_modulus: r(self.bulk_modulus),
+            shear_modulus: r(self.shear_modulus()),
+            max_viscosity: r(0.0),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    const EPS: Real = if cfg!(feature = "f32") { 1e-5 } else { 1e-10 };
+    /// Relative tolerance of plastic increments, which are differences of nearly equal stresses.
+    const INC: Real = if cfg!(feature = "f32") { 1e-3 } else { 1e-6 };
+
+    fn sand() -> DruckerPrager {
+        DruckerPrager {
+            density: 2650.0,
+            bulk_modulus: 1.0e7,
+            shear_modulus: Some(5.0e6),
+            poisson_ratio: None,
+            friction_angle_deg: 30.0,
+            dilatancy_angle_deg: 0.0,
+            cohesion: 0.0,
+            tension_cutoff: None,
+        }
+    }
+
+    fn tau_of(s: &M3) -> Real {
+        (0.5 * ddot(&dev(s), &dev(s))).sqrt()
+    }
+
+    fn mean(s: &M3) -> Real {
+        trace(s) / 3.0
+    }
+
+    fn iso(p: Real) -> M3 {
+        M3::from_diagonal(V3::splat(p))
+    }
+
+    fn start(m: &DruckerPrager, sigma: M3) -> [Real; 7] {
+        let mut st = [0.0; 7];
+        m.init_state(&mut st);
+        st[..6].copy_from_slice(&sym_to_array(&sigma));
+        st
+    }
+
+    fn sin_deg(x: f64) -> Real {
+        x.to_radians().sin() as Real
+    }
+
+    /// Runs `n` steps of constant L and returns the final stress and the eps_p of the last step.
+    fn drive(m: &DruckerPrager, st: &mut [Real; 7], l: M3, dt: Real, n: usize) -> (M3, Real) {
+        let mut sigma = M3::ZERO;
+        let mut last = 0.0;
+        for _ in 0..n {
+            let before = st[6];
+            sigma = m.update(&l, 1.0, dt, st);
+            last = st[6] - before;
+        }
+        (sigma, last)
+    }
+
+    #[test]
+    fn isochoric_triaxial_compression_ends_on_the_cone_with_extension_matched_q_over_p() {
+        let m = sand();
+        let p0 = 1.0e5 as Real;
+        let mut st = start(&m, iso(-p0));
+        let (e, dt) = (1.0 as Real, 1e-5 as Real);
+        // Axial (z) shortening at constant volume: the mean stress stays -p0 while q grows.
+        let l = M3::from_diagonal(V3::new(0.5 * e, 0.5 * e, -e));
+        let (sigma, deps) = drive(&m, &mut st, l, dt, 3000);
+        let p = -mean(&sigma);
+        let q = 3f64.sqrt() as Real * tau_of(&sigma);
+        let s = sin_deg(30.0);
+        let m_ext = 6.0 * s / (3.0 + s);
+        assert!((p - p0).abs() < EPS * p0, "p = {p}");
+        assert!(
+            (q / p - m_ext).abs() < EPS,
+            "q/p = {}, expected {m_ext}",
+            q / p
+        );
+        // Triaxial compression: the axial stress is the most compressive, laterals equal.
+        assert!(
+            sigma.z_axis.z < sigma.x_axis.x && (sigma.x_axis.x - sigma.y_axis.y).abs() < EPS * p0
+        );
+        // Perfect plasticity at steady state: the whole strain increment is plastic,
+        // eps_eq = sqrt(2/3 D:D) dt = e dt.
+        assert!((deps - e * dt).abs() < INC * e * dt, "deps = {deps}");
+    }
+
+    #[test]
+    fn triaxial_extension_yield_satisfies_mohr_coulomb() {
+        for (phi, c) in [(30.0, 0.0), (35.0, 2.0e4), (20.0, 5.0e3)] {
+            let m = DruckerPrager {
+                friction_angle_deg: phi,
+                cohesion: c,
+                ..sand()
+            };
+            let p0 = 1.0e5 as Real;
+            let mut st = start(&m, iso(-p0));
+            let l = M3::from_diagonal(V3::new(-0.5, -0.5, 1.0));
+            let (sigma, _) = drive(&m, &mut st, l, 1e-5, 3000);
+            assert!(st[6] > 0.0);
+            // Principal stresses: axial the largest (least compressive), laterals the smallest.
+            let (s1, s3) = (sigma.z_axis.z, sigma.x_axis.x);
+            let (sphi, cphi) = (sin_deg(phi), (phi as Real).to_radians().cos());
+            let mc = (s1 - s3) / 2.0 + (s1 + s3) / 2.0 * sphi - c as Real * cphi;
+            assert!(
+                mc.abs() < EPS * p0,
+                "phi={phi}, c={c}: Mohr-Coulomb residual {mc}"
+            );
+        }
+    }
+
+    #[test]
+    fn isotropic_tension_is_capped_at_the_apex_or_the_cutoff() {
+        for (cutoff, expect) in [(None, 1000.0 * 3f64.sqrt()), (Some(500.0), 500.0)] {
+            let m = DruckerPrager {
+                cohesion: 1000.0,
+                tension_cutoff: cutoff,
+                ..sand()
+            };
+            let mut st = start(&m, M3::ZERO);
+            let (e, dt) = (1.0 as Real, 1e-6 as Real);
+            let (sigma, deps) = drive(&m, &mut st, iso(e), dt, 500);
+            assert!(
+                (mean(&sigma) - expect as Real).abs() < EPS * 1e3,
+                "{sigma:?}"
+            );
+            assert!(tau_of(&sigma) < EPS * 1e3);
+            // Eq. 54: all of the volumetric rate 3e is plastic, eps_eq = sqrt2/3 * 3e dt.
+            assert!((deps - 2f64.sqrt() as Real * e * dt).abs() < INC * e * dt);
+        }
+    }
+
+    #[test]
+    fn cohesionless_sand_carries_no_tension() {
+        let m = sand();
+        let mut st = start(&m, M3::ZERO);
+        let (sigma, _) = drive(
+            &m,
+            &mut st,
+            M3::from_diagonal(V3::new(1.0, 0.0, 0.0)),
+            1e-5,
+            200,
+        );
+        assert!(mean(&sigma) <= 0.0 && tau_of(&sigma) <= EPS, "{sigma:?}");
+    }
+
+    #[test]
+    fn shear_return_follows_the_non_associated_flow_rule() {
+        // One step from a state on the cone with a spin-free L, so the trial stress is known:
+        // the correction (d sigma_m, d tau) must be K q_psi : G, and the result on the cone.
+        let (phi, psi) = (35.0, 10.0);
+        let m = DruckerPrager {
+            friction_angle_deg: phi,
+            dilatancy_angle_deg: psi,
+            cohesion: 1e4,
+            ..sand()
+        };
+        let sigma0 = M3::from_cols(
+            V3::new(-8e4, 1e4, 0.0),
+            V3::new(1e4, -1.2e5, 5e3),
+            V3::new(0.0, 5e3, -1e5),
+        );
+        let l = M3::from_cols(
+            V3::new(1.0, 2.0, 0.0),
+            V3::new(2.0, -3.0, 1.0),
+            V3::new(0.0, 1.0, 0.5),
+        );
+        let dt = 5e-3 as Real;
+        let mut st = start(&m, sigma0);
+        let sigma = m.update(&l, 1.0, dt, &mut st);
+        let (k, g) = (1.0e7 as Real, 5.0e6 as Real);
+        let trial = sigma0 + dev(&l) * (2.0 * g * dt) + iso(k * trace(&l) * dt);
+        let q = |a: f64| 6.0 * sin_deg(a) / (3f64.sqrt() as Real * (3.0 + sin_deg(a)));
+        let kphi = 6.0 * 1e4 * (phi as Real).to_radians().cos()
+            / (3f64.sqrt() as Real * (3.0 + sin_deg(phi)));
+        let (dsm, dtau) = (mean(&trial) - mean(&sigma), tau_of(&trial) - tau_of(&sigma));
+        assert!(
+            dtau > 0.0 && dsm > 0.0,
+            "must be a plastic step: {dsm} {dtau}"
+        );
+        assert!((dsm / dtau - k * q(psi) / g).abs() < INC, "{}", dsm / dtau);
+        let fs = tau_of(&sigma) + q(phi) * mean(&sigma) - kphi;
+        assert!(fs.abs() < EPS * 1e5, "f_s = {fs}");
+        // Eq. 51 with dl = dtau / G.
+        let eq51 = dtau / g * (1.0 / 3.0 + 2.0 / 9.0 * q(psi) * q(psi)).sqrt();
+        assert!((st[6] - eq51).abs() < INC * eq51);
+    }
+
+    #[test]
+    fn rigid_rotation_keeps_the_invariants_and_stays_elastic() {
+        let m = DruckerPrager {
+            cohesion: 1e4,
+            ..sand()
+        };
+        let sigma0 = M3::from_cols(
+            V3::new(-8e4, 1e4, 0.0),
+            V3::new(1e4, -1.2e5, 5e3),
+            V3::new(0.0, 5e3, -1e5),
+        );
+        let mut st = start(&m, sigma0);
+        // W x = a x x with a = (3, 1, 2).
+        let w = M3::from_cols(
+            V3::new(0.0, 2.0, -1.0),
+            V3::new(-2.0, 0.0, 3.0),
+            V3::new(1.0, -3.0, 0.0),
+        );
+        let (sigma, _) = drive(&m, &mut st, w, 1e-3, 1000);
+        assert!((mean(&sigma) - mean(&sigma0)).abs() < EPS * 1e5);
+        assert!((tau_of(&sigma) - tau_of(&sigma0)).abs() < EPS * 1e5);
+        assert!(
+            ((sigma.determinant() - sigma0.determinant()) / sigma0.determinant()).abs()
+                < 100.0 * EPS
+        );
+        assert_eq!(st[6], 0.0);
+        // Co-rotation with the material over t = 1: sigma = Q sigma0 Q^T, Q = exp(W) (Rodrigues).
+        let a = V3::new(3.0, 1.0, 2.0);
+        let (angle, k) = (a.length(), w * (1.0 / a.length()));
+        let q = M3::IDENTITY + k * angle.sin() + k * k * (1.0 - angle.cos());
+        let err = (sigma - q * sigma0 * q.transpose())
+            .to_cols_array()
+            .iter()
+            .fold(0.0 as Real, |e, &x| e.max(x.abs()));
+        assert!(err < 1e-4 * 1.2e5, "co-rotation error {err}");
+    }
+
+    #[test]
+    fn batch_update_matches_single_updates() {
+        let m = DruckerPrager {
+            cohesion: 2e3,
+            dilatancy_angle_deg: 5.0,
+            ..sand()
+        };
+        let ls = [
+            M3::from_diagonal(V3::new(1.0, 0.0, -2.0)),
+            M3::from_diagonal(V3::splat(3.0)),
+        ];
+        let mut a = [0.0; 14];
+        let mut b = [0.0; 14];
+        let mut out = [M3::ZERO; 2];
+        for _ in 0..100 {
+            m.update_batch(&ls, &[1.0, 1.0], 1e-4, &mut a, &mut out);
+            for p in 0..2 {
+                let s = m.update(&ls[p], 1.0, 1e-4, &mut b[p * 7..(p + 1) * 7]);
+                assert_eq!(s, out[p]);
+            }
+        }
+        assert_eq!(a, b);
+    }
+
+    proptest! {
+        #[test]
+        fn every_step_ends_admissible(
+            ls in proptest::collection::vec(proptest::array::uniform9(-1.0f64..1.0), 1..40),
+            cohesion in prop_oneof![Just(0.0), 0.0f64..5e4],
+            psi_frac in 0.0f64..1.0,
+            cutoff_frac in prop_oneof![Just(None), (0.0f64..1.0).prop_map(Some)],
+        ) {
+            let mut m = DruckerPrager { cohesion, dilatancy_angle_deg: 30.0 * psi_frac, ..sand() };
+            m.tension_cutoff = cutoff_frac.map(|f| f * m.apex());
+            prop_assert!(m.validate().is_ok());
+            let c = m.consts();
+            let mut st = start(&m, iso(-5e4));
+            for l in &ls {
+                let l = M3::from_cols_array(&l.map(|x| x as Real));
+                let sigma = m.update(&l, 1.0, 2e-3, &mut st);
+                let (sm, tau) = (mean(&sigma), tau_of(&sigma));
+                let scale = 1e5 + tau.abs() + sm.abs();
+                prop_assert!(tau + c.q_phi * sm - c.k_phi <= EPS * scale, "f_s > 0: sm {} tau {}", sm, tau);
+                prop_assert!(sm - c.sigma_t <= EPS * scale, "f_t > 0: sm {}", sm);
+                prop_assert!(tau >= 0.0 && st[6] >= 0.0);
+            }
+        }
+    }
+
+    #[test]
+    fn validation_and_unknown_eos_key() {
+        assert!(sand().validate().is_ok());
+        let bad = DruckerPrager {
+            dilatancy_angle_deg: 40.0,
+            ..sand()
+        };
+        assert!(bad
+            .validate()
+            .unwrap_err()
+            .starts_with("material.dilatancy_angle_deg"));
+        let bad = DruckerPrager {
+            friction_angle_deg: 0.0,
+            ..sand()
+        };
+        assert!(bad.validate().unwrap_err().contains("no shear strength"));
+        let bad = DruckerPrager {
+            cohesion: 1e3,
+            tension_cutoff: Some(2e3),
+            ..sand()
+        };
+        assert!(bad
+            .validate()
+            .unwrap_err()
+            .starts_with("material.tension_cutoff"));
+        let bad = DruckerPrager {
+            friction_angle_deg: 90.0,
+            ..sand()
+        };
+        assert!(bad
+            .validate()
+            .unwrap_err()
+            .starts_with("material.friction_angle_deg"));
+        // phi = 0 with cohesion: von Mises with no tension limit.
+        let vm = DruckerPrager {
+            friction_angle_deg: 0.0,
+            cohesion: 1e3,
+            ..sand()
+        };
+        assert!(vm.validate().is_ok());
+        let mut st = start(&vm, M3::ZERO);
+        let (sigma, _) = drive(&vm, &mut st, iso(1.0), 1e-5, 10);
+        assert!((mean(&sigma) - 3.0e7 * 1e-4).abs() < EPS * 3e3, "{sigma:?}");
+
+        use serde::de::value::{Error, MapDeserializer};
+        let with_eos = DruckerPrager::deserialize(MapDeserializer::<_, Error>::new(
+            [
+                ("density", 2650.0),
+                ("bulk_modulus", 1e7),
+                ("friction_angle_deg", 30.0),
+                ("eos", 0.0),
+            ]
+            .into_iter(),
+        ));
+        assert!(with_eos.unwrap_err().to_string().contains("eos"));
+    }
+}

@@ -72,7 +72,11 @@ impl Eos {
 /// reference bulk modulus K: G = 3 K (1 - 2 nu) / (2 (1 + nu)) (paper 001 eq. 18). NaN when
 /// neither is given; [`resolve_shear_modulus`] is the validating form.
 #[inline]
-pub fn shear_modulus_of(bulk_modulus: f64, shear_modulus: Option<f64>, poisson_ratio: Option<f64>) -> f64 {
+pub fn shear_modulus_of(
+    bulk_modulus: f64,
+    shear_modulus: Option<f64>,
+    poisson_ratio: Option<f64>,
+) -> f64 {
     match (shear_modulus, poisson_ratio) {
         (Some(g), _) => g,
         (None, Some(nu)) => 3.0 * bulk_modulus * (1.0 - 2.0 * nu) / (2.0 * (1.0 + nu)),
@@ -102,12 +106,16 @@ pub fn resolve_shear_modulus(
             if nu.is_finite() && nu > -1.0 && nu < 0.5 {
                 Ok(shear_modulus_of(bulk_modulus, None, Some(nu)))
             } else {
-                Err(format!("{key}.poisson_ratio must be in (-1, 0.5), got {nu}"))
+                Err(format!(
+                    "{key}.poisson_ratio must be in (-1, 0.5), got {nu}"
+                ))
             }
         }
         (Some(_), Some(_)) => Err(format!(
             "{key}: give either shear_modulus or poisson_ratio, not both"
         )),
-        (None, None) => Err(format!("{key}: one of shear_modulus or poisson_ratio is required")),
+        (None, None) => Err(format!(
+            "{key}: one of shear_modulus or poisson_ratio is required"
+        )),
     }
 }

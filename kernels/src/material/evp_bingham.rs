@@ -18,8 +18,9 @@
 //!    Hughes-Winget rotation of the Jaumann rate ([`jaumann_rotation`]). R s R^T equals
 //!    s + dt (W s - s W) to first order, and is the "rotationally neutralised" update the paper
 //!    asks for: a rigid spin leaves tau unchanged exactly. The volumetric part of eq. 37
-//!    (K tr(D) dt) is not integrated: the pressure comes from the EOS at the solver's J. Plastic flow
-//!    is isochoric, so it cannot change that pressure; this is why the paper has p^{n+1} = p^tr.
+//!    (K tr(D) dt) is not integrated: the pressure comes from the EOS at the solver's J. Plastic
+//!    flow is isochoric, so it cannot change that pressure; this is why the paper has
+//!    p^{n+1} = p^tr.
 //! 2. lambda_tr = lambda + A_thix / tau0 dt (eq. 38); f_tr = tau_tr - (1 + lambda_tr) tau0 (eq. 39).
 //! 3. If f_tr > 0, the return map. With s' = s_tr - 2 G dt D^p and D^p along s', s' is parallel
 //!    to s_tr and tau' = tau_tr - G dt gamma_p (eq. 45); lambda' = lambda_tr / (1 + alpha dt gamma_p)
@@ -29,6 +30,10 @@
 //!    xi > 0 (always so for alpha = 0, where it is exactly eq. 47, f_tr / (eta + G dt)), and as
 //!    eq. 43 itself when xi <= 0 (only possible for alpha > 0, so zeta > 0). Then s' = (tau' /
 //!    tau_tr) s_tr (eq. 46).
+//!
+//! G is constant. With `poisson_ratio`, eq. 18 is evaluated with the reference K rather than the
+//! EOS tangent at the current J (a few percent apart in the weakly compressible range), so the
+//! elastic shear response does not follow the density noise of the pressure field.
 //!
 //! Per-particle state (8 reals):
 //! `[s_xx, s_yy, s_zz, s_xy, s_yz, s_xz, lambda, gamma_p]` — the deviatoric Cauchy stress [Pa],
@@ -40,7 +45,9 @@ use serde::Deserialize;
 
 use crate::material::eos::{resolve_shear_modulus, shear_modulus_of};
 use crate::material::{Eos, Material, StabilityInfo};
-use crate::real::{ddot, dev, jaumann_rotation, r, skew, sym, sym_from_slice, sym_to_array, Real, M3, V3};
+use crate::real::{
+    ddot, dev, jaumann_rotation, r, skew, sym, sym_from_slice, sym_to_array, Real, M3, V3,
+};
 
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -77,7 +84,12 @@ impl EvpBingham {
     pub fn validate(&self) -> Result<(), String> {
         positive("material.density", self.density)?;
         positive("material.bulk_modulus", self.bulk_modulus)?;
-        resolve_shear_modulus("material", self.bulk_modulus, self.shear_modulus, self.poisson_ratio)?;
+        resolve_shear_modulus(
+            "material",
+            self.bulk_modulus,
+            self.shear_modulus,
+            self.poisson_ratio,
+        )?;
         // eta = 0 is rate-independent von Mises plasticity, still well posed.
         non_negative("material.viscosity", self.viscosity)?;
         non_negative("material.yield_stress", self.yield_stress)?;
@@ -85,7 +97,10 @@ impl EvpBingham {
         non_negative("material.alpha", self.alpha)?;
         non_negative("material.lambda0", self.lambda0)?;
         if self.a_thix > 0.0 && self.yield_stress == 0.0 {
-            return Err("material.yield_stress must be > 0 when material.a_thix > 0 (eq. 22 divides by it)".into());
+            return Err(
+                "material.yield_stress must be > 0 when material.a_thix > 0 (eq. 22 divides by it)"
+                    .into(),
+            );
         }
         self.eos.validate("material.eos")
     }
@@ -141,7 +156,9 @@ impl Material for EvpBingham {
     }
 
     fn state_names(&self) -> &'static [&'static str] {
-        &["s_xx", "s_yy", "s_zz", "s_xy", "s_yz", "s_xz", "lambda", "gamma_p"]
+        &[
+            "s_xx", "s_yy", "s_zz", "s_xy", "s_yz", "s_xz", "lambda", "gamma_p",
+        ]
     }
 
     fn init_state(&self, state: &mut [Real]) {
@@ -159,8 +176,10 @@ impl Material for EvpBingham {
 
         let rot = jaumann_rotation(&skew(grad_v), dt);
         let s_old = sym_from_slice(&state[..6]);
-        // dev() drops the round-off trace the rotation leaves, so it cannot accumulate.
-        let s_tr = dev(&(rot * s_old * rot.transpose() + dev(&sym(grad_v)) * (r(2.0) * g * dt)));
+        // dev(sym()) drops the round-off trace and asymmetry the rotation leaves, so neither can
+        // accumulate in the state or reach the returned stress.
+        let s_tr =
+            dev(&sym(&(rot * s_old * rot.transpose()))) + dev(&sym(grad_v)) * (r(2.0) * g * dt);
         let lambda_tr = state[6] + self.build_up_rate() * dt;
         let tau_tr = (r(0.5) * ddot(&s_tr, &s_tr)).sqrt();
         let f_tr = tau_tr - (r(1.0) + lambda_tr) * tau0;
@@ -171,7 +190,10 @@ impl Material for EvpBingham {
             let gamma_p = plastic_shear_rate(f_tr, xi, zeta);
             let tau = tau_tr - dt * g * gamma_p;
             state[7] += gamma_p * dt;
-            (s_tr * (tau / tau_tr), lambda_tr / (r(1.0) + dt * alpha * gamma_p))
+            (
+                s_tr * (tau / tau_tr),
+                lambda_tr / (r(1.0) + dt * alpha * gamma_p),
+            )
         } else {
             (s_tr, lambda_tr)
         };
@@ -251,11 +273,18 @@ mod tests {
         }
         // Yield at G gamma = tau0, within one step.
         let gy = yielded_at.unwrap();
-        assert!(gy >= 1e-4 && gy <= 1e-4 + 2.0 * g * dt, "yield at gamma = {gy}");
+        assert!(
+            gy >= 1e-4 && gy <= 1e-4 + 2.0 * g * dt,
+            "yield at gamma = {gy}"
+        );
         // Steady flow: all the shear rate is plastic and tau = tau0 + eta g.
         let s = m.update(&simple_shear(g), 1.0, dt, &mut st);
         let bingham = 100.0 + 30.0 * g;
-        assert!(rel(tau_of(&s), bingham) < 1e-6, "tau {} vs {bingham}", tau_of(&s));
+        assert!(
+            rel(tau_of(&s), bingham) < 1e-6,
+            "tau {} vs {bingham}",
+            tau_of(&s)
+        );
         assert!(rel(s.y_axis.x, bingham) < 1e-6);
         let gp_before = st[7];
         m.update(&simple_shear(g), 1.0, dt, &mut st);
@@ -277,7 +306,10 @@ mod tests {
         let gamma = n as Real * dt * g;
         let gm = 1e6 as Real;
         assert!((s.y_axis.x - gm * gamma.sin()).abs() < 2e-3 * gm, "{s:?}");
-        assert!((s.x_axis.x - gm * (1.0 - gamma.cos())).abs() < 2e-3 * gm, "{s:?}");
+        assert!(
+            (s.x_axis.x - gm * (1.0 - gamma.cos())).abs() < 2e-3 * gm,
+            "{s:?}"
+        );
         assert!((s.y_axis.y + gm * (1.0 - gamma.cos())).abs() < 2e-3 * gm);
         assert!(rel(tau_of(&s), 2.0 * gm * (gamma / 2.0).sin()) < 2e-3);
         assert!(s.z_axis.z.abs() < EPS * gm);
@@ -285,7 +317,11 @@ mod tests {
 
     /// The skew matrix K with K x = a x x.
     fn cross_matrix(a: V3) -> M3 {
-        M3::from_cols(V3::new(0.0, a.z, -a.y), V3::new(-a.z, 0.0, a.x), V3::new(a.y, -a.x, 0.0))
+        M3::from_cols(
+            V3::new(0.0, a.z, -a.y),
+            V3::new(-a.z, 0.0, a.x),
+            V3::new(a.y, -a.x, 0.0),
+        )
     }
 
     /// Rotation by `angle` about unit `axis` (Rodrigues), independent of the code under test.
@@ -295,13 +331,19 @@ mod tests {
     }
 
     fn max_abs(m: &M3) -> Real {
-        m.to_cols_array().iter().fold(0.0, |a: Real, &x| a.max(x.abs()))
+        m.to_cols_array()
+            .iter()
+            .fold(0.0, |a: Real, &x| a.max(x.abs()))
     }
 
     #[test]
     fn rigid_rotation_rotates_the_stress_and_keeps_its_invariants() {
         let m = solid();
-        let s0 = M3::from_cols(V3::new(30.0, 10.0, -5.0), V3::new(10.0, -20.0, 7.0), V3::new(-5.0, 7.0, -10.0));
+        let s0 = M3::from_cols(
+            V3::new(30.0, 10.0, -5.0),
+            V3::new(10.0, -20.0, 7.0),
+            V3::new(-5.0, 7.0, -10.0),
+        );
         let mut st = fresh(&m);
         st[..6].copy_from_slice(&sym_to_array(&s0));
         let axis = V3::new(1.0, 2.0, 2.0) / 3.0;
@@ -312,7 +354,12 @@ mod tests {
         for _ in 0..n {
             s = m.update(&w, 1.0, dt, &mut st);
         }
-        assert!(rel(tau_of(&s), tau_of(&s0)) < 10.0 * EPS, "{} vs {}", tau_of(&s), tau_of(&s0));
+        assert!(
+            rel(tau_of(&s), tau_of(&s0)) < 10.0 * EPS,
+            "{} vs {}",
+            tau_of(&s),
+            tau_of(&s0)
+        );
         assert!(rel(s.determinant(), s0.determinant()) < 100.0 * EPS);
         assert!(trace(&s).abs() < 1e-9 * tau_of(&s0) || cfg!(feature = "f32"));
         // Co-rotation with the material: s(t) = Q s0 Q^T, Q = exp(W t). The Cayley step turns by
@@ -326,8 +373,16 @@ mod tests {
 
     #[test]
     fn hughes_winget_rotation_is_orthogonal_and_first_order_jaumann() {
-        let w = M3::from_cols(V3::new(0.0, 0.3, -0.2), V3::new(-0.3, 0.0, 0.1), V3::new(0.2, -0.1, 0.0));
-        let s = M3::from_cols(V3::new(1.0, 2.0, 3.0), V3::new(2.0, -4.0, 0.5), V3::new(3.0, 0.5, 3.0));
+        let w = M3::from_cols(
+            V3::new(0.0, 0.3, -0.2),
+            V3::new(-0.3, 0.0, 0.1),
+            V3::new(0.2, -0.1, 0.0),
+        );
+        let s = M3::from_cols(
+            V3::new(1.0, 2.0, 3.0),
+            V3::new(2.0, -4.0, 0.5),
+            V3::new(3.0, 0.5, 3.0),
+        );
         let mut gaps = [0.0; 2];
         for (i, dt) in [0.02 as Real, 0.01].into_iter().enumerate() {
             let q = jaumann_rotation(&w, dt);
@@ -343,8 +398,16 @@ mod tests {
     /// Takes one plastic step from a prescribed state with a spin-free L, so the trial state can be
     /// recomputed by hand; returns (tau_new, gamma_p, lambda_new, tau_tr, f_tr, lambda_tr).
     fn one_plastic_step(m: &EvpBingham, dt: Real) -> (Real, Real, Real, Real, Real, Real) {
-        let s0 = M3::from_cols(V3::new(40.0, 60.0, 0.0), V3::new(60.0, -10.0, 20.0), V3::new(0.0, 20.0, -30.0));
-        let l = M3::from_cols(V3::new(0.2, 0.5, -0.1), V3::new(0.5, -0.4, 0.3), V3::new(-0.1, 0.3, 0.1));
+        let s0 = M3::from_cols(
+            V3::new(40.0, 60.0, 0.0),
+            V3::new(60.0, -10.0, 20.0),
+            V3::new(0.0, 20.0, -30.0),
+        );
+        let l = M3::from_cols(
+            V3::new(0.2, 0.5, -0.1),
+            V3::new(0.5, -0.4, 0.3),
+            V3::new(-0.1, 0.3, 0.1),
+        );
         let mut st = fresh(m);
         st[..6].copy_from_slice(&sym_to_array(&s0));
         st[6] = 0.7;
@@ -364,25 +427,48 @@ mod tests {
 
     #[test]
     fn converged_plastic_step_satisfies_the_bingham_law() {
-        let base = EvpBingham { a_thix: 0.8, alpha: 0.3, ..solid() };
+        let base = EvpBingham {
+            a_thix: 0.8,
+            alpha: 0.3,
+            ..solid()
+        };
         // xi > 0 (ordinary) and xi < 0 (strong deflocculation, large step) forms of eq. 43.
         for (m, dt) in [
             (base.clone(), 1e-4 as Real),
             (
-                EvpBingham { alpha: 100.0, viscosity: 0.0, shear_modulus: Some(1.0e3), yield_stress: 20.0, ..base.clone() },
+                EvpBingham {
+                    alpha: 100.0,
+                    viscosity: 0.0,
+                    shear_modulus: Some(1.0e3),
+                    yield_stress: 20.0,
+                    ..base.clone()
+                },
                 1e-2,
             ),
         ] {
             let (tau, gp, lambda, tau_tr, _, lambda_tr) = one_plastic_step(&m, dt);
-            let (eta, tau0, g) = (m.viscosity as Real, m.yield_stress as Real, m.shear_modulus() as Real);
+            let (eta, tau0, g) = (
+                m.viscosity as Real,
+                m.yield_stress as Real,
+                m.shear_modulus() as Real,
+            );
             let xi = eta + dt * (g + m.alpha as Real * (tau0 - tau_tr));
             assert!(gp > 0.0);
             assert_eq!(xi > 0.0, m.alpha < 1.0, "branch coverage: xi = {xi}");
             // Eq. 20 at the new state, eq. 45, and eq. 41.
             let scale = tau_tr;
-            assert!((tau - (eta * gp + (1.0 + lambda) * tau0)).abs() < 10.0 * EPS * scale, "eq. 20");
-            assert!((tau - (tau_tr - g * dt * gp)).abs() < 10.0 * EPS * scale, "eq. 45");
-            assert!((lambda * (1.0 + dt * m.alpha as Real * gp) - lambda_tr).abs() < 10.0 * EPS, "eq. 41");
+            assert!(
+                (tau - (eta * gp + (1.0 + lambda) * tau0)).abs() < 10.0 * EPS * scale,
+                "eq. 20"
+            );
+            assert!(
+                (tau - (tau_tr - g * dt * gp)).abs() < 10.0 * EPS * scale,
+                "eq. 45"
+            );
+            assert!(
+                (lambda * (1.0 + dt * m.alpha as Real * gp) - lambda_tr).abs() < 10.0 * EPS,
+                "eq. 41"
+            );
         }
     }
 
@@ -394,17 +480,33 @@ mod tests {
         let eq47 = f_tr / (30.0 + 1.0e6 * dt);
         assert!(rel(gp0, eq47) < 10.0 * EPS, "{gp0} vs {eq47}");
         assert_eq!(lambda0, 0.7);
-        let (_, gp1, lambda1, _, _, _) = one_plastic_step(&EvpBingham { alpha: 1e-9, ..solid() }, dt);
+        let (_, gp1, lambda1, _, _, _) = one_plastic_step(
+            &EvpBingham {
+                alpha: 1e-9,
+                ..solid()
+            },
+            dt,
+        );
         assert!(rel(gp1, gp0) < 1e-8, "{gp1} vs {gp0}");
         assert!(rel(lambda1, lambda0) < 1e-8);
         // Deflocculation lowers the yield stress during the step, so more of it is plastic.
-        let (_, gp2, lambda2, _, _, _) = one_plastic_step(&EvpBingham { alpha: 0.1, ..solid() }, dt);
+        let (_, gp2, lambda2, _, _, _) = one_plastic_step(
+            &EvpBingham {
+                alpha: 0.1,
+                ..solid()
+            },
+            dt,
+        );
         assert!(gp2 > gp0 && lambda2 < lambda0, "{gp2} {lambda2}");
     }
 
     #[test]
     fn thixotropic_build_up_at_rest_is_linear_and_stress_free() {
-        let m = EvpBingham { a_thix: 0.5, lambda0: 0.1, ..solid() };
+        let m = EvpBingham {
+            a_thix: 0.5,
+            lambda0: 0.1,
+            ..solid()
+        };
         let mut st = fresh(&m);
         let (dt, n) = (0.1 as Real, 1000);
         let mut s = M3::IDENTITY;
@@ -418,7 +520,10 @@ mod tests {
 
     #[test]
     fn pressure_is_the_eos_of_j_and_independent_of_plasticity() {
-        let m = EvpBingham { eos: Eos::Tait { gamma: 7.0 }, ..solid() };
+        let m = EvpBingham {
+            eos: Eos::Tait { gamma: 7.0 },
+            ..solid()
+        };
         let mut st = fresh(&m);
         let s = m.update(&simple_shear(1e3), 0.99, 1e-3, &mut st);
         assert!(st[7] > 0.0);
@@ -428,18 +533,42 @@ mod tests {
 
     #[test]
     fn shear_modulus_from_poisson_ratio_and_validation() {
-        let m = EvpBingham { shear_modulus: None, poisson_ratio: Some(0.45), ..solid() };
+        let m = EvpBingham {
+            shear_modulus: None,
+            poisson_ratio: Some(0.45),
+            ..solid()
+        };
         assert!(m.validate().is_ok());
         // G = E / (2 (1 + nu)) with E = 3 K (1 - 2 nu): 3 * 2e6 * 0.1 / 2.9.
         assert!((m.shear_modulus() - 6.0e5 / 2.9).abs() < 1e-9);
-        let both = EvpBingham { poisson_ratio: Some(0.45), ..solid() };
+        let both = EvpBingham {
+            poisson_ratio: Some(0.45),
+            ..solid()
+        };
         assert!(both.validate().unwrap_err().contains("not both"));
-        let none = EvpBingham { shear_modulus: None, ..solid() };
+        let none = EvpBingham {
+            shear_modulus: None,
+            ..solid()
+        };
         assert!(none.validate().unwrap_err().contains("required"));
-        let bad = EvpBingham { shear_modulus: None, poisson_ratio: Some(0.5), ..solid() };
-        assert_eq!(bad.validate().unwrap_err(), "material.poisson_ratio must be in (-1, 0.5), got 0.5");
-        let bad = EvpBingham { a_thix: 1.0, yield_stress: 0.0, ..solid() };
-        assert!(bad.validate().unwrap_err().starts_with("material.yield_stress"));
+        let bad = EvpBingham {
+            shear_modulus: None,
+            poisson_ratio: Some(0.5),
+            ..solid()
+        };
+        assert_eq!(
+            bad.validate().unwrap_err(),
+            "material.poisson_ratio must be in (-1, 0.5), got 0.5"
+        );
+        let bad = EvpBingham {
+            a_thix: 1.0,
+            yield_stress: 0.0,
+            ..solid()
+        };
+        assert!(bad
+            .validate()
+            .unwrap_err()
+            .starts_with("material.yield_stress"));
         assert!(solid().validate().is_ok());
         let st = solid().stability();
         assert_eq!((st.shear_modulus, st.max_viscosity), (1.0e6, 30.0));

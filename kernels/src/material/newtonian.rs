@@ -33,7 +33,10 @@ impl Newtonian {
         positive("material.bulk_modulus", self.bulk_modulus)?;
         // mu = 0 is a legitimate inviscid (Euler) fluid.
         if !(self.viscosity.is_finite() && self.viscosity >= 0.0) {
-            return Err(format!("material.viscosity must be >= 0, got {}", self.viscosity));
+            return Err(format!(
+                "material.viscosity must be >= 0, got {}",
+                self.viscosity
+            ));
         }
         self.eos.validate("material.eos")
     }
@@ -81,7 +84,12 @@ mod tests {
     use crate::real::trace;
 
     fn water() -> Newtonian {
-        Newtonian { density: 1000.0, bulk_modulus: 1.0e6, viscosity: 1.0e-3, eos: Eos::Linear }
+        Newtonian {
+            density: 1000.0,
+            bulk_modulus: 1.0e6,
+            viscosity: 1.0e-3,
+            eos: Eos::Linear,
+        }
     }
 
     /// L with the single entry dv_x/dy = g (glam is column-major: column 1 holds d v / d y).
@@ -97,7 +105,10 @@ mod tests {
             let expect = r(m.viscosity) * g;
             assert!((s.y_axis.x - expect).abs() <= 1e-6 * expect.abs(), "{s:?}");
             assert!((s.x_axis.y - expect).abs() <= 1e-6 * expect.abs());
-            for (i, c) in [s.x_axis.x, s.y_axis.y, s.z_axis.z, s.z_axis.x, s.z_axis.y].iter().enumerate() {
+            for (i, c) in [s.x_axis.x, s.y_axis.y, s.z_axis.z, s.z_axis.x, s.z_axis.y]
+                .iter()
+                .enumerate()
+            {
                 assert_eq!(*c, 0.0, "component {i}");
             }
         }
@@ -105,7 +116,11 @@ mod tests {
 
     #[test]
     fn pure_compression_stress_is_minus_eos_pressure() {
-        let m = water();
+        // Viscous enough that a volumetric viscous stress (2 mu tr(L)/3 = 10 Pa) would show.
+        let m = Newtonian {
+            viscosity: 10.0,
+            ..water()
+        };
         let l = M3::from_diagonal(V3::splat(-0.5));
         let s = m.update(&l, 0.99, 1e-4, &mut []);
         // K (1/J - 1) evaluated by hand: 1e6 * (1/0.99 - 1).
@@ -122,7 +137,10 @@ mod tests {
         let mut m = water();
         m.eos = Eos::Tait { gamma: 7.0 };
         // K/gamma (exp(-gamma (J - 1)) - 1), evaluated by hand for K = 1e6, gamma = 7.
-        for (j, p) in [(0.99 as Real, 10358.311607745221 as Real), (1.02, -18663.10922874204)] {
+        for (j, p) in [
+            (0.99 as Real, 10358.311607745221 as Real),
+            (1.02, -18663.10922874204),
+        ] {
             let s = m.update(&M3::ZERO, j, 1e-4, &mut []);
             assert!((s.x_axis.x + p).abs() <= 1e-5 * p.abs(), "j={j}: {s:?}");
         }
@@ -143,7 +161,10 @@ mod tests {
             assert!(gap >= 2.0 * k * e * e, "e={e}: gap {gap}");
             if let Some(g) = prev {
                 let ratio: Real = g / gap;
-                assert!((ratio - 4.0).abs() < 0.2, "gap must be second order, ratio {ratio}");
+                assert!(
+                    (ratio - 4.0).abs() < 0.2,
+                    "gap must be second order, ratio {ratio}"
+                );
             }
             prev = Some(gap);
         }
@@ -153,7 +174,10 @@ mod tests {
     fn validation_names_the_key() {
         let mut m = water();
         m.viscosity = -1.0;
-        assert_eq!(m.validate().unwrap_err(), "material.viscosity must be >= 0, got -1");
+        assert_eq!(
+            m.validate().unwrap_err(),
+            "material.viscosity must be >= 0, got -1"
+        );
         let mut m = water();
         m.bulk_modulus = 0.0;
         assert!(m.validate().unwrap_err().contains("material.bulk_modulus"));
@@ -167,12 +191,23 @@ mod tests {
     fn deserializes_with_linear_default_and_rejects_unknown_keys() {
         use serde::de::value::{Error, MapDeserializer};
         let ok: Newtonian = Newtonian::deserialize(MapDeserializer::<_, Error>::new(
-            [("density", 1000.0), ("bulk_modulus", 1e6), ("viscosity", 1e-3)].into_iter(),
+            [
+                ("density", 1000.0),
+                ("bulk_modulus", 1e6),
+                ("viscosity", 1e-3),
+            ]
+            .into_iter(),
         ))
         .unwrap();
         assert_eq!(ok.eos, Eos::Linear);
         let bad = Newtonian::deserialize(MapDeserializer::<_, Error>::new(
-            [("density", 1000.0), ("bulk_modulus", 1e6), ("viscosity", 1e-3), ("viscosty", 1.0)].into_iter(),
+            [
+                ("density", 1000.0),
+                ("bulk_modulus", 1e6),
+                ("viscosity", 1e-3),
+                ("viscosty", 1.0),
+            ]
+            .into_iter(),
         ));
         assert!(bad.unwrap_err().to_string().contains("viscosty"));
     }

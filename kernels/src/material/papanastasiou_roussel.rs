@@ -75,7 +75,10 @@ impl PapanastasiouRoussel {
         non_negative("material.alpha", self.alpha)?;
         non_negative("material.lambda0", self.lambda0)?;
         if self.a_thix > 0.0 && self.yield_stress == 0.0 {
-            return Err("material.yield_stress must be > 0 when material.a_thix > 0 (eq. 12 divides by it)".into());
+            return Err(
+                "material.yield_stress must be > 0 when material.a_thix > 0 (eq. 12 divides by it)"
+                    .into(),
+            );
         }
         match self.lambda_max {
             None if self.a_thix > 0.0 => Err(
@@ -161,7 +164,10 @@ impl Material for PapanastasiouRoussel {
 
         let m = r(self.papanastasiou_m);
         let eta_a = r(self.viscosity)
-            + r(self.yield_stress) * (r(1.0) + lambda) * m * one_minus_exp_neg_over_x(m * gamma_dot);
+            + r(self.yield_stress)
+                * (r(1.0) + lambda)
+                * m
+                * one_minus_exp_neg_over_x(m * gamma_dot);
         let p = self.eos.pressure(r(self.bulk_modulus), j);
         d_dev * (r(2.0) * eta_a) - M3::from_diagonal(V3::splat(p))
     }
@@ -257,7 +263,11 @@ mod tests {
         };
         for x in [0.0, 1e-12, 1e-6, 9.999e-5, 1e-4, 1.0001e-4, 1e-3, 0.1, 1.0] {
             let v = one_minus_exp_neg_over_x(x);
-            assert!((v - reference(x)).abs() <= 4.0 * f64::EPSILON, "x={x}: {v} vs {}", reference(x));
+            assert!(
+                (v - reference(x)).abs() <= 4.0 * f64::EPSILON,
+                "x={x}: {v} vs {}",
+                reference(x)
+            );
         }
         assert!(rel(one_minus_exp_neg_over_x(50.0), 1.0 / 50.0) < 1e-15);
     }
@@ -347,14 +357,23 @@ mod tests {
         assert!(mix().validate().is_ok());
         let mut m = mix();
         m.a_thix = 0.5;
-        assert!(m.validate().unwrap_err().starts_with("material.lambda_max is required"));
+        assert!(m
+            .validate()
+            .unwrap_err()
+            .starts_with("material.lambda_max is required"));
         m.lambda_max = Some(5.0);
         assert!(m.validate().is_ok());
         m.lambda0 = 6.0;
-        assert!(m.validate().unwrap_err().starts_with("material.lambda_max must be"));
+        assert!(m
+            .validate()
+            .unwrap_err()
+            .starts_with("material.lambda_max must be"));
         let mut m = mix();
         m.papanastasiou_m = 0.0;
-        assert_eq!(m.validate().unwrap_err(), "material.papanastasiou_m must be > 0, got 0");
+        assert_eq!(
+            m.validate().unwrap_err(),
+            "material.papanastasiou_m must be > 0, got 0"
+        );
         let mut m = mix();
         m.alpha = -0.1;
         assert!(m.validate().unwrap_err().starts_with("material.alpha"));
@@ -364,11 +383,19 @@ mod tests {
     fn defaults() {
         use serde::de::value::{Error, MapDeserializer};
         let m = PapanastasiouRoussel::deserialize(MapDeserializer::<_, Error>::new(
-            [("density", 2000.0), ("bulk_modulus", 3.3e5), ("viscosity", 30.0), ("yield_stress", 100.0)]
-                .into_iter(),
+            [
+                ("density", 2000.0),
+                ("bulk_modulus", 3.3e5),
+                ("viscosity", 30.0),
+                ("yield_stress", 100.0),
+            ]
+            .into_iter(),
         ))
         .unwrap();
-        assert_eq!((m.papanastasiou_m, m.a_thix, m.alpha, m.lambda0), (10.0, 0.0, 0.0, 0.0));
+        assert_eq!(
+            (m.papanastasiou_m, m.a_thix, m.alpha, m.lambda0),
+            (10.0, 0.0, 0.0, 0.0)
+        );
         assert_eq!(m.lambda_max, None);
         assert_eq!(m.eos, Eos::Linear);
         assert!(m.validate().is_ok());

@@ -1,0 +1,198 @@
+//! Solver-core properties: no allocation in a step, bit-identical results for any thread count,
+//! clean failures for budgets and pools that are too small, and blow-up reports.
+
+mod common;
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use strand::scenario::Scenario;
+use strand::solver::Simulation;
+
+/// Counts heap allocations on every thread while `COUNTING` is set.
+struct CountingAlloc;
+static COUNTING: AtomicBool = AtomicBool::new(false);
+static ALLOCS: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for CountingAlloc {
+    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
+        if COUNTING.load(Ordering::Relaxed) {
+            ALLOCS.fetch_add(1, Ordering::Relaxed);
+        }
+        System.alloc(l)
+    }
+    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+        System.dealloc(p, l)
+    }
+    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
+        if COUNTING.load(Ordering::Relaxed) {
+            ALLOCS.fetch_add(1, Ordering::Relaxed);
+        }
+        System.realloc(p, l, n)
+    }
+}
+
+#[global_allocator]
+static GLOBAL: CountingAlloc = CountingAlloc;
+
+fn sim(threads: usize) -> Simulation {
+    let sc = Scenario::parse(&common::dam_break(threads, "256 MiB", "")).unwrap();
+    Simulation::new(&sc).unwrap()
+}
+
+#[test]
+fn a_step_allocates_nothing() {
+    // every material, since each runs inside the step
+    for threads in [1, 2] {
+        let mut s = sim(threads);
+        s.step_until(1.0).unwrap(); // first step outside the count: lazily initialised statics
+        ALLOCS.store(0, Ordering::SeqCst);
+        COUNTING.store(true, Ordering::SeqCst);
+        for _ in 0..20 {
+            s.step_until(1.0).unwrap();
+        }
+        COUNTING.store(false, Ordering::SeqCst);
+        let n = ALLOCS.load(Ordering::SeqCst);
+        assert_eq!(n, 0, "{n} heap allocations in 20 steps with {threads} threads");
+        assert!(s.step == 21);
+    }
+}
+
+#[test]
+fn counting_allocator_sees_allocations() {
+    // the allocation test above could not fail if the counter were broken
+    ALLOCS.store(0, Ordering::SeqCst);
+    COUNTING.store(true, Ordering::SeqCst);
+    let v: Vec<u64> = std::hint::black_box(vec![1, 2, 3]);
+    COUNTING.store(false, Ordering::SeqCst);
+    assert!(ALLOCS.load(Ordering::SeqCst) >= 1 && v.len() == 3);
+}
+
+fn state_bytes(s: &Simulation) -> Vec<u8> {
+    let p = &s.particles;
+    let n = p.n;
+    let mut out = Vec::new();
+    out.extend_from_slice(bytemuck::cast_slice(&p.xg.as_slice()[..n]));
+    out.extend_from_slice(bytemuck::cast_slice(&p.v.as_slice()[..n]));
+    out.extend_from_slice(bytemuck::cast_slice(&p.c.as_slice()[..n]));
+    out.extend_from_slice(bytemuck::cast_slice(&p.stress.as_slice()[..n]));
+    out.extend_from_slice(bytemuck::cast_slice(&p.j.as_slice()[..n]));
+    out.extend_from_slice(bytemuck::cast_slice(&p.id.as_slice()[..n]));
+    out
+}
+
+#[test]
+fn one_and_two_threads_are_bit_identical() {
+    let mut a = sim(1);
+    let mut b = sim(2);
+    assert_eq!(b.threads(), 2);
+    for _ in 0..60 {
+        a.step_until(1.0).unwrap();
+        b.step_until(1.0).unwrap();
+    }
+    assert!(a.vmax > 0.1, "the column must be moving: vmax {}", a.vmax);
+    assert_eq!(a.time.to_bits(), b.time.to_bits());
+    assert!(state_bytes(&a) == state_bytes(&b), "1- and 2-thread states differ");
+    // and a three-thread team too
+    let mut c = {
+        let sc = Scenario::parse(&common::dam_break(3, "256 MiB", "")).unwrap();
+        Simulation::new(&sc).unwrap()
+    };
+    for _ in 0..60 {
+        c.step_until(1.0).unwrap();
+    }
+    assert!(state_bytes(&a) == state_bytes(&c), "1- and 3-thread states differ");
+}
+
+#[test]
+fn budget_too_small_fails_at_start_listing_pools() {
+    let sc = Scenario::parse(&common::dam_break(1, "1 MiB", "")).unwrap();
+    let e = Simulation::new(&sc).err().expect("must not fit").to_string();
+    for pool in ["particles.x", "particles.stress", "grid.nodes", "grid.table", "scratch.order", "budget"] {
+        assert!(e.contains(pool), "message lacks {pool}: {e}");
+    }
+}
+
+#[test]
+fn particle_pool_too_small_names_the_pool() {
+    let sc = Scenario::parse(&common::dam_break(1, "256 MiB", "max_particles = 100")).unwrap();
+    let e = Simulation::new(&sc).err().expect("pool too small").to_string();
+    assert!(e.contains("particles") && e.contains("max_particles") && e.contains("100"), "{e}");
+}
+
+#[test]
+fn running_out_of_blocks_mid_run_is_an_error_naming_the_pool() {
+    // enough blocks for the column at rest, not for the spreading flow
+    let sc = Scenario::parse(&common::dam_break(1, "256 MiB", "max_blocks = 60")).unwrap();
+    let mut s = Simulation::new(&sc).unwrap();
+    let mut err = None;
+    for _ in 0..2000 {
+        if let Err(e) = s.step_until(1.0) {
+            err = Some(e.to_string());
+            break;
+        }
+    }
+    let e = err.expect("the flow must outgrow 60 blocks");
+    assert!(e.contains("grid blocks") && e.contains("max_blocks"), "{e}");
+}
+
+#[test]
+fn blow_up_names_step_particle_and_field() {
+    let text = common::dam_break(1, "256 MiB", "").replace("reorder_interval = 5", "reorder_interval = 5\ndt = 0.05");
+    let sc = Scenario::parse(&text).unwrap();
+    let mut s = Simulation::new(&sc).unwrap();
+    let mut err = None;
+    for _ in 0..200 {
+        if let Err(e) = s.step_until(100.0) {
+            err = Some(e.to_string());
+            break;
+        }
+    }
+    let e = err.expect("a step 100x the CFL bound must blow up");
+    assert!(e.contains("blow-up at step") && e.contains("particle") && (e.contains("velocity") || e.contains("stress") || e.contains("J")), "{e}");
+}
+
+#[test]
+fn scenario_errors_name_the_key() {
+    let bad_key = common::dam_break(1, "256 MiB", "").replace("viscosity = 1.0", "viscosty = 1.0");
+    let e = Scenario::parse(&bad_key).map(|_| ()).and_then(|_| Ok(()));
+    // unknown material keys are caught when the material is built
+    let sc = Scenario::parse(&bad_key);
+    let msg = match sc {
+        Err(e) => e.to_string(),
+        Ok(sc) => Simulation::new(&sc).err().expect("unknown key must fail").to_string(),
+    };
+    let _ = e;
+    assert!(msg.contains("viscosty"), "{msg}");
+
+    let unknown_top = common::dam_break(1, "256 MiB", "").replace("[simulation]", "[simulation]\nfoo = 1");
+    let msg = Scenario::parse(&unknown_top).err().expect("unknown key").to_string();
+    assert!(msg.contains("foo"), "{msg}");
+
+    let bad_dx = common::dam_break(1, "256 MiB", "").replace("dx = 0.02", "dx = -0.02");
+    let msg = Scenario::parse(&bad_dx).err().expect("negative dx").to_string();
+    assert!(msg.contains("simulation.dx"), "{msg}");
+
+    let bad_budget = common::dam_break(1, "lots", "");
+    let msg = Scenario::parse(&bad_budget).err().expect("bad budget").to_string();
+    assert!(msg.contains("memory.budget"), "{msg}");
+
+    let bad_mat = common::dam_break(1, "256 MiB", "").replace("viscosity = 1.0", "viscosity = -1.0");
+    let sc = Scenario::parse(&bad_mat).unwrap();
+    let msg = Simulation::new(&sc).err().expect("negative viscosity").to_string();
+    assert!(msg.contains("viscosity"), "{msg}");
+}
+
+#[test]
+fn file_backed_pools_give_the_same_result() {
+    let dir = tempfile::tempdir().unwrap();
+    let extra = format!("dir = {:?}", dir.path().to_str().unwrap());
+    let sc = Scenario::parse(&common::dam_break(2, "256 MiB", &extra)).unwrap();
+    let mut f = Simulation::new(&sc).unwrap();
+    let mut a = sim(2);
+    for _ in 0..20 {
+        a.step_until(1.0).unwrap();
+        f.step_until(1.0).unwrap();
+    }
+    assert!(state_bytes(&a) == state_bytes(&f));
+    assert!(dir.path().join("particles_x.pool").exists());
+}
