@@ -22,6 +22,7 @@ end_time = 1.0
 dt = {dt}
 gravity = [0.0, -9.8, 0.0]
 threads = {threads}
+flip = 0.0
 [domain]
 min = [{lo}, {lo}, {lo}]
 max = [{hi}, {hi}, {hi}]

@@ -49,6 +49,10 @@ pub struct Simulation {
     /// Worker threads; 0 = all cores.
     #[serde(default)]
     pub threads: usize,
+    /// FLIP share of the particle velocity update (0 = APIC, the particle takes the grid
+    /// velocity; alpha in (0, 1] keeps alpha (v_p + grid increment) + (1 - alpha) v_grid).
+    #[serde(default = "default_flip")]
+    pub flip: f64,
     /// Physically reorder particles by block every this many steps (between reorders they are
     /// visited through an index permutation).
     #[serde(default = "default_reorder")]
@@ -60,6 +64,9 @@ fn default_cfl() -> f64 {
 }
 fn default_gravity() -> [f64; 3] {
     [0.0, 0.0, -9.81]
+}
+fn default_flip() -> f64 {
+    0.99
 }
 fn default_reorder() -> u64 {
     16
@@ -284,6 +291,9 @@ impl Scenario {
         }
         if !(s.cfl > 0.0 && s.cfl <= 1.0) {
             return bad(format!("simulation.cfl must be in (0, 1], got {}", s.cfl));
+        }
+        if !(0.0..=1.0).contains(&s.flip) {
+            return bad(format!("simulation.flip must be in [0, 1], got {}", s.flip));
         }
         if s.reorder_interval == 0 {
             return bad("simulation.reorder_interval must be >= 1".into());

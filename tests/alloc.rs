@@ -1,0 +1,64 @@
+//! The step loop allocates nothing on the heap. Its own test binary with a single test, because
+//! the counting allocator sees every thread of the process.
+
+mod common;
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+
+/// Counts heap allocations on every thread while `COUNTING` is set.
+struct CountingAlloc;
+static COUNTING: AtomicBool = AtomicBool::new(false);
+static ALLOCS: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for CountingAlloc {
+    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
+        if COUNTING.load(Ordering::Relaxed) {
+            ALLOCS.fetch_add(1, Ordering::Relaxed);
+        }
+        System.alloc(l)
+    }
+    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+        System.dealloc(p, l)
+    }
+    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
+        if COUNTING.load(Ordering::Relaxed) {
+            ALLOCS.fetch_add(1, Ordering::Relaxed);
+        }
+        System.realloc(p, l, n)
+    }
+}
+
+#[global_allocator]
+static GLOBAL: CountingAlloc = CountingAlloc;
+
+use strand::scenario::Scenario;
+use strand::solver::Simulation;
+
+#[test]
+fn a_step_allocates_nothing() {
+    // the counter must see allocations, or this test could not fail
+    ALLOCS.store(0, Ordering::SeqCst);
+    COUNTING.store(true, Ordering::SeqCst);
+    let v: Vec<u64> = std::hint::black_box(vec![1, 2, 3]);
+    COUNTING.store(false, Ordering::SeqCst);
+    assert!(ALLOCS.load(Ordering::SeqCst) >= 1 && v.len() == 3);
+
+    for (threads, kind) in [(1, "newtonian"), (2, "newtonian"), (2, "evp")] {
+        let mut text = common::dam_break(threads, "256 MiB", "");
+        if kind == "evp" {
+            text = text.replace("kind = \"newtonian\"", "kind = \"evp_bingham\"\nyield_stress = 10.0\npoisson_ratio = 0.3");
+        }
+        let mut s = Simulation::new(&Scenario::parse(&text).unwrap()).unwrap();
+        s.step_until(1.0).unwrap(); // first step outside the count: lazily initialised statics
+        ALLOCS.store(0, Ordering::SeqCst);
+        COUNTING.store(true, Ordering::SeqCst);
+        for _ in 0..20 {
+            s.step_until(1.0).unwrap();
+        }
+        COUNTING.store(false, Ordering::SeqCst);
+        let n = ALLOCS.load(Ordering::SeqCst);
+        assert_eq!(n, 0, "{n} heap allocations in 20 steps ({kind}, {threads} threads)");
+        assert_eq!(s.step, 21);
+    }
+}
