@@ -49,8 +49,10 @@ pub struct Simulation {
     /// Worker threads; 0 = all cores.
     #[serde(default)]
     pub threads: usize,
-    /// FLIP share of the particle velocity update (0 = APIC, the particle takes the grid
-    /// velocity; alpha in (0, 1] keeps alpha (v_p + grid increment) + (1 - alpha) v_grid).
+    /// FLIP share of the particle velocity update (0 = APIC, the default: the particle takes the
+    /// grid velocity; alpha in (0, 1] keeps alpha (v_p + grid increment) + (1 - alpha) v_grid).
+    /// FLIP makes steady wall-bounded flows independent of dt at coarse resolution, but its noise
+    /// lets particles drift across streamlines; see DESIGN.md for the measurements.
     #[serde(default = "default_flip")]
     pub flip: f64,
     /// Physically reorder particles by block every this many steps (between reorders they are
@@ -66,7 +68,7 @@ fn default_gravity() -> [f64; 3] {
     [0.0, 0.0, -9.81]
 }
 fn default_flip() -> f64 {
-    0.99
+    0.0
 }
 fn default_reorder() -> u64 {
     16
