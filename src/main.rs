@@ -38,6 +38,9 @@ enum Cmd {
         /// Only cases whose name contains this text.
         #[arg(long)]
         case: Option<String>,
+        /// List the case names and exit.
+        #[arg(long)]
+        list: bool,
         #[arg(long)]
         threads: Option<usize>,
     },
@@ -78,7 +81,13 @@ fn main() -> ExitCode {
             println!("{}: {} particles\nmemory plan:\n{}\ntime step {dt:.3e} s ({lim:?})", sc.name, sim.particles.n, sim.memory);
             Ok(true)
         })(),
-        Cmd::Verify { quick, json, case, threads } => strand::verify::run_suite(quick, json, case.as_deref(), threads),
+        Cmd::Verify { list: true, .. } => {
+            for (name, _) in strand::verify::CASES {
+                println!("{name}");
+            }
+            Ok(true)
+        }
+        Cmd::Verify { quick, json, case, threads, .. } => strand::verify::run_suite(quick, json, case.as_deref(), threads),
         Cmd::Bench { particles, grid, steps, repeats, threads, json } => {
             strand::bench::run_bench(particles, grid, steps, repeats, threads, json).map(|_| true)
         }

@@ -389,7 +389,7 @@ impl Simulation {
         self.team.run(|tid| {
             let r = ThreadTeam::share(n, tid, t);
             // SAFETY: shares are disjoint.
-            unsafe { nodes.slice_mut(r) }.fill([0.0; 8]);
+            unsafe { nodes.slice_mut(r) }.fill([0.0; 7]);
         });
     }
 
@@ -426,12 +426,12 @@ impl Simulation {
             let nbr = sc.nbr.as_slice();
             self.team.run(|tid| {
                 let (lo, hi) = balanced(cum, total, tid, threads);
-                let mut local = [[0.0 as Real; 8]; LNODES];
+                let mut local = [[0.0 as Real; 7]; LNODES];
                 for &s in &blocks[lo..hi] {
                     let s = s as usize;
                     let b = geom.block_coords(slot_block[s]);
                     let origin = [b[0] * BS as i32, b[1] * BS as i32, b[2] * BS as i32];
-                    local.iter_mut().for_each(|n| *n = [0.0; 8]);
+                    local.iter_mut().for_each(|n| *n = [0.0; 7]);
                     let ord = &order[starts[s] as usize..starts[s + 1] as usize];
                     if split {
                         p2g_block::<true>(origin, ord, &input, &tp, &mut local);
@@ -462,18 +462,18 @@ impl Simulation {
                 for (li, node) in blk.iter_mut().enumerate() {
                     let m = node[0];
                     if m <= 0.0 {
-                        *node = [0.0; 8];
+                        *node = [0.0; 7];
                         continue;
                     }
                     let old = V3::new(node[1], node[2], node[3]) / m;
-                    let mut v = old + V3::new(node[5], node[6], node[7]) / m + accel * dt;
+                    let mut v = old + V3::new(node[4], node[5], node[6]) / m + accel * dt;
                     let g = [
                         b[0] * BS as i32 + (li / (BS * BS)) as i32,
                         b[1] * BS as i32 + ((li / BS) % BS) as i32,
                         b[2] * BS as i32 + (li % BS) as i32,
                     ];
                     v = apply_walls(geom, walls, g, v);
-                    *node = [m, v.x, v.y, v.z, node[4] / m, old.x, old.y, old.z];
+                    *node = [m, v.x, v.y, v.z, old.x, old.y, old.z];
                 }
             }
         });
@@ -521,7 +521,7 @@ impl Simulation {
         let out = &self.thread_out;
         self.team.run(|tid| {
             let (lo, hi) = balanced(&starts[..npb], starts[npb], tid, threads);
-            let mut local = [[0.0 as Real; 8]; LNODES];
+            let mut local = [[0.0 as Real; 7]; LNODES];
             let mut vmax: Real = 0.0;
             for s in lo..hi {
                 let b = geom.block_coords(slot_block[s]);
@@ -637,7 +637,7 @@ unsafe fn flush_local(local: &[Node; LNODES], nbr: &[u32; 8], nodes: &SharedSlic
                     dst[1] += src[1];
                     dst[2] += src[2];
                     dst[3] += src[3];
-                    for ch in 4..8 {
+                    for ch in 4..7 {
                         dst[ch] += src[ch];
                     }
                 }

@@ -23,18 +23,11 @@ pub fn local_index(i: usize, j: usize, k: usize) -> usize {
     (i * LN + j) * LN + k
 }
 
-/// Grid node accumulator: `[mass, momentum x, y, z, mass * J, stress impulse x, y, z]`; after the
-/// grid update, `[mass, new velocity x, y, z, J, old velocity x, y, z]`. The impulse is kept apart
-/// from the momentum only when particles take FLIP increments (see [`g2p_block`]); otherwise it is
-/// folded into the momentum and channels 5..8 stay unused.
-///
-/// The fifth channel smooths the volume ratio ("J-bar"): G2P hands each particle the
-/// mass-weighted nodal average of J before applying this step's dilatation. Particles crossing
-/// cells pick up noise in tr(C); left alone it accumulates in J, and the EOS turns it into
-/// pressure noise that acts as a spurious drag (measured: a Newtonian channel at Re = 67 reached
-/// 78 % of its analytic speed without it). The average preserves sum(m J) exactly and linear J
-/// fields (a hydrostatic column) in the interior.
-pub type Node = [Real; 8];
+/// Grid node accumulator: `[mass, momentum x, y, z, stress impulse x, y, z]`; after the grid
+/// update, `[mass, new velocity x, y, z, old velocity x, y, z]`. The impulse is kept apart from the
+/// momentum only when particles take FLIP increments (see [`g2p_block`]); otherwise it is folded
+/// into the momentum and channels 4..7 stay unused.
+pub type Node = [Real; 7];
 
 /// Constants of one transfer.
 #[derive(Clone, Copy, Debug)]
@@ -80,7 +73,6 @@ pub fn p2g_block<const SPLIT: bool>(
         let impulse = p.stress[pi] * (stress_scale * vol);
         let affine = if SPLIT { p.c[pi] * m } else { p.c[pi] * m + impulse };
         let mv = p.v[pi] * m;
-        let mj = m * p.j[pi];
         let (oi, oj, ok) = (
             (base[0] - origin[0]) as usize,
             (base[1] - origin[1]) as usize,
@@ -98,12 +90,11 @@ pub fn p2g_block<const SPLIT: bool>(
                     node[1] += mom.x;
                     node[2] += mom.y;
                     node[3] += mom.z;
-                    node[4] += weight * mj;
                     if SPLIT {
                         let imp = impulse * dpos * weight;
-                        node[5] += imp.x;
-                        node[6] += imp.y;
-                        node[7] += imp.z;
+                        node[4] += imp.x;
+                        node[5] += imp.y;
+                        node[6] += imp.z;
                     }
                 }
             }
@@ -121,7 +112,7 @@ pub struct G2pOutput<'a> {
 
 /// G2P for the particles `order[..]` of one particle block: velocity, MLS velocity gradient
 /// `C = 4/dx^2 sum w v_i (x_i - x_p)^T`, position `x += dt v` (eq. 16) and volume ratio
-/// `J = Jbar (1 + dt tr C)` (eq. 17, with the smoothed `Jbar = sum w J_i`, see [`Node`]).
+/// `J *= 1 + dt tr C` (eq. 17).
 /// `local` holds the block neighbourhood's nodes after the grid update.
 ///
 /// With `flip = 0` the particle takes the grid velocity (APIC). With `flip = alpha > 0` it keeps
@@ -152,7 +143,6 @@ pub fn g2p_block(
         );
         let mut v = V3::ZERO;
         let mut dv = V3::ZERO;
-        let mut jbar: Real = r(0.0);
         let mut bmat = M3::ZERO;
         for a in 0..3 {
             for b in 0..3 {
@@ -163,9 +153,8 @@ pub fn g2p_block(
                     let n = &local[local_index(oi + a, oj + b, ok + c)];
                     let vi = V3::new(n[1], n[2], n[3]);
                     v += vi * weight;
-                    jbar += n[4] * weight;
                     if flip > r(0.0) {
-                        dv += (vi - V3::new(n[5], n[6], n[7])) * weight;
+                        dv += (vi - V3::new(n[4], n[5], n[6])) * weight;
                     }
                     // outer product vi dpos^T, column-major: column k = vi * dpos[k]
                     let wv = vi * weight;
@@ -180,7 +169,7 @@ pub fn g2p_block(
         out.xg[pi] += v * (tp.dt * inv_dx);
         let v = if flip > r(0.0) { (out.v[pi] + dv) * flip + v * (r(1.0) - flip) } else { v };
         out.v[pi] = v;
-        out.j[pi] = jbar * (r(1.0) + tp.dt * (cm.x_axis.x + cm.y_axis.y + cm.z_axis.z));
+        out.j[pi] *= r(1.0) + tp.dt * (cm.x_axis.x + cm.y_axis.y + cm.z_axis.z);
         vmax2 = vmax2.max(v.length_squared());
     }
     vmax2.sqrt()
@@ -193,7 +182,7 @@ mod tests {
     fn one_particle(xg: V3, v: V3, c: M3) -> ([Node; LNODES], [i32; 3]) {
         let (base, _) = base_and_fx(xg);
         let origin = [base[0] - 1, base[1] - 2, base[2]];
-        let mut local = [[0.0 as Real; 8]; LNODES];
+        let mut local = [[0.0 as Real; 7]; LNODES];
         let zero = [M3::ZERO];
         let input = P2gInput { xg: &[xg], v: &[v], c: &[c], stress: &zero, mass: &[2.0], vol0: &[0.1], j: &[0.9] };
         p2g_block::<false>(origin, &[0], &input, &TransferParams { dx: 0.5, dt: 1e-3 }, &mut local);
@@ -219,16 +208,16 @@ mod tests {
         let v = V3::new(0.3, -1.0, 2.0);
         let c = M3::from_cols_array(&[0.1, 0.2, 0.3, -0.4, 0.5, 0.6, 0.7, 0.8, -0.9]);
         let (local, origin) = one_particle(xg, v, c);
-        let mut grid = [[0.0 as Real; 8]; LNODES];
+        let mut grid = [[0.0 as Real; 7]; LNODES];
         for (g, n) in grid.iter_mut().zip(local.iter()) {
             if n[0] > 0.0 {
-                *g = [n[0], n[1] / n[0], n[2] / n[0], n[3] / n[0], n[4] / n[0], 0.0, 0.0, 0.0];
+                *g = [n[0], n[1] / n[0], n[2] / n[0], n[3] / n[0], 0.0, 0.0, 0.0];
             }
         }
-        let (mut x, mut vv, mut cc, mut j) = ([xg], [V3::ZERO], [M3::ZERO], [1.0 as Real]);
+        let (mut x, mut vv, mut cc, mut j) = ([xg], [V3::ZERO], [M3::ZERO], [0.9 as Real]);
         let mut out = G2pOutput { xg: &mut x, v: &mut vv, c: &mut cc, j: &mut j };
         g2p_block(origin, &[0], &grid, 0.0, &TransferParams { dx: 0.5, dt: 0.0 }, &mut out);
-        assert!((j[0] - 0.9).abs() < 1e-6, "J of a lone particle survives the smoothing: {}", j[0]);
+        assert_eq!(j[0], 0.9, "dt = 0 leaves J alone");
         assert!((vv[0] - v).abs().max_element() < 1e-5, "{:?}", vv[0]);
         assert!((cc[0] - c).abs_diff_eq(M3::ZERO, 1e-4), "{:?}", cc[0]);
     }
