@@ -100,6 +100,8 @@ pub struct BenchResult {
     pub sec_per_step: f64,
     pub particle_steps_per_s: f64,
     pub runs_s: Vec<f64>,
+    /// Share of the timed wall time per phase of the step.
+    pub phases: Vec<(&'static str, f64)>,
 }
 
 pub fn run_bench(
@@ -115,6 +117,7 @@ pub fn run_bench(
     for _ in 0..3 {
         sim.advance(dt).map_err(|e| e.to_string())?;
     }
+    sim.phase_seconds = [0.0; 6];
     let mut runs = Vec::new();
     for _ in 0..repeats.max(1) {
         let t0 = Instant::now();
@@ -136,6 +139,10 @@ pub fn run_bench(
         threads: sim.threads(),
         sec_per_step,
         particle_steps_per_s: particles as f64 / sec_per_step,
+        phases: {
+            let total: f64 = sim.phase_seconds.iter().sum();
+            crate::solver::PHASES.iter().zip(sim.phase_seconds).map(|(n, t)| (*n, t / total)).collect()
+        },
         runs_s: runs,
     };
     if json {
@@ -145,6 +152,8 @@ pub fn run_bench(
             "strand particles={} grid={}^3 steps={} dtype={} threads={} sec_per_step={:.6} particle_steps_per_s={:.4e}",
             r.particles, r.grid, r.steps, r.dtype, r.threads, r.sec_per_step, r.particle_steps_per_s
         );
+        let shares: Vec<String> = r.phases.iter().map(|(n, s)| format!("{n} {:.0}%", 100.0 * s)).collect();
+        eprintln!("phases: {}", shares.join(", "));
     }
     Ok(r)
 }

@@ -118,6 +118,23 @@ pub struct Simulation {
     pub memory: MemoryPlan,
     pub budget: u64,
     thread_out: [AtomicU64; MAX_THREADS],
+    /// Wall time spent in each phase of the step, in the order of [`PHASES`].
+    pub phase_seconds: [f64; 6],
+}
+
+/// Names of the step's phases, as accumulated in `Simulation::phase_seconds`.
+pub const PHASES: [&str; 6] = ["bin+reorder", "clear grid", "P2G", "grid update", "G2P", "materials"];
+
+struct PhaseClock(std::time::Instant);
+impl PhaseClock {
+    fn start() -> Self {
+        PhaseClock(std::time::Instant::now())
+    }
+    fn lap(&mut self, acc: &mut f64) {
+        let now = std::time::Instant::now();
+        *acc += (now - self.0).as_secs_f64();
+        self.0 = now;
+    }
 }
 
 impl Simulation {
@@ -198,6 +215,7 @@ impl Simulation {
             memory,
             budget,
             thread_out: std::array::from_fn(|_| AtomicU64::new(0)),
+            phase_seconds: [0.0; 6],
         };
         for body in &scenario.bodies {
             sim.add_body(body)?;
@@ -279,15 +297,22 @@ impl Simulation {
 
     /// One MLS-MPM step of length `dt`.
     pub fn advance(&mut self, dt: f64) -> Result<(), SimError> {
+        let mut clock = PhaseClock::start();
         self.bin_particles()?;
         if self.step % self.scenario.simulation.reorder_interval == 0 {
             self.reorder_particles();
         }
+        clock.lap(&mut self.phase_seconds[0]);
         self.clear_grid();
+        clock.lap(&mut self.phase_seconds[1]);
         self.p2g(dt as Real);
+        clock.lap(&mut self.phase_seconds[2]);
         self.grid_update(dt as Real);
+        clock.lap(&mut self.phase_seconds[3]);
         self.g2p(dt as Real);
+        clock.lap(&mut self.phase_seconds[4]);
         self.update_materials(dt as Real)?;
+        clock.lap(&mut self.phase_seconds[5]);
         self.step += 1;
         self.time += dt;
         Ok(())
