@@ -55,6 +55,9 @@ pub struct Simulation {
     /// lets particles drift across streamlines; see DESIGN.md for the measurements.
     #[serde(default = "default_flip")]
     pub flip: f64,
+    /// Cell-averaged volume ratio (J-bar) against volumetric locking of nearly isochoric flow.
+    #[serde(default = "default_true")]
+    pub j_bar: bool,
     /// Physically reorder particles by block every this many steps (between reorders they are
     /// visited through an index permutation).
     #[serde(default = "default_reorder")]

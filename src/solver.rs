@@ -543,6 +543,7 @@ impl Simulation {
         let threads = self.team.threads();
         let platform = self.walls.platform;
         let flip = self.scenario.simulation.flip as Real;
+        let j_bar = self.scenario.simulation.j_bar.then_some(&p.vol0.as_slice()[..n]);
         let out = &self.thread_out;
         self.team.run(|tid| {
             let (lo, hi) = balanced(&starts[..npb], starts[npb], tid, threads);
@@ -556,7 +557,7 @@ impl Simulation {
                 // SAFETY: every particle belongs to exactly one particle block, and each block to
                 // one thread, so the indices written here are disjoint across threads.
                 let mut o = unsafe { G2pOutput { xg: xg.slice_mut(0..n), v: v.slice_mut(0..n), c: c.slice_mut(0..n), j: j.slice_mut(0..n) } };
-                vmax = vmax.max(g2p_block(origin, ord, &local, flip, &tp, &mut o));
+                vmax = vmax.max(g2p_block(origin, ord, &local, flip, j_bar, &tp, &mut o));
                 for &pi in ord {
                     keep_inside(geom, platform, &mut o.xg[pi as usize]);
                 }

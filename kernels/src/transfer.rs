@@ -113,6 +113,12 @@ pub struct G2pOutput<'a> {
 /// G2P for the particles `order[..]` of one particle block: velocity, MLS velocity gradient
 /// `C = 4/dx^2 sum w v_i (x_i - x_p)^T`, position `x += dt v` (eq. 16) and volume ratio
 /// `J *= 1 + dt tr C` (eq. 17).
+///
+/// With `j_bar = Some(vol0)`, J is then replaced by its V0-weighted average over the particles of
+/// this block that share a cell (their stencil base after the move) — the cell-averaged
+/// volumetric strain of F-bar/B-bar methods, which keeps a particle-wise constraint on J from
+/// locking nearly isochoric (plastic) flow. The average conserves sum(V0 J) per cell and only
+/// mixes particles of one cell, so it does not bias J near free surfaces and walls.
 /// `local` holds the block neighbourhood's nodes after the grid update.
 ///
 /// With `flip = 0` the particle takes the grid velocity (APIC). With `flip = alpha > 0` it keeps
@@ -125,6 +131,7 @@ pub fn g2p_block(
     order: &[u32],
     local: &[Node; LNODES],
     flip: Real,
+    j_bar: Option<&[Real]>,
     tp: &TransferParams,
     out: &mut G2pOutput,
 ) -> Real {
@@ -132,6 +139,15 @@ pub fn g2p_block(
     let inv_dx = r(1.0) / dx;
     let c_scale = r(4.0) * inv_dx * inv_dx;
     let mut vmax2: Real = r(0.0);
+    // J-bar: sums of V0 J and V0 per cell of this block, by the particles' new stencil base
+    let mut cell_vj = [r(0.0); BS * BS * BS];
+    let mut cell_v = [r(0.0); BS * BS * BS];
+    let cell_of = |xg: V3| -> Option<usize> {
+        let (b, _) = base_and_fx(xg);
+        let l = [b[0] - origin[0], b[1] - origin[1], b[2] - origin[2]];
+        let inside = l.iter().all(|&k| (0..BS as i32).contains(&k));
+        inside.then(|| (l[0] as usize * BS + l[1] as usize) * BS + l[2] as usize)
+    };
     for &pi in order {
         let pi = pi as usize;
         let (base, fx) = base_and_fx(out.xg[pi]);
@@ -171,6 +187,17 @@ pub fn g2p_block(
         out.v[pi] = v;
         out.j[pi] *= r(1.0) + tp.dt * (cm.x_axis.x + cm.y_axis.y + cm.z_axis.z);
         vmax2 = vmax2.max(v.length_squared());
+        if let (Some(vol0), Some(k)) = (j_bar, cell_of(out.xg[pi])) {
+            cell_vj[k] += vol0[pi] * out.j[pi];
+            cell_v[k] += vol0[pi];
+        }
+    }
+    if j_bar.is_some() {
+        for &pi in order {
+            if let Some(k) = cell_of(out.xg[pi as usize]) {
+                out.j[pi as usize] = cell_vj[k] / cell_v[k];
+            }
+        }
     }
     vmax2.sqrt()
 }
@@ -216,7 +243,7 @@ mod tests {
         }
         let (mut x, mut vv, mut cc, mut j) = ([xg], [V3::ZERO], [M3::ZERO], [0.9 as Real]);
         let mut out = G2pOutput { xg: &mut x, v: &mut vv, c: &mut cc, j: &mut j };
-        g2p_block(origin, &[0], &grid, 0.0, &TransferParams { dx: 0.5, dt: 0.0 }, &mut out);
+        g2p_block(origin, &[0], &grid, 0.0, Some(&[0.1]), &TransferParams { dx: 0.5, dt: 0.0 }, &mut out);
         assert_eq!(j[0], 0.9, "dt = 0 leaves J alone");
         assert!((vv[0] - v).abs().max_element() < 1e-5, "{:?}", vv[0]);
         assert!((cc[0] - c).abs_diff_eq(M3::ZERO, 1e-4), "{:?}", cc[0]);

@@ -412,16 +412,15 @@ fn slump(quick: bool, threads: usize) -> Result<Vec<CaseResult>, String> {
     run_to(&mut fl, end)?;
     let f_end = spread_radius(&fl, pr_dx / 2.0);
     let pr_growth = (f_end - f_mid) / r_exact;
-    let pr_excess = f_end / r_exact - 1.0;
-    // The fluid has no rest state: it passes the analytic spread (by more than the solid's
-    // tolerance) and is still growing at the end.
-    let overshoot = 0.03;
-    let still = pr_excess > overshoot && pr_growth > 0.0;
+    // The fluid has no rest state: over the last quarter of the run it spreads faster than the
+    // solid (001 Fig. 7e). Reported as the ratio of the solid's growth to the fluid's.
+    let ratio = if pr_growth > 0.0 { evp_growth.max(0.0) / pr_growth } else { f64::INFINITY };
+    let still = pr_growth > 0.0 && ratio < 1.0;
     let mut row = result(
         "slump_pr_keeps_spreading",
-        &format!("PR fluid: D / D_roussel - 1 at t = {end} s (pass: > tolerance and still growing)"),
-        pr_excess,
-        overshoot,
+        &format!("growth of D over [{t_mid}, {end}] s: EVP / PR fluid (pass: < 1)"),
+        ratio,
+        1.0,
         quick,
         &fl,
         format!(
