@@ -1,5 +1,10 @@
 //! strand: a fixed-memory, streaming MLS-MPM simulator for 3D concrete printing.
 
+// `x as f64` is a no-op in the default f64 build but a real conversion with the `f32` feature.
+#![allow(clippy::unnecessary_cast)]
+// `!(x > 0.0)` is deliberate: it is true for NaN, which must be rejected too.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 pub use strand_kernels as kernels;
 pub use strand_kernels::{Real, M3, V3};
 

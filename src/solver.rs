@@ -645,11 +645,10 @@ fn balanced(cum: &[u32], total: u32, tid: usize, threads: usize) -> (usize, usiz
     (at(tid), at(tid + 1))
 }
 
-/// Add a P2G neighbourhood buffer into the grid's 2x2x2 blocks.
-///
-/// # Safety
-/// No other thread may touch the blocks in `nbr` meanwhile.
-unsafe fn flush_local(local: &[Node; LNODES], nbr: &[u32; 8], nodes: &SharedSlice<Node>) {
+/// Visit the nodes of a particle block's 6^3 neighbourhood as (local index, index in the grid's
+/// node pool), walking its 2x2x2 blocks.
+#[inline(always)]
+fn for_each_neighbourhood_node(nbr: &[u32; 8], mut f: impl FnMut(usize, usize)) {
     for (d, &slot) in nbr.iter().enumerate() {
         let o = [(d >> 2) & 1, (d >> 1) & 1, d & 1];
         let base = slot as usize * NODES_PER_BLOCK;
@@ -657,36 +656,29 @@ unsafe fn flush_local(local: &[Node; LNODES], nbr: &[u32; 8], nodes: &SharedSlic
         for i in 0..ext(0) {
             for jj in 0..ext(1) {
                 for k in 0..ext(2) {
-                    let src = &local[local_index(o[0] * BS + i, o[1] * BS + jj, o[2] * BS + k)];
-                    let dst = nodes.get_mut(base + (i * BS + jj) * BS + k);
-                    dst[0] += src[0];
-                    dst[1] += src[1];
-                    dst[2] += src[2];
-                    dst[3] += src[3];
-                    for ch in 4..7 {
-                        dst[ch] += src[ch];
-                    }
+                    f(local_index(o[0] * BS + i, o[1] * BS + jj, o[2] * BS + k), base + (i * BS + jj) * BS + k);
                 }
             }
         }
     }
 }
 
+/// Add a P2G neighbourhood buffer into the grid's 2x2x2 blocks.
+///
+/// # Safety
+/// No other thread may touch the blocks in `nbr` meanwhile.
+unsafe fn flush_local(local: &[Node; LNODES], nbr: &[u32; 8], nodes: &SharedSlice<Node>) {
+    for_each_neighbourhood_node(nbr, |l, g| {
+        let dst = nodes.get_mut(g);
+        for (d, s) in dst.iter_mut().zip(local[l].iter()) {
+            *d += *s;
+        }
+    });
+}
+
 /// Gather the nodes of a particle block's neighbourhood.
 fn gather_local(local: &mut [Node; LNODES], nbr: &[u32; 8], nodes: &[Node]) {
-    for (d, &slot) in nbr.iter().enumerate() {
-        let o = [(d >> 2) & 1, (d >> 1) & 1, d & 1];
-        let base = slot as usize * NODES_PER_BLOCK;
-        let ext = |k: usize| if o[k] == 0 { BS } else { LN - BS };
-        for i in 0..ext(0) {
-            for jj in 0..ext(1) {
-                for k in 0..ext(2) {
-                    let n = &nodes[base + (i * BS + jj) * BS + k];
-                    local[local_index(o[0] * BS + i, o[1] * BS + jj, o[2] * BS + k)] = *n;
-                }
-            }
-        }
-    }
+    for_each_neighbourhood_node(nbr, |l, g| local[l] = nodes[g]);
 }
 
 /// Wall conditions for the node at grid index `g`.

@@ -97,14 +97,11 @@ fn blow_up_names_step_particle_and_field() {
 #[test]
 fn scenario_errors_name_the_key() {
     let bad_key = common::dam_break(1, "256 MiB", "").replace("viscosity = 1.0", "viscosty = 1.0");
-    let e = Scenario::parse(&bad_key).map(|_| ()).and_then(|_| Ok(()));
     // unknown material keys are caught when the material is built
-    let sc = Scenario::parse(&bad_key);
-    let msg = match sc {
+    let msg = match Scenario::parse(&bad_key) {
         Err(e) => e.to_string(),
         Ok(sc) => Simulation::new(&sc).err().expect("unknown key must fail").to_string(),
     };
-    let _ = e;
     assert!(msg.contains("viscosty"), "{msg}");
 
     let unknown_top = common::dam_break(1, "256 MiB", "").replace("[simulation]", "[simulation]\nfoo = 1");
@@ -138,4 +135,21 @@ fn file_backed_pools_give_the_same_result() {
     }
     assert!(state_bytes(&a) == state_bytes(&f));
     assert!(dir.path().join("particles_x.pool").exists());
+}
+
+#[test]
+fn material_dropped_on_a_platform_rests_on_it() {
+    // a block falls onto a raised platform of the given kind and must come to rest on its top
+    for kind in ["\"no_slip\"", "\"free_slip\"", "{ friction = { mu = 0.5 } }"] {
+        let text = common::dam_break(2, "256 MiB", "")
+            .replace("max = [0.2, 0.16, 0.3]", "max = [0.2, 0.16, 0.35]")
+            .replace("min = [0.0, 0.0, 0.0]\nmax = [0.2", "min = [0.0, 0.0, 0.2]\nmax = [0.2")
+            .replace("[material]", &format!("[boundary.platform]\nz = 0.1\nxy_min = [0.0, 0.0]\nxy_max = [0.6, 0.16]\nkind = {kind}\n\n[material]"));
+        let mut s = Simulation::new(&Scenario::parse(&text).unwrap()).unwrap();
+        while s.time < 0.3 {
+            s.step_until(0.3).unwrap();
+        }
+        let zmin = (0..s.particles.n).map(|i| s.position(i)[2]).fold(f64::INFINITY, f64::min);
+        assert!(zmin >= 0.1 - 1e-9 && zmin < 0.12, "{kind}: lowest particle at {zmin}, platform at 0.1");
+    }
 }

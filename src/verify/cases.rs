@@ -376,7 +376,7 @@ fn slump(quick: bool, threads: usize) -> Result<Vec<CaseResult>, String> {
     let (rho, tau0, eta, g) = (2300.0, 50.0, 50.0, 9.81);
     let (e0, nu) = (100e3, 0.3);
     let k = e0 / (3.0 * (1.0 - 2.0 * nu));
-    let (dx, end, tol) = if quick { (0.02, 8.0, 0.10) } else { (0.01, 12.0, 0.03) };
+    let (dx, end, tol) = if quick { (0.02, 8.0, 0.10) } else { (0.01, 20.0, 0.03) };
     let r_exact = an::roussel_spread_radius(rho, g, an::abrams_cone_volume(), tau0);
     let evp = format!(
         "kind = \"evp_bingham\"\ndensity = {rho}\nbulk_modulus = {k}\npoisson_ratio = {nu}\nviscosity = {eta}\nyield_stress = {tau0}"

@@ -16,6 +16,7 @@
 //! Per-particle state: none.
 
 use serde::Deserialize;
+use crate::material::{positive, non_negative};
 
 use crate::material::{Eos, Material, StabilityInfo};
 use crate::real::{ddot, dev, r, sym, Real, M3, V3};
@@ -50,22 +51,6 @@ impl Bingham {
         non_negative("material.yield_stress", self.yield_stress)?;
         positive("material.critical_shear_rate", self.critical_shear_rate)?;
         self.eos.validate("material.eos")
-    }
-}
-
-fn positive(key: &str, v: f64) -> Result<(), String> {
-    if v.is_finite() && v > 0.0 {
-        Ok(())
-    } else {
-        Err(format!("{key} must be > 0, got {v}"))
-    }
-}
-
-fn non_negative(key: &str, v: f64) -> Result<(), String> {
-    if v.is_finite() && v >= 0.0 {
-        Ok(())
-    } else {
-        Err(format!("{key} must be >= 0, got {v}"))
     }
 }
 

@@ -42,6 +42,7 @@
 //! plastic strain is gamma_p / sqrt(3)).
 
 use serde::Deserialize;
+use crate::material::{positive, non_negative};
 
 use crate::material::eos::{resolve_shear_modulus, shear_modulus_of};
 use crate::material::{Eos, Material, StabilityInfo};
@@ -119,22 +120,6 @@ impl EvpBingham {
         } else {
             r(0.0)
         }
-    }
-}
-
-fn positive(key: &str, v: f64) -> Result<(), String> {
-    if v.is_finite() && v > 0.0 {
-        Ok(())
-    } else {
-        Err(format!("{key} must be > 0, got {v}"))
-    }
-}
-
-fn non_negative(key: &str, v: f64) -> Result<(), String> {
-    if v.is_finite() && v >= 0.0 {
-        Ok(())
-    } else {
-        Err(format!("{key} must be >= 0, got {v}"))
     }
 }
 

@@ -18,6 +18,24 @@ pub mod drucker_prager;
 
 pub use eos::Eos;
 
+/// Validation helper: `v` must be finite and > 0; the message names the key.
+pub(crate) fn positive(key: &str, v: f64) -> Result<(), String> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(format!("{key} must be > 0, got {v}"))
+    }
+}
+
+/// Validation helper: `v` must be finite and >= 0; the message names the key.
+pub(crate) fn non_negative(key: &str, v: f64) -> Result<(), String> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(())
+    } else {
+        Err(format!("{key} must be >= 0, got {v}"))
+    }
+}
+
 /// Wave and viscous properties the time-step control needs (paper-independent CFL bounds).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct StabilityInfo {

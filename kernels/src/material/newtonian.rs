@@ -10,6 +10,7 @@
 //! volume ratio J the solver tracks.
 
 use serde::Deserialize;
+use crate::material::positive;
 
 use crate::material::{Eos, Material, StabilityInfo};
 use crate::real::{dev, r, sym, Real, M3, V3};
@@ -39,14 +40,6 @@ impl Newtonian {
             ));
         }
         self.eos.validate("material.eos")
-    }
-}
-
-fn positive(key: &str, v: f64) -> Result<(), String> {
-    if v.is_finite() && v > 0.0 {
-        Ok(())
-    } else {
-        Err(format!("{key} must be > 0, got {v}"))
     }
 }
 

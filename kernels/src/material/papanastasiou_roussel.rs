@@ -26,6 +26,7 @@
 //! Per-particle state: `[lambda]` (flocculation state, dimensionless), initialised to `lambda0`.
 
 use serde::Deserialize;
+use crate::material::{positive, non_negative};
 
 use crate::material::{Eos, Material, StabilityInfo};
 use crate::real::{ddot, dev, r, sym, Real, M3, V3};
@@ -108,22 +109,6 @@ impl PapanastasiouRoussel {
         } else {
             r(0.0)
         }
-    }
-}
-
-fn positive(key: &str, v: f64) -> Result<(), String> {
-    if v.is_finite() && v > 0.0 {
-        Ok(())
-    } else {
-        Err(format!("{key} must be > 0, got {v}"))
-    }
-}
-
-fn non_negative(key: &str, v: f64) -> Result<(), String> {
-    if v.is_finite() && v >= 0.0 {
-        Ok(())
-    } else {
-        Err(format!("{key} must be >= 0, got {v}"))
     }
 }
 
