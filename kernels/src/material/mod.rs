@@ -18,6 +18,17 @@ pub mod drucker_prager;
 
 pub use eos::Eos;
 
+/// Roussel's structural build-up rate A_thix / tau0 [1/s] (001 eq. 12); 0 when there is no
+/// build-up, so tau0 may then be 0.
+#[inline]
+pub(crate) fn build_up_rate(a_thix: f64, yield_stress: f64) -> Real {
+    if a_thix > 0.0 {
+        crate::real::r(a_thix / yield_stress)
+    } else {
+        0.0
+    }
+}
+
 /// Validation helper: `v` must be finite and > 0; the message names the key.
 pub(crate) fn positive(key: &str, v: f64) -> Result<(), String> {
     if v.is_finite() && v > 0.0 {

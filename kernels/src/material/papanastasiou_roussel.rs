@@ -101,14 +101,10 @@ impl PapanastasiouRoussel {
         self.lambda_max.unwrap_or(self.lambda0)
     }
 
-    /// A_thix / tau0 [1/s], 0 when there is no build-up (tau0 may then be 0).
+    /// A_thix / tau0 [1/s] (Roussel build-up, 001 eq. 12).
     #[inline]
     fn build_up_rate(&self) -> Real {
-        if self.a_thix > 0.0 {
-            r(self.a_thix / self.yield_stress)
-        } else {
-            r(0.0)
-        }
+        crate::material::build_up_rate(self.a_thix, self.yield_stress)
     }
 }
 
