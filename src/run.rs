@@ -14,6 +14,8 @@ use std::time::Instant;
 pub enum RunError {
     #[error(transparent)]
     Sim(#[from] SimError),
+    #[error("{source}\n  the state after the failing step is in {} (outputs before it are kept)", snapshot.display())]
+    Failed { source: SimError, snapshot: PathBuf },
     #[error("output {path}: {source}")]
     Io { path: PathBuf, source: std::io::Error },
 }
@@ -213,7 +215,14 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
     while sim.time < end * (1.0 - 1e-12) {
         let next_out = ((k_out + 1) as f64 * interval).min(end);
         while sim.time < next_out * (1.0 - 1e-12) {
-            sim.step_until(next_out)?;
+            if let Err(source) = sim.step_until(next_out) {
+                // keep what the failing step produced, for diagnosis in ParaView
+                let snapshot = opts.out.join("failed_state.vtu");
+                return Err(match write_snapshot(&sim, &snapshot, &mut Vec::new()) {
+                    Ok(()) => RunError::Failed { source, snapshot },
+                    Err(_) => RunError::Sim(source),
+                });
+            }
             if let Some(b) = &bar {
                 if sim.step % 16 == 0 {
                     let rate = sim.step as f64 / start.elapsed().as_secs_f64();
