@@ -294,6 +294,11 @@ impl Scenario {
                 return bad(format!("simulation.dt must be > 0, got {dt}"));
             }
         }
+        if let Some(m) = s.max_dt {
+            if !(m > 0.0 && m.is_finite()) {
+                return bad(format!("simulation.max_dt must be > 0, got {m}"));
+            }
+        }
         if !(s.cfl > 0.0 && s.cfl <= 1.0) {
             return bad(format!("simulation.cfl must be in (0, 1], got {}", s.cfl));
         }
