@@ -16,7 +16,7 @@ test:
 	$(CARGO) test --release --workspace
 	$(CARGO) test --release -p strand-kernels --features f32
 
-# The full-resolution verification suite (tens of minutes on 2 cores).
+# The full-resolution verification suite (about 10 minutes on 2 cores).
 verify: build
 	./target/release/strand verify
 
