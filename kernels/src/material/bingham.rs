@@ -16,9 +16,8 @@
 //! Per-particle state: none.
 
 use serde::Deserialize;
-use crate::material::{positive, non_negative};
 
-use crate::material::{Eos, Material, StabilityInfo};
+use crate::material::{non_negative, positive, Eos, Material, StabilityInfo};
 use crate::real::{ddot, dev, r, sym, Real, M3, V3};
 
 #[derive(Clone, Debug, Deserialize)]
@@ -89,6 +88,7 @@ impl Material for Bingham {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::material::test_util::{simple_shear};
 
     fn concrete() -> Bingham {
         Bingham {
@@ -99,10 +99,6 @@ mod tests {
             critical_shear_rate: 0.01,
             eos: Eos::Linear,
         }
-    }
-
-    fn simple_shear(g: Real) -> M3 {
-        M3::from_cols(V3::ZERO, V3::new(g, 0.0, 0.0), V3::ZERO)
     }
 
     fn close(a: Real, b: Real, rel: Real) -> bool {

@@ -295,6 +295,7 @@ impl Material for DruckerPrager {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::material::test_util::{tau_of};
     use proptest::prelude::*;
 
     const EPS: Real = if cfg!(feature = "f32") { 1e-5 } else { 1e-10 };
@@ -312,10 +313,6 @@ mod tests {
             cohesion: 0.0,
             tension_cutoff: None,
         }
-    }
-
-    fn tau_of(s: &M3) -> Real {
-        (0.5 * ddot(&dev(s), &dev(s))).sqrt()
     }
 
     fn mean(s: &M3) -> Real {

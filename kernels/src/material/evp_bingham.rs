@@ -42,10 +42,9 @@
 //! plastic strain is gamma_p / sqrt(3)).
 
 use serde::Deserialize;
-use crate::material::{positive, non_negative};
 
 use crate::material::eos::{resolve_shear_modulus, shear_modulus_of};
-use crate::material::{Eos, Material, StabilityInfo};
+use crate::material::{non_negative, positive, Eos, Material, StabilityInfo};
 use crate::real::{
     ddot, dev, jaumann_rotation, r, skew, sym, sym_from_slice, sym_to_array, Real, M3, V3,
 };
@@ -197,6 +196,7 @@ impl Material for EvpBingham {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::material::test_util::{simple_shear, tau_of};
     use crate::real::trace;
 
     /// Round-off tolerance of the working precision.
@@ -215,14 +215,6 @@ mod tests {
             lambda0: 0.0,
             eos: Eos::Linear,
         }
-    }
-
-    fn simple_shear(g: Real) -> M3 {
-        M3::from_cols(V3::ZERO, V3::new(g, 0.0, 0.0), V3::ZERO)
-    }
-
-    fn tau_of(s: &M3) -> Real {
-        (0.5 * ddot(&dev(s), &dev(s))).sqrt()
     }
 
     fn rel(a: Real, b: Real) -> Real {

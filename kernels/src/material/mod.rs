@@ -18,6 +18,22 @@ pub mod drucker_prager;
 
 pub use eos::Eos;
 
+/// Kinematics and invariants shared by the materials' tests.
+#[cfg(test)]
+pub(crate) mod test_util {
+    use crate::real::{ddot, dev, Real, M3, V3};
+
+    /// L with the single entry dv_x/dy = g (glam is column-major: column 1 holds d v / d y).
+    pub fn simple_shear(g: Real) -> M3 {
+        M3::from_cols(V3::ZERO, V3::new(g, 0.0, 0.0), V3::ZERO)
+    }
+
+    /// tau = sqrt(J2) of a stress.
+    pub fn tau_of(s: &M3) -> Real {
+        (0.5 * ddot(&dev(s), &dev(s))).sqrt()
+    }
+}
+
 /// Roussel's structural build-up rate A_thix / tau0 [1/s] (001 eq. 12); 0 when there is no
 /// build-up, so tau0 may then be 0.
 #[inline]

@@ -10,9 +10,8 @@
 //! volume ratio J the solver tracks.
 
 use serde::Deserialize;
-use crate::material::positive;
 
-use crate::material::{Eos, Material, StabilityInfo};
+use crate::material::{non_negative, positive, Eos, Material, StabilityInfo};
 use crate::real::{dev, r, sym, Real, M3, V3};
 
 #[derive(Clone, Debug, Deserialize)]
@@ -33,12 +32,7 @@ impl Newtonian {
         positive("material.density", self.density)?;
         positive("material.bulk_modulus", self.bulk_modulus)?;
         // mu = 0 is a legitimate inviscid (Euler) fluid.
-        if !(self.viscosity.is_finite() && self.viscosity >= 0.0) {
-            return Err(format!(
-                "material.viscosity must be >= 0, got {}",
-                self.viscosity
-            ));
-        }
+        non_negative("material.viscosity", self.viscosity)?;
         self.eos.validate("material.eos")
     }
 }
@@ -74,6 +68,7 @@ impl Material for Newtonian {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::material::test_util::{simple_shear};
     use crate::real::trace;
 
     fn water() -> Newtonian {
@@ -83,11 +78,6 @@ mod tests {
             viscosity: 1.0e-3,
             eos: Eos::Linear,
         }
-    }
-
-    /// L with the single entry dv_x/dy = g (glam is column-major: column 1 holds d v / d y).
-    fn simple_shear(g: Real) -> M3 {
-        M3::from_cols(V3::ZERO, V3::new(g, 0.0, 0.0), V3::ZERO)
     }
 
     #[test]

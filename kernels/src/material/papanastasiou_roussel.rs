@@ -26,9 +26,8 @@
 //! Per-particle state: `[lambda]` (flocculation state, dimensionless), initialised to `lambda0`.
 
 use serde::Deserialize;
-use crate::material::{positive, non_negative};
 
-use crate::material::{Eos, Material, StabilityInfo};
+use crate::material::{non_negative, positive, Eos, Material, StabilityInfo};
 use crate::real::{ddot, dev, r, sym, Real, M3, V3};
 
 #[derive(Clone, Debug, Deserialize)]
@@ -168,6 +167,7 @@ impl Material for PapanastasiouRoussel {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::material::test_util::{simple_shear};
 
     fn mix() -> PapanastasiouRoussel {
         PapanastasiouRoussel {
@@ -182,10 +182,6 @@ mod tests {
             lambda_max: None,
             eos: Eos::Tait { gamma: 7.0 },
         }
-    }
-
-    fn simple_shear(g: Real) -> M3 {
-        M3::from_cols(V3::ZERO, V3::new(g, 0.0, 0.0), V3::ZERO)
     }
 
     /// Round-off tolerance of the working precision.
