@@ -102,6 +102,27 @@ impl GridGeom {
         b
     }
 
+    /// Grid index of node `li` (0..BS^3, z fastest) of block `b`.
+    #[inline(always)]
+    pub fn node_of(&self, b: [i32; 3], li: usize) -> [i32; 3] {
+        [
+            b[0] * BS as i32 + (li / (BS * BS)) as i32,
+            b[1] * BS as i32 + ((li / BS) % BS) as i32,
+            b[2] * BS as i32 + (li % BS) as i32,
+        ]
+    }
+
+    /// Whether node index `g` lies beyond a wall (strictly outside the walls) on walled axis `a`.
+    #[inline(always)]
+    pub fn beyond_wall(&self, a: usize, g: i32) -> bool {
+        !self.periodic[a] && (g < PAD || g > self.cells[a] - PAD)
+    }
+
+    /// Whether block `b` holds any node beyond a wall.
+    pub fn block_reaches_beyond_walls(&self, b: [i32; 3]) -> bool {
+        (0..3).any(|a| self.beyond_wall(a, b[a] * BS as i32) || self.beyond_wall(a, b[a] * BS as i32 + BS as i32 - 1))
+    }
+
     /// Block of the stencil base of a particle at grid coordinate `xg`.
     #[inline(always)]
     pub fn particle_block(&self, xg: V3) -> [i32; 3] {

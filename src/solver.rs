@@ -492,12 +492,7 @@ impl Simulation {
                     }
                     let old = V3::new(node[1], node[2], node[3]) / m;
                     let mut v = old + V3::new(node[4], node[5], node[6]) / m + accel * dt;
-                    let g = [
-                        b[0] * BS as i32 + (li / (BS * BS)) as i32,
-                        b[1] * BS as i32 + ((li / BS) % BS) as i32,
-                        b[2] * BS as i32 + (li % BS) as i32,
-                    ];
-                    v = apply_walls(geom, walls, g, v);
+                    v = apply_walls(geom, walls, geom.node_of(b, li), v);
                     *node = [m, v.x, v.y, v.z, old.x, old.y, old.z];
                 }
             }
@@ -510,12 +505,11 @@ impl Simulation {
         self.team.run(|tid| {
             for s in ThreadTeam::share(na, tid, threads) {
                 let b = geom.block_coords(slot_block[s]);
+                if !geom.block_reaches_beyond_walls(b) {
+                    continue;
+                }
                 for li in 0..NODES_PER_BLOCK {
-                    let g = [
-                        b[0] * BS as i32 + (li / (BS * BS)) as i32,
-                        b[1] * BS as i32 + ((li / BS) % BS) as i32,
-                        b[2] * BS as i32 + (li % BS) as i32,
-                    ];
+                    let g = geom.node_of(b, li);
                     // SAFETY: this pass writes only ghost nodes and reads only nodes that are
                     // not ghosts on any axis; each ghost node belongs to one slot and thread.
                     unsafe { mirror_ghost(geom, walls, g, s * NODES_PER_BLOCK + li, &nodes, table) };
@@ -716,17 +710,11 @@ unsafe fn mirror_ghost(geom: &GridGeom, walls: &Walls, g: [i32; 3], at: usize, n
     let mut flip = [[false; 3]; 3]; // flip[a][component]
     let mut ghost = false;
     for a in 0..3 {
-        if geom.periodic[a] {
+        if !geom.beyond_wall(a, g[a]) {
             continue;
         }
         let hi = geom.cells[a] - PAD;
-        let (side, m) = if g[a] < PAD {
-            (0, 2 * PAD - g[a])
-        } else if g[a] > hi {
-            (1, 2 * hi - g[a])
-        } else {
-            continue;
-        };
+        let (side, m) = if g[a] < PAD { (0, 2 * PAD - g[a]) } else { (1, 2 * hi - g[a]) };
         ghost = true;
         mirror[a] = m;
         match walls.faces[a][side] {
