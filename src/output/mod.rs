@@ -1,2 +1,3 @@
 //! Writers for simulation output.
+pub mod plot;
 pub mod vtu;

@@ -1,0 +1,1 @@
+//! Observables: functions of the particle state at one time.

@@ -1,0 +1,1 @@
+//! G-code import into a toolpath.

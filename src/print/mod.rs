@@ -1,0 +1,3 @@
+//! 3D concrete printing: toolpaths (and their G-code import), the nozzle, emission.
+pub mod gcode;
+pub mod toolpath;

@@ -1,0 +1,1 @@
+//! Toolpaths: timed nozzle moves with piecewise-constant parameters.
