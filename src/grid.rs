@@ -123,6 +123,23 @@ impl GridGeom {
         (0..3).any(|a| self.beyond_wall(a, b[a] * BS as i32) || self.beyond_wall(a, b[a] * BS as i32 + BS as i32 - 1))
     }
 
+    /// Physical position of node `g`.
+    #[inline(always)]
+    pub fn node_position(&self, g: [i32; 3]) -> [f64; 3] {
+        [
+            self.origin[0] + g[0] as f64 * self.dx,
+            self.origin[1] + g[1] as f64 * self.dx,
+            self.origin[2] + g[2] as f64 * self.dx,
+        ]
+    }
+
+    /// Whether block `b`'s nodes reach into the world box `bx` (no wrap: boxes are local).
+    pub fn block_overlaps(&self, b: [i32; 3], bx: ([f64; 3], [f64; 3])) -> bool {
+        let lo = self.node_position([b[0] * BS as i32, b[1] * BS as i32, b[2] * BS as i32]);
+        let span = (BS - 1) as f64 * self.dx;
+        (0..3).all(|a| lo[a] <= bx.1[a] && lo[a] + span >= bx.0[a])
+    }
+
     /// Block of the stencil base of a particle at grid coordinate `xg`.
     #[inline(always)]
     pub fn particle_block(&self, xg: V3) -> [i32; 3] {

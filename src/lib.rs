@@ -21,3 +21,5 @@ pub mod scenario;
 pub mod solver;
 pub mod threads;
 pub mod verify;
+pub mod sleep;
+pub mod report;

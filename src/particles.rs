@@ -8,6 +8,8 @@ use crate::memory::{Backing, MemoryError, MemoryPlan, Pool};
 pub struct Particles {
     /// Live particles: indices `0..n`.
     pub n: usize,
+    /// Particles `0..n_sleep` are asleep (see `sleep.rs`); the step works on `n_sleep..n`.
+    pub n_sleep: usize,
     /// Internal state reals per particle (the material's `state_names().len()`).
     pub state_len: usize,
     /// Grid-coordinate position.
@@ -46,6 +48,7 @@ impl Particles {
     pub fn new(cap: usize, state_len: usize, backing: &Backing) -> Result<Self, MemoryError> {
         Ok(Particles {
             n: 0,
+            n_sleep: 0,
             state_len,
             xg: Pool::new("particles.x", cap, backing)?,
             v: Pool::new("particles.v", cap, backing)?,
@@ -86,27 +89,49 @@ impl Particles {
         Ok(i)
     }
 
-    /// Reorder particles `0..n` so that new index k holds old particle `order[k]`; `scratch`
-    /// must hold at least `n * max(size_of::<M3>(), state_len * size_of::<Real>())` bytes.
+    /// Reorder the awake particles `n_sleep..n` so that index `n_sleep + k` holds old particle
+    /// `order[k]` (absolute indices); `scratch` must hold at least
+    /// `n * max(size_of::<M3>(), state_len * size_of::<Real>())` bytes.
     pub fn permute(&mut self, order: &[u32], scratch: &mut [u8]) {
-        let n = self.n;
+        let r = self.n_sleep..self.n;
+        let order = &order[..r.len()];
         let s = self.state_len;
-        permute_pod(&mut self.xg.as_mut_slice()[..n], order, scratch);
-        permute_pod(&mut self.v.as_mut_slice()[..n], order, scratch);
-        permute_pod(&mut self.c.as_mut_slice()[..n], order, scratch);
-        permute_pod(&mut self.stress.as_mut_slice()[..n], order, scratch);
-        permute_pod(&mut self.j.as_mut_slice()[..n], order, scratch);
-        permute_pod(&mut self.mass.as_mut_slice()[..n], order, scratch);
-        permute_pod(&mut self.vol0.as_mut_slice()[..n], order, scratch);
-        permute_pod(&mut self.id.as_mut_slice()[..n], order, scratch);
+        permute_pod(&mut self.xg.as_mut_slice()[..r.end], r.start, order, scratch);
+        permute_pod(&mut self.v.as_mut_slice()[..r.end], r.start, order, scratch);
+        permute_pod(&mut self.c.as_mut_slice()[..r.end], r.start, order, scratch);
+        permute_pod(&mut self.stress.as_mut_slice()[..r.end], r.start, order, scratch);
+        permute_pod(&mut self.j.as_mut_slice()[..r.end], r.start, order, scratch);
+        permute_pod(&mut self.mass.as_mut_slice()[..r.end], r.start, order, scratch);
+        permute_pod(&mut self.vol0.as_mut_slice()[..r.end], r.start, order, scratch);
+        permute_pod(&mut self.id.as_mut_slice()[..r.end], r.start, order, scratch);
         if s > 0 {
-            let tmp: &mut [Real] = bytemuck::cast_slice_mut(&mut scratch[..n * s * std::mem::size_of::<Real>()]);
-            let st = &mut self.state.as_mut_slice()[..n * s];
-            for (k, &o) in order[..n].iter().enumerate() {
+            let tmp: &mut [Real] = bytemuck::cast_slice_mut(&mut scratch[..r.len() * s * std::mem::size_of::<Real>()]);
+            let st = &mut self.state.as_mut_slice()[..r.end * s];
+            for (k, &o) in order.iter().enumerate() {
                 let o = o as usize;
                 tmp[k * s..(k + 1) * s].copy_from_slice(&st[o * s..(o + 1) * s]);
             }
-            st.copy_from_slice(tmp);
+            st[r.start * s..].copy_from_slice(tmp);
+        }
+    }
+
+    /// Exchange particles `a` and `b` (every field).
+    pub fn swap(&mut self, a: usize, b: usize) {
+        if a == b {
+            return;
+        }
+        self.xg.as_mut_slice().swap(a, b);
+        self.v.as_mut_slice().swap(a, b);
+        self.c.as_mut_slice().swap(a, b);
+        self.stress.as_mut_slice().swap(a, b);
+        self.j.as_mut_slice().swap(a, b);
+        self.mass.as_mut_slice().swap(a, b);
+        self.vol0.as_mut_slice().swap(a, b);
+        self.id.as_mut_slice().swap(a, b);
+        let s = self.state_len;
+        let st = self.state.as_mut_slice();
+        for k in 0..s {
+            st.swap(a * s + k, b * s + k);
         }
     }
 
@@ -116,11 +141,12 @@ impl Particles {
     }
 }
 
-fn permute_pod<T: bytemuck::Pod>(data: &mut [T], order: &[u32], scratch: &mut [u8]) {
-    let n = data.len();
+/// `data[start + k] = old data[order[k]]` for every k.
+fn permute_pod<T: bytemuck::Pod>(data: &mut [T], start: usize, order: &[u32], scratch: &mut [u8]) {
+    let n = order.len();
     let tmp: &mut [T] = bytemuck::cast_slice_mut(&mut scratch[..n * std::mem::size_of::<T>()]);
-    for (k, &o) in order[..n].iter().enumerate() {
+    for (k, &o) in order.iter().enumerate() {
         tmp[k] = data[o as usize];
     }
-    data.copy_from_slice(tmp);
+    data[start..start + n].copy_from_slice(tmp);
 }

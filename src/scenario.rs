@@ -22,6 +22,18 @@ pub struct Scenario {
     #[serde(default)]
     pub output: Output,
     pub memory: Memory,
+    /// Printing: nozzle, toolpath, emission.
+    #[serde(default)]
+    pub print: Option<crate::print::PrintConfig>,
+    /// Sleeping blocks of material at rest.
+    #[serde(default)]
+    pub sleep: Option<crate::sleep::SleepConfig>,
+    /// Observables written at each output.
+    #[serde(default)]
+    pub observe: Option<crate::report::ObserveConfig>,
+    /// Folder that relative paths in the scenario (G-code, measurements) start from.
+    #[serde(skip)]
+    pub base_dir: PathBuf,
 }
 
 #[derive(Clone, Debug, Deserialize)]
@@ -265,10 +277,11 @@ pub enum ScenarioError {
 impl Scenario {
     pub fn load(path: &Path) -> Result<Scenario, ScenarioError> {
         let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Io { path: path.into(), source })?;
-        let sc = Scenario::parse(&text).map_err(|e| match e {
+        let mut sc = Scenario::parse(&text).map_err(|e| match e {
             ScenarioError::Parse { message, .. } => ScenarioError::Parse { path: path.into(), message },
             other => other,
         })?;
+        sc.base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
         Ok(sc)
     }
 
@@ -381,6 +394,15 @@ impl Scenario {
             return bad(format!("output.interval must be > 0, got {}", self.output.interval));
         }
         parse_size(&self.memory.budget).map_err(|e| ScenarioError::Invalid(format!("memory.budget: {e}")))?;
+        if let Some(p) = &self.print {
+            p.validate().map_err(ScenarioError::Invalid)?;
+        }
+        if let Some(z) = &self.sleep {
+            z.validate().map_err(ScenarioError::Invalid)?;
+        }
+        if let Some(o) = &self.observe {
+            o.validate().map_err(ScenarioError::Invalid)?;
+        }
         if !self.material.contains_key("kind") {
             return bad("material.kind is missing (one of: newtonian, bingham, papanastasiou_roussel, evp_bingham, drucker_prager)".into());
         }

@@ -17,7 +17,9 @@ use crate::kernels::{Real, M3, V3};
 use crate::materials::build_material;
 use crate::memory::{parse_size, Backing, MemoryError, MemoryPlan, Pool};
 use crate::particles::Particles;
+use crate::print::{NozzleDrive, Printer};
 use crate::scenario::{Body, Scenario};
+use crate::sleep::Sleep;
 use crate::threads::{SharedSlice, ThreadTeam};
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -120,6 +122,10 @@ pub struct Simulation {
     thread_out: [AtomicU64; MAX_THREADS],
     /// Wall time spent in each phase of the step, in the order of [`PHASES`].
     pub phase_seconds: [f64; 6],
+    /// The printing process, when the scenario prints.
+    pub printer: Option<Printer>,
+    /// Sleeping blocks, when enabled.
+    pub sleep: Option<Sleep>,
 }
 
 /// Names of the step's phases, as accumulated in `Simulation::phase_seconds`.
@@ -146,16 +152,22 @@ impl Simulation {
         let geom = GridGeom::new(scenario);
         let state_len = material.state_names().len();
 
+        let printer = match &scenario.print {
+            Some(cfg) => Some(Printer::new(cfg, scenario.simulation.dx, &scenario.base_dir).map_err(SimError::Setup)?),
+            None => None,
+        };
+        if let Some(p) = &printer {
+            check_print_inside_domain(scenario, p)?;
+        }
         let initial = count_body_particles(scenario);
-        let cap = scenario.memory.max_particles.unwrap_or(initial).max(1);
-        if initial > cap {
-            return Err(MemoryError::PoolFull {
-                pool: "particles",
-                needed: initial,
-                capacity: cap,
-                hint: "[memory] max_particles",
-            }
-            .into());
+        let emitted = printer.as_ref().map_or(0, |p| p.plan.total_particles() as usize);
+        let cap = scenario.memory.max_particles.unwrap_or(initial + emitted).max(1);
+        if initial + emitted > cap {
+            return Err(SimError::Setup(format!(
+                "particle pool: the scenario needs {} particles ({initial} initial + {emitted} emitted by the whole print) \
+                 but [memory] max_particles = {cap}; raise it or leave it out to size the pool for the whole print",
+                initial + emitted
+            )));
         }
         let max_blocks = scenario.memory.max_blocks.unwrap_or(geom.table_len()).max(8);
         let budget = parse_size(&scenario.memory.budget)?;
@@ -163,6 +175,13 @@ impl Simulation {
         Particles::plan(&mut memory, cap, state_len);
         Grid::plan(&mut memory, &geom, max_blocks);
         Scratch::plan(&mut memory, cap, max_blocks, state_len);
+        if scenario.sleep.is_some() {
+            Sleep::plan(&mut memory, &geom, max_blocks);
+        }
+        if let Some(p) = &printer {
+            let q = scenario.print.as_ref().map_or(0, |c| c.queue);
+            memory.add::<[f64; 3]>("emission.queue", (q + 1) * p.plan.particles_per_slab());
+        }
         memory.check(budget)?;
 
         let backing = Backing { dir: scenario.memory.dir.clone() };
@@ -173,6 +192,10 @@ impl Simulation {
         let particles = Particles::new(cap, state_len, &backing)?;
         let grid = Grid::new(geom, max_blocks, &backing)?;
         let scratch = Scratch::new(cap, max_blocks, state_len, &backing)?;
+        let sleep = match &scenario.sleep {
+            Some(cfg) => Some(Sleep::new(cfg.clone(), &grid.geom, max_blocks, &backing)?),
+            None => None,
+        };
 
         let threads = match scenario.simulation.threads {
             0 => std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1),
@@ -216,7 +239,12 @@ impl Simulation {
             budget,
             thread_out: std::array::from_fn(|_| AtomicU64::new(0)),
             phase_seconds: [0.0; 6],
+            printer,
+            sleep,
         };
+        if let Some(p) = &mut sim.printer {
+            p.start(scenario.print.as_ref().map_or(64, |c| c.queue), 0);
+        }
         for body in &scenario.bodies {
             sim.add_body(body)?;
         }
@@ -298,8 +326,16 @@ impl Simulation {
     /// One MLS-MPM step of length `dt`.
     pub fn advance(&mut self, dt: f64) -> Result<(), SimError> {
         let mut clock = PhaseClock::start();
+        self.emit()?;
+        let mut moved = false;
+        if let Some(sl) = &mut self.sleep {
+            if self.step > 0 {
+                let check = self.step % sl.cfg.check_interval == 0;
+                moved = sl.update(&self.grid, &mut self.particles, self.last_dt, check);
+            }
+        }
         self.bin_particles()?;
-        if self.step % self.scenario.simulation.reorder_interval == 0 {
+        if moved || self.step % self.scenario.simulation.reorder_interval == 0 {
             self.reorder_particles();
         }
         clock.lap(&mut self.phase_seconds[0]);
@@ -318,6 +354,29 @@ impl Simulation {
         Ok(())
     }
 
+    /// Add the emitter's slabs that are due by now.
+    fn emit(&mut self) -> Result<(), SimError> {
+        let Some(pr) = &mut self.printer else { return Ok(()) };
+        let Some(em) = &mut pr.emitter else { return Ok(()) };
+        let t = self.time;
+        let vol = pr.particle_volume;
+        let (geom, particles, mat) = (&self.grid.geom, &mut self.particles, &*self.material);
+        let rho = mat.density() as f64;
+        let sl = particles.state_len;
+        em.drain_due(t, |slab| {
+            let lag = t - slab.due;
+            let v = slab.velocity;
+            let vel = V3::new(v[0] as Real, v[1] as Real, v[2] as Real);
+            for x in &slab.positions {
+                let xg = geom.to_grid([x[0] + lag * v[0], x[1] + lag * v[1], x[2] + lag * v[2]]);
+                let i = particles.push(xg, vel, (rho * vol) as Real, vol as Real)?;
+                mat.init_state(&mut particles.state.as_mut_slice()[i * sl..(i + 1) * sl]);
+            }
+            Ok::<(), MemoryError>(())
+        })?;
+        Ok(())
+    }
+
     /// Bin particles by the block of their stencil base, activate each particle block's 2x2x2
     /// neighbourhood, and group particle blocks by colour. Serial: it is a few operations per
     /// particle, and doing it in one order makes slot numbering deterministic.
@@ -331,7 +390,8 @@ impl Simulation {
         let count = sc.cursor.as_mut_slice();
         let mut last_key = u32::MAX;
         let mut last_slot = 0u32;
-        for p in 0..n {
+        let first = self.particles.n_sleep;
+        for p in first..n {
             let key = grid.geom.block_index(grid.geom.particle_block(xg[p]));
             if key != last_key {
                 let before = grid.n_active;
@@ -377,7 +437,7 @@ impl Simulation {
         }
         starts[npb] = acc;
         let order = sc.order.as_mut_slice();
-        for p in 0..n {
+        for p in first..n {
             let s = pslot[p] as usize;
             order[count[s] as usize] = p as u32;
             count[s] += 1;
@@ -400,10 +460,10 @@ impl Simulation {
 
     /// Move particles into block order so the transfers stream through memory.
     fn reorder_particles(&mut self) {
-        let n = self.particles.n;
-        self.particles.permute(&self.scratch.order.as_slice()[..n], self.scratch.permute.as_mut_slice());
-        for (k, o) in self.scratch.order.as_mut_slice()[..n].iter_mut().enumerate() {
-            *o = k as u32;
+        let (first, n) = (self.particles.n_sleep, self.particles.n);
+        self.particles.permute(&self.scratch.order.as_slice()[..n - first], self.scratch.permute.as_mut_slice());
+        for (k, o) in self.scratch.order.as_mut_slice()[..n - first].iter_mut().enumerate() {
+            *o = (first + k) as u32;
         }
     }
 
@@ -479,9 +539,14 @@ impl Simulation {
         let walls = &self.walls;
         let table = self.grid.table.as_slice();
         let threads = self.team.threads();
+        let drive = self.printer.as_ref().and_then(|p| p.drive(self.time));
+        let drive_box = drive.map(|d| d.bounds());
+        let sleep = self.sleep.as_ref();
         self.team.run(|tid| {
             for s in ThreadTeam::share(na, tid, threads) {
                 let b = geom.block_coords(slot_block[s]);
+                let near_sleep = sleep.is_some_and(|z| z.near_block(geom, b));
+                let driven = drive_box.is_some_and(|bx| geom.block_overlaps(b, bx));
                 // SAFETY: each slot belongs to one thread.
                 let blk = unsafe { nodes.slice_mut(s * NODES_PER_BLOCK..(s + 1) * NODES_PER_BLOCK) };
                 for (li, node) in blk.iter_mut().enumerate() {
@@ -490,9 +555,16 @@ impl Simulation {
                         *node = [0.0; 7];
                         continue;
                     }
+                    let g = geom.node_of(b, li);
                     let old = V3::new(node[1], node[2], node[3]) / m;
                     let mut v = old + V3::new(node[4], node[5], node[6]) / m + accel * dt;
-                    v = apply_walls(geom, walls, geom.node_of(b, li), v);
+                    if near_sleep && sleep.is_some_and(|z| z.holds_node(geom, g)) {
+                        v = V3::ZERO;
+                    }
+                    if driven {
+                        v = apply_drive(geom, drive.as_ref(), g, v);
+                    }
+                    v = apply_walls(geom, walls, g, v);
                     *node = [m, v.x, v.y, v.z, old.x, old.y, old.z];
                 }
             }
@@ -539,6 +611,7 @@ impl Simulation {
         let flip = self.scenario.simulation.flip as Real;
         let j_bar = self.scenario.simulation.j_bar.then_some(&p.vol0.as_slice()[..n]);
         let out = &self.thread_out;
+        let activity = self.sleep.as_mut().map(|z| SharedSlice::new(&mut z.activity.as_mut_slice()[..npb]));
         self.team.run(|tid| {
             let (lo, hi) = balanced(&starts[..npb], starts[npb], tid, threads);
             let mut local = [[0.0 as Real; 7]; LNODES];
@@ -555,6 +628,10 @@ impl Simulation {
                 for &pi in ord {
                     keep_inside(geom, platform, &mut o.xg[pi as usize]);
                 }
+                if let Some(act) = &activity {
+                    // SAFETY: slot s belongs to this thread.
+                    unsafe { *act.get_mut(s) = block_activity(ord, &*o.v, &*o.c) };
+                }
             }
             out[tid].store((vmax as f64).to_bits(), Ordering::Relaxed);
         });
@@ -564,7 +641,7 @@ impl Simulation {
     /// Material update over contiguous particle ranges, then a finiteness check that names the
     /// first bad particle.
     fn update_materials(&mut self, dt: Real) -> Result<(), SimError> {
-        let n = self.particles.n;
+        let (first, n) = (self.particles.n_sleep, self.particles.n);
         let p = &mut self.particles;
         let sl = p.state_len;
         let c = &p.c.as_slice()[..n];
@@ -576,7 +653,8 @@ impl Simulation {
         let threads = self.team.threads();
         let out = &self.thread_out;
         self.team.run(|tid| {
-            let r = ThreadTeam::share(n, tid, threads);
+            let r = ThreadTeam::share(n - first, tid, threads);
+            let r = first + r.start..first + r.end;
             // SAFETY: ranges are disjoint.
             let (st, sg) = unsafe { (state.slice_mut(r.start * sl..r.end * sl), stress.slice_mut(r.clone())) };
             mat.update_batch(&c[r.clone()], &jv[r.clone()], dt, st, sg);
@@ -698,6 +776,49 @@ fn apply_walls(geom: &GridGeom, walls: &Walls, g: [i32; 3], mut v: V3) -> V3 {
         }
     }
     v
+}
+
+/// Blend the nozzle's velocity into a node inside its tube (000 Table 2, line 7).
+#[inline]
+fn apply_drive(geom: &GridGeom, drive: Option<&NozzleDrive>, g: [i32; 3], v: V3) -> V3 {
+    let Some(d) = drive else { return v };
+    let x = geom.node_position(g);
+    let w = d.weight(x);
+    if w <= 0.0 {
+        return v;
+    }
+    let vd = V3::new(d.velocity[0] as Real, d.velocity[1] as Real, d.velocity[2] as Real);
+    vd * w + v * (1.0 - w)
+}
+
+/// Largest speed and strain rate |sym(C)| of a block's particles, for the sleep test.
+fn block_activity(ord: &[u32], v: &[V3], c: &[M3]) -> [Real; 2] {
+    let mut a: [Real; 2] = [0.0; 2];
+    for &pi in ord {
+        let pi = pi as usize;
+        let e = crate::kernels::real::sym(&c[pi]);
+        let rate = (e.x_axis.length_squared() + e.y_axis.length_squared() + e.z_axis.length_squared()).sqrt();
+        a[0] = a[0].max(v[pi].length());
+        a[1] = a[1].max(rate);
+    }
+    a
+}
+
+/// Start-up check: the tube must stay inside the domain along the whole toolpath.
+fn check_print_inside_domain(sc: &Scenario, p: &Printer) -> Result<(), SimError> {
+    let (lo, hi) = p.toolpath.bounds();
+    let [ex, ey] = p.shape.half_extent();
+    let need_lo = [lo[0] - ex, lo[1] - ey, lo[2]];
+    let need_hi = [hi[0] + ex, hi[1] + ey, hi[2] + p.tube_height];
+    for a in 0..3 {
+        if need_lo[a] < sc.domain.min[a] - 1e-12 || need_hi[a] > sc.domain.max[a] + 1e-12 {
+            return Err(SimError::Setup(format!(
+                "print: the nozzle tube spans [{:.4}, {:.4}] m on axis {a} along the toolpath, outside the domain [{}, {}]",
+                need_lo[a], need_hi[a], sc.domain.min[a], sc.domain.max[a]
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// Set a ghost node (beyond a wall on at least one axis) to the mirror image of its partner

@@ -9,3 +9,4 @@ pub mod transfer;
 pub mod boundary;
 
 pub use real::{Real, M3, V3};
+pub mod nozzle;

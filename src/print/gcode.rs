@@ -1,1 +1,577 @@
 //! G-code import into a toolpath.
+//!
+//! Accepts the subset a printer needs for straight moves: G0/G1 (X Y Z E F), G4 dwell, G90/G91,
+//! M82/M83, G92 and G21. Anything else is refused with its line number rather than skipped,
+//! because a silently ignored command (an arc, a homing move) would print a different part.
+//! One command per line; a word is a letter followed directly by a number without exponent
+//! (`G1X10E.5` is fine, `X 10` is not).
+
+use super::toolpath::{Move, MoveKind, Toolpath, ToolpathError};
+
+/// How G-code numbers map to the world. In scenario TOML this is `[print.gcode]`.
+#[derive(Clone, Debug, PartialEq, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct GcodeOptions {
+    /// metres per G-code length unit (1e-3: millimetres)
+    pub unit: f64,
+    /// metres of material through the nozzle per unit of E (default 1e-3: E counts mm of
+    /// extrudate length through the outlet)
+    pub e_unit: f64,
+    /// world position of the G-code origin [m]
+    pub origin: [f64; 3],
+    /// start position of the nozzle in G-code coordinates before the first move
+    pub start: [f64; 3],
+    /// feed rate before any F word, G-code units per minute
+    pub default_feed: f64,
+}
+
+impl Default for GcodeOptions {
+    /// Millimetres, E in mm of extrudate, origin at the world origin, 3000 mm/min (50 mm/s, a
+    /// typical concrete printing speed) until the file sets F.
+    fn default() -> Self {
+        GcodeOptions { unit: 1e-3, e_unit: 1e-3, origin: [0.0; 3], start: [0.0; 3], default_feed: 3000.0 }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum GcodeError {
+    /// A command (or use of one) the importer does not implement; `line` is 1-based.
+    #[error("gcode line {line}: unsupported command {word} ({text:?}){}", reason_suffix(.reason))]
+    Unsupported { line: usize, word: String, text: String, reason: String },
+    /// A line that is not valid G-code; `line` is 1-based.
+    #[error("gcode line {line}: {message} ({text:?})")]
+    Malformed { line: usize, message: String, text: String },
+    #[error("print.gcode.{key}: {message}")]
+    Option { key: &'static str, message: String },
+    #[error("gcode: {0}")]
+    Toolpath(#[from] ToolpathError),
+}
+
+fn reason_suffix(reason: &str) -> String {
+    if reason.is_empty() {
+        String::new()
+    } else {
+        format!(": {reason}")
+    }
+}
+
+/// Parse G-code into a toolpath starting at t = 0. Feed rates are in G-code units per minute;
+/// a G1 that advances E by dE over a length s at feed F lasts s / (F/60) and extrudes at
+/// U = dE · e_unit / duration. Moves with no net E advance are travels.
+pub fn parse_gcode(text: &str, opts: &GcodeOptions) -> Result<Toolpath, GcodeError> {
+    opts.validate()?;
+    let mut machine = Machine::new(opts);
+    for (i, raw) in text.lines().enumerate() {
+        let at_line = |e: LineError| match e {
+            LineError::Unsupported { word, reason } => {
+                GcodeError::Unsupported { line: i + 1, word, text: raw.trim().to_string(), reason }
+            }
+            LineError::Malformed(message) => {
+                GcodeError::Malformed { line: i + 1, message, text: raw.trim().to_string() }
+            }
+        };
+        let words = tokenize(raw).map_err(|m| at_line(LineError::Malformed(m)))?;
+        machine.execute(&words).map_err(at_line)?;
+    }
+    Ok(Toolpath::from_moves(machine.moves)?)
+}
+
+impl GcodeOptions {
+    /// Check every option is usable.
+    pub fn validate(&self) -> Result<(), GcodeError> {
+        let bad = |key, message: String| Err(GcodeError::Option { key, message });
+        for (key, v) in [("unit", self.unit), ("e_unit", self.e_unit), ("default_feed", self.default_feed)] {
+            if !(v.is_finite() && v > 0.0) {
+                return bad(key, format!("{key} = {v} must be finite and > 0"));
+            }
+        }
+        for (key, v) in [("origin", self.origin), ("start", self.start)] {
+            if !v.iter().all(|x| x.is_finite()) {
+                return bad(key, format!("{key} = {v:?} must be finite"));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A line's problem, before the line number and text are attached.
+enum LineError {
+    Unsupported { word: String, reason: String },
+    Malformed(String),
+}
+
+/// One word: an upper-cased letter and its number, plus its spelling for messages.
+struct Word {
+    letter: char,
+    value: f64,
+    text: String,
+}
+
+/// Letters of the supported commands and their parameters; others are "unknown words".
+const KNOWN_LETTERS: &str = "GMTNXYZEFPS";
+
+/// Split a line into words, dropping `;` and `( )` comments and a `*` checksum.
+fn tokenize(raw: &str) -> Result<Vec<Word>, String> {
+    let mut code = Vec::new();
+    let mut in_comment = false;
+    for c in raw.chars() {
+        match (in_comment, c) {
+            (true, ')') => {
+                in_comment = false;
+                code.push(' '); // a comment separates words like a space
+            }
+            (true, _) => {}
+            (false, '(') => in_comment = true,
+            (false, ';' | '*') => break, // the rest is a comment or the checksum
+            (false, c) => code.push(c),
+        }
+    }
+    if in_comment {
+        return Err("unclosed '(' comment".to_string());
+    }
+    // '%' alone marks the start or end of a program on some controllers.
+    if code.iter().collect::<String>().trim() == "%" {
+        return Ok(Vec::new());
+    }
+    let mut words: Vec<Word> = Vec::new();
+    let mut i = 0;
+    while i < code.len() {
+        let c = code[i];
+        i += 1;
+        if c.is_whitespace() {
+            continue;
+        }
+        if !c.is_ascii_alphabetic() {
+            return Err(format!("unexpected character {c:?}"));
+        }
+        let letter = c.to_ascii_uppercase();
+        let start = i;
+        while i < code.len() && !code[i].is_whitespace() && !code[i].is_ascii_alphabetic() {
+            i += 1;
+        }
+        let number: String = code[start..i].iter().collect();
+        if number.is_empty() {
+            let found: String = code[i..].iter().take_while(|c| !c.is_whitespace()).collect();
+            return Err(match found.is_empty() {
+                true => format!("{letter} has no number"),
+                false => format!("{letter} must be followed by a number, found {found:?}"),
+            });
+        }
+        let value = parse_number(&number).ok_or_else(|| format!("bad number {number:?} after {letter}"))?;
+        if words.iter().any(|w| w.letter == letter) {
+            return Err(format!("{letter} appears twice on the line"));
+        }
+        words.push(Word { letter, value, text: format!("{letter}{number}") });
+    }
+    Ok(words)
+}
+
+/// A G-code number: optional sign, digits with at most one decimal point, no exponent (E is an
+/// axis letter), finite.
+fn parse_number(s: &str) -> Option<f64> {
+    let body = s.strip_prefix(['+', '-']).unwrap_or(s);
+    let digits = body.chars().filter(|c| c.is_ascii_digit()).count();
+    let points = body.chars().filter(|&c| c == '.').count();
+    if digits == 0 || points > 1 || digits + points != body.len() {
+        return None;
+    }
+    s.parse::<f64>().ok().filter(|v| v.is_finite())
+}
+
+/// The interpreter state while reading a file.
+struct Machine<'a> {
+    opts: &'a GcodeOptions,
+    /// Physical nozzle position in G-code units; G92 leaves it alone and moves `offset` instead.
+    machine: [f64; 3],
+    /// Logical (file) coordinate = machine - offset.
+    offset: [f64; 3],
+    /// Logical E position, tracked in both E modes so switching modes stays consistent.
+    e: f64,
+    absolute_xyz: bool,
+    absolute_e: bool,
+    /// Feed rate, G-code units per minute.
+    feed: f64,
+    t: f64,
+    /// World position of the nozzle [m]; kept so each move starts exactly where the last ended.
+    world: [f64; 3],
+    moves: Vec<Move>,
+}
+
+impl<'a> Machine<'a> {
+    fn new(opts: &'a GcodeOptions) -> Self {
+        Machine {
+            opts,
+            machine: opts.start,
+            offset: [0.0; 3],
+            e: 0.0,
+            absolute_xyz: true,
+            absolute_e: true,
+            feed: opts.default_feed,
+            t: 0.0,
+            world: std::array::from_fn(|i| opts.origin[i] + opts.unit * opts.start[i]),
+            moves: Vec::new(),
+        }
+    }
+
+    fn execute(&mut self, words: &[Word]) -> Result<(), LineError> {
+        let mut commands = words.iter().filter(|w| matches!(w.letter, 'G' | 'M' | 'T'));
+        let params: Vec<&Word> = words.iter().filter(|w| !matches!(w.letter, 'G' | 'M' | 'T' | 'N')).collect();
+        let Some(cmd) = commands.next() else {
+            let Some(first) = params.first() else {
+                return Ok(()); // blank, comment or line number only
+            };
+            check_params("", &params, KNOWN_LETTERS)?;
+            return Err(LineError::Malformed(format!(
+                "{} without a command (modal moves need their G0/G1)",
+                first.text
+            )));
+        };
+        if let Some(other) = commands.next() {
+            return Err(LineError::Malformed(format!(
+                "more than one command on the line ({} and {})",
+                cmd.text, other.text
+            )));
+        }
+        let unsupported =
+            |reason: &str| Err(LineError::Unsupported { word: cmd.text.clone(), reason: reason.to_string() });
+        let code = if cmd.value.fract() == 0.0 && cmd.value >= 0.0 { cmd.value as u32 } else { u32::MAX };
+        match (cmd.letter, code) {
+            ('G', 0 | 1) => {
+                check_params(&cmd.text, &params, "XYZEF")?;
+                self.linear_move(&cmd.text, code == 0, &params)
+            }
+            ('G', 4) => {
+                check_params(&cmd.text, &params, "PS")?;
+                self.dwell(&params)
+            }
+            ('G', 20) => unsupported("inch units; remove G20 and set print.gcode.unit = 0.0254"),
+            ('G', 21) => check_params(&cmd.text, &params, ""),
+            ('G', 90 | 91) => {
+                check_params(&cmd.text, &params, "")?;
+                self.absolute_xyz = code == 90;
+                Ok(())
+            }
+            ('M', 82 | 83) => {
+                check_params(&cmd.text, &params, "")?;
+                self.absolute_e = code == 82;
+                Ok(())
+            }
+            ('G', 92) => {
+                check_params(&cmd.text, &params, "XYZE")?;
+                self.set_position(&params);
+                Ok(())
+            }
+            _ => unsupported(""),
+        }
+    }
+
+    /// G0/G1. `rapid` (G0) never extrudes.
+    fn linear_move(&mut self, cmd: &str, rapid: bool, params: &[&Word]) -> Result<(), LineError> {
+        if let Some(f) = value_of(params, 'F') {
+            if !(f > 0.0) {
+                return Err(LineError::Malformed(format!("feed rate F{f} must be > 0")));
+            }
+            self.feed = f;
+        }
+        let mut target = self.machine;
+        for (axis, letter) in ['X', 'Y', 'Z'].into_iter().enumerate() {
+            if let Some(v) = value_of(params, letter) {
+                target[axis] = if self.absolute_xyz { v + self.offset[axis] } else { self.machine[axis] + v };
+            }
+        }
+        let mut de = 0.0;
+        if let Some(e) = value_of(params, 'E') {
+            if rapid {
+                return Err(LineError::Unsupported {
+                    word: format!("{cmd} E"),
+                    reason: "a rapid move cannot extrude; use G1".to_string(),
+                });
+            }
+            de = if self.absolute_e { e - self.e } else { e };
+            self.e = if self.absolute_e { e } else { self.e + e };
+        }
+        let dist = (0..3).map(|i| (target[i] - self.machine[i]).powi(2)).sum::<f64>().sqrt();
+        if dist == 0.0 {
+            if de > 0.0 {
+                let reason =
+                    format!("extrusion without motion (E advances by {de} while X, Y and Z stay put) is not supported");
+                return Err(LineError::Unsupported { word: cmd.to_string(), reason });
+            }
+            return Ok(()); // a retraction in place or a move to where the nozzle is: nothing moves
+        }
+        let duration = dist / (self.feed / 60.0);
+        // Only a net advance of E deposits material; a retraction while moving is a travel.
+        let u = if de > 0.0 { de * self.opts.e_unit / duration } else { 0.0 };
+        let kind = if u > 0.0 { MoveKind::Print } else { MoveKind::Travel };
+        let to = std::array::from_fn(|i| self.opts.origin[i] + self.opts.unit * target[i]);
+        self.push(duration, to, u, kind)?;
+        self.machine = target;
+        Ok(())
+    }
+
+    /// G4 P<milliseconds> or G4 S<seconds>.
+    fn dwell(&mut self, params: &[&Word]) -> Result<(), LineError> {
+        let seconds = match (value_of(params, 'P'), value_of(params, 'S')) {
+            (Some(ms), None) => ms * 1e-3,
+            (None, Some(s)) => s,
+            (Some(_), Some(_)) => return Err(LineError::Malformed("G4 takes P (ms) or S (s), not both".to_string())),
+            (None, None) => return Err(LineError::Malformed("G4 needs P (ms) or S (s)".to_string())),
+        };
+        if seconds < 0.0 {
+            return Err(LineError::Malformed(format!("negative dwell of {seconds} s")));
+        }
+        if seconds == 0.0 {
+            return Ok(());
+        }
+        self.push(seconds, self.world, 0.0, MoveKind::Pause)
+    }
+
+    /// G92: declare the current position's logical coordinates without moving; with no
+    /// parameters every axis becomes 0.
+    fn set_position(&mut self, params: &[&Word]) {
+        let all = params.is_empty();
+        for (axis, letter) in ['X', 'Y', 'Z'].into_iter().enumerate() {
+            match value_of(params, letter) {
+                Some(v) => self.offset[axis] = self.machine[axis] - v,
+                None if all => self.offset[axis] = self.machine[axis],
+                None => {}
+            }
+        }
+        match value_of(params, 'E') {
+            Some(v) => self.e = v,
+            None if all => self.e = 0.0,
+            None => {}
+        }
+    }
+
+    fn push(&mut self, duration: f64, to: [f64; 3], u: f64, kind: MoveKind) -> Result<(), LineError> {
+        let t1 = self.t + duration;
+        if !(t1.is_finite() && t1 > self.t) {
+            return Err(LineError::Malformed(format!(
+                "move duration of {duration} s is not usable at t = {} s",
+                self.t
+            )));
+        }
+        self.moves.push(Move { t0: self.t, t1, from: self.world, to, extrusion_speed: u, kind });
+        (self.t, self.world) = (t1, to);
+        Ok(())
+    }
+}
+
+fn value_of(params: &[&Word], letter: char) -> Option<f64> {
+    params.iter().find(|w| w.letter == letter).map(|w| w.value)
+}
+
+/// Reject parameters `cmd` does not take, telling unknown letters apart from misplaced ones.
+fn check_params(cmd: &str, params: &[&Word], allowed: &str) -> Result<(), LineError> {
+    match params.iter().find(|w| !allowed.contains(w.letter)) {
+        None => Ok(()),
+        Some(w) if !KNOWN_LETTERS.contains(w.letter) => Err(LineError::Malformed(format!("unknown word {}", w.text))),
+        Some(w) => Err(LineError::Malformed(format!("{cmd} does not take {}", w.text))),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(text: &str) -> Toolpath {
+        parse_gcode(text, &GcodeOptions::default()).unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    fn close(a: f64, b: f64) -> bool {
+        (a - b).abs() <= 1e-12 * (1.0 + b.abs())
+    }
+
+    fn close3(a: [f64; 3], b: [f64; 3]) -> bool {
+        (0..3).all(|i| close(a[i], b[i]))
+    }
+
+    /// Check one move: kind, [t0, t1), end position and extrusion speed.
+    fn check(m: &Move, kind: MoveKind, t0: f64, t1: f64, to: [f64; 3], u: f64) {
+        assert_eq!(m.kind, kind, "{m:?}");
+        assert!(close(m.t0, t0) && close(m.t1, t1) && close3(m.to, to) && close(m.extrusion_speed, u), "{m:?}");
+    }
+
+    #[test]
+    fn two_layer_file() {
+        let text = "\
+; two-layer test wall, millimetres
+G21 ; millimetres
+G90
+M83 ; relative E
+G1 Z10 F3000 ; to the first layer at 50 mm/s
+G1 X100 E50 F6000 ; first layer: 100 mm at 100 mm/s, 50 mm of extrudate
+G4 P500 ; let it set
+G0 Z20 ; layer change at the modal 100 mm/s
+G1 X0 E25 F3000 ; second layer back at 50 mm/s
+G4 S0.25
+";
+        let p = parse(text);
+        let m = p.moves();
+        assert_eq!(m.len(), 6);
+        check(&m[0], MoveKind::Travel, 0.0, 0.2, [0.0, 0.0, 0.01], 0.0);
+        check(&m[1], MoveKind::Print, 0.2, 1.2, [0.1, 0.0, 0.01], 0.05);
+        check(&m[2], MoveKind::Pause, 1.2, 1.7, [0.1, 0.0, 0.01], 0.0);
+        check(&m[3], MoveKind::Travel, 1.7, 1.8, [0.1, 0.0, 0.02], 0.0);
+        check(&m[4], MoveKind::Print, 1.8, 3.8, [0.0, 0.0, 0.02], 0.0125);
+        check(&m[5], MoveKind::Pause, 3.8, 4.05, [0.0, 0.0, 0.02], 0.0);
+        let s = p.state_at(0.7);
+        assert!(
+            close3(s.position, [0.05, 0.0, 0.01]) && close3(s.velocity, [0.1, 0.0, 0.0]) && s.interval == 1,
+            "{s:?}"
+        );
+        assert!(close(p.total_extruded_length(), 0.075));
+        let layers = p.layers();
+        assert_eq!(layers.len(), 2);
+        assert!(close(layers[0].0, 0.01) && close(layers[0].1, 0.2) && close(layers[0].2, 1.2), "{layers:?}");
+        assert!(close(layers[1].0, 0.02) && close(layers[1].1, 1.8) && close(layers[1].2, 3.8), "{layers:?}");
+    }
+
+    #[test]
+    fn relative_moves_origin_and_start() {
+        let opts = GcodeOptions { origin: [1.0, 2.0, 3.0], start: [5.0, 5.0, 0.0], ..GcodeOptions::default() };
+        let p = parse_gcode("M83\nG91\nG1 X10 E5 F600\nG1 X10 E5\nG1 Y-5\n", &opts).unwrap();
+        let m = p.moves();
+        assert!(close3(m[0].from, [1.005, 2.005, 3.0]));
+        check(&m[0], MoveKind::Print, 0.0, 1.0, [1.015, 2.005, 3.0], 0.005);
+        check(&m[1], MoveKind::Print, 1.0, 2.0, [1.025, 2.005, 3.0], 0.005);
+        check(&m[2], MoveKind::Travel, 2.0, 2.5, [1.025, 2.0, 3.0], 0.0);
+        // Back to absolute: coordinates are the file's again.
+        let p = parse_gcode("G91\nG1 X10 F600\nG90\nG1 X0\n", &opts).unwrap();
+        assert!(close3(p.moves()[1].to, [1.0, 2.005, 3.0]));
+    }
+
+    #[test]
+    fn absolute_e_with_g92() {
+        let text = "M82\nG92 E0\nG1 X10 E2 F600\nG1 X20 E5\nG92 E0\nG1 X30 E1\nG1 X40 E0.5\nG1 E-1\nG1 X50 E0\n";
+        let m = parse(text).moves().to_vec();
+        assert_eq!(m.len(), 5); // the retraction in place moves nothing
+        check(&m[0], MoveKind::Print, 0.0, 1.0, [0.01, 0.0, 0.0], 2e-3);
+        check(&m[1], MoveKind::Print, 1.0, 2.0, [0.02, 0.0, 0.0], 3e-3);
+        check(&m[2], MoveKind::Print, 2.0, 3.0, [0.03, 0.0, 0.0], 1e-3); // E counted from the reset
+        check(&m[3], MoveKind::Travel, 3.0, 4.0, [0.04, 0.0, 0.0], 0.0); // retraction while moving
+        check(&m[4], MoveKind::Print, 4.0, 5.0, [0.05, 0.0, 0.0], 1e-3); // E -1 -> 0 while moving
+    }
+
+    #[test]
+    fn g92_resets_xyz_without_moving() {
+        let m = parse("G1 X10 Y10 F600\nG92 X0\nG1 X5\nG92\nG1 Y5\n").moves().to_vec();
+        assert_eq!(m.len(), 3);
+        check(&m[1], MoveKind::Travel, m[0].t1, m[0].t1 + 0.5, [0.015, 0.01, 0.0], 0.0);
+        check(&m[2], MoveKind::Travel, m[1].t1, m[1].t1 + 0.5, [0.015, 0.015, 0.0], 0.0);
+    }
+
+    #[test]
+    fn comments_line_numbers_checksums_and_case() {
+        let text = "%\nN1 G1 X10 F600*34 ; comment\r\nn2 g1 (inline; comment) y10 *12\n(full line comment)\n\n   ; indented comment\nG1X20Y20E1\nG1 X+20.0 Y.5 E-.5\n";
+        let m = parse(text).moves().to_vec();
+        assert_eq!(m.len(), 4);
+        check(&m[0], MoveKind::Travel, 0.0, 1.0, [0.01, 0.0, 0.0], 0.0);
+        check(&m[1], MoveKind::Travel, 1.0, 2.0, [0.01, 0.01, 0.0], 0.0);
+        assert_eq!(m[2].kind, MoveKind::Print);
+        check(&m[3], MoveKind::Travel, m[2].t1, m[2].t1 + 1.95, [0.02, 0.0005, 0.0], 0.0);
+        // The default feed applies until the file sets one.
+        let p = parse("G1 X50\n");
+        assert!(close(p.end_time(), 1.0)); // 50 mm at 3000 mm/min
+    }
+
+    fn error(text: &str) -> GcodeError {
+        match parse_gcode(text, &GcodeOptions::default()) {
+            Err(e) => e,
+            Ok(p) => panic!("accepted {text:?}: {:?}", p.moves()),
+        }
+    }
+
+    #[test]
+    fn unsupported_commands_name_line_and_word() {
+        let head = "G21\n; setup\n";
+        for (line, word) in [
+            ("G28 X0", "G28"),
+            ("M104 S200", "M104"),
+            ("G20", "G20"),
+            ("T0", "T0"),
+            ("G2 X10 Y0 I5 J0", "G2"),
+            ("g92.1", "G92.1"),
+            ("M83\nG1 E5", "G1"),
+            ("G0 X5 E1", "G0 E"),
+        ] {
+            match error(&format!("{head}{line}\n")) {
+                GcodeError::Unsupported { line: n, word: w, text, .. } => {
+                    assert_eq!((n, w.as_str()), (3 + line.matches('\n').count(), word), "{line}");
+                    assert_eq!(text, line.rsplit('\n').next().unwrap_or(line));
+                }
+                e => panic!("{line}: expected Unsupported, got {e}"),
+            }
+        }
+        assert_eq!(error("G21\n; setup\nG28 X0\n").to_string(), "gcode line 3: unsupported command G28 (\"G28 X0\")");
+        let msg = error("M83\nG1 X1\nG1 E5 ; prime\n").to_string();
+        assert!(
+            msg.starts_with("gcode line 3: unsupported command G1 (\"G1 E5 ; prime\"): extrusion without motion"),
+            "{msg}"
+        );
+        assert!(error("G20\n").to_string().contains("inch"));
+    }
+
+    #[test]
+    fn malformed_lines_name_line_and_problem() {
+        let head = "G21\n; setup\n";
+        for (line, needle) in [
+            ("G1 X1.2.3", "bad number \"1.2.3\" after X"),
+            ("G1 Xabc", "X must be followed by a number, found \"abc\""),
+            ("G1 X", "X has no number"),
+            ("G1 X1 X2", "X appears twice"),
+            ("Q5", "unknown word Q5"),
+            ("G1 X1 Q5", "unknown word Q5"),
+            ("G1 X5 P3", "G1 does not take P3"),
+            ("X10 Y5", "without a command"),
+            ("G90 G21", "G appears twice"),
+            ("G1 M82", "more than one command"),
+            ("G1 X- ", "bad number \"-\""),
+            ("G1 X1e", "E has no number"),
+            ("G1 X10 F0", "feed rate F0 must be > 0"),
+            ("G4", "G4 needs P"),
+            ("G4 P1 S1", "not both"),
+            ("G4 P-5", "negative dwell"),
+            ("G1 (open comment X1", "unclosed"),
+            ("G1 #1", "unexpected character '#'"),
+            ("G1 X#1", "bad number \"#1\" after X"),
+        ] {
+            match error(&format!("{head}{line}\n")) {
+                GcodeError::Malformed { line: 3, message, text } => {
+                    assert!(message.contains(needle), "{line}: {message}");
+                    assert_eq!(text, line.trim());
+                }
+                e => panic!("{line}: expected Malformed at line 3, got {e}"),
+            }
+        }
+        assert_eq!(error("G1 X1\nG1 X1 X2\n").to_string(), "gcode line 2: X appears twice on the line (\"G1 X1 X2\")");
+    }
+
+    #[test]
+    fn options_and_empty_files() {
+        assert!(matches!(error("; nothing\n"), GcodeError::Toolpath(ToolpathError::Empty)));
+        for opts in [
+            GcodeOptions { unit: 0.0, ..GcodeOptions::default() },
+            GcodeOptions { e_unit: f64::NAN, ..GcodeOptions::default() },
+            GcodeOptions { default_feed: -1.0, ..GcodeOptions::default() },
+            GcodeOptions { origin: [f64::INFINITY, 0.0, 0.0], ..GcodeOptions::default() },
+        ] {
+            assert!(matches!(parse_gcode("G1 X1\n", &opts), Err(GcodeError::Option { .. })), "{opts:?}");
+        }
+        let msg =
+            parse_gcode("G1 X1\n", &GcodeOptions { unit: 0.0, ..GcodeOptions::default() }).unwrap_err().to_string();
+        assert_eq!(msg, "print.gcode.unit: unit = 0 must be finite and > 0");
+    }
+
+    #[test]
+    fn options_from_toml() {
+        #[derive(serde::Deserialize)]
+        struct Print {
+            gcode: GcodeOptions,
+        }
+        let p: Print = toml::from_str("[gcode]\nunit = 0.0254\norigin = [0.1, 0.2, 0.0]\n").unwrap();
+        assert_eq!(p.gcode, GcodeOptions { unit: 0.0254, origin: [0.1, 0.2, 0.0], ..GcodeOptions::default() });
+        assert!(toml::from_str::<Print>("[gcode]\nunits = 0.001\n").is_err());
+    }
+}

@@ -1,0 +1,168 @@
+//! The emission stage of the pipeline: a thread that lays out each new slab of particles ahead of
+//! time and hands it to the stepper through a bounded lock-free queue.
+//!
+//! Material enters the nozzle through the top of its tube at the extrusion speed U. A slab of
+//! `group` particle layers (thickness `group * h`) is due when the extruded length L(t) has
+//! pushed it wholly into the tube; the tube starts full, so slab q is due at the first t with
+//! L(t) + H >= (q + 1) group h. The emitter gives each slab its due time and positions at that
+//! time; the stepper adds it at the first step starting at or after the due time, advancing the
+//! positions ballistically by the lag (inside the tube the grid moves material at exactly that
+//! velocity). Every particle stands for `particle_volume`, chosen so the mass flux is
+//! rho A U exactly, whatever the lattice's fit to the outlet.
+//!
+//! Slab buffers are allocated once and circulate between a `full` and a `free` queue, so the
+//! steady state allocates nothing; the contents depend only on the toolpath, never on timing.
+
+use super::toolpath::Toolpath;
+use crossbeam::channel::{bounded, Receiver, Sender, TryRecvError};
+use std::sync::Arc;
+use std::thread::JoinHandle;
+
+/// What the emitter needs to lay out slabs.
+#[derive(Clone)]
+pub struct EmissionPlan {
+    pub toolpath: Arc<Toolpath>,
+    /// Horizontal lattice offsets inside the outlet.
+    pub offsets: Arc<Vec<[f64; 2]>>,
+    /// Particle spacing h.
+    pub spacing: f64,
+    /// Layers per slab: 1 (continuous) or particles per cell axis (one cell, 000 sec. 2.4).
+    pub group: u32,
+    /// Tube height H above the outlet.
+    pub tube_height: f64,
+}
+
+impl EmissionPlan {
+    /// Number of slabs the whole toolpath emits.
+    pub fn slabs(&self) -> u64 {
+        let slab = self.group as f64 * self.spacing;
+        ((self.toolpath.total_extruded_length() + self.tube_height) / slab + 1e-9).floor() as u64
+    }
+
+    pub fn particles_per_slab(&self) -> usize {
+        self.offsets.len() * self.group as usize
+    }
+
+    pub fn total_particles(&self) -> u64 {
+        self.slabs() * self.particles_per_slab() as u64
+    }
+
+    /// Lay out slab `q` into `b`.
+    pub fn fill(&self, q: u64, b: &mut Slab) {
+        let h = self.spacing;
+        let slab = self.group as f64 * h;
+        let need = (q + 1) as f64 * slab - self.tube_height;
+        let due = if need <= 0.0 { 0.0 } else { self.toolpath.time_at_extruded_length(need).unwrap_or(f64::INFINITY) };
+        let st = self.toolpath.state_at(due);
+        // the tube is pre-filled at t = 0: those slabs already sit deeper
+        let excess = (self.toolpath.extruded_length(due) + self.tube_height - (q + 1) as f64 * slab).max(0.0);
+        let z_top = st.position[2] + self.tube_height;
+        b.slab = q;
+        b.due = due;
+        b.velocity = [st.velocity[0], st.velocity[1], st.velocity[2] - st.extrusion_speed];
+        b.positions.clear();
+        for m in 0..self.group {
+            let z = z_top - 0.5 * h - excess - m as f64 * h;
+            for o in self.offsets.iter() {
+                b.positions.push([st.position[0] + o[0], st.position[1] + o[1], z]);
+            }
+        }
+    }
+}
+
+/// One slab of new particles.
+pub struct Slab {
+    pub slab: u64,
+    /// Time at which the slab is wholly inside the tube [s].
+    pub due: f64,
+    /// Velocity of every particle of the slab at `due`.
+    pub velocity: [f64; 3],
+    /// World positions at `due`.
+    pub positions: Vec<[f64; 3]>,
+}
+
+pub struct Emitter {
+    full: Receiver<Box<Slab>>,
+    free: Sender<Box<Slab>>,
+    pending: Option<Box<Slab>>,
+    worker: Option<JoinHandle<()>>,
+    /// Slabs handed to the stepper so far.
+    pub emitted: u64,
+}
+
+impl Emitter {
+    /// Start the emitter thread with `buffers` slab buffers in flight, emitting slabs
+    /// `first..plan.slabs()` (a resumed run starts past 0).
+    pub fn spawn(plan: EmissionPlan, buffers: usize, first: u64) -> Emitter {
+        let buffers = buffers.max(2);
+        let (full_tx, full_rx) = bounded::<Box<Slab>>(buffers);
+        let (free_tx, free_rx) = bounded::<Box<Slab>>(buffers);
+        let per = plan.particles_per_slab();
+        for _ in 0..buffers {
+            let b = Box::new(Slab { slab: 0, due: 0.0, velocity: [0.0; 3], positions: Vec::with_capacity(per) });
+            free_tx.send(b).expect("free queue has room for every buffer");
+        }
+        let total = plan.slabs();
+        let worker = std::thread::Builder::new()
+            .name("strand-emitter".into())
+            .spawn(move || {
+                for q in first..total {
+                    // the stepper dropped its end: the run is over
+                    let Ok(mut b) = free_rx.recv() else { return };
+                    plan.fill(q, &mut b);
+                    if full_tx.send(b).is_err() {
+                        return;
+                    }
+                }
+            })
+            .expect("cannot spawn the emitter thread");
+        Emitter { full: full_rx, free: free_tx, pending: None, worker: Some(worker), emitted: first }
+    }
+
+    /// Hand every slab due at or before `t` to `add`, in order. Blocks only when the emitter
+    /// has fallen behind the stepper.
+    pub fn drain_due<E>(&mut self, t: f64, mut add: impl FnMut(&Slab) -> Result<(), E>) -> Result<(), E> {
+        loop {
+            if self.pending.is_none() {
+                self.pending = match self.full.try_recv() {
+                    Ok(b) => Some(b),
+                    Err(TryRecvError::Empty) => match self.full.recv() {
+                        Ok(b) => Some(b),
+                        Err(_) => return Ok(()), // every slab emitted
+                    },
+                    Err(TryRecvError::Disconnected) => return Ok(()),
+                };
+            }
+            let b = self.pending.as_ref().expect("just filled");
+            if b.due > t {
+                return Ok(());
+            }
+            add(b)?;
+            self.emitted += 1;
+            let b = self.pending.take().expect("just checked");
+            // the emitter may have finished and dropped its end: the buffer is then not needed
+            let _ = self.free.send(b);
+        }
+    }
+
+    /// Due time of the next slab, if any remain.
+    pub fn next_due(&mut self) -> Option<f64> {
+        if self.pending.is_none() {
+            self.pending = self.full.recv().ok();
+        }
+        self.pending.as_ref().map(|b| b.due)
+    }
+}
+
+impl Drop for Emitter {
+    fn drop(&mut self) {
+        // Dropping the queues ends the worker's loop; wait for it so no thread outlives the run.
+        let (_, dead_rx) = bounded::<Box<Slab>>(0);
+        self.full = dead_rx;
+        let (dead_tx, _) = bounded::<Box<Slab>>(0);
+        self.free = dead_tx;
+        if let Some(w) = self.worker.take() {
+            let _ = w.join();
+        }
+    }
+}

@@ -1,0 +1,256 @@
+//! Sleeping blocks: deposited material at rest stops costing anything.
+//!
+//! A block of the grid sleeps when the particles binned to it (by their stencil base) have moved
+//! slower than `speed` and strained slower than `strain_rate` for `rest_time`, and no neighbour
+//! block holds material faster than `wake_speed`. Its particles move into the sleeping prefix
+//! `0..n_sleep` of the pool, out of every per-step loop. Active material that reaches them sees
+//! a still, no-slip body: grid nodes inside a sleeping block's stencil reach are held at rest. A
+//! sleeping block wakes as soon as material faster than `wake_speed` is binned next to it (new
+//! material arriving, or a load making its neighbour move), or an awake particle enters it.
+//!
+//! Sleeping freezes the internal state (no thixotropic build-up while asleep) and the stress;
+//! both resume on waking. Going to sleep is checked every `check_interval` steps (it moves
+//! particles, O(awake particles)); waking is checked every step and moves particles only when a
+//! block actually wakes (O(sleeping particles), rare).
+
+use crate::grid::{Grid, GridGeom, EMPTY};
+use crate::kernels::transfer::BS;
+use crate::kernels::Real;
+use crate::memory::{Backing, MemoryError, MemoryPlan, Pool};
+use crate::particles::Particles;
+use serde::Deserialize;
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SleepConfig {
+    /// Particle speed below which material counts as at rest [m/s].
+    #[serde(default = "default_speed")]
+    pub speed: f64,
+    /// Strain rate |sym(grad v)| below which material counts as at rest [1/s].
+    #[serde(default = "default_rate")]
+    pub strain_rate: f64,
+    /// Time at rest before a block sleeps [s].
+    #[serde(default = "default_rest")]
+    pub rest_time: f64,
+    /// Speed of neighbouring material that wakes a sleeping block [m/s].
+    #[serde(default = "default_wake")]
+    pub wake_speed: f64,
+    /// Steps between checks for blocks to put to sleep.
+    #[serde(default = "default_check")]
+    pub check_interval: u64,
+}
+
+fn default_speed() -> f64 {
+    1e-4
+}
+fn default_rate() -> f64 {
+    1e-2
+}
+fn default_rest() -> f64 {
+    0.05
+}
+fn default_wake() -> f64 {
+    1e-3
+}
+fn default_check() -> u64 {
+    64
+}
+
+impl SleepConfig {
+    pub fn validate(&self) -> Result<(), String> {
+        for (k, v) in [
+            ("sleep.speed", self.speed),
+            ("sleep.strain_rate", self.strain_rate),
+            ("sleep.rest_time", self.rest_time),
+            ("sleep.wake_speed", self.wake_speed),
+        ] {
+            if !(v >= 0.0 && v.is_finite()) {
+                return Err(format!("{k} must be >= 0, got {v}"));
+            }
+        }
+        if self.wake_speed < self.speed {
+            return Err(format!(
+                "sleep.wake_speed ({}) must be >= sleep.speed ({}), or blocks would wake at rest",
+                self.wake_speed, self.speed
+            ));
+        }
+        if self.check_interval == 0 {
+            return Err("sleep.check_interval must be >= 1".into());
+        }
+        Ok(())
+    }
+}
+
+const AWAKE: u8 = 0;
+const ASLEEP: u8 = 1;
+
+/// Per-block sleep bookkeeping, over the dense block table.
+pub struct Sleep {
+    pub cfg: SleepConfig,
+    /// ASLEEP or AWAKE per block.
+    state: Pool<u8>,
+    /// Time each block's material has been at rest [s].
+    rest: Pool<f32>,
+    /// (max speed, max strain rate) of each particle block of the last step, by slot.
+    pub activity: Pool<[Real; 2]>,
+    /// Blocks asleep now.
+    pub sleeping_blocks: usize,
+}
+
+impl Sleep {
+    pub fn plan(plan: &mut MemoryPlan, geom: &GridGeom, max_blocks: usize) {
+        plan.add::<u8>("sleep.state", geom.table_len());
+        plan.add::<f32>("sleep.rest", geom.table_len());
+        plan.add::<[Real; 2]>("sleep.activity", max_blocks);
+    }
+
+    pub fn new(cfg: SleepConfig, geom: &GridGeom, max_blocks: usize, b: &Backing) -> Result<Self, MemoryError> {
+        Ok(Sleep {
+            cfg,
+            state: Pool::new("sleep.state", geom.table_len(), b)?,
+            rest: Pool::new("sleep.rest", geom.table_len(), b)?,
+            activity: Pool::new("sleep.activity", max_blocks, b)?,
+            sleeping_blocks: 0,
+        })
+    }
+
+    #[inline]
+    pub fn is_asleep(&self, block: u32) -> bool {
+        self.state.as_slice()[block as usize] == ASLEEP
+    }
+
+    /// Update rest times from the last step's activity (grid still binned as in that step), wake
+    /// and put blocks to sleep, and move particles accordingly. Returns whether particles moved.
+    pub fn update(&mut self, grid: &Grid, particles: &mut Particles, dt: f64, check_sleep: bool) -> bool {
+        let geom = &grid.geom;
+        let npb = grid.n_particle_blocks;
+        let slot_block = grid.slot_block.as_slice();
+        let table = grid.table.as_slice();
+        let activity = &self.activity.as_slice()[..npb];
+        let (wake_v, rest_v, rest_rate) = (self.cfg.wake_speed as Real, self.cfg.speed as Real, self.cfg.strain_rate as Real);
+        let state = self.state.as_mut_slice();
+        let rest = self.rest.as_mut_slice();
+        let mut woke = 0usize;
+        for s in 0..npb {
+            let b = slot_block[s];
+            let [v, rate] = activity[s];
+            if v < rest_v && rate < rest_rate {
+                rest[b as usize] += dt as f32;
+            } else {
+                rest[b as usize] = 0.0;
+            }
+            // awake material inside a sleeping block, or fast material next to one, wakes it
+            if state[b as usize] == ASLEEP {
+                state[b as usize] = AWAKE;
+                rest[b as usize] = 0.0;
+                woke += 1;
+            }
+            if v > wake_v {
+                for nb in neighbours(geom, b) {
+                    if state[nb as usize] == ASLEEP {
+                        state[nb as usize] = AWAKE;
+                        rest[nb as usize] = 0.0;
+                        woke += 1;
+                    }
+                }
+            }
+        }
+        let mut slept = 0usize;
+        if check_sleep {
+            let rest_time = self.cfg.rest_time as f32;
+            for s in 0..npb {
+                let b = slot_block[s];
+                if rest[b as usize] < rest_time || state[b as usize] == ASLEEP {
+                    continue;
+                }
+                let calm = neighbours(geom, b).all(|nb| {
+                    let t = table[nb as usize];
+                    t == EMPTY || (t as usize) >= npb || activity[t as usize][0] <= wake_v
+                });
+                if calm {
+                    state[b as usize] = ASLEEP;
+                    slept += 1;
+                }
+            }
+        }
+        self.sleeping_blocks = self.sleeping_blocks + slept - woke;
+        if woke > 0 {
+            // move particles of woken blocks out of the sleeping prefix
+            let mut i = 0;
+            while i < particles.n_sleep {
+                let b = geom.block_index(geom.particle_block(particles.xg.as_slice()[i]));
+                if state[b as usize] == ASLEEP {
+                    i += 1;
+                } else {
+                    particles.n_sleep -= 1;
+                    particles.swap(i, particles.n_sleep);
+                }
+            }
+        }
+        if slept > 0 {
+            for i in particles.n_sleep..particles.n {
+                let b = geom.block_index(geom.particle_block(particles.xg.as_slice()[i]));
+                if state[b as usize] == ASLEEP {
+                    particles.swap(i, particles.n_sleep);
+                    particles.n_sleep += 1;
+                }
+            }
+        }
+        woke > 0 || slept > 0
+    }
+
+    /// Whether grid node `g` lies in the stencil reach of a sleeping block: its nodes
+    /// 4b..=4b+5 on each axis, the nodes a particle binned to block b can touch.
+    #[inline]
+    pub fn holds_node(&self, geom: &GridGeom, g: [i32; 3]) -> bool {
+        let bs = BS as i32;
+        let mut cand = [[0i32; 2]; 3];
+        let mut cnt = [0usize; 3];
+        for a in 0..3 {
+            let b = g[a].div_euclid(bs);
+            cand[a][0] = b;
+            cnt[a] = 1;
+            if g[a].rem_euclid(bs) <= 1 {
+                cand[a][1] = b - 1;
+                cnt[a] = 2;
+            }
+        }
+        for i in 0..cnt[0] {
+            for j in 0..cnt[1] {
+                for k in 0..cnt[2] {
+                    let b = geom.wrap_block([cand[0][i], cand[1][j], cand[2][k]]);
+                    if in_table(geom, b) && self.is_asleep(geom.block_index(b)) {
+                        return true;
+                    }
+                }
+            }
+        }
+        false
+    }
+
+    /// Whether any block whose stencil reach overlaps block `b` sleeps (a cheap pre-test).
+    #[inline]
+    pub fn near_block(&self, geom: &GridGeom, b: [i32; 3]) -> bool {
+        if self.sleeping_blocks == 0 {
+            return false;
+        }
+        (0..8).any(|d| {
+            let c = geom.wrap_block([b[0] - (d >> 2 & 1), b[1] - (d >> 1 & 1), b[2] - (d & 1)]);
+            in_table(geom, c) && self.is_asleep(geom.block_index(c))
+        })
+    }
+}
+
+#[inline]
+fn in_table(geom: &GridGeom, b: [i32; 3]) -> bool {
+    (0..3).all(|a| b[a] >= 0 && b[a] < geom.nb[a])
+}
+
+/// The 26 neighbours of block `b` inside the table.
+fn neighbours(geom: &GridGeom, b: u32) -> impl Iterator<Item = u32> + '_ {
+    let c = geom.block_coords(b);
+    (0..27).filter(|&d| d != 13).filter_map(move |d| {
+        let n = geom.wrap_block([c[0] + d / 9 - 1, c[1] + (d / 3) % 3 - 1, c[2] + d % 3 - 1]);
+        in_table(geom, n).then(|| geom.block_index(n))
+    })
+}
