@@ -17,14 +17,18 @@ enum Cmd {
     /// Run a scenario (TOML) to its end time; without SCENARIO, the embedded default.
     Run {
         scenario: Option<PathBuf>,
-        /// Output directory (VTU snapshots, globals.csv).
+        /// Output directory (VTU snapshots, globals.csv, observables).
         #[arg(long, default_value = "out")]
         out: PathBuf,
         /// Worker threads (overrides simulation.threads).
         #[arg(long)]
         threads: Option<usize>,
+        /// No progress or summary on stderr.
         #[arg(long)]
         quiet: bool,
+        /// Print a JSON summary on stdout (steps, times, particles, peak memory, last observables).
+        #[arg(long)]
+        json: bool,
     },
     /// Check a scenario and print its memory plan without running it.
     Check { scenario: PathBuf },
@@ -66,12 +70,25 @@ const DEFAULT_SCENARIO: &str = include_str!("../fixtures/scenarios/default.toml"
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result: Result<bool, String> = match cli.cmd {
-        Cmd::Run { scenario, out, threads, quiet } => (|| {
+        Cmd::Run { scenario, out, threads, quiet, json } => (|| {
             let sc = match &scenario {
                 Some(p) => Scenario::load(p).map_err(|e| e.to_string())?,
                 None => Scenario::parse(DEFAULT_SCENARIO).map_err(|e| e.to_string())?,
             };
-            run_scenario(&sc, &RunOptions { out, threads, quiet }).map_err(|e| e.to_string())?;
+            let r = run_scenario(&sc, &RunOptions { out, threads, quiet }).map_err(|e| e.to_string())?;
+            if json {
+                let summary = serde_json::json!({
+                    "scenario": sc.name,
+                    "steps": r.steps,
+                    "time": r.time,
+                    "wall_s": r.wall_s,
+                    "particles": r.particles,
+                    "peak_rss_bytes": strand::verify::peak_rss_bytes(),
+                    "phase_seconds": strand::solver::PHASES.iter().zip(r.phase_seconds).map(|(k, v)| (k.to_string(), v)).collect::<std::collections::BTreeMap<_, _>>(),
+                    "last_observation": r.observations.last(),
+                });
+                println!("{summary:#}");
+            }
             Ok(true)
         })(),
         Cmd::Check { scenario } => (|| {

@@ -23,6 +23,10 @@ pub struct ObserveConfig {
     /// Record the slump-flow spread (mean diameter of the material near the base).
     #[serde(default)]
     pub spread: bool,
+    /// The domain is half of a symmetric problem, cut at the plane y = this value (a free-slip
+    /// wall): observables see the material together with its mirror image.
+    #[serde(default)]
+    pub mirror_y: Option<f64>,
 }
 
 impl ObserveConfig {
@@ -34,6 +38,162 @@ impl ObserveConfig {
             if !(s > 0.0 && s.is_finite()) {
                 return Err(format!("observe.slab must be > 0, got {s}"));
             }
+        }
+        Ok(())
+    }
+}
+
+use crate::observe::{self, Cloud, CrossSection, SECTION_CSV_HEADER};
+use crate::output::plot::plot_cross_section;
+use crate::scenario::Scenario;
+use crate::solver::Simulation;
+use std::io::Write;
+use std::path::Path;
+
+fn io(p: &Path) -> impl FnOnce(std::io::Error) -> String + '_ {
+    move |e| format!("{}: {e}", p.display())
+}
+
+/// Observables of one output time.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Observation {
+    pub time: f64,
+    pub sections: Vec<CrossSection>,
+    /// Per-layer thickness at each station (one row per station), when printing.
+    pub layers: Vec<Vec<f64>>,
+    pub total_height: f64,
+    pub spread: Option<observe::Spread>,
+}
+
+/// Computes the observables a scenario asks for and writes them into the output folder:
+/// `sections.csv`, `profiles.csv`, `layers.csv`, `spread.csv`, and `section_x<mm>.png`.
+pub struct Reporter {
+    cfg: ObserveConfig,
+    base_z: f64,
+    slab: f64,
+    spacing: f64,
+    layer_tops: Vec<f64>,
+    measured: Option<Vec<[f64; 2]>>,
+    pos: Vec<[f64; 3]>,
+    vol: Vec<f64>,
+    /// Every observation so far (profiles are small: one point per particle column).
+    pub history: Vec<Observation>,
+}
+
+impl Reporter {
+    /// None when the scenario observes nothing.
+    pub fn new(sc: &Scenario, sim: &Simulation) -> Result<Option<Reporter>, String> {
+        let Some(cfg) = sc.observe.clone() else { return Ok(None) };
+        let dx = sc.simulation.dx;
+        let base_z = cfg
+            .base_z
+            .or(sc.boundary.platform.as_ref().map(|p| p.z))
+            .unwrap_or(sc.domain.min[2]);
+        let spacing = match (&sim.printer, sc.bodies.first()) {
+            (Some(p), _) => p.spacing,
+            (None, Some(b)) => dx / b.particles_per_cell_axis() as f64,
+            (None, None) => dx / 2.0,
+        };
+        let layer_tops = sim.printer.as_ref().map(|p| p.toolpath.layers().iter().map(|l| l.0).collect()).unwrap_or_default();
+        let measured = match &cfg.measured {
+            Some(f) => Some(observe::read_points_csv(&sc.base_dir.join(f))?),
+            None => None,
+        };
+        let cap = sim.particles.capacity() * if cfg.mirror_y.is_some() { 2 } else { 1 };
+        Ok(Some(Reporter {
+            slab: cfg.slab.unwrap_or(dx),
+            cfg,
+            base_z,
+            spacing,
+            layer_tops,
+            measured,
+            pos: Vec::with_capacity(cap),
+            vol: Vec::with_capacity(cap),
+            history: Vec::new(),
+        }))
+    }
+
+    /// Observe the current state.
+    pub fn observe(&mut self, sim: &Simulation) -> &Observation {
+        let p = &sim.particles;
+        self.pos.clear();
+        self.vol.clear();
+        for i in 0..p.n {
+            self.pos.push(sim.position(i));
+            self.vol.push(p.vol0.as_slice()[i] as f64 * p.j.as_slice()[i] as f64);
+        }
+        if let Some(y0) = self.cfg.mirror_y {
+            for i in 0..p.n {
+                let x = self.pos[i];
+                self.pos.push([x[0], 2.0 * y0 - x[1], x[2]]);
+                self.vol.push(self.vol[i]);
+            }
+        }
+        let cloud = Cloud { pos: &self.pos, vol: &self.vol, spacing: self.spacing };
+        let sections: Vec<CrossSection> =
+            self.cfg.stations.iter().map(|&x| observe::cross_section(&cloud, x, self.slab, self.base_z)).collect();
+        let layers = if self.layer_tops.len() > 1 {
+            self.cfg
+                .stations
+                .iter()
+                .map(|&x| observe::layer_heights(&cloud, x, self.slab, &self.layer_tops, self.base_z))
+                .collect()
+        } else {
+            Vec::new()
+        };
+        let spread = self.cfg.spread.then(|| observe::slump_spread(&cloud, self.base_z, 2.0 * self.spacing));
+        let total_height = observe::total_height(&cloud, self.base_z);
+        self.history.push(Observation { time: sim.time, sections, layers, total_height, spread });
+        self.history.last().expect("just pushed")
+    }
+
+    /// Rewrite the CSV files and plots from the history.
+    pub fn write(&self, dir: &Path) -> Result<(), String> {
+        if !self.cfg.stations.is_empty() {
+            let path = dir.join("sections.csv");
+            let mut f = std::io::BufWriter::new(std::fs::File::create(&path).map_err(io(&path))?);
+            writeln!(f, "{SECTION_CSV_HEADER}").map_err(io(&path))?;
+            for o in &self.history {
+                for s in &o.sections {
+                    writeln!(f, "{}", s.csv_row(o.time)).map_err(io(&path))?;
+                }
+            }
+            f.flush().map_err(io(&path))?;
+            let path = dir.join("profiles.csv");
+            let all: Vec<(f64, &CrossSection)> =
+                self.history.iter().flat_map(|o| o.sections.iter().map(move |s| (o.time, s))).collect();
+            observe::write_profile_csv(&path, &all).map_err(io(&path))?;
+            if let Some(last) = self.history.last() {
+                for s in &last.sections {
+                    let png = dir.join(format!("section_x{:.1}mm.png", s.station * 1e3));
+                    let title = format!("cross-section at x = {:.1} mm, t = {:.3} s", s.station * 1e3, last.time);
+                    let lines = vec![(format!("t = {:.3} s", last.time), s.profile.clone())];
+                    plot_cross_section(&png, &title, &lines, self.measured.as_deref())?;
+                }
+            }
+        }
+        let path = dir.join("layers.csv");
+        let mut f = std::io::BufWriter::new(std::fs::File::create(&path).map_err(io(&path))?);
+        writeln!(f, "time,station,layer,thickness,total_height").map_err(io(&path))?;
+        for o in &self.history {
+            for (k, st) in self.cfg.stations.iter().enumerate() {
+                for (l, th) in o.layers.get(k).map(|v| v.as_slice()).unwrap_or(&[]).iter().enumerate() {
+                    writeln!(f, "{:.9e},{st},{l},{th:.9e},{:.9e}", o.time, o.total_height).map_err(io(&path))?;
+                }
+            }
+        }
+        f.flush().map_err(io(&path))?;
+        if self.cfg.spread {
+            let path = dir.join("spread.csv");
+            let mut f = std::io::BufWriter::new(std::fs::File::create(&path).map_err(io(&path))?);
+            writeln!(f, "time,mean_diameter,d_x,d_y,area_diameter").map_err(io(&path))?;
+            for o in &self.history {
+                if let Some(s) = &o.spread {
+                    writeln!(f, "{:.9e},{:.9e},{:.9e},{:.9e},{:.9e}", o.time, s.mean_diameter, s.d_x, s.d_y, s.area_diameter)
+                        .map_err(io(&path))?;
+                }
+            }
+            f.flush().map_err(io(&path))?;
         }
         Ok(())
     }

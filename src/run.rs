@@ -3,6 +3,7 @@
 
 use crate::memory::fmt_bytes;
 use crate::output::vtu::{write_pvd, write_vtu, VtuData, VtuField};
+use crate::report::Reporter;
 use crate::scenario::Scenario;
 use crate::solver::{SimError, Simulation};
 use crate::Real;
@@ -18,6 +19,8 @@ pub enum RunError {
     Failed { source: SimError, snapshot: PathBuf },
     #[error("output {path}: {source}")]
     Io { path: PathBuf, source: std::io::Error },
+    #[error("{0}")]
+    Report(String),
 }
 
 fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> RunError + '_ {
@@ -149,6 +152,10 @@ pub struct RunSummary {
     pub time: f64,
     pub wall_s: f64,
     pub particles: usize,
+    /// Observables at each output, when the scenario asks for them.
+    pub observations: Vec<crate::report::Observation>,
+    /// Wall seconds spent in each phase of the step (see `solver::PHASES`).
+    pub phase_seconds: [f64; 6],
 }
 
 /// Run a scenario to its end, writing outputs into `opts.out`.
@@ -181,6 +188,7 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
     writeln!(csv, "{GLOBALS_HEADER}").map_err(io_err(&csv_path))?;
     let mut pvd: Vec<(f64, String)> = Vec::new();
     let mut staging = Vec::with_capacity(sim.particles.capacity() * (4 + sim.particles.state_len));
+    let mut reporter = Reporter::new(&sc, &sim).map_err(RunError::Report)?;
 
     let end = sc.simulation.end_time;
     let interval = sc.output.interval;
@@ -201,6 +209,10 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
     let mut write_output = |sim: &Simulation, k: u64| -> Result<(), RunError> {
         writeln!(csv, "{}", Globals::of(sim).csv_row()).map_err(io_err(&csv_path))?;
         csv.flush().map_err(io_err(&csv_path))?;
+        if let Some(r) = &mut reporter {
+            r.observe(sim);
+            r.write(&opts.out).map_err(RunError::Report)?;
+        }
         if sc.output.vtu {
             let name = format!("particles_{k:05}.vtu");
             let path = opts.out.join(&name);
@@ -249,13 +261,23 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
     }
     let wall = start.elapsed().as_secs_f64();
     say(format!(
-        "done: {} steps to t = {:.4} s in {:.1} s ({:.0} steps/s, {:.3e} particle-steps/s); output in {}",
+        "done: {} steps to t = {:.4} s in {:.1} s ({:.0} steps/s), {} particles{}, peak memory {}; output in {}",
         sim.step,
         sim.time,
         wall,
         sim.step as f64 / wall,
-        sim.step as f64 * sim.particles.n as f64 / wall,
+        sim.particles.n,
+        if sim.particles.n_sleep > 0 { format!(" ({} asleep)", sim.particles.n_sleep) } else { String::new() },
+        crate::verify::peak_rss_bytes().map_or("unknown".into(), fmt_bytes),
         opts.out.display()
     ));
-    Ok(RunSummary { steps: sim.step, time: sim.time, wall_s: wall, particles: sim.particles.n })
+    drop(write_output);
+    Ok(RunSummary {
+        steps: sim.step,
+        time: sim.time,
+        wall_s: wall,
+        particles: sim.particles.n,
+        observations: reporter.map(|r| r.history).unwrap_or_default(),
+        phase_seconds: sim.phase_seconds,
+    })
 }

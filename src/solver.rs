@@ -153,7 +153,10 @@ impl Simulation {
         let state_len = material.state_names().len();
 
         let printer = match &scenario.print {
-            Some(cfg) => Some(Printer::new(cfg, scenario.simulation.dx, &scenario.base_dir).map_err(SimError::Setup)?),
+            Some(cfg) => {
+                let d = &scenario.domain;
+                Some(Printer::new(cfg, scenario.simulation.dx, (d.min, d.max), &scenario.base_dir).map_err(SimError::Setup)?)
+            }
             None => None,
         };
         if let Some(p) = &printer {
@@ -804,17 +807,23 @@ fn block_activity(ord: &[u32], v: &[V3], c: &[M3]) -> [Real; 2] {
     a
 }
 
-/// Start-up check: the tube must stay inside the domain along the whole toolpath.
+/// Start-up check: the tube must stay inside the domain along the whole toolpath. It may cross a
+/// symmetry plane as long as the nozzle axis itself stays inside.
 fn check_print_inside_domain(sc: &Scenario, p: &Printer) -> Result<(), SimError> {
     let (lo, hi) = p.toolpath.bounds();
     let [ex, ey] = p.shape.half_extent();
-    let need_lo = [lo[0] - ex, lo[1] - ey, lo[2]];
-    let need_hi = [hi[0] + ex, hi[1] + ey, hi[2] + p.tube_height];
+    let b = &sc.boundary;
+    let sides = [[b.x_min, b.x_max], [b.y_min, b.y_max], [b.z_min, b.z_max]];
+    let reach = [ex, ey, 0.0];
     for a in 0..3 {
-        if need_lo[a] < sc.domain.min[a] - 1e-12 || need_hi[a] > sc.domain.max[a] + 1e-12 {
+        let lo_need = if sides[a][0] == WallKind::Symmetry { lo[a] } else { lo[a] - reach[a] };
+        let hi_need = if sides[a][1] == WallKind::Symmetry { hi[a] } else { hi[a] + reach[a] };
+        let hi_need = if a == 2 { hi[a] + p.tube_height } else { hi_need };
+        if lo_need < sc.domain.min[a] - 1e-12 || hi_need > sc.domain.max[a] + 1e-12 {
             return Err(SimError::Setup(format!(
-                "print: the nozzle tube spans [{:.4}, {:.4}] m on axis {a} along the toolpath, outside the domain [{}, {}]",
-                need_lo[a], need_hi[a], sc.domain.min[a], sc.domain.max[a]
+                "print: the nozzle tube spans [{lo_need:.4}, {hi_need:.4}] m on axis {a} along the toolpath, \
+                 outside the domain [{}, {}]",
+                sc.domain.min[a], sc.domain.max[a]
             )));
         }
     }
@@ -840,7 +849,7 @@ unsafe fn mirror_ghost(geom: &GridGeom, walls: &Walls, g: [i32; 3], at: usize, n
         mirror[a] = m;
         match walls.faces[a][side] {
             WallKind::NoSlip => flip[a] = [true; 3],
-            WallKind::FreeSlip => flip[a][a] = true,
+            WallKind::FreeSlip | WallKind::Symmetry => flip[a][a] = true,
             WallKind::Friction { .. } => return,
         }
     }

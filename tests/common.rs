@@ -30,3 +30,54 @@ budget = "{budget}"
 "#
     )
 }
+
+/// A tiny print at 5 mm resolution: a 12 mm nozzle laying `layers` short layers (6 mm high),
+/// with sleeping on or off, on `threads` workers.
+pub fn tiny_print(threads: usize, layers: usize, sleep: bool, budget: &str) -> String {
+    let mut path = String::new();
+    for l in 0..layers {
+        let z = 0.006 * (l + 1) as f64;
+        let (x0, x1) = if l % 2 == 0 { (0.0, 0.05) } else { (0.05, 0.0) };
+        if l > 0 {
+            path += "  { kind = \"layer\", dz = 0.006, speed = 0.05 },\n";
+        }
+        let _ = x0;
+        path += &format!("  {{ kind = \"print\", to = [{x1}, 0.0, {z}], speed = 0.04, extrusion = 0.04 }},\n");
+        path += "  { kind = \"pause\", duration = 0.1 },\n";
+    }
+    let t_end = layers as f64 * (0.05 / 0.04 + 0.1 + 0.12) + 0.05;
+    let zmax = 0.006 * layers as f64 + 0.03;
+    format!(
+        r#"
+name = "test-tiny-print"
+[simulation]
+dx = 0.005
+end_time = {t_end}
+threads = {threads}
+[domain]
+min = [-0.02, -0.04, 0.0]
+max = [0.07, 0.04, {zmax}]
+[material]
+kind = "evp_bingham"
+density = 2100.0
+bulk_modulus = 1.0e6
+poisson_ratio = 0.3
+viscosity = 7.5
+yield_stress = 630.0
+[print]
+nozzle = {{ shape = "circle", diameter = 0.012 }}
+start = [0.0, 0.0, 0.006]
+path = [
+{path}]
+{sleep}
+[observe]
+stations = [0.025]
+[output]
+interval = 0.1
+vtu = false
+[memory]
+budget = "{budget}"
+"#,
+        sleep = if sleep { "[sleep]\nrest_time = 0.02\ncheck_interval = 16" } else { "" }
+    )
+}

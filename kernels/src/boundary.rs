@@ -4,6 +4,8 @@
 //! Conditions act on the node velocity after the momentum update:
 //! * `NoSlip`   — the node moves with the wall: v = v_wall.
 //! * `FreeSlip` — the normal component into the wall is removed; material may leave the wall.
+//! * `Symmetry` — a mirror plane of a symmetric problem: the normal component is removed both
+//!   ways, so material neither crosses the plane nor pulls away from it.
 //! * `Friction` — Coulomb friction: the normal component into the wall is removed and the
 //!   tangential speed reduced by mu times the removed normal speed, never reversing it.
 
@@ -15,6 +17,7 @@ use serde::Deserialize;
 pub enum WallKind {
     NoSlip,
     FreeSlip,
+    Symmetry,
     Friction { mu: f64 },
 }
 
@@ -32,6 +35,7 @@ pub fn apply_wall(kind: WallKind, normal: V3, v_wall: V3, v: V3) -> V3 {
                 rel
             }
         }
+        WallKind::Symmetry => rel - normal * rel.dot(normal),
         WallKind::Friction { mu } => {
             let vn = rel.dot(normal);
             if vn > r(0.0) {
@@ -61,6 +65,9 @@ mod tests {
         let up = V3::new(1.0, 0.0, 0.5);
         assert_eq!(apply_wall(WallKind::FreeSlip, n, V3::ZERO, up), up);
         assert_eq!(apply_wall(WallKind::Friction { mu: 0.4 }, n, V3::ZERO, up), up);
+        // a symmetry plane stops motion away from it too
+        assert_eq!(apply_wall(WallKind::Symmetry, n, V3::ZERO, up), V3::new(1.0, 0.0, 0.0));
+        assert_eq!(apply_wall(WallKind::Symmetry, n, V3::ZERO, v), V3::new(1.0, 0.0, 0.0));
         // Coulomb: tangential 1.0 reduced by 0.4 * 0.5
         let f = apply_wall(WallKind::Friction { mu: 0.4 }, n, V3::ZERO, v);
         assert!((f - V3::new(0.8, 0.0, 0.0)).length() < 1e-6);

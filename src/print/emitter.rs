@@ -30,6 +30,9 @@ pub struct EmissionPlan {
     pub group: u32,
     /// Tube height H above the outlet.
     pub tube_height: f64,
+    /// Material region of the domain: points outside are not emitted, so a domain cut at a
+    /// symmetry plane through the nozzle axis receives exactly its half of the flux.
+    pub domain: ([f64; 3], [f64; 3]),
 }
 
 impl EmissionPlan {
@@ -43,6 +46,7 @@ impl EmissionPlan {
         self.offsets.len() * self.group as usize
     }
 
+    /// Upper bound of the particles the whole toolpath emits (every lattice point inside).
     pub fn total_particles(&self) -> u64 {
         self.slabs() * self.particles_per_slab() as u64
     }
@@ -64,7 +68,10 @@ impl EmissionPlan {
         for m in 0..self.group {
             let z = z_top - 0.5 * h - excess - m as f64 * h;
             for o in self.offsets.iter() {
-                b.positions.push([st.position[0] + o[0], st.position[1] + o[1], z]);
+                let x = [st.position[0] + o[0], st.position[1] + o[1], z];
+                if (0..3).all(|a| x[a] >= self.domain.0[a] && x[a] <= self.domain.1[a]) {
+                    b.positions.push(x);
+                }
             }
         }
     }

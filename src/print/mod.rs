@@ -175,7 +175,7 @@ pub struct Printer {
 }
 
 impl Printer {
-    pub fn new(cfg: &PrintConfig, dx: f64, base_dir: &Path) -> Result<Printer, String> {
+    pub fn new(cfg: &PrintConfig, dx: f64, domain: ([f64; 3], [f64; 3]), base_dir: &Path) -> Result<Printer, String> {
         cfg.validate()?;
         let toolpath = Arc::new(cfg.toolpath(base_dir)?);
         let ppc = cfg.particles_per_cell_axis;
@@ -194,7 +194,7 @@ impl Printer {
             Emission::Continuous => 1,
             Emission::Interval => ppc,
         };
-        let plan = EmissionPlan { toolpath: toolpath.clone(), offsets: Arc::new(offsets), spacing: h, group, tube_height };
+        let plan = EmissionPlan { toolpath: toolpath.clone(), offsets: Arc::new(offsets), spacing: h, group, tube_height, domain };
         Ok(Printer { toolpath, shape: cfg.nozzle, tube_height, indicator, spacing: h, particle_volume, plan, emitter: None })
     }
 

@@ -1,0 +1,173 @@
+//! Printing: emission and the nozzle drive conserve the extruded mass, runs are deterministic with
+//! any thread count and with sleeping, G-code drives a print, and errors name their cause.
+
+mod common;
+
+use strand::run::{run_scenario, RunOptions};
+use strand::scenario::Scenario;
+use strand::solver::Simulation;
+
+fn state_hash(s: &Simulation) -> u64 {
+    // FNV-1a over every particle field, in id order so the pool's ordering does not matter
+    let p = &s.particles;
+    let mut idx: Vec<usize> = (0..p.n).collect();
+    idx.sort_by_key(|&i| p.id.as_slice()[i]);
+    let mut h = 0xcbf29ce484222325u64;
+    let mut eat = |b: &[u8]| {
+        for &x in b {
+            h = (h ^ x as u64).wrapping_mul(0x100000001b3);
+        }
+    };
+    for i in idx {
+        eat(bytemuck::bytes_of(&p.xg.as_slice()[i]));
+        eat(bytemuck::bytes_of(&p.v.as_slice()[i]));
+        eat(bytemuck::bytes_of(&p.c.as_slice()[i]));
+        eat(bytemuck::bytes_of(&p.stress.as_slice()[i]));
+        eat(bytemuck::bytes_of(&p.j.as_slice()[i]));
+    }
+    h
+}
+
+fn run_to(text: &str, t: f64) -> Simulation {
+    let mut s = Simulation::new(&Scenario::parse(text).unwrap()).unwrap();
+    while s.time < t {
+        s.step_until(t).unwrap();
+    }
+    s
+}
+
+#[test]
+fn emitted_mass_follows_the_toolpath() {
+    let text = common::tiny_print(2, 1, false, "256 MiB");
+    let sc = Scenario::parse(&text).unwrap();
+    let mut s = Simulation::new(&sc).unwrap();
+    let rho = 2100.0;
+    let area = std::f64::consts::PI * 0.012 * 0.012 / 4.0;
+    let tube = 2.0 * 0.005;
+    for t in [0.3, 0.7, 1.2] {
+        while s.time < t {
+            s.step_until(t).unwrap();
+        }
+        let p = &s.particles;
+        let mass: f64 = p.mass.as_slice()[..p.n].iter().map(|&m| m as f64).sum();
+        // the tube starts full; afterwards every slab of thickness h is due once L + H covers it
+        let h = 0.005 / 2.0;
+        let pushed = 0.04 * s.time + tube;
+        let expect_lo = rho * area * (pushed - h - 1e-9).max(0.0);
+        let expect_hi = rho * area * pushed;
+        assert!(mass >= expect_lo * (1.0 - 1e-9) && mass <= expect_hi * (1.0 + 1e-9), "t = {}: mass {mass} not in [{expect_lo}, {expect_hi}]", s.time);
+    }
+}
+
+#[test]
+fn print_is_bit_identical_for_any_thread_count_with_and_without_sleeping() {
+    for sleep in [false, true] {
+        let a = run_to(&common::tiny_print(1, 2, sleep, "256 MiB"), 1.6);
+        let b = run_to(&common::tiny_print(2, 2, sleep, "256 MiB"), 1.6);
+        let c = run_to(&common::tiny_print(3, 2, sleep, "256 MiB"), 1.6);
+        assert!(a.particles.n > 300, "{} particles", a.particles.n);
+        assert_eq!(state_hash(&a), state_hash(&b), "sleep = {sleep}: 1 vs 2 threads");
+        assert_eq!(state_hash(&a), state_hash(&c), "sleep = {sleep}: 1 vs 3 threads");
+        if sleep {
+            assert!(a.particles.n_sleep > 0, "nothing slept in a settled first layer");
+        }
+    }
+}
+
+#[test]
+fn sleeping_blocks_skip_work_and_barely_change_the_result() {
+    let text_awake = common::tiny_print(2, 2, false, "256 MiB");
+    let text_sleep = common::tiny_print(2, 2, true, "256 MiB");
+    let dir = tempfile::tempdir().unwrap();
+    let opts = |d: &str| RunOptions { out: dir.path().join(d), threads: None, quiet: true };
+    let a = run_scenario(&Scenario::parse(&text_awake).unwrap(), &opts("a")).unwrap();
+    let b = run_scenario(&Scenario::parse(&text_sleep).unwrap(), &opts("b")).unwrap();
+    let (sa, sb) = (&a.observations.last().unwrap().sections[0], &b.observations.last().unwrap().sections[0]);
+    assert!(sa.width > 0.0 && sa.height > 0.0);
+    assert!((sb.width / sa.width - 1.0).abs() < 0.02, "width {} vs {}", sb.width, sa.width);
+    assert!((sb.height / sa.height - 1.0).abs() < 0.02, "height {} vs {}", sb.height, sa.height);
+    // the material update is the phase that runs over particles only: it must shrink
+    let (ma, mb) = (a.phase_seconds[5], b.phase_seconds[5]);
+    assert!(mb < ma, "material update {mb} s with sleeping vs {ma} s without");
+}
+
+#[test]
+fn too_small_a_particle_pool_is_refused_at_start_up() {
+    let text = common::tiny_print(1, 1, false, "256 MiB").replace("[memory]", "[memory]\nmax_particles = 100");
+    let e = Simulation::new(&Scenario::parse(&text).unwrap()).err().expect("must fail").to_string();
+    assert!(e.contains("max_particles") && e.contains("emitted by the whole print"), "{e}");
+}
+
+#[test]
+fn a_tube_leaving_the_domain_is_refused() {
+    let text = common::tiny_print(1, 1, false, "256 MiB").replace("min = [-0.02, -0.04, 0.0]", "min = [-0.02, -0.004, 0.0]");
+    let e = Simulation::new(&Scenario::parse(&text).unwrap()).err().expect("must fail").to_string();
+    assert!(e.contains("nozzle tube") && e.contains("axis 1"), "{e}");
+}
+
+#[test]
+fn gcode_drives_the_same_print_as_the_inline_path() {
+    // one 50 mm layer at 40 mm/s extruding at 40 mm/s: E = 50 mm over the move
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("p.gcode"), "G21\nG90\nM83\nG1 X50 E50 F2400 ; layer 1\nG4 P100\n").unwrap();
+    let inline = common::tiny_print(2, 1, false, "256 MiB");
+    let gcode = inline
+        .replace("start = [0.0, 0.0, 0.006]", "gcode = \"p.gcode\"\ngcode_options = { start = [0.0, 0.0, 6.0] }")
+        .replace(
+            "path = [\n  { kind = \"print\", to = [0.05, 0.0, 0.006], speed = 0.04, extrusion = 0.04 },\n  { kind = \"pause\", duration = 0.1 },\n]",
+            "",
+        );
+    assert!(gcode.contains("gcode =") && !gcode.contains("path ="), "{gcode}");
+    let path = dir.path().join("s.toml");
+    std::fs::write(&path, &gcode).unwrap();
+    let a = run_to(&inline, 0.8);
+    let mut s = Simulation::new(&Scenario::load(&path).unwrap()).unwrap();
+    while s.time < 0.8 {
+        s.step_until(0.8).unwrap();
+    }
+    assert_eq!(a.particles.n, s.particles.n);
+    // G-code arrives in mm and mm/min: the same path up to rounding of the unit conversions
+    let (pa, pb) = (a.position(a.particles.n - 1), s.position(s.particles.n - 1));
+    assert!((0..3).all(|k| (pa[k] - pb[k]).abs() < 1e-9), "{pa:?} vs {pb:?}");
+}
+
+#[test]
+fn malformed_gcode_is_an_error_with_its_line_number() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("p.gcode"), "G21\nG90\nG1 X10 E5 F600\nG1 X1.2.3\n").unwrap();
+    let text = common::tiny_print(1, 1, false, "256 MiB")
+        .replace("start = [0.0, 0.0, 0.006]", "gcode = \"p.gcode\"")
+        .replace(
+            "path = [\n  { kind = \"print\", to = [0.05, 0.0, 0.006], speed = 0.04, extrusion = 0.04 },\n  { kind = \"pause\", duration = 0.1 },\n]",
+            "",
+        );
+    let path = dir.path().join("s.toml");
+    std::fs::write(&path, &text).unwrap();
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_strand")).args(["check", path.to_str().unwrap()]).output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("p.gcode") && err.contains("line 4"), "{err}");
+}
+
+#[test]
+fn a_whole_print_stays_within_its_memory_budget() {
+    // its own process, so VmHWM is this print's peak alone
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("s.toml");
+    std::fs::write(&path, common::tiny_print(2, 2, true, "48 MiB")).unwrap();
+    let out = dir.path().join("out");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_strand"))
+        .args(["run", path.to_str().unwrap(), "--out", out.to_str().unwrap(), "--quiet", "--json"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    let summary: serde_json::Value = serde_json::from_str(&stdout).unwrap_or_else(|e| panic!("{e}: {stdout}"));
+    let peak = summary["peak_rss_bytes"].as_u64().unwrap_or_else(|| panic!("no peak in {stdout}"));
+    assert!(peak > 1 << 20, "implausible peak {peak}");
+    assert!(peak <= 48 << 20, "peak RSS {} MiB above the 48 MiB budget", peak >> 20);
+    for f in ["sections.csv", "profiles.csv", "layers.csv", "section_x25.0mm.png", "globals.csv"] {
+        assert!(out.join(f).exists(), "missing {f}");
+    }
+}
