@@ -102,6 +102,9 @@ fn main() -> ExitCode {
             for (name, _) in strand::verify::CASES {
                 println!("{name}");
             }
+            for (name, _) in strand::verify::SLOW_CASES {
+                println!("{name}  (slow: runs only when named with --case)");
+            }
             Ok(true)
         }
         Cmd::Verify { quick, json, case, threads, .. } => strand::verify::run_suite(quick, json, case.as_deref(), threads),

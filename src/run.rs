@@ -40,10 +40,15 @@ pub struct Globals {
     pub bbox_min: [f64; 3],
     pub bbox_max: [f64; 3],
     pub mean_j: f64,
+    /// Particles asleep (see `sleep.rs`).
+    pub asleep: usize,
+    /// Wall time since the run started [s] (per-step cost over any interval is the ratio of
+    /// its wall and step increments).
+    pub wall_s: f64,
 }
 
 pub const GLOBALS_HEADER: &str =
-    "time,step,dt,dt_limit,particles,kinetic_energy,max_speed,x_min,y_min,z_min,x_max,y_max,z_max,mean_J";
+    "time,step,dt,dt_limit,particles,kinetic_energy,max_speed,x_min,y_min,z_min,x_max,y_max,z_max,mean_J,asleep,wall_s";
 
 impl Globals {
     pub fn of(sim: &Simulation) -> Globals {
@@ -55,6 +60,7 @@ impl Globals {
             dt: sim.last_dt,
             dt_limit: format!("{:?}", sim.last_limit).to_lowercase(),
             particles: n,
+            asleep: p.n_sleep,
             bbox_min: [f64::INFINITY; 3],
             bbox_max: [f64::NEG_INFINITY; 3],
             ..Default::default()
@@ -79,7 +85,7 @@ impl Globals {
 
     pub fn csv_row(&self) -> String {
         format!(
-            "{:.9e},{},{:.6e},{},{},{:.9e},{:.9e},{:.9e},{:.9e},{:.9e},{:.9e},{:.9e},{:.9e},{:.12}",
+            "{:.9e},{},{:.6e},{},{},{:.9e},{:.9e},{:.9e},{:.9e},{:.9e},{:.9e},{:.9e},{:.9e},{:.12},{},{:.3}",
             self.time,
             self.step,
             self.dt,
@@ -93,7 +99,9 @@ impl Globals {
             self.bbox_max[0],
             self.bbox_max[1],
             self.bbox_max[2],
-            self.mean_j
+            self.mean_j,
+            self.asleep,
+            self.wall_s
         )
     }
 }
@@ -207,7 +215,8 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
     };
     let mut last_line = Instant::now();
     let mut write_output = |sim: &Simulation, k: u64| -> Result<(), RunError> {
-        writeln!(csv, "{}", Globals::of(sim).csv_row()).map_err(io_err(&csv_path))?;
+        let g = Globals { wall_s: start.elapsed().as_secs_f64(), ..Globals::of(sim) };
+        writeln!(csv, "{}", g.csv_row()).map_err(io_err(&csv_path))?;
         csv.flush().map_err(io_err(&csv_path))?;
         if let Some(r) = &mut reporter {
             r.observe(sim);

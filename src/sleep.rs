@@ -32,7 +32,8 @@ pub struct SleepConfig {
     /// Time at rest before a block sleeps [s].
     #[serde(default = "default_rest")]
     pub rest_time: f64,
-    /// Speed of neighbouring material that wakes a sleeping block [m/s].
+    /// Speed of neighbouring material that wakes a sleeping block [m/s] (neighbours straining
+    /// faster than `strain_rate` wake it too).
     #[serde(default = "default_wake")]
     pub wake_speed: f64,
     /// Steps between checks for blocks to put to sleep.
@@ -41,15 +42,24 @@ pub struct SleepConfig {
 }
 
 fn default_speed() -> f64 {
-    1e-4
+    // Each emitted slab sends an elastic pulse through deposited EVP material: block maxima of
+    // 1e-4-5e-4 m/s pass every slab interval (measured on case 1), so a lower threshold never
+    // lets a block rest while the nozzle runs. Material still creeping at 1 mm/s for the rest
+    // time moves 0.05 mm: below 1 % of a layer.
+    1e-3
 }
 fn default_rate() -> f64 {
-    1e-2
+    // Elastic waves from the nozzle keep deposited EVP material straining at ~1e-2 /s (speeds
+    // ~3e-5 m/s over a 2.5 mm cell, measured on case 1) without changing its shape; 0.1 /s sits
+    // above that noise and far below flow under the nozzle (~10 /s).
+    0.1
 }
 fn default_rest() -> f64 {
     0.05
 }
 fn default_wake() -> f64 {
+    // Equal to `speed`: any neighbour not at rest wakes a block, so the load of a new layer
+    // reaches the layers below it (a higher threshold froze their bulging: widths 1.1 % off).
     1e-3
 }
 fn default_check() -> u64 {
@@ -120,8 +130,17 @@ impl Sleep {
     }
 
     /// Update rest times from the last step's activity (grid still binned as in that step), wake
-    /// and put blocks to sleep, and move particles accordingly. Returns whether particles moved.
-    pub fn update(&mut self, grid: &Grid, particles: &mut Particles, dt: f64, check_sleep: bool) -> bool {
+    /// and put blocks to sleep, and move particles accordingly. Blocks reaching into `keep_awake`
+    /// (the nozzle tube: its material must follow the nozzle even while it rests) neither sleep
+    /// nor stay asleep. Returns whether particles moved.
+    pub fn update(
+        &mut self,
+        grid: &Grid,
+        particles: &mut Particles,
+        dt: f64,
+        check_sleep: bool,
+        keep_awake: Option<([f64; 3], [f64; 3])>,
+    ) -> bool {
         let geom = &grid.geom;
         let npb = grid.n_particle_blocks;
         let slot_block = grid.slot_block.as_slice();
@@ -145,12 +164,32 @@ impl Sleep {
                 rest[b as usize] = 0.0;
                 woke += 1;
             }
-            if v > wake_v {
+            if v > wake_v || rate >= rest_rate {
                 for nb in neighbours(geom, b) {
                     if state[nb as usize] == ASLEEP {
                         state[nb as usize] = AWAKE;
                         rest[nb as usize] = 0.0;
                         woke += 1;
+                    }
+                }
+            }
+        }
+        if let Some(bx) = keep_awake {
+            // blocks whose stencil reach (one block further) touches the tube
+            let lo = grid_block_of(geom, bx.0, -1);
+            let hi = grid_block_of(geom, bx.1, 0);
+            for i in lo[0]..=hi[0] {
+                for j in lo[1]..=hi[1] {
+                    for k in lo[2]..=hi[2] {
+                        let b = geom.wrap_block([i, j, k]);
+                        if in_table(geom, b) {
+                            let idx = geom.block_index(b) as usize;
+                            rest[idx] = 0.0;
+                            if state[idx] == ASLEEP {
+                                state[idx] = AWAKE;
+                                woke += 1;
+                            }
+                        }
                     }
                 }
             }
@@ -165,7 +204,7 @@ impl Sleep {
                 }
                 let calm = neighbours(geom, b).all(|nb| {
                     let t = table[nb as usize];
-                    t == EMPTY || (t as usize) >= npb || activity[t as usize][0] <= wake_v
+                    t == EMPTY || (t as usize) >= npb || (activity[t as usize][0] <= wake_v && activity[t as usize][1] < rest_rate)
                 });
                 if calm {
                     state[b as usize] = ASLEEP;
@@ -239,6 +278,12 @@ impl Sleep {
             in_table(geom, c) && self.is_asleep(geom.block_index(c))
         })
     }
+}
+
+/// Block holding world point `x`, shifted by `shift` blocks on every axis.
+fn grid_block_of(geom: &GridGeom, x: [f64; 3], shift: i32) -> [i32; 3] {
+    let bs = BS as f64;
+    std::array::from_fn(|a| ((x[a] - geom.origin[a]) / geom.dx / bs).floor() as i32 + shift)
 }
 
 #[inline]

@@ -334,7 +334,8 @@ impl Simulation {
         if let Some(sl) = &mut self.sleep {
             if self.step > 0 {
                 let check = self.step % sl.cfg.check_interval == 0;
-                moved = sl.update(&self.grid, &mut self.particles, self.last_dt, check);
+                let tube = self.printer.as_ref().and_then(|p| p.drive(self.time)).map(|d| d.bounds());
+                moved = sl.update(&self.grid, &mut self.particles, self.last_dt, check, tube);
             }
         }
         self.bin_particles()?;

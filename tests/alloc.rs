@@ -61,4 +61,22 @@ fn a_step_allocates_nothing() {
         assert_eq!(n, 0, "{n} heap allocations in 20 steps ({kind}, {threads} threads)");
         assert_eq!(s.step, 21);
     }
+
+    // printing: the emitter thread recycles its slab buffers, and sleeping moves particles in
+    // place; 0.3 s of the second layer cover emission, sleeping, waking and reordering
+    let mut s = Simulation::new(&Scenario::parse(&common::tiny_print(2, 2, true, "256 MiB")).unwrap()).unwrap();
+    while s.time < 1.4 {
+        s.step_until(1.4).unwrap();
+    }
+    ALLOCS.store(0, Ordering::SeqCst);
+    COUNTING.store(true, Ordering::SeqCst);
+    let n0 = s.particles.n;
+    while s.time < 1.7 {
+        s.step_until(1.7).unwrap();
+    }
+    COUNTING.store(false, Ordering::SeqCst);
+    let n = ALLOCS.load(Ordering::SeqCst);
+    assert!(s.particles.n > n0, "no emission during the counted steps");
+    assert!(s.particles.n_sleep > 0, "nothing asleep during the counted steps");
+    assert_eq!(n, 0, "{n} heap allocations in 0.3 s of printing");
 }

@@ -6,7 +6,8 @@ use std::process::Command;
 
 fn case_names(exe: &str) -> Vec<String> {
     let out = Command::new(exe).args(["verify", "--list"]).output().unwrap();
-    String::from_utf8_lossy(&out.stdout).lines().map(str::to_string).collect()
+    // slow cases are listed with a note and only run when named; they have no quick form
+    String::from_utf8_lossy(&out.stdout).lines().filter(|l| !l.contains("(slow")).map(str::to_string).collect()
 }
 
 #[test]
@@ -36,5 +37,5 @@ fn every_quick_case_passes_within_its_memory_budget() {
         }
         assert!(out.status.success(), "{name}: exit status {:?}", out.status);
     }
-    assert!(rows >= 9, "expected every row, got {rows}");
+    assert!(rows >= 12, "expected every row, got {rows}");
 }

@@ -46,7 +46,14 @@ pub const CASES: &[(&str, Case)] = &[
     ("hydrostatic_column", hydrostatic),
     ("dam_break_martin_moyce", dam_break),
     ("slump_roussel", slump),
+    ("print_mass_balance", |_, t| super::print::mass_balance(false, t)),
+    ("print_sleep", super::print::sleep_agreement),
+    ("print_cases_trend", super::print::cases_trend),
 ];
+
+/// Cases too slow for the full suite (hours on 2 cores): they run only when named exactly with
+/// `--case`.
+pub const SLOW_CASES: &[(&str, Case)] = &[("print_mass_balance_full", |_, t| super::print::mass_balance(true, t))];
 
 fn sim_of(text: &str, threads: usize) -> Result<Simulation, String> {
     let mut sc = Scenario::parse(text).map_err(|e| e.to_string())?;
@@ -54,7 +61,7 @@ fn sim_of(text: &str, threads: usize) -> Result<Simulation, String> {
     Simulation::new(&sc).map_err(|e| e.to_string())
 }
 
-fn result(name: &str, metric: &str, error: f64, tol: f64, quick: bool, sim: &Simulation, notes: String) -> CaseResult {
+pub(crate) fn result(name: &str, metric: &str, error: f64, tol: f64, quick: bool, sim: &Simulation, notes: String) -> CaseResult {
     CaseResult {
         case: name.to_string(),
         metric: metric.to_string(),
