@@ -4,6 +4,9 @@
 #![allow(clippy::unnecessary_cast)]
 // `!(x > 0.0)` is deliberate: it is true for NaN, which must be rejected too.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
+// Loops over the three axes (and over particle index ranges feeding several arrays) read more
+// plainly with an index than with zipped iterators.
+#![allow(clippy::needless_range_loop)]
 
 pub use strand_kernels as kernels;
 pub use strand_kernels::{Real, M3, V3};

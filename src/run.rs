@@ -295,7 +295,6 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
         crate::verify::peak_rss_bytes().map_or("unknown".into(), fmt_bytes),
         opts.out.display()
     ));
-    drop(write_output);
     Ok(RunSummary {
         steps: sim.step,
         time: sim.time,

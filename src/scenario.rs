@@ -332,14 +332,14 @@ impl Scenario {
             if d.periodic[a] {
                 let cells = (d.max[a] - d.min[a]) / s.dx;
                 let n = cells.round();
-                if (cells - n).abs() > 1e-6 * n.max(1.0) || (n as u64) % 4 != 0 {
+                if (cells - n).abs() > 1e-6 * n.max(1.0) || !(n as u64).is_multiple_of(4) {
                     return bad(format!(
                         "domain: periodic axis {a} must span a multiple of 4 cells (got {cells} cells of dx = {})",
                         s.dx
                     ));
                 }
                 let blocks = n as u64 / 4;
-                if blocks != 1 && blocks % 2 != 0 {
+                if blocks != 1 && !blocks.is_multiple_of(2) {
                     return bad(format!(
                         "domain: periodic axis {a} spans {blocks} blocks of 4 cells; it must be 1 or an even number"
                     ));

@@ -197,8 +197,7 @@ impl Sleep {
         let mut slept = 0usize;
         if check_sleep {
             let rest_time = self.cfg.rest_time as f32;
-            for s in 0..npb {
-                let b = slot_block[s];
+            for &b in &slot_block[..npb] {
                 if rest[b as usize] < rest_time || state[b as usize] == ASLEEP {
                     continue;
                 }

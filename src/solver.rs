@@ -333,13 +333,13 @@ impl Simulation {
         let mut moved = false;
         if let Some(sl) = &mut self.sleep {
             if self.step > 0 {
-                let check = self.step % sl.cfg.check_interval == 0;
+                let check = self.step.is_multiple_of(sl.cfg.check_interval);
                 let tube = self.printer.as_ref().and_then(|p| p.drive(self.time)).map(|d| d.bounds());
                 moved = sl.update(&self.grid, &mut self.particles, self.last_dt, check, tube);
             }
         }
         self.bin_particles()?;
-        if moved || self.step % self.scenario.simulation.reorder_interval == 0 {
+        if moved || self.step.is_multiple_of(self.scenario.simulation.reorder_interval) {
             self.reorder_particles();
         }
         clock.lap(&mut self.phase_seconds[0]);

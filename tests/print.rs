@@ -49,7 +49,7 @@ fn emitted_mass_follows_the_toolpath() {
             s.step_until(t).unwrap();
         }
         let p = &s.particles;
-        let mass: f64 = p.mass.as_slice()[..p.n].iter().map(|&m| m as f64).sum();
+        let mass: f64 = p.mass.as_slice()[..p.n].iter().map(|&m| f64::from(m)).sum();
         // the tube starts full; afterwards every slab of thickness h is due once L + H covers it
         let h = 0.005 / 2.0;
         let pushed = 0.04 * s.time + tube;

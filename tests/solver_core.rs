@@ -105,15 +105,15 @@ fn scenario_errors_name_the_key() {
     assert!(msg.contains("viscosty"), "{msg}");
 
     let unknown_top = common::dam_break(1, "256 MiB", "").replace("[simulation]", "[simulation]\nfoo = 1");
-    let msg = Scenario::parse(&unknown_top).err().expect("unknown key").to_string();
+    let msg = Scenario::parse(&unknown_top).expect_err("unknown key").to_string();
     assert!(msg.contains("foo"), "{msg}");
 
     let bad_dx = common::dam_break(1, "256 MiB", "").replace("dx = 0.02", "dx = -0.02");
-    let msg = Scenario::parse(&bad_dx).err().expect("negative dx").to_string();
+    let msg = Scenario::parse(&bad_dx).expect_err("negative dx").to_string();
     assert!(msg.contains("simulation.dx"), "{msg}");
 
     let bad_budget = common::dam_break(1, "lots", "");
-    let msg = Scenario::parse(&bad_budget).err().expect("bad budget").to_string();
+    let msg = Scenario::parse(&bad_budget).expect_err("bad budget").to_string();
     assert!(msg.contains("memory.budget"), "{msg}");
 
     let bad_mat = common::dam_break(1, "256 MiB", "").replace("viscosity = 1.0", "viscosity = -1.0");
@@ -150,6 +150,6 @@ fn material_dropped_on_a_platform_rests_on_it() {
             s.step_until(0.3).unwrap();
         }
         let zmin = (0..s.particles.n).map(|i| s.position(i)[2]).fold(f64::INFINITY, f64::min);
-        assert!(zmin >= 0.1 - 1e-9 && zmin < 0.12, "{kind}: lowest particle at {zmin}, platform at 0.1");
+        assert!((0.1 - 1e-9..0.12).contains(&zmin), "{kind}: lowest particle at {zmin}, platform at 0.1");
     }
 }

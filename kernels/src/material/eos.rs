@@ -8,9 +8,10 @@
 use crate::real::{r, Real};
 use serde::Deserialize;
 
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq)]
 #[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
 pub enum Eos {
+    #[default]
     Linear,
     Tait {
         #[serde(default = "default_gamma")]
@@ -22,11 +23,6 @@ fn default_gamma() -> f64 {
     7.0
 }
 
-impl Default for Eos {
-    fn default() -> Self {
-        Eos::Linear
-    }
-}
 
 impl Eos {
     /// Pressure (positive in compression) at volume ratio `j` for bulk modulus `k`.
