@@ -1,6 +1,9 @@
 //! Printing: emission and the nozzle drive conserve the extruded mass, runs are deterministic with
 //! any thread count and with sleeping, G-code drives a print, and errors name their cause.
 
+// `m as f64` is a no-op in the default build but a conversion with the `f32` feature.
+#![allow(clippy::unnecessary_cast)]
+
 mod common;
 
 use strand::run::{run_scenario, RunOptions};
@@ -49,7 +52,7 @@ fn emitted_mass_follows_the_toolpath() {
             s.step_until(t).unwrap();
         }
         let p = &s.particles;
-        let mass: f64 = p.mass.as_slice()[..p.n].iter().map(|&m| f64::from(m)).sum();
+        let mass: f64 = p.mass.as_slice()[..p.n].iter().map(|&m| m as f64).sum();
         // the tube starts full; afterwards every slab of thickness h is due once L + H covers it
         let h = 0.005 / 2.0;
         let pushed = 0.04 * s.time + tube;
