@@ -2,12 +2,13 @@
 CARGO ?= cargo
 OUT ?= out
 
-.PHONY: run test verify verify-quick bench bench-peer build fmt clippy clean
+.PHONY: run test verify verify-quick bench bench-layers bench-peer build fmt clippy clean
 
 build:
 	$(CARGO) build --release
 
-# The embedded default scenario (a small EVP slump): VTU snapshots and globals.csv in $(OUT)/.
+# The embedded default scenario (two short printed layers, a few minutes on 2 cores): VTU
+# snapshots, globals.csv, the cross-section CSVs and PNG in $(OUT)/.
 run: build
 	./target/release/strand run --out $(OUT)
 
@@ -16,7 +17,9 @@ test:
 	$(CARGO) test --release --workspace
 	$(CARGO) test --release -p strand-kernels --features f32
 
-# The full-resolution verification suite (about 10 minutes on 2 cores).
+# The verification suite (the closed-form cases at full resolution, printing at reduced
+# resolution; about 1.5 hours on 2 cores). The 1 mm printing case runs only when named:
+# ./target/release/strand verify --case print_mass_balance_full
 verify: build
 	./target/release/strand verify
 
@@ -27,6 +30,11 @@ verify-quick: build
 # measured in the same run (bench/peer.sh creates the peer's venv if needed).
 bench:
 	bash bench/compare.sh
+
+# Per-step cost against layers printed (sleeping), from the ten-layer fixture.
+bench-layers: build
+	./target/release/strand run fixtures/scenarios/print/ten_layers.toml --out $(OUT)/ten_layers --quiet
+	python3 bench/layer_cost.py $(OUT)/ten_layers
 
 clippy:
 	$(CARGO) clippy --workspace --all-targets

@@ -129,7 +129,7 @@ pub struct Simulation {
 }
 
 /// Names of the step's phases, as accumulated in `Simulation::phase_seconds`.
-pub const PHASES: [&str; 6] = ["bin+reorder", "clear grid", "P2G", "grid update", "G2P", "materials"];
+pub const PHASES: [&str; 6] = ["emit+sleep+bin+reorder", "clear grid", "P2G", "grid update", "G2P", "materials"];
 
 struct PhaseClock(std::time::Instant);
 impl PhaseClock {

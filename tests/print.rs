@@ -174,3 +174,18 @@ fn a_whole_print_stays_within_its_memory_budget() {
         assert!(out.join(f).exists(), "missing {f}");
     }
 }
+
+#[test]
+fn the_gcode_fixture_is_the_default_print() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let a = Scenario::load(&root.join("fixtures/scenarios/default.toml")).unwrap();
+    let b = Scenario::load(&root.join("fixtures/scenarios/print/two_layers_gcode.toml")).unwrap();
+    let (pa, pb) = (a.print.unwrap(), b.print.unwrap());
+    let (ta, tb) = (pa.toolpath(&a.base_dir).unwrap(), pb.toolpath(&b.base_dir).unwrap());
+    assert_eq!(ta.moves().len(), tb.moves().len(), "{:?}\n{:?}", ta.moves(), tb.moves());
+    for (m, n) in ta.moves().iter().zip(tb.moves()) {
+        assert_eq!(m.kind, n.kind);
+        assert!((m.t1 - n.t1).abs() < 1e-9 && (m.extrusion_speed - n.extrusion_speed).abs() < 1e-9, "{m:?} vs {n:?}");
+        assert!((0..3).all(|k| (m.to[k] - n.to[k]).abs() < 1e-9), "{m:?} vs {n:?}");
+    }
+}
