@@ -58,9 +58,7 @@ fn default_rest() -> f64 {
     0.05
 }
 fn default_wake() -> f64 {
-    // Equal to `speed`: any neighbour not at rest wakes a block, so the load of a new layer
-    // reaches the layers below it (a higher threshold froze their bulging: widths 1.1 % off).
-    1e-3
+    1e-2
 }
 fn default_check() -> u64 {
     64
@@ -164,7 +162,7 @@ impl Sleep {
                 rest[b as usize] = 0.0;
                 woke += 1;
             }
-            if v > wake_v || rate >= rest_rate {
+            if v > wake_v {
                 for nb in neighbours(geom, b) {
                     if state[nb as usize] == ASLEEP {
                         state[nb as usize] = AWAKE;
@@ -203,7 +201,7 @@ impl Sleep {
                 }
                 let calm = neighbours(geom, b).all(|nb| {
                     let t = table[nb as usize];
-                    t == EMPTY || (t as usize) >= npb || (activity[t as usize][0] <= wake_v && activity[t as usize][1] < rest_rate)
+                    t == EMPTY || (t as usize) >= npb || activity[t as usize][0] <= wake_v
                 });
                 if calm {
                     state[b as usize] = ASLEEP;

@@ -107,17 +107,26 @@ pub fn sleep_agreement(quick: bool, threads: usize) -> Result<Vec<CaseResult>, S
 
 /// Paper 000 cases 1-5 at reduced resolution: the steady width falls with V/U at fixed nozzle
 /// height (cases 1, 3, 5), and rises with the extrusion speed (case 1 with U + 10 %). Each row's
-/// error is 0 when the trend holds and 1 when it does not; the widths are in the notes.
+/// error is 0 when the trend holds and 1 when it does not; the widths are in the notes. To halve
+/// the cost the prints stop at 100 mm and the section is taken at 75 mm, where case 1's width is
+/// within 0.05 % of its value at 100 mm on the 150 mm print (its area within 0.6 %).
 pub fn cases_trend(quick: bool, threads: usize) -> Result<Vec<CaseResult>, String> {
     if quick {
-        return Ok(Vec::new()); // five 10-minute prints: full suite only
+        return Ok(Vec::new()); // six 5-minute prints: full suite only
     }
+    let shorten = |text: &str, k: usize| -> Result<String, String> {
+        let (v, _, _) = TABLE4[k];
+        let t = edit(text, "to = [0.15, 0.0,", "to = [0.1, 0.0,")?;
+        let t = edit(&t, "stations = [0.05, 0.075, 0.1]", "stations = [0.075]")?;
+        let end = format!("end_time = {:.4}", 0.15 / (v / 1e3) + 0.5);
+        edit(&t, &end, &format!("end_time = {:.4}", 0.1 / (v / 1e3) + 0.5))
+    };
     let mut widths = Vec::new();
     let mut last = None;
     let mut notes = Vec::new();
     for (k, text) in CASES_REDUCED.iter().enumerate() {
-        let (sim, obs, wall) = run_observed(text, threads)?;
-        let s = obs.sections.iter().find(|s| (s.station - 0.1).abs() < 1e-9).ok_or("no section at x = 100 mm")?;
+        let (sim, obs, wall) = run_observed(&shorten(text, k)?, threads)?;
+        let s = &obs.sections[0];
         let (v, u, h) = TABLE4[k];
         let exact = u / v * std::f64::consts::PI * NOZZLE_D * NOZZLE_D / 4.0;
         notes.push(format!(
@@ -133,9 +142,9 @@ pub fn cases_trend(quick: bool, threads: usize) -> Result<Vec<CaseResult>, Strin
         widths.push(s.width);
         last = Some(sim);
     }
-    let more_u = edit(CASES_REDUCED[0], "extrusion = 0.0336", "extrusion = 0.03696")?;
+    let more_u = edit(&shorten(CASES_REDUCED[0], 0)?, "extrusion = 0.0336", "extrusion = 0.03696")?;
     let (_, obs, _) = run_observed(&more_u, threads)?;
-    let w_more = obs.sections.iter().find(|s| (s.station - 0.1).abs() < 1e-9).ok_or("no section")?.width;
+    let w_more = obs.sections[0].width;
     notes.push(format!("case 1 with U + 10 %: width {:.2} mm", w_more * 1e3));
     let sim = last.ok_or("no case ran")?;
     let falls = widths[0] > widths[2] && widths[2] > widths[4];
