@@ -6,7 +6,8 @@
 //! `0..n_sleep` of the pool, out of every per-step loop. Active material that reaches them sees
 //! a still, no-slip body: grid nodes inside a sleeping block's stencil reach are held at rest. A
 //! sleeping block wakes as soon as material faster than `wake_speed` is binned next to it (new
-//! material arriving, or a load making its neighbour move), or an awake particle enters it.
+//! material arriving, or a load making its neighbour move), when an awake particle enters it, or
+//! when the nozzle tube reaches it (material in the tube must follow the nozzle).
 //!
 //! Sleeping freezes the internal state (no thixotropic build-up while asleep) and the stress;
 //! both resume on waking. Going to sleep is checked every `check_interval` steps (it moves
@@ -32,8 +33,7 @@ pub struct SleepConfig {
     /// Time at rest before a block sleeps [s].
     #[serde(default = "default_rest")]
     pub rest_time: f64,
-    /// Speed of neighbouring material that wakes a sleeping block [m/s] (neighbours straining
-    /// faster than `strain_rate` wake it too).
+    /// Speed of neighbouring material that wakes a sleeping block [m/s].
     #[serde(default = "default_wake")]
     pub wake_speed: f64,
     /// Steps between checks for blocks to put to sleep.
