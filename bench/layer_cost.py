@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Per-step cost while printing each layer of fixtures/scenarios/print/ten_layers.toml, from the
-globals.csv of a run: CPU seconds (all threads) per step over the rows inside each layer's
-printing interval. Usage: bench/layer_cost.py OUT_DIR [OUT_DIR_WITHOUT_SLEEP]"""
+globals.csv of a run: CPU seconds (all threads) per step over the second half of each layer's
+printing interval (the nozzle past the start-up transient of the layer).
+Usage: bench/layer_cost.py OUT_DIR [OUT_DIR ...]"""
 import csv, sys
 
 PRINT, PAUSE, LAYER = 0.1 / 0.03, 0.1, 0.25
@@ -21,7 +22,7 @@ def costs(path):
     rows = list(csv.DictReader(open(path + "/globals.csv")))
     res = []
     for k, (t0, t1) in enumerate(layer_intervals()):
-        inside = [r for r in rows if t0 + 0.2 <= float(r["time"]) <= t1 - 0.1]
+        inside = [r for r in rows if t0 + 0.5 * PRINT <= float(r["time"]) <= t1 - 0.05]
         if len(inside) < 2:
             break
         a, b = inside[0], inside[-1]
