@@ -18,7 +18,9 @@ test:
 	$(CARGO) test --release -p strand-kernels --features f32
 
 # The verification suite (the closed-form cases at full resolution, printing at reduced
-# resolution; about 1.5 hours on 2 cores). The 1 mm printing case runs only when named:
+# resolution; the closed-form cases take 10 minutes on 2 cores, the printing cases roughly an hour
+# more — estimated from their single runs, the whole suite was not timed). The 1 mm printing case
+# runs only when named:
 # ./target/release/strand verify --case print_mass_balance_full
 verify: build
 	./target/release/strand verify
