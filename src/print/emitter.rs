@@ -14,7 +14,7 @@
 //! steady state allocates nothing; the contents depend only on the toolpath, never on timing.
 
 use super::toolpath::Toolpath;
-use crossbeam::channel::{bounded, Receiver, Sender, TryRecvError};
+use crossbeam::channel::{bounded, Receiver, Sender};
 use std::sync::Arc;
 use std::thread::JoinHandle;
 
@@ -131,14 +131,10 @@ impl Emitter {
     pub fn drain_due<E>(&mut self, t: f64, mut add: impl FnMut(&Slab) -> Result<(), E>) -> Result<(), E> {
         loop {
             if self.pending.is_none() {
-                self.pending = match self.full.try_recv() {
-                    Ok(b) => Some(b),
-                    Err(TryRecvError::Empty) => match self.full.recv() {
-                        Ok(b) => Some(b),
-                        Err(_) => return Ok(()), // every slab emitted
-                    },
-                    Err(TryRecvError::Disconnected) => return Ok(()),
-                };
+                match self.full.recv() {
+                    Ok(b) => self.pending = Some(b),
+                    Err(_) => return Ok(()), // every slab emitted
+                }
             }
             let b = self.pending.as_ref().expect("just filled");
             if b.due > t {
@@ -150,14 +146,6 @@ impl Emitter {
             // the emitter may have finished and dropped its end: the buffer is then not needed
             let _ = self.free.send(b);
         }
-    }
-
-    /// Due time of the next slab, if any remain.
-    pub fn next_due(&mut self) -> Option<f64> {
-        if self.pending.is_none() {
-            self.pending = self.full.recv().ok();
-        }
-        self.pending.as_ref().map(|b| b.due)
     }
 }
 
