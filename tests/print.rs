@@ -189,3 +189,21 @@ fn the_gcode_fixture_is_the_default_print() {
         assert!((0..3).all(|k| (m.to[k] - n.to[k]).abs() < 1e-9), "{m:?} vs {n:?}");
     }
 }
+
+#[test]
+fn interval_emission_and_the_hard_indicator_deliver_the_same_mass() {
+    // 000's interval emission adds a whole cell of layers at once: the mass it has delivered lags
+    // the continuous one by less than one cell-thick slab, never leads it
+    let base = common::tiny_print(2, 1, false, "256 MiB");
+    let hard = base.replace("[print]\n", "[print]\nindicator = \"hard\"\nemission = \"interval\"\n");
+    assert!(hard.contains("indicator = \"hard\""));
+    let a = run_to(&base, 0.9);
+    let b = run_to(&hard, 0.9);
+    let mass = |s: &Simulation| s.particles.mass.as_slice()[..s.particles.n].iter().map(|&m| m as f64).sum::<f64>();
+    let slab_cell = 2100.0 * std::f64::consts::PI * 0.012 * 0.012 / 4.0 * 0.005;
+    let (ma, mb) = (mass(&a), mass(&b));
+    assert!(mb <= ma * (1.0 + 1e-9) && ma - mb < slab_cell, "continuous {ma} kg, interval {mb} kg");
+    // the hard nozzle still deposits a strand under the nozzle's path
+    let deposited = (0..b.particles.n).filter(|&i| b.position(i)[2] < 0.006).count();
+    assert!(deposited > 100, "{deposited} particles below the outlet");
+}
