@@ -330,12 +330,12 @@ impl Simulation {
     pub fn advance(&mut self, dt: f64) -> Result<(), SimError> {
         let mut clock = PhaseClock::start();
         self.emit()?;
+        let drive = self.printer.as_ref().and_then(|p| p.drive(self.time));
         let mut moved = false;
         if let Some(sl) = &mut self.sleep {
             if self.step > 0 {
                 let check = self.step.is_multiple_of(sl.cfg.check_interval);
-                let tube = self.printer.as_ref().and_then(|p| p.drive(self.time)).map(|d| d.bounds());
-                moved = sl.update(&self.grid, &mut self.particles, self.last_dt, check, tube);
+                moved = sl.update(&self.grid, &mut self.particles, self.last_dt, check, drive.map(|d| d.bounds()));
             }
         }
         self.bin_particles()?;
@@ -347,7 +347,7 @@ impl Simulation {
         clock.lap(&mut self.phase_seconds[1]);
         self.p2g(dt as Real);
         clock.lap(&mut self.phase_seconds[2]);
-        self.grid_update(dt as Real);
+        self.grid_update(dt as Real, drive.as_ref());
         clock.lap(&mut self.phase_seconds[3]);
         self.g2p(dt as Real);
         clock.lap(&mut self.phase_seconds[4]);
@@ -534,7 +534,8 @@ impl Simulation {
         }
     }
 
-    fn grid_update(&mut self, dt: Real) {
+    /// Momentum to velocity, gravity, sleeping holds, the nozzle `drive` of this step, walls.
+    fn grid_update(&mut self, dt: Real, drive: Option<&NozzleDrive>) {
         let na = self.grid.n_active;
         let geom = &self.grid.geom;
         let slot_block = self.grid.slot_block.as_slice();
@@ -543,7 +544,6 @@ impl Simulation {
         let walls = &self.walls;
         let table = self.grid.table.as_slice();
         let threads = self.team.threads();
-        let drive = self.printer.as_ref().and_then(|p| p.drive(self.time));
         let drive_box = drive.map(|d| d.bounds());
         let sleep = self.sleep.as_ref();
         self.team.run(|tid| {
@@ -566,7 +566,7 @@ impl Simulation {
                         v = V3::ZERO;
                     }
                     if driven {
-                        v = apply_drive(geom, drive.as_ref(), g, v);
+                        v = apply_drive(geom, drive, g, v);
                     }
                     v = apply_walls(geom, walls, g, v);
                     *node = [m, v.x, v.y, v.z, old.x, old.y, old.z];

@@ -55,7 +55,7 @@ pub const CASES: &[(&str, Case)] = &[
 /// `--case`.
 pub const SLOW_CASES: &[(&str, Case)] = &[("print_mass_balance_full", |_, t| super::print::mass_balance(true, t))];
 
-fn sim_of(text: &str, threads: usize) -> Result<Simulation, String> {
+pub(super) fn sim_of(text: &str, threads: usize) -> Result<Simulation, String> {
     let mut sc = Scenario::parse(text).map_err(|e| e.to_string())?;
     sc.simulation.threads = threads;
     Simulation::new(&sc).map_err(|e| e.to_string())
@@ -78,7 +78,7 @@ pub(crate) fn result(name: &str, metric: &str, error: f64, tol: f64, quick: bool
     }
 }
 
-fn run_to(sim: &mut Simulation, t: f64) -> Result<(), String> {
+pub(super) fn run_to(sim: &mut Simulation, t: f64) -> Result<(), String> {
     while sim.time < t * (1.0 - 1e-12) {
         sim.step_until(t).map_err(|e| e.to_string())?;
     }

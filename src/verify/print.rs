@@ -1,9 +1,8 @@
 //! Verification of printing: the mass balance of a steady strand, sleeping against no sleeping,
 //! and the trends of paper 000's cases 1-5 (Table 4).
 
-use super::cases::{result, CaseResult};
+use super::cases::{result, run_to, sim_of, CaseResult};
 use crate::report::{Observation, Reporter};
-use crate::scenario::Scenario;
 use crate::solver::Simulation;
 
 const CASES_REDUCED: [&str; 5] = [
@@ -31,17 +30,11 @@ fn edit(text: &str, from: &str, to: &str) -> Result<String, String> {
 
 /// Run a scenario to its end with observables; returns the final observation.
 fn run_observed(text: &str, threads: usize) -> Result<(Simulation, Observation, f64), String> {
-    let mut sc = Scenario::parse(text).map_err(|e| e.to_string())?;
-    if threads > 0 {
-        sc.simulation.threads = threads;
-    }
-    let mut sim = Simulation::new(&sc).map_err(|e| e.to_string())?;
-    let mut rep = Reporter::new(&sc, &sim)?.ok_or("fixture observes nothing")?;
+    let mut sim = sim_of(text, threads)?;
+    let mut rep = Reporter::new(&sim.scenario, &sim)?.ok_or("fixture observes nothing")?;
+    let end = sim.scenario.simulation.end_time;
     let t0 = std::time::Instant::now();
-    let end = sc.simulation.end_time;
-    while sim.time < end * (1.0 - 1e-12) {
-        sim.step_until(end).map_err(|e| e.to_string())?;
-    }
+    run_to(&mut sim, end)?;
     let wall = t0.elapsed().as_secs_f64();
     let obs = rep.observe(&sim).clone();
     Ok((sim, obs, wall))
