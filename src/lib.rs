@@ -12,6 +12,8 @@ pub use strand_kernels as kernels;
 pub use strand_kernels::{Real, M3, V3};
 
 pub mod bench;
+pub mod checkpoint;
+pub mod disk;
 pub mod grid;
 pub mod materials;
 pub mod memory;

@@ -26,7 +26,21 @@ enum Cmd {
         /// No progress or summary on stderr.
         #[arg(long)]
         quiet: bool,
-        /// Print a JSON summary on stdout (steps, times, particles, peak memory, last observables).
+        /// Print a JSON summary on stdout (steps, times, particles, peak memory, state hash,
+        /// last observables).
+        #[arg(long)]
+        json: bool,
+        /// Continue from the newest good checkpoint in OUT/checkpoints.
+        #[arg(long)]
+        resume: bool,
+        /// With --resume: continue even though the scenario changed since the checkpoint.
+        #[arg(long, requires = "resume")]
+        force: bool,
+    },
+    /// Show a checkpoint's header and summary (a file, or a run's output folder for all of its
+    /// checkpoints), verifying every checksum.
+    Inspect {
+        path: PathBuf,
         #[arg(long)]
         json: bool,
     },
@@ -69,13 +83,29 @@ const DEFAULT_SCENARIO: &str = include_str!("../fixtures/scenarios/default.toml"
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    let mut exit_code = 2u8;
     let result: Result<bool, String> = match cli.cmd {
-        Cmd::Run { scenario, out, threads, quiet, json } => (|| {
+        Cmd::Run { scenario, out, threads, quiet, json, resume, force } => (|| {
             let sc = match &scenario {
                 Some(p) => Scenario::load(p).map_err(|e| e.to_string())?,
                 None => Scenario::parse(DEFAULT_SCENARIO).map_err(|e| e.to_string())?,
             };
-            let r = run_scenario(&sc, &RunOptions { out, threads, quiet }).map_err(|e| e.to_string())?;
+            let mut command = "strand run".to_string();
+            if let Some(p) = &scenario {
+                command += &format!(" {}", p.display());
+            }
+            command += &format!(" --out {}", out.display());
+            if let Some(t) = threads {
+                command += &format!(" --threads {t}");
+            }
+            let opts = RunOptions { out, threads, quiet, resume, force, command };
+            let r = match run_scenario(&sc, &opts) {
+                Ok(r) => r,
+                Err(e) => {
+                    exit_code = e.exit_code();
+                    return Err(e.to_string());
+                }
+            };
             if json {
                 let summary = serde_json::json!({
                     "scenario": sc.name,
@@ -84,6 +114,9 @@ fn main() -> ExitCode {
                     "wall_s": r.wall_s,
                     "particles": r.particles,
                     "peak_rss_bytes": strand::verify::peak_rss_bytes(),
+                    "state_hash": format!("{:016x}", r.state_hash),
+                    "resumed_from": r.resumed_from,
+                    "last_checkpoint": r.last_checkpoint,
                     "phase_seconds": strand::solver::PHASES.iter().zip(r.phase_seconds).map(|(k, v)| (k.to_string(), v)).collect::<std::collections::BTreeMap<_, _>>(),
                     "last_observation": r.observations.last(),
                 });
@@ -91,6 +124,10 @@ fn main() -> ExitCode {
             }
             Ok(true)
         })(),
+        Cmd::Inspect { path, json } => strand::checkpoint::inspect(&path, json).map(|t| {
+            println!("{t}");
+            true
+        }),
         Cmd::Check { scenario } => (|| {
             let sc = Scenario::load(&scenario).map_err(|e| e.to_string())?;
             let sim = strand::solver::Simulation::new(&sc).map_err(|e| e.to_string())?;
@@ -117,7 +154,7 @@ fn main() -> ExitCode {
         Ok(false) => ExitCode::from(1),
         Err(e) => {
             eprintln!("error: {e}");
-            ExitCode::from(2)
+            ExitCode::from(exit_code)
         }
     }
 }

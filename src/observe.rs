@@ -66,7 +66,7 @@ fn bin(v: f64, origin: f64, h: f64) -> i64 {
 }
 
 /// A y-z cross-section of the deposit through a slab of particles around `x = station`.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct CrossSection {
     /// x of the section.
     pub station: f64,
@@ -308,7 +308,7 @@ pub fn layer_heights(
 }
 
 /// The spread of a slump-flow test.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Spread {
     /// Mean of `d_x` and `d_y`.
     pub mean_diameter: f64,

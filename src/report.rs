@@ -55,7 +55,7 @@ fn io(p: &Path) -> impl FnOnce(std::io::Error) -> String + '_ {
 }
 
 /// Observables of one output time.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Observation {
     pub time: f64,
     pub sections: Vec<CrossSection>,

@@ -1,8 +1,11 @@
 //! `strand run`: drive a simulation to its end time, writing VTU snapshots, a CSV of global
-//! quantities and progress.
+//! quantities, observables and restart checkpoints, with progress; `--resume` continues from the
+//! newest good checkpoint, and Ctrl-C (SIGINT) or SIGTERM stops the run with a fresh one.
 
-use crate::memory::fmt_bytes;
-use crate::output::vtu::{write_pvd, write_vtu, VtuData, VtuField};
+use crate::checkpoint::{self, state, writer::CheckpointWriter, writer::Event};
+use crate::disk::{self, DiskFullPolicy};
+use crate::memory::{fmt_bytes, parse_size, Backing, Pool};
+use crate::output::vtu::{vtu_size, write_pvd, write_vtu, VtuData, VtuField};
 use crate::report::Reporter;
 use crate::scenario::Scenario;
 use crate::solver::{SimError, Simulation};
@@ -21,6 +24,27 @@ pub enum RunError {
     Io { path: PathBuf, source: std::io::Error },
     #[error("{0}")]
     Report(String),
+    #[error("cannot resume: {0}")]
+    Resume(String),
+    #[error("checkpoint: {0}")]
+    Checkpoint(String),
+    #[error("stopped by {signal} at step {step} (t = {time:.6} s); {saved}\n  resume with: {resume}")]
+    Interrupted { signal: &'static str, step: u64, time: f64, saved: String, resume: String },
+    #[error("disk budget: {0}")]
+    DiskBudget(String),
+    /// A run stopped by an error after it started: what is on disk and how to go on.
+    #[error("{source}\n  {note}")]
+    Stopped { source: Box<RunError>, note: String },
+}
+
+impl RunError {
+    /// Process exit status: 130 after a signal (the shell convention for Ctrl-C), else 2.
+    pub fn exit_code(&self) -> u8 {
+        match self {
+            RunError::Interrupted { .. } => 130,
+            _ => 2,
+        }
+    }
 }
 
 fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> RunError + '_ {
@@ -128,8 +152,13 @@ fn real_data(s: &[Real]) -> VtuData<'_> {
     return VtuData::F32(s);
 }
 
-/// Write the particles of `sim` as a VTU file.
-pub fn write_snapshot(sim: &Simulation, path: &Path, staging: &mut Vec<f64>) -> std::io::Result<()> {
+/// Write the particles of `sim` as a VTU file, after `fits(size)` agrees to its size.
+pub fn write_snapshot(
+    sim: &Simulation,
+    path: &Path,
+    staging: &mut Vec<f64>,
+    fits: impl FnOnce(u64) -> Result<(), RunError>,
+) -> Result<(), RunError> {
     let p = &sim.particles;
     let n = p.n;
     let sl = p.state_len;
@@ -158,7 +187,10 @@ pub fn write_snapshot(sim: &Simulation, path: &Path, staging: &mut Vec<f64>) -> 
     for (k, name) in names.iter().enumerate() {
         fields.push(VtuField { name, components: 1, data: VtuData::F64(&state[k * n..(k + 1) * n]) });
     }
-    write_vtu(path, VtuData::F64(pos), &fields)
+    let size = vtu_size(&VtuData::F64(pos), &fields).map_err(io_err(path))?;
+    fits(size)?;
+    disk::fault_check(size).map_err(io_err(path))?;
+    write_vtu(path, VtuData::F64(pos), &fields).map_err(io_err(path))
 }
 
 /// Options of one run.
@@ -168,6 +200,12 @@ pub struct RunOptions {
     /// Override the scenario's thread count.
     pub threads: Option<usize>,
     pub quiet: bool,
+    /// Continue from the newest good checkpoint in `out/checkpoints`.
+    pub resume: bool,
+    /// Resume even though the scenario changed since the checkpoint.
+    pub force: bool,
+    /// The command that started the run (without `--resume`), for the resume hint.
+    pub command: String,
 }
 
 pub struct RunSummary {
@@ -179,6 +217,211 @@ pub struct RunSummary {
     pub observations: Vec<crate::report::Observation>,
     /// Wall seconds spent in each phase of the step (see `solver::PHASES`).
     pub phase_seconds: [f64; 6],
+    /// Hash of the final state (as `strand inspect` shows for a checkpoint of it).
+    pub state_hash: u64,
+    /// The checkpoint the run resumed from.
+    pub resumed_from: Option<PathBuf>,
+    /// The newest checkpoint written (the final one when `[checkpoint] at_end`).
+    pub last_checkpoint: Option<PathBuf>,
+}
+
+/// The run's output files and what a resumed run needs to continue them.
+struct Outputs<'a> {
+    out: &'a Path,
+    vtu: bool,
+    csv_path: PathBuf,
+    csv: std::io::BufWriter<std::fs::File>,
+    pvd: Vec<(f64, String)>,
+    staging: Vec<f64>,
+    reporter: Option<Reporter>,
+    start: Instant,
+    /// Outputs written: the next is number `k_out + 1` (number 0 is the initial state).
+    k_out: u64,
+    disk: Option<DiskGuard>,
+}
+
+/// The disk budget as the output stage applies it (policy in `disk.rs`).
+struct DiskGuard {
+    limit: u64,
+    policy: DiskFullPolicy,
+    /// Kept free for a checkpoint at full pool capacity and the small files.
+    reserve: u64,
+}
+
+impl Outputs<'_> {
+    fn write(&mut self, sim: &Simulation) -> Result<(), RunError> {
+        let g = Globals { wall_s: self.start.elapsed().as_secs_f64(), cpu_s: process_cpu_seconds(), ..Globals::of(sim) };
+        writeln!(self.csv, "{}", g.csv_row()).map_err(io_err(&self.csv_path))?;
+        self.csv.flush().map_err(io_err(&self.csv_path))?;
+        if let Some(r) = &mut self.reporter {
+            r.observe(sim);
+            r.write(self.out).map_err(RunError::Report)?;
+        }
+        if self.vtu {
+            let name = format!("particles_{:05}.vtu", self.k_out);
+            let path = self.out.join(&name);
+            let mut staging = std::mem::take(&mut self.staging);
+            let r = write_snapshot(sim, &path, &mut staging, |size| self.make_room(size));
+            self.staging = staging;
+            r?;
+            self.pvd.push((sim.time, name));
+            let pvd_path = self.out.join("particles.pvd");
+            write_pvd(&pvd_path, &self.pvd).map_err(io_err(&pvd_path))?;
+        }
+        Ok(())
+    }
+
+    /// Room for a snapshot of `size` bytes under the disk budget, pruning old snapshots if the
+    /// policy says so.
+    fn make_room(&mut self, size: u64) -> Result<(), RunError> {
+        let Some(d) = &self.disk else { return Ok(()) };
+        loop {
+            let used = disk::usage(self.out);
+            if used + size + d.reserve <= d.limit {
+                return Ok(());
+            }
+            if d.policy == DiskFullPolicy::PruneSnapshots && self.pvd.len() > 1 {
+                let (_, old) = self.pvd.remove(0);
+                std::fs::remove_file(self.out.join(&old)).map_err(io_err(&self.out.join(&old)))?;
+                let pvd_path = self.out.join("particles.pvd");
+                write_pvd(&pvd_path, &self.pvd).map_err(io_err(&pvd_path))?;
+                continue;
+            }
+            return Err(RunError::DiskBudget(format!(
+                "the next snapshot ({}) would take {} to {} of its {} budget, with {} kept free for a \
+                 final checkpoint and the CSV files; raise [output] disk_budget{}",
+                fmt_bytes(size),
+                self.out.display(),
+                fmt_bytes(used + size),
+                fmt_bytes(d.limit),
+                fmt_bytes(d.reserve),
+                if d.policy == DiskFullPolicy::Stop { ", or set [output] on_disk_full = \"prune_snapshots\"" } else { "" }
+            )));
+        }
+    }
+
+    fn progress(&self) -> state::Progress {
+        state::Progress { pvd: self.pvd.clone(), observations: self.reporter.as_ref().map(|r| r.history.clone()).unwrap_or_default() }
+    }
+}
+
+/// The checkpoint stage as the run loop drives it.
+struct Checkpoints {
+    writer: CheckpointWriter,
+    cfg: checkpoint::CheckpointConfig,
+    last_wall: Instant,
+    last_step: u64,
+    /// Newest checkpoint known to be on disk, and its step.
+    last_good: Option<(PathBuf, u64)>,
+    resume: String,
+}
+
+impl Checkpoints {
+    fn due(&self, sim: &Simulation) -> bool {
+        self.cfg.step_interval.is_some_and(|k| sim.step >= self.last_step + k)
+            || self.last_wall.elapsed().as_secs_f64() >= self.cfg.wall_interval
+    }
+
+    fn submit(&mut self, sim: &Simulation, out: &Outputs) -> Result<(), RunError> {
+        let header = state::header(sim, out.k_out, &out.progress(), Vec::new());
+        self.writer.submit(header, &state::sections(sim)).map_err(RunError::Checkpoint)?;
+        self.last_wall = Instant::now();
+        self.last_step = sim.step;
+        Ok(())
+    }
+
+    fn handle(&mut self, ev: Event) -> Result<(), RunError> {
+        match ev {
+            Event::Written { path, step, .. } => {
+                self.last_good = Some((path, step));
+                Ok(())
+            }
+            Event::NoRoom { step, needed, used, limit } => Err(RunError::DiskBudget(format!(
+                "no room for the checkpoint of step {step} ({}): the output folder holds {} of its {} budget \
+                 with every older checkpoint but the newest removed; raise [output] disk_budget",
+                fmt_bytes(needed),
+                fmt_bytes(used),
+                fmt_bytes(limit)
+            ))),
+            Event::Failed { step, error } => {
+                Err(RunError::Checkpoint(format!("writing the checkpoint of step {step} failed: {error}")))
+            }
+        }
+    }
+
+    fn poll(&mut self) -> Result<(), RunError> {
+        while let Some(ev) = self.writer.poll() {
+            self.handle(ev)?;
+        }
+        Ok(())
+    }
+
+    /// Wait for the writer; the first failure, if any.
+    fn drain(&mut self) -> Result<(), RunError> {
+        let mut first = Ok(());
+        for ev in self.writer.drain() {
+            let r = self.handle(ev);
+            if first.is_ok() {
+                first = r;
+            }
+        }
+        first
+    }
+
+    /// What is on disk to go on from, for a message.
+    fn note(&self) -> String {
+        match &self.last_good {
+            Some((p, step)) => format!("the last good checkpoint is {} (step {step}); resume with: {}", p.display(), self.resume),
+            None => "no checkpoint was written by this run".to_string(),
+        }
+    }
+}
+
+/// SIGINT and SIGTERM set a flag the run loop checks after every step; a second signal ends the
+/// process at once. Unregistered when dropped, so a library caller keeps its own handlers.
+struct Signals {
+    flag: std::sync::Arc<std::sync::atomic::AtomicUsize>,
+    ids: Vec<signal_hook::SigId>,
+}
+
+impl Signals {
+    fn register() -> Signals {
+        use signal_hook::consts::{SIGINT, SIGTERM};
+        use std::sync::atomic::{AtomicBool, AtomicUsize};
+        use std::sync::Arc;
+        let flag = Arc::new(AtomicUsize::new(0));
+        let again = Arc::new(AtomicBool::new(false));
+        let mut ids = Vec::new();
+        for (sig, code) in [(SIGINT, 130), (SIGTERM, 143)] {
+            // order matters: the shutdown check sees the flag as the previous signal left it
+            if let Ok(id) = signal_hook::flag::register_conditional_shutdown(sig, code, again.clone()) {
+                ids.push(id);
+            }
+            if let Ok(id) = signal_hook::flag::register(sig, again.clone()) {
+                ids.push(id);
+            }
+            if let Ok(id) = signal_hook::flag::register_usize(sig, flag.clone(), sig as usize) {
+                ids.push(id);
+            }
+        }
+        Signals { flag, ids }
+    }
+
+    fn caught(&self) -> Option<&'static str> {
+        match self.flag.load(std::sync::atomic::Ordering::Relaxed) as i32 {
+            0 => None,
+            signal_hook::consts::SIGINT => Some("SIGINT"),
+            _ => Some("SIGTERM"),
+        }
+    }
+}
+
+impl Drop for Signals {
+    fn drop(&mut self) {
+        for id in self.ids.drain(..) {
+            signal_hook::low_level::unregister(id);
+        }
+    }
 }
 
 /// Run a scenario to its end, writing outputs into `opts.out`.
@@ -188,12 +431,57 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
         sc.simulation.threads = t;
     }
     std::fs::create_dir_all(&opts.out).map_err(io_err(&opts.out))?;
-    let mut sim = Simulation::new(&sc)?;
     let say = |m: String| {
         if !opts.quiet {
             eprintln!("{m}");
         }
     };
+    let resume_cmd = format!("{} --resume", opts.command);
+    let ckpt_dir = checkpoint::dir_of(&opts.out);
+    let resume_from = if opts.resume {
+        let (ck, notes) = checkpoint::newest_valid(&ckpt_dir).map_err(RunError::Resume)?;
+        for n in notes {
+            eprintln!("warning: {n}");
+        }
+        let diffs = checkpoint::scenario_differences(&ck.header.scenario_text, &sc.source).map_err(RunError::Resume)?;
+        if !diffs.is_empty() {
+            let list = diffs.iter().map(|d| format!("\n    {d}")).collect::<String>();
+            if !opts.force {
+                return Err(RunError::Resume(format!(
+                    "the scenario changed since {} was written:{list}\n  \
+                     run with --force to resume anyway, or start afresh in another --out folder",
+                    ck.path.display()
+                )));
+            }
+            eprintln!("warning: resuming with a changed scenario (--force):{list}");
+        }
+        Some(ck)
+    } else {
+        None
+    };
+
+    let mut sim = Simulation::new(&sc)?;
+    let mut k_out = 0;
+    let mut progress = state::Progress::default();
+    if let Some(ck) = &resume_from {
+        if ck.header.toolpath_hash != state::toolpath_hash(&sim) && !opts.force {
+            return Err(RunError::Resume(format!(
+                "the print's toolpath (its G-code file?) changed since {} was written; run with --force to resume anyway",
+                ck.path.display()
+            )));
+        }
+        state::restore(&mut sim, ck).map_err(|e| RunError::Resume(format!("{}: {e}", ck.path.display())))?;
+        k_out = ck.header.outputs;
+        progress = serde_json::from_str(&ck.header.progress_json)
+            .map_err(|e| RunError::Resume(format!("{}: run progress does not decode: {e}", ck.path.display())))?;
+        say(format!(
+            "resuming from {} (step {}, t = {:.6} s, {} particles)",
+            ck.path.display(),
+            sim.step,
+            sim.time,
+            sim.particles.n
+        ));
+    }
     say(format!(
         "strand: '{}' — {} particles, {} threads, {} precision\nmemory plan (budget {}):\n{}",
         sc.name,
@@ -207,17 +495,70 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
     say(format!("time step: {dt0:.3e} s, bound by {lim0:?}"));
 
     let csv_path = opts.out.join("globals.csv");
-    let mut csv = std::io::BufWriter::new(std::fs::File::create(&csv_path).map_err(io_err(&csv_path))?);
-    writeln!(csv, "{GLOBALS_HEADER}").map_err(io_err(&csv_path))?;
-    let mut pvd: Vec<(f64, String)> = Vec::new();
-    let mut staging = Vec::with_capacity(sim.particles.capacity() * (4 + sim.particles.state_len));
+    if resume_from.is_some() {
+        keep_first_rows(&csv_path, k_out + 1).map_err(io_err(&csv_path))?;
+        remove_snapshots_after(&opts.out, k_out);
+    } else {
+        std::fs::write(&csv_path, format!("{GLOBALS_HEADER}\n")).map_err(io_err(&csv_path))?;
+    }
+    let csv = std::fs::OpenOptions::new().append(true).open(&csv_path).map_err(io_err(&csv_path))?;
     let mut reporter = Reporter::new(&sc, &sim).map_err(RunError::Report)?;
+    if let Some(r) = &mut reporter {
+        r.history = std::mem::take(&mut progress.observations);
+    }
+    let staging_bytes = sim.checkpoint_staging_bytes();
+    let disk_guard = match &sc.output.disk_budget {
+        Some(b) => Some(DiskGuard {
+            limit: parse_size(b).map_err(|e| RunError::DiskBudget(format!("output.disk_budget: {e}")))?,
+            policy: sc.output.on_disk_full,
+            reserve: disk::SMALL_FILE_RESERVE + if sc.checkpoint.enabled { staging_bytes as u64 + (1 << 20) } else { 0 },
+        }),
+        None => None,
+    };
+    let start = Instant::now();
+    let mut outputs = Outputs {
+        out: &opts.out,
+        vtu: sc.output.vtu,
+        csv_path: csv_path.clone(),
+        csv: std::io::BufWriter::new(csv),
+        pvd: progress.pvd,
+        staging: Vec::with_capacity(sim.particles.capacity() * (4 + sim.particles.state_len)),
+        reporter,
+        start,
+        k_out,
+        disk: disk_guard,
+    };
+    let mut ckpts = if sc.checkpoint.enabled {
+        let backing = Backing { dir: sc.memory.dir.clone() };
+        let staging = Pool::<u8>::new("checkpoint.staging", staging_bytes, &backing).map_err(SimError::from)?;
+        let place = checkpoint::writer::Placement {
+            dir: ckpt_dir.clone(),
+            keep: sc.checkpoint.keep,
+            out: opts.out.clone(),
+            disk_limit: outputs.disk.as_ref().map(|d| d.limit),
+        };
+        let writer = CheckpointWriter::spawn(place, staging).map_err(io_err(&ckpt_dir))?;
+        Some(Checkpoints {
+            writer,
+            cfg: sc.checkpoint.clone(),
+            last_wall: Instant::now(),
+            last_step: sim.step,
+            last_good: resume_from.as_ref().map(|c| (c.path.clone(), c.header.step)),
+            resume: resume_cmd.clone(),
+        })
+    } else {
+        None
+    };
+    let resumed_from = resume_from.map(|c| c.path.clone());
+    let signals = Signals::register();
 
+    if resumed_from.is_none() {
+        outputs.write(&sim)?;
+    }
     let end = sc.simulation.end_time;
     let interval = sc.output.interval;
-    let mut k_out = 0u64;
-    let start = Instant::now();
-    let est_steps = (end / dt0).ceil().max(1.0) as u64;
+    let first_step = sim.step;
+    let est_steps = ((end - sim.time) / dt0).ceil().max(1.0) as u64;
     let bar = if !opts.quiet && std::io::stderr().is_terminal() {
         let b = indicatif::ProgressBar::new(est_steps);
         b.set_style(
@@ -229,47 +570,60 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
         None
     };
     let mut last_line = Instant::now();
-    let mut write_output = |sim: &Simulation, k: u64| -> Result<(), RunError> {
-        let g = Globals { wall_s: start.elapsed().as_secs_f64(), cpu_s: process_cpu_seconds(), ..Globals::of(sim) };
-        writeln!(csv, "{}", g.csv_row()).map_err(io_err(&csv_path))?;
-        csv.flush().map_err(io_err(&csv_path))?;
-        if let Some(r) = &mut reporter {
-            r.observe(sim);
-            r.write(&opts.out).map_err(RunError::Report)?;
-        }
-        if sc.output.vtu {
-            let name = format!("particles_{k:05}.vtu");
-            let path = opts.out.join(&name);
-            write_snapshot(sim, &path, &mut staging).map_err(io_err(&path))?;
-            pvd.push((sim.time, name));
-            let pvd_path = opts.out.join("particles.pvd");
-            write_pvd(&pvd_path, &pvd).map_err(io_err(&pvd_path))?;
-        }
-        Ok(())
+    // Errors once the loop runs say what is on disk to go on from.
+    let stopped = |e: RunError, ck: &Option<Checkpoints>| -> RunError {
+        let note = ck.as_ref().map_or("checkpoints are disabled ([checkpoint] enabled = false)".to_string(), |c| c.note());
+        RunError::Stopped { source: Box::new(e), note }
     };
-    write_output(&sim, k_out)?;
     while sim.time < end * (1.0 - 1e-12) {
-        let next_out = ((k_out + 1) as f64 * interval).min(end);
+        let next_out = ((outputs.k_out + 1) as f64 * interval).min(end);
         while sim.time < next_out * (1.0 - 1e-12) {
             if let Err(source) = sim.step_until(next_out) {
                 // keep what the failing step produced, for diagnosis in ParaView
                 let snapshot = opts.out.join("failed_state.vtu");
-                return Err(match write_snapshot(&sim, &snapshot, &mut Vec::new()) {
+                let e = match write_snapshot(&sim, &snapshot, &mut Vec::new(), |_| Ok(())) {
                     Ok(()) => RunError::Failed { source, snapshot },
                     Err(_) => RunError::Sim(source),
-                });
+                };
+                return Err(stopped(e, &ckpts));
+            }
+            if let Some(ck) = &mut ckpts {
+                if let Err(e) = ck.poll() {
+                    return Err(stopped(e, &ckpts));
+                }
+                if ck.due(&sim) {
+                    if let Err(e) = ck.submit(&sim, &outputs) {
+                        return Err(stopped(e, &ckpts));
+                    }
+                }
+            }
+            if let Some(signal) = signals.caught() {
+                if let Some(b) = &bar {
+                    b.abandon();
+                }
+                let saved = match &mut ckpts {
+                    Some(ck) => {
+                        let r = ck.submit(&sim, &outputs).and_then(|_| ck.drain());
+                        if let Err(e) = r {
+                            return Err(stopped(e, &ckpts));
+                        }
+                        format!("checkpoint {}", ck.last_good.as_ref().map_or(String::new(), |(p, _)| p.display().to_string()))
+                    }
+                    None => "no checkpoint written: [checkpoint] enabled = false, the run cannot be resumed".into(),
+                };
+                return Err(RunError::Interrupted { signal, step: sim.step, time: sim.time, saved, resume: resume_cmd });
             }
             if let Some(b) = &bar {
                 if sim.step % 16 == 0 {
-                    let rate = sim.step as f64 / start.elapsed().as_secs_f64();
+                    let rate = (sim.step - first_step) as f64 / start.elapsed().as_secs_f64();
                     let remaining = ((end - sim.time) / sim.last_dt.max(1e-300)).ceil() as u64;
-                    b.set_length(sim.step + remaining);
-                    b.set_position(sim.step);
+                    b.set_length(sim.step - first_step + remaining);
+                    b.set_position(sim.step - first_step);
                     b.set_message(format!("{rate:.0} steps/s  t = {:.4} s  {} particles", sim.time, sim.particles.n));
                 }
             } else if !opts.quiet && last_line.elapsed().as_secs_f64() > 10.0 {
                 last_line = Instant::now();
-                let rate = sim.step as f64 / start.elapsed().as_secs_f64();
+                let rate = (sim.step - first_step) as f64 / start.elapsed().as_secs_f64();
                 let remaining = (end - sim.time) / sim.last_dt.max(1e-300) / rate.max(1e-9);
                 eprintln!(
                     "step {} t = {:.4e} s dt = {:.2e} ({:?}) {:.0} steps/s ETA {:.0} s, {} particles",
@@ -277,11 +631,28 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
                 );
             }
         }
-        k_out += 1;
-        write_output(&sim, k_out)?;
+        outputs.k_out += 1;
+        if let Err(e) = outputs.write(&sim) {
+            // a snapshot over the disk budget: stop with a fresh checkpoint (room was kept for it)
+            if let (RunError::DiskBudget(_), Some(ck)) = (&e, &mut ckpts) {
+                outputs.k_out -= 1;
+                let _ = ck.submit(&sim, &outputs).and_then(|_| ck.drain());
+            }
+            return Err(stopped(e, &ckpts));
+        }
     }
     if let Some(b) = bar {
         b.finish_and_clear();
+    }
+    if let Some(ck) = &mut ckpts {
+        let r = if sc.checkpoint.at_end && (ck.last_step != sim.step || ck.last_good.is_none()) {
+            ck.submit(&sim, &outputs).and_then(|_| ck.drain())
+        } else {
+            ck.drain()
+        };
+        if let Err(e) = r {
+            return Err(stopped(e, &ckpts));
+        }
     }
     let wall = start.elapsed().as_secs_f64();
     say(format!(
@@ -289,7 +660,7 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
         sim.step,
         sim.time,
         wall,
-        sim.step as f64 / wall,
+        (sim.step - first_step) as f64 / wall,
         sim.particles.n,
         if sim.particles.n_sleep > 0 { format!(" ({} asleep)", sim.particles.n_sleep) } else { String::new() },
         crate::verify::peak_rss_bytes().map_or("unknown".into(), fmt_bytes),
@@ -300,7 +671,37 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
         time: sim.time,
         wall_s: wall,
         particles: sim.particles.n,
-        observations: reporter.map(|r| r.history).unwrap_or_default(),
+        observations: outputs.reporter.map(|r| r.history).unwrap_or_default(),
         phase_seconds: sim.phase_seconds,
+        state_hash: state::current_state_hash(&sim),
+        resumed_from,
+        last_checkpoint: ckpts.and_then(|c| c.last_good.map(|g| g.0)),
     })
+}
+
+/// Keep the header and the first `rows` data rows of a CSV file (the outputs a checkpoint
+/// covers), written atomically; a missing file gets just its header.
+fn keep_first_rows(path: &Path, rows: u64) -> std::io::Result<()> {
+    let text = match std::fs::read_to_string(path) {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => format!("{GLOBALS_HEADER}\n"),
+        Err(e) => return Err(e),
+    };
+    let kept: String = text.lines().take(1 + rows as usize).map(|l| format!("{l}\n")).collect();
+    let tmp = path.with_extension("csv.tmp");
+    std::fs::write(&tmp, kept)?;
+    std::fs::rename(&tmp, path)
+}
+
+/// Delete snapshots numbered after `k_out`: a killed run wrote them after its last checkpoint,
+/// and the resumed run writes them again.
+fn remove_snapshots_after(out: &Path, k_out: u64) {
+    let Ok(rd) = std::fs::read_dir(out) else { return };
+    for e in rd.flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        let k = name.strip_prefix("particles_").and_then(|r| r.strip_suffix(".vtu")).and_then(|k| k.parse::<u64>().ok());
+        if k.is_some_and(|k| k > k_out) {
+            let _ = std::fs::remove_file(e.path());
+        }
+    }
 }

@@ -31,9 +31,16 @@ pub struct Scenario {
     /// Observables written at each output.
     #[serde(default)]
     pub observe: Option<crate::report::ObserveConfig>,
+    /// Restart checkpoints.
+    #[serde(default)]
+    pub checkpoint: crate::checkpoint::CheckpointConfig,
     /// Folder that relative paths in the scenario (G-code, measurements) start from.
     #[serde(skip)]
     pub base_dir: PathBuf,
+    /// The TOML text the scenario was read from: a checkpoint keeps it, so a resume can name
+    /// every key that changed since.
+    #[serde(skip)]
+    pub source: String,
 }
 
 #[derive(Clone, Debug, Deserialize)]
@@ -233,6 +240,13 @@ pub struct Output {
     /// Write VTU particle snapshots.
     #[serde(default = "default_true")]
     pub vtu: bool,
+    /// Bytes the output folder may hold (snapshots, checkpoints, CSVs), e.g. "20 GiB"; none
+    /// means no limit beyond the disk itself.
+    #[serde(default)]
+    pub disk_budget: Option<String>,
+    /// What to do when the next snapshot would not fit the disk budget.
+    #[serde(default)]
+    pub on_disk_full: crate::disk::DiskFullPolicy,
 }
 
 fn default_interval() -> f64 {
@@ -244,7 +258,7 @@ fn default_true() -> bool {
 
 impl Default for Output {
     fn default() -> Self {
-        Output { interval: default_interval(), vtu: true }
+        Output { interval: default_interval(), vtu: true, disk_budget: None, on_disk_full: Default::default() }
     }
 }
 
@@ -286,9 +300,10 @@ impl Scenario {
     }
 
     pub fn parse(text: &str) -> Result<Scenario, ScenarioError> {
-        let sc: Scenario =
+        let mut sc: Scenario =
             toml::from_str(text).map_err(|e| ScenarioError::Parse { path: PathBuf::from("<text>"), message: e.to_string() })?;
         sc.validate()?;
+        sc.source = text.to_string();
         Ok(sc)
     }
 
@@ -394,6 +409,10 @@ impl Scenario {
             return bad(format!("output.interval must be > 0, got {}", self.output.interval));
         }
         parse_size(&self.memory.budget).map_err(|e| ScenarioError::Invalid(format!("memory.budget: {e}")))?;
+        if let Some(b) = &self.output.disk_budget {
+            parse_size(b).map_err(|e| ScenarioError::Invalid(format!("output.disk_budget: {e}")))?;
+        }
+        self.checkpoint.validate().map_err(ScenarioError::Invalid)?;
         if let Some(p) = &self.print {
             p.validate().map_err(ScenarioError::Invalid)?;
         }

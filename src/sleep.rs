@@ -122,6 +122,15 @@ impl Sleep {
         })
     }
 
+    /// The per-block tables (state, rest time), for checkpoints.
+    pub fn tables(&self) -> (&[u8], &[f32]) {
+        (self.state.as_slice(), self.rest.as_slice())
+    }
+
+    pub fn tables_mut(&mut self) -> (&mut [u8], &mut [f32]) {
+        (self.state.as_mut_slice(), self.rest.as_mut_slice())
+    }
+
     #[inline]
     pub fn is_asleep(&self, block: u32) -> bool {
         self.state.as_slice()[block as usize] == ASLEEP

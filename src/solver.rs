@@ -48,6 +48,24 @@ pub enum DtLimit {
     Schedule,
 }
 
+impl DtLimit {
+    const ALL: [DtLimit; 5] = [DtLimit::Fixed, DtLimit::Wave, DtLimit::Viscous, DtLimit::MaxDt, DtLimit::Schedule];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            DtLimit::Fixed => "fixed",
+            DtLimit::Wave => "wave",
+            DtLimit::Viscous => "viscous",
+            DtLimit::MaxDt => "max_dt",
+            DtLimit::Schedule => "schedule",
+        }
+    }
+
+    pub fn from_name(s: &str) -> Option<DtLimit> {
+        Self::ALL.into_iter().find(|l| l.name() == s)
+    }
+}
+
 /// Buffers the binning and the parallel phases share.
 struct Scratch {
     /// Slot of each particle's block.
@@ -128,6 +146,10 @@ pub struct Simulation {
     pub sleep: Option<Sleep>,
 }
 
+fn checkpoint_staging_bytes(sc: &Scenario, cap: usize, state_len: usize, max_blocks: usize, table_len: usize) -> usize {
+    crate::checkpoint::state::max_staging_bytes(cap, state_len, max_blocks, table_len, sc.sleep.is_some())
+}
+
 /// Names of the step's phases, as accumulated in `Simulation::phase_seconds`.
 pub const PHASES: [&str; 6] = ["emit+sleep+bin+reorder", "clear grid", "P2G", "grid update", "G2P", "materials"];
 
@@ -180,6 +202,10 @@ impl Simulation {
         Scratch::plan(&mut memory, cap, max_blocks, state_len);
         if scenario.sleep.is_some() {
             Sleep::plan(&mut memory, &geom, max_blocks);
+        }
+        if scenario.checkpoint.enabled {
+            let bytes = checkpoint_staging_bytes(scenario, cap, state_len, max_blocks, geom.table_len());
+            memory.add::<u8>("checkpoint.staging", bytes);
         }
         if let Some(p) = &printer {
             let q = scenario.print.as_ref().map_or(0, |c| c.queue);
@@ -253,6 +279,12 @@ impl Simulation {
         }
         sim.vmax = sim.particles.v.as_slice()[..sim.particles.n].iter().map(|v| v.length() as f64).fold(0.0, f64::max);
         Ok(sim)
+    }
+
+    /// Bytes of the checkpoint staging buffer `strand run` maps (in the memory plan).
+    pub fn checkpoint_staging_bytes(&self) -> usize {
+        let sc = &self.scenario;
+        checkpoint_staging_bytes(sc, self.particles.capacity(), self.particles.state_len, self.grid.max_blocks(), self.grid.geom.table_len())
     }
 
     pub fn threads(&self) -> usize {

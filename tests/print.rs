@@ -82,7 +82,7 @@ fn sleeping_blocks_skip_work_and_barely_change_the_result() {
     let text_awake = common::tiny_print(2, 2, false, "256 MiB");
     let text_sleep = common::tiny_print(2, 2, true, "256 MiB");
     let dir = tempfile::tempdir().unwrap();
-    let opts = |d: &str| RunOptions { out: dir.path().join(d), threads: None, quiet: true };
+    let opts = |d: &str| RunOptions { out: dir.path().join(d), quiet: true, ..Default::default() };
     let a = run_scenario(&Scenario::parse(&text_awake).unwrap(), &opts("a")).unwrap();
     let b = run_scenario(&Scenario::parse(&text_sleep).unwrap(), &opts("b")).unwrap();
     let (sa, sb) = (&a.observations.last().unwrap().sections[0], &b.observations.last().unwrap().sections[0]);

@@ -83,17 +83,8 @@ fn invalid(msg: String) -> io::Error {
     io::Error::new(io::ErrorKind::InvalidInput, msg)
 }
 
-/// Writes a `.vtu` file holding `n = points.len() / 3` points (flat xyz), one
-/// vertex cell per point, and the given point fields.
-///
-/// Writes atomically: the file is written to a temporary file in the same
-/// directory, which is then renamed over `path`, so a reader (ParaView
-/// watching a series) never sees a partial file. The data is not fsync'ed.
-///
-/// Errors of kind `InvalidInput`: points not `F64`/`F32` or not a multiple of
-/// 3 long, a field with `components == 0`, or a field whose length is not
-/// `components * n` (the message names the field).
-pub fn write_vtu(path: &Path, points: VtuData<'_>, fields: &[VtuField<'_>]) -> io::Result<()> {
+/// The XML part of a VTU file, the bytes of its appended data, and whether indices are 64-bit.
+fn vtu_layout(points: &VtuData<'_>, fields: &[VtuField<'_>]) -> io::Result<(String, u64, bool)> {
     if let VtuData::U32(_) = points {
         return Err(invalid("vtu points must be F64 or F32, not U32".into()));
     }
@@ -182,7 +173,32 @@ pub fn write_vtu(path: &Path, points: VtuData<'_>, fields: &[VtuField<'_>]) -> i
     xml.push_str("    </Piece>\n");
     xml.push_str("  </UnstructuredGrid>\n");
     xml.push_str("  <AppendedData encoding=\"raw\">\n   _");
+    let appended = offset;
+    Ok((xml, appended, wide))
+}
 
+/// Size in bytes of the file [`write_vtu`] writes for these arguments (for disk budgets).
+pub fn vtu_size(points: &VtuData<'_>, fields: &[VtuField<'_>]) -> io::Result<u64> {
+    let (xml, appended, _) = vtu_layout(points, fields)?;
+    Ok(xml.len() as u64 + appended + VTU_TRAILER.len() as u64)
+}
+
+const VTU_TRAILER: &[u8] = b"\n  </AppendedData>\n</VTKFile>\n";
+
+/// Writes a `.vtu` file holding `n = points.len() / 3` points (flat xyz), one
+/// vertex cell per point, and the given point fields.
+///
+/// Writes atomically: the file is written to a temporary file in the same
+/// directory, which is then renamed over `path`, so a reader (ParaView
+/// watching a series) never sees a partial file. The data is not fsync'ed.
+///
+/// Errors of kind `InvalidInput`: points not `F64`/`F32` or not a multiple of
+/// 3 long, a field with `components == 0`, or a field whose length is not
+/// `components * n` (the message names the field).
+pub fn write_vtu(path: &Path, points: VtuData<'_>, fields: &[VtuField<'_>]) -> io::Result<()> {
+    let (xml, _, wide) = vtu_layout(&points, fields)?;
+    let n = points.len() / 3;
+    let n64 = n as u64;
     write_atomically(path, |w| {
         w.write_all(xml.as_bytes())?;
         for f in fields {
@@ -207,7 +223,7 @@ pub fn write_vtu(path: &Path, points: VtuData<'_>, fields: &[VtuField<'_>]) -> i
             w.write_all(&types[..k])?;
             left -= k;
         }
-        w.write_all(b"\n  </AppendedData>\n</VTKFile>\n")
+        w.write_all(VTU_TRAILER)
     })
 }
 
@@ -621,5 +637,18 @@ mod tests {
 
         let e = write_pvd(&path, &[(f64::NAN, "a.vtu".into())]).unwrap_err();
         assert_eq!(e.kind(), io::ErrorKind::InvalidInput);
+    }
+
+    #[test]
+    fn vtu_size_is_the_written_size() {
+        let d = tempfile::tempdir().unwrap();
+        let path = d.path().join("s.vtu");
+        for n in [0usize, 1, 37] {
+            let pts: Vec<f64> = (0..3 * n).map(|i| i as f64).collect();
+            let ids: Vec<u32> = (0..n as u32).collect();
+            let fields = [VtuField { name: "id", components: 1, data: VtuData::U32(&ids) }];
+            write_vtu(&path, VtuData::F64(&pts), &fields).unwrap();
+            assert_eq!(vtu_size(&VtuData::F64(&pts), &fields).unwrap(), fs::metadata(&path).unwrap().len());
+        }
     }
 }

@@ -58,6 +58,8 @@ pub const SLOW_CASES: &[(&str, Case)] = &[("print_mass_balance_full", |_, t| sup
 pub(super) fn sim_of(text: &str, threads: usize) -> Result<Simulation, String> {
     let mut sc = Scenario::parse(text).map_err(|e| e.to_string())?;
     sc.simulation.threads = threads;
+    // verification steps the solver directly and writes no checkpoints
+    sc.checkpoint.enabled = false;
     Simulation::new(&sc).map_err(|e| e.to_string())
 }
 
