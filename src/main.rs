@@ -124,9 +124,9 @@ fn main() -> ExitCode {
             }
             Ok(true)
         })(),
-        Cmd::Inspect { path, json } => strand::checkpoint::inspect(&path, json).map(|t| {
+        Cmd::Inspect { path, json } => strand::checkpoint::inspect(&path, json).map(|(t, valid)| {
             println!("{t}");
-            true
+            valid
         }),
         Cmd::Check { scenario } => (|| {
             let sc = Scenario::load(&scenario).map_err(|e| e.to_string())?;

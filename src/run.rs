@@ -217,6 +217,8 @@ pub struct RunSummary {
     pub observations: Vec<crate::report::Observation>,
     /// Wall seconds spent in each phase of the step (see `solver::PHASES`).
     pub phase_seconds: [f64; 6],
+    /// Awake particles summed over the steps of this run (see `Simulation`).
+    pub awake_particle_steps: u64,
     /// Hash of the final state (as `strand inspect` shows for a checkpoint of it).
     pub state_hash: u64,
     /// The checkpoint the run resumed from.
@@ -250,13 +252,8 @@ struct DiskGuard {
 
 impl Outputs<'_> {
     fn write(&mut self, sim: &Simulation) -> Result<(), RunError> {
-        let g = Globals { wall_s: self.start.elapsed().as_secs_f64(), cpu_s: process_cpu_seconds(), ..Globals::of(sim) };
-        writeln!(self.csv, "{}", g.csv_row()).map_err(io_err(&self.csv_path))?;
-        self.csv.flush().map_err(io_err(&self.csv_path))?;
-        if let Some(r) = &mut self.reporter {
-            r.observe(sim);
-            r.write(self.out).map_err(RunError::Report)?;
-        }
+        // the snapshot first: if the disk budget refuses it, nothing of this output is written,
+        // so a checkpoint taken then resumes into exactly this output again
         if self.vtu {
             let name = format!("particles_{:05}.vtu", self.k_out);
             let path = self.out.join(&name);
@@ -267,6 +264,13 @@ impl Outputs<'_> {
             self.pvd.push((sim.time, name));
             let pvd_path = self.out.join("particles.pvd");
             write_pvd(&pvd_path, &self.pvd).map_err(io_err(&pvd_path))?;
+        }
+        let g = Globals { wall_s: self.start.elapsed().as_secs_f64(), cpu_s: process_cpu_seconds(), ..Globals::of(sim) };
+        writeln!(self.csv, "{}", g.csv_row()).map_err(io_err(&self.csv_path))?;
+        self.csv.flush().map_err(io_err(&self.csv_path))?;
+        if let Some(r) = &mut self.reporter {
+            r.observe(sim);
+            r.write(self.out).map_err(RunError::Report)?;
         }
         Ok(())
     }
@@ -673,6 +677,7 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
         particles: sim.particles.n,
         observations: outputs.reporter.map(|r| r.history).unwrap_or_default(),
         phase_seconds: sim.phase_seconds,
+        awake_particle_steps: sim.awake_particle_steps,
         state_hash: state::current_state_hash(&sim),
         resumed_from,
         last_checkpoint: ckpts.and_then(|c| c.last_good.map(|g| g.0)),

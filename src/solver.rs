@@ -144,6 +144,9 @@ pub struct Simulation {
     pub printer: Option<Printer>,
     /// Sleeping blocks, when enabled.
     pub sleep: Option<Sleep>,
+    /// Awake particles summed over the steps taken: the work the step loops did, a cost
+    /// measure no other job on the machine can distort.
+    pub awake_particle_steps: u64,
 }
 
 fn checkpoint_staging_bytes(sc: &Scenario, cap: usize, state_len: usize, max_blocks: usize, table_len: usize) -> usize {
@@ -270,6 +273,7 @@ impl Simulation {
             phase_seconds: [0.0; 6],
             printer,
             sleep,
+            awake_particle_steps: 0,
         };
         if let Some(p) = &mut sim.printer {
             p.start(scenario.print.as_ref().map_or(64, |c| c.queue), 0);
@@ -370,6 +374,7 @@ impl Simulation {
                 moved = sl.update(&self.grid, &mut self.particles, self.last_dt, check, drive.map(|d| d.bounds()));
             }
         }
+        self.awake_particle_steps += (self.particles.n - self.particles.n_sleep) as u64;
         self.bin_particles()?;
         if moved || self.step.is_multiple_of(self.scenario.simulation.reorder_interval) {
             self.reorder_particles();

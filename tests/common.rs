@@ -81,3 +81,36 @@ budget = "{budget}"
         sleep = if sleep { "[sleep]\nrest_time = 0.02\ncheck_interval = 16" } else { "" }
     )
 }
+
+/// Resident memory a strand process may hold beyond its declared budget: the binary and its
+/// libraries, thread stacks, the allocator's arenas and the output stage's buffers (measured:
+/// a tiny print peaks at about 10 MiB in all, pools included).
+pub const RSS_SLACK: u64 = 8 << 20;
+
+/// Run `strand run SCENARIO --out OUT --quiet --json ARGS` in a child process, so that its
+/// VmHWM is the run's own, and assert it succeeded with a peak RSS within the scenario's
+/// `[memory] budget` plus [`RSS_SLACK`]. Returns the JSON summary. The fixture every long test
+/// uses to prove bounded memory.
+pub fn run_within_budget(scenario: &std::path::Path, out: &std::path::Path, args: &[&str]) -> serde_json::Value {
+    let sc = strand::scenario::Scenario::load(scenario).unwrap();
+    let budget = strand::memory::parse_size(&sc.memory.budget).unwrap();
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_strand"))
+        .args(["run", scenario.to_str().unwrap(), "--out", out.to_str().unwrap(), "--quiet", "--json"])
+        .args(args)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    let summary: serde_json::Value = serde_json::from_str(&stdout).unwrap_or_else(|e| panic!("{e}: {stdout}"));
+    let peak = summary["peak_rss_bytes"].as_u64().unwrap_or_else(|| panic!("no peak in {stdout}"));
+    assert!(peak > 1 << 20, "implausible peak {peak}");
+    assert!(
+        peak <= budget + RSS_SLACK,
+        "peak RSS {:.1} MiB above the budget {:.1} MiB + {} MiB",
+        peak as f64 / 1048576.0,
+        budget as f64 / 1048576.0,
+        RSS_SLACK >> 20
+    );
+    summary
+}

@@ -147,8 +147,8 @@ pub fn scenario_differences(then: &str, now: &str) -> Result<Vec<String>, String
 }
 
 /// `strand inspect`: the header and a summary of a checkpoint (a file, or a run's folder for
-/// every checkpoint in it), as text or JSON.
-pub fn inspect(path: &Path, json: bool) -> Result<String, String> {
+/// every checkpoint in it), as text or JSON, and whether every one read back intact.
+pub fn inspect(path: &Path, json: bool) -> Result<(String, bool), String> {
     let files: Vec<PathBuf> = if path.is_dir() {
         let d = if path.join("checkpoints").is_dir() { dir_of(path) } else { path.to_path_buf() };
         let v: Vec<PathBuf> = writer::list(&d).into_iter().map(|(_, p)| p).collect();
@@ -169,11 +169,12 @@ pub fn inspect(path: &Path, json: bool) -> Result<String, String> {
         texts.push(summary);
         values.push(value);
     }
+    let valid = values.iter().all(|v| v["valid"] == true);
     if json {
         let v = if values.len() == 1 { values.remove(0) } else { serde_json::Value::Array(values) };
-        return Ok(format!("{v:#}"));
+        return Ok((format!("{v:#}"), valid));
     }
-    Ok(texts.join("\n\n"))
+    Ok((texts.join("\n\n"), valid))
 }
 
 fn summarise(ck: &Checkpoint) -> (String, serde_json::Value) {
