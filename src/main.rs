@@ -36,6 +36,9 @@ enum Cmd {
         /// With --resume: continue even though the scenario changed since the checkpoint.
         #[arg(long, requires = "resume")]
         force: bool,
+        /// Start afresh even though OUT holds checkpoints of an unfinished run (deletes them).
+        #[arg(long, conflicts_with = "resume")]
+        overwrite: bool,
     },
     /// Show a checkpoint's header and summary (a file, or a run's output folder for all of its
     /// checkpoints), verifying every checksum.
@@ -85,7 +88,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let mut exit_code = 2u8;
     let result: Result<bool, String> = match cli.cmd {
-        Cmd::Run { scenario, out, threads, quiet, json, resume, force } => (|| {
+        Cmd::Run { scenario, out, threads, quiet, json, resume, force, overwrite } => (|| {
             let sc = match &scenario {
                 Some(p) => Scenario::load(p).map_err(|e| e.to_string())?,
                 None => Scenario::parse(DEFAULT_SCENARIO).map_err(|e| e.to_string())?,
@@ -98,7 +101,7 @@ fn main() -> ExitCode {
             if let Some(t) = threads {
                 command += &format!(" --threads {t}");
             }
-            let opts = RunOptions { out, threads, quiet, resume, force, command };
+            let opts = RunOptions { out, threads, quiet, resume, force, overwrite, command };
             let r = match run_scenario(&sc, &opts) {
                 Ok(r) => r,
                 Err(e) => {

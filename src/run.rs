@@ -2,7 +2,7 @@
 //! quantities, observables and restart checkpoints, with progress; `--resume` continues from the
 //! newest good checkpoint, and Ctrl-C (SIGINT) or SIGTERM stops the run with a fresh one.
 
-use crate::checkpoint::{self, state, writer::CheckpointWriter, writer::Event};
+use crate::checkpoint::{self, state, writer::CheckpointWriter, writer::Event, Checkpoint};
 use crate::disk::{self, DiskFullPolicy};
 use crate::memory::{fmt_bytes, parse_size, Backing, Pool};
 use crate::output::vtu::{vtu_size, write_pvd, write_vtu, VtuData, VtuField};
@@ -24,7 +24,8 @@ pub enum RunError {
     Io { path: PathBuf, source: std::io::Error },
     #[error("{0}")]
     Report(String),
-    #[error("cannot resume: {0}")]
+    /// Resuming (or refusing to start over) failed.
+    #[error("{0}")]
     Resume(String),
     #[error("checkpoint: {0}")]
     Checkpoint(String),
@@ -38,9 +39,11 @@ pub enum RunError {
 }
 
 impl RunError {
-    /// Process exit status: 130 after a signal (the shell convention for Ctrl-C), else 2.
+    /// Process exit status: 128 + the signal's number after SIGINT (130) or SIGTERM (143), the
+    /// shell convention, else 2.
     pub fn exit_code(&self) -> u8 {
         match self {
+            RunError::Interrupted { signal: "SIGTERM", .. } => 143,
             RunError::Interrupted { .. } => 130,
             _ => 2,
         }
@@ -204,6 +207,8 @@ pub struct RunOptions {
     pub resume: bool,
     /// Resume even though the scenario changed since the checkpoint.
     pub force: bool,
+    /// Start afresh even though `out` holds checkpoints of an unfinished run (they are deleted).
+    pub overwrite: bool,
     /// The command that started the run (without `--resume`), for the resume hint.
     pub command: String,
 }
@@ -443,16 +448,17 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
     let resume_cmd = format!("{} --resume", opts.command);
     let ckpt_dir = checkpoint::dir_of(&opts.out);
     let resume_from = if opts.resume {
-        let (ck, notes) = checkpoint::newest_valid(&ckpt_dir).map_err(RunError::Resume)?;
+        let (ck, notes) = checkpoint::newest_valid(&ckpt_dir).map_err(|e| RunError::Resume(format!("cannot resume: {e}")))?;
         for n in notes {
             eprintln!("warning: {n}");
         }
-        let diffs = checkpoint::scenario_differences(&ck.header.scenario_text, &sc.source).map_err(RunError::Resume)?;
+        let diffs = checkpoint::scenario_differences(&ck.header.scenario_text, &sc.source)
+            .map_err(|e| RunError::Resume(format!("cannot resume: {e}")))?;
         if !diffs.is_empty() {
             let list = diffs.iter().map(|d| format!("\n    {d}")).collect::<String>();
             if !opts.force {
                 return Err(RunError::Resume(format!(
-                    "the scenario changed since {} was written:{list}\n  \
+                    "cannot resume: the scenario changed since {} was written:{list}\n  \
                      run with --force to resume anyway, or start afresh in another --out folder",
                     ck.path.display()
                 )));
@@ -461,6 +467,7 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
         }
         Some(ck)
     } else {
+        clear_old_checkpoints(&ckpt_dir, opts)?;
         None
     };
 
@@ -470,14 +477,14 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
     if let Some(ck) = &resume_from {
         if ck.header.toolpath_hash != state::toolpath_hash(&sim) && !opts.force {
             return Err(RunError::Resume(format!(
-                "the print's toolpath (its G-code file?) changed since {} was written; run with --force to resume anyway",
+                "cannot resume: the print's toolpath (its G-code file?) changed since {} was written; run with --force to resume anyway",
                 ck.path.display()
             )));
         }
-        state::restore(&mut sim, ck).map_err(|e| RunError::Resume(format!("{}: {e}", ck.path.display())))?;
+        state::restore(&mut sim, ck).map_err(|e| RunError::Resume(format!("cannot resume from {}: {e}", ck.path.display())))?;
         k_out = ck.header.outputs;
         progress = serde_json::from_str(&ck.header.progress_json)
-            .map_err(|e| RunError::Resume(format!("{}: run progress does not decode: {e}", ck.path.display())))?;
+            .map_err(|e| RunError::Resume(format!("cannot resume from {}: run progress does not decode: {e}", ck.path.display())))?;
         say(format!(
             "resuming from {} (step {}, t = {:.6} s, {} particles)",
             ck.path.display(),
@@ -682,6 +689,33 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
         resumed_from,
         last_checkpoint: ckpts.and_then(|c| c.last_good.map(|g| g.0)),
     })
+}
+
+/// A fresh run replaces the folder's outputs, checkpoints included, but never silently the
+/// checkpoints of a run that has not reached its end: that could be days of work.
+fn clear_old_checkpoints(dir: &Path, opts: &RunOptions) -> Result<(), RunError> {
+    let old = checkpoint::writer::list(dir);
+    if !opts.overwrite {
+        let newest = old.iter().rev().find_map(|(_, p)| Checkpoint::open(p).ok());
+        if let Some(ck) = newest {
+            let end = Scenario::parse(&ck.header.scenario_text).map_or(f64::INFINITY, |s| s.simulation.end_time);
+            if ck.header.time < end * (1.0 - 1e-12) {
+                return Err(RunError::Resume(format!(
+                    "{} holds an unfinished run (step {}, t = {:.6} s of {end} s); continue it with --resume, \
+                     start over with --overwrite (deletes its checkpoints), or choose another --out",
+                    dir.display(),
+                    ck.header.step,
+                    ck.header.time
+                )));
+            }
+        }
+    }
+    if let Ok(rd) = std::fs::read_dir(dir) {
+        for e in rd.flatten() {
+            let _ = std::fs::remove_file(e.path());
+        }
+    }
+    Ok(())
 }
 
 /// Keep the header and the first `rows` data rows of a CSV file (the outputs a checkpoint

@@ -165,7 +165,7 @@ fn sigkill_at_random_steps_and_resume_ends_bit_identical() {
 }
 
 #[test]
-fn three_layers_stopped_twice_by_sigint_equal_the_run_in_one_go() {
+fn three_layers_stopped_by_sigint_then_sigterm_equal_the_run_in_one_go() {
     let r = reference(3);
     let dir = tempfile::tempdir().unwrap();
     let sc = write_scenario(dir.path(), "s.toml", &scenario(3));
@@ -177,11 +177,12 @@ fn three_layers_stopped_twice_by_sigint_equal_the_run_in_one_go() {
         assert!(!wait_for_progress(&mut child, &out, before), "the run ended before stop {}", stop + 1);
         std::thread::sleep(Duration::from_millis(200 + rng.below(800)));
         let pid = child.id().to_string();
-        assert!(Command::new("kill").args(["-INT", &pid]).status().unwrap().success());
+        let (signal, code) = if stop == 0 { ("INT", 130) } else { ("TERM", 143) };
+        assert!(Command::new("kill").args([&format!("-{signal}"), &pid]).status().unwrap().success());
         let o = child.wait_with_output().unwrap();
         let err = String::from_utf8_lossy(&o.stderr);
-        assert_eq!(o.status.code(), Some(130), "{err}");
-        assert!(err.contains("stopped by SIGINT") && err.contains("--resume"), "{err}");
+        assert_eq!(o.status.code(), Some(code), "{err}");
+        assert!(err.contains(&format!("stopped by SIG{signal}")) && err.contains("--resume"), "{err}");
         // the checkpoint written on the signal is the newest and reads back intact
         let st = Command::new(BIN).args(["inspect", out.join("checkpoints").to_str().unwrap()]).output().unwrap();
         assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stdout));
@@ -379,4 +380,26 @@ fn a_resumed_run_stays_within_its_memory_budget() {
     std::fs::remove_file(out.join("checkpoints").join(format!("step_{:012}.ckpt", steps[2]))).unwrap();
     let v = common::run_within_budget(&sc, &out, &["--resume"]);
     assert_eq!(v["state_hash"].as_str().unwrap(), reference(2).hash);
+}
+
+#[test]
+fn a_fresh_run_does_not_silently_replace_an_unfinished_one() {
+    let r = reference(2);
+    let dir = tempfile::tempdir().unwrap();
+    let sc = write_scenario(dir.path(), "s.toml", &scenario(2));
+    let out = dir.path().join("out");
+    copy_dir(&r.out, &out);
+    // a finished run's folder is simply replaced: drop nothing, run again
+    let o = run(&sc, &out, &[], &[]);
+    assert_eq!(hash_of(&o), r.hash);
+    // an unfinished one (its end checkpoint gone) is refused, naming the ways on
+    let steps = checkpoint_steps(&out);
+    std::fs::remove_file(out.join("checkpoints").join(format!("step_{:012}.ckpt", steps[2]))).unwrap();
+    let o = run(&sc, &out, &[], &[]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("unfinished run") && err.contains("--resume") && err.contains("--overwrite"), "{err}");
+    assert_eq!(checkpoint_steps(&out).len(), 2, "the refused run must not touch the checkpoints");
+    let o = run(&sc, &out, &["--overwrite"], &[]);
+    assert_eq!(hash_of(&o), r.hash);
 }

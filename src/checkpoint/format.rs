@@ -39,6 +39,8 @@ pub struct Header {
     /// "f64" or "f32": the width of every real in the sections.
     pub precision: String,
     pub scenario_name: String,
+    /// xxh3 of `scenario_text`: equal hashes, same scenario.
+    pub scenario_hash: u64,
     /// The scenario's TOML text, to name what changed on a resume.
     pub scenario_text: String,
     /// xxh3 of the resolved toolpath (a G-code file's contents are not in the text).
@@ -265,6 +267,7 @@ mod tests {
             strand_version: "test".into(),
             precision: "f64".into(),
             scenario_name: "s".into(),
+            scenario_hash: 1,
             scenario_text: "name = 's'".into(),
             toolpath_hash: 0,
             step: 7,

@@ -183,7 +183,7 @@ fn summarise(ck: &Checkpoint) -> (String, serde_json::Value) {
     let memory: Vec<(String, u64)> = h.sections.iter().map(|s| (s.name.clone(), s.bytes)).collect();
     let fmt = crate::memory::fmt_bytes;
     let mut t = format!(
-        "{}: valid (format {}, strand {}, {})\n  scenario '{}'\n  step {}  t = {:.6} s  next dt bound {:?} (last dt {:.3e} s, vmax {:.3e} m/s)\n  \
+        "{}: valid (format {}, strand {}, {})\n  scenario '{}' (hash {:016x})\n  step {}  t = {:.6} s  next dt bound {:?} (last dt {:.3e} s, vmax {:.3e} m/s)\n  \
          particles {} of {} ({} asleep), {} state values each\n  bounding box [{:.4}, {:.4}, {:.4}] - [{:.4}, {:.4}, {:.4}] m\n  \
          print slabs emitted {}   outputs written {}\n  state hash {:016x}\n  file {}\n  sections:",
         ck.path.display(),
@@ -191,6 +191,7 @@ fn summarise(ck: &Checkpoint) -> (String, serde_json::Value) {
         h.strand_version,
         h.precision,
         h.scenario_name,
+        h.scenario_hash,
         h.step,
         h.time,
         h.last_limit,
@@ -221,6 +222,7 @@ fn summarise(ck: &Checkpoint) -> (String, serde_json::Value) {
         "strand_version": h.strand_version,
         "precision": h.precision,
         "scenario": h.scenario_name,
+        "scenario_hash": format!("{:016x}", h.scenario_hash),
         "step": h.step,
         "time": h.time,
         "particles": h.particles,

@@ -71,6 +71,7 @@ pub fn header(sim: &Simulation, outputs: u64, progress: &Progress, sections: Vec
         strand_version: env!("CARGO_PKG_VERSION").to_string(),
         precision: crate::kernels::real::NAME.to_string(),
         scenario_name: sim.scenario.name.clone(),
+        scenario_hash: checksum(sim.scenario.source.as_bytes()),
         scenario_text: sim.scenario.source.clone(),
         toolpath_hash: toolpath_hash(sim),
         step: sim.step,
