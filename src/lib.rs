@@ -14,6 +14,7 @@ pub use strand_kernels::{Real, M3, V3};
 pub mod bench;
 pub mod checkpoint;
 pub mod disk;
+pub mod grad;
 pub mod grid;
 pub mod materials;
 pub mod memory;

@@ -6,6 +6,7 @@ pub mod real;
 pub mod bspline;
 pub mod material;
 pub mod transfer;
+pub mod transfer_adjoint;
 pub mod boundary;
 
 pub use real::{Real, M3, V3};

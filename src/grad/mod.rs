@@ -1,0 +1,3 @@
+//! Reverse-mode gradients.
+
+pub mod schedule;
