@@ -339,6 +339,12 @@ impl Checkpoints {
         Ok(())
     }
 
+    /// Write a checkpoint of the current state and wait until it (and any before it) is on disk.
+    fn write_now(&mut self, sim: &Simulation, out: &Outputs) -> Result<(), RunError> {
+        self.submit(sim, out)?;
+        self.drain()
+    }
+
     fn handle(&mut self, ev: Event) -> Result<(), RunError> {
         match ev {
             Event::Written { path, step, .. } => {
@@ -614,7 +620,7 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
                 }
                 let saved = match &mut ckpts {
                     Some(ck) => {
-                        let r = ck.submit(&sim, &outputs).and_then(|_| ck.drain());
+                        let r = ck.write_now(&sim, &outputs);
                         if let Err(e) = r {
                             return Err(stopped(e, &ckpts));
                         }
@@ -647,7 +653,7 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
             // a snapshot over the disk budget: stop with a fresh checkpoint (room was kept for it)
             if let (RunError::DiskBudget(_), Some(ck)) = (&e, &mut ckpts) {
                 outputs.k_out -= 1;
-                let _ = ck.submit(&sim, &outputs).and_then(|_| ck.drain());
+                let _ = ck.write_now(&sim, &outputs);
             }
             return Err(stopped(e, &ckpts));
         }
@@ -657,7 +663,7 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
     }
     if let Some(ck) = &mut ckpts {
         let r = if sc.checkpoint.at_end && (ck.last_step != sim.step || ck.last_good.is_none()) {
-            ck.submit(&sim, &outputs).and_then(|_| ck.drain())
+            ck.write_now(&sim, &outputs)
         } else {
             ck.drain()
         };
