@@ -11,3 +11,5 @@ pub mod boundary;
 
 pub use real::{Real, M3, V3};
 pub mod nozzle;
+#[cfg(all(test, not(feature = "f32")))]
+pub(crate) mod adjoint_check;

@@ -75,6 +75,14 @@ impl Material for Bingham {
         d_dev * (r(2.0) * mu_a) - M3::from_diagonal(V3::splat(p))
     }
 
+    fn param_names(&self) -> &'static [&'static str] {
+        &[]
+    }
+
+    fn update_adjoint(&self, _: &M3, _: Real, _: Real, _: &[Real], _: &M3, _: &[Real], _: &mut crate::material::UpdateAdjoint) {
+        todo!("adjoint of {}", self.name())
+    }
+
     fn stability(&self) -> StabilityInfo {
         StabilityInfo {
             density: r(self.density),

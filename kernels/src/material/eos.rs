@@ -37,6 +37,20 @@ impl Eos {
         }
     }
 
+    /// Adjoint of [`Eos::pressure`]: the adjoints `(k_bar, j_bar)` of its inputs for the adjoint
+    /// `p_bar` of the pressure.
+    #[inline]
+    pub fn pressure_adjoint(&self, k: Real, j: Real, p_bar: Real) -> (Real, Real) {
+        match *self {
+            Eos::Linear => (p_bar * (r(1.0) / j - r(1.0)), -p_bar * k / (j * j)),
+            Eos::Tait { gamma } => {
+                let g = r(gamma);
+                let e = (-g * (j - r(1.0))).exp();
+                (p_bar * (e - r(1.0)) / g, -p_bar * k * e)
+            }
+        }
+    }
+
     /// Tangent bulk modulus -dp/d(eps_v) at `j`, for stability estimates.
     #[inline]
     pub fn tangent_bulk(&self, k: Real, j: Real) -> Real {

@@ -183,6 +183,14 @@ impl Material for EvpBingham {
         s - M3::from_diagonal(V3::splat(self.eos.pressure(r(self.bulk_modulus), j)))
     }
 
+    fn param_names(&self) -> &'static [&'static str] {
+        &[]
+    }
+
+    fn update_adjoint(&self, _: &M3, _: Real, _: Real, _: &[Real], _: &M3, _: &[Real], _: &mut crate::material::UpdateAdjoint) {
+        todo!("adjoint of {}", self.name())
+    }
+
     fn stability(&self) -> StabilityInfo {
         StabilityInfo {
             density: r(self.density),

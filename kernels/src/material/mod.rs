@@ -21,6 +21,8 @@ pub use eos::Eos;
 /// Kinematics and invariants shared by the materials' tests.
 #[cfg(test)]
 pub(crate) mod test_util {
+    #[cfg(not(feature = "f32"))]
+    pub use crate::adjoint_check::check_update_adjoint;
     use crate::real::{ddot, dev, Real, M3, V3};
 
     /// L with the single entry dv_x/dy = g (glam is column-major: column 1 holds d v / d y).
@@ -76,6 +78,18 @@ pub struct StabilityInfo {
     pub max_viscosity: Real,
 }
 
+/// Where [`Material::update_adjoint`] accumulates (`+=`) the adjoints of what `update` read.
+pub struct UpdateAdjoint<'a> {
+    /// Adjoint of the velocity gradient L.
+    pub grad_v_bar: &'a mut M3,
+    /// Adjoint of the volume ratio J.
+    pub j_bar: &'a mut Real,
+    /// Adjoint of the internal state *before* the update (`state_names().len()` reals).
+    pub state_bar: &'a mut [Real],
+    /// Adjoints of the parameters named by [`Material::param_names`], in that order.
+    pub params_bar: &'a mut [Real],
+}
+
 /// One constitutive model.
 pub trait Material: Send + Sync + std::fmt::Debug {
     /// Registry name, as written in scenario files.
@@ -97,6 +111,30 @@ pub trait Material: Send + Sync + std::fmt::Debug {
 
     /// Data for the automatic time step.
     fn stability(&self) -> StabilityInfo;
+
+    /// The parameters gradients are taken with respect to, named by their scenario key under
+    /// `[material]` (e.g. `"yield_stress"`), in the order [`Material::update_adjoint`] fills
+    /// `params_bar`. The density is not listed: `update` does not read it (it enters through the
+    /// particle masses, which the gradient driver differentiates).
+    fn param_names(&self) -> &'static [&'static str];
+
+    /// Vector-Jacobian product of [`Material::update`]: given the inputs the forward read
+    /// (`state_in` is the internal state *before* the update; it is not modified) and the adjoints
+    /// of its outputs (`stress_bar` of the returned stress, `state_out_bar` of the updated state),
+    /// accumulate the adjoints of `grad_v`, `j`, the state before the update and the parameters
+    /// into `out`. `dt` is held fixed (not differentiated). At a kink of a `max`/`min` or a
+    /// yield-surface branch the adjoint is the derivative of the branch the forward took.
+    #[allow(clippy::too_many_arguments)]
+    fn update_adjoint(
+        &self,
+        grad_v: &M3,
+        j: Real,
+        dt: Real,
+        state_in: &[Real],
+        stress_bar: &M3,
+        state_out_bar: &[Real],
+        out: &mut UpdateAdjoint,
+    );
 
     /// Reference density rho0 [kg/m3].
     fn density(&self) -> Real {

@@ -55,6 +55,14 @@ impl Material for Newtonian {
         d_dev * (r(2.0) * r(self.viscosity)) - M3::from_diagonal(V3::splat(p))
     }
 
+    fn param_names(&self) -> &'static [&'static str] {
+        &[]
+    }
+
+    fn update_adjoint(&self, _: &M3, _: Real, _: Real, _: &[Real], _: &M3, _: &[Real], _: &mut crate::material::UpdateAdjoint) {
+        todo!("adjoint of {}", self.name())
+    }
+
     fn stability(&self) -> StabilityInfo {
         StabilityInfo {
             density: r(self.density),

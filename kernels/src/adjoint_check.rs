@@ -1,0 +1,190 @@
+//! Test harness shared by the kernels' adjoints: a vector-Jacobian product checked against
+//! fourth-order central differences, input group by input group, and the Taylor remainder test.
+//!
+//! Only compiled for tests, and only meaningful in f64 (central differences in f32 resolve
+//! about three digits).
+
+use crate::material::{Material, UpdateAdjoint};
+use crate::real::{Real, M3};
+
+/// A tiny deterministic generator (xorshift*), so failures reproduce from the seed.
+pub struct Rng(pub u64);
+
+impl Rng {
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
+    }
+    /// Uniform in [lo, hi).
+    pub fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+    pub fn vec(&mut self, n: usize, lo: f64, hi: f64) -> Vec<f64> {
+        (0..n).map(|_| self.uniform(lo, hi)).collect()
+    }
+}
+
+/// A differentiable map from a flat input vector to a flat output vector, with its VJP, and the
+/// named input groups (ranges) the check perturbs one at a time.
+pub trait Flat {
+    fn forward(&self, x: &[f64]) -> Vec<f64>;
+    /// Adjoint of the inputs for the output cotangent `cot`.
+    fn adjoint(&self, x: &[f64], cot: &[f64]) -> Vec<f64>;
+    fn groups(&self) -> Vec<(String, std::ops::Range<usize>)>;
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+fn axpy(x: &[f64], h: f64, d: &[f64]) -> Vec<f64> {
+    x.iter().zip(d).map(|(a, b)| a + h * b).collect()
+}
+
+/// Relative mismatch, per input group, between the adjoint and fourth-order central differences
+/// of `<cot, f(x + h d)>` along a random direction `d` in that group, scaled by `scale[i]` per
+/// input (so a bulk modulus of 1e6 and a strain rate of 1 are both perturbed by a relative `h`).
+pub fn group_errors(k: &impl Flat, x: &[f64], scale: &[f64], rng: &mut Rng) -> Vec<(String, f64)> {
+    let cot = rng.vec(k.forward(x).len(), -1.0, 1.0);
+    let grad = k.adjoint(x, &cot);
+    const H: f64 = 1e-4;
+    k.groups()
+        .into_iter()
+        .map(|(name, range)| {
+            let mut d = vec![0.0; x.len()];
+            for i in range {
+                d[i] = rng.uniform(-1.0, 1.0) * scale[i];
+            }
+            let at = |h: f64| k.forward(&axpy(x, h, &d));
+            let (p1, m1, p2, m2) = (at(H), at(-H), at(2.0 * H), at(-2.0 * H));
+            let fd = (0..cot.len()).map(|i| cot[i] * (8.0 * (p1[i] - m1[i]) - (p2[i] - m2[i]))).sum::<f64>() / (12.0 * H);
+            let ad = dot(&grad, &d);
+            let err = if fd == ad { 0.0 } else { (fd - ad).abs() / fd.abs().max(ad.abs()) };
+            (name, err)
+        })
+        .collect()
+}
+
+/// Log-log slope of the Taylor remainder `|f(x + h d) - f(x) - h <grad f, d>|` over
+/// h = 1e-2 .. 1e-4 along a random direction (scaled per input): 2 when the adjoint is right.
+pub fn taylor_slope(k: &impl Flat, x: &[f64], scale: &[f64], rng: &mut Rng) -> f64 {
+    let cot = rng.vec(k.forward(x).len(), -1.0, 1.0);
+    let grad = k.adjoint(x, &cot);
+    let d: Vec<f64> = scale.iter().map(|s| rng.uniform(-1.0, 1.0) * s).collect();
+    let loss = |x: &[f64]| dot(&cot, &k.forward(x));
+    let (f0, slope) = (loss(x), dot(&grad, &d));
+    let pts: Vec<(f64, f64)> = (0..=8)
+        .map(|i| {
+            let h = 10f64.powf(-2.0 - 0.25 * i as f64);
+            ((h).ln(), (loss(&axpy(x, h, &d)) - f0 - h * slope).abs().ln())
+        })
+        .collect();
+    let n = pts.len() as f64;
+    let (mx, my) = (pts.iter().map(|p| p.0).sum::<f64>() / n, pts.iter().map(|p| p.1).sum::<f64>() / n);
+    let sxy: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+    let sxx: f64 = pts.iter().map(|p| (p.0 - mx) * (p.0 - mx)).sum();
+    sxy / sxx
+}
+
+fn m3(x: &[f64]) -> M3 {
+    M3::from_cols_array(&std::array::from_fn(|i| x[i] as Real))
+}
+
+/// A material's `update` as a [`Flat`] map: inputs `[L (9, column-major), J, state_in, params]`,
+/// outputs `[stress (9), state_out]`. `make` builds the material from parameter values in the
+/// order of `param_names`.
+struct MaterialUpdate<'a, M: Material, F: Fn(&[f64]) -> M> {
+    make: &'a F,
+    n_state: usize,
+    n_params: usize,
+    dt: f64,
+}
+
+impl<M: Material, F: Fn(&[f64]) -> M> Flat for MaterialUpdate<'_, M, F> {
+    fn forward(&self, x: &[f64]) -> Vec<f64> {
+        let mat = (self.make)(&x[10 + self.n_state..]);
+        let mut state: Vec<Real> = x[10..10 + self.n_state].iter().map(|&v| v as Real).collect();
+        let s = mat.update(&m3(x), x[9] as Real, self.dt as Real, &mut state);
+        let mut out: Vec<f64> = s.to_cols_array().iter().map(|&v| v as f64).collect();
+        out.extend(state.iter().map(|&v| v as f64));
+        out
+    }
+    fn adjoint(&self, x: &[f64], cot: &[f64]) -> Vec<f64> {
+        let mat = (self.make)(&x[10 + self.n_state..]);
+        let state: Vec<Real> = x[10..10 + self.n_state].iter().map(|&v| v as Real).collect();
+        let state_out_bar: Vec<Real> = cot[9..].iter().map(|&v| v as Real).collect();
+        let (mut gv, mut jb) = (M3::ZERO, 0.0 as Real);
+        let mut sb = vec![0.0 as Real; self.n_state];
+        let mut pb = vec![0.0 as Real; self.n_params];
+        let mut out = UpdateAdjoint { grad_v_bar: &mut gv, j_bar: &mut jb, state_bar: &mut sb, params_bar: &mut pb };
+        mat.update_adjoint(&m3(x), x[9] as Real, self.dt as Real, &state, &m3(cot), &state_out_bar, &mut out);
+        let mut g: Vec<f64> = gv.to_cols_array().iter().map(|&v| v as f64).collect();
+        g.push(jb as f64);
+        g.extend(sb.iter().map(|&v| v as f64));
+        g.extend(pb.iter().map(|&v| v as f64));
+        g
+    }
+    fn groups(&self) -> Vec<(String, std::ops::Range<usize>)> {
+        let mut g = vec![("grad_v".to_string(), 0..9), ("J".to_string(), 9..10)];
+        if self.n_state > 0 {
+            g.push(("state".to_string(), 10..10 + self.n_state));
+        }
+        let names = (self.make)(&vec![1.0; self.n_params]).param_names();
+        for (k, name) in names.iter().enumerate() {
+            let i = 10 + self.n_state + k;
+            g.push((name.to_string(), i..i + 1));
+        }
+        g
+    }
+}
+
+/// Check a material's `update_adjoint` at one point against fourth-order central differences,
+/// per input group (L, J, the state before the update, each parameter), and the Taylor remainder
+/// slope over all inputs at once. Panics with the per-group errors when any exceeds `tol` or the
+/// slope is off 2 by more than 0.1; returns the worst error.
+///
+/// * `make` builds the material from parameter values, in the order of `param_names()`;
+/// * `state_scale`, `param_scale` are the perturbation sizes per state entry and parameter
+///   (roughly the magnitude of each, so a relative step is taken); L is perturbed by
+///   `l_scale`, J by 1e-2.
+#[allow(clippy::too_many_arguments)]
+pub fn check_update_adjoint<M: Material, F: Fn(&[f64]) -> M>(
+    label: &str,
+    make: F,
+    params: &[f64],
+    grad_v: M3,
+    j: f64,
+    dt: f64,
+    state_in: &[f64],
+    l_scale: f64,
+    state_scale: &[f64],
+    param_scale: &[f64],
+    tol: f64,
+    seed: u64,
+) -> f64 {
+    let n_state = state_in.len();
+    assert_eq!(state_scale.len(), n_state, "{label}: one scale per state entry");
+    assert_eq!(param_scale.len(), params.len(), "{label}: one scale per parameter");
+    assert_eq!(make(params).param_names().len(), params.len(), "{label}: one value per param_names() entry");
+    let k = MaterialUpdate { make: &make, n_state, n_params: params.len(), dt };
+    let mut x: Vec<f64> = grad_v.to_cols_array().iter().map(|&v| v as f64).collect();
+    x.push(j);
+    x.extend_from_slice(state_in);
+    x.extend_from_slice(params);
+    let mut scale = vec![l_scale; 9];
+    scale.push(1e-2);
+    scale.extend_from_slice(state_scale);
+    scale.extend_from_slice(param_scale);
+    let mut rng = Rng(seed);
+    let errs = group_errors(&k, &x, &scale, &mut rng);
+    let worst = errs.iter().map(|e| e.1).fold(0.0, f64::max);
+    let report: Vec<String> = errs.iter().map(|(n, e)| format!("{n} {e:.1e}")).collect();
+    println!("{label}: max relative error per input group: {}", report.join(", "));
+    assert!(worst <= tol, "{label}: adjoint against central differences: {}", report.join(", "));
+    let slope = taylor_slope(&k, &x, &scale, &mut rng);
+    println!("{label}: Taylor remainder slope {slope:.3}");
+    assert!((slope - 2.0).abs() <= 0.1, "{label}: Taylor remainder slope {slope:.3}, expected 2");
+    worst
+}
