@@ -65,6 +65,34 @@ enum Cmd {
         #[arg(long)]
         threads: Option<usize>,
     },
+    /// Gradient of an objective of the final state with respect to scenario parameters, by the
+    /// adjoint method under a checkpoint schedule within the RAM and disk caps.
+    Grad {
+        scenario: PathBuf,
+        /// What to differentiate: spread, width@X, height@X, vx_max, kinetic_energy, mean_z.
+        #[arg(long)]
+        objective: String,
+        /// Parameters, comma-separated scenario keys (material.yield_stress,
+        /// simulation.body_force.x, body.0.velocity.z, boundary.z_min.friction.mu, ...).
+        #[arg(long, value_delimiter = ',', required = true)]
+        wrt: Vec<String>,
+        /// Also central differences at several steps and the Taylor remainder test.
+        #[arg(long)]
+        check: bool,
+        #[arg(long)]
+        json: bool,
+        /// Memory for the backward pass: adjoint arrays plus RAM checkpoints.
+        #[arg(long, default_value = "1 GiB")]
+        ram: String,
+        /// Disk for checkpoints beyond the RAM cap.
+        #[arg(long, default_value = "0")]
+        disk: String,
+        /// Folder of the disk checkpoints (deleted files when done).
+        #[arg(long, default_value = "grad_checkpoints")]
+        disk_dir: PathBuf,
+        #[arg(long)]
+        threads: Option<usize>,
+    },
     /// Throughput of the peer benchmark scene (3D J-fluid dam break).
     Bench {
         #[arg(long, default_value_t = 262_144)]
@@ -148,6 +176,26 @@ fn main() -> ExitCode {
             Ok(true)
         }
         Cmd::Verify { quick, json, case, threads, .. } => strand::verify::run_suite(quick, json, case.as_deref(), threads),
+        Cmd::Grad { scenario, objective, wrt, check, json, ram, disk, disk_dir, threads } => (|| {
+            let sc = Scenario::load(&scenario).map_err(|e| e.to_string())?;
+            let obj: strand::grad::Objective = objective.parse()?;
+            let size = |s: &str, what: &str| strand::memory::parse_size(s).map_err(|e| format!("--{what}: {e}"));
+            let opts = strand::grad::GradOptions {
+                ram_bytes: size(&ram, "ram")?,
+                disk_bytes: size(&disk, "disk")?,
+                disk_dir,
+                threads,
+                schedule: None,
+            };
+            let r = strand::grad::gradient(&sc, &obj, &wrt, &opts)?;
+            let chk = if check { Some(strand::grad::check::check(&sc, &obj, &r, threads)?) } else { None };
+            if json {
+                println!("{:#}", serde_json::json!({ "result": r, "check": chk, "peak_rss_bytes": strand::verify::peak_rss_bytes() }));
+            } else {
+                print!("{}", strand::grad::driver::report(&r, chk.as_ref()));
+            }
+            Ok(true)
+        })(),
         Cmd::Bench { particles, grid, steps, repeats, threads, json } => {
             strand::bench::run_bench(particles, grid, steps, repeats, threads, json).map(|_| true)
         }

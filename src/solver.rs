@@ -67,20 +67,20 @@ impl DtLimit {
 }
 
 /// Buffers the binning and the parallel phases share.
-struct Scratch {
+pub(crate) struct Scratch {
     /// Slot of each particle's block.
-    pslot: Pool<u32>,
+    pub(crate) pslot: Pool<u32>,
     /// Particle indices grouped by particle block (a stable counting sort).
-    order: Pool<u32>,
+    pub(crate) order: Pool<u32>,
     /// First `order` entry of each particle block; `n_particle_blocks + 1` entries used.
-    slot_start: Pool<u32>,
+    pub(crate) slot_start: Pool<u32>,
     cursor: Pool<u32>,
     /// Slots of the 2x2x2 block neighbourhood of each particle block.
-    nbr: Pool<[u32; 8]>,
+    pub(crate) nbr: Pool<[u32; 8]>,
     /// Particle blocks grouped by colour, and the running particle count before each.
-    colour_blocks: Pool<u32>,
-    colour_cum: Pool<u32>,
-    colour_start: [usize; 9],
+    pub(crate) colour_blocks: Pool<u32>,
+    pub(crate) colour_cum: Pool<u32>,
+    pub(crate) colour_start: [usize; 9],
     permute: Pool<u8>,
 }
 
@@ -112,11 +112,11 @@ impl Scratch {
 
 /// Wall conditions resolved for the grid update.
 #[derive(Clone, Debug)]
-struct Walls {
+pub(crate) struct Walls {
     /// [axis][0 = min side, 1 = max side]
-    faces: [[WallKind; 2]; 3],
+    pub(crate) faces: [[WallKind; 2]; 3],
     /// Platform: grid-coordinate top z, xy extent in grid coordinates, kind.
-    platform: Option<(Real, [Real; 4], WallKind)>,
+    pub(crate) platform: Option<(Real, [Real; 4], WallKind)>,
 }
 
 pub struct Simulation {
@@ -124,11 +124,11 @@ pub struct Simulation {
     pub material: Box<dyn Material>,
     pub particles: Particles,
     pub grid: Grid,
-    scratch: Scratch,
-    team: ThreadTeam,
-    walls: Walls,
+    pub(crate) scratch: Scratch,
+    pub(crate) team: ThreadTeam,
+    pub(crate) walls: Walls,
     /// Gravity plus body force per unit mass.
-    accel: V3,
+    pub(crate) accel: V3,
     pub time: f64,
     pub step: u64,
     /// Largest particle speed after the last G2P.
@@ -147,6 +147,9 @@ pub struct Simulation {
     /// Awake particles summed over the steps taken: the work the step loops did, a cost
     /// measure no other job on the machine can distort.
     pub awake_particle_steps: u64,
+    /// Keep the pool order fixed (no reordering by block): the gradient driver indexes its
+    /// adjoint arrays by pool position, which must then mean the same particle in every step.
+    pub frozen_order: bool,
 }
 
 fn checkpoint_staging_bytes(sc: &Scenario, cap: usize, state_len: usize, max_blocks: usize, table_len: usize) -> usize {
@@ -274,6 +277,7 @@ impl Simulation {
             printer,
             sleep,
             awake_particle_steps: 0,
+            frozen_order: false,
         };
         if let Some(p) = &mut sim.printer {
             p.start(scenario.print.as_ref().map_or(64, |c| c.queue), 0);
@@ -376,7 +380,7 @@ impl Simulation {
         }
         self.awake_particle_steps += (self.particles.n - self.particles.n_sleep) as u64;
         self.bin_particles()?;
-        if moved || self.step.is_multiple_of(self.scenario.simulation.reorder_interval) {
+        if !self.frozen_order && (moved || self.step.is_multiple_of(self.scenario.simulation.reorder_interval)) {
             self.reorder_particles();
         }
         clock.lap(&mut self.phase_seconds[0]);
@@ -421,7 +425,7 @@ impl Simulation {
     /// Bin particles by the block of their stencil base, activate each particle block's 2x2x2
     /// neighbourhood, and group particle blocks by colour. Serial: it is a few operations per
     /// particle, and doing it in one order makes slot numbering deterministic.
-    fn bin_particles(&mut self) -> Result<(), SimError> {
+    pub(crate) fn bin_particles(&mut self) -> Result<(), SimError> {
         let n = self.particles.n;
         let grid = &mut self.grid;
         let sc = &mut self.scratch;
@@ -500,7 +504,7 @@ impl Simulation {
     }
 
     /// Move particles into block order so the transfers stream through memory.
-    fn reorder_particles(&mut self) {
+    pub(crate) fn reorder_particles(&mut self) {
         let (first, n) = (self.particles.n_sleep, self.particles.n);
         self.particles.permute(&self.scratch.order.as_slice()[..n - first], self.scratch.permute.as_mut_slice());
         for (k, o) in self.scratch.order.as_mut_slice()[..n - first].iter_mut().enumerate() {
@@ -508,7 +512,7 @@ impl Simulation {
         }
     }
 
-    fn clear_grid(&mut self) {
+    pub(crate) fn clear_grid(&mut self) {
         let n = self.grid.n_active * NODES_PER_BLOCK;
         let nodes = SharedSlice::new(&mut self.grid.nodes.as_mut_slice()[..n]);
         let t = self.team.threads();
@@ -519,7 +523,7 @@ impl Simulation {
         });
     }
 
-    fn p2g(&mut self, dt: Real) {
+    pub(crate) fn p2g(&mut self, dt: Real) {
         let p = &self.particles;
         let n = p.n;
         let input = P2gInput {
@@ -572,7 +576,7 @@ impl Simulation {
     }
 
     /// Momentum to velocity, gravity, sleeping holds, the nozzle `drive` of this step, walls.
-    fn grid_update(&mut self, dt: Real, drive: Option<&NozzleDrive>) {
+    pub(crate) fn grid_update(&mut self, dt: Real, drive: Option<&NozzleDrive>) {
         let na = self.grid.n_active;
         let geom = &self.grid.geom;
         let slot_block = self.grid.slot_block.as_slice();
@@ -631,7 +635,7 @@ impl Simulation {
         });
     }
 
-    fn g2p(&mut self, dt: Real) {
+    pub(crate) fn g2p(&mut self, dt: Real) {
         let npb = self.grid.n_particle_blocks;
         let n = self.particles.n;
         let p = &mut self.particles;
@@ -681,7 +685,7 @@ impl Simulation {
 
     /// Material update over contiguous particle ranges, then a finiteness check that names the
     /// first bad particle.
-    fn update_materials(&mut self, dt: Real) -> Result<(), SimError> {
+    pub(crate) fn update_materials(&mut self, dt: Real) -> Result<(), SimError> {
         let (first, n) = (self.particles.n_sleep, self.particles.n);
         let p = &mut self.particles;
         let sl = p.state_len;
@@ -738,13 +742,13 @@ impl Simulation {
 }
 
 #[inline]
-fn colour(b: [i32; 3]) -> usize {
+pub(crate) fn colour(b: [i32; 3]) -> usize {
     ((b[0] & 1) << 2 | (b[1] & 1) << 1 | (b[2] & 1)) as usize
 }
 
 /// Split items with running weights `cum` (exclusive prefix sums, total `total`) into `threads`
 /// contiguous shares of about equal weight; returns thread `tid`'s item range.
-fn balanced(cum: &[u32], total: u32, tid: usize, threads: usize) -> (usize, usize) {
+pub(crate) fn balanced(cum: &[u32], total: u32, tid: usize, threads: usize) -> (usize, usize) {
     let at = |t: usize| {
         let target = (total as u64 * t as u64 / threads as u64) as u32;
         if t == threads {
@@ -780,7 +784,7 @@ fn for_each_neighbourhood_node(nbr: &[u32; 8], mut f: impl FnMut(usize, usize)) 
 ///
 /// # Safety
 /// No other thread may touch the blocks in `nbr` meanwhile.
-unsafe fn flush_local(local: &[Node; LNODES], nbr: &[u32; 8], nodes: &SharedSlice<Node>) {
+pub(crate) unsafe fn flush_local(local: &[Node; LNODES], nbr: &[u32; 8], nodes: &SharedSlice<Node>) {
     for_each_neighbourhood_node(nbr, |l, g| {
         let dst = nodes.get_mut(g);
         for (d, s) in dst.iter_mut().zip(local[l].iter()) {
@@ -790,13 +794,13 @@ unsafe fn flush_local(local: &[Node; LNODES], nbr: &[u32; 8], nodes: &SharedSlic
 }
 
 /// Gather the nodes of a particle block's neighbourhood.
-fn gather_local(local: &mut [Node; LNODES], nbr: &[u32; 8], nodes: &[Node]) {
+pub(crate) fn gather_local(local: &mut [Node; LNODES], nbr: &[u32; 8], nodes: &[Node]) {
     for_each_neighbourhood_node(nbr, |l, g| local[l] = nodes[g]);
 }
 
 /// Wall conditions for the node at grid index `g`.
 #[inline]
-fn apply_walls(geom: &GridGeom, walls: &Walls, g: [i32; 3], mut v: V3) -> V3 {
+pub(crate) fn apply_walls(geom: &GridGeom, walls: &Walls, g: [i32; 3], mut v: V3) -> V3 {
     for a in 0..3 {
         if geom.periodic[a] {
             continue;
@@ -868,14 +872,14 @@ fn check_print_inside_domain(sc: &Scenario, p: &Printer) -> Result<(), SimError>
     Ok(())
 }
 
-/// Set a ghost node (beyond a wall on at least one axis) to the mirror image of its partner
-/// inside; nodes that are not ghosts, and ghosts of friction walls, keep their velocity.
-///
-/// # Safety
-/// Only this node may be written concurrently; non-ghost nodes must not be written meanwhile.
-unsafe fn mirror_ghost(geom: &GridGeom, walls: &Walls, g: [i32; 3], at: usize, nodes: &SharedSlice<Node>, table: &[u32]) {
+/// Where a ghost node `g` (beyond a wall on at least one axis) takes its velocity from: the pool
+/// index of its mirror partner inside (None when the partner's block is inactive, which reads as
+/// zero) and the sign of each component (negated for no-slip, the normal one for free-slip; a
+/// corner negates once per wall). None when `g` is no ghost, or a ghost of a friction wall, which
+/// keeps its own velocity.
+pub(crate) fn ghost_source(geom: &GridGeom, walls: &Walls, g: [i32; 3], table: &[u32]) -> Option<(Option<usize>, [Real; 3])> {
     let mut mirror = g;
-    let mut flip = [[false; 3]; 3]; // flip[a][component]
+    let mut sign = [1.0 as Real; 3];
     let mut ghost = false;
     for a in 0..3 {
         if !geom.beyond_wall(a, g[a]) {
@@ -886,45 +890,47 @@ unsafe fn mirror_ghost(geom: &GridGeom, walls: &Walls, g: [i32; 3], at: usize, n
         ghost = true;
         mirror[a] = m;
         match walls.faces[a][side] {
-            WallKind::NoSlip => flip[a] = [true; 3],
-            WallKind::FreeSlip | WallKind::Symmetry => flip[a][a] = true,
-            WallKind::Friction { .. } => return,
+            WallKind::NoSlip => sign.iter_mut().for_each(|s| *s = -*s),
+            WallKind::FreeSlip | WallKind::Symmetry => sign[a] = -sign[a],
+            WallKind::Friction { .. } => return None,
         }
     }
     if !ghost {
-        return;
+        return None;
     }
+    let blk = [mirror[0].div_euclid(BS as i32), mirror[1].div_euclid(BS as i32), mirror[2].div_euclid(BS as i32)];
+    let slot = table[geom.block_index(blk) as usize];
+    let src = (slot != crate::grid::EMPTY).then(|| {
+        let l = (mirror[0].rem_euclid(BS as i32) as usize * BS + mirror[1].rem_euclid(BS as i32) as usize) * BS
+            + mirror[2].rem_euclid(BS as i32) as usize;
+        slot as usize * NODES_PER_BLOCK + l
+    });
+    Some((src, sign))
+}
+
+/// Set a ghost node to the mirror image of its partner inside ([`ghost_source`]); nodes that are
+/// not ghosts, ghosts of friction walls and empty ghosts keep their velocity.
+///
+/// # Safety
+/// Only this node may be written concurrently; non-ghost nodes must not be written meanwhile.
+pub(crate) unsafe fn mirror_ghost(geom: &GridGeom, walls: &Walls, g: [i32; 3], at: usize, nodes: &SharedSlice<Node>, table: &[u32]) {
+    let Some((src, sign)) = ghost_source(geom, walls, g, table) else { return };
     let node = nodes.get_mut(at);
     if node[0] <= 0.0 {
         return;
     }
-    let read = |p: [i32; 3]| -> [Real; 3] {
-        let blk = [p[0].div_euclid(BS as i32), p[1].div_euclid(BS as i32), p[2].div_euclid(BS as i32)];
-        let slot = table[geom.block_index(blk) as usize];
-        if slot == crate::grid::EMPTY {
-            return [0.0; 3];
-        }
-        let l = (p[0].rem_euclid(BS as i32) as usize * BS + p[1].rem_euclid(BS as i32) as usize) * BS
-            + p[2].rem_euclid(BS as i32) as usize;
-        let src = &nodes.as_slice()[slot as usize * NODES_PER_BLOCK + l];
-        [src[1], src[2], src[3]]
-    };
-    let mut v = read(mirror);
-    for f in &flip {
-        for c in 0..3 {
-            if f[c] {
-                v[c] = -v[c];
-            }
-        }
+    let v = src.map_or([0.0; 3], |i| {
+        let s = &nodes.as_slice()[i];
+        [s[1], s[2], s[3]]
+    });
+    for c in 0..3 {
+        node[1 + c] = v[c] * sign[c];
     }
-    node[1] = v[0];
-    node[2] = v[1];
-    node[3] = v[2];
 }
 
 /// Keep a particle inside the walls (projected onto them) and wrap it on periodic axes.
 #[inline]
-fn keep_inside(geom: &GridGeom, platform: Option<(Real, [Real; 4], WallKind)>, x: &mut V3) {
+pub(crate) fn keep_inside(geom: &GridGeom, platform: Option<(Real, [Real; 4], WallKind)>, x: &mut V3) {
     for a in 0..3 {
         let (lo, hi) = (geom.lo[a] as Real, geom.hi[a] as Real);
         if geom.periodic[a] {

@@ -136,6 +136,12 @@ pub trait Material: Send + Sync + std::fmt::Debug {
         out: &mut UpdateAdjoint,
     );
 
+    /// Adjoint of [`Material::init_state`]: accumulate into `params_bar` (indexed like
+    /// `param_names`) what the adjoint `state_bar` of a new particle's state owes the parameters
+    /// the initial state is made of (e.g. the initial structuration lambda0). Most initial states
+    /// are constant, hence the default.
+    fn init_state_adjoint(&self, _state_bar: &[Real], _params_bar: &mut [Real]) {}
+
     /// Reference density rho0 [kg/m3].
     fn density(&self) -> Real {
         self.stability().density

@@ -1,0 +1,291 @@
+//! The gradient driver: runs a checkpoint schedule's actions on the simulator and the step
+//! adjoint, and turns the adjoint of the initial state and the accumulated parameter adjoints
+//! into dJ/dtheta.
+//!
+//! What a gradient run holds fixed: the time step (the scenario must set `simulation.dt`, so the
+//! perturbed runs of a central difference take the same steps), the pool order (no reordering
+//! by block after the start, so an adjoint array means the same particle in every step), and
+//! everything piecewise constant in the state (stencil bases, J-bar cells, which particle is
+//! extreme in an objective, which branch a material or wall took).
+
+use super::fields::state_bytes;
+use super::objective::{Frame, Objective};
+use super::params::{resolve, Param};
+use super::schedule::{choose, Action, Budget, Kind, Plan};
+use super::step_adjoint::StepAdjoint;
+use super::store::{DiskSlots, RamSlots, Store};
+use crate::memory::{fmt_bytes, Backing, MemoryPlan};
+use crate::scenario::Scenario;
+use crate::solver::{count_body_particles, for_each_lattice_point, Simulation};
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(Clone, Debug)]
+pub struct GradOptions {
+    /// Bytes for the backward pass's own memory: the adjoint arrays, the tape of one step and the
+    /// RAM checkpoints (the simulator's pools are under the scenario's `[memory] budget`).
+    pub ram_bytes: u64,
+    /// Bytes of checkpoints on disk, in `disk_dir`.
+    pub disk_bytes: u64,
+    pub disk_dir: PathBuf,
+    pub threads: Option<usize>,
+    /// Force a schedule instead of choosing one from the budgets.
+    pub schedule: Option<Kind>,
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct GradResult {
+    pub objective: String,
+    pub value: f64,
+    pub params: Vec<String>,
+    pub values: Vec<f64>,
+    pub gradient: Vec<f64>,
+    pub steps: u64,
+    pub schedule: String,
+    pub forward_steps: u64,
+    pub peak_ram_slots: usize,
+    pub peak_disk_slots: usize,
+    pub state_bytes: u64,
+    pub adjoint_bytes: u64,
+    pub disk_written_bytes: u64,
+    pub forward_s: f64,
+    pub reverse_s: f64,
+    pub wall_s: f64,
+}
+
+/// A simulation set up for a gradient run (or for the forward runs that check one).
+pub fn prepare(sc: &Scenario, threads: Option<usize>) -> Result<Simulation, String> {
+    if sc.print.is_some() {
+        return Err("strand grad does not differentiate printing scenarios yet (emission and the nozzle drive have no adjoint in the driver); remove [print]".into());
+    }
+    if sc.sleep.is_some() {
+        return Err("strand grad needs every particle awake: remove [sleep] (sleeping is not differentiable)".into());
+    }
+    if sc.simulation.dt.is_none() {
+        return Err("strand grad needs a fixed time step: set simulation.dt (the gradient holds the step fixed so perturbed runs take the same steps)".into());
+    }
+    let mut sc = sc.clone();
+    sc.checkpoint.enabled = false;
+    if let Some(t) = threads {
+        sc.simulation.threads = t;
+    }
+    let mut sim = Simulation::new(&sc).map_err(|e| e.to_string())?;
+    // one sort by block up front (the step's binning then reorders nothing), then frozen
+    sim.bin_particles().map_err(|e| e.to_string())?;
+    sim.reorder_particles();
+    sim.frozen_order = true;
+    Ok(sim)
+}
+
+/// Steps from t = 0 to the end time, counted with the time-step control's own arithmetic.
+pub fn count_steps(sim: &Simulation) -> u64 {
+    let end = sim.scenario.simulation.end_time;
+    let dt = sim.scenario.simulation.dt.unwrap_or(f64::INFINITY);
+    let (mut t, mut n) = (0.0f64, 0u64);
+    while t < end * (1.0 - 1e-12) {
+        let left = end - t;
+        t += if left <= dt * (1.0 + 1e-9) { left } else { dt };
+        n += 1;
+    }
+    n
+}
+
+fn advance_to_end(sim: &mut Simulation, steps: u64) -> Result<(), String> {
+    let end = sim.scenario.simulation.end_time;
+    for _ in 0..steps {
+        sim.step_until(end).map_err(|e| e.to_string())?;
+    }
+    Ok(())
+}
+
+/// The objective after a forward run of `sc` (what central differences evaluate).
+pub fn forward_value(sc: &Scenario, objective: &Objective, threads: Option<usize>) -> Result<f64, String> {
+    let mut sim = prepare(sc, threads)?;
+    let n = count_steps(&sim);
+    advance_to_end(&mut sim, n)?;
+    objective.evaluate(&sim, &Frame::of(&sim), None)
+}
+
+/// Ranges of particle ids per body (bodies are filled in order, ids are creation order).
+fn body_ids(sc: &Scenario) -> Vec<std::ops::Range<u32>> {
+    let mut start = 0u32;
+    sc.bodies
+        .iter()
+        .map(|b| {
+            let mut k = 0u32;
+            for_each_lattice_point(sc, b, |_| k += 1);
+            let r = start..start + k;
+            start += k;
+            r
+        })
+        .collect()
+}
+
+pub fn gradient(sc: &Scenario, objective: &Objective, wrt: &[String], opts: &GradOptions) -> Result<GradResult, String> {
+    let wall = Instant::now();
+    let mut sim = prepare(sc, opts.threads)?;
+    let params: Vec<Param> = wrt.iter().map(|k| resolve(&sim, k)).collect::<Result<_, _>>()?;
+    let values: Vec<f64> = wrt.iter().map(|k| super::params::value(&sc.source, k)).collect::<Result<_, _>>()?;
+    let frame = Frame::of(&sim);
+    let n_steps = count_steps(&sim);
+    let (n, sl) = (sim.particles.n, sim.particles.state_len);
+    debug_assert_eq!(n, count_body_particles(sc));
+
+    let mut grad_plan = MemoryPlan::default();
+    StepAdjoint::plan(&mut grad_plan, n, sl, sim.grid.nodes.len());
+    let adjoint_bytes = grad_plan.total();
+    let sbytes = state_bytes(n, sl) as u64;
+    if opts.ram_bytes < adjoint_bytes {
+        return Err(format!(
+            "the gradient's RAM budget of {} does not hold its adjoint arrays ({}; one stored state is {}):\n{grad_plan}",
+            fmt_bytes(opts.ram_bytes),
+            fmt_bytes(adjoint_bytes),
+            fmt_bytes(sbytes)
+        ));
+    }
+    let budget = Budget { state_bytes: sbytes, ram_bytes: opts.ram_bytes - adjoint_bytes, disk_bytes: opts.disk_bytes };
+    let plan = match opts.schedule {
+        Some(kind) => Plan::new(kind, n_steps).map_err(|e| e.to_string())?,
+        None => choose(n_steps, &budget).map_err(|e| e.to_string())?,
+    };
+    let (ram_slots, disk_slots) = plan.peak_slots();
+    let backing = Backing { dir: sc.memory.dir.clone() };
+    let mut store = Store {
+        ram: RamSlots::new(ram_slots, sbytes as usize, &backing).map_err(|e| e.to_string())?,
+        disk: if disk_slots > 0 { Some(DiskSlots::new(&opts.disk_dir, sbytes as usize)?) } else { None },
+    };
+    let mut adj = StepAdjoint::new(&sim, &backing).map_err(|e| e.to_string())?;
+
+    let end = sc.simulation.end_time;
+    let (mut forward_s, mut reverse_s) = (0.0, 0.0);
+    let mut value = None;
+    if n_steps == 0 {
+        let p = &mut adj.next;
+        let seed = super::objective::Seed {
+            xg: &mut p.xg.as_mut_slice()[..n],
+            v: &mut p.v.as_mut_slice()[..n],
+            j: &mut p.j.as_mut_slice()[..n],
+            mass: &mut adj.mass_bar.as_mut_slice()[..n],
+        };
+        value = Some(objective.evaluate(&sim, &frame, Some(seed))?);
+    }
+    for action in plan.actions() {
+        match action {
+            Action::Advance { from, to } => {
+                debug_assert_eq!(sim.step, from);
+                let t = Instant::now();
+                for _ in from..to {
+                    sim.step_until(end).map_err(|e| e.to_string())?;
+                }
+                forward_s += t.elapsed().as_secs_f64();
+            }
+            Action::Store { step, tier } => {
+                debug_assert_eq!(sim.step, step);
+                store.store(&sim, tier)?;
+            }
+            Action::Restore { step, tier } => store.restore(&mut sim, step, tier)?,
+            Action::Free { step, tier } => store.free(step, tier)?,
+            Action::Reverse { step } => {
+                debug_assert_eq!(sim.step, step);
+                let t = Instant::now();
+                let last = step + 1 == n_steps;
+                if let Some(v) = adj.reverse(&mut sim, end, last.then_some((objective, &frame)))? {
+                    value = Some(v);
+                }
+                reverse_s += t.elapsed().as_secs_f64();
+            }
+        }
+    }
+    let value = value.ok_or("the schedule never reached the last step")?;
+    let gradient = assemble(&sim, &adj, &params);
+    let disk_written_bytes = store.disk.as_ref().map_or(0, |d| d.written);
+    Ok(GradResult {
+        objective: objective.name(),
+        value,
+        params: wrt.to_vec(),
+        values,
+        gradient,
+        steps: n_steps,
+        schedule: format!("{:?}", plan.kind()),
+        forward_steps: plan.forward_steps(),
+        peak_ram_slots: ram_slots,
+        peak_disk_slots: disk_slots,
+        state_bytes: sbytes,
+        adjoint_bytes,
+        disk_written_bytes,
+        forward_s,
+        reverse_s,
+        wall_s: wall.elapsed().as_secs_f64(),
+    })
+}
+
+/// dJ/dtheta from the adjoint of the initial state (in `adj.next` after the last reversed
+/// step) and the parameter adjoints accumulated over the steps.
+fn assemble(sim: &Simulation, adj: &StepAdjoint, params: &[Param]) -> Vec<f64> {
+    let p = &sim.particles;
+    let n = p.n;
+    let sc = &sim.scenario;
+    let rho = sim.material.density() as f64;
+    let g = &adj.grid_params_bar;
+    let state_bar = &adj.next.state.as_slice()[..n * p.state_len];
+    let mut init_bar = vec![0.0 as crate::Real; adj.material_bar.len()];
+    for i in 0..n {
+        let sl = p.state_len;
+        sim.material.init_state_adjoint(&state_bar[i * sl..(i + 1) * sl], &mut init_bar);
+    }
+    let ids = body_ids(sc);
+    params
+        .iter()
+        .map(|&param| match param {
+            Param::Material(k) => adj.material_bar[k] + init_bar[k] as f64,
+            Param::Density => {
+                let (mb, vol0) = (adj.mass_bar.as_slice(), p.vol0.as_slice());
+                let through_mass: f64 = (0..n).map(|i| (mb[i] * vol0[i]) as f64).sum();
+                let f = sc.simulation.body_force;
+                through_mass - (0..3).map(|c| g.accel[c] * f[c] / (rho * rho)).sum::<f64>()
+            }
+            Param::BodyForce(c) => g.accel[c] / rho,
+            Param::Gravity(c) => g.accel[c],
+            Param::BodyVelocity { body, axis } => {
+                let (v_bar, id) = (adj.next.v.as_slice(), p.id.as_slice());
+                (0..n).filter(|&i| ids[body].contains(&id[i])).map(|i| v_bar[i][axis] as f64).sum()
+            }
+            Param::WallFriction { axis, side } => g.wall_mu[axis][side],
+            Param::PlatformFriction => g.platform_mu,
+        })
+        .collect()
+}
+
+/// The human-readable report of a gradient (and its check).
+pub fn report(r: &GradResult, check: Option<&super::check::Check>) -> String {
+    use std::fmt::Write as _;
+    let mut s = String::new();
+    let _ = writeln!(s, "J = {} = {:.9e} after {} steps", r.objective, r.value, r.steps);
+    let _ = writeln!(
+        s,
+        "schedule {} ({} forward steps, peak {} RAM + {} disk states of {}), adjoint arrays {}, disk written {}",
+        r.schedule,
+        r.forward_steps,
+        r.peak_ram_slots,
+        r.peak_disk_slots,
+        fmt_bytes(r.state_bytes),
+        fmt_bytes(r.adjoint_bytes),
+        fmt_bytes(r.disk_written_bytes)
+    );
+    let _ = writeln!(s, "time: forward {:.2} s, reverse {:.2} s, total {:.2} s", r.forward_s, r.reverse_s, r.wall_s);
+    for (k, p) in r.params.iter().enumerate() {
+        let _ = writeln!(s, "dJ/d {p} = {:.9e}   (at {p} = {})", r.gradient[k], r.values[k]);
+    }
+    if let Some(c) = check {
+        for p in &c.params {
+            for (h, fd, e) in &p.central {
+                let _ = writeln!(s, "  check {}: central difference h = {h:.3e}: {fd:.9e} (relative difference {e:.2e})", p.param);
+            }
+        }
+        let _ = writeln!(s, "  Taylor remainder slope {:.3} (2 when the gradient is right):", c.taylor_slope);
+        for (h, rem) in &c.taylor {
+            let _ = writeln!(s, "    h = {h:.3e}: {rem:.3e}");
+        }
+    }
+    s
+}

@@ -1,0 +1,172 @@
+//! Adjoint of the grid update (`Simulation::grid_update`): momentum to velocity, body
+//! acceleration, the wall conditions on wall nodes and the mirrored ghost nodes beyond them.
+//!
+//! The forward turns a node `[m, p, f]` (mass, momentum, impulse kept apart under FLIP) into
+//! `[m, v_new, v_old]` with `v_old = p / m`, `v_new = walls(v_old + f / m + a dt)`, and then
+//! overwrites the velocity of every ghost node with the signed velocity of its mirror partner.
+//! The adjoint runs the two passes backwards on the node adjoints in place: first the ghosts hand
+//! their adjoint to their partners, then every node maps `[m_bar, v_new_bar, v_old_bar]` to
+//! `[m_bar, p_bar, f_bar]`, the layout P2G's adjoint reads.
+
+use crate::grid::NODES_PER_BLOCK;
+use crate::kernels::boundary::{apply_wall, WallKind};
+use crate::kernels::transfer::Node;
+use crate::kernels::{Real, V3};
+use crate::grid::{GridGeom, PAD};
+use crate::solver::{ghost_source, Simulation, Walls};
+
+/// Adjoints of the grid update's parameters, accumulated over nodes and steps.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct GridParamsBar {
+    /// Of the body acceleration g + F / rho.
+    pub accel: [f64; 3],
+    /// Of the Coulomb coefficient of each friction wall, [axis][side].
+    pub wall_mu: [[f64; 2]; 3],
+    pub platform_mu: f64,
+}
+
+/// The wall applications `apply_walls` makes at node `g`, in order: (kind, normal, which
+/// coefficient a friction wall adds its adjoint to: Some((axis, side)) or None for the platform).
+fn wall_sequence(geom: &GridGeom, walls: &Walls, g: [i32; 3], out: &mut [(WallKind, V3, Option<(usize, usize)>); 4]) -> usize {
+    let mut k = 0;
+    for a in 0..3 {
+        if geom.periodic[a] {
+            continue;
+        }
+        let mut nrm = V3::ZERO;
+        if g[a] <= PAD {
+            nrm[a] = -1.0;
+            out[k] = (walls.faces[a][0], nrm, Some((a, 0)));
+            k += 1;
+        } else if g[a] >= geom.cells[a] - PAD {
+            nrm[a] = 1.0;
+            out[k] = (walls.faces[a][1], nrm, Some((a, 1)));
+            k += 1;
+        }
+    }
+    if let Some((z, xy, kind)) = walls.platform {
+        let (x, y) = (g[0] as Real, g[1] as Real);
+        if (g[2] as Real) <= z && x >= xy[0] && x <= xy[2] && y >= xy[1] && y <= xy[3] {
+            out[k] = (kind, V3::new(0.0, 0.0, -1.0), None);
+            k += 1;
+        }
+    }
+    k
+}
+
+/// Adjoint of `apply_walls` at node `g` for input velocity `v`: the adjoint of `v` for the
+/// adjoint `v_bar` of the result; friction coefficients' adjoints go to `bar`.
+fn apply_walls_adjoint(geom: &GridGeom, walls: &Walls, g: [i32; 3], v: V3, v_bar: V3, bar: &mut GridParamsBar) -> V3 {
+    let mut seq = [(WallKind::NoSlip, V3::ZERO, None); 4];
+    let k = wall_sequence(geom, walls, g, &mut seq);
+    if k == 0 {
+        return v_bar;
+    }
+    // inputs of each application, recomputed forward
+    let mut inputs = [V3::ZERO; 4];
+    let mut at = v;
+    for (i, (kind, nrm, _)) in seq[..k].iter().enumerate() {
+        inputs[i] = at;
+        at = apply_wall(*kind, *nrm, V3::ZERO, at);
+    }
+    let mut b = v_bar;
+    for i in (0..k).rev() {
+        let (kind, nrm, face) = seq[i];
+        let (vb, mu_bar) = apply_wall_adjoint(kind, nrm, V3::ZERO, inputs[i], b);
+        b = vb;
+        match face {
+            Some((a, s)) => bar.wall_mu[a][s] += mu_bar as f64,
+            None => bar.platform_mu += mu_bar as f64,
+        }
+    }
+    b
+}
+
+/// Run the grid update's adjoint on `grid_bar` in place. `before` holds the nodes as P2G left
+/// them, the simulation's grid the nodes after the update (the same active blocks), `dt` the
+/// step. With nozzle drives or sleeping holds the forward is different and this is not called.
+pub fn grid_update_adjoint(sim: &Simulation, before: &[Node], grid_bar: &mut [Node], dt: Real, bar: &mut GridParamsBar) {
+    let grid = &sim.grid;
+    let geom = &grid.geom;
+    let na = grid.n_active;
+    let slot_block = grid.slot_block.as_slice();
+    let table = grid.table.as_slice();
+    let after = grid.nodes.as_slice();
+    let walls = &sim.walls;
+    // ghosts: their velocity was overwritten by their partner's, so their adjoint goes there
+    for s in 0..na {
+        let b = geom.block_coords(slot_block[s]);
+        if !geom.block_reaches_beyond_walls(b) {
+            continue;
+        }
+        for li in 0..NODES_PER_BLOCK {
+            let at = s * NODES_PER_BLOCK + li;
+            if after[at][0] <= 0.0 {
+                continue;
+            }
+            let Some((src, sign)) = ghost_source(geom, walls, geom.node_of(b, li), table) else { continue };
+            let gb = [grid_bar[at][1], grid_bar[at][2], grid_bar[at][3]];
+            grid_bar[at][1..4].fill(0.0);
+            if let Some(i) = src {
+                for c in 0..3 {
+                    grid_bar[i][1 + c] += gb[c] * sign[c];
+                }
+            }
+        }
+    }
+    let accel = sim.accel;
+    let mut accel_bar = [0.0f64; 3];
+    for s in 0..na {
+        let b = geom.block_coords(slot_block[s]);
+        for li in 0..NODES_PER_BLOCK {
+            let at = s * NODES_PER_BLOCK + li;
+            let n0 = &before[at];
+            let m = n0[0];
+            let nb = &mut grid_bar[at];
+            if m <= 0.0 {
+                *nb = [0.0; 7];
+                continue;
+            }
+            let p = V3::new(n0[1], n0[2], n0[3]);
+            let f = V3::new(n0[4], n0[5], n0[6]);
+            let old = p / m;
+            let v = old + f / m + accel * dt;
+            let v_bar = apply_walls_adjoint(geom, walls, geom.node_of(b, li), v, V3::new(nb[1], nb[2], nb[3]), bar);
+            let old_bar = V3::new(nb[4], nb[5], nb[6]) + v_bar;
+            for c in 0..3 {
+                accel_bar[c] += (v_bar[c] * dt) as f64;
+            }
+            let m_bar = nb[0] - old_bar.dot(p) / (m * m) - v_bar.dot(f) / (m * m);
+            let p_bar = old_bar / m;
+            let f_bar = v_bar / m;
+            *nb = [m_bar, p_bar.x, p_bar.y, p_bar.z, f_bar.x, f_bar.y, f_bar.z];
+        }
+    }
+    for c in 0..3 {
+        bar.accel[c] += accel_bar[c];
+    }
+}
+
+// TEMPORARY until the kernel version lands
+fn apply_wall_adjoint(kind: WallKind, n: V3, _vw: V3, v: V3, ob: V3) -> (V3, Real) {
+    let tangential = |b: V3| b - n * n.dot(b);
+    match kind {
+        WallKind::NoSlip => (V3::ZERO, 0.0),
+        WallKind::FreeSlip => if v.dot(n) > 0.0 { (tangential(ob), 0.0) } else { (ob, 0.0) },
+        WallKind::Symmetry => (tangential(ob), 0.0),
+        WallKind::Friction { mu } => {
+            let vn = v.dot(n);
+            if vn <= 0.0 { return (ob, 0.0); }
+            let vt = v - n * vn;
+            let l = vt.length();
+            if l <= 0.0 { return (V3::ZERO, 0.0); }
+            let mu = mu as Real;
+            let keep = 1.0 - mu * vn / l;
+            if keep <= 0.0 { return (V3::ZERO, 0.0); }
+            let d = vt.dot(ob);
+            let vt_bar = ob * keep + vt * (d * mu * vn / (l * l * l));
+            let vn_bar = -d * mu / l;
+            (tangential(vt_bar) + n * vn_bar, -d * vn / l)
+        }
+    }
+}

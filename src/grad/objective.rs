@@ -1,0 +1,189 @@
+//! Objectives: scalar functions of the final particle state, with their adjoints (the seed of
+//! the backward pass).
+//!
+//! They follow the observables of `observe.rs` (a particle stands for a cube of side
+//! `spacing`): extents add one spacing to the spread of particle centres. An extent is a max
+//! minus a min, so its gradient flows through the extreme particles only; which particle is
+//! extreme, and which particles fall into a slab or band, is held fixed (piecewise constant in
+//! the positions).
+
+use crate::kernels::{Real, V3};
+use crate::solver::Simulation;
+
+#[derive(Clone, Debug, PartialEq)]
+pub enum Objective {
+    /// Slump-flow spread: mean of the x and y extents of the particles within two spacings of
+    /// the base (as `spread.csv`'s `mean_diameter`).
+    Spread,
+    /// Extent in y of the particles within half a cell of x = station [m].
+    Width { station: f64 },
+    /// Top of the particles within half a cell of x = station, above the base [m].
+    Height { station: f64 },
+    /// Largest x velocity of any particle (the centreline speed of a channel flow).
+    VxMax,
+    /// Sum of m |v|^2 / 2.
+    KineticEnergy,
+    /// Volume-weighted mean height of the particles above the base.
+    MeanZ,
+}
+
+pub const NAMES: &str = "spread, width@X, height@X, vx_max, kinetic_energy, mean_z";
+
+impl std::str::FromStr for Objective {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Objective, String> {
+        let station = |v: &str| v.parse::<f64>().map_err(|_| format!("objective '{s}': the station after '@' must be a number in metres"));
+        match s.split_once('@') {
+            Some(("width", x)) => Ok(Objective::Width { station: station(x)? }),
+            Some(("height", x)) => Ok(Objective::Height { station: station(x)? }),
+            _ => match s {
+                "spread" => Ok(Objective::Spread),
+                "vx_max" => Ok(Objective::VxMax),
+                "kinetic_energy" => Ok(Objective::KineticEnergy),
+                "mean_z" => Ok(Objective::MeanZ),
+                _ => Err(format!("unknown objective '{s}'; known: {NAMES}")),
+            },
+        }
+    }
+}
+
+/// Adjoints an objective seeds: of the final positions (grid coordinates), velocities, volume
+/// ratios and masses.
+pub struct Seed<'a> {
+    pub xg: &'a mut [V3],
+    pub v: &'a mut [V3],
+    pub j: &'a mut [Real],
+    pub mass: &'a mut [Real],
+}
+
+/// Geometry the objectives need from the scenario.
+#[derive(Clone, Copy, Debug)]
+pub struct Frame {
+    pub dx: f64,
+    pub spacing: f64,
+    pub base_z: f64,
+}
+
+impl Frame {
+    pub fn of(sim: &Simulation) -> Frame {
+        let sc = &sim.scenario;
+        let dx = sc.simulation.dx;
+        let ppc = sc.bodies.first().map_or(2, |b| b.particles_per_cell_axis());
+        let base_z = sc.boundary.platform.as_ref().map_or(sc.domain.min[2], |p| p.z);
+        Frame { dx, spacing: dx / ppc as f64, base_z }
+    }
+}
+
+/// Index of the particle maximising `key` among those `keep` admits (the first on ties).
+fn arg_max(n: usize, keep: impl Fn(usize) -> bool, key: impl Fn(usize) -> f64) -> Option<usize> {
+    let mut best: Option<(usize, f64)> = None;
+    for i in (0..n).filter(|&i| keep(i)) {
+        let k = key(i);
+        if best.is_none_or(|(_, b)| k > b) {
+            best = Some((i, k));
+        }
+    }
+    best.map(|b| b.0)
+}
+
+impl Objective {
+    /// The objective on `sim`'s current state; with `seed`, also add its adjoint there.
+    pub fn evaluate(&self, sim: &Simulation, frame: &Frame, seed: Option<Seed>) -> Result<f64, String> {
+        let p = &sim.particles;
+        let n = p.n;
+        let geom = &sim.grid.geom;
+        let world = |i: usize| geom.to_world(p.xg.as_slice()[i]);
+        let dx = frame.dx;
+        // d(world coordinate)/d(grid coordinate)
+        let scale = dx as Real;
+        let value = match self {
+            Objective::Spread => {
+                let band = |i: usize| world(i)[2] < frame.base_z + 2.0 * frame.spacing;
+                let ext = |a: usize| {
+                    let hi = arg_max(n, band, |i| world(i)[a]);
+                    let lo = arg_max(n, band, |i| -world(i)[a]);
+                    hi.zip(lo)
+                };
+                let (Some((xh, xl)), Some((yh, yl))) = (ext(0), ext(1)) else {
+                    return Err("objective spread: no particle lies within two spacings of the base".into());
+                };
+                let d = |h: usize, l: usize, a: usize| world(h)[a] - world(l)[a] + frame.spacing;
+                let value = 0.5 * (d(xh, xl, 0) + d(yh, yl, 1));
+                if let Some(s) = seed {
+                    s.xg[xh].x += 0.5 * scale;
+                    s.xg[xl].x -= 0.5 * scale;
+                    s.xg[yh].y += 0.5 * scale;
+                    s.xg[yl].y -= 0.5 * scale;
+                }
+                value
+            }
+            Objective::Width { station } | Objective::Height { station } => {
+                let slab = |i: usize| (world(i)[0] - station).abs() <= 0.5 * dx;
+                let top = arg_max(n, slab, |i| world(i)[2]);
+                let (hi, lo) = (arg_max(n, slab, |i| world(i)[1]), arg_max(n, slab, |i| -world(i)[1]));
+                let (Some(top), Some(hi), Some(lo)) = (top, hi, lo) else {
+                    return Err(format!("objective {}: no particle within half a cell of x = {station} m", self.name()));
+                };
+                let width = matches!(self, Objective::Width { .. });
+                let value = if width { world(hi)[1] - world(lo)[1] + frame.spacing } else { world(top)[2] + 0.5 * frame.spacing - frame.base_z };
+                if let Some(s) = seed {
+                    if width {
+                        s.xg[hi].y += scale;
+                        s.xg[lo].y -= scale;
+                    } else {
+                        s.xg[top].z += scale;
+                    }
+                }
+                value
+            }
+            Objective::VxMax => {
+                let v = p.v.as_slice();
+                let i = arg_max(n, |_| true, |i| v[i].x as f64).ok_or("objective vx_max: no particles")?;
+                if let Some(s) = seed {
+                    s.v[i].x += 1.0;
+                }
+                v[i].x as f64
+            }
+            Objective::KineticEnergy => {
+                let (v, m) = (p.v.as_slice(), p.mass.as_slice());
+                let value = (0..n).map(|i| 0.5 * (m[i] * v[i].length_squared()) as f64).sum();
+                if let Some(s) = seed {
+                    for i in 0..n {
+                        s.v[i] += v[i] * m[i];
+                        s.mass[i] += 0.5 * v[i].length_squared();
+                    }
+                }
+                value
+            }
+            Objective::MeanZ => {
+                let (vol0, jv) = (p.vol0.as_slice(), p.j.as_slice());
+                let w: f64 = (0..n).map(|i| (vol0[i] * jv[i]) as f64).sum();
+                if w <= 0.0 {
+                    return Err("objective mean_z: no particles".into());
+                }
+                let wz: f64 = (0..n).map(|i| (vol0[i] * jv[i]) as f64 * (world(i)[2] - frame.base_z)).sum();
+                let value = wz / w;
+                if let Some(s) = seed {
+                    for i in 0..n {
+                        let vi = (vol0[i] * jv[i]) as f64;
+                        s.xg[i].z += (vi / w) as Real * scale;
+                        s.j[i] += (vol0[i] as f64 * ((world(i)[2] - frame.base_z) - value) / w) as Real;
+                    }
+                }
+                value
+            }
+        };
+        Ok(value)
+    }
+
+    pub fn name(&self) -> String {
+        match self {
+            Objective::Spread => "spread".into(),
+            Objective::Width { station } => format!("width@{station}"),
+            Objective::Height { station } => format!("height@{station}"),
+            Objective::VxMax => "vx_max".into(),
+            Objective::KineticEnergy => "kinetic_energy".into(),
+            Objective::MeanZ => "mean_z".into(),
+        }
+    }
+}

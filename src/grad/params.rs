@@ -1,0 +1,110 @@
+//! The parameters theta a gradient is taken with respect to, named by their key in the scenario
+//! file (`material.yield_stress`, `simulation.body_force.x`, `body.0.velocity.z`,
+//! `boundary.z_min.friction.mu`, ...), so the same name reads, perturbs (for central
+//! differences) and reports a parameter.
+
+use crate::kernels::boundary::WallKind;
+use crate::solver::Simulation;
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Param {
+    /// Index into the material's `param_names`.
+    Material(usize),
+    /// Through the particle masses (m = rho V0) and the body-force acceleration F / rho.
+    Density,
+    BodyForce(usize),
+    Gravity(usize),
+    /// The initial velocity of body `body` along `axis`.
+    BodyVelocity { body: usize, axis: usize },
+    /// Coulomb coefficient of the wall on `axis`, `side` (0 = min, 1 = max).
+    WallFriction { axis: usize, side: usize },
+    PlatformFriction,
+}
+
+const AXES: [&str; 3] = ["x", "y", "z"];
+const FACES: [[&str; 2]; 3] = [["x_min", "x_max"], ["y_min", "y_max"], ["z_min", "z_max"]];
+
+fn axis(s: &str) -> Option<usize> {
+    AXES.iter().position(|a| *a == s)
+}
+
+/// Every parameter key the scenario offers.
+pub fn known(sim: &Simulation) -> Vec<String> {
+    let mut k: Vec<String> = sim.material.param_names().iter().map(|n| format!("material.{n}")).collect();
+    k.push("material.density".into());
+    for a in AXES {
+        k.push(format!("simulation.body_force.{a}"));
+        k.push(format!("simulation.gravity.{a}"));
+    }
+    for b in 0..sim.scenario.bodies.len() {
+        for a in AXES {
+            k.push(format!("body.{b}.velocity.{a}"));
+        }
+    }
+    for (a, sides) in FACES.iter().enumerate() {
+        for (s, face) in sides.iter().enumerate() {
+            if matches!(sim.walls.faces[a][s], WallKind::Friction { .. }) {
+                k.push(format!("boundary.{face}.friction.mu"));
+            }
+        }
+    }
+    if matches!(sim.walls.platform, Some((_, _, WallKind::Friction { .. }))) {
+        k.push("boundary.platform.kind.friction.mu".into());
+    }
+    k
+}
+
+/// The parameter a key names, or an error listing the keys this scenario offers.
+pub fn resolve(sim: &Simulation, key: &str) -> Result<Param, String> {
+    let parts: Vec<&str> = key.split('.').collect();
+    let p = match parts.as_slice() {
+        ["material", "density"] => Some(Param::Density),
+        ["material", name] => sim.material.param_names().iter().position(|n| n == name).map(Param::Material),
+        ["simulation", "body_force", a] => axis(a).map(Param::BodyForce),
+        ["simulation", "gravity", a] => axis(a).map(Param::Gravity),
+        ["body", b, "velocity", a] => match (b.parse::<usize>(), axis(a)) {
+            (Ok(body), Some(axis)) if body < sim.scenario.bodies.len() => Some(Param::BodyVelocity { body, axis }),
+            _ => None,
+        },
+        ["boundary", "platform", "kind", "friction", "mu"] => {
+            matches!(sim.walls.platform, Some((_, _, WallKind::Friction { .. }))).then_some(Param::PlatformFriction)
+        }
+        ["boundary", face, "friction", "mu"] => FACES.iter().enumerate().find_map(|(a, sides)| {
+            let s = sides.iter().position(|f| f == face)?;
+            matches!(sim.walls.faces[a][s], WallKind::Friction { .. }).then_some(Param::WallFriction { axis: a, side: s })
+        }),
+        _ => None,
+    };
+    p.ok_or_else(|| format!("unknown parameter '{key}' for this scenario; known: {}", known(sim).join(", ")))
+}
+
+/// Walk `key` in a TOML document: `x`/`y`/`z` and numbers index arrays.
+fn walk<'a>(doc: &'a mut toml::Value, key: &str) -> Result<&'a mut toml::Value, String> {
+    let mut at = doc;
+    for part in key.split('.') {
+        at = match at {
+            toml::Value::Table(t) => t.get_mut(part),
+            toml::Value::Array(a) => part.parse::<usize>().ok().or_else(|| axis(part)).and_then(|i| a.get_mut(i)),
+            _ => None,
+        }
+        .ok_or_else(|| format!("the scenario has no value at '{key}' (set it explicitly to differentiate with respect to it)"))?;
+    }
+    Ok(at)
+}
+
+/// The value of `key` in the scenario text.
+pub fn value(source: &str, key: &str) -> Result<f64, String> {
+    let mut doc: toml::Value = toml::from_str(source).map_err(|e| e.to_string())?;
+    match walk(&mut doc, key)? {
+        toml::Value::Float(f) => Ok(*f),
+        toml::Value::Integer(i) => Ok(*i as f64),
+        other => Err(format!("'{key}' is {other}, not a number")),
+    }
+}
+
+/// The scenario text with `key` set to `v`.
+pub fn with_value(source: &str, key: &str, v: f64) -> Result<String, String> {
+    let mut doc: toml::Value = toml::from_str(source).map_err(|e| e.to_string())?;
+    *walk(&mut doc, key)? = toml::Value::Float(v);
+    toml::to_string(&doc).map_err(|e| e.to_string())
+}

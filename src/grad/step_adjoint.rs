@@ -1,0 +1,261 @@
+//! The adjoint of one MLS-MPM step: recompute the step from its start state (keeping the two
+//! things the forward overwrites in place and the adjoint needs: the particle state before the
+//! step and the grid as P2G left it), then run the step's phases backwards:
+//!
+//! ```text
+//! materials ─▶ wall clamp of positions ─▶ G2P ─▶ grid update (ghosts, walls) ─▶ P2G
+//! ```
+//!
+//! `next` holds the adjoint of the state after the step and `cur` receives that of the state
+//! before it; they swap roles every step. Masses and initial volumes never change without
+//! emission, so their adjoints accumulate over all steps in one array each.
+
+use super::fields::Fields;
+use super::grid_adjoint::{grid_update_adjoint, GridParamsBar};
+use super::objective::{Frame, Objective, Seed};
+use crate::grid::NODES_PER_BLOCK;
+use crate::kernels::material::UpdateAdjoint;
+use crate::kernels::transfer::{Node, P2gInput, TransferParams, BS, LNODES};
+use crate::kernels::transfer_adjoint::{g2p_block_adjoint, p2g_block_adjoint, G2pAdjointIn, G2pAdjointOut, P2gAdjoint};
+use crate::kernels::Real;
+use crate::memory::{Backing, MemoryError, MemoryPlan, Pool};
+use crate::solver::{flush_local, gather_local, Simulation};
+use crate::threads::SharedSlice;
+
+/// Most internal state reals any material keeps per particle.
+const MAX_STATE: usize = 16;
+
+pub struct StepAdjoint {
+    /// The particle state at the start of the step being reversed.
+    tape: Fields,
+    /// Grid nodes after P2G, before the grid update.
+    grid_tape: Pool<Node>,
+    pub cur: Fields,
+    pub next: Fields,
+    pub mass_bar: Pool<Real>,
+    pub vol0_bar: Pool<Real>,
+    grid_bar: Pool<Node>,
+    /// Adjoints of the material's parameters, in `param_names` order.
+    pub material_bar: Vec<f64>,
+    pub grid_params_bar: GridParamsBar,
+}
+
+impl StepAdjoint {
+    pub fn plan(plan: &mut MemoryPlan, n: usize, state_len: usize, grid_nodes: usize) {
+        Fields::plan(plan, "grad.tape", n, state_len);
+        Fields::plan(plan, "grad.adjoint_a", n, state_len);
+        Fields::plan(plan, "grad.adjoint_b", n, state_len);
+        plan.add::<Real>("grad.mass_bar", n);
+        plan.add::<Real>("grad.vol0_bar", n);
+        plan.add::<Node>("grad.grid_tape", grid_nodes);
+        plan.add::<Node>("grad.grid_bar", grid_nodes);
+    }
+
+    pub fn new(sim: &Simulation, b: &Backing) -> Result<StepAdjoint, MemoryError> {
+        let n = sim.particles.n;
+        let sl = sim.particles.state_len;
+        let nodes = sim.grid.nodes.len();
+        Ok(StepAdjoint {
+            tape: Fields::new("grad.tape", n, sl, b)?,
+            grid_tape: Pool::new("grad.grid_tape", nodes, b)?,
+            cur: Fields::new("grad.adjoint_a", n, sl, b)?,
+            next: Fields::new("grad.adjoint_b", n, sl, b)?,
+            mass_bar: Pool::new("grad.mass_bar", n, b)?,
+            vol0_bar: Pool::new("grad.vol0_bar", n, b)?,
+            grid_bar: Pool::new("grad.grid_bar", nodes, b)?,
+            material_bar: vec![0.0; sim.material.param_names().len()],
+            grid_params_bar: GridParamsBar::default(),
+        })
+    }
+
+    /// Reverse the step the live state of `sim` starts (the last one when `objective` is given:
+    /// the objective is then evaluated on the state after it and seeds the adjoint). The live
+    /// state is consumed. Returns the objective's value when it was evaluated.
+    pub fn reverse(&mut self, sim: &mut Simulation, until: f64, objective: Option<(&Objective, &Frame)>) -> Result<Option<f64>, String> {
+        let n = sim.particles.n;
+        let (dt, _) = sim.choose_dt(until);
+        let dtr = dt as Real;
+
+        // recompute the step, keeping what it overwrites
+        self.tape.copy_from(sim);
+        sim.bin_particles().map_err(|e| e.to_string())?;
+        sim.clear_grid();
+        sim.p2g(dtr);
+        let used = sim.grid.n_active * NODES_PER_BLOCK;
+        self.grid_tape.as_mut_slice()[..used].copy_from_slice(&sim.grid.nodes.as_slice()[..used]);
+        sim.grid_update(dtr, None);
+        sim.g2p(dtr);
+        let mut value = None;
+        if let Some((obj, frame)) = objective {
+            sim.update_materials(dtr).map_err(|e| e.to_string())?;
+            let seed = Seed {
+                xg: &mut self.next.xg.as_mut_slice()[..n],
+                v: &mut self.next.v.as_mut_slice()[..n],
+                j: &mut self.next.j.as_mut_slice()[..n],
+                mass: &mut self.mass_bar.as_mut_slice()[..n],
+            };
+            value = Some(obj.evaluate(sim, frame, Some(seed))?);
+        }
+
+        self.materials_adjoint(sim, dtr);
+        self.clamp_adjoint(sim);
+        let tp = TransferParams { dx: sim.scenario.simulation.dx as Real, dt: dtr };
+        self.grid_bar.as_mut_slice()[..used].fill([0.0; 7]);
+        self.g2p_adjoint(sim, &tp);
+        grid_update_adjoint(sim, &self.grid_tape.as_slice()[..used], &mut self.grid_bar.as_mut_slice()[..used], dtr, &mut self.grid_params_bar);
+        self.p2g_adjoint(sim, &tp);
+
+        std::mem::swap(&mut self.cur, &mut self.next);
+        self.cur.zero();
+        Ok(value)
+    }
+
+    /// Materials: `next.stress` and `next.state` (the adjoints of their outputs) go to the
+    /// velocity gradient and volume ratio G2P produced (`next.c`, `next.j`), the state before the
+    /// step (`cur.state`) and the parameters.
+    fn materials_adjoint(&mut self, sim: &Simulation, dt: Real) {
+        let p = &sim.particles;
+        let (n, sl) = (p.n, p.state_len);
+        let (c1, j1) = (p.c.as_slice(), p.j.as_slice());
+        let state0 = self.tape.state.as_slice();
+        let mat = &*sim.material;
+        let next_stress = self.next.stress.as_slice();
+        let next_state = self.next.state.as_slice();
+        let next_c = self.next.c.as_mut_slice();
+        let next_j = self.next.j.as_mut_slice();
+        let cur_state = self.cur.state.as_mut_slice();
+        let mut params = [0.0 as Real; 16];
+        let np = self.material_bar.len();
+        for i in 0..n {
+            let mut out_bar = [0.0 as Real; MAX_STATE];
+            out_bar[..sl].copy_from_slice(&next_state[i * sl..(i + 1) * sl]);
+            params[..np].fill(0.0);
+            let mut adj = UpdateAdjoint {
+                grad_v_bar: &mut next_c[i],
+                j_bar: &mut next_j[i],
+                state_bar: &mut cur_state[i * sl..(i + 1) * sl],
+                params_bar: &mut params[..np],
+            };
+            mat.update_adjoint(&c1[i], j1[i], dt, &state0[i * sl..(i + 1) * sl], &next_stress[i], &out_bar[..sl], &mut adj);
+            for (acc, v) in self.material_bar.iter_mut().zip(&params[..np]) {
+                *acc += *v as f64;
+            }
+        }
+    }
+
+    /// G2P's caller projects positions that left the domain back onto its walls (and the
+    /// platform): the clamped coordinates no longer depend on anything.
+    fn clamp_adjoint(&mut self, sim: &Simulation) {
+        let geom = &sim.grid.geom;
+        let x1 = sim.particles.xg.as_slice();
+        let bar = self.next.xg.as_mut_slice();
+        let platform = sim.walls.platform;
+        for i in 0..sim.particles.n {
+            for a in 0..3 {
+                if !geom.periodic[a] && (x1[i][a] == geom.lo[a] as Real || x1[i][a] == geom.hi[a] as Real) {
+                    bar[i][a] = 0.0;
+                }
+            }
+            if let Some((z, xy, _)) = platform {
+                let x = x1[i];
+                if x.z == z && x.x >= xy[0] && x.x <= xy[2] && x.y >= xy[1] && x.y <= xy[3] {
+                    bar[i].z = 0.0;
+                }
+            }
+        }
+    }
+
+    fn block_origin(sim: &Simulation, s: usize) -> [i32; 3] {
+        let b = sim.grid.geom.block_coords(sim.grid.slot_block.as_slice()[s]);
+        [b[0] * BS as i32, b[1] * BS as i32, b[2] * BS as i32]
+    }
+
+    fn g2p_adjoint(&mut self, sim: &Simulation, tp: &TransferParams) {
+        let n = sim.particles.n;
+        let sc = &sim.scratch;
+        let npb = sim.grid.n_particle_blocks;
+        let starts = sc.slot_start.as_slice();
+        let order = sc.order.as_slice();
+        let nbr = sc.nbr.as_slice();
+        let nodes = sim.grid.nodes.as_slice();
+        let flip = sim.scenario.simulation.flip as Real;
+        let vol0 = &sim.particles.vol0.as_slice()[..n];
+        let j_bar_avg = sim.scenario.simulation.j_bar.then_some(vol0);
+        let grid_bar = SharedSlice::new(self.grid_bar.as_mut_slice());
+        let inp_fields = (&self.tape.xg.as_slice()[..n], &self.tape.v.as_slice()[..n], &self.tape.j.as_slice()[..n]);
+        let (mut dt_bar, mut dx_bar) = (0.0, 0.0);
+        let mut local = [[0.0 as Real; 7]; LNODES];
+        let mut local_bar = [[0.0 as Real; 7]; LNODES];
+        for s in 0..npb {
+            gather_local(&mut local, &nbr[s], nodes);
+            local_bar.iter_mut().for_each(|l| *l = [0.0; 7]);
+            let ord = &order[starts[s] as usize..starts[s + 1] as usize];
+            let inp = G2pAdjointIn {
+                local: &local,
+                xg: inp_fields.0,
+                v: inp_fields.1,
+                j: inp_fields.2,
+                xg_bar: &self.next.xg.as_slice()[..n],
+                v_bar: &self.next.v.as_slice()[..n],
+                c_bar: &self.next.c.as_slice()[..n],
+                jac_bar: &self.next.j.as_slice()[..n],
+            };
+            let mut out = G2pAdjointOut {
+                local_bar: &mut local_bar,
+                xg_bar: &mut self.cur.xg.as_mut_slice()[..n],
+                v_bar: &mut self.cur.v.as_mut_slice()[..n],
+                jac_bar: &mut self.cur.j.as_mut_slice()[..n],
+                vol0_bar: &mut self.vol0_bar.as_mut_slice()[..n],
+                dt_bar: &mut dt_bar,
+                dx_bar: &mut dx_bar,
+            };
+            g2p_block_adjoint(Self::block_origin(sim, s), ord, flip, j_bar_avg, tp, &inp, &mut out);
+            // SAFETY: this loop is the only user of `grid_bar`.
+            unsafe { flush_local(&local_bar, &nbr[s], &grid_bar) };
+        }
+    }
+
+    fn p2g_adjoint(&mut self, sim: &Simulation, tp: &TransferParams) {
+        let n = sim.particles.n;
+        let sc = &sim.scratch;
+        let npb = sim.grid.n_particle_blocks;
+        let starts = sc.slot_start.as_slice();
+        let order = sc.order.as_slice();
+        let nbr = sc.nbr.as_slice();
+        let p = &sim.particles;
+        let input = P2gInput {
+            xg: &self.tape.xg.as_slice()[..n],
+            v: &self.tape.v.as_slice()[..n],
+            c: &self.tape.c.as_slice()[..n],
+            stress: &self.tape.stress.as_slice()[..n],
+            mass: &p.mass.as_slice()[..n],
+            vol0: &p.vol0.as_slice()[..n],
+            j: &self.tape.j.as_slice()[..n],
+        };
+        let split = sim.scenario.simulation.flip > 0.0;
+        let grid_bar = self.grid_bar.as_slice();
+        let (mut dt_bar, mut dx_bar) = (0.0, 0.0);
+        let mut local_bar = [[0.0 as Real; 7]; LNODES];
+        for s in 0..npb {
+            gather_local(&mut local_bar, &nbr[s], grid_bar);
+            let ord = &order[starts[s] as usize..starts[s + 1] as usize];
+            let mut out = P2gAdjoint {
+                xg_bar: &mut self.cur.xg.as_mut_slice()[..n],
+                v_bar: &mut self.cur.v.as_mut_slice()[..n],
+                c_bar: &mut self.cur.c.as_mut_slice()[..n],
+                stress_bar: &mut self.cur.stress.as_mut_slice()[..n],
+                mass_bar: &mut self.mass_bar.as_mut_slice()[..n],
+                vol0_bar: &mut self.vol0_bar.as_mut_slice()[..n],
+                jac_bar: &mut self.cur.j.as_mut_slice()[..n],
+                dt_bar: &mut dt_bar,
+                dx_bar: &mut dx_bar,
+            };
+            let origin = Self::block_origin(sim, s);
+            if split {
+                p2g_block_adjoint::<true>(origin, ord, &input, tp, &local_bar, &mut out);
+            } else {
+                p2g_block_adjoint::<false>(origin, ord, &input, tp, &local_bar, &mut out);
+            }
+        }
+    }
+}

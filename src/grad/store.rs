@@ -1,0 +1,212 @@
+//! Where the checkpoint schedule keeps its stored states: a fixed number of RAM slots in one
+//! mapped pool, and disk slots as files written by a background writer over a bounded lock-free
+//! queue and read back through mmap.
+//!
+//! Disk writes overlap the forward sweep: `store` hands a copy to the writer and returns; only a
+//! `restore` or `free` of a state still in flight waits for it. Two staging buffers circulate
+//! between the stepper and the writer, so a third store in a row waits for the first write.
+
+use super::fields::{load, save};
+use super::schedule::Tier;
+use crate::memory::{Backing, MemoryError, Pool};
+use crate::solver::Simulation;
+use crossbeam::channel::{bounded, Receiver, Sender};
+use std::path::{Path, PathBuf};
+
+pub struct RamSlots {
+    pool: Pool<u8>,
+    bytes: usize,
+    /// Step held by each slot.
+    held: Vec<Option<u64>>,
+}
+
+impl RamSlots {
+    pub fn new(slots: usize, bytes: usize, backing: &Backing) -> Result<RamSlots, MemoryError> {
+        Ok(RamSlots { pool: Pool::new("grad.ram_slots", slots * bytes, backing)?, bytes, held: vec![None; slots] })
+    }
+
+    fn find(&self, step: u64) -> Result<usize, String> {
+        self.held.iter().position(|h| *h == Some(step)).ok_or_else(|| format!("no RAM checkpoint of step {step}"))
+    }
+
+    fn store(&mut self, sim: &Simulation) -> Result<(), String> {
+        let k = self.held.iter().position(Option::is_none).ok_or("the RAM checkpoint slots are all taken")?;
+        save(sim, &mut self.pool.as_mut_slice()[k * self.bytes..(k + 1) * self.bytes]);
+        self.held[k] = Some(sim.step);
+        Ok(())
+    }
+
+    fn restore(&self, sim: &mut Simulation, step: u64) -> Result<(), String> {
+        let k = self.find(step)?;
+        load(sim, &self.pool.as_slice()[k * self.bytes..(k + 1) * self.bytes]);
+        Ok(())
+    }
+
+    fn free(&mut self, step: u64) -> Result<(), String> {
+        let k = self.find(step)?;
+        self.held[k] = None;
+        Ok(())
+    }
+}
+
+struct Job {
+    step: u64,
+    data: Vec<u8>,
+}
+
+pub struct DiskSlots {
+    dir: PathBuf,
+    bytes: usize,
+    jobs: Option<Sender<Job>>,
+    buffers: Receiver<Vec<u8>>,
+    done: Receiver<Result<u64, String>>,
+    in_flight: Vec<u64>,
+    on_disk: Vec<u64>,
+    writer: Option<std::thread::JoinHandle<()>>,
+    /// Bytes written and read, for the report.
+    pub written: u64,
+    pub read: u64,
+}
+
+fn slot_path(dir: &Path, step: u64) -> PathBuf {
+    dir.join(format!("grad_state_{step:012}.bin"))
+}
+
+impl DiskSlots {
+    pub fn new(dir: &Path, bytes: usize) -> Result<DiskSlots, String> {
+        std::fs::create_dir_all(dir).map_err(|e| format!("gradient checkpoint folder {}: {e}", dir.display()))?;
+        let (job_tx, job_rx) = bounded::<Job>(1);
+        let (buf_tx, buf_rx) = bounded::<Vec<u8>>(2);
+        let (done_tx, done_rx) = bounded::<Result<u64, String>>(4);
+        for _ in 0..2 {
+            buf_tx.send(vec![0u8; bytes]).expect("fresh channel");
+        }
+        let wdir = dir.to_path_buf();
+        let writer = std::thread::Builder::new()
+            .name("grad-writer".into())
+            .spawn(move || {
+                for job in job_rx {
+                    let path = slot_path(&wdir, job.step);
+                    let r = std::fs::write(&path, &job.data).map(|_| job.step).map_err(|e| format!("writing {}: {e}", path.display()));
+                    let _ = buf_tx.send(job.data);
+                    if done_tx.send(r).is_err() {
+                        break;
+                    }
+                }
+            })
+            .map_err(|e| format!("starting the gradient checkpoint writer: {e}"))?;
+        Ok(DiskSlots {
+            dir: dir.to_path_buf(),
+            bytes,
+            jobs: Some(job_tx),
+            buffers: buf_rx,
+            done: done_rx,
+            in_flight: Vec::new(),
+            on_disk: Vec::new(),
+            writer: Some(writer),
+            written: 0,
+            read: 0,
+        })
+    }
+
+    fn settle(&mut self, r: Result<u64, String>) -> Result<(), String> {
+        let step = r?;
+        self.in_flight.retain(|&s| s != step);
+        self.on_disk.push(step);
+        self.written += self.bytes as u64;
+        Ok(())
+    }
+
+    /// Wait until `step` (if in flight) is on disk; collect any other finished writes.
+    fn wait_for(&mut self, step: u64) -> Result<(), String> {
+        while let Ok(r) = self.done.try_recv() {
+            self.settle(r)?;
+        }
+        while self.in_flight.contains(&step) {
+            let r = self.done.recv().map_err(|_| "the gradient checkpoint writer stopped".to_string())?;
+            self.settle(r)?;
+        }
+        Ok(())
+    }
+
+    fn store(&mut self, sim: &Simulation) -> Result<(), String> {
+        while let Ok(r) = self.done.try_recv() {
+            self.settle(r)?;
+        }
+        let mut data = self.buffers.recv().map_err(|_| "the gradient checkpoint writer stopped".to_string())?;
+        save(sim, &mut data);
+        self.in_flight.push(sim.step);
+        let jobs = self.jobs.as_ref().ok_or("the gradient checkpoint writer is closed")?;
+        jobs.send(Job { step: sim.step, data }).map_err(|_| "the gradient checkpoint writer stopped".to_string())
+    }
+
+    fn restore(&mut self, sim: &mut Simulation, step: u64) -> Result<(), String> {
+        self.wait_for(step)?;
+        let path = slot_path(&self.dir, step);
+        let file = std::fs::File::open(&path).map_err(|e| format!("reading {}: {e}", path.display()))?;
+        // SAFETY: the file is ours, complete (its write was acknowledged) and not modified while
+        // mapped.
+        let map = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| format!("mapping {}: {e}", path.display()))?;
+        if map.len() != self.bytes {
+            return Err(format!("{} has {} bytes, expected {}", path.display(), map.len(), self.bytes));
+        }
+        load(sim, &map);
+        self.read += self.bytes as u64;
+        Ok(())
+    }
+
+    fn free(&mut self, step: u64) -> Result<(), String> {
+        self.wait_for(step)?;
+        self.on_disk.retain(|&s| s != step);
+        let path = slot_path(&self.dir, step);
+        std::fs::remove_file(&path).map_err(|e| format!("removing {}: {e}", path.display()))
+    }
+}
+
+impl Drop for DiskSlots {
+    fn drop(&mut self) {
+        self.jobs = None;
+        if let Some(w) = self.writer.take() {
+            let _ = w.join();
+        }
+        while let Ok(Ok(step)) = self.done.try_recv() {
+            self.on_disk.push(step);
+        }
+        for s in self.on_disk.iter().chain(&self.in_flight) {
+            let _ = std::fs::remove_file(slot_path(&self.dir, *s));
+        }
+    }
+}
+
+/// Both tiers behind the schedule's Store / Restore / Free actions.
+pub struct Store {
+    pub ram: RamSlots,
+    pub disk: Option<DiskSlots>,
+}
+
+impl Store {
+    pub fn store(&mut self, sim: &Simulation, tier: Tier) -> Result<(), String> {
+        match tier {
+            Tier::Ram => self.ram.store(sim),
+            Tier::Disk => self.disk_mut()?.store(sim),
+        }
+    }
+
+    pub fn restore(&mut self, sim: &mut Simulation, step: u64, tier: Tier) -> Result<(), String> {
+        match tier {
+            Tier::Ram => self.ram.restore(sim, step),
+            Tier::Disk => self.disk_mut()?.restore(sim, step),
+        }
+    }
+
+    pub fn free(&mut self, step: u64, tier: Tier) -> Result<(), String> {
+        match tier {
+            Tier::Ram => self.ram.free(step),
+            Tier::Disk => self.disk_mut()?.free(step),
+        }
+    }
+
+    fn disk_mut(&mut self) -> Result<&mut DiskSlots, String> {
+        self.disk.as_mut().ok_or_else(|| "the schedule uses disk checkpoints but no disk tier is set up".to_string())
+    }
+}
