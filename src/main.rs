@@ -92,6 +92,10 @@ enum Cmd {
         disk_dir: PathBuf,
         #[arg(long)]
         threads: Option<usize>,
+        /// Force a schedule instead of choosing one from --ram and --disk: store-all,
+        /// two-level[:SEGMENT] or revolve:RAM_SLOTS,DISK_SLOTS.
+        #[arg(long)]
+        schedule: Option<String>,
     },
     /// Throughput of the peer benchmark scene (3D J-fluid dam break).
     Bench {
@@ -176,7 +180,7 @@ fn main() -> ExitCode {
             Ok(true)
         }
         Cmd::Verify { quick, json, case, threads, .. } => strand::verify::run_suite(quick, json, case.as_deref(), threads),
-        Cmd::Grad { scenario, objective, wrt, check, json, ram, disk, disk_dir, threads } => (|| {
+        Cmd::Grad { scenario, objective, wrt, check, json, ram, disk, disk_dir, threads, schedule } => (|| {
             let sc = Scenario::load(&scenario).map_err(|e| e.to_string())?;
             let obj: strand::grad::Objective = objective.parse()?;
             let size = |s: &str, what: &str| strand::memory::parse_size(s).map_err(|e| format!("--{what}: {e}"));
@@ -185,7 +189,7 @@ fn main() -> ExitCode {
                 disk_bytes: size(&disk, "disk")?,
                 disk_dir,
                 threads,
-                schedule: None,
+                schedule: schedule.as_deref().map(strand::grad::schedule::Kind::parse).transpose()?,
             };
             let r = strand::grad::gradient(&sc, &obj, &wrt, &opts)?;
             let chk = if check { Some(strand::grad::check::check(&sc, &obj, &r, threads)?) } else { None };

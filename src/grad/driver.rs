@@ -145,6 +145,7 @@ pub fn gradient(sc: &Scenario, objective: &Objective, wrt: &[String], opts: &Gra
     }
     let budget = Budget { state_bytes: sbytes, ram_bytes: opts.ram_bytes - adjoint_bytes, disk_bytes: opts.disk_bytes };
     let plan = match opts.schedule {
+        Some(Kind::TwoLevel { segment: 0 }) => Plan::two_level(n_steps),
         Some(kind) => Plan::new(kind, n_steps).map_err(|e| e.to_string())?,
         None => choose(n_steps, &budget).map_err(|e| e.to_string())?,
     };

@@ -56,11 +56,17 @@ impl Material for Newtonian {
     }
 
     fn param_names(&self) -> &'static [&'static str] {
-        &[]
+        &["bulk_modulus", "viscosity"]
     }
 
-    fn update_adjoint(&self, _: &M3, _: Real, _: Real, _: &[Real], _: &M3, _: &[Real], _: &mut crate::material::UpdateAdjoint) {
-        todo!("adjoint of {}", self.name())
+    fn update_adjoint(&self, grad_v: &M3, j: Real, _: Real, _: &[Real], sb: &M3, _: &[Real], out: &mut crate::material::UpdateAdjoint) {
+        let d_dev = dev(&sym(grad_v));
+        *out.grad_v_bar += sym(&dev(sb)) * (r(2.0) * r(self.viscosity));
+        let p_bar = -(sb.x_axis.x + sb.y_axis.y + sb.z_axis.z);
+        let (kb, jb) = self.eos.pressure_adjoint(r(self.bulk_modulus), j, p_bar);
+        *out.j_bar += jb;
+        out.params_bar[0] += kb;
+        out.params_bar[1] += r(2.0) * crate::real::ddot(sb, &d_dev);
     }
 
     fn stability(&self) -> StabilityInfo {

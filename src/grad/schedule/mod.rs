@@ -96,6 +96,25 @@ pub enum Kind {
     Revolve { ram_slots: usize, disk_slots: usize },
 }
 
+impl Kind {
+    /// `store-all`, `two-level` (segment ceil(sqrt N)) or `two-level:SEGMENT`, and
+    /// `revolve:RAM_SLOTS,DISK_SLOTS`. A two-level segment of 0 means ceil(sqrt N).
+    pub fn parse(s: &str) -> Result<Kind, String> {
+        let bad = || format!("schedule '{s}': expected store-all, two-level[:SEGMENT] or revolve:RAM_SLOTS,DISK_SLOTS");
+        let num = |t: &str| t.trim().parse::<u64>().map_err(|_| bad());
+        match s.split_once(':') {
+            None if s == "store-all" => Ok(Kind::StoreAll),
+            None if s == "two-level" => Ok(Kind::TwoLevel { segment: 0 }),
+            Some(("two-level", m)) => Ok(Kind::TwoLevel { segment: num(m)? }),
+            Some(("revolve", slots)) => {
+                let (r, d) = slots.split_once(',').ok_or_else(bad)?;
+                Ok(Kind::Revolve { ram_slots: num(r)? as usize, disk_slots: num(d)? as usize })
+            }
+            _ => Err(bad()),
+        }
+    }
+}
+
 #[derive(Debug, PartialEq, Eq, thiserror::Error)]
 pub enum ScheduleError {
     #[error("the checkpoint budget gives a state size of 0 bytes; it must be the size of one stored forward state")]
