@@ -67,7 +67,7 @@ pub fn check(sc: &Scenario, objective: &Objective, r: &GradResult, threads: Opti
     let j0 = value_at(&r.values)?;
     let mut taylor = Vec::new();
     for i in 0..5 {
-        let h = 1e-2 / 2f64.powi(i);
+        let h = 1e-3 / 2f64.powi(i);
         let at: Vec<f64> = r.values.iter().zip(&d).map(|(v, d)| v + h * d).collect();
         taylor.push((h, (value_at(&at)? - j0 - h * slope_dir).abs()));
     }

@@ -1,0 +1,222 @@
+//! Reverse-mode gradients through whole runs: every schedule gives the same bits, the adjoint
+//! agrees with central differences and passes the Taylor test, the Poiseuille derivative matches
+//! the closed form, and a long backward pass stays within its RAM and disk caps.
+
+mod common;
+
+use std::process::Command;
+use strand::grad::schedule::Kind;
+use strand::grad::{check::check, gradient, GradOptions, Objective};
+use strand::scenario::Scenario;
+
+/// A small Newtonian block thrown across a floor with Coulomb friction, next to no-slip and
+/// free-slip walls: every wall kind and the body force act on it.
+fn block(extra_sim: &str, floor: &str) -> String {
+    format!(
+        r#"
+name = "grad-block"
+[simulation]
+dx = 0.02
+end_time = 0.05
+dt = 5e-4
+gravity = [0.0, 0.0, -9.81]
+body_force = [300.0, 0.0, 0.0]
+threads = 2
+{extra_sim}
+[domain]
+min = [0.0, 0.0, 0.0]
+max = [0.16, 0.16, 0.16]
+[boundary]
+z_min = {floor}
+x_max = "free_slip"
+y_min = "no_slip"
+[material]
+kind = "newtonian"
+density = 2000.0
+bulk_modulus = 1e5
+viscosity = 5.0
+[[body]]
+shape = "box"
+min = [0.04, 0.04, 0.0]
+max = [0.10, 0.10, 0.06]
+velocity = [0.3, 0.1, -0.05]
+[memory]
+budget = "64 MiB"
+"#
+    )
+}
+
+fn opts(schedule: Option<Kind>, disk_dir: &std::path::Path) -> GradOptions {
+    GradOptions { ram_bytes: 1 << 30, disk_bytes: 1 << 30, disk_dir: disk_dir.to_path_buf(), threads: None, schedule }
+}
+
+fn keys(k: &[&str]) -> Vec<String> {
+    k.iter().map(|s| s.to_string()).collect()
+}
+
+#[test]
+fn every_schedule_gives_the_same_gradient_bits() {
+    let dir = tempfile::tempdir().unwrap();
+    let sc = Scenario::parse(&block("", "{ friction = { mu = 0.3 } }")).unwrap();
+    let wrt = keys(&["material.viscosity", "material.density", "body.0.velocity.x", "boundary.z_min.friction.mu"]);
+    let obj: Objective = "spread".parse().unwrap();
+    let reference = gradient(&sc, &obj, &wrt, &opts(Some(Kind::StoreAll), dir.path())).unwrap();
+    assert!(reference.gradient.iter().all(|g| g.is_finite() && *g != 0.0), "{:?}", reference.gradient);
+    for kind in [
+        Kind::TwoLevel { segment: 7 },
+        Kind::Revolve { ram_slots: 3, disk_slots: 0 },
+        Kind::Revolve { ram_slots: 2, disk_slots: 3 },
+        Kind::Revolve { ram_slots: 0, disk_slots: 4 },
+    ] {
+        let r = gradient(&sc, &obj, &wrt, &opts(Some(kind), dir.path())).unwrap();
+        assert!(r.forward_steps > reference.forward_steps, "{kind:?} recomputes");
+        assert_eq!(r.value.to_bits(), reference.value.to_bits(), "{kind:?}");
+        for (a, b) in r.gradient.iter().zip(&reference.gradient) {
+            assert_eq!(a.to_bits(), b.to_bits(), "{kind:?}: {:?} against store-all {:?}", r.gradient, reference.gradient);
+        }
+    }
+    // the disk tier cleans up after itself
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+}
+
+/// Best relative agreement with central differences over the check's step sizes.
+fn best_agreement(c: &strand::grad::check::ParamCheck) -> f64 {
+    c.central.iter().map(|x| x.2).fold(f64::INFINITY, f64::min)
+}
+
+#[test]
+fn whole_run_gradient_matches_central_differences_and_the_taylor_test() {
+    // Without J-bar: its cell average jumps when a particle changes cell, so central differences
+    // in anything that moves particles see steps (the adjoint is the derivative between them).
+    let sc = Scenario::parse(&block("j_bar = false", "{ friction = { mu = 0.3 } }")).unwrap();
+    let wrt = keys(&[
+        "material.viscosity",
+        "material.bulk_modulus",
+        "material.density",
+        "simulation.body_force.x",
+        "simulation.gravity.z",
+        "body.0.velocity.x",
+        "body.0.velocity.z",
+        "boundary.z_min.friction.mu",
+    ]);
+    let dir = tempfile::tempdir().unwrap();
+    for objective in ["mean_z", "spread", "kinetic_energy"] {
+        let obj: Objective = objective.parse().unwrap();
+        let r = gradient(&sc, &obj, &wrt, &opts(None, dir.path())).unwrap();
+        let c = check(&sc, &obj, &r, None).unwrap();
+        for p in &c.params {
+            let best = best_agreement(p);
+            println!("{objective}: d/d {} = {:.6e}, central differences {:?}", p.param, p.adjoint, p.central);
+            assert!(best <= 1e-6, "{objective}: d/d {}: adjoint {:.9e}, central differences {:?}", p.param, p.adjoint, p.central);
+        }
+        println!("{objective}: Taylor slope {:.3} {:?}", c.taylor_slope, c.taylor);
+        assert!((c.taylor_slope - 2.0).abs() <= 0.1, "{objective}: Taylor slope {:.3}: {:?}", c.taylor_slope, c.taylor);
+    }
+}
+
+#[test]
+fn poiseuille_centre_speed_derivative_matches_the_closed_form() {
+    // Steady plane Poiseuille flow: v_max = F H^2 / (8 eta), so dv_max/dF = H^2 / (8 eta)
+    // (paper 000 sec. 4.1). H = 0.25 m, eta = 60 Pa s: the slowest mode decays in
+    // H^2 rho / (pi^2 eta) = 0.21 s, so 1.5 s is steady to 1e-3.
+    let text = r#"
+name = "poiseuille-grad"
+[simulation]
+dx = 0.015625
+end_time = 1.5
+dt = 3.6e-4
+gravity = [0.0, 0.0, 0.0]
+body_force = [2000.0, 0.0, 0.0]
+[domain]
+min = [0.0, 0.0, 0.0]
+max = [0.0625, 0.0625, 0.25]
+periodic = [true, true, false]
+[boundary]
+z_min = "no_slip"
+z_max = "no_slip"
+[material]
+kind = "newtonian"
+density = 2000.0
+bulk_modulus = 3.3e5
+viscosity = 60.0
+[[body]]
+shape = "box"
+min = [0.0, 0.0, 0.0]
+max = [0.0625, 0.0625, 0.25]
+[memory]
+budget = "64 MiB"
+"#;
+    let sc = Scenario::parse(text).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let r = gradient(&sc, &"vx_max".parse().unwrap(), &keys(&["simulation.body_force.x"]), &opts(None, dir.path())).unwrap();
+    let analytic = 0.25f64.powi(2) / (8.0 * 60.0);
+    let err = (r.gradient[0] - analytic).abs() / analytic;
+    println!("dv_max/dF = {:.6e}, analytic {analytic:.6e}, error {:.3} %", r.gradient[0], 100.0 * err);
+    assert!(err <= 0.01, "dv_max/dF = {:.6e} against H^2/(8 eta) = {analytic:.6e}: {:.2} %", r.gradient[0], 100.0 * err);
+}
+
+#[test]
+fn a_long_backward_pass_stays_within_its_ram_and_disk_caps() {
+    // 10^5 steps of a small block: store-all would need 10^5 states; the caps leave room for
+    // few, so the schedule must recompute (Revolve over RAM and disk).
+    let dir = tempfile::tempdir().unwrap();
+    let text = block("", "\"no_slip\"")
+        .replace("end_time = 0.05", "end_time = 5.0")
+        .replace("dt = 5e-4", "dt = 5e-5")
+        .replace("threads = 2", "threads = 1")
+        .replace("max = [0.10, 0.10, 0.06]", "max = [0.08, 0.08, 0.04]")
+        .replace("budget = \"64 MiB\"", "budget = \"16 MiB\"");
+    let sc_path = dir.path().join("long.toml");
+    std::fs::write(&sc_path, &text).unwrap();
+    let disk_dir = dir.path().join("ckpt");
+    let (ram_cap, disk_cap) = (4u64 << 20, 2u64 << 20);
+    let out = Command::new(env!("CARGO_BIN_EXE_strand"))
+        .args(["grad", sc_path.to_str().unwrap(), "--objective", "mean_z", "--wrt", "material.viscosity", "--json"])
+        .args(["--ram", "4 MiB", "--disk", "2 MiB", "--disk-dir", disk_dir.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let r = &j["result"];
+    let steps = r["steps"].as_u64().unwrap();
+    assert!(steps >= 100_000, "{steps} steps");
+    let state = r["state_bytes"].as_u64().unwrap();
+    let (ram_slots, disk_slots) = (r["peak_ram_slots"].as_u64().unwrap(), r["peak_disk_slots"].as_u64().unwrap());
+    let adjoint = r["adjoint_bytes"].as_u64().unwrap();
+    println!("{r:#}");
+    assert!(r["schedule"].as_str().unwrap().starts_with("Revolve"), "{r}");
+    assert!(disk_slots > 0, "the disk tier is used");
+    assert!(adjoint + ram_slots * state <= ram_cap, "RAM: {adjoint} + {ram_slots} x {state} > {ram_cap}");
+    assert!(disk_slots * state <= disk_cap, "disk: {disk_slots} x {state} > {disk_cap}");
+    // The process: the simulator's pools (16 MiB budget) + the gradient's cap + the fixed cost of
+    // the binary and its threads.
+    let peak = j["peak_rss_bytes"].as_u64().unwrap();
+    let bound = (16u64 << 20) + ram_cap + common::RSS_SLACK;
+    println!("peak RSS {peak} B, bound {bound} B");
+    assert!(peak <= bound, "peak RSS {peak} B > {bound} B");
+    assert!(r["gradient"][0].as_f64().unwrap().is_finite());
+}
+
+#[test]
+fn bad_requests_name_the_problem() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = |text: &str, obj: &str, wrt: &[&str]| {
+        let sc = Scenario::parse(text).unwrap();
+        match obj.parse::<Objective>() {
+            Err(e) => e,
+            Ok(obj) => gradient(&sc, &obj, &keys(wrt), &opts(None, dir.path())).unwrap_err(),
+        }
+    };
+    let text = block("", "\"no_slip\"");
+    assert!(o(&text, "spred", &["material.viscosity"]).contains("unknown objective 'spred'"));
+    let e = o(&text, "spread", &["material.viscosty"]);
+    assert!(e.contains("unknown parameter 'material.viscosty'") && e.contains("material.viscosity"), "{e}");
+    let e = o(&text.replace("dt = 5e-4", ""), "spread", &["material.viscosity"]);
+    assert!(e.contains("simulation.dt"), "{e}");
+    let e = o(&text, "spread", &["boundary.z_min.friction.mu"]);
+    assert!(e.contains("unknown parameter"), "{e}");
+    let sc = Scenario::parse(&text).unwrap();
+    let tiny = GradOptions { ram_bytes: 1000, ..opts(None, dir.path()) };
+    let e = gradient(&sc, &"spread".parse().unwrap(), &keys(&["material.viscosity"]), &tiny).unwrap_err();
+    assert!(e.contains("RAM budget") && e.contains("grad.tape"), "{e}");
+}
