@@ -155,7 +155,7 @@ pub fn gradient(sc: &Scenario, objective: &Objective, wrt: &[String], opts: &Gra
         ram: RamSlots::new(ram_slots, sbytes as usize, &backing).map_err(|e| e.to_string())?,
         disk: if disk_slots > 0 { Some(DiskSlots::new(&opts.disk_dir, sbytes as usize)?) } else { None },
     };
-    let mut adj = StepAdjoint::new(&sim, &backing).map_err(|e| e.to_string())?;
+    let mut adj = StepAdjoint::new(&sim, &backing)?;
 
     let end = sc.simulation.end_time;
     let (mut forward_s, mut reverse_s) = (0.0, 0.0);

@@ -19,11 +19,16 @@ use crate::kernels::transfer::{Node, P2gInput, TransferParams, BS, LNODES};
 use crate::kernels::transfer_adjoint::{g2p_block_adjoint, p2g_block_adjoint, G2pAdjointIn, G2pAdjointOut, P2gAdjoint};
 use crate::kernels::Real;
 use crate::memory::{Backing, MemoryError, MemoryPlan, Pool};
-use crate::solver::{flush_local, gather_local, Simulation};
+use crate::solver::{balanced, flush_local, gather_local, Simulation};
 use crate::threads::SharedSlice;
 
 /// Most internal state reals any material keeps per particle.
 const MAX_STATE: usize = 16;
+/// Most parameters a material may offer.
+const MAX_PARAMS: usize = 16;
+/// Particles per partial sum of the material parameters' adjoints: fixed, so the sums do not
+/// depend on the thread count.
+const CHUNK: usize = 256;
 
 pub struct StepAdjoint {
     /// The particle state at the start of the step being reversed.
@@ -37,6 +42,7 @@ pub struct StepAdjoint {
     grid_bar: Pool<Node>,
     /// Adjoints of the material's parameters, in `param_names` order.
     pub material_bar: Vec<f64>,
+    chunk_params: Vec<[f64; MAX_PARAMS]>,
     pub grid_params_bar: GridParamsBar,
 }
 
@@ -51,8 +57,15 @@ impl StepAdjoint {
         plan.add::<Node>("grad.grid_bar", grid_nodes);
     }
 
-    pub fn new(sim: &Simulation, b: &Backing) -> Result<StepAdjoint, MemoryError> {
+    pub fn new(sim: &Simulation, b: &Backing) -> Result<StepAdjoint, String> {
         let n = sim.particles.n;
+        if sim.material.param_names().len() > MAX_PARAMS || sim.particles.state_len > MAX_STATE {
+            return Err(format!("material {}: the gradient driver takes at most {MAX_PARAMS} parameters and {MAX_STATE} state values", sim.material.name()));
+        }
+        Self::pools(sim, n, b).map_err(|e| e.to_string())
+    }
+
+    fn pools(sim: &Simulation, n: usize, b: &Backing) -> Result<StepAdjoint, MemoryError> {
         let sl = sim.particles.state_len;
         let nodes = sim.grid.nodes.len();
         Ok(StepAdjoint {
@@ -64,6 +77,7 @@ impl StepAdjoint {
             vol0_bar: Pool::new("grad.vol0_bar", n, b)?,
             grid_bar: Pool::new("grad.grid_bar", nodes, b)?,
             material_bar: vec![0.0; sim.material.param_names().len()],
+            chunk_params: vec![[0.0; MAX_PARAMS]; n.div_ceil(CHUNK)],
             grid_params_bar: GridParamsBar::default(),
         })
     }
@@ -116,29 +130,46 @@ impl StepAdjoint {
     fn materials_adjoint(&mut self, sim: &Simulation, dt: Real) {
         let p = &sim.particles;
         let (n, sl) = (p.n, p.state_len);
-        let (c1, j1) = (p.c.as_slice(), p.j.as_slice());
+        let (c1, j1) = (&p.c.as_slice()[..n], &p.j.as_slice()[..n]);
         let state0 = self.tape.state.as_slice();
         let mat = &*sim.material;
+        let np = self.material_bar.len();
         let next_stress = self.next.stress.as_slice();
         let next_state = self.next.state.as_slice();
-        let next_c = self.next.c.as_mut_slice();
-        let next_j = self.next.j.as_mut_slice();
-        let cur_state = self.cur.state.as_mut_slice();
-        let mut params = [0.0 as Real; 16];
-        let np = self.material_bar.len();
-        for i in 0..n {
-            let mut out_bar = [0.0 as Real; MAX_STATE];
-            out_bar[..sl].copy_from_slice(&next_state[i * sl..(i + 1) * sl]);
-            params[..np].fill(0.0);
-            let mut adj = UpdateAdjoint {
-                grad_v_bar: &mut next_c[i],
-                j_bar: &mut next_j[i],
-                state_bar: &mut cur_state[i * sl..(i + 1) * sl],
-                params_bar: &mut params[..np],
-            };
-            mat.update_adjoint(&c1[i], j1[i], dt, &state0[i * sl..(i + 1) * sl], &next_stress[i], &out_bar[..sl], &mut adj);
-            for (acc, v) in self.material_bar.iter_mut().zip(&params[..np]) {
-                *acc += *v as f64;
+        let next_c = SharedSlice::new(&mut self.next.c.as_mut_slice()[..n]);
+        let next_j = SharedSlice::new(&mut self.next.j.as_mut_slice()[..n]);
+        let cur_state = SharedSlice::new(&mut self.cur.state.as_mut_slice()[..n * sl]);
+        let chunks = n.div_ceil(CHUNK);
+        let partial = SharedSlice::new(&mut self.chunk_params[..chunks]);
+        let threads = sim.team.threads();
+        sim.team.run(|tid| {
+            for k in crate::threads::ThreadTeam::share(chunks, tid, threads) {
+                // SAFETY: chunk k and its particles belong to this thread.
+                let acc = unsafe { partial.get_mut(k) };
+                *acc = [0.0; MAX_PARAMS];
+                for i in k * CHUNK..((k + 1) * CHUNK).min(n) {
+                    let mut out_bar = [0.0 as Real; MAX_STATE];
+                    out_bar[..sl].copy_from_slice(&next_state[i * sl..(i + 1) * sl]);
+                    let mut params = [0.0 as Real; MAX_PARAMS];
+                    let mut adj = unsafe {
+                        UpdateAdjoint {
+                            grad_v_bar: next_c.get_mut(i),
+                            j_bar: next_j.get_mut(i),
+                            state_bar: cur_state.slice_mut(i * sl..(i + 1) * sl),
+                            params_bar: &mut params[..np],
+                        }
+                    };
+                    mat.update_adjoint(&c1[i], j1[i], dt, &state0[i * sl..(i + 1) * sl], &next_stress[i], &out_bar[..sl], &mut adj);
+                    for (a, v) in acc.iter_mut().zip(&params[..np]) {
+                        *a += *v as f64;
+                    }
+                }
+            }
+        });
+        // chunk sums in chunk order: the same bits for any thread count
+        for acc in &self.chunk_params[..chunks] {
+            for (m, a) in self.material_bar.iter_mut().zip(acc) {
+                *m += a;
             }
         }
     }
@@ -170,10 +201,11 @@ impl StepAdjoint {
         [b[0] * BS as i32, b[1] * BS as i32, b[2] * BS as i32]
     }
 
+    /// G2P's adjoint scatters into the grid adjoint as P2G scatters into the grid: by colour,
+    /// so threads never add to the same node and every node sums in the same order.
     fn g2p_adjoint(&mut self, sim: &Simulation, tp: &TransferParams) {
         let n = sim.particles.n;
         let sc = &sim.scratch;
-        let npb = sim.grid.n_particle_blocks;
         let starts = sc.slot_start.as_slice();
         let order = sc.order.as_slice();
         let nbr = sc.nbr.as_slice();
@@ -182,44 +214,60 @@ impl StepAdjoint {
         let vol0 = &sim.particles.vol0.as_slice()[..n];
         let j_bar_avg = sim.scenario.simulation.j_bar.then_some(vol0);
         let grid_bar = SharedSlice::new(self.grid_bar.as_mut_slice());
-        let inp_fields = (&self.tape.xg.as_slice()[..n], &self.tape.v.as_slice()[..n], &self.tape.j.as_slice()[..n]);
-        let (mut dt_bar, mut dx_bar) = (0.0, 0.0);
-        let mut local = [[0.0 as Real; 7]; LNODES];
-        let mut local_bar = [[0.0 as Real; 7]; LNODES];
-        for s in 0..npb {
-            gather_local(&mut local, &nbr[s], nodes);
-            local_bar.iter_mut().for_each(|l| *l = [0.0; 7]);
-            let ord = &order[starts[s] as usize..starts[s + 1] as usize];
-            let inp = G2pAdjointIn {
-                local: &local,
-                xg: inp_fields.0,
-                v: inp_fields.1,
-                j: inp_fields.2,
-                xg_bar: &self.next.xg.as_slice()[..n],
-                v_bar: &self.next.v.as_slice()[..n],
-                c_bar: &self.next.c.as_slice()[..n],
-                jac_bar: &self.next.j.as_slice()[..n],
-            };
-            let mut out = G2pAdjointOut {
-                local_bar: &mut local_bar,
-                xg_bar: &mut self.cur.xg.as_mut_slice()[..n],
-                v_bar: &mut self.cur.v.as_mut_slice()[..n],
-                jac_bar: &mut self.cur.j.as_mut_slice()[..n],
-                vol0_bar: &mut self.vol0_bar.as_mut_slice()[..n],
-                dt_bar: &mut dt_bar,
-                dx_bar: &mut dx_bar,
-            };
-            g2p_block_adjoint(Self::block_origin(sim, s), ord, flip, j_bar_avg, tp, &inp, &mut out);
-            // SAFETY: this loop is the only user of `grid_bar`.
-            unsafe { flush_local(&local_bar, &nbr[s], &grid_bar) };
+        let (x0, v0, j0) = (&self.tape.xg.as_slice()[..n], &self.tape.v.as_slice()[..n], &self.tape.j.as_slice()[..n]);
+        let next = (&self.next.xg.as_slice()[..n], &self.next.v.as_slice()[..n], &self.next.c.as_slice()[..n], &self.next.j.as_slice()[..n]);
+        let cur_xg = SharedSlice::new(&mut self.cur.xg.as_mut_slice()[..n]);
+        let cur_v = SharedSlice::new(&mut self.cur.v.as_mut_slice()[..n]);
+        let cur_j = SharedSlice::new(&mut self.cur.j.as_mut_slice()[..n]);
+        let vol0_bar = SharedSlice::new(&mut self.vol0_bar.as_mut_slice()[..n]);
+        let threads = sim.team.threads();
+        for c in 0..8 {
+            let (c0, c1) = (sc.colour_start[c], sc.colour_start[c + 1]);
+            if c0 == c1 {
+                continue;
+            }
+            let blocks = &sc.colour_blocks.as_slice()[c0..c1];
+            let cum = &sc.colour_cum.as_slice()[c0..c1];
+            let last = *blocks.last().unwrap() as usize;
+            let total = cum[cum.len() - 1] + (starts[last + 1] - starts[last]);
+            sim.team.run(|tid| {
+                let (lo, hi) = balanced(cum, total, tid, threads);
+                let mut local = [[0.0 as Real; 7]; LNODES];
+                let mut local_bar = [[0.0 as Real; 7]; LNODES];
+                let (mut dt_bar, mut dx_bar) = (0.0, 0.0);
+                for &s in &blocks[lo..hi] {
+                    let s = s as usize;
+                    gather_local(&mut local, &nbr[s], nodes);
+                    local_bar.iter_mut().for_each(|l| *l = [0.0; 7]);
+                    let ord = &order[starts[s] as usize..starts[s + 1] as usize];
+                    let inp = G2pAdjointIn { local: &local, xg: x0, v: v0, j: j0, xg_bar: next.0, v_bar: next.1, c_bar: next.2, jac_bar: next.3 };
+                    // SAFETY: a particle belongs to one block and a block to one thread; within a
+                    // colour, block neighbourhoods are disjoint.
+                    let mut out = unsafe {
+                        G2pAdjointOut {
+                            local_bar: &mut local_bar,
+                            xg_bar: cur_xg.slice_mut(0..n),
+                            v_bar: cur_v.slice_mut(0..n),
+                            jac_bar: cur_j.slice_mut(0..n),
+                            vol0_bar: vol0_bar.slice_mut(0..n),
+                            dt_bar: &mut dt_bar,
+                            dx_bar: &mut dx_bar,
+                        }
+                    };
+                    g2p_block_adjoint(Self::block_origin(sim, s), ord, flip, j_bar_avg, tp, &inp, &mut out);
+                    unsafe { flush_local(&local_bar, &nbr[s], &grid_bar) };
+                }
+            });
         }
     }
 
+    /// P2G's adjoint gathers from the grid adjoint as G2P gathers from the grid: particle
+    /// blocks split across threads by particle count.
     fn p2g_adjoint(&mut self, sim: &Simulation, tp: &TransferParams) {
         let n = sim.particles.n;
         let sc = &sim.scratch;
         let npb = sim.grid.n_particle_blocks;
-        let starts = sc.slot_start.as_slice();
+        let starts = &sc.slot_start.as_slice()[..npb + 1];
         let order = sc.order.as_slice();
         let nbr = sc.nbr.as_slice();
         let p = &sim.particles;
@@ -234,28 +282,44 @@ impl StepAdjoint {
         };
         let split = sim.scenario.simulation.flip > 0.0;
         let grid_bar = self.grid_bar.as_slice();
-        let (mut dt_bar, mut dx_bar) = (0.0, 0.0);
-        let mut local_bar = [[0.0 as Real; 7]; LNODES];
-        for s in 0..npb {
-            gather_local(&mut local_bar, &nbr[s], grid_bar);
-            let ord = &order[starts[s] as usize..starts[s + 1] as usize];
-            let mut out = P2gAdjoint {
-                xg_bar: &mut self.cur.xg.as_mut_slice()[..n],
-                v_bar: &mut self.cur.v.as_mut_slice()[..n],
-                c_bar: &mut self.cur.c.as_mut_slice()[..n],
-                stress_bar: &mut self.cur.stress.as_mut_slice()[..n],
-                mass_bar: &mut self.mass_bar.as_mut_slice()[..n],
-                vol0_bar: &mut self.vol0_bar.as_mut_slice()[..n],
-                jac_bar: &mut self.cur.j.as_mut_slice()[..n],
-                dt_bar: &mut dt_bar,
-                dx_bar: &mut dx_bar,
-            };
-            let origin = Self::block_origin(sim, s);
-            if split {
-                p2g_block_adjoint::<true>(origin, ord, &input, tp, &local_bar, &mut out);
-            } else {
-                p2g_block_adjoint::<false>(origin, ord, &input, tp, &local_bar, &mut out);
+        let cur = (
+            SharedSlice::new(&mut self.cur.xg.as_mut_slice()[..n]),
+            SharedSlice::new(&mut self.cur.v.as_mut_slice()[..n]),
+            SharedSlice::new(&mut self.cur.c.as_mut_slice()[..n]),
+            SharedSlice::new(&mut self.cur.stress.as_mut_slice()[..n]),
+            SharedSlice::new(&mut self.cur.j.as_mut_slice()[..n]),
+        );
+        let mass_bar = SharedSlice::new(&mut self.mass_bar.as_mut_slice()[..n]);
+        let vol0_bar = SharedSlice::new(&mut self.vol0_bar.as_mut_slice()[..n]);
+        let threads = sim.team.threads();
+        sim.team.run(|tid| {
+            let (lo, hi) = balanced(&starts[..npb], starts[npb], tid, threads);
+            let mut local_bar = [[0.0 as Real; 7]; LNODES];
+            let (mut dt_bar, mut dx_bar) = (0.0, 0.0);
+            for s in lo..hi {
+                gather_local(&mut local_bar, &nbr[s], grid_bar);
+                let ord = &order[starts[s] as usize..starts[s + 1] as usize];
+                // SAFETY: every particle belongs to one block and every block to one thread.
+                let mut out = unsafe {
+                    P2gAdjoint {
+                        xg_bar: cur.0.slice_mut(0..n),
+                        v_bar: cur.1.slice_mut(0..n),
+                        c_bar: cur.2.slice_mut(0..n),
+                        stress_bar: cur.3.slice_mut(0..n),
+                        mass_bar: mass_bar.slice_mut(0..n),
+                        vol0_bar: vol0_bar.slice_mut(0..n),
+                        jac_bar: cur.4.slice_mut(0..n),
+                        dt_bar: &mut dt_bar,
+                        dx_bar: &mut dx_bar,
+                    }
+                };
+                let origin = Self::block_origin(sim, s);
+                if split {
+                    p2g_block_adjoint::<true>(origin, ord, &input, tp, &local_bar, &mut out);
+                } else {
+                    p2g_block_adjoint::<false>(origin, ord, &input, tp, &local_bar, &mut out);
+                }
             }
-        }
+        });
     }
 }
