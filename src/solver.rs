@@ -17,6 +17,7 @@ use crate::kernels::{Real, M3, V3};
 use crate::materials::build_material;
 use crate::memory::{parse_size, Backing, MemoryError, MemoryPlan, Pool};
 use crate::particles::Particles;
+use crate::print::emitter::Slab;
 use crate::print::{NozzleDrive, Printer};
 use crate::scenario::{Body, Scenario};
 use crate::sleep::Sleep;
@@ -400,25 +401,17 @@ impl Simulation {
     }
 
     /// Add the emitter's slabs that are due by now.
-    fn emit(&mut self) -> Result<(), SimError> {
+    pub(crate) fn emit(&mut self) -> Result<(), SimError> {
         let Some(pr) = &mut self.printer else { return Ok(()) };
-        let Some(em) = &mut pr.emitter else { return Ok(()) };
         let t = self.time;
         let vol = pr.particle_volume;
         let (geom, particles, mat) = (&self.grid.geom, &mut self.particles, &*self.material);
-        let rho = mat.density() as f64;
-        let sl = particles.state_len;
-        em.drain_due(t, |slab| {
-            let lag = t - slab.due;
-            let v = slab.velocity;
-            let vel = V3::new(v[0] as Real, v[1] as Real, v[2] as Real);
-            for x in &slab.positions {
-                let xg = geom.to_grid([x[0] + lag * v[0], x[1] + lag * v[1], x[2] + lag * v[2]]);
-                let i = particles.push(xg, vel, (rho * vol) as Real, vol as Real)?;
-                mat.init_state(&mut particles.state.as_mut_slice()[i * sl..(i + 1) * sl]);
-            }
-            Ok::<(), MemoryError>(())
-        })?;
+        let add = |slab: &Slab| add_slab(geom, particles, mat, vol, t, slab);
+        if let Some(sync) = &mut pr.sync {
+            sync.drain_due(&pr.plan, t, add)?;
+        } else if let Some(em) = &mut pr.emitter {
+            em.drain_due(t, add)?;
+        }
         Ok(())
     }
 
@@ -741,6 +734,22 @@ impl Simulation {
     }
 }
 
+/// Append a slab's particles, moved ballistically from its due time to `t` (inside the tube the
+/// grid moves them at exactly that velocity).
+fn add_slab(geom: &GridGeom, particles: &mut Particles, mat: &dyn Material, vol: f64, t: f64, slab: &Slab) -> Result<(), MemoryError> {
+    let rho = mat.density() as f64;
+    let sl = particles.state_len;
+    let lag = t - slab.due;
+    let v = slab.velocity;
+    let vel = V3::new(v[0] as Real, v[1] as Real, v[2] as Real);
+    for x in &slab.positions {
+        let xg = geom.to_grid([x[0] + lag * v[0], x[1] + lag * v[1], x[2] + lag * v[2]]);
+        let i = particles.push(xg, vel, (rho * vol) as Real, vol as Real)?;
+        mat.init_state(&mut particles.state.as_mut_slice()[i * sl..(i + 1) * sl]);
+    }
+    Ok(())
+}
+
 #[inline]
 pub(crate) fn colour(b: [i32; 3]) -> usize {
     ((b[0] & 1) << 2 | (b[1] & 1) << 1 | (b[2] & 1)) as usize
@@ -825,7 +834,7 @@ pub(crate) fn apply_walls(geom: &GridGeom, walls: &Walls, g: [i32; 3], mut v: V3
 
 /// Blend the nozzle's velocity into a node inside its tube (000 Table 2, line 7).
 #[inline]
-fn apply_drive(geom: &GridGeom, drive: Option<&NozzleDrive>, g: [i32; 3], v: V3) -> V3 {
+pub(crate) fn apply_drive(geom: &GridGeom, drive: Option<&NozzleDrive>, g: [i32; 3], v: V3) -> V3 {
     let Some(d) = drive else { return v };
     let x = geom.node_position(g);
     let w = d.weight(x);

@@ -16,7 +16,9 @@ use super::step_adjoint::StepAdjoint;
 use super::store::{DiskSlots, RamSlots, Store};
 use crate::memory::{fmt_bytes, Backing, MemoryPlan};
 use crate::scenario::Scenario;
-use crate::solver::{count_body_particles, for_each_lattice_point, Simulation};
+use super::print_adjoint::PrintParams;
+use crate::print::SyncEmission;
+use crate::solver::{for_each_lattice_point, Simulation};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -55,9 +57,6 @@ pub struct GradResult {
 
 /// A simulation set up for a gradient run (or for the forward runs that check one).
 pub fn prepare(sc: &Scenario, threads: Option<usize>) -> Result<Simulation, String> {
-    if sc.print.is_some() {
-        return Err("strand grad does not differentiate printing scenarios yet (emission and the nozzle drive have no adjoint in the driver); remove [print]".into());
-    }
     if sc.sleep.is_some() {
         return Err("strand grad needs every particle awake: remove [sleep] (sleeping is not differentiable)".into());
     }
@@ -70,6 +69,12 @@ pub fn prepare(sc: &Scenario, threads: Option<usize>) -> Result<Simulation, Stri
         sc.simulation.threads = t;
     }
     let mut sim = Simulation::new(&sc).map_err(|e| e.to_string())?;
+    if let Some(p) = &mut sim.printer {
+        // the stepper emits itself: a gradient run jumps back in time, which a queue filled
+        // ahead by the emitter thread cannot follow
+        p.emitter = None;
+        p.sync = Some(SyncEmission::new(&p.plan, 0));
+    }
     // one sort by block up front (the step's binning then reorders nothing), then frozen
     sim.bin_particles().map_err(|e| e.to_string())?;
     sim.reorder_particles();
@@ -128,13 +133,20 @@ pub fn gradient(sc: &Scenario, objective: &Objective, wrt: &[String], opts: &Gra
     let values: Vec<f64> = wrt.iter().map(|k| super::params::value(&sc.source, k)).collect::<Result<_, _>>()?;
     let frame = Frame::of(&sim);
     let n_steps = count_steps(&sim);
-    let (n, sl) = (sim.particles.n, sim.particles.state_len);
-    debug_assert_eq!(n, count_body_particles(sc));
+    let (n0, cap, sl) = (sim.particles.n, sim.particles.capacity(), sim.particles.state_len);
+    let print_keys: Vec<(String, f64)> =
+        wrt.iter().zip(&values).filter(|(k, _)| k.starts_with("print.")).map(|(k, v)| (k.clone(), *v)).collect();
+    let mut print = match &sim.printer {
+        Some(p) => Some(PrintParams::new(sc, &p.plan, &print_keys)?),
+        None if print_keys.is_empty() => None,
+        None => return Err(format!("'{}': the scenario does not print", print_keys[0].0)),
+    };
 
     let mut grad_plan = MemoryPlan::default();
-    StepAdjoint::plan(&mut grad_plan, n, sl, sim.grid.nodes.len());
+    StepAdjoint::plan(&mut grad_plan, cap, sl, sim.grid.nodes.len());
     let adjoint_bytes = grad_plan.total();
-    let sbytes = state_bytes(n, sl) as u64;
+    // a print grows: every slot is sized for the full pool
+    let sbytes = state_bytes(cap, sl) as u64;
     if opts.ram_bytes < adjoint_bytes {
         return Err(format!(
             "the gradient's RAM budget of {} does not hold its adjoint arrays ({}; one stored state is {}):\n{grad_plan}",
@@ -163,10 +175,10 @@ pub fn gradient(sc: &Scenario, objective: &Objective, wrt: &[String], opts: &Gra
     if n_steps == 0 {
         let p = &mut adj.next;
         let seed = super::objective::Seed {
-            xg: &mut p.xg.as_mut_slice()[..n],
-            v: &mut p.v.as_mut_slice()[..n],
-            j: &mut p.j.as_mut_slice()[..n],
-            mass: &mut adj.mass_bar.as_mut_slice()[..n],
+            xg: &mut p.xg.as_mut_slice()[..n0],
+            v: &mut p.v.as_mut_slice()[..n0],
+            j: &mut p.j.as_mut_slice()[..n0],
+            mass: &mut adj.mass_bar.as_mut_slice()[..n0],
         };
         value = Some(objective.evaluate(&sim, &frame, Some(seed))?);
     }
@@ -190,7 +202,7 @@ pub fn gradient(sc: &Scenario, objective: &Objective, wrt: &[String], opts: &Gra
                 debug_assert_eq!(sim.step, step);
                 let t = Instant::now();
                 let last = step + 1 == n_steps;
-                if let Some(v) = adj.reverse(&mut sim, end, last.then_some((objective, &frame)))? {
+                if let Some(v) = adj.reverse(&mut sim, end, last.then_some((objective, &frame)), print.as_mut())? {
                     value = Some(v);
                 }
                 reverse_s += t.elapsed().as_secs_f64();
@@ -198,7 +210,17 @@ pub fn gradient(sc: &Scenario, objective: &Objective, wrt: &[String], opts: &Gra
         }
     }
     let value = value.ok_or("the schedule never reached the last step")?;
-    let gradient = assemble(&sim, &adj, &params);
+    let mut gradient = assemble(&sim, n0, &adj, &params);
+    if let Some(pp) = &print {
+        let g = pp.gradient();
+        let mut k = 0;
+        for (i, key) in wrt.iter().enumerate() {
+            if key.starts_with("print.") {
+                gradient[i] = g[k];
+                k += 1;
+            }
+        }
+    }
     let disk_written_bytes = store.disk.as_ref().map_or(0, |d| d.written);
     Ok(GradResult {
         objective: objective.name(),
@@ -222,9 +244,11 @@ pub fn gradient(sc: &Scenario, objective: &Objective, wrt: &[String], opts: &Gra
 
 /// dJ/dtheta from the adjoint of the initial state (in `adj.next` after the last reversed
 /// step) and the parameter adjoints accumulated over the steps.
-fn assemble(sim: &Simulation, adj: &StepAdjoint, params: &[Param]) -> Vec<f64> {
+/// `n0` particles existed at the start (the bodies); the toolpath parameters are filled in by
+/// the caller.
+fn assemble(sim: &Simulation, n0: usize, adj: &StepAdjoint, params: &[Param]) -> Vec<f64> {
     let p = &sim.particles;
-    let n = p.n;
+    let n = n0;
     let sc = &sim.scenario;
     let rho = sim.material.density() as f64;
     let g = &adj.grid_params_bar;
@@ -253,6 +277,7 @@ fn assemble(sim: &Simulation, adj: &StepAdjoint, params: &[Param]) -> Vec<f64> {
             }
             Param::WallFriction { axis, side } => g.wall_mu[axis][side],
             Param::PlatformFriction => g.platform_mu,
+            Param::Toolpath => 0.0,
         })
         .collect()
 }

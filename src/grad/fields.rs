@@ -50,6 +50,16 @@ impl Fields {
         self.state.as_mut_slice().fill(0.0);
     }
 
+    /// Zero particles `r` (with `state_len` state values each).
+    pub fn zero_range(&mut self, r: std::ops::Range<usize>, state_len: usize) {
+        self.xg.as_mut_slice()[r.clone()].fill(V3::ZERO);
+        self.v.as_mut_slice()[r.clone()].fill(V3::ZERO);
+        self.c.as_mut_slice()[r.clone()].fill(M3::ZERO);
+        self.stress.as_mut_slice()[r.clone()].fill(M3::ZERO);
+        self.j.as_mut_slice()[r.clone()].fill(0.0);
+        self.state.as_mut_slice()[r.start * state_len..r.end * state_len].fill(0.0);
+    }
+
     /// Copy the simulation's first `n` particles' changing arrays in.
     pub fn copy_from(&mut self, sim: &Simulation) {
         let p = &sim.particles;
@@ -64,9 +74,12 @@ impl Fields {
     }
 }
 
-/// Bytes of one stored state of `n` particles: step and time, then the arrays of [`Fields`].
+const HEADER: usize = 32;
+
+/// Bytes of one stored state of `n` particles: step, time, particle count and the next slab to
+/// emit, then the arrays of [`Fields`].
 pub fn state_bytes(n: usize, state_len: usize) -> usize {
-    16 + n * (2 * size_of::<V3>() + 2 * size_of::<M3>() + size_of::<Real>() * (1 + state_len))
+    HEADER + n * (2 * size_of::<V3>() + 2 * size_of::<M3>() + size_of::<Real>() * (1 + state_len))
 }
 
 /// The simulation's changing arrays (and step, time) as byte ranges, in stored order.
@@ -83,26 +96,37 @@ fn arrays(sim: &Simulation) -> [&[u8]; 6] {
     ]
 }
 
-/// Write the live state into `out` (exactly [`state_bytes`] long).
+fn next_slab(sim: &Simulation) -> u64 {
+    sim.printer.as_ref().and_then(|p| p.sync.as_ref()).map_or(0, |s| s.next)
+}
+
+/// Write the live state into `out` (at least [`state_bytes`] long).
 pub fn save(sim: &Simulation, out: &mut [u8]) {
     out[..8].copy_from_slice(&sim.step.to_le_bytes());
     out[8..16].copy_from_slice(&sim.time.to_le_bytes());
-    let mut at = 16;
+    out[16..24].copy_from_slice(&(sim.particles.n as u64).to_le_bytes());
+    out[24..32].copy_from_slice(&next_slab(sim).to_le_bytes());
+    let mut at = HEADER;
     for a in arrays(sim) {
         out[at..at + a.len()].copy_from_slice(a);
         at += a.len();
     }
-    debug_assert_eq!(at, out.len());
+    debug_assert!(at <= out.len());
 }
 
 /// Make the state saved in `bytes` live.
 pub fn load(sim: &mut Simulation, bytes: &[u8]) {
     sim.step = u64::from_le_bytes(bytes[..8].try_into().unwrap());
     sim.time = f64::from_le_bytes(bytes[8..16].try_into().unwrap());
+    let word = |k: usize| u64::from_le_bytes(bytes[8 * k..8 * k + 8].try_into().unwrap());
+    if let Some(sync) = sim.printer.as_mut().and_then(|p| p.sync.as_mut()) {
+        sync.next = word(3);
+    }
     let p = &mut sim.particles;
+    p.n = word(2) as usize;
     let n = p.n;
     let sl = p.state_len;
-    let mut at = 16;
+    let mut at = HEADER;
     let mut take = |dst: &mut [u8]| {
         dst.copy_from_slice(&bytes[at..at + dst.len()]);
         at += dst.len();

@@ -13,7 +13,32 @@ use crate::kernels::boundary::{apply_wall, WallKind};
 use crate::kernels::transfer::Node;
 use crate::kernels::{Real, V3};
 use crate::grid::{GridGeom, PAD};
-use crate::solver::{ghost_source, Simulation, Walls};
+use crate::print::NozzleDrive;
+use crate::solver::{apply_drive, ghost_source, Simulation, Walls};
+
+/// Adjoint of the drive's blend `w vd + (1 - w) v` at node `g` for the velocity `v` before it:
+/// returns the adjoint of `v`; those of the outlet position (through the indicator weight) and
+/// of the imposed velocity go to `bar`. The tube's height range is a hard cut, held fixed.
+fn drive_adjoint(geom: &GridGeom, d: &NozzleDrive, g: [i32; 3], v: V3, v_bar: V3, bar: &mut GridParamsBar) -> V3 {
+    let x = geom.node_position(g);
+    let w = d.weight(x);
+    if w <= 0.0 {
+        return v_bar;
+    }
+    let vd = V3::new(d.velocity[0] as Real, d.velocity[1] as Real, d.velocity[2] as Real);
+    for c in 0..3 {
+        bar.drive_velocity[c] += (v_bar[c] * w) as f64;
+    }
+    let w_bar = v_bar.dot(vd - v);
+    let (ox, oy) = (x[0] - d.outlet[0], x[1] - d.outlet[1]);
+    let (dist, radius) = d.shape.distance(ox, oy);
+    let (dist_bar, _) = crate::kernels::nozzle::weight_adjoint(d.indicator, dist as Real, radius as Real, w_bar);
+    let grad = d.shape.distance_gradient(ox, oy);
+    // the offset is x - outlet
+    bar.drive_outlet[0] -= dist_bar as f64 * grad[0];
+    bar.drive_outlet[1] -= dist_bar as f64 * grad[1];
+    v_bar * (1.0 - w)
+}
 
 /// Adjoints of the grid update's parameters, accumulated over nodes and steps.
 #[derive(Clone, Copy, Debug, Default)]
@@ -23,6 +48,10 @@ pub struct GridParamsBar {
     /// Of the Coulomb coefficient of each friction wall, [axis][side].
     pub wall_mu: [[f64; 2]; 3],
     pub platform_mu: f64,
+    /// Of the nozzle drive's outlet position and imposed velocity, this step only (the caller
+    /// chains them into the toolpath's parameters and resets them).
+    pub drive_outlet: [f64; 3],
+    pub drive_velocity: [f64; 3],
 }
 
 /// The wall applications `apply_walls` makes at node `g`, in order: (kind, normal, which
@@ -84,8 +113,9 @@ fn apply_walls_adjoint(geom: &GridGeom, walls: &Walls, g: [i32; 3], v: V3, v_bar
 
 /// Run the grid update's adjoint on `grid_bar` in place. `before` holds the nodes as P2G left
 /// them, the simulation's grid the nodes after the update (the same active blocks), `dt` the
-/// step. With nozzle drives or sleeping holds the forward is different and this is not called.
-pub fn grid_update_adjoint(sim: &Simulation, before: &[Node], grid_bar: &mut [Node], dt: Real, bar: &mut GridParamsBar) {
+/// step, `drive` the nozzle drive of the step. Sleeping holds have no adjoint (gradient runs keep
+/// every particle awake).
+pub fn grid_update_adjoint(sim: &Simulation, drive: Option<&NozzleDrive>, before: &[Node], grid_bar: &mut [Node], dt: Real, bar: &mut GridParamsBar) {
     let grid = &sim.grid;
     let geom = &grid.geom;
     let na = grid.n_active;
@@ -116,8 +146,10 @@ pub fn grid_update_adjoint(sim: &Simulation, before: &[Node], grid_bar: &mut [No
     }
     let accel = sim.accel;
     let mut accel_bar = [0.0f64; 3];
+    let drive_box = drive.map(|d| d.bounds());
     for s in 0..na {
         let b = geom.block_coords(slot_block[s]);
+        let driven = drive.filter(|_| drive_box.is_some_and(|bx| geom.block_overlaps(b, bx)));
         for li in 0..NODES_PER_BLOCK {
             let at = s * NODES_PER_BLOCK + li;
             let n0 = &before[at];
@@ -130,8 +162,13 @@ pub fn grid_update_adjoint(sim: &Simulation, before: &[Node], grid_bar: &mut [No
             let p = V3::new(n0[1], n0[2], n0[3]);
             let f = V3::new(n0[4], n0[5], n0[6]);
             let old = p / m;
+            let g = geom.node_of(b, li);
             let v = old + f / m + accel * dt;
-            let v_bar = apply_walls_adjoint(geom, walls, geom.node_of(b, li), v, V3::new(nb[1], nb[2], nb[3]), bar);
+            let driven_v = driven.map_or(v, |d| apply_drive(geom, Some(d), g, v));
+            let mut v_bar = apply_walls_adjoint(geom, walls, g, driven_v, V3::new(nb[1], nb[2], nb[3]), bar);
+            if let Some(d) = driven {
+                v_bar = drive_adjoint(geom, d, g, v, v_bar, bar);
+            }
             let old_bar = V3::new(nb[4], nb[5], nb[6]) + v_bar;
             for c in 0..3 {
                 accel_bar[c] += (v_bar[c] * dt) as f64;

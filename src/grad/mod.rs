@@ -9,6 +9,7 @@ mod fields;
 mod grid_adjoint;
 pub mod objective;
 pub mod params;
+mod print_adjoint;
 pub mod schedule;
 mod step_adjoint;
 mod store;

@@ -19,6 +19,8 @@ pub enum Param {
     /// Coulomb coefficient of the wall on `axis`, `side` (0 = min, 1 = max).
     WallFriction { axis: usize, side: usize },
     PlatformFriction,
+    /// `print.path.<i>.speed`, `.extrusion` or `.duration` (see `print_adjoint.rs`).
+    Toolpath,
 }
 
 const AXES: [&str; 3] = ["x", "y", "z"];
@@ -51,6 +53,17 @@ pub fn known(sim: &Simulation) -> Vec<String> {
     if matches!(sim.walls.platform, Some((_, _, WallKind::Friction { .. }))) {
         k.push("boundary.platform.kind.friction.mu".into());
     }
+    if let Some(p) = &sim.scenario.print {
+        for (i, seg) in p.path.iter().enumerate() {
+            use crate::print::toolpath::Segment;
+            let fields: &[&str] = match seg {
+                Segment::Print { .. } => &["speed", "extrusion"],
+                Segment::Travel { .. } | Segment::Layer { .. } => &["speed"],
+                Segment::Pause { .. } => &["duration"],
+            };
+            k.extend(fields.iter().map(|f| format!("print.path.{i}.{f}")));
+        }
+    }
     k
 }
 
@@ -66,6 +79,7 @@ pub fn resolve(sim: &Simulation, key: &str) -> Result<Param, String> {
             (Ok(body), Some(axis)) if body < sim.scenario.bodies.len() => Some(Param::BodyVelocity { body, axis }),
             _ => None,
         },
+        ["print", "path", _, _] => known(sim).iter().any(|k| k == key).then_some(Param::Toolpath),
         ["boundary", "platform", "kind", "friction", "mu"] => {
             matches!(sim.walls.platform, Some((_, _, WallKind::Friction { .. }))).then_some(Param::PlatformFriction)
         }

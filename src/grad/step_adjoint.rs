@@ -13,6 +13,7 @@
 use super::fields::Fields;
 use super::grid_adjoint::{grid_update_adjoint, GridParamsBar};
 use super::objective::{Frame, Objective, Seed};
+use super::print_adjoint::PrintParams;
 use crate::grid::NODES_PER_BLOCK;
 use crate::kernels::material::UpdateAdjoint;
 use crate::kernels::transfer::{Node, P2gInput, TransferParams, BS, LNODES};
@@ -58,7 +59,7 @@ impl StepAdjoint {
     }
 
     pub fn new(sim: &Simulation, b: &Backing) -> Result<StepAdjoint, String> {
-        let n = sim.particles.n;
+        let n = sim.particles.capacity();
         if sim.material.param_names().len() > MAX_PARAMS || sim.particles.state_len > MAX_STATE {
             return Err(format!("material {}: the gradient driver takes at most {MAX_PARAMS} parameters and {MAX_STATE} state values", sim.material.name()));
         }
@@ -85,19 +86,29 @@ impl StepAdjoint {
     /// Reverse the step the live state of `sim` starts (the last one when `objective` is given:
     /// the objective is then evaluated on the state after it and seeds the adjoint). The live
     /// state is consumed. Returns the objective's value when it was evaluated.
-    pub fn reverse(&mut self, sim: &mut Simulation, until: f64, objective: Option<(&Objective, &Frame)>) -> Result<Option<f64>, String> {
-        let n = sim.particles.n;
+    pub fn reverse(
+        &mut self,
+        sim: &mut Simulation,
+        until: f64,
+        objective: Option<(&Objective, &Frame)>,
+        print: Option<&mut PrintParams>,
+    ) -> Result<Option<f64>, String> {
         let (dt, _) = sim.choose_dt(until);
         let dtr = dt as Real;
+        let t = sim.time;
 
         // recompute the step, keeping what it overwrites
+        let (n_before, first_slab) = (sim.particles.n, sim.printer.as_ref().and_then(|p| p.sync.as_ref()).map_or(0, |s| s.next));
+        sim.emit().map_err(|e| e.to_string())?;
+        let n = sim.particles.n;
+        let drive = sim.printer.as_ref().and_then(|p| p.drive(t));
         self.tape.copy_from(sim);
         sim.bin_particles().map_err(|e| e.to_string())?;
         sim.clear_grid();
         sim.p2g(dtr);
         let used = sim.grid.n_active * NODES_PER_BLOCK;
         self.grid_tape.as_mut_slice()[..used].copy_from_slice(&sim.grid.nodes.as_slice()[..used]);
-        sim.grid_update(dtr, None);
+        sim.grid_update(dtr, drive.as_ref());
         sim.g2p(dtr);
         let mut value = None;
         if let Some((obj, frame)) = objective {
@@ -116,12 +127,46 @@ impl StepAdjoint {
         let tp = TransferParams { dx: sim.scenario.simulation.dx as Real, dt: dtr };
         self.grid_bar.as_mut_slice()[..used].fill([0.0; 7]);
         self.g2p_adjoint(sim, &tp);
-        grid_update_adjoint(sim, &self.grid_tape.as_slice()[..used], &mut self.grid_bar.as_mut_slice()[..used], dtr, &mut self.grid_params_bar);
+        let g = &mut self.grid_params_bar;
+        grid_update_adjoint(sim, drive.as_ref(), &self.grid_tape.as_slice()[..used], &mut self.grid_bar.as_mut_slice()[..used], dtr, g);
+        let (outlet_bar, velocity_bar) = (std::mem::take(&mut g.drive_outlet), std::mem::take(&mut g.drive_velocity));
         self.p2g_adjoint(sim, &tp);
+        if let Some(pp) = print {
+            if drive.is_some() {
+                let k = sim.printer.as_ref().map_or(0, |p| p.toolpath.state_at(t).interval);
+                pp.drive(k, t, outlet_bar, velocity_bar);
+            }
+            if n > n_before {
+                self.emission_adjoint(sim, pp, n_before, first_slab, t)?;
+            }
+        }
 
         std::mem::swap(&mut self.cur, &mut self.next);
         self.cur.zero();
         Ok(value)
+    }
+
+    /// Particles `first..n` entered in this step: their adjoints are those of the emission, owed
+    /// to the toolpath and (through their initial state) the material; they did not exist before
+    /// the step, so their adjoints end here.
+    fn emission_adjoint(&mut self, sim: &Simulation, pp: &mut PrintParams, first: usize, first_slab: u64, t: f64) -> Result<(), String> {
+        let p = &sim.particles;
+        let (n, sl) = (p.n, p.state_len);
+        let inv_dx = 1.0 / sim.scenario.simulation.dx;
+        let x_bar: Vec<[f64; 3]> = self.cur.xg.as_slice()[first..n].iter().map(|b| [b.x as f64 * inv_dx, b.y as f64 * inv_dx, b.z as f64 * inv_dx]).collect();
+        let v_bar: Vec<[f64; 3]> = self.cur.v.as_slice()[first..n].iter().map(|b| [b.x as f64, b.y as f64, b.z as f64]).collect();
+        let plan = &sim.printer.as_ref().ok_or("emission without a printer")?.plan;
+        pp.emission(plan, first_slab, t, &x_bar, &v_bar)?;
+        let mut init = [0.0 as Real; MAX_PARAMS];
+        let np = self.material_bar.len();
+        for i in first..n {
+            sim.material.init_state_adjoint(&self.cur.state.as_slice()[i * sl..(i + 1) * sl], &mut init[..np]);
+        }
+        for (m, v) in self.material_bar.iter_mut().zip(&init[..np]) {
+            *m += *v as f64;
+        }
+        self.cur.zero_range(first..n, sl);
+        Ok(())
     }
 
     /// Materials: `next.stress` and `next.state` (the adjoints of their outputs) go to the

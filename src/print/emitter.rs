@@ -53,16 +53,38 @@ impl EmissionPlan {
 
     /// Lay out slab `q` into `b`.
     pub fn fill(&self, q: u64, b: &mut Slab) {
+        self.fill_branch(q, b, None);
+    }
+
+    /// As [`EmissionPlan::fill`], with the moves that set the slab's due time and state held to
+    /// `branch` (another plan's `Slab::moves` for the same slab): the branch a derivative with
+    /// respect to the toolpath's parameters differentiates.
+    pub fn fill_on(&self, q: u64, b: &mut Slab, branch: (Option<usize>, usize)) {
+        self.fill_branch(q, b, Some(branch));
+    }
+
+    fn fill_branch(&self, q: u64, b: &mut Slab, branch: Option<(Option<usize>, usize)>) {
         let h = self.spacing;
         let slab = self.group as f64 * h;
         let need = (q + 1) as f64 * slab - self.tube_height;
-        let due = if need <= 0.0 { 0.0 } else { self.toolpath.time_at_extruded_length(need).unwrap_or(f64::INFINITY) };
-        let st = self.toolpath.state_at(due);
+        let tp = &self.toolpath;
+        let (extruding, due) = match branch {
+            Some((Some(k), _)) => (Some(k), tp.time_at_extruded_on(k, need)),
+            Some((None, _)) => (None, 0.0),
+            None if need <= 0.0 => (None, 0.0),
+            None => (tp.move_extruding(need).flatten(), tp.time_at_extruded_length(need).unwrap_or(f64::INFINITY)),
+        };
+        let at = match branch {
+            Some((_, k)) => k,
+            None => tp.state_at(due).interval,
+        };
+        let st = tp.state_on(at, due);
         // the tube is pre-filled at t = 0: those slabs already sit deeper
-        let excess = (self.toolpath.extruded_length(due) + self.tube_height - (q + 1) as f64 * slab).max(0.0);
+        let excess = (tp.extruded_on(at, due) + self.tube_height - (q + 1) as f64 * slab).max(0.0);
         let z_top = st.position[2] + self.tube_height;
         b.slab = q;
         b.due = due;
+        b.moves = (extruding, at);
         b.velocity = [st.velocity[0], st.velocity[1], st.velocity[2] - st.extrusion_speed];
         b.positions.clear();
         for m in 0..self.group {
@@ -84,6 +106,9 @@ pub struct Slab {
     pub due: f64,
     /// Velocity of every particle of the slab at `due`.
     pub velocity: [f64; 3],
+    /// The move whose extrusion sets `due` (None when the slab starts in the pre-filled tube)
+    /// and the move in effect at `due`.
+    pub moves: (Option<usize>, usize),
     /// World positions at `due`.
     pub positions: Vec<[f64; 3]>,
 }
@@ -106,7 +131,7 @@ impl Emitter {
         let (free_tx, free_rx) = bounded::<Box<Slab>>(buffers);
         let per = plan.particles_per_slab();
         for _ in 0..buffers {
-            let b = Box::new(Slab { slab: 0, due: 0.0, velocity: [0.0; 3], positions: Vec::with_capacity(per) });
+            let b = Box::new(Slab { slab: 0, due: 0.0, velocity: [0.0; 3], moves: (None, 0), positions: Vec::with_capacity(per) });
             free_tx.send(b).expect("free queue has room for every buffer");
         }
         let total = plan.slabs();

@@ -172,6 +172,41 @@ pub struct Printer {
     pub particle_volume: f64,
     pub plan: EmissionPlan,
     pub emitter: Option<Emitter>,
+    /// Emission in the stepper's own thread instead of `emitter`, for gradient runs: they jump
+    /// back and forth in time, which a queue filled ahead cannot follow.
+    pub sync: Option<SyncEmission>,
+}
+
+/// Slab by slab emission without a thread: `next` is the first slab not yet added.
+pub struct SyncEmission {
+    pub next: u64,
+    slab: emitter::Slab,
+    /// The slab `slab` holds, if filled.
+    filled: Option<u64>,
+}
+
+impl SyncEmission {
+    pub fn new(plan: &EmissionPlan, next: u64) -> SyncEmission {
+        let slab = emitter::Slab { slab: 0, due: 0.0, velocity: [0.0; 3], moves: (None, 0), positions: Vec::with_capacity(plan.particles_per_slab()) };
+        SyncEmission { next, slab, filled: None }
+    }
+
+    /// Hand every slab due at or before `t` to `add`, in order, as `Emitter::drain_due` does.
+    pub fn drain_due<E>(&mut self, plan: &EmissionPlan, t: f64, mut add: impl FnMut(&emitter::Slab) -> Result<(), E>) -> Result<(), E> {
+        let total = plan.slabs();
+        while self.next < total {
+            if self.filled != Some(self.next) {
+                plan.fill(self.next, &mut self.slab);
+                self.filled = Some(self.next);
+            }
+            if self.slab.due > t {
+                break;
+            }
+            add(&self.slab)?;
+            self.next += 1;
+        }
+        Ok(())
+    }
 }
 
 impl Printer {
@@ -195,7 +230,7 @@ impl Printer {
             Emission::Interval => ppc,
         };
         let plan = EmissionPlan { toolpath: toolpath.clone(), offsets: Arc::new(offsets), spacing: h, group, tube_height, domain };
-        Ok(Printer { toolpath, shape: cfg.nozzle, tube_height, indicator, spacing: h, particle_volume, plan, emitter: None })
+        Ok(Printer { toolpath, shape: cfg.nozzle, tube_height, indicator, spacing: h, particle_volume, plan, emitter: None, sync: None })
     }
 
     /// Start the emitter thread at slab `first`.

@@ -52,6 +52,29 @@ impl NozzleShape {
         }
     }
 
+    /// Gradient of [`NozzleShape::distance`] with respect to the offset (ox, oy), on the branch the
+    /// distance takes (zero at the axis of a circle, where it has none).
+    #[inline]
+    pub fn distance_gradient(&self, ox: f64, oy: f64) -> [f64; 2] {
+        match *self {
+            NozzleShape::Circle { .. } => {
+                let d = (ox * ox + oy * oy).sqrt();
+                if d > 0.0 {
+                    [ox / d, oy / d]
+                } else {
+                    [0.0; 2]
+                }
+            }
+            NozzleShape::Rectangle { size } => {
+                if ox.abs() - size[0] / 2.0 >= oy.abs() - size[1] / 2.0 {
+                    [ox.signum(), 0.0]
+                } else {
+                    [0.0, oy.signum()]
+                }
+            }
+        }
+    }
+
     /// Horizontal offsets of the lattice points (spacing `h`, points at cell centres of an
     /// h-lattice aligned with the axis) that lie inside the outlet.
     pub fn lattice(&self, h: f64) -> Vec<[f64; 2]> {

@@ -253,7 +253,14 @@ impl Toolpath {
     /// rests at its final position with `interval == moves().len()` and kind `Pause`.
     pub fn state_at(&self, t: f64) -> NozzleState {
         let t = self.clamp_time(t);
-        if t >= self.end_time() {
+        self.state_on(self.move_at(t), t)
+    }
+
+    /// Move `k`'s own formula evaluated at `t`, even outside its interval (`k = moves().len()`:
+    /// at rest at the end). A derivative with respect to the toolpath's parameters at fixed `t`
+    /// holds the move fixed: across a move boundary the state is not differentiable.
+    pub fn state_on(&self, k: usize, t: f64) -> NozzleState {
+        if k >= self.moves.len() {
             return NozzleState {
                 position: self.last().to,
                 velocity: [0.0; 3],
@@ -262,7 +269,6 @@ impl Toolpath {
                 kind: MoveKind::Pause,
             };
         }
-        let k = self.interval_index(t);
         let m = &self.moves[k];
         let s = (t - m.t0) / m.duration();
         NozzleState {
@@ -274,34 +280,64 @@ impl Toolpath {
         }
     }
 
+    /// The move in effect at `t` (already clamped): `moves().len()` from the end on.
+    fn move_at(&self, t: f64) -> usize {
+        if t >= self.end_time() {
+            self.moves.len()
+        } else {
+            self.interval_index(t)
+        }
+    }
+
     /// Length of material extruded through the outlet by time `t` [m]: ∫_0^t U dt, with `t`
     /// clamped as in `state_at`.
     pub fn extruded_length(&self, t: f64) -> f64 {
         let t = self.clamp_time(t);
-        if t >= self.end_time() {
+        self.extruded_on(self.move_at(t), t)
+    }
+
+    /// Move `k`'s formula of the extruded length at `t` (see [`Toolpath::state_on`]).
+    pub fn extruded_on(&self, k: usize, t: f64) -> f64 {
+        if k >= self.moves.len() {
             return self.total_extruded_length();
         }
-        let k = self.interval_index(t);
         self.extruded[k] + self.moves[k].extrusion_speed * (t - self.moves[k].t0)
     }
 
     /// The earliest time at which `extruded_length` reaches `l` [m]; 0 for l <= 0, None if `l`
     /// exceeds the total (or is NaN). Exact up to rounding because U is constant per move.
     pub fn time_at_extruded_length(&self, l: f64) -> Option<f64> {
+        self.move_extruding(l).map(|k| match k {
+            None => 0.0,
+            Some(k) => {
+                let m = &self.moves[k];
+                if l == self.extruded[k + 1] {
+                    // Reached exactly at the move's end: the boundary itself, not a rounded guess.
+                    m.t1
+                } else {
+                    self.time_at_extruded_on(k, l).min(m.t1)
+                }
+            }
+        })
+    }
+
+    /// The move during which the extruded length reaches `l`: `Some(None)` for l <= 0 (t = 0),
+    /// None if `l` exceeds the total (or is NaN).
+    pub fn move_extruding(&self, l: f64) -> Option<Option<usize>> {
         if l.is_nan() || l > self.total_extruded_length() {
             return None;
         }
         if l <= 0.0 {
-            return Some(0.0);
+            return Some(None);
         }
         // First move whose end has extruded at least l; it starts below l, so it extrudes (U > 0).
-        let k = self.extruded[1..].partition_point(|&e| e < l);
+        Some(Some(self.extruded[1..].partition_point(|&e| e < l)))
+    }
+
+    /// Move `k`'s formula of the time its extruded length reaches `l` (k must extrude).
+    pub fn time_at_extruded_on(&self, k: usize, l: f64) -> f64 {
         let m = &self.moves[k];
-        if l == self.extruded[k + 1] {
-            // Reached exactly at the move's end: return the boundary itself, not a rounded guess.
-            return Some(m.t1);
-        }
-        Some((m.t0 + (l - self.extruded[k]) / m.extrusion_speed).min(m.t1))
+        m.t0 + (l - self.extruded[k]) / m.extrusion_speed
     }
 
     /// Total length of material extruded over the whole path [m].
