@@ -1,0 +1,60 @@
+#!/usr/bin/env python3
+"""Whole-gradient cost against one forward run, for N = 1e4, 1e5, 1e6 steps under one fixed
+RAM cap (the schedule chosen by strand), and the reverse sweep's cost per step against a forward
+step. Prints a Markdown table; run from the repository root after `cargo build --release`:
+
+    python3 bench/grad_cost.py [--cap "4 MiB"] [--threads 1]
+"""
+import argparse, json, subprocess, tempfile, os
+
+SCENARIO = """
+name = "grad-cost"
+[simulation]
+dx = 0.02
+end_time = {end}
+dt = 5e-5
+gravity = [0.0, 0.0, -9.81]
+threads = {threads}
+[domain]
+min = [0.0, 0.0, 0.0]
+max = [0.16, 0.16, 0.16]
+[boundary]
+z_min = "no_slip"
+[material]
+kind = "newtonian"
+density = 2000.0
+bulk_modulus = 1e5
+viscosity = 5.0
+[[body]]
+shape = "box"
+min = [0.04, 0.04, 0.0]
+max = [0.08, 0.08, 0.04]
+velocity = [0.3, 0.1, 0.0]
+[memory]
+budget = "16 MiB"
+"""
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--cap", default="4 MiB")
+    ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--steps", default="10000,100000,1000000")
+    a = ap.parse_args()
+    exe = os.path.join(os.path.dirname(__file__), "..", "target", "release", "strand")
+    print(f"| N steps | schedule | forward steps run | peak RAM slots | wall [s] | forward step [us] | reverse step [us] | reverse / forward step | gradient / one forward run |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    with tempfile.TemporaryDirectory() as d:
+        for n in [int(x) for x in a.steps.split(",")]:
+            path = os.path.join(d, f"s{n}.toml")
+            with open(path, "w") as f:
+                f.write(SCENARIO.format(end=n * 5e-5, threads=a.threads))
+            out = subprocess.run([exe, "grad", path, "--objective", "mean_z", "--wrt", "material.viscosity,body.0.velocity.x",
+                                  "--ram", a.cap, "--json", "--disk-dir", os.path.join(d, "ck")], capture_output=True, text=True, check=True)
+            r = json.loads(out.stdout)["result"]
+            fwd = r["forward_s"] / max(r["forward_steps"], 1)
+            rev = r["reverse_s"] / max(r["steps"], 1)
+            print(f"| {r['steps']} | {r['schedule']} | {r['forward_steps']} | {r['peak_ram_slots']} | {r['wall_s']:.1f} | "
+                  f"{fwd * 1e6:.1f} | {rev * 1e6:.1f} | {rev / fwd:.2f} | {r['wall_s'] / (r['steps'] * fwd):.2f} |", flush=True)
+
+if __name__ == "__main__":
+    main()
