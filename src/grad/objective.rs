@@ -15,10 +15,12 @@ pub enum Objective {
     /// Slump-flow spread: mean of the x and y extents of the particles within two spacings of
     /// the base (as `spread.csv`'s `mean_diameter`).
     Spread,
-    /// Extent in y of the particles within half a cell of x = station [m].
-    Width { station: f64 },
-    /// Top of the particles within half a cell of x = station, above the base [m].
-    Height { station: f64 },
+    /// Extent in y of the particles within half a cell of x = station [m], summed over the
+    /// stations (paper 000 sec. 4.2 sums three); with `[observe] mirror_y`, of the mirrored
+    /// material.
+    Width { stations: Vec<f64> },
+    /// Top of the particles within half a cell of x = station above the base [m], summed.
+    Height { stations: Vec<f64> },
     /// Largest x velocity of any particle (the centreline speed of a channel flow).
     VxMax,
     /// Sum of m |v|^2 / 2.
@@ -27,15 +29,19 @@ pub enum Objective {
     MeanZ,
 }
 
-pub const NAMES: &str = "spread, width@X, height@X, vx_max, kinetic_energy, mean_z";
+pub const NAMES: &str = "spread, width@X[,X...], height@X[,X...], vx_max, kinetic_energy, mean_z";
 
 impl std::str::FromStr for Objective {
     type Err = String;
     fn from_str(s: &str) -> Result<Objective, String> {
-        let station = |v: &str| v.parse::<f64>().map_err(|_| format!("objective '{s}': the station after '@' must be a number in metres"));
+        let stations = |v: &str| {
+            v.split(',')
+                .map(|x| x.trim().parse::<f64>().map_err(|_| format!("objective '{s}': the stations after '@' must be numbers in metres")))
+                .collect::<Result<Vec<f64>, String>>()
+        };
         match s.split_once('@') {
-            Some(("width", x)) => Ok(Objective::Width { station: station(x)? }),
-            Some(("height", x)) => Ok(Objective::Height { station: station(x)? }),
+            Some(("width", x)) => Ok(Objective::Width { stations: stations(x)? }),
+            Some(("height", x)) => Ok(Objective::Height { stations: stations(x)? }),
             _ => match s {
                 "spread" => Ok(Objective::Spread),
                 "vx_max" => Ok(Objective::VxMax),
@@ -62,6 +68,8 @@ pub struct Frame {
     pub dx: f64,
     pub spacing: f64,
     pub base_z: f64,
+    /// `[observe] mirror_y`: the domain is half of a problem symmetric about y = mirror_y.
+    pub mirror_y: Option<f64>,
 }
 
 impl Frame {
@@ -70,7 +78,9 @@ impl Frame {
         let dx = sc.simulation.dx;
         let ppc = sc.bodies.first().map_or(2, |b| b.particles_per_cell_axis());
         let base_z = sc.boundary.platform.as_ref().map_or(sc.domain.min[2], |p| p.z);
-        Frame { dx, spacing: dx / ppc as f64, base_z }
+        // printed material is laid at the print's spacing
+        let ppc = sc.print.as_ref().map_or(ppc, |p| p.particles_per_cell_axis);
+        Frame { dx, spacing: dx / ppc as f64, base_z, mirror_y: sc.observe.as_ref().and_then(|o| o.mirror_y) }
     }
 }
 
@@ -117,24 +127,36 @@ impl Objective {
                 }
                 value
             }
-            Objective::Width { station } | Objective::Height { station } => {
-                let slab = |i: usize| (world(i)[0] - station).abs() <= 0.5 * dx;
-                let top = arg_max(n, slab, |i| world(i)[2]);
-                let (hi, lo) = (arg_max(n, slab, |i| world(i)[1]), arg_max(n, slab, |i| -world(i)[1]));
-                let (Some(top), Some(hi), Some(lo)) = (top, hi, lo) else {
-                    return Err(format!("objective {}: no particle within half a cell of x = {station} m", self.name()));
-                };
+            Objective::Width { stations } | Objective::Height { stations } => {
                 let width = matches!(self, Objective::Width { .. });
-                let value = if width { world(hi)[1] - world(lo)[1] + frame.spacing } else { world(top)[2] + 0.5 * frame.spacing - frame.base_z };
-                if let Some(s) = seed {
-                    if width {
-                        s.xg[hi].y += scale;
-                        s.xg[lo].y -= scale;
+                let mut total = 0.0;
+                let mut seed = seed;
+                for &station in stations {
+                    let slab = |i: usize| (world(i)[0] - station).abs() <= 0.5 * dx;
+                    let top = arg_max(n, slab, |i| world(i)[2]);
+                    let (hi, lo) = (arg_max(n, slab, |i| world(i)[1]), arg_max(n, slab, |i| -world(i)[1]));
+                    let (Some(top), Some(hi), Some(lo)) = (top, hi, lo) else {
+                        return Err(format!("objective {}: no particle within half a cell of x = {station} m", self.name()));
+                    };
+                    total += if !width {
+                        world(top)[2] + 0.5 * frame.spacing - frame.base_z
+                    } else if let Some(y0) = frame.mirror_y {
+                        2.0 * (world(hi)[1] - y0) + frame.spacing
                     } else {
-                        s.xg[top].z += scale;
+                        world(hi)[1] - world(lo)[1] + frame.spacing
+                    };
+                    if let Some(s) = seed.as_mut() {
+                        match (width, frame.mirror_y) {
+                            (false, _) => s.xg[top].z += scale,
+                            (true, Some(_)) => s.xg[hi].y += 2.0 * scale,
+                            (true, None) => {
+                                s.xg[hi].y += scale;
+                                s.xg[lo].y -= scale;
+                            }
+                        }
                     }
                 }
-                value
+                total
             }
             Objective::VxMax => {
                 let v = p.v.as_slice();
@@ -179,11 +201,15 @@ impl Objective {
     pub fn name(&self) -> String {
         match self {
             Objective::Spread => "spread".into(),
-            Objective::Width { station } => format!("width@{station}"),
-            Objective::Height { station } => format!("height@{station}"),
+            Objective::Width { stations } => format!("width@{}", join(stations)),
+            Objective::Height { stations } => format!("height@{}", join(stations)),
             Objective::VxMax => "vx_max".into(),
             Objective::KineticEnergy => "kinetic_energy".into(),
             Objective::MeanZ => "mean_z".into(),
         }
     }
+}
+
+fn join(stations: &[f64]) -> String {
+    stations.iter().map(|s| s.to_string()).collect::<Vec<_>>().join(",")
 }
