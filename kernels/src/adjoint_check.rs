@@ -68,7 +68,7 @@ pub fn group_errors(k: &impl Flat, x: &[f64], scale: &[f64], rng: &mut Rng) -> V
 }
 
 /// Log-log slope of the Taylor remainder `|f(x + h d) - f(x) - h <grad f, d>|` over
-/// h = 1e-2 .. 1e-4 along a random direction (scaled per input): 2 when the adjoint is right.
+/// h = 1e-3 .. 1e-5 along a random direction (scaled per input): 2 when the adjoint is right.
 pub fn taylor_slope(k: &impl Flat, x: &[f64], scale: &[f64], rng: &mut Rng) -> f64 {
     let cot = rng.vec(k.forward(x).len(), -1.0, 1.0);
     let grad = k.adjoint(x, &cot);
@@ -77,7 +77,7 @@ pub fn taylor_slope(k: &impl Flat, x: &[f64], scale: &[f64], rng: &mut Rng) -> f
     let (f0, slope) = (loss(x), dot(&grad, &d));
     let pts: Vec<(f64, f64)> = (0..=8)
         .map(|i| {
-            let h = 10f64.powf(-2.0 - 0.25 * i as f64);
+            let h = 10f64.powf(-3.0 - 0.25 * i as f64);
             ((h).ln(), (loss(&axpy(x, h, &d)) - f0 - h * slope).abs().ln())
         })
         .collect();
@@ -143,7 +143,8 @@ impl<M: Material, F: Fn(&[f64]) -> M> Flat for MaterialUpdate<'_, M, F> {
 /// Check a material's `update_adjoint` at one point against fourth-order central differences,
 /// per input group (L, J, the state before the update, each parameter), and the Taylor remainder
 /// slope over all inputs at once. Panics with the per-group errors when any exceeds `tol` or the
-/// slope is off 2 by more than 0.1; returns the worst error.
+/// slope is below 1.9 (a wrong gradient leaves a first-order remainder, slope 1; a slope above 2
+/// only means little curvature along the direction); returns the worst error.
 ///
 /// * `make` builds the material from parameter values, in the order of `param_names()`;
 /// * `state_scale`, `param_scale` are the perturbation sizes per state entry and parameter
@@ -185,6 +186,6 @@ pub fn check_update_adjoint<M: Material, F: Fn(&[f64]) -> M>(
     assert!(worst <= tol, "{label}: adjoint against central differences: {}", report.join(", "));
     let slope = taylor_slope(&k, &x, &scale, &mut rng);
     println!("{label}: Taylor remainder slope {slope:.3}");
-    assert!((slope - 2.0).abs() <= 0.1, "{label}: Taylor remainder slope {slope:.3}, expected 2");
+    assert!(slope >= 1.9, "{label}: Taylor remainder slope {slope:.3}, expected 2");
     worst
 }

@@ -67,6 +67,30 @@ pub fn sym_to_array(m: &M3) -> [Real; 6] {
     ]
 }
 
+/// Adjoint of [`sym_to_array`]: the matrix adjoint for the adjoint `b` of the six entries (an
+/// off-diagonal entry's adjoint splits half-half over its two places).
+#[inline]
+pub fn sym_to_array_adjoint(b: &[Real]) -> M3 {
+    let h = r(0.5);
+    M3::from_cols(
+        V3::new(b[0], h * b[3], h * b[5]),
+        V3::new(h * b[3], b[1], h * b[4]),
+        V3::new(h * b[5], h * b[4], b[2]),
+    )
+}
+
+/// Adjoint of [`sym_from_slice`]: adds the adjoint of the six entries for the matrix adjoint
+/// `m` (an off-diagonal entry collects both of its places).
+#[inline]
+pub fn sym_from_slice_adjoint(m: &M3, b: &mut [Real]) {
+    b[0] += m.x_axis.x;
+    b[1] += m.y_axis.y;
+    b[2] += m.z_axis.z;
+    b[3] += m.x_axis.y + m.y_axis.x;
+    b[4] += m.y_axis.z + m.z_axis.y;
+    b[5] += m.x_axis.z + m.z_axis.x;
+}
+
 /// Inverse of [`sym_to_array`]; reads the first six entries of `v`.
 #[inline]
 pub fn sym_from_slice(v: &[Real]) -> M3 {
@@ -91,4 +115,20 @@ pub fn jaumann_rotation(w: &M3, dt: Real) -> M3 {
     // For skew A, A:A = 2 |a|^2.
     let norm2 = r(0.5) * ddot(&a, &a);
     M3::IDENTITY + (a + a2) * (r(2.0) / (r(1.0) + norm2))
+}
+
+/// Adjoint of [`jaumann_rotation`] with respect to `w` (dt held fixed), for the adjoint `r_bar`
+/// of the rotation.
+#[inline]
+pub fn jaumann_rotation_adjoint(w: &M3, dt: Real, r_bar: &M3) -> M3 {
+    let a = *w * (r(0.5) * dt);
+    let a2 = a * a;
+    let norm2 = r(0.5) * ddot(&a, &a);
+    let c = r(2.0) / (r(1.0) + norm2);
+    let sum_bar = *r_bar * c;
+    let c_bar = ddot(r_bar, &(a + a2));
+    let norm2_bar = -c_bar * r(2.0) / ((r(1.0) + norm2) * (r(1.0) + norm2));
+    // d(a a) = da a + a da
+    let a_bar = sum_bar + sum_bar * a.transpose() + a.transpose() * sum_bar + a * norm2_bar;
+    a_bar * (r(0.5) * dt)
 }
