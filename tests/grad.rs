@@ -289,3 +289,46 @@ fn the_hard_nozzle_indicator_gives_a_wrong_printing_speed_gradient() {
     println!("hard indicator: d width / d V = {:.6e}, central differences {:?}", p.adjoint, p.central);
     assert!(p.central.iter().all(|x| x.2 > 0.05), "the hard indicator's gradient should be off: {p:?}");
 }
+
+#[test]
+fn slump_spread_against_the_yield_stress_passes_the_taylor_test() {
+    // An EVP Bingham slump (Roussel's cone, 2 cm cells, 0.3 s); J-bar off, see the block test.
+    let text = r#"
+name = "slump-grad"
+[simulation]
+dx = 0.02
+end_time = 0.3
+dt = 2e-4
+j_bar = false
+gravity = [0.0, 0.0, -9.81]
+[domain]
+min = [-0.3, -0.3, 0.0]
+max = [0.3, 0.3, 0.32]
+[boundary]
+z_min = "no_slip"
+[material]
+kind = "evp_bingham"
+density = 2300.0
+bulk_modulus = 1.0e6
+poisson_ratio = 0.3
+viscosity = 50.0
+yield_stress = 50.0
+[[body]]
+shape = "frustum"
+base_center = [0.0, 0.0, 0.0]
+bottom_radius = 0.1
+top_radius = 0.05
+height = 0.3
+[memory]
+budget = "256 MiB"
+"#;
+    let sc = Scenario::parse(text).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let obj: Objective = "spread".parse().unwrap();
+    let r = gradient(&sc, &obj, &keys(&["material.yield_stress"]), &opts(None, dir.path())).unwrap();
+    assert!(r.gradient[0] < 0.0, "a stiffer paste spreads less: {:?}", r.gradient);
+    let c = check(&sc, &obj, &r, None).unwrap();
+    println!("d spread / d tau0 = {:.6e}, central differences {:?}, Taylor slope {:.3} {:?}", r.gradient[0], c.params[0].central, c.taylor_slope, c.taylor);
+    assert!(best_agreement(&c.params[0]) <= 1e-6, "{:?}", c.params[0]);
+    assert!((c.taylor_slope - 2.0).abs() <= 0.1, "Taylor slope {:.3}: {:?}", c.taylor_slope, c.taylor);
+}
