@@ -17,8 +17,8 @@
 
 use serde::Deserialize;
 
-use crate::material::{non_negative, positive, Eos, Material, StabilityInfo};
-use crate::real::{ddot, dev, r, sym, Real, M3, V3};
+use crate::material::{non_negative, positive, Eos, Material, StabilityInfo, UpdateAdjoint};
+use crate::real::{ddot, dev, r, sym, trace, Real, M3, V3};
 
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -76,11 +76,34 @@ impl Material for Bingham {
     }
 
     fn param_names(&self) -> &'static [&'static str] {
-        &[]
+        &["bulk_modulus", "viscosity", "yield_stress", "critical_shear_rate"]
     }
 
-    fn update_adjoint(&self, _: &M3, _: Real, _: Real, _: &[Real], _: &M3, _: &[Real], _: &mut crate::material::UpdateAdjoint) {
-        todo!("adjoint of {}", self.name())
+    /// Which of gamma_dot and gamma_c the `max` took is the branch held fixed.
+    fn update_adjoint(&self, grad_v: &M3, j: Real, _: Real, _: &[Real], stress_bar: &M3, _: &[Real], out: &mut UpdateAdjoint) {
+        let d_dev = dev(&sym(grad_v));
+        let gamma_dot = (r(2.0) * ddot(&d_dev, &d_dev)).sqrt();
+        let gc = r(self.critical_shear_rate);
+        let m = gamma_dot.max(gc);
+        let ty = r(self.yield_stress);
+        let mu_a = r(self.viscosity) + ty / m;
+        let mu_a_bar = r(2.0) * ddot(stress_bar, &d_dev);
+        let m_bar = -mu_a_bar * ty / (m * m);
+        let mut d_bar = *stress_bar * (r(2.0) * mu_a);
+        let mut gc_bar = r(0.0);
+        if gamma_dot > gc {
+            d_bar += d_dev * (r(2.0) * m_bar / gamma_dot);
+        } else {
+            gc_bar = m_bar;
+        }
+        *out.grad_v_bar += sym(&dev(&d_bar));
+        let (k_bar, jb) = self.eos.pressure_adjoint(r(self.bulk_modulus), j, -trace(stress_bar));
+        *out.j_bar += jb;
+        let p = &mut out.params_bar;
+        p[0] += k_bar;
+        p[1] += mu_a_bar;
+        p[2] += mu_a_bar / m;
+        p[3] += gc_bar;
     }
 
     fn stability(&self) -> StabilityInfo {
@@ -198,5 +221,23 @@ mod tests {
         ))
         .unwrap();
         assert_eq!(m.critical_shear_rate, 0.01);
+    }
+
+    /// Both branches of the `max` (above and below the critical rate), both equations of state.
+    #[cfg(not(feature = "f32"))]
+    #[test]
+    fn adjoint_matches_central_differences_on_both_branches() {
+        use crate::material::test_util::check_update_adjoint;
+        let make = |eos: Eos| {
+            move |p: &[f64]| Bingham { density: 2300.0, bulk_modulus: p[0], viscosity: p[1], yield_stress: p[2], critical_shear_rate: p[3], eos }
+        };
+        let l = M3::from_cols_array(&[0.3, -2.0, 0.5, 3.0, -0.4, 1.2, -0.7, 0.9, 0.2]);
+        let params = [1e6, 20.0, 300.0, 0.5];
+        let scale = [1e6, 20.0, 300.0, 0.5];
+        for (k, eos) in [Eos::Linear, Eos::Tait { gamma: 7.0 }].into_iter().enumerate() {
+            // gamma_dot ~ 5 /s above gamma_c = 0.5, and 0.05 /s below it
+            check_update_adjoint("bingham, flowing", make(eos), &params, l, 0.98, 1e-3, &[], 0.1, &[], &scale, 1e-6, 3 + k as u64);
+            check_update_adjoint("bingham, below gamma_c", make(eos), &params, l * 0.01, 1.01, 1e-3, &[], 0.001, &[], &scale, 1e-6, 5 + k as u64);
+        }
     }
 }

@@ -11,8 +11,8 @@
 
 use serde::Deserialize;
 
-use crate::material::{non_negative, positive, Eos, Material, StabilityInfo};
-use crate::real::{dev, r, sym, Real, M3, V3};
+use crate::material::{non_negative, positive, Eos, Material, StabilityInfo, UpdateAdjoint};
+use crate::real::{ddot, dev, r, sym, trace, Real, M3, V3};
 
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -59,14 +59,13 @@ impl Material for Newtonian {
         &["bulk_modulus", "viscosity"]
     }
 
-    fn update_adjoint(&self, grad_v: &M3, j: Real, _: Real, _: &[Real], sb: &M3, _: &[Real], out: &mut crate::material::UpdateAdjoint) {
-        let d_dev = dev(&sym(grad_v));
-        *out.grad_v_bar += sym(&dev(sb)) * (r(2.0) * r(self.viscosity));
-        let p_bar = -(sb.x_axis.x + sb.y_axis.y + sb.z_axis.z);
-        let (kb, jb) = self.eos.pressure_adjoint(r(self.bulk_modulus), j, p_bar);
-        *out.j_bar += jb;
-        out.params_bar[0] += kb;
-        out.params_bar[1] += r(2.0) * crate::real::ddot(sb, &d_dev);
+    fn update_adjoint(&self, grad_v: &M3, j: Real, _: Real, _: &[Real], stress_bar: &M3, _: &[Real], out: &mut UpdateAdjoint) {
+        // dev and sym are self-adjoint projections
+        *out.grad_v_bar += sym(&dev(stress_bar)) * (r(2.0) * r(self.viscosity));
+        let (k_bar, j_bar) = self.eos.pressure_adjoint(r(self.bulk_modulus), j, -trace(stress_bar));
+        *out.j_bar += j_bar;
+        out.params_bar[0] += k_bar;
+        out.params_bar[1] += r(2.0) * ddot(stress_bar, &dev(&sym(grad_v)));
     }
 
     fn stability(&self) -> StabilityInfo {
@@ -83,7 +82,6 @@ impl Material for Newtonian {
 mod tests {
     use super::*;
     use crate::material::test_util::{simple_shear};
-    use crate::real::trace;
 
     fn water() -> Newtonian {
         Newtonian {
@@ -207,5 +205,16 @@ mod tests {
             .into_iter(),
         ));
         assert!(bad.unwrap_err().to_string().contains("viscosty"));
+    }
+
+    #[cfg(not(feature = "f32"))]
+    #[test]
+    fn adjoint_matches_central_differences() {
+        use crate::material::test_util::check_update_adjoint;
+        let l = M3::from_cols_array(&[0.3, -2.0, 0.5, 3.0, -0.4, 1.2, -0.7, 0.9, 0.2]);
+        for (k, eos) in [Eos::Linear, Eos::Tait { gamma: 7.0 }].into_iter().enumerate() {
+            let make = move |p: &[f64]| Newtonian { density: 1000.0, bulk_modulus: p[0], viscosity: p[1], eos };
+            check_update_adjoint("newtonian", make, &[2e5, 3.0], l, 0.97, 1e-3, &[], 1.0, &[], &[2e5, 3.0], 1e-6, 11 + k as u64);
+        }
     }
 }
