@@ -9,7 +9,7 @@
 //! `[m_bar, p_bar, f_bar]`, the layout P2G's adjoint reads.
 
 use crate::grid::NODES_PER_BLOCK;
-use crate::kernels::boundary::{apply_wall, WallKind};
+use crate::kernels::boundary::{apply_wall, apply_wall_adjoint, WallKind};
 use crate::kernels::transfer::Node;
 use crate::kernels::{Real, V3};
 use crate::grid::{GridGeom, PAD};
@@ -184,26 +184,3 @@ pub fn grid_update_adjoint(sim: &Simulation, drive: Option<&NozzleDrive>, before
     }
 }
 
-// TEMPORARY until the kernel version lands
-fn apply_wall_adjoint(kind: WallKind, n: V3, _vw: V3, v: V3, ob: V3) -> (V3, Real) {
-    let tangential = |b: V3| b - n * n.dot(b);
-    match kind {
-        WallKind::NoSlip => (V3::ZERO, 0.0),
-        WallKind::FreeSlip => if v.dot(n) > 0.0 { (tangential(ob), 0.0) } else { (ob, 0.0) },
-        WallKind::Symmetry => (tangential(ob), 0.0),
-        WallKind::Friction { mu } => {
-            let vn = v.dot(n);
-            if vn <= 0.0 { return (ob, 0.0); }
-            let vt = v - n * vn;
-            let l = vt.length();
-            if l <= 0.0 { return (V3::ZERO, 0.0); }
-            let mu = mu as Real;
-            let keep = 1.0 - mu * vn / l;
-            if keep <= 0.0 { return (V3::ZERO, 0.0); }
-            let d = vt.dot(ob);
-            let vt_bar = ob * keep + vt * (d * mu * vn / (l * l * l));
-            let vn_bar = -d * mu / l;
-            (tangential(vt_bar) + n * vn_bar, -d * vn / l)
-        }
-    }
-}
