@@ -27,8 +27,8 @@
 
 use serde::Deserialize;
 
-use crate::material::{non_negative, positive, Eos, Material, StabilityInfo};
-use crate::real::{ddot, dev, r, sym, Real, M3, V3};
+use crate::material::{non_negative, positive, Eos, Material, StabilityInfo, UpdateAdjoint};
+use crate::real::{ddot, dev, r, sym, trace, Real, M3, V3};
 
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -105,6 +105,20 @@ impl PapanastasiouRoussel {
     fn build_up_rate(&self) -> Real {
         crate::material::build_up_rate(self.a_thix, self.yield_stress)
     }
+
+    /// Adjoints `(a_thix_bar, yield_stress_bar)` of [`Self::build_up_rate`] for `rate_bar`. The
+    /// forward returns 0 at A_thix = 0 only to avoid 0/0 when tau0 = 0; with tau0 > 0 the rate is
+    /// A_thix / tau0 on the whole admissible side A_thix >= 0, so the quotient's derivative is
+    /// taken there too (otherwise a gradient could never move A_thix away from 0).
+    #[inline]
+    fn build_up_rate_adjoint(&self, rate_bar: Real) -> (Real, Real) {
+        if self.yield_stress > 0.0 {
+            let tau0 = r(self.yield_stress);
+            (rate_bar / tau0, -rate_bar * r(self.a_thix) / (tau0 * tau0))
+        } else {
+            (r(0.0), r(0.0))
+        }
+    }
 }
 
 /// phi(x) = (1 - exp(-x)) / x for x >= 0, with phi(0) = 1.
@@ -115,6 +129,25 @@ pub(crate) fn one_minus_exp_neg_over_x(x: Real) -> Real {
         r(1.0) - x * (r(0.5) - x * (r(1.0 / 6.0) - x * r(1.0 / 24.0)))
     } else {
         -(-x).exp_m1() / x
+    }
+}
+
+/// phi'(x) = (exp(-x) - phi(x)) / x, which tends to -1/2 as x -> 0.
+#[inline]
+fn one_minus_exp_neg_over_x_derivative(x: Real) -> Real {
+    // The closed form loses about 4 u / x to cancellation (u the unit round-off; 9e-15 relative
+    // at the switch); the series sum_k (-1)^k k x^(k-1) / (k+1)!, cut after x^7, is off by
+    // x^8 / 403200 < 1e-16 there.
+    if x < r(0.05) {
+        r(-1.0 / 2.0)
+            + x * (r(1.0 / 3.0)
+                + x * (r(-1.0 / 8.0)
+                    + x * (r(1.0 / 30.0)
+                        + x * (r(-1.0 / 144.0)
+                            + x * (r(1.0 / 840.0)
+                                + x * (r(-1.0 / 5760.0) + x * r(1.0 / 45360.0)))))))
+    } else {
+        ((-x).exp() - one_minus_exp_neg_over_x(x)) / x
     }
 }
 
@@ -153,11 +186,116 @@ impl Material for PapanastasiouRoussel {
     }
 
     fn param_names(&self) -> &'static [&'static str] {
-        &[]
+        // The last entry is whichever value caps lambda (see `lambda_cap`); without `lambda_max`,
+        // update reads lambda0 only as that cap.
+        if self.lambda_max.is_some() {
+            &[
+                "bulk_modulus",
+                "viscosity",
+                "yield_stress",
+                "papanastasiou_m",
+                "a_thix",
+                "alpha",
+                "lambda_max",
+            ]
+        } else {
+            &[
+                "bulk_modulus",
+                "viscosity",
+                "yield_stress",
+                "papanastasiou_m",
+                "a_thix",
+                "alpha",
+                "lambda0",
+            ]
+        }
     }
 
-    fn update_adjoint(&self, _: &M3, _: Real, _: Real, _: &[Real], _: &M3, _: &[Real], _: &mut crate::material::UpdateAdjoint) {
-        todo!("adjoint of {}", self.name())
+    /// Adjoint of [`PapanastasiouRoussel::update`], holding constant:
+    /// * the clamp of lambda the forward applied (at 0, at the cap, or none). A trial value exactly
+    ///   on a bound counts as unclamped: the one-sided derivative from inside [0, cap], the only
+    ///   side states reach (ties are common without thixotropy, where lambda stays at 0 or at
+    ///   lambda0 for good);
+    /// * at rest, gamma_dot = sqrt(2 D':D') is a cone, and its subgradient 0 is taken: the stress
+    ///   is differentiable there, only the decay term of lambda is not;
+    /// * A_thix / tau0 is differentiated as that quotient also at A_thix = 0 (see
+    ///   `build_up_rate_adjoint`).
+    fn update_adjoint(
+        &self,
+        grad_v: &M3,
+        j: Real,
+        dt: Real,
+        state_in: &[Real],
+        stress_bar: &M3,
+        state_out_bar: &[Real],
+        out: &mut UpdateAdjoint,
+    ) {
+        let d_dev = dev(&sym(grad_v));
+        let gamma_dot = (r(2.0) * ddot(&d_dev, &d_dev)).sqrt();
+
+        let alpha = r(self.alpha);
+        let lambda_in = state_in[0];
+        let trial = lambda_in + (self.build_up_rate() - alpha * lambda_in * gamma_dot) * dt;
+        let cap = r(self.lambda_cap());
+        // The forward's `.max(0).min(cap)`, branch by branch.
+        let at_cap = trial.max(r(0.0)) > cap;
+        let at_zero = !at_cap && trial < r(0.0);
+        let lambda = if at_cap {
+            cap
+        } else if at_zero {
+            r(0.0)
+        } else {
+            trial
+        };
+
+        let m = r(self.papanastasiou_m);
+        let tau0 = r(self.yield_stress);
+        let x = m * gamma_dot;
+        let phi = one_minus_exp_neg_over_x(x);
+        let structure = r(1.0) + lambda;
+        let eta_a = r(self.viscosity) + tau0 * structure * m * phi;
+
+        // stress = 2 eta_a D' - p I
+        let eta_a_bar = r(2.0) * ddot(&d_dev, stress_bar);
+        let mut d_dev_bar = *stress_bar * (r(2.0) * eta_a);
+        let p_bar = -trace(stress_bar);
+        let (bulk_bar, j_bar) = self.eos.pressure_adjoint(r(self.bulk_modulus), j, p_bar);
+
+        let lambda_bar = state_out_bar[0] + eta_a_bar * tau0 * m * phi;
+        let mut tau0_bar = eta_a_bar * structure * m * phi;
+        // d/dm [m phi(m g)] = d/dm [(1 - exp(-m g)) / g] = exp(-m g), free of cancellation.
+        let m_bar = eta_a_bar * tau0 * structure * (-x).exp();
+        let mut gamma_dot_bar =
+            eta_a_bar * tau0 * structure * m * m * one_minus_exp_neg_over_x_derivative(x);
+
+        let (trial_bar, cap_bar) = if at_cap {
+            (r(0.0), lambda_bar)
+        } else if at_zero {
+            (r(0.0), r(0.0))
+        } else {
+            (lambda_bar, r(0.0))
+        };
+        out.state_bar[0] += trial_bar * (r(1.0) - alpha * gamma_dot * dt);
+        let alpha_bar = -trial_bar * lambda_in * gamma_dot * dt;
+        gamma_dot_bar -= trial_bar * alpha * lambda_in * dt;
+        let (a_thix_bar, tau0_rate_bar) = self.build_up_rate_adjoint(trial_bar * dt);
+        tau0_bar += tau0_rate_bar;
+
+        if gamma_dot > r(0.0) {
+            d_dev_bar += d_dev * (r(2.0) * gamma_dot_bar / gamma_dot);
+        }
+        // dev and sym are self-adjoint projections under A:B.
+        *out.grad_v_bar += dev(&sym(&d_dev_bar));
+        *out.j_bar += j_bar;
+
+        let p = &mut out.params_bar;
+        p[0] += bulk_bar;
+        p[1] += eta_a_bar;
+        p[2] += tau0_bar;
+        p[3] += m_bar;
+        p[4] += a_thix_bar;
+        p[5] += alpha_bar;
+        p[6] += cap_bar;
     }
 
     fn stability(&self) -> StabilityInfo {
@@ -175,7 +313,7 @@ impl Material for PapanastasiouRoussel {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::material::test_util::{simple_shear};
+    use crate::material::test_util::simple_shear;
 
     fn mix() -> PapanastasiouRoussel {
         PapanastasiouRoussel {
@@ -385,5 +523,274 @@ mod tests {
         assert_eq!(m.eos, Eos::Linear);
         assert!(m.validate().is_ok());
         assert_eq!(m.stability().max_viscosity, r(30.0 + 100.0 * 10.0));
+    }
+
+    /// One point of the adjoint check. Each test's points keep the trial lambda at least 1% of
+    /// lambda away from the bound it is on the other side of, and m gamma_dot away from the
+    /// switches of phi and phi' (1e-4, 0.05), further than the largest perturbation (1e-3
+    /// relative), so no difference straddles a branch.
+    #[cfg(not(feature = "f32"))]
+    #[derive(Clone, Copy)]
+    struct Point {
+        /// In `param_names` order: K, eta, tau0, m, A_thix, alpha, lambda_max | lambda0.
+        params: [f64; 7],
+        /// Whether the last parameter is `lambda_max`; else it is lambda0, then the cap.
+        by_lambda_max: bool,
+        eos: Eos,
+        gamma_dot: f64,
+        j: f64,
+        dt: f64,
+        lambda: f64,
+        /// Parameters (indices in `params`) held fixed: their influence at this point is below
+        /// what differences of f64 outputs resolve to 1e-6, and other points check them.
+        unresolved: &'static [usize],
+    }
+
+    #[cfg(not(feature = "f32"))]
+    const ALPHA: usize = 5;
+    #[cfg(not(feature = "f32"))]
+    const M: usize = 3;
+
+    #[cfg(not(feature = "f32"))]
+    impl Point {
+        /// Not validated: a few points take A_thix > 0 without `lambda_max`, which validation
+        /// rejects but the update defines.
+        fn material(&self, p: &[f64]) -> PapanastasiouRoussel {
+            PapanastasiouRoussel {
+                density: 2000.0,
+                bulk_modulus: p[0],
+                viscosity: p[1],
+                yield_stress: p[2],
+                papanastasiou_m: p[3],
+                a_thix: p[4],
+                alpha: p[5],
+                lambda0: if self.by_lambda_max { 0.0 } else { p[6] },
+                lambda_max: self.by_lambda_max.then_some(p[6]),
+                eos: self.eos,
+            }
+        }
+
+        /// The adjoint check at a random L of this shear rate, every input perturbed by about a
+        /// tenth of its size.
+        fn check(&self, label: &str, seed: u64) {
+            let mut rng = crate::adjoint_check::Rng(seed);
+            let l = M3::from_cols_array(&std::array::from_fn(|_| rng.uniform(-1.0, 1.0)));
+            let d = dev(&sym(&l));
+            let l = l * (self.gamma_dot / (2.0 * ddot(&d, &d)).sqrt());
+            let l_max = l
+                .to_cols_array()
+                .iter()
+                .fold(0.0, |a: f64, v| a.max(v.abs()));
+            let param_scale: Vec<f64> = (0..7)
+                .map(|i| match self.unresolved.contains(&i) {
+                    true => 0.0,
+                    false => 0.1 * self.params[i],
+                })
+                .collect();
+            crate::material::test_util::check_update_adjoint(
+                label,
+                |p: &[f64]| self.material(p),
+                &self.params,
+                l,
+                self.j,
+                self.dt,
+                &[self.lambda],
+                0.1 * l_max,
+                &[0.1 * self.lambda],
+                &param_scale,
+                1e-6,
+                seed,
+            );
+        }
+    }
+
+    #[cfg(not(feature = "f32"))]
+    const TAIT: Eos = Eos::Tait { gamma: 7.0 };
+
+    #[cfg(not(feature = "f32"))]
+    #[test]
+    fn adjoint_with_lambda_between_its_bounds() {
+        // trial lambda = 1 + (0.05 - 0.5 g) dt stays well inside (0, 3). J near 1 keeps the
+        // pressure (~2e3) from swamping, in the differences' round-off, the small effect of A_thix
+        // and alpha on the stress.
+        let base = Point {
+            params: [3.3e5, 30.0, 100.0, 10.0, 5.0, 0.5, 3.0],
+            by_lambda_max: true,
+            eos: TAIT,
+            gamma_dot: 0.2,
+            j: 0.995,
+            dt: 0.1,
+            lambda: 1.0,
+            unresolved: &[],
+        };
+        for (k, eos) in [TAIT, Eos::Linear].into_iter().enumerate() {
+            let seed = 11 + 10 * k as u64;
+            for (i, g) in [0.2, 0.07].into_iter().enumerate() {
+                let pt = Point {
+                    eos,
+                    gamma_dot: g,
+                    ..base
+                };
+                pt.check(&format!("interior {eos:?} g={g}"), seed + i as u64);
+            }
+            // Without lambda_max the cap is lambda0 = 3 (not reached).
+            let pt = Point {
+                eos,
+                by_lambda_max: false,
+                gamma_dot: 0.15,
+                j: 1.005,
+                ..base
+            };
+            pt.check(&format!("interior, cap lambda0, {eos:?}"), seed + 2);
+        }
+    }
+
+    #[cfg(not(feature = "f32"))]
+    #[test]
+    fn adjoint_with_lambda_clamped_at_zero() {
+        // alpha g dt = 10 drives the trial lambda to about -4.5; m g = 1000 is also the large-rate
+        // end, where exp(-m g) underflows to 0.
+        for (k, eos) in [TAIT, Eos::Linear].into_iter().enumerate() {
+            let pt = Point {
+                params: [3.3e5, 30.0, 100.0, 10.0, 0.5, 1.0, 3.0],
+                by_lambda_max: true,
+                eos,
+                gamma_dot: 100.0,
+                j: 0.97,
+                dt: 0.1,
+                lambda: 0.5,
+                unresolved: &[],
+            };
+            pt.check(&format!("at zero {eos:?}"), 21 + k as u64);
+        }
+    }
+
+    #[cfg(not(feature = "f32"))]
+    #[test]
+    fn adjoint_with_lambda_clamped_at_the_cap() {
+        // Build-up 0.5/s over dt = 0.1 takes lambda = 2.99 to a trial 3.04 > lambda_max = 3.
+        let base = Point {
+            params: [3.3e5, 30.0, 100.0, 10.0, 50.0, 0.05, 3.0],
+            by_lambda_max: true,
+            eos: TAIT,
+            gamma_dot: 0.03,
+            j: 0.99,
+            dt: 0.1,
+            lambda: 2.99,
+            unresolved: &[],
+        };
+        for (k, eos) in [TAIT, Eos::Linear].into_iter().enumerate() {
+            Point { eos, ..base }.check(&format!("at cap {eos:?}"), 31 + k as u64);
+        }
+        // Capped by lambda0 = 2 with lambda = 2.5 above it (a state only a perturbation reaches).
+        let pt = Point {
+            params: [3.3e5, 30.0, 100.0, 10.0, 0.5, 0.05, 2.0],
+            by_lambda_max: false,
+            lambda: 2.5,
+            ..base
+        };
+        pt.check("at cap lambda0", 33);
+    }
+
+    #[cfg(not(feature = "f32"))]
+    #[test]
+    fn adjoint_across_shear_rates() {
+        // m g from the series branches of phi and phi' (5e-5, 0.01) to exp(-m g) ~ 2e-22 (50).
+        // At small rates J = 1 - 1e-8 keeps the pressure (K (1/J - 1) ~ 3e-3) from swamping the
+        // shear stress (~1e-3 at m g = 5e-5) in the differences' round-off. Unresolved: alpha
+        // while alpha g dt <= 1e-4, and m where its derivative exp(-m g) ~ 2e-22.
+        let base = Point {
+            params: [3.3e5, 30.0, 100.0, 10.0, 5.0, 1.0, 3.0],
+            by_lambda_max: true,
+            eos: TAIT,
+            gamma_dot: 0.0,
+            j: 1.0,
+            dt: 0.1,
+            lambda: 1.2,
+            unresolved: &[],
+        };
+        let points: [(f64, f64, &'static [usize]); 4] = [
+            (5e-6, 1.0 - 1e-8, &[ALPHA]),
+            (1e-3, 1.0 - 1e-6, &[ALPHA]),
+            (0.02, 0.999, &[]),
+            (5.0, 0.98, &[M]),
+        ];
+        for (k, eos) in [TAIT, Eos::Linear].into_iter().enumerate() {
+            for (i, (gamma_dot, j, unresolved)) in points.into_iter().enumerate() {
+                let pt = Point {
+                    eos,
+                    gamma_dot,
+                    j,
+                    unresolved,
+                    ..base
+                };
+                let seed = 41 + 10 * k as u64 + i as u64;
+                pt.check(&format!("m g={} {eos:?}", 10.0 * gamma_dot), seed);
+            }
+        }
+    }
+
+    #[cfg(not(feature = "f32"))]
+    #[test]
+    fn adjoint_at_rest_and_without_thixotropy() {
+        // Not checked by central differences: g = 0 is the cone of sqrt(2 D':D'), and A_thix = 0
+        // lies on the edge of its admissible range. The adjoint takes the subgradient 0 and the
+        // one-sided derivative d(A_thix / tau0) / dA_thix = 1 / tau0.
+        let mut m = mix();
+        m.alpha = 0.3;
+        let dt = 0.1;
+        let (mut gv, mut jb, mut sb, mut pb) = (M3::ZERO, 0.0, [0.0], [0.0; 7]);
+        let mut out = UpdateAdjoint {
+            grad_v_bar: &mut gv,
+            j_bar: &mut jb,
+            state_bar: &mut sb,
+            params_bar: &mut pb,
+        };
+        m.update_adjoint(&M3::ZERO, 1.0, dt, &[0.0], &M3::ZERO, &[1.0], &mut out);
+        assert_eq!(gv, M3::ZERO);
+        assert_eq!(sb[0], 1.0);
+        assert_eq!(pb, [0.0, 0.0, 0.0, 0.0, dt / 100.0, 0.0, 0.0]);
+        // At rest a stress cotangent sees the stress's tangent 2 (eta + tau0 m) dev(sym(.)).
+        let s_bar = M3::from_cols_array(&[0.3, -0.2, 0.5, 0.1, 0.7, -0.4, 0.2, 0.6, -0.9]);
+        let (mut gv, mut pb) = (M3::ZERO, [0.0; 7]);
+        let mut out = UpdateAdjoint {
+            grad_v_bar: &mut gv,
+            j_bar: &mut jb,
+            state_bar: &mut sb,
+            params_bar: &mut pb,
+        };
+        m.update_adjoint(&M3::ZERO, 1.0, dt, &[0.0], &s_bar, &[0.0], &mut out);
+        let expect = dev(&sym(&s_bar)) * (2.0 * (30.0 + 100.0 * 10.0));
+        assert!(gv.abs_diff_eq(expect, 1e-9), "{gv} vs {expect}");
+    }
+
+    #[cfg(not(feature = "f32"))]
+    #[test]
+    fn phi_derivative_is_accurate_on_both_sides_of_the_series_switch() {
+        // Reference: the alternating series sum (-1)^k k x^(k-1) / (k+1)!, converged far below
+        // f64 precision for x <= 1; beyond, the closed form (exp(-x) (1 + x) - 1) / x^2 is exact
+        // enough.
+        let reference = |x: f64| {
+            if x > 1.0 {
+                return ((-x).exp() * (1.0 + x) - 1.0) / (x * x);
+            }
+            let (mut sum, mut pow, mut fact) = (0.0, 1.0, 1.0);
+            for k in 1..40 {
+                fact *= k as f64 + 1.0;
+                sum += if k % 2 == 1 { -1.0 } else { 1.0 } * k as f64 * pow / fact;
+                pow *= x;
+            }
+            sum
+        };
+        for x in [
+            0.0, 1e-12, 1e-6, 1e-3, 0.0499, 0.05, 0.0501, 0.1, 0.5, 1.0, 3.0, 30.0,
+        ] {
+            let v = one_minus_exp_neg_over_x_derivative(x);
+            assert!(
+                rel(v, reference(x)) < 2e-14,
+                "x={x}: {v} vs {}",
+                reference(x)
+            );
+        }
     }
 }
