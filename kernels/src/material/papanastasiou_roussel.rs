@@ -298,6 +298,14 @@ impl Material for PapanastasiouRoussel {
         p[6] += cap_bar;
     }
 
+    /// lambda starts at lambda0; when lambda0 is a listed parameter (no `lambda_max`), the
+    /// initial state's adjoint is its adjoint too.
+    fn init_state_adjoint(&self, state_bar: &[Real], params_bar: &mut [Real]) {
+        if self.lambda_max.is_none() {
+            params_bar[6] += state_bar[0];
+        }
+    }
+
     fn stability(&self) -> StabilityInfo {
         StabilityInfo {
             density: r(self.density),
