@@ -41,15 +41,6 @@ impl Fields {
         })
     }
 
-    pub fn zero(&mut self) {
-        self.xg.as_mut_slice().fill(V3::ZERO);
-        self.v.as_mut_slice().fill(V3::ZERO);
-        self.c.as_mut_slice().fill(M3::ZERO);
-        self.stress.as_mut_slice().fill(M3::ZERO);
-        self.j.as_mut_slice().fill(0.0);
-        self.state.as_mut_slice().fill(0.0);
-    }
-
     /// Zero particles `r` (with `state_len` state values each).
     pub fn zero_range(&mut self, r: std::ops::Range<usize>, state_len: usize) {
         self.xg.as_mut_slice()[r.clone()].fill(V3::ZERO);

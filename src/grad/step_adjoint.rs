@@ -142,7 +142,8 @@ impl StepAdjoint {
         }
 
         std::mem::swap(&mut self.cur, &mut self.next);
-        self.cur.zero();
+        // particles beyond n were never touched by this step's adjoint
+        self.cur.zero_range(0..n, sim.particles.state_len);
         Ok(value)
     }
 
