@@ -79,6 +79,9 @@ enum Cmd {
         /// Also central differences at several steps and the Taylor remainder test.
         #[arg(long)]
         check: bool,
+        /// Relative steps of --check's central differences.
+        #[arg(long, value_delimiter = ',', default_values_t = strand::grad::check::REL_STEPS)]
+        check_steps: Vec<f64>,
         #[arg(long)]
         json: bool,
         /// Memory for the backward pass: adjoint arrays plus RAM checkpoints.
@@ -180,7 +183,7 @@ fn main() -> ExitCode {
             Ok(true)
         }
         Cmd::Verify { quick, json, case, threads, .. } => strand::verify::run_suite(quick, json, case.as_deref(), threads),
-        Cmd::Grad { scenario, objective, wrt, check, json, ram, disk, disk_dir, threads, schedule } => (|| {
+        Cmd::Grad { scenario, objective, wrt, check, check_steps, json, ram, disk, disk_dir, threads, schedule } => (|| {
             let sc = Scenario::load(&scenario).map_err(|e| e.to_string())?;
             let obj: strand::grad::Objective = objective.parse()?;
             let size = |s: &str, what: &str| strand::memory::parse_size(s).map_err(|e| format!("--{what}: {e}"));
@@ -192,7 +195,7 @@ fn main() -> ExitCode {
                 schedule: schedule.as_deref().map(strand::grad::schedule::Kind::parse).transpose()?,
             };
             let r = strand::grad::gradient(&sc, &obj, &wrt, &opts)?;
-            let chk = if check { Some(strand::grad::check::check(&sc, &obj, &r, threads)?) } else { None };
+            let chk = if check { Some(strand::grad::check::check(&sc, &obj, &r, threads, &check_steps)?) } else { None };
             if json {
                 println!("{:#}", serde_json::json!({ "result": r, "check": chk, "peak_rss_bytes": strand::verify::peak_rss_bytes() }));
             } else {

@@ -6,7 +6,8 @@ mod common;
 
 use std::process::Command;
 use strand::grad::schedule::Kind;
-use strand::grad::{check::check, gradient, GradOptions, Objective};
+use strand::grad::check::{check, REL_STEPS};
+use strand::grad::{gradient, GradOptions, Objective};
 use strand::scenario::Scenario;
 
 /// A small Newtonian block thrown across a floor with Coulomb friction, next to no-slip and
@@ -103,7 +104,7 @@ fn whole_run_gradient_matches_central_differences_and_the_taylor_test() {
     for objective in ["mean_z", "spread", "kinetic_energy"] {
         let obj: Objective = objective.parse().unwrap();
         let r = gradient(&sc, &obj, &wrt, &opts(None, dir.path())).unwrap();
-        let c = check(&sc, &obj, &r, None).unwrap();
+        let c = check(&sc, &obj, &r, None, &REL_STEPS).unwrap();
         for p in &c.params {
             let best = best_agreement(p);
             println!("{objective}: d/d {} = {:.6e}, central differences {:?}", p.param, p.adjoint, p.central);
@@ -263,7 +264,7 @@ fn print_width_gradients_with_the_smooth_nozzle_match_central_differences() {
     let obj: Objective = "width@0.01".parse().unwrap();
     let wrt = keys(&["print.path.0.speed", "print.path.0.extrusion"]);
     let r = gradient(&sc, &obj, &wrt, &opts(None, dir.path())).unwrap();
-    let c = check(&sc, &obj, &r, None).unwrap();
+    let c = check(&sc, &obj, &r, None, &REL_STEPS).unwrap();
     for p in &c.params {
         println!("d width / d {} = {:.6e}, central differences {:?}", p.param, p.adjoint, p.central);
     }
@@ -284,7 +285,7 @@ fn the_hard_nozzle_indicator_gives_a_wrong_printing_speed_gradient() {
     let dir = tempfile::tempdir().unwrap();
     let obj: Objective = "width@0.01".parse().unwrap();
     let r = gradient(&sc, &obj, &keys(&["print.path.0.speed"]), &opts(None, dir.path())).unwrap();
-    let c = check(&sc, &obj, &r, None).unwrap();
+    let c = check(&sc, &obj, &r, None, &REL_STEPS).unwrap();
     let p = &c.params[0];
     println!("hard indicator: d width / d V = {:.6e}, central differences {:?}", p.adjoint, p.central);
     assert!(p.central.iter().all(|x| x.2 > 0.05), "the hard indicator's gradient should be off: {p:?}");
@@ -327,7 +328,7 @@ budget = "256 MiB"
     let obj: Objective = "spread".parse().unwrap();
     let r = gradient(&sc, &obj, &keys(&["material.yield_stress"]), &opts(None, dir.path())).unwrap();
     assert!(r.gradient[0] < 0.0, "a stiffer paste spreads less: {:?}", r.gradient);
-    let c = check(&sc, &obj, &r, None).unwrap();
+    let c = check(&sc, &obj, &r, None, &REL_STEPS).unwrap();
     println!("d spread / d tau0 = {:.6e}, central differences {:?}, Taylor slope {:.3} {:?}", r.gradient[0], c.params[0].central, c.taylor_slope, c.taylor);
     assert!(best_agreement(&c.params[0]) <= 1e-6, "{:?}", c.params[0]);
     assert!((c.taylor_slope - 2.0).abs() <= 0.1, "Taylor slope {:.3}: {:?}", c.taylor_slope, c.taylor);

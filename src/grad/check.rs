@@ -6,7 +6,8 @@ use super::objective::Objective;
 use super::params::with_value;
 use crate::scenario::Scenario;
 
-/// Relative step sizes of the central differences (times |theta|, or absolute when theta = 0).
+/// Default relative step sizes of the central differences (times |theta|, or absolute when
+/// theta = 0).
 pub const REL_STEPS: [f64; 3] = [1e-2, 1e-3, 1e-4];
 
 #[derive(Clone, Debug, serde::Serialize)]
@@ -25,6 +26,10 @@ pub struct Check {
     pub taylor: Vec<(f64, f64)>,
     /// Least-squares slope of log remainder against log h: 2 when the gradient is right.
     pub taylor_slope: f64,
+    /// Wall seconds of the central differences' forward runs, and of the Taylor test's.
+    pub central_s: f64,
+    pub taylor_s: f64,
+    pub central_runs: usize,
 }
 
 fn step_of(theta: f64, rel: f64) -> f64 {
@@ -45,12 +50,14 @@ fn perturbed(sc: &Scenario, keys: &[String], values: &[f64]) -> Result<Scenario,
     Ok(p)
 }
 
-pub fn check(sc: &Scenario, objective: &Objective, r: &GradResult, threads: Option<usize>) -> Result<Check, String> {
+/// Central differences at the relative steps `rel_steps` for every parameter, then the Taylor test.
+pub fn check(sc: &Scenario, objective: &Objective, r: &GradResult, threads: Option<usize>, rel_steps: &[f64]) -> Result<Check, String> {
     let value_at = |values: &[f64]| forward_value(&perturbed(sc, &r.params, values)?, objective, threads);
+    let t0 = std::time::Instant::now();
     let mut params = Vec::new();
     for (k, key) in r.params.iter().enumerate() {
         let mut central = Vec::new();
-        for rel in REL_STEPS {
+        for &rel in rel_steps {
             let h = step_of(r.values[k], rel);
             let mut plus = r.values.clone();
             plus[k] += h;
@@ -62,6 +69,8 @@ pub fn check(sc: &Scenario, objective: &Objective, r: &GradResult, threads: Opti
         }
         params.push(ParamCheck { param: key.clone(), adjoint: r.gradient[k], central });
     }
+    let central_s = t0.elapsed().as_secs_f64();
+    let t1 = std::time::Instant::now();
     let d: Vec<f64> = r.values.iter().map(|&v| if v != 0.0 { v } else { 1.0 }).collect();
     let slope_dir: f64 = r.gradient.iter().zip(&d).map(|(g, d)| g * d).sum();
     let j0 = value_at(&r.values)?;
@@ -71,7 +80,14 @@ pub fn check(sc: &Scenario, objective: &Objective, r: &GradResult, threads: Opti
         let at: Vec<f64> = r.values.iter().zip(&d).map(|(v, d)| v + h * d).collect();
         taylor.push((h, (value_at(&at)? - j0 - h * slope_dir).abs()));
     }
-    Ok(Check { params, taylor_slope: log_slope(&taylor), taylor })
+    Ok(Check {
+        params,
+        taylor_slope: log_slope(&taylor),
+        taylor,
+        central_s,
+        taylor_s: t1.elapsed().as_secs_f64(),
+        central_runs: 2 * rel_steps.len() * r.params.len(),
+    })
 }
 
 /// Least-squares slope of log y against log x.

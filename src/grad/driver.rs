@@ -308,7 +308,8 @@ pub fn report(r: &GradResult, check: Option<&super::check::Check>) -> String {
                 let _ = writeln!(s, "  check {}: central difference h = {h:.3e}: {fd:.9e} (relative difference {e:.2e})", p.param);
             }
         }
-        let _ = writeln!(s, "  Taylor remainder slope {:.3} (2 when the gradient is right):", c.taylor_slope);
+        let _ = writeln!(s, "  {} central-difference runs in {:.1} s", c.central_runs, c.central_s);
+        let _ = writeln!(s, "  Taylor remainder slope {:.3} (2 when the gradient is right; {:.1} s):", c.taylor_slope, c.taylor_s);
         for (h, rem) in &c.taylor {
             let _ = writeln!(s, "    h = {h:.3e}: {rem:.3e}");
         }
