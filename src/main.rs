@@ -95,6 +95,11 @@ enum Cmd {
         disk_dir: PathBuf,
         #[arg(long)]
         threads: Option<usize>,
+        /// Stop the run once the largest particle speed, having exceeded SPEED m/s, falls back
+        /// below it (or at the end time); the online schedule then checkpoints a run of unknown
+        /// length.
+        #[arg(long, value_name = "SPEED")]
+        until_rest: Option<f64>,
         /// Force a schedule instead of choosing one from --ram and --disk: store-all,
         /// two-level[:SEGMENT] or revolve:RAM_SLOTS,DISK_SLOTS.
         #[arg(long)]
@@ -183,7 +188,7 @@ fn main() -> ExitCode {
             Ok(true)
         }
         Cmd::Verify { quick, json, case, threads, .. } => strand::verify::run_suite(quick, json, case.as_deref(), threads),
-        Cmd::Grad { scenario, objective, wrt, check, check_steps, json, ram, disk, disk_dir, threads, schedule } => (|| {
+        Cmd::Grad { scenario, objective, wrt, check, check_steps, json, ram, disk, disk_dir, threads, until_rest, schedule } => (|| {
             let sc = Scenario::load(&scenario).map_err(|e| e.to_string())?;
             let obj: strand::grad::Objective = objective.parse()?;
             let size = |s: &str, what: &str| strand::memory::parse_size(s).map_err(|e| format!("--{what}: {e}"));
@@ -193,6 +198,7 @@ fn main() -> ExitCode {
                 disk_dir,
                 threads,
                 schedule: schedule.as_deref().map(strand::grad::schedule::Kind::parse).transpose()?,
+                until_rest,
             };
             let r = strand::grad::gradient(&sc, &obj, &wrt, &opts)?;
             let chk = if check { Some(strand::grad::check::check(&sc, &obj, &r, threads, &check_steps)?) } else { None };

@@ -52,7 +52,7 @@ fn perturbed(sc: &Scenario, keys: &[String], values: &[f64]) -> Result<Scenario,
 
 /// Central differences at the relative steps `rel_steps` for every parameter, then the Taylor test.
 pub fn check(sc: &Scenario, objective: &Objective, r: &GradResult, threads: Option<usize>, rel_steps: &[f64]) -> Result<Check, String> {
-    let value_at = |values: &[f64]| forward_value(&perturbed(sc, &r.params, values)?, objective, threads);
+    let value_at = |values: &[f64]| forward_value(&perturbed(sc, &r.params, values)?, objective, threads, r.steps);
     let t0 = std::time::Instant::now();
     let mut params = Vec::new();
     for (k, key) in r.params.iter().enumerate() {

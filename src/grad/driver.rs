@@ -11,7 +11,7 @@
 use super::fields::state_bytes;
 use super::objective::{Frame, Objective};
 use super::params::{resolve, Param};
-use super::schedule::{choose, Action, Budget, Kind, Plan};
+use super::schedule::{choose, Action, Budget, Kind, OnlineSchedule, Plan};
 use super::step_adjoint::StepAdjoint;
 use super::store::{DiskSlots, RamSlots, Store};
 use crate::memory::{fmt_bytes, Backing, MemoryPlan};
@@ -33,6 +33,10 @@ pub struct GradOptions {
     pub threads: Option<usize>,
     /// Force a schedule instead of choosing one from the budgets.
     pub schedule: Option<Kind>,
+    /// Stop the run once the largest particle speed, having exceeded this [m/s], falls back
+    /// below it (or at the end time): its length is then unknown in advance and the online
+    /// schedule is used.
+    pub until_rest: Option<f64>,
 }
 
 #[derive(Clone, Debug, serde::Serialize)]
@@ -103,11 +107,12 @@ fn advance_to_end(sim: &mut Simulation, steps: u64) -> Result<(), String> {
     Ok(())
 }
 
-/// The objective after a forward run of `sc` (what central differences evaluate).
-pub fn forward_value(sc: &Scenario, objective: &Objective, threads: Option<usize>) -> Result<f64, String> {
+/// The objective after a forward run of `sc` over `steps` steps (what central differences
+/// evaluate: the step count of the differentiated run is held fixed, also when a stop condition
+/// chose it).
+pub fn forward_value(sc: &Scenario, objective: &Objective, threads: Option<usize>, steps: u64) -> Result<f64, String> {
     let mut sim = prepare(sc, threads)?;
-    let n = count_steps(&sim);
-    advance_to_end(&mut sim, n)?;
+    advance_to_end(&mut sim, steps)?;
     objective.evaluate(&sim, &Frame::of(&sim), None)
 }
 
@@ -128,15 +133,14 @@ fn body_ids(sc: &Scenario) -> Vec<std::ops::Range<u32>> {
 
 pub fn gradient(sc: &Scenario, objective: &Objective, wrt: &[String], opts: &GradOptions) -> Result<GradResult, String> {
     let wall = Instant::now();
-    let mut sim = prepare(sc, opts.threads)?;
+    let sim = prepare(sc, opts.threads)?;
     let params: Vec<Param> = wrt.iter().map(|k| resolve(&sim, k)).collect::<Result<_, _>>()?;
     let values: Vec<f64> = wrt.iter().map(|k| super::params::value(&sc.source, k)).collect::<Result<_, _>>()?;
     let frame = Frame::of(&sim);
-    let n_steps = count_steps(&sim);
     let (n0, cap, sl) = (sim.particles.n, sim.particles.capacity(), sim.particles.state_len);
     let print_keys: Vec<(String, f64)> =
         wrt.iter().zip(&values).filter(|(k, _)| k.starts_with("print.")).map(|(k, v)| (k.clone(), *v)).collect();
-    let mut print = match &sim.printer {
+    let print = match &sim.printer {
         Some(p) => Some(PrintParams::new(sc, &p.plan, &print_keys)?),
         None if print_keys.is_empty() => None,
         None => return Err(format!("'{}': the scenario does not print", print_keys[0].0)),
@@ -156,62 +160,66 @@ pub fn gradient(sc: &Scenario, objective: &Objective, wrt: &[String], opts: &Gra
         ));
     }
     let budget = Budget { state_bytes: sbytes, ram_bytes: opts.ram_bytes - adjoint_bytes, disk_bytes: opts.disk_bytes };
-    let plan = match opts.schedule {
-        Some(Kind::TwoLevel { segment: 0 }) => Plan::two_level(n_steps),
-        Some(kind) => Plan::new(kind, n_steps).map_err(|e| e.to_string())?,
-        None => choose(n_steps, &budget).map_err(|e| e.to_string())?,
-    };
-    let (ram_slots, disk_slots) = plan.peak_slots();
     let backing = Backing { dir: sc.memory.dir.clone() };
-    let mut store = Store {
-        ram: RamSlots::new(ram_slots, sbytes as usize, &backing).map_err(|e| e.to_string())?,
-        disk: if disk_slots > 0 { Some(DiskSlots::new(&opts.disk_dir, sbytes as usize)?) } else { None },
-    };
-    let mut adj = StepAdjoint::new(&sim, &backing)?;
-
+    let adj = StepAdjoint::new(&sim, &backing)?;
     let end = sc.simulation.end_time;
-    let (mut forward_s, mut reverse_s) = (0.0, 0.0);
-    let mut value = None;
-    if n_steps == 0 {
-        let p = &mut adj.next;
-        let seed = super::objective::Seed {
-            xg: &mut p.xg.as_mut_slice()[..n0],
-            v: &mut p.v.as_mut_slice()[..n0],
-            j: &mut p.j.as_mut_slice()[..n0],
-            mass: &mut adj.mass_bar.as_mut_slice()[..n0],
-        };
-        value = Some(objective.evaluate(&sim, &frame, Some(seed))?);
-    }
-    for action in plan.actions() {
-        match action {
-            Action::Advance { from, to } => {
-                debug_assert_eq!(sim.step, from);
-                let t = Instant::now();
-                for _ in from..to {
-                    sim.step_until(end).map_err(|e| e.to_string())?;
-                }
-                forward_s += t.elapsed().as_secs_f64();
+    let mut ex = Executor { sim, adj, store: None, objective, frame, print, end, n_steps: 0, value: None, forward_steps: 0, forward_s: 0.0, reverse_s: 0.0 };
+
+    let (schedule, peak) = match opts.until_rest {
+        None => {
+            let n_steps = count_steps(&ex.sim);
+            let plan = match opts.schedule {
+                Some(Kind::TwoLevel { segment: 0 }) => Plan::two_level(n_steps),
+                Some(kind) => Plan::new(kind, n_steps).map_err(|e| e.to_string())?,
+                None => choose(n_steps, &budget).map_err(|e| e.to_string())?,
+            };
+            let (ram_slots, disk_slots) = plan.peak_slots();
+            ex.store = Some(Store {
+                ram: RamSlots::new(ram_slots, sbytes as usize, &backing).map_err(|e| e.to_string())?,
+                disk: if disk_slots > 0 { Some(DiskSlots::new(&opts.disk_dir, sbytes as usize)?) } else { None },
+            });
+            ex.n_steps = n_steps;
+            if n_steps == 0 {
+                ex.seed_initial(n0)?;
             }
-            Action::Store { step, tier } => {
-                debug_assert_eq!(sim.step, step);
-                store.store(&sim, tier)?;
+            for action in plan.actions() {
+                ex.run(action)?;
             }
-            Action::Restore { step, tier } => store.restore(&mut sim, step, tier)?,
-            Action::Free { step, tier } => store.free(step, tier)?,
-            Action::Reverse { step } => {
-                debug_assert_eq!(sim.step, step);
-                let t = Instant::now();
-                let last = step + 1 == n_steps;
-                if let Some(v) = adj.reverse(&mut sim, end, last.then_some((objective, &frame)), print.as_mut())? {
-                    value = Some(v);
-                }
-                reverse_s += t.elapsed().as_secs_f64();
-            }
+            (format!("{:?}", plan.kind()), (ram_slots, disk_slots))
         }
-    }
+        Some(v_rest) => {
+            // the run's length is known only when it stops: the online schedule, RAM only
+            let slots = usize::try_from(budget.ram_bytes / sbytes).unwrap_or(usize::MAX).min(1 << 20);
+            let mut online = OnlineSchedule::new(slots).map_err(|e| e.to_string())?;
+            ex.store = Some(Store { ram: RamSlots::new(slots, sbytes as usize, &backing).map_err(|e| e.to_string())?, disk: None });
+            // material released from rest comes to rest again: stop once the speed, having
+            // exceeded v_rest, falls back below it
+            let mut moved = false;
+            while ex.sim.time < end * (1.0 - 1e-12) {
+                moved |= ex.sim.vmax >= v_rest;
+                if moved && ex.sim.vmax < v_rest {
+                    break;
+                }
+                for action in online.on_step() {
+                    ex.run(action)?;
+                }
+                let s = ex.sim.step;
+                ex.run(Action::Advance { from: s, to: s + 1 })?;
+            }
+            ex.n_steps = online.steps();
+            if ex.n_steps == 0 {
+                ex.seed_initial(n0)?;
+            }
+            for action in online.finish() {
+                ex.run(action)?;
+            }
+            (format!("Online {{ slots: {slots}, stopped at rest (max speed < {v_rest} m/s) or at the end time }}"), (slots, 0))
+        }
+    };
+    let Executor { sim, adj, store, mut print, value, n_steps, forward_steps, forward_s, reverse_s, .. } = ex;
     let value = value.ok_or("the schedule never reached the last step")?;
     let mut gradient = assemble(&sim, n0, &adj, &params);
-    if let Some(pp) = &print {
+    if let Some(pp) = print.as_mut() {
         let g = pp.gradient();
         let mut k = 0;
         for (i, key) in wrt.iter().enumerate() {
@@ -221,7 +229,7 @@ pub fn gradient(sc: &Scenario, objective: &Objective, wrt: &[String], opts: &Gra
             }
         }
     }
-    let disk_written_bytes = store.disk.as_ref().map_or(0, |d| d.written);
+    let disk_written_bytes = store.as_ref().and_then(|s| s.disk.as_ref()).map_or(0, |d| d.written);
     Ok(GradResult {
         objective: objective.name(),
         value,
@@ -229,10 +237,10 @@ pub fn gradient(sc: &Scenario, objective: &Objective, wrt: &[String], opts: &Gra
         values,
         gradient,
         steps: n_steps,
-        schedule: format!("{:?}", plan.kind()),
-        forward_steps: plan.forward_steps(),
-        peak_ram_slots: ram_slots,
-        peak_disk_slots: disk_slots,
+        schedule,
+        forward_steps,
+        peak_ram_slots: peak.0,
+        peak_disk_slots: peak.1,
         state_bytes: sbytes,
         adjoint_bytes,
         disk_written_bytes,
@@ -240,6 +248,69 @@ pub fn gradient(sc: &Scenario, objective: &Objective, wrt: &[String], opts: &Gra
         reverse_s,
         wall_s: wall.elapsed().as_secs_f64(),
     })
+}
+
+/// Carries out schedule actions on the simulation, the step adjoint and the checkpoint store.
+struct Executor<'a> {
+    sim: Simulation,
+    adj: StepAdjoint,
+    store: Option<Store>,
+    objective: &'a Objective,
+    frame: Frame,
+    print: Option<PrintParams>,
+    end: f64,
+    /// Steps of the run being reversed (its last one evaluates the objective).
+    n_steps: u64,
+    value: Option<f64>,
+    forward_steps: u64,
+    forward_s: f64,
+    reverse_s: f64,
+}
+
+impl Executor<'_> {
+    fn run(&mut self, action: Action) -> Result<(), String> {
+        let store = self.store.as_mut().ok_or("no checkpoint store")?;
+        match action {
+            Action::Advance { from, to } => {
+                debug_assert_eq!(self.sim.step, from);
+                let t = Instant::now();
+                for _ in from..to {
+                    self.sim.step_until(self.end).map_err(|e| e.to_string())?;
+                }
+                self.forward_steps += to - from;
+                self.forward_s += t.elapsed().as_secs_f64();
+            }
+            Action::Store { step, tier } => {
+                debug_assert_eq!(self.sim.step, step);
+                store.store(&self.sim, tier)?;
+            }
+            Action::Restore { step, tier } => store.restore(&mut self.sim, step, tier)?,
+            Action::Free { step, tier } => store.free(step, tier)?,
+            Action::Reverse { step } => {
+                debug_assert_eq!(self.sim.step, step);
+                let t = Instant::now();
+                let last = (step + 1 == self.n_steps).then_some((self.objective, &self.frame));
+                if let Some(v) = self.adj.reverse(&mut self.sim, self.end, last, self.print.as_mut())? {
+                    self.value = Some(v);
+                }
+                self.reverse_s += t.elapsed().as_secs_f64();
+            }
+        }
+        Ok(())
+    }
+
+    /// A run of no steps: the objective of the initial state seeds its adjoint directly.
+    fn seed_initial(&mut self, n0: usize) -> Result<(), String> {
+        let p = &mut self.adj.next;
+        let seed = super::objective::Seed {
+            xg: &mut p.xg.as_mut_slice()[..n0],
+            v: &mut p.v.as_mut_slice()[..n0],
+            j: &mut p.j.as_mut_slice()[..n0],
+            mass: &mut self.adj.mass_bar.as_mut_slice()[..n0],
+        };
+        self.value = Some(self.objective.evaluate(&self.sim, &self.frame, Some(seed))?);
+        Ok(())
+    }
 }
 
 /// dJ/dtheta from the adjoint of the initial state (in `adj.next` after the last reversed

@@ -47,9 +47,10 @@
 use serde::Deserialize;
 
 use crate::material::eos::{resolve_shear_modulus, shear_modulus_of};
-use crate::material::{Material, StabilityInfo};
+use crate::material::{Material, StabilityInfo, UpdateAdjoint};
 use crate::real::{
-    ddot, dev, jaumann_rotation, r, skew, sym, sym_from_slice, sym_to_array, trace, Real, M3, V3,
+    ddot, dev, jaumann_rotation, jaumann_rotation_adjoint, r, skew, sym, sym_from_slice, sym_from_slice_adjoint, sym_to_array,
+    sym_to_array_adjoint, trace, Real, M3, V3,
 };
 
 #[derive(Clone, Debug, Deserialize)]
@@ -190,6 +191,56 @@ impl DruckerPrager {
         }
     }
 
+    /// Chain the adjoints of the constants `[K, G, q_phi, k_phi, q_psi, sigma_t, tau_P]` to the
+    /// parameters in `param_names` order.
+    fn consts_adjoint(&self, bar: [Real; 7], params_bar: &mut [Real]) {
+        let [k_bar, g_bar, q_phi_bar, mut k_phi_bar, q_psi_bar, mut sigma_t_bar, tau_p_bar] = bar.map(|b| b as f64);
+        let mut q_phi_bar = q_phi_bar;
+        let to_rad = std::f64::consts::PI / 180.0;
+        let phi = self.friction_angle_deg.to_radians();
+        let (sp, cp) = (phi.sin(), phi.cos());
+        let q_phi = cone_slope(self.friction_angle_deg);
+        let k_phi = 6.0 * self.cohesion * cp / (3f64.sqrt() * (3.0 + sp));
+        let sigma_t = self.tension_cutoff.unwrap_or_else(|| self.apex());
+        // tau_P = max(k_phi - q_phi sigma_t, 0), or k_phi without friction
+        if q_phi > 0.0 {
+            if k_phi - q_phi * sigma_t > 0.0 {
+                k_phi_bar += tau_p_bar;
+                q_phi_bar -= tau_p_bar * sigma_t;
+                sigma_t_bar -= tau_p_bar * q_phi;
+            }
+        } else {
+            k_phi_bar += tau_p_bar;
+        }
+        // d cone_slope / d angle_deg, with s = sin(angle): 18 / (sqrt3 (3 + s)^2) cos(angle) pi/180
+        let slope_rate = |deg: f64| {
+            let a = deg.to_radians();
+            18.0 / (3f64.sqrt() * (3.0 + a.sin()).powi(2)) * a.cos() * to_rad
+        };
+        let mut phi_bar = q_phi_bar * slope_rate(self.friction_angle_deg);
+        let mut c_bar = k_phi_bar * 6.0 * cp / (3f64.sqrt() * (3.0 + sp));
+        phi_bar += k_phi_bar * 6.0 * self.cohesion / 3f64.sqrt() * (-sp * (3.0 + sp) - cp * cp) / (3.0 + sp).powi(2) * to_rad;
+        let psi_bar = q_psi_bar * slope_rate(self.dilatancy_angle_deg);
+        let mut cut_bar = 0.0;
+        if self.tension_cutoff.is_some() {
+            cut_bar = sigma_t_bar;
+        } else if sp > 0.0 {
+            // apex = c cot(phi)
+            c_bar += sigma_t_bar * cp / sp;
+            phi_bar -= sigma_t_bar * self.cohesion / (sp * sp) * to_rad;
+        }
+        let (k_total, second) = match (self.shear_modulus, self.poisson_ratio) {
+            (None, Some(nu)) => {
+                // G = 3 K (1 - 2 nu) / (2 (1 + nu))
+                (k_bar + g_bar * 3.0 * (1.0 - 2.0 * nu) / (2.0 * (1.0 + nu)), g_bar * -9.0 * self.bulk_modulus / (2.0 * (1.0 + nu) * (1.0 + nu)))
+            }
+            _ => (k_bar, g_bar),
+        };
+        for (i, v) in [k_total, second, phi_bar, psi_bar, c_bar, cut_bar].into_iter().enumerate().take(params_bar.len()) {
+            params_bar[i] += v as Real;
+        }
+    }
+
     #[inline]
     fn step(&self, c: &Consts, grad_v: &M3, dt: Real, state: &mut [Real]) -> M3 {
         let d = sym(grad_v);
@@ -283,11 +334,147 @@ impl Material for DruckerPrager {
     }
 
     fn param_names(&self) -> &'static [&'static str] {
-        &[]
+        const G_CUT: [&str; 6] = ["bulk_modulus", "shear_modulus", "friction_angle_deg", "dilatancy_angle_deg", "cohesion", "tension_cutoff"];
+        const NU_CUT: [&str; 6] = ["bulk_modulus", "poisson_ratio", "friction_angle_deg", "dilatancy_angle_deg", "cohesion", "tension_cutoff"];
+        let names: &'static [&'static str; 6] = if self.shear_modulus.is_some() { &G_CUT } else { &NU_CUT };
+        if self.tension_cutoff.is_some() {
+            names
+        } else {
+            &names[..5]
+        }
     }
 
-    fn update_adjoint(&self, _: &M3, _: Real, _: Real, _: &[Real], _: &M3, _: &[Real], _: &mut crate::material::UpdateAdjoint) {
-        todo!("adjoint of {}", self.name())
+    /// The zone (elastic, shear, tension, corner) and the `min`/`max` of the return are the
+    /// branch held fixed; `alpha_P` only selects the zone.
+    fn update_adjoint(&self, grad_v: &M3, _j: Real, dt: Real, state_in: &[Real], stress_bar: &M3, state_out_bar: &[Real], out: &mut UpdateAdjoint) {
+        let c = self.consts();
+        // forward, as in `step`
+        let d = sym(grad_v);
+        let w = skew(grad_v);
+        let rot = jaumann_rotation(&w, dt);
+        let sigma_old = sym_from_slice(&state_in[..6]);
+        let sigma_tr = sym(&(rot * sigma_old * rot.transpose()))
+            + dev(&d) * (r(2.0) * c.g * dt)
+            + M3::from_diagonal(V3::splat(c.k * trace(&d) * dt));
+        let sm_tr = trace(&sigma_tr) / r(3.0);
+        let s_tr = dev(&sigma_tr);
+        let tau_tr = (r(0.5) * ddot(&s_tr, &s_tr)).sqrt();
+        let f_s = tau_tr + c.q_phi * sm_tr - c.k_phi;
+        let f_t = sm_tr - c.sigma_t;
+        let den = c.g + c.k * c.q_phi * c.q_psi;
+        let dl = f_s / den;
+        let sm_shear = sm_tr - c.k * c.q_psi * dl;
+        #[derive(PartialEq)]
+        enum Zone {
+            Elastic,
+            Shear,
+            Corner,
+            Tension,
+        }
+        let zone = if f_t < r(0.0) {
+            if f_s <= r(0.0) {
+                Zone::Elastic
+            } else {
+                Zone::Shear
+            }
+        } else if tau_tr - c.tau_p - c.alpha_p * f_t > r(0.0) {
+            if sm_shear > c.sigma_t {
+                Zone::Corner
+            } else {
+                Zone::Shear
+            }
+        } else {
+            Zone::Tension
+        };
+        let (sm, tau) = match zone {
+            Zone::Elastic => (sm_tr, tau_tr),
+            Zone::Shear => (sm_shear, c.k_phi - c.q_phi * sm_shear),
+            Zone::Corner => (c.sigma_t, c.tau_p),
+            Zone::Tension => (c.sigma_t, tau_tr.min(c.tau_p)),
+        };
+
+        // adjoints of the constants
+        let (mut k_bar, mut g_bar, mut q_phi_bar, mut k_phi_bar, mut q_psi_bar, mut sigma_t_bar, mut tau_p_bar) =
+            (r(0.0), r(0.0), r(0.0), r(0.0), r(0.0), r(0.0), r(0.0));
+        let sigma_bar = *stress_bar + sym_to_array_adjoint(&state_out_bar[..6]);
+        out.state_bar[6] += state_out_bar[6];
+        let mut sigma_tr_bar = sigma_bar;
+        if zone != Zone::Elastic {
+            let mut sm_bar = trace(&sigma_bar);
+            let mut tau_bar = r(0.0);
+            let mut tau_tr_bar = r(0.0);
+            let mut sm_tr_bar = r(0.0);
+            let mut s_tr_bar = sigma_bar;
+            if tau < tau_tr {
+                s_tr_bar = sigma_bar * (tau / tau_tr);
+                let ratio_bar = ddot(&sigma_bar, &s_tr);
+                tau_bar += ratio_bar / tau_tr;
+                tau_tr_bar -= ratio_bar * tau / (tau_tr * tau_tr);
+            }
+            // eps_p += sqrt(2/3 (dtau^2 / (2 G^2) + dsm^2 / (3 K^2)))
+            let (dtau, dsm) = (tau_tr - tau, sm_tr - sm);
+            let e = r(2.0 / 3.0) * (dtau * dtau / (r(2.0) * c.g * c.g) + dsm * dsm / (r(3.0) * c.k * c.k));
+            if e > r(0.0) {
+                let e_bar = state_out_bar[6] / (r(2.0) * e.sqrt());
+                let dtau_bar = e_bar * r(2.0 / 3.0) * dtau / (c.g * c.g);
+                let dsm_bar = e_bar * r(2.0 / 3.0) * r(2.0) * dsm / (r(3.0) * c.k * c.k);
+                g_bar -= e_bar * r(2.0 / 3.0) * dtau * dtau / (c.g * c.g * c.g);
+                k_bar -= e_bar * r(2.0 / 3.0) * r(2.0) * dsm * dsm / (r(3.0) * c.k * c.k * c.k);
+                tau_tr_bar += dtau_bar;
+                tau_bar -= dtau_bar;
+                sm_tr_bar += dsm_bar;
+                sm_bar -= dsm_bar;
+            }
+            match zone {
+                Zone::Shear => {
+                    // tau = k_phi - q_phi sm; sm = sm_tr - K q_psi dl; dl = f_s / den
+                    k_phi_bar += tau_bar;
+                    q_phi_bar -= tau_bar * sm;
+                    sm_bar -= tau_bar * c.q_phi;
+                    sm_tr_bar += sm_bar;
+                    k_bar -= sm_bar * c.q_psi * dl;
+                    q_psi_bar -= sm_bar * c.k * dl;
+                    let dl_bar = -sm_bar * c.k * c.q_psi;
+                    let f_s_bar = dl_bar / den;
+                    let den_bar = -dl_bar * dl / den;
+                    g_bar += den_bar;
+                    k_bar += den_bar * c.q_phi * c.q_psi;
+                    q_phi_bar += den_bar * c.k * c.q_psi;
+                    q_psi_bar += den_bar * c.k * c.q_phi;
+                    tau_tr_bar += f_s_bar;
+                    q_phi_bar += f_s_bar * sm_tr;
+                    sm_tr_bar += f_s_bar * c.q_phi;
+                    k_phi_bar -= f_s_bar;
+                }
+                Zone::Corner => {
+                    sigma_t_bar += sm_bar;
+                    tau_p_bar += tau_bar;
+                }
+                Zone::Tension => {
+                    sigma_t_bar += sm_bar;
+                    if tau_tr <= c.tau_p {
+                        tau_tr_bar += tau_bar;
+                    } else {
+                        tau_p_bar += tau_bar;
+                    }
+                }
+                Zone::Elastic => unreachable!(),
+            }
+            // tau_tr = sqrt(s_tr : s_tr / 2), s_tr = dev(sigma_tr), sm_tr = tr(sigma_tr) / 3
+            if tau_tr > r(0.0) {
+                s_tr_bar += s_tr * (r(0.5) * tau_tr_bar / tau_tr);
+            }
+            sigma_tr_bar = dev(&s_tr_bar) + M3::from_diagonal(V3::splat(sm_tr_bar / r(3.0)));
+        }
+        // sigma_tr = sym(R sigma R^T) + 2 G dt dev(d) + K dt tr(d) I
+        let a_bar = sym(&sigma_tr_bar);
+        let d_bar = dev(&sigma_tr_bar) * (r(2.0) * c.g * dt) + M3::from_diagonal(V3::splat(c.k * dt * trace(&sigma_tr_bar)));
+        g_bar += r(2.0) * dt * ddot(&sigma_tr_bar, &dev(&d));
+        k_bar += dt * trace(&d) * trace(&sigma_tr_bar);
+        let rot_bar = a_bar * rot * sigma_old * r(2.0);
+        *out.grad_v_bar += sym(&d_bar) + skew(&jaumann_rotation_adjoint(&w, dt, &rot_bar));
+        sym_from_slice_adjoint(&(rot.transpose() * a_bar * rot), &mut out.state_bar[..6]);
+        self.consts_adjoint([k_bar, g_bar, q_phi_bar, k_phi_bar, q_psi_bar, sigma_t_bar, tau_p_bar], out.params_bar);
     }
 
     fn stability(&self) -> StabilityInfo {
@@ -624,5 +811,52 @@ mod tests {
             .into_iter(),
         ));
         assert!(with_eos.unwrap_err().to_string().contains("eos"));
+    }
+
+    /// Every zone of the return map: elastic, shear return from inside the tension cutoff and
+    /// from beyond it, the corner, tension with tau kept and with tau capped at tau_P; with G or
+    /// nu, with the default cutoff (the apex) and a given one. Points sit well inside their zones.
+    #[cfg(not(feature = "f32"))]
+    #[test]
+    fn adjoint_matches_central_differences_in_every_zone() {
+        use crate::material::test_util::check_update_adjoint;
+        fn make(poisson: bool, cut: bool) -> impl Fn(&[f64]) -> DruckerPrager {
+            move |p: &[f64]| DruckerPrager {
+                density: 2000.0,
+                bulk_modulus: p[0],
+                shear_modulus: (!poisson).then_some(p[1]),
+                poisson_ratio: poisson.then_some(p[1]),
+                friction_angle_deg: p[2],
+                dilatancy_angle_deg: p[3],
+                cohesion: p[4],
+                tension_cutoff: cut.then(|| p[5]),
+            }
+        }
+        let stress = |sm: f64, dev_scale: f64| -> [f64; 7] {
+            // a deviator of tau = dev_scale (s:s/2 = 1 for the unit pattern below)
+            let u: [f64; 6] = [0.8, -0.5, -0.3, 0.35, -0.2, 0.25];
+            let norm: f64 = (0.5 * (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]) + u[3] * u[3] + u[4] * u[4] + u[5] * u[5]).sqrt();
+            let k = dev_scale / norm;
+            [sm + k * u[0], sm + k * u[1], sm + k * u[2], k * u[3], k * u[4], k * u[5], 0.01]
+        };
+        let l = M3::from_cols_array(&[0.3, -0.8, 0.5, 1.0, -0.4, 0.6, -0.7, 0.9, 0.2]);
+        // (label, poisson, cut, params, state); K = 1e7, G = 5e6 (nu = 0.2857 alike)
+        let cases: Vec<(&str, bool, bool, Vec<f64>, [f64; 7])> = vec![
+            ("elastic", false, false, vec![1e7, 5e6, 30.0, 10.0, 1e4], stress(-1e4, 1e3)),
+            ("shear", false, false, vec![1e7, 5e6, 30.0, 10.0, 1e4], stress(-1e4, 3e4)),
+            ("shear, nu", true, false, vec![1e7, 0.2857, 30.0, 10.0, 1e4], stress(-1e4, 3e4)),
+            ("shear beyond the cutoff", false, true, vec![1e7, 5e6, 30.0, 10.0, 1e4, 1e4], stress(1.2e4, 2e4)),
+            ("corner", false, true, vec![1e7, 5e6, 30.0, 0.0, 1e4, 1e4], stress(1.2e4, 2e4)),
+            ("tension", true, true, vec![1e7, 0.2857, 30.0, 10.0, 1e4, 1e4], stress(2e4, 1e3)),
+            ("tension, tau capped", false, true, vec![1e7, 5e6, 30.0, 10.0, 1e4, 1e4], stress(2e4, 5e3)),
+        ];
+        for (k, (label, poisson, cut, params, state)) in cases.into_iter().enumerate() {
+            let mut scale: Vec<f64> = params.iter().map(|v| v.abs().max(1.0) * 0.01).collect();
+            if label == "corner" {
+                scale[3] = 0.0; // psi = 0 is the edge of its range; the corner does not depend on it
+            }
+            let state_scale: Vec<f64> = state.iter().map(|v| v.abs().max(1.0) * 0.01).collect();
+            check_update_adjoint(label, make(poisson, cut), &params, l, 1.0, 1e-4, &state, 0.1, &state_scale, &scale, 1e-6, 50 + k as u64);
+        }
     }
 }
