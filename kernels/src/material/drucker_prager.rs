@@ -241,15 +241,21 @@ impl DruckerPrager {
         }
     }
 
+    /// The hypoelastic trial stress of step 1, and the rotation it used.
     #[inline]
-    fn step(&self, c: &Consts, grad_v: &M3, dt: Real, state: &mut [Real]) -> M3 {
+    fn trial(c: &Consts, grad_v: &M3, dt: Real, sigma_old: &M3) -> (M3, M3) {
         let d = sym(grad_v);
         let rot = jaumann_rotation(&skew(grad_v), dt);
-        let sigma_old = sym_from_slice(&state[..6]);
         // sym() keeps the round-off asymmetry of the product out of the returned stress.
-        let sigma_tr = sym(&(rot * sigma_old * rot.transpose()))
+        let sigma_tr = sym(&(rot * *sigma_old * rot.transpose()))
             + dev(&d) * (r(2.0) * c.g * dt)
             + M3::from_diagonal(V3::splat(c.k * trace(&d) * dt));
+        (sigma_tr, rot)
+    }
+
+    #[inline]
+    fn step(&self, c: &Consts, grad_v: &M3, dt: Real, state: &mut [Real]) -> M3 {
+        let (sigma_tr, _) = Self::trial(c, grad_v, dt, &sym_from_slice(&state[..6]));
 
         let sm_tr = trace(&sigma_tr) / r(3.0);
         let s_tr = dev(&sigma_tr);
@@ -351,11 +357,8 @@ impl Material for DruckerPrager {
         // forward, as in `step`
         let d = sym(grad_v);
         let w = skew(grad_v);
-        let rot = jaumann_rotation(&w, dt);
         let sigma_old = sym_from_slice(&state_in[..6]);
-        let sigma_tr = sym(&(rot * sigma_old * rot.transpose()))
-            + dev(&d) * (r(2.0) * c.g * dt)
-            + M3::from_diagonal(V3::splat(c.k * trace(&d) * dt));
+        let (sigma_tr, rot) = Self::trial(&c, grad_v, dt, &sigma_old);
         let sm_tr = trace(&sigma_tr) / r(3.0);
         let s_tr = dev(&sigma_tr);
         let tau_tr = (r(0.5) * ddot(&s_tr, &s_tr)).sqrt();

@@ -119,6 +119,16 @@ impl EvpBingham {
     }
 }
 
+/// The trial deviator of step 1 (001 eq. 37), and the rotation it used.
+#[inline]
+fn trial_deviator(grad_v: &M3, g: Real, dt: Real, s_old: &M3) -> (M3, M3) {
+    let rot = jaumann_rotation(&skew(grad_v), dt);
+    // dev(sym()) drops the round-off trace and asymmetry the rotation leaves, so neither can
+    // accumulate in the state or reach the returned stress.
+    let s_tr = dev(&sym(&(rot * *s_old * rot.transpose()))) + dev(&sym(grad_v)) * (r(2.0) * g * dt);
+    (s_tr, rot)
+}
+
 /// Positive root gamma_p of (zeta/2) gamma_p^2 + xi gamma_p - f = 0 for f > 0, zeta >= 0
 /// (001 eqs. 42-44, 47), in whichever form avoids subtracting nearly equal numbers.
 #[inline]
@@ -155,12 +165,7 @@ impl Material for EvpBingham {
         let tau0 = r(self.yield_stress);
         let alpha = r(self.alpha);
 
-        let rot = jaumann_rotation(&skew(grad_v), dt);
-        let s_old = sym_from_slice(&state[..6]);
-        // dev(sym()) drops the round-off trace and asymmetry the rotation leaves, so neither can
-        // accumulate in the state or reach the returned stress.
-        let s_tr =
-            dev(&sym(&(rot * s_old * rot.transpose()))) + dev(&sym(grad_v)) * (r(2.0) * g * dt);
+        let (s_tr, _) = trial_deviator(grad_v, g, dt, &sym_from_slice(&state[..6]));
         let lambda_tr = state[6] + self.build_up_rate() * dt;
         let tau_tr = (r(0.5) * ddot(&s_tr, &s_tr)).sqrt();
         let f_tr = tau_tr - (r(1.0) + lambda_tr) * tau0;
@@ -210,10 +215,9 @@ impl Material for EvpBingham {
         let tau0 = r(self.yield_stress);
         let alpha = r(self.alpha);
         let w = skew(grad_v);
-        let rot = jaumann_rotation(&w, dt);
         let s_old = sym_from_slice(&state_in[..6]);
         let d_dev = dev(&sym(grad_v));
-        let s_tr = dev(&sym(&(rot * s_old * rot.transpose()))) + d_dev * (r(2.0) * g * dt);
+        let (s_tr, rot) = trial_deviator(grad_v, g, dt, &s_old);
         let lambda_tr = state_in[6] + self.build_up_rate() * dt;
         let tau_tr = (r(0.5) * ddot(&s_tr, &s_tr)).sqrt();
         let f_tr = tau_tr - (r(1.0) + lambda_tr) * tau0;
