@@ -262,7 +262,7 @@ fn print_width_gradients_with_the_smooth_nozzle_match_central_differences() {
     let sc = Scenario::parse(&tiny_print("")).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let obj: Objective = "width@0.01".parse().unwrap();
-    let wrt = keys(&["print.path.0.speed", "print.path.0.extrusion"]);
+    let wrt = keys(&["print.path.0.speed", "print.path.0.extrusion", "material.density"]);
     let r = gradient(&sc, &obj, &wrt, &opts(None, dir.path())).unwrap();
     let c = check(&sc, &obj, &r, None, &REL_STEPS).unwrap();
     for p in &c.params {
@@ -276,6 +276,8 @@ fn print_width_gradients_with_the_smooth_nozzle_match_central_differences() {
     // the 1e-3 step (measured 1.3 %)
     let extrusion = &c.params[1];
     assert!(extrusion.central[1].2 <= 0.02, "{:?}", extrusion);
+    // the density reaches the emitted particles' masses too
+    assert!(best_agreement(&c.params[2]) <= 1e-5, "{:?}", c.params[2]);
 }
 
 #[test]

@@ -335,8 +335,9 @@ fn assemble(sim: &Simulation, n0: usize, adj: &StepAdjoint, params: &[Param]) ->
         .map(|&param| match param {
             Param::Material(k) => adj.material_bar[k] + init_bar[k] as f64,
             Param::Density => {
+                // every particle that ever existed: emitted ones too (slots never used hold 0)
                 let (mb, vol0) = (adj.mass_bar.as_slice(), p.vol0.as_slice());
-                let through_mass: f64 = (0..n).map(|i| (mb[i] * vol0[i]) as f64).sum();
+                let through_mass: f64 = mb.iter().zip(vol0).map(|(m, v)| (m * v) as f64).sum();
                 let f = sc.simulation.body_force;
                 through_mass - (0..3).map(|c| g.accel[c] * f[c] / (rho * rho)).sum::<f64>()
             }

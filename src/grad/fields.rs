@@ -107,9 +107,9 @@ pub fn save(sim: &Simulation, out: &mut [u8]) {
 
 /// Make the state saved in `bytes` live.
 pub fn load(sim: &mut Simulation, bytes: &[u8]) {
-    sim.step = u64::from_le_bytes(bytes[..8].try_into().unwrap());
-    sim.time = f64::from_le_bytes(bytes[8..16].try_into().unwrap());
-    let word = |k: usize| u64::from_le_bytes(bytes[8 * k..8 * k + 8].try_into().unwrap());
+    let word = |k: usize| u64::from_le_bytes(bytes[8 * k..8 * k + 8].try_into().expect("8 bytes"));
+    sim.step = word(0);
+    sim.time = f64::from_bits(word(1));
     if let Some(sync) = sim.printer.as_mut().and_then(|p| p.sync.as_mut()) {
         sync.next = word(3);
     }
