@@ -110,7 +110,9 @@ mod tests {
     }
 
     /// Every kind and branch against central differences of <out_bar, apply_wall>: moving into
-    /// the wall and away from it, sliding and sticking under friction.
+    /// the wall and away from it, sliding and sticking under friction, and moving straight into
+    /// it (no tangential velocity, the `vt_len > 0` guard). The points sit away from the kinks
+    /// (rel . n = 0, keep = 0) by far more than the step.
     #[cfg(not(feature = "f32"))]
     #[test]
     fn adjoint_matches_central_differences_on_every_branch() {
@@ -119,18 +121,22 @@ mod tests {
         let bar = V3::new(0.7, -1.3, 0.4);
         let into = V3::new(1.0, 0.4, -0.6); // rel . n = 0.72 > 0: into the wall
         let away = V3::new(1.0, -0.4, 0.6);
+        // an axis normal and a still wall, so the tangential part is exactly zero
+        let floor = V3::new(0.0, 0.0, -1.0);
+        let straight_in = V3::new(0.0, 0.0, -0.5);
         let cases = [
-            (WallKind::NoSlip, into),
-            (WallKind::FreeSlip, into),
-            (WallKind::FreeSlip, away),
-            (WallKind::Symmetry, into),
-            (WallKind::Symmetry, away),
-            (WallKind::Friction { mu: 0.3 }, into),
-            (WallKind::Friction { mu: 0.3 }, away),
-            (WallKind::Friction { mu: 5.0 }, into),
+            (WallKind::NoSlip, n, vw, into),
+            (WallKind::FreeSlip, n, vw, into),
+            (WallKind::FreeSlip, n, vw, away),
+            (WallKind::Symmetry, n, vw, into),
+            (WallKind::Symmetry, n, vw, away),
+            (WallKind::Friction { mu: 0.3 }, n, vw, into),
+            (WallKind::Friction { mu: 0.3 }, n, vw, away),
+            (WallKind::Friction { mu: 5.0 }, n, vw, into),
+            (WallKind::Friction { mu: 0.3 }, floor, V3::ZERO, straight_in),
         ];
         let h = 1e-6;
-        for (kind, v) in cases {
+        for (kind, n, vw, v) in cases {
             let (v_bar, mu_bar) = apply_wall_adjoint(kind, n, vw, v, bar);
             let loss = |kind: WallKind, v: V3| apply_wall(kind, n, vw, v).dot(bar);
             for a in 0..3 {

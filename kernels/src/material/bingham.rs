@@ -223,21 +223,31 @@ mod tests {
         assert_eq!(m.critical_shear_rate, 0.01);
     }
 
-    /// Both branches of the `max` (above and below the critical rate), both equations of state.
+    /// Both branches of the `max`, both equations of state, at random L, J and parameters. L is
+    /// scaled to a shear rate 2-20 times gamma_c (flowing) or 0.1-0.5 times it (below), so the
+    /// steps of the central differences and of the Taylor test (relative 1e-3 at most) never
+    /// cross the kink at gamma_dot = gamma_c.
     #[cfg(not(feature = "f32"))]
     #[test]
     fn adjoint_matches_central_differences_on_both_branches() {
+        use crate::adjoint_check::Rng;
         use crate::material::test_util::check_update_adjoint;
-        let make = |eos: Eos| {
-            move |p: &[f64]| Bingham { density: 2300.0, bulk_modulus: p[0], viscosity: p[1], yield_stress: p[2], critical_shear_rate: p[3], eos }
-        };
-        let l = M3::from_cols_array(&[0.3, -2.0, 0.5, 3.0, -0.4, 1.2, -0.7, 0.9, 0.2]);
-        let params = [1e6, 20.0, 300.0, 0.5];
-        let scale = [1e6, 20.0, 300.0, 0.5];
         for (k, eos) in [Eos::Linear, Eos::Tait { gamma: 7.0 }].into_iter().enumerate() {
-            // gamma_dot ~ 5 /s above gamma_c = 0.5, and 0.05 /s below it
-            check_update_adjoint("bingham, flowing", make(eos), &params, l, 0.98, 1e-3, &[], 0.1, &[], &scale, 1e-6, 3 + k as u64);
-            check_update_adjoint("bingham, below gamma_c", make(eos), &params, l * 0.01, 1.01, 1e-3, &[], 0.001, &[], &scale, 1e-6, 5 + k as u64);
+            let make = move |p: &[f64]| Bingham { density: 2300.0, bulk_modulus: p[0], viscosity: p[1], yield_stress: p[2], critical_shear_rate: p[3], eos };
+            for point in 0..3 {
+                for (b, (regime, lo, hi)) in [("flowing", 2.0, 20.0), ("below gamma_c", 0.1, 0.5)].into_iter().enumerate() {
+                    let seed = 3 + 10 * k as u64 + 2 * point + b as u64;
+                    let mut rng = Rng(seed);
+                    let params = [rng.uniform(2e5, 2e6), rng.uniform(10.0, 100.0), rng.uniform(50.0, 500.0), rng.uniform(0.1, 1.0)];
+                    let gamma_dot = rng.uniform(lo, hi) * params[3];
+                    let l = M3::from_cols_array(&std::array::from_fn(|_| rng.uniform(-1.0, 1.0)));
+                    let d = dev(&sym(&l));
+                    let l = l * (gamma_dot / (2.0 * ddot(&d, &d)).sqrt());
+                    let j = rng.uniform(0.995, 1.005);
+                    let label = format!("bingham, {regime}, {eos:?}, point {point}");
+                    check_update_adjoint(&label, make, &params, l, j, 1e-3, &[], gamma_dot, &[], &params, 1e-6, seed);
+                }
+            }
         }
     }
 }

@@ -207,14 +207,24 @@ mod tests {
         assert!(bad.unwrap_err().to_string().contains("viscosty"));
     }
 
+    /// Random L, J and parameters: the stress is linear in L and mu, and the EOS smooth in J, so
+    /// any point will do; both EOS.
     #[cfg(not(feature = "f32"))]
     #[test]
     fn adjoint_matches_central_differences() {
+        use crate::adjoint_check::Rng;
         use crate::material::test_util::check_update_adjoint;
-        let l = M3::from_cols_array(&[0.3, -2.0, 0.5, 3.0, -0.4, 1.2, -0.7, 0.9, 0.2]);
         for (k, eos) in [Eos::Linear, Eos::Tait { gamma: 7.0 }].into_iter().enumerate() {
             let make = move |p: &[f64]| Newtonian { density: 1000.0, bulk_modulus: p[0], viscosity: p[1], eos };
-            check_update_adjoint("newtonian", make, &[2e5, 3.0], l, 0.97, 1e-3, &[], 1.0, &[], &[2e5, 3.0], 1e-6, 11 + k as u64);
+            for point in 0..3 {
+                let seed = 11 + 10 * k as u64 + point;
+                let mut rng = Rng(seed);
+                let l = M3::from_cols_array(&std::array::from_fn(|_| rng.uniform(-3.0, 3.0)));
+                let params = [rng.uniform(1e5, 1e6), rng.uniform(0.1, 10.0)];
+                let j = rng.uniform(0.95, 1.05);
+                let label = format!("newtonian, {eos:?}, point {point}");
+                check_update_adjoint(&label, make, &params, l, j, 1e-3, &[], 1.0, &[], &params, 1e-6, seed);
+            }
         }
     }
 }
