@@ -809,7 +809,21 @@ pub(crate) fn gather_local(local: &mut [Node; LNODES], nbr: &[u32; 8], nodes: &[
 
 /// Wall conditions for the node at grid index `g`.
 #[inline]
-pub(crate) fn apply_walls(geom: &GridGeom, walls: &Walls, g: [i32; 3], mut v: V3) -> V3 {
+pub(crate) fn apply_walls(geom: &GridGeom, walls: &Walls, g: [i32; 3], v: V3) -> V3 {
+    let mut seq = [(WallKind::NoSlip, V3::ZERO, None); 4];
+    let k = wall_sequence(geom, walls, g, &mut seq);
+    seq[..k].iter().fold(v, |v, &(kind, nrm, _)| apply_wall(kind, nrm, V3::ZERO, v))
+}
+
+/// One wall condition at a node: kind, outward normal, and the wall as (axis, side) or None for
+/// the platform.
+pub(crate) type WallAt = (WallKind, V3, Option<(usize, usize)>);
+
+/// The wall conditions node `g` takes, in the order they apply (one per non-periodic axis whose
+/// wall it lies on, then the platform): (kind, outward normal, the wall as (axis, side), or None
+/// for the platform). Returns how many; the grid update and its adjoint both walk this list.
+pub(crate) fn wall_sequence(geom: &GridGeom, walls: &Walls, g: [i32; 3], out: &mut [WallAt; 4]) -> usize {
+    let mut k = 0;
     for a in 0..3 {
         if geom.periodic[a] {
             continue;
@@ -817,19 +831,22 @@ pub(crate) fn apply_walls(geom: &GridGeom, walls: &Walls, g: [i32; 3], mut v: V3
         let mut nrm = V3::ZERO;
         if g[a] <= PAD {
             nrm[a] = -1.0;
-            v = apply_wall(walls.faces[a][0], nrm, V3::ZERO, v);
+            out[k] = (walls.faces[a][0], nrm, Some((a, 0)));
+            k += 1;
         } else if g[a] >= geom.cells[a] - PAD {
             nrm[a] = 1.0;
-            v = apply_wall(walls.faces[a][1], nrm, V3::ZERO, v);
+            out[k] = (walls.faces[a][1], nrm, Some((a, 1)));
+            k += 1;
         }
     }
     if let Some((z, xy, kind)) = walls.platform {
         let (x, y) = (g[0] as Real, g[1] as Real);
         if (g[2] as Real) <= z && x >= xy[0] && x <= xy[2] && y >= xy[1] && y <= xy[3] {
-            v = apply_wall(kind, V3::new(0.0, 0.0, -1.0), V3::ZERO, v);
+            out[k] = (kind, V3::new(0.0, 0.0, -1.0), None);
+            k += 1;
         }
     }
-    v
+    k
 }
 
 /// Blend the nozzle's velocity into a node inside its tube (000 Table 2, line 7).

@@ -12,9 +12,9 @@ use crate::grid::NODES_PER_BLOCK;
 use crate::kernels::boundary::{apply_wall, apply_wall_adjoint, WallKind};
 use crate::kernels::transfer::Node;
 use crate::kernels::{Real, V3};
-use crate::grid::{GridGeom, PAD};
+use crate::grid::GridGeom;
 use crate::print::NozzleDrive;
-use crate::solver::{apply_drive, ghost_source, Simulation, Walls};
+use crate::solver::{apply_drive, ghost_source, wall_sequence, Simulation, Walls};
 
 /// Adjoint of the drive's blend `w vd + (1 - w) v` at node `g` for the velocity `v` before it:
 /// returns the adjoint of `v`; those of the outlet position (through the indicator weight) and
@@ -52,35 +52,6 @@ pub struct GridParamsBar {
     /// chains them into the toolpath's parameters and resets them).
     pub drive_outlet: [f64; 3],
     pub drive_velocity: [f64; 3],
-}
-
-/// The wall applications `apply_walls` makes at node `g`, in order: (kind, normal, which
-/// coefficient a friction wall adds its adjoint to: Some((axis, side)) or None for the platform).
-fn wall_sequence(geom: &GridGeom, walls: &Walls, g: [i32; 3], out: &mut [(WallKind, V3, Option<(usize, usize)>); 4]) -> usize {
-    let mut k = 0;
-    for a in 0..3 {
-        if geom.periodic[a] {
-            continue;
-        }
-        let mut nrm = V3::ZERO;
-        if g[a] <= PAD {
-            nrm[a] = -1.0;
-            out[k] = (walls.faces[a][0], nrm, Some((a, 0)));
-            k += 1;
-        } else if g[a] >= geom.cells[a] - PAD {
-            nrm[a] = 1.0;
-            out[k] = (walls.faces[a][1], nrm, Some((a, 1)));
-            k += 1;
-        }
-    }
-    if let Some((z, xy, kind)) = walls.platform {
-        let (x, y) = (g[0] as Real, g[1] as Real);
-        if (g[2] as Real) <= z && x >= xy[0] && x <= xy[2] && y >= xy[1] && y <= xy[3] {
-            out[k] = (kind, V3::new(0.0, 0.0, -1.0), None);
-            k += 1;
-        }
-    }
-    k
 }
 
 /// Adjoint of `apply_walls` at node `g` for input velocity `v`: the adjoint of `v` for the

@@ -194,6 +194,8 @@ impl DruckerPrager {
     /// Chain the adjoints of the constants `[K, G, q_phi, k_phi, q_psi, sigma_t, tau_P]` to the
     /// parameters in `param_names` order.
     fn consts_adjoint(&self, bar: [Real; 7], params_bar: &mut [Real]) {
+        // a real conversion in the f32 build
+        #[allow(clippy::unnecessary_cast)]
         let [k_bar, g_bar, q_phi_bar, mut k_phi_bar, q_psi_bar, mut sigma_t_bar, tau_p_bar] = bar.map(|b| b as f64);
         let mut q_phi_bar = q_phi_bar;
         let to_rad = std::f64::consts::PI / 180.0;
