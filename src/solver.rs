@@ -384,6 +384,7 @@ impl Simulation {
         if !self.frozen_order && (moved || self.step.is_multiple_of(self.scenario.simulation.reorder_interval)) {
             self.reorder_particles();
         }
+        self.newest_masses();
         clock.lap(&mut self.phase_seconds[0]);
         self.clear_grid();
         clock.lap(&mut self.phase_seconds[1]);
@@ -392,6 +393,7 @@ impl Simulation {
         self.grid_update(dt as Real, drive.as_ref());
         clock.lap(&mut self.phase_seconds[3]);
         self.g2p(dt as Real);
+        self.follow_feed(dt as Real, drive.as_ref());
         clock.lap(&mut self.phase_seconds[4]);
         self.update_materials(dt as Real)?;
         clock.lap(&mut self.phase_seconds[5]);
@@ -400,11 +402,13 @@ impl Simulation {
         Ok(())
     }
 
-    /// Add the emitter's slabs that are due by now.
+    /// Add the emitter's slabs that are due by now, and note which slab is the newest and what
+    /// fraction of it has been extruded.
     pub(crate) fn emit(&mut self) -> Result<(), SimError> {
         let Some(pr) = &mut self.printer else { return Ok(()) };
         let t = self.time;
         let vol = pr.particle_volume;
+        let (before, n_before) = (pr.emitted(), self.particles.n);
         let (geom, particles, mat) = (&self.grid.geom, &mut self.particles, &*self.material);
         let add = |slab: &Slab| add_slab(geom, particles, mat, vol, t, slab);
         if let Some(sync) = &mut pr.sync {
@@ -412,7 +416,36 @@ impl Simulation {
         } else if let Some(em) = &mut pr.emitter {
             em.drain_due(t, add)?;
         }
+        let after = pr.emitted();
+        let nw = &mut pr.newest;
+        if !pr.plan.partial || after == 0 {
+            (nw.set_from, nw.moving) = (u32::MAX, false);
+            return Ok(());
+        }
+        // Derived from the slab counts alone, so a resumed run needs no extra state: ids are
+        // creation order and particles are never removed.
+        nw.slab = after - 1;
+        nw.first = (self.particles.n - pr.plan.count(after - 1)) as u32;
+        nw.set_from = if after > before && before > 0 { (n_before - pr.plan.count(before - 1)) as u32 } else { nw.first };
+        (nw.fraction, nw.moving) = pr.plan.fraction(after - 1, t);
         Ok(())
+    }
+
+    /// Set the masses emission changed this step (see `print/newest.rs`); after reordering.
+    pub(crate) fn newest_masses(&mut self) {
+        if let Some(pr) = &mut self.printer {
+            let rho = self.material.density() as f64;
+            pr.newest.set_masses(&mut self.particles, rho, pr.particle_volume);
+        }
+    }
+
+    /// After G2P: the newest slab moves with the feed in proportion to what is still in it.
+    pub(crate) fn follow_feed(&mut self, dt: Real, drive: Option<&NozzleDrive>) {
+        if let Some(pr) = &mut self.printer {
+            let v = drive.map_or([0.0; 3], |d| d.velocity);
+            let inv_dx = (1.0 / self.scenario.simulation.dx) as Real;
+            pr.newest.follow_feed(&mut self.particles, dt, inv_dx, V3::new(v[0] as Real, v[1] as Real, v[2] as Real));
+        }
     }
 
     /// Bin particles by the block of their stencil base, activate each particle block's 2x2x2

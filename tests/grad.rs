@@ -222,9 +222,7 @@ fn bad_requests_name_the_problem() {
     assert!(e.contains("RAM budget") && e.contains("grad.tape"), "{e}");
 }
 
-/// A short Newtonian print at 5 mm (half a second, the nozzle still printing at the end). Speeds
-/// are not round numbers: with U dt and slab spacings in round ratios, slab due times fall
-/// exactly on step boundaries, where emission is not differentiable.
+/// A short Newtonian print at 5 mm (half a second, the nozzle still printing at the end).
 fn tiny_print(indicator: &str) -> String {
     r#"
 name = "grad-print"
@@ -271,21 +269,23 @@ fn print_width_gradients_with_the_smooth_nozzle_match_central_differences() {
     // printing speed: smooth in V (no emission event moves), so the smallest step agrees best
     let speed = &c.params[0];
     assert!(speed.central[2].2 <= 1e-4, "{:?}", speed);
-    // extrusion speed: every slab's due time moves with U, and a slab crossing a step boundary
-    // is a jump of the discrete model, so differences at small steps see jumps; within 2 % at
-    // the 1e-3 step (measured 1.3 %)
+    // extrusion speed: U moves the time every slab begins to enter, which is continuous only
+    // because the newest slab carries the fraction extruded and follows the feed in proportion
+    // (print/newest.rs); without either, differences see jumps of 2-14 % (measured)
     let extrusion = &c.params[1];
-    assert!(extrusion.central[1].2 <= 0.02, "{:?}", extrusion);
+    assert!(extrusion.central.iter().all(|x| x.2 <= 0.005), "{:?}", extrusion);
+    assert!(best_agreement(extrusion) <= 2e-4, "{:?}", extrusion);
     // the density reaches the emitted particles' masses too
     assert!(best_agreement(&c.params[2]) <= 1e-5, "{:?}", c.params[2]);
 }
 
 #[test]
 fn the_hard_nozzle_indicator_gives_a_wrong_printing_speed_gradient() {
-    // paper 000 Table 6: with the plain `if`, the nozzle position drops out of the derivative
+    // paper 000 Table 6: with the plain `if`, the nozzle position drops out of the derivative.
+    // (This nozzle drags the strand's start along: past x = 12 mm at the end, so 20 mm here.)
     let sc = Scenario::parse(&tiny_print("indicator = \"hard\"")).unwrap();
     let dir = tempfile::tempdir().unwrap();
-    let obj: Objective = "width@0.01".parse().unwrap();
+    let obj: Objective = "width@0.02".parse().unwrap();
     let r = gradient(&sc, &obj, &keys(&["print.path.0.speed"]), &opts(None, dir.path())).unwrap();
     let c = check(&sc, &obj, &r, None, &REL_STEPS).unwrap();
     let p = &c.params[0];

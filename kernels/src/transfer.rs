@@ -194,8 +194,10 @@ pub fn g2p_block(
     }
     if j_bar.is_some() {
         for &pi in order {
-            if let Some(k) = cell_of(out.xg[pi as usize]) {
-                out.j[pi as usize] = cell_vj[k] / cell_v[k];
+            // a cell holding only massless particles (a slab that just began to enter) keeps J
+            match cell_of(out.xg[pi as usize]) {
+                Some(k) if cell_v[k] > r(0.0) => out.j[pi as usize] = cell_vj[k] / cell_v[k],
+                _ => {}
             }
         }
     }

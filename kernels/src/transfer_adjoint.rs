@@ -310,7 +310,7 @@ pub fn g2p_block_adjoint(
         let growth = r(1.0) + tp.dt * g.tr_c;
         // adjoint of J after the growth, before the cell average
         let j_grown_bar = match (j_bar, cell_of(origin, g.xg_new)) {
-            (Some(vol0), Some(k)) => {
+            (Some(vol0), Some(k)) if cell_v[k] > r(0.0) => {
                 let inv_v = r(1.0) / cell_v[k];
                 let j_grown = inp.j[pi] * growth;
                 out.vol0_bar[pi] += cell_j_bar_sum[k] * (j_grown - cell_vj[k] * inv_v) * inv_v;

@@ -339,7 +339,7 @@ fn assemble(sim: &Simulation, n0: usize, adj: &StepAdjoint, params: &[Param]) ->
                 let (mb, vol0) = (adj.mass_bar.as_slice(), p.vol0.as_slice());
                 let through_mass: f64 = mb.iter().zip(vol0).map(|(m, v)| (m * v) as f64).sum();
                 let f = sc.simulation.body_force;
-                through_mass - (0..3).map(|c| g.accel[c] * f[c] / (rho * rho)).sum::<f64>()
+                through_mass + adj.density_bar - (0..3).map(|c| g.accel[c] * f[c] / (rho * rho)).sum::<f64>()
             }
             Param::BodyForce(c) => g.accel[c] / rho,
             Param::Gravity(c) => g.accel[c],

@@ -5,7 +5,7 @@
 //! - the nozzle drive of every step: its outlet position (through the smoothed indicator) and the
 //!   velocity it imposes inside the tube;
 //! - emission: the positions (moved from the slab's due time to the step) and velocity of every
-//!   emitted particle.
+//!   emitted particle, and the extruded length that sets the newest slab's mass fraction.
 //!
 //! Both are closed-form, piecewise-linear functions of time whose breakpoints move with the
 //! parameters (a faster segment ends sooner and shifts everything after it). Their derivatives
@@ -98,6 +98,15 @@ impl PrintParams {
                 it.bar += outlet_bar[c] * (p.position[c] - m.position[c]) / (2.0 * it.h);
                 it.bar += velocity_bar[c] * (vp[c] - vm[c]) / (2.0 * it.h);
             }
+        }
+    }
+
+    /// Chain the adjoint of the extruded length at step time `t` (move `k` of the base toolpath
+    /// held), which sets the newest slab's mass fraction.
+    pub fn extruded(&mut self, k: usize, t: f64, length_bar: f64) {
+        for it in &mut self.items {
+            let d = it.plus.toolpath.extruded_on(k, t) - it.minus.toolpath.extruded_on(k, t);
+            it.bar += length_bar * d / (2.0 * it.h);
         }
     }
 

@@ -7,18 +7,20 @@
 //! ```
 //!
 //! `next` holds the adjoint of the state after the step and `cur` receives that of the state
-//! before it; they swap roles every step. Masses and initial volumes never change without
-//! emission, so their adjoints accumulate over all steps in one array each.
+//! before it; they swap roles every step. Masses and initial volumes change only when emission
+//! sets them (a partial slab's fraction), so their adjoints accumulate over the steps in one
+//! array each, and are settled and cleared at the step that set them.
 
 use super::fields::Fields;
 use super::grid_adjoint::{grid_update_adjoint, GridParamsBar};
 use super::objective::{Frame, Objective, Seed};
 use super::print_adjoint::PrintParams;
+use crate::print::newest::{follow_feed_adjoint, FollowFeedBar};
 use crate::grid::NODES_PER_BLOCK;
 use crate::kernels::material::UpdateAdjoint;
 use crate::kernels::transfer::{Node, P2gInput, TransferParams, BS, LNODES};
 use crate::kernels::transfer_adjoint::{g2p_block_adjoint, p2g_block_adjoint, G2pAdjointIn, G2pAdjointOut, P2gAdjoint};
-use crate::kernels::Real;
+use crate::kernels::{Real, V3};
 use crate::memory::{Backing, MemoryError, MemoryPlan, Pool};
 use crate::solver::{balanced, flush_local, gather_local, Simulation};
 use crate::threads::SharedSlice;
@@ -43,6 +45,9 @@ pub struct StepAdjoint {
     grid_bar: Pool<Node>,
     /// Adjoints of the material's parameters, in `param_names` order.
     pub material_bar: Vec<f64>,
+    /// Density's adjoint through the masses emission set, settled step by step (the masses that
+    /// never change are settled once at the end, from `mass_bar`).
+    pub density_bar: f64,
     chunk_params: Vec<[f64; MAX_PARAMS]>,
     pub grid_params_bar: GridParamsBar,
 }
@@ -78,6 +83,7 @@ impl StepAdjoint {
             vol0_bar: Pool::new("grad.vol0_bar", n, b)?,
             grid_bar: Pool::new("grad.grid_bar", nodes, b)?,
             material_bar: vec![0.0; sim.material.param_names().len()],
+            density_bar: 0.0,
             chunk_params: vec![[0.0; MAX_PARAMS]; n.div_ceil(CHUNK)],
             grid_params_bar: GridParamsBar::default(),
         })
@@ -100,6 +106,7 @@ impl StepAdjoint {
         // recompute the step, keeping what it overwrites
         let (n_before, first_slab) = (sim.particles.n, sim.printer.as_ref().and_then(|p| p.sync.as_ref()).map_or(0, |s| s.next));
         sim.emit().map_err(|e| e.to_string())?;
+        sim.newest_masses();
         let n = sim.particles.n;
         let drive = sim.printer.as_ref().and_then(|p| p.drive(t));
         self.tape.copy_from(sim);
@@ -110,6 +117,7 @@ impl StepAdjoint {
         self.grid_tape.as_mut_slice()[..used].copy_from_slice(&sim.grid.nodes.as_slice()[..used]);
         sim.grid_update(dtr, drive.as_ref());
         sim.g2p(dtr);
+        sim.follow_feed(dtr, drive.as_ref());
         let mut value = None;
         if let Some((obj, frame)) = objective {
             sim.update_materials(dtr).map_err(|e| e.to_string())?;
@@ -123,6 +131,7 @@ impl StepAdjoint {
         }
 
         self.materials_adjoint(sim, dtr);
+        let (feed_fraction_bar, v_feed_bar) = self.follow_feed_adjoint(sim, dtr);
         self.clamp_adjoint(sim);
         let tp = TransferParams { dx: sim.scenario.simulation.dx as Real, dt: dtr };
         self.grid_bar.as_mut_slice()[..used].fill([0.0; 7]);
@@ -131,10 +140,15 @@ impl StepAdjoint {
         grid_update_adjoint(sim, drive.as_ref(), &self.grid_tape.as_slice()[..used], &mut self.grid_bar.as_mut_slice()[..used], dtr, g);
         let (outlet_bar, velocity_bar) = (std::mem::take(&mut g.drive_outlet), std::mem::take(&mut g.drive_velocity));
         self.p2g_adjoint(sim, &tp);
+        let mass_fraction_bar = self.settle_set_masses(sim);
         if let Some(pp) = print {
+            let k = sim.printer.as_ref().map_or(0, |p| p.toolpath.state_at(t).interval);
             if drive.is_some() {
-                let k = sim.printer.as_ref().map_or(0, |p| p.toolpath.state_at(t).interval);
-                pp.drive(k, t, outlet_bar, velocity_bar);
+                let v = [velocity_bar[0] + v_feed_bar[0], velocity_bar[1] + v_feed_bar[1], velocity_bar[2] + v_feed_bar[2]];
+                pp.drive(k, t, outlet_bar, v);
+            }
+            if let Some(pr) = sim.printer.as_ref().filter(|p| p.newest.moving) {
+                pp.extruded(k, t, (mass_fraction_bar + feed_fraction_bar) / pr.plan.slab_thickness());
             }
             if n > n_before {
                 self.emission_adjoint(sim, pp, n_before, first_slab, t)?;
@@ -145,6 +159,65 @@ impl StepAdjoint {
         // particles beyond n were never touched by this step's adjoint
         self.cur.zero_range(0..n, sim.particles.state_len);
         Ok(value)
+    }
+
+    /// Adjoint of the newest slab's blend with the feed (`print/newest.rs`): `next`'s adjoints
+    /// of the blended outputs become those of G2P's, and the pool gets G2P's positions back for
+    /// the clamp's adjoint. Returns the adjoints of the fraction and of the feed velocity.
+    fn follow_feed_adjoint(&mut self, sim: &mut Simulation, dt: Real) -> (f64, [f64; 3]) {
+        let Some(pr) = sim.printer.as_ref().filter(|p| p.newest.moving) else { return (0.0, [0.0; 3]) };
+        let nw = &pr.newest;
+        let t = sim.time;
+        let v = pr.drive(t).map_or([0.0; 3], |d| d.velocity);
+        let v_feed = V3::new(v[0] as Real, v[1] as Real, v[2] as Real);
+        let inv_dx = (1.0 / sim.scenario.simulation.dx) as Real;
+        let (mut fraction_bar, mut v_feed_bar) = (0.0, V3::ZERO);
+        let xg = sim.particles.xg.as_mut_slice();
+        for (k, &i) in nw.index.iter().enumerate() {
+            let i = i as usize;
+            let out_bar = (self.next.xg.as_slice()[i], self.next.v.as_slice()[i], self.next.c.as_slice()[i], self.next.j.as_slice()[i]);
+            let bar = FollowFeedBar {
+                x0: &mut self.cur.xg.as_mut_slice()[i],
+                j0: &mut self.cur.j.as_mut_slice()[i],
+                v_feed: &mut v_feed_bar,
+                fraction: &mut fraction_bar,
+            };
+            let (xb, vb, cb, jb) = follow_feed_adjoint(nw.fraction as Real, dt, inv_dx, nw.x0[k], nw.j0[k], v_feed, nw.g2p[k], out_bar, bar);
+            self.next.xg.as_mut_slice()[i] = xb;
+            self.next.v.as_mut_slice()[i] = vb;
+            self.next.c.as_mut_slice()[i] = cb;
+            self.next.j.as_mut_slice()[i] = jb;
+            xg[i] = nw.g2p[k].0;
+        }
+        (fraction_bar, [v_feed_bar.x as f64, v_feed_bar.y as f64, v_feed_bar.z as f64])
+    }
+
+    /// The step's emission set the masses and initial volumes of particles `set_from..` (the
+    /// newest slab's to its fraction f, a just completed one's to full): their adjoints gathered
+    /// since are settled here — into the density's, and for the newest slab into f's — and
+    /// cleared, for the earlier steps to gather those of the values before. Returns f's adjoint.
+    fn settle_set_masses(&mut self, sim: &Simulation) -> f64 {
+        let Some(pr) = sim.printer.as_ref() else { return 0.0 };
+        let nw = &pr.newest;
+        if nw.set_from == u32::MAX {
+            return 0.0;
+        }
+        let p = &sim.particles;
+        let rho = sim.material.density() as f64;
+        let vol = pr.particle_volume;
+        let (mass_bar, vol0_bar) = (self.mass_bar.as_mut_slice(), self.vol0_bar.as_mut_slice());
+        let mut fraction_bar = 0.0;
+        // emitted particles are never reordered in a gradient run: index = id
+        for i in nw.set_from as usize..p.n {
+            debug_assert_eq!(p.id.as_slice()[i] as usize, i);
+            let (mb, vb) = (mass_bar[i] as f64, vol0_bar[i] as f64);
+            self.density_bar += mb * p.mass.as_slice()[i] as f64 / rho;
+            if i >= nw.first as usize {
+                fraction_bar += rho * vol * mb + vol * vb;
+            }
+            (mass_bar[i], vol0_bar[i]) = (0.0, 0.0);
+        }
+        fraction_bar
     }
 
     /// Particles `first..n` entered in this step: their adjoints are those of the emission, owed

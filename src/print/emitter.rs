@@ -1,14 +1,22 @@
 //! The emission stage of the pipeline: a thread that lays out each new slab of particles ahead of
 //! time and hands it to the stepper through a bounded lock-free queue.
 //!
-//! Material enters the nozzle through the top of its tube at the extrusion speed U. A slab of
-//! `group` particle layers (thickness `group * h`) is due when the extruded length L(t) has
-//! pushed it wholly into the tube; the tube starts full, so slab q is due at the first t with
-//! L(t) + H >= (q + 1) group h. The emitter gives each slab its due time and positions at that
-//! time; the stepper adds it at the first step starting at or after the due time, advancing the
-//! positions ballistically by the lag (inside the tube the grid moves material at exactly that
-//! velocity). Every particle stands for `particle_volume`, chosen so the mass flux is
-//! rho A U exactly, whatever the lattice's fit to the outlet.
+//! Material enters the nozzle through the top of its tube at the extrusion speed U; the tube
+//! starts full. Slabs are `group` particle layers thick (s = group h). Two rules:
+//!
+//! - **continuous** (group 1): slab q is added as soon as it starts entering, when the pushed
+//!   length L(t) + H passes q s, and until it is wholly in its particles carry the fraction
+//!   f = (L + H) / s - q of their mass and volume (the stepper sets it every step). The mass in the
+//!   simulation is then rho A (L(t) + H) at every step, a continuous function of the toolpath's
+//!   parameters: an extrusion-speed gradient sees the mass it adds, which a slab arriving whole
+//!   at a step boundary hides (the mass would be a staircase in U with zero derivative).
+//! - **interval** (000 sec. 2.4): slab q is added whole once L + H covers (q + 1) s.
+//!
+//! The emitter gives each slab the time it is added (`due`) and its positions at that time; the
+//! stepper adds it at the first step starting at or after, advancing the positions
+//! ballistically by the lag (inside the tube the grid moves material at exactly that velocity).
+//! Every particle stands for `particle_volume`, chosen so the mass flux is rho A U exactly,
+//! whatever the lattice's fit to the outlet.
 //!
 //! Slab buffers are allocated once and circulate between a `full` and a `free` queue, so the
 //! steady state allocates nothing; the contents depend only on the toolpath, never on timing.
@@ -33,13 +41,35 @@ pub struct EmissionPlan {
     /// Material region of the domain: points outside are not emitted, so a domain cut at a
     /// symmetry plane through the nozzle axis receives exactly its half of the flux.
     pub domain: ([f64; 3], [f64; 3]),
+    /// Slabs enter with the fraction of their mass extruded so far (continuous emission).
+    pub partial: bool,
 }
 
 impl EmissionPlan {
+    /// Slab thickness s.
+    pub fn slab_thickness(&self) -> f64 {
+        self.group as f64 * self.spacing
+    }
+
     /// Number of slabs the whole toolpath emits.
     pub fn slabs(&self) -> u64 {
-        let slab = self.group as f64 * self.spacing;
-        ((self.toolpath.total_extruded_length() + self.tube_height) / slab + 1e-9).floor() as u64
+        let pushed = (self.toolpath.total_extruded_length() + self.tube_height) / self.slab_thickness();
+        if self.partial {
+            // every slab that has started entering, the last one possibly in part
+            (pushed - 1e-9).ceil().max(0.0) as u64
+        } else {
+            (pushed + 1e-9).floor() as u64
+        }
+    }
+
+    /// Fraction of slab `q`'s mass inside the tube at time `t` (1 without partial slabs), and
+    /// whether it is strictly between 0 and 1, where it moves with the extruded length.
+    pub fn fraction(&self, q: u64, t: f64) -> (f64, bool) {
+        if !self.partial {
+            return (1.0, false);
+        }
+        let f = (self.toolpath.extruded_length(t) + self.tube_height) / self.slab_thickness() - q as f64;
+        (f.clamp(0.0, 1.0), f > 0.0 && f < 1.0)
     }
 
     pub fn particles_per_slab(&self) -> usize {
@@ -53,20 +83,35 @@ impl EmissionPlan {
 
     /// Lay out slab `q` into `b`.
     pub fn fill(&self, q: u64, b: &mut Slab) {
-        self.fill_branch(q, b, None);
+        b.positions.clear();
+        let (due, moves, velocity) = self.layout(q, None, |x| b.positions.push(x));
+        (b.slab, b.due, b.moves, b.velocity) = (q, due, moves, velocity);
     }
 
     /// As [`EmissionPlan::fill`], with the moves that set the slab's due time and state held to
     /// `branch` (another plan's `Slab::moves` for the same slab): the branch a derivative with
     /// respect to the toolpath's parameters differentiates.
     pub fn fill_on(&self, q: u64, b: &mut Slab, branch: (Option<usize>, usize)) {
-        self.fill_branch(q, b, Some(branch));
+        b.positions.clear();
+        let (due, moves, velocity) = self.layout(q, Some(branch), |x| b.positions.push(x));
+        (b.slab, b.due, b.moves, b.velocity) = (q, due, moves, velocity);
     }
 
-    fn fill_branch(&self, q: u64, b: &mut Slab, branch: Option<(Option<usize>, usize)>) {
+    /// Number of particles slab `q` adds (its lattice points inside the domain).
+    pub fn count(&self, q: u64) -> usize {
+        let mut k = 0;
+        self.layout(q, None, |_| k += 1);
+        k
+    }
+
+    /// Slab `q`'s positions at its due time, each handed to `put`; returns the due time, the
+    /// moves that set it (see `Slab::moves`) and the particles' velocity.
+    fn layout(&self, q: u64, branch: Option<(Option<usize>, usize)>, mut put: impl FnMut([f64; 3])) -> (f64, (Option<usize>, usize), [f64; 3]) {
         let h = self.spacing;
-        let slab = self.group as f64 * h;
-        let need = (q + 1) as f64 * slab - self.tube_height;
+        let slab = self.slab_thickness();
+        // a partial slab is added one slab thickness earlier, still above the tube
+        let lead = if self.partial { slab } else { 0.0 };
+        let need = (q + 1) as f64 * slab - self.tube_height - lead;
         let tp = &self.toolpath;
         let (extruding, due) = match branch {
             Some((Some(k), _)) => (Some(k), tp.time_at_extruded_on(k, need)),
@@ -80,29 +125,26 @@ impl EmissionPlan {
         };
         let st = tp.state_on(at, due);
         // the tube is pre-filled at t = 0: those slabs already sit deeper
-        let excess = (tp.extruded_on(at, due) + self.tube_height - (q + 1) as f64 * slab).max(0.0);
-        let z_top = st.position[2] + self.tube_height;
-        b.slab = q;
-        b.due = due;
-        b.moves = (extruding, at);
-        b.velocity = [st.velocity[0], st.velocity[1], st.velocity[2] - st.extrusion_speed];
-        b.positions.clear();
+        let excess = (tp.extruded_on(at, due) + self.tube_height + lead - (q + 1) as f64 * slab).max(0.0);
+        let z_top = st.position[2] + self.tube_height + lead;
         for m in 0..self.group {
             let z = z_top - 0.5 * h - excess - m as f64 * h;
             for o in self.offsets.iter() {
                 let x = [st.position[0] + o[0], st.position[1] + o[1], z];
                 if (0..3).all(|a| x[a] >= self.domain.0[a] && x[a] <= self.domain.1[a]) {
-                    b.positions.push(x);
+                    put(x);
                 }
             }
         }
+        (due, (extruding, at), [st.velocity[0], st.velocity[1], st.velocity[2] - st.extrusion_speed])
     }
 }
 
 /// One slab of new particles.
 pub struct Slab {
     pub slab: u64,
-    /// Time at which the slab is wholly inside the tube [s].
+    /// Time at which the slab is added [s]: when it starts entering the tube (continuous) or
+    /// is wholly inside it (interval).
     pub due: f64,
     /// Velocity of every particle of the slab at `due`.
     pub velocity: [f64; 3],

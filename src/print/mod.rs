@@ -10,12 +10,14 @@
 
 pub mod emitter;
 pub mod gcode;
+pub mod newest;
 pub mod nozzle;
 pub mod toolpath;
 
 use crate::kernels::nozzle::Indicator;
 use crate::kernels::Real;
 use emitter::{EmissionPlan, Emitter};
+use newest::Newest;
 use nozzle::NozzleShape;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -175,7 +177,10 @@ pub struct Printer {
     /// Emission in the stepper's own thread instead of `emitter`, for gradient runs: they jump
     /// back and forth in time, which a queue filled ahead cannot follow.
     pub sync: Option<SyncEmission>,
+    /// The newest slab while it enters (continuous emission).
+    pub newest: Newest,
 }
+
 
 /// Slab by slab emission without a thread: `next` is the first slab not yet added.
 pub struct SyncEmission {
@@ -229,8 +234,19 @@ impl Printer {
             Emission::Continuous => 1,
             Emission::Interval => ppc,
         };
-        let plan = EmissionPlan { toolpath: toolpath.clone(), offsets: Arc::new(offsets), spacing: h, group, tube_height, domain };
-        Ok(Printer { toolpath, shape: cfg.nozzle, tube_height, indicator, spacing: h, particle_volume, plan, emitter: None, sync: None })
+        let partial = cfg.emission == Emission::Continuous;
+        let plan = EmissionPlan { toolpath: toolpath.clone(), offsets: Arc::new(offsets), spacing: h, group, tube_height, domain, partial };
+        let newest = Newest::new(plan.particles_per_slab());
+        Ok(Printer { toolpath, shape: cfg.nozzle, tube_height, indicator, spacing: h, particle_volume, plan, emitter: None, sync: None, newest })
+    }
+
+    /// Slabs handed to the stepper so far.
+    pub fn emitted(&self) -> u64 {
+        match (&self.sync, &self.emitter) {
+            (Some(s), _) => s.next,
+            (None, Some(e)) => e.emitted,
+            (None, None) => 0,
+        }
     }
 
     /// Start the emitter thread at slab `first`.
