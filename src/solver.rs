@@ -908,8 +908,10 @@ fn block_activity(ord: &[u32], v: &[V3], c: &[M3]) -> [Real; 2] {
     a
 }
 
-/// Start-up check: the tube must stay inside the domain along the whole toolpath. It may cross a
-/// symmetry plane as long as the nozzle axis itself stays inside.
+/// Start-up check: the tube must stay inside the domain along the whole toolpath, with room above
+/// it for the slab that is entering (continuous emission), whose lattice points outside the
+/// domain would be lost. It may cross a symmetry plane as long as the nozzle axis itself stays
+/// inside.
 fn check_print_inside_domain(sc: &Scenario, p: &Printer) -> Result<(), SimError> {
     let (lo, hi) = p.toolpath.bounds();
     let [ex, ey] = p.shape.half_extent();
@@ -919,10 +921,12 @@ fn check_print_inside_domain(sc: &Scenario, p: &Printer) -> Result<(), SimError>
     for a in 0..3 {
         let lo_need = if sides[a][0] == WallKind::Symmetry { lo[a] } else { lo[a] - reach[a] };
         let hi_need = if sides[a][1] == WallKind::Symmetry { hi[a] } else { hi[a] + reach[a] };
-        let hi_need = if a == 2 { hi[a] + p.tube_height } else { hi_need };
+        let feed = if p.plan.partial { p.plan.slab_thickness() } else { 0.0 };
+        let hi_need = if a == 2 { hi[a] + p.tube_height + feed } else { hi_need };
         if lo_need < sc.domain.min[a] - 1e-12 || hi_need > sc.domain.max[a] + 1e-12 {
+            let what = if a == 2 && feed > 0.0 { "nozzle tube and the slab entering it" } else { "nozzle tube" };
             return Err(SimError::Setup(format!(
-                "print: the nozzle tube spans [{lo_need:.4}, {hi_need:.4}] m on axis {a} along the toolpath, \
+                "print: the {what} span [{lo_need:.4}, {hi_need:.4}] m on axis {a} along the toolpath, \
                  outside the domain [{}, {}]",
                 sc.domain.min[a], sc.domain.max[a]
             )));

@@ -106,6 +106,14 @@ fn a_tube_leaving_the_domain_is_refused() {
     let text = common::tiny_print(1, 1, false, "256 MiB").replace("min = [-0.02, -0.04, 0.0]", "min = [-0.02, -0.004, 0.0]");
     let e = Simulation::new(&Scenario::parse(&text).unwrap()).err().expect("must fail").to_string();
     assert!(e.contains("nozzle tube") && e.contains("axis 1"), "{e}");
+    // the tube (top at 16 mm) fits under a 17 mm roof, the slab entering above it does not; whole
+    // slabs (interval emission) enter inside the tube and fit
+    let low = common::tiny_print(1, 1, false, "256 MiB").replace("max = [0.07, 0.04, 0.036]", "max = [0.07, 0.04, 0.017]");
+    assert!(low.contains("0.017"));
+    let e = Simulation::new(&Scenario::parse(&low).unwrap()).err().expect("must fail").to_string();
+    assert!(e.contains("slab entering") && e.contains("axis 2"), "{e}");
+    let interval = low.replace("[print]\n", "[print]\nemission = \"interval\"\n");
+    assert!(Simulation::new(&Scenario::parse(&interval).unwrap()).is_ok());
 }
 
 #[test]
