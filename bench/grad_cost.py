@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Whole-gradient cost against one forward run, for N = 1e4, 1e5, 1e6 steps under one fixed
 RAM cap (the schedule chosen by strand), and the reverse sweep's cost per step against a forward
-step. Prints a Markdown table; run from the repository root after `cargo build --release`:
+step (a 64-particle block, then the 2,048-particle Poiseuille channel). Prints Markdown tables;
+run from the repository root after `cargo build --release`:
 
     python3 bench/grad_cost.py [--cap "4 MiB"] [--threads 1]
 """
@@ -34,6 +35,47 @@ velocity = [0.3, 0.1, 0.0]
 budget = "16 MiB"
 """
 
+# The Poiseuille channel of tests/grad.rs (2,048 particles, 4,167 steps), whose state is large
+# enough that the step's fixed costs do not dominate; stored whole (a few MB per state).
+CHANNEL = """
+name = "poiseuille-grad"
+[simulation]
+dx = 0.015625
+end_time = 1.5
+dt = 3.6e-4
+gravity = [0.0, 0.0, 0.0]
+body_force = [2000.0, 0.0, 0.0]
+threads = {threads}
+[domain]
+min = [0.0, 0.0, 0.0]
+max = [0.0625, 0.0625, 0.25]
+periodic = [true, true, false]
+[boundary]
+z_min = "no_slip"
+z_max = "no_slip"
+[material]
+kind = "newtonian"
+density = 2000.0
+bulk_modulus = 3.3e5
+viscosity = 60.0
+[[body]]
+shape = "box"
+min = [0.0, 0.0, 0.0]
+max = [0.0625, 0.0625, 0.25]
+[memory]
+budget = "64 MiB"
+"""
+
+
+def row(exe, path, args, d):
+    out = subprocess.run([exe, "grad", path, *args, "--json", "--disk-dir", os.path.join(d, "ck")], capture_output=True, text=True, check=True)
+    r = json.loads(out.stdout)["result"]
+    fwd = r["forward_s"] / max(r["forward_steps"], 1)
+    rev = r["reverse_s"] / max(r["steps"], 1)
+    return (f"| {r['steps']} | {r['schedule']} | {r['forward_steps']} | {r['peak_ram_slots']} | {r['wall_s']:.1f} | "
+            f"{fwd * 1e6:.1f} | {rev * 1e6:.1f} | {rev / fwd:.2f} | {r['wall_s'] / (r['steps'] * fwd):.2f} |")
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--cap", default="4 MiB")
@@ -48,13 +90,16 @@ def main():
             path = os.path.join(d, f"s{n}.toml")
             with open(path, "w") as f:
                 f.write(SCENARIO.format(end=n * 5e-5, threads=a.threads))
-            out = subprocess.run([exe, "grad", path, "--objective", "mean_z", "--wrt", "material.viscosity,body.0.velocity.x",
-                                  "--ram", a.cap, "--json", "--disk-dir", os.path.join(d, "ck")], capture_output=True, text=True, check=True)
-            r = json.loads(out.stdout)["result"]
-            fwd = r["forward_s"] / max(r["forward_steps"], 1)
-            rev = r["reverse_s"] / max(r["steps"], 1)
-            print(f"| {r['steps']} | {r['schedule']} | {r['forward_steps']} | {r['peak_ram_slots']} | {r['wall_s']:.1f} | "
-                  f"{fwd * 1e6:.1f} | {rev * 1e6:.1f} | {rev / fwd:.2f} | {r['wall_s'] / (r['steps'] * fwd):.2f} |", flush=True)
+            print(row(exe, path, ["--objective", "mean_z", "--wrt", "material.viscosity,body.0.velocity.x", "--ram", a.cap], d), flush=True)
+        print()
+        print("Poiseuille channel, 2,048 particles, d vx_max / d (F, eta), 2 threads:")
+        print()
+        print("| N steps | schedule | forward steps run | peak RAM slots | wall [s] | forward step [us] | reverse step [us] | reverse / forward step | gradient / one forward run |")
+        print("|---|---|---|---|---|---|---|---|---|")
+        path = os.path.join(d, "channel.toml")
+        with open(path, "w") as f:
+            f.write(CHANNEL.format(threads=2))
+        print(row(exe, path, ["--objective", "vx_max", "--wrt", "simulation.body_force.x,material.viscosity"], d), flush=True)
 
 if __name__ == "__main__":
     main()

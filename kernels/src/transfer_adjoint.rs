@@ -60,6 +60,10 @@ pub struct G2pAdjointIn<'a> {
     pub xg: &'a [V3],
     pub v: &'a [V3],
     pub j: &'a [Real],
+    /// The forward's own outputs v and C, when it ran without FLIP (`flip = 0`, so v is the
+    /// gathered grid velocity): they spare the adjoint its gather over the 27 nodes. None
+    /// recomputes them.
+    pub forward: Option<(&'a [V3], &'a [M3])>,
     /// Adjoints of the G2P outputs ([`crate::transfer::G2pOutput`] after the call).
     pub xg_bar: &'a [V3],
     pub v_bar: &'a [V3],
@@ -170,29 +174,32 @@ pub fn p2g_block_adjoint<const SPLIT: bool>(
         let mut affine_bar = M3::ZERO;
         let mut impulse_bar = M3::ZERO;
         let mut w_bar = [V3::ZERO; 3];
-        let mut fx_bar = V3::ZERO;
+        let mut imp_sum = V3::ZERO;
         for (a, b, c) in stencil_nodes() {
             let weight = st.weight(a, b, c);
-            let offset = st.offset(a, b, c);
-            let dpos = offset * dx;
+            let dpos = st.offset(a, b, c) * dx;
             let nb = &local_bar[st.node(a, b, c)];
             let mom_bar = V3::new(nb[1], nb[2], nb[3]);
             let mut weight_bar = nb[0] * m + mom_bar.dot(mv + affine * dpos);
-            // dpos_bar before the common factor weight
-            let mut dpos_sens = affine_t * mom_bar;
             m_bar += weight * nb[0];
             mv_bar += mom_bar * weight;
             affine_bar += outer(mom_bar * weight, dpos);
             if SPLIT {
                 let imp_bar = V3::new(nb[4], nb[5], nb[6]);
                 weight_bar += imp_bar.dot(impulse * dpos);
-                dpos_sens += impulse_t * imp_bar;
+                imp_sum += imp_bar * weight;
                 impulse_bar += outer(imp_bar * weight, dpos);
             }
-            let dpos_bar = dpos_sens * weight;
-            fx_bar -= dpos_bar * dx;
-            dx_bar += dpos_bar.dot(offset);
             st.weight_adjoint(a, b, c, weight_bar, &mut w_bar);
+        }
+        // the node sums make the adjoint through dpos = (node - fx) dx need no work per node:
+        // -dx (A^T sum_i w_i mom_bar_i) for fx and <A, A_bar> / dx for dx (A the affine matrix,
+        // A_bar its adjoint so far), and the same for the impulse
+        let mut fx_bar = -(affine_t * mv_bar) * dx;
+        dx_bar += ddot(&affine, &affine_bar) / dx;
+        if SPLIT {
+            fx_bar -= (impulse_t * imp_sum) * dx;
+            dx_bar += ddot(&impulse, &impulse_bar) / dx;
         }
 
         if !SPLIT {
@@ -250,6 +257,15 @@ fn g2p_particle(origin: [i32; 3], local: &[Node; LNODES], tp: &TransferParams, x
     G2pParticle { stencil, v, bmat, tr_c, xg_new: xg + v * (tp.dt * inv_dx) }
 }
 
+/// [`g2p_particle`] from the forward's outputs v and C (see `G2pAdjointIn::forward`); the
+/// position after the move is the forward's bit for bit, so J-bar cells agree.
+#[inline(always)]
+fn g2p_particle_from(origin: [i32; 3], tp: &TransferParams, xg: V3, v: V3, c: &M3) -> G2pParticle {
+    let inv_dx = r(1.0) / tp.dx;
+    let c_scale = r(4.0) * inv_dx * inv_dx;
+    G2pParticle { stencil: Stencil::new(origin, xg), v, bmat: *c * (r(1.0) / c_scale), tr_c: trace(c), xg_new: xg + v * (tp.dt * inv_dx) }
+}
+
 /// The J-bar cell (within the block) of a particle at `xg` after the move, as g2p_block assigns
 /// it; None outside the block, where the particle keeps its own J.
 #[inline(always)]
@@ -284,13 +300,17 @@ pub fn g2p_block_adjoint(
     let c_scale = r(4.0) * inv_dx * inv_dx;
     let move_scale = tp.dt * inv_dx;
 
+    let particle = |pi: usize| match inp.forward {
+        Some((v, c)) if flip == r(0.0) => g2p_particle_from(origin, tp, inp.xg[pi], v[pi], &c[pi]),
+        _ => g2p_particle(origin, inp.local, tp, inp.xg[pi]),
+    };
     let mut cell_vj = [r(0.0); BS * BS * BS];
     let mut cell_v = [r(0.0); BS * BS * BS];
     let mut cell_j_bar_sum = [r(0.0); BS * BS * BS];
     if let Some(vol0) = j_bar {
         for &pi in order {
             let pi = pi as usize;
-            let g = g2p_particle(origin, inp.local, tp, inp.xg[pi]);
+            let g = particle(pi);
             if let Some(k) = cell_of(origin, g.xg_new) {
                 cell_vj[k] += vol0[pi] * (inp.j[pi] * (r(1.0) + tp.dt * g.tr_c));
                 cell_v[k] += vol0[pi];
@@ -305,7 +325,7 @@ pub fn g2p_block_adjoint(
     let mut move_scale_bar = r(0.0);
     for &pi in order {
         let pi = pi as usize;
-        let g = g2p_particle(origin, inp.local, tp, inp.xg[pi]);
+        let g = particle(pi);
         let st = &g.stencil;
         let growth = r(1.0) + tp.dt * g.tr_c;
         // adjoint of J after the growth, before the cell average
@@ -324,7 +344,6 @@ pub fn g2p_block_adjoint(
         let cm_bar = inp.c_bar[pi] + M3::from_diagonal(V3::splat(tr_c_bar));
         c_scale_bar += ddot(&cm_bar, &g.bmat);
         let bmat_bar = cm_bar * c_scale;
-        let bmat_bar_t = bmat_bar.transpose();
 
         let xg_new_bar = inp.xg_bar[pi];
         move_scale_bar += xg_new_bar.dot(g.v);
@@ -338,11 +357,9 @@ pub fn g2p_block_adjoint(
         v_grid_bar += xg_new_bar * move_scale;
 
         let mut w_bar = [V3::ZERO; 3];
-        let mut fx_bar = V3::ZERO;
         for (a, b, c) in stencil_nodes() {
             let weight = st.weight(a, b, c);
-            let offset = st.offset(a, b, c);
-            let dpos = offset * dx;
+            let dpos = st.offset(a, b, c) * dx;
             let node = st.node(a, b, c);
             let n = &inp.local[node];
             let vi = V3::new(n[1], n[2], n[3]);
@@ -362,11 +379,13 @@ pub fn g2p_block_adjoint(
                 nb[5] -= v_old_bar.y;
                 nb[6] -= v_old_bar.z;
             }
-            let dpos_bar = bmat_bar_t * vi * weight;
-            fx_bar -= dpos_bar * dx;
-            dx_bar += dpos_bar.dot(offset);
             st.weight_adjoint(a, b, c, weight_bar, &mut w_bar);
         }
+        // B = sum_i w_i v_i dpos_i^T with dpos_i = (node_i - fx) dx: summed over the nodes, the
+        // adjoint through dpos is -dx B_bar^T v (v the gathered velocity) for fx, and
+        // <B_bar, B> / dx for dx, so it needs no work per node
+        let fx_bar = -(bmat_bar.transpose() * g.v) * dx;
+        dx_bar += ddot(&bmat_bar, &g.bmat) * inv_dx;
         // fx = xg - base with the base held constant
         out.xg_bar[pi] += xg_new_bar + fx_bar + weights_adjoint(st.fx, &w_bar);
     }
@@ -564,6 +583,8 @@ mod tests {
     struct G2p {
         flip: Real,
         j_bar: bool,
+        /// Hand the adjoint the forward's outputs v and C (taken without FLIP only).
+        use_forward: bool,
     }
 
     impl Flat for G2p {
@@ -596,11 +617,19 @@ mod tests {
             let a = |k: usize| &acc[g[k].range.clone()];
             let (xg, v, local) = (v3s(s(0)), v3s(s(1)), nodes(s(4)));
             let (xg_new_bar, v_new_bar, c_bar) = (v3s(&cot[..3 * N]), v3s(&cot[3 * N..6 * N]), m3s(&cot[6 * N..15 * N]));
+            let fwd = self.use_forward.then(|| {
+                let (mut xo, mut vo, mut co, mut jo) = (xg.clone(), v.clone(), vec![M3::ZERO; N], s(2).to_vec());
+                let tp = TransferParams { dt: s(5)[0], dx: s(6)[0] };
+                let mut out = G2pOutput { xg: &mut xo, v: &mut vo, c: &mut co, j: &mut jo };
+                g2p_block(ORIGIN, &ORDER, &local, self.flip, self.j_bar.then_some(s(3)), &tp, &mut out);
+                (vo, co)
+            });
             let inp = G2pAdjointIn {
                 local: &local,
                 xg: &xg,
                 v: &v,
                 j: s(2),
+                forward: fwd.as_ref().map(|(v, c)| (&v[..], &c[..])),
                 xg_bar: &xg_new_bar,
                 v_bar: &v_new_bar,
                 c_bar: &c_bar,
@@ -680,7 +709,7 @@ mod tests {
                 }
             }
             x.extend([DT, DX]);
-            let moved = v3s(&G2p { flip: 0.0, j_bar: false }.forward(&x)[..3 * N]);
+            let moved = v3s(&G2p { flip: 0.0, j_bar: false, use_forward: false }.forward(&x)[..3 * N]);
             let base = |p: usize| base_and_fx(moved[p]).0;
             let clear = moved.iter().all(|&m| face_distance(m) >= MARGIN);
             let mixed = base(0) == base(1) && cell_of(ORIGIN, moved[0]).is_some();
@@ -778,22 +807,24 @@ mod tests {
 
     #[test]
     fn g2p_apic_adjoint_matches_central_differences() {
-        check_central_differences("g2p apic", &G2p { flip: 0.0, j_bar: false }, g2p_point, 3);
+        check_central_differences("g2p apic", &G2p { flip: 0.0, j_bar: false, use_forward: false }, g2p_point, 3);
+        check_central_differences("g2p apic, forward outputs", &G2p { flip: 0.0, j_bar: false, use_forward: true }, g2p_point, 3);
     }
 
     #[test]
     fn g2p_flip_adjoint_matches_central_differences() {
-        check_central_differences("g2p flip", &G2p { flip: 0.95, j_bar: false }, g2p_point, 4);
+        check_central_differences("g2p flip", &G2p { flip: 0.95, j_bar: false, use_forward: false }, g2p_point, 4);
     }
 
     #[test]
     fn g2p_apic_j_bar_adjoint_matches_central_differences() {
-        check_central_differences("g2p apic j-bar", &G2p { flip: 0.0, j_bar: true }, g2p_point, 5);
+        check_central_differences("g2p apic j-bar", &G2p { flip: 0.0, j_bar: true, use_forward: false }, g2p_point, 5);
+        check_central_differences("g2p apic j-bar, forward outputs", &G2p { flip: 0.0, j_bar: true, use_forward: true }, g2p_point, 5);
     }
 
     #[test]
     fn g2p_flip_j_bar_adjoint_matches_central_differences() {
-        check_central_differences("g2p flip j-bar", &G2p { flip: 0.95, j_bar: true }, g2p_point, 6);
+        check_central_differences("g2p flip j-bar", &G2p { flip: 0.95, j_bar: true, use_forward: false }, g2p_point, 6);
     }
 
     #[test]
@@ -809,7 +840,7 @@ mod tests {
     fn g2p_taylor_remainder_is_second_order() {
         let mut rng = Rng(8);
         let x = g2p_point(&mut rng);
-        let slope = taylor_slope(&G2p { flip: 0.95, j_bar: true }, &x, &mut rng);
+        let slope = taylor_slope(&G2p { flip: 0.95, j_bar: true, use_forward: false }, &x, &mut rng);
         println!("g2p flip j-bar: Taylor slope {slope:.3}");
         assert!((slope - 2.0).abs() <= 0.1, "slope {slope}");
     }
@@ -819,7 +850,7 @@ mod tests {
     #[test]
     fn g2p_recomputation_is_bit_identical_to_the_forward() {
         let mut rng = Rng(10);
-        let kernel = G2p { flip: 0.0, j_bar: false };
+        let kernel = G2p { flip: 0.0, j_bar: false, use_forward: false };
         let x = g2p_point(&mut rng);
         let after = kernel.forward(&x);
         let g = kernel.groups();
@@ -848,6 +879,6 @@ mod tests {
         let x = p2g_point(&mut rng);
         doubles(&P2g::<true>, &x, &mut rng);
         let x = g2p_point(&mut rng);
-        doubles(&G2p { flip: 0.95, j_bar: true }, &x, &mut rng);
+        doubles(&G2p { flip: 0.95, j_bar: true, use_forward: false }, &x, &mut rng);
     }
 }

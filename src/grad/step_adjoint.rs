@@ -162,8 +162,8 @@ impl StepAdjoint {
     }
 
     /// Adjoint of the newest slab's blend with the feed (`print/newest.rs`): `next`'s adjoints
-    /// of the blended outputs become those of G2P's, and the pool gets G2P's positions back for
-    /// the clamp's adjoint. Returns the adjoints of the fraction and of the feed velocity.
+    /// of the blended outputs become those of G2P's, and the pool gets G2P's outputs back for
+    /// the clamp's and G2P's adjoints. Returns the adjoints of the fraction and of the feed velocity.
     fn follow_feed_adjoint(&mut self, sim: &mut Simulation, dt: Real) -> (f64, [f64; 3]) {
         let Some(pr) = sim.printer.as_ref().filter(|p| p.newest.moving) else { return (0.0, [0.0; 3]) };
         let nw = &pr.newest;
@@ -172,7 +172,6 @@ impl StepAdjoint {
         let v_feed = V3::new(v[0] as Real, v[1] as Real, v[2] as Real);
         let inv_dx = (1.0 / sim.scenario.simulation.dx) as Real;
         let (mut fraction_bar, mut v_feed_bar) = (0.0, V3::ZERO);
-        let xg = sim.particles.xg.as_mut_slice();
         for (k, &i) in nw.index.iter().enumerate() {
             let i = i as usize;
             let out_bar = (self.next.xg.as_slice()[i], self.next.v.as_slice()[i], self.next.c.as_slice()[i], self.next.j.as_slice()[i]);
@@ -187,7 +186,8 @@ impl StepAdjoint {
             self.next.v.as_mut_slice()[i] = vb;
             self.next.c.as_mut_slice()[i] = cb;
             self.next.j.as_mut_slice()[i] = jb;
-            xg[i] = nw.g2p[k].0;
+            let p = &mut sim.particles;
+            (p.xg.as_mut_slice()[i], p.v.as_mut_slice()[i], p.c.as_mut_slice()[i], p.j.as_mut_slice()[i]) = nw.g2p[k];
         }
         (fraction_bar, [v_feed_bar.x as f64, v_feed_bar.y as f64, v_feed_bar.z as f64])
     }
@@ -334,6 +334,8 @@ impl StepAdjoint {
         let j_bar_avg = sim.scenario.simulation.j_bar.then_some(vol0);
         let grid_bar = SharedSlice::new(self.grid_bar.as_mut_slice());
         let (x0, v0, j0) = (&self.tape.xg.as_slice()[..n], &self.tape.v.as_slice()[..n], &self.tape.j.as_slice()[..n]);
+        // the recomputed G2P's v and C are still in the pool (the blend with the feed undone)
+        let forward = (flip == 0.0).then(|| (&sim.particles.v.as_slice()[..n], &sim.particles.c.as_slice()[..n]));
         let next = (&self.next.xg.as_slice()[..n], &self.next.v.as_slice()[..n], &self.next.c.as_slice()[..n], &self.next.j.as_slice()[..n]);
         let cur_xg = SharedSlice::new(&mut self.cur.xg.as_mut_slice()[..n]);
         let cur_v = SharedSlice::new(&mut self.cur.v.as_mut_slice()[..n]);
@@ -359,7 +361,7 @@ impl StepAdjoint {
                     gather_local(&mut local, &nbr[s], nodes);
                     local_bar.iter_mut().for_each(|l| *l = [0.0; 7]);
                     let ord = &order[starts[s] as usize..starts[s + 1] as usize];
-                    let inp = G2pAdjointIn { local: &local, xg: x0, v: v0, j: j0, xg_bar: next.0, v_bar: next.1, c_bar: next.2, jac_bar: next.3 };
+                    let inp = G2pAdjointIn { local: &local, xg: x0, v: v0, j: j0, forward, xg_bar: next.0, v_bar: next.1, c_bar: next.2, jac_bar: next.3 };
                     // SAFETY: a particle belongs to one block and a block to one thread; within a
                     // colour, block neighbourhoods are disjoint.
                     let mut out = unsafe {
