@@ -387,3 +387,22 @@ budget = "64 MiB"
         assert!(close(*a, *b), "{:?} against {:?}", online.gradient, all.gradient);
     }
 }
+
+#[test]
+fn print_area_total_height_and_mean_z_gradients_match_central_differences() {
+    // area weighs particle volumes, and mean_z the entering slab's fractional volume too (the
+    // objective's adjoint of V0 reaches the extrusion speed through the fraction extruded)
+    let sc = Scenario::parse(&tiny_print("")).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let wrt = keys(&["print.path.0.speed", "print.path.0.extrusion"]);
+    for name in ["area@0.01", "total_height", "mean_z"] {
+        let obj: Objective = name.parse().unwrap();
+        let r = gradient(&sc, &obj, &wrt, &opts(None, dir.path())).unwrap();
+        let c = check(&sc, &obj, &r, None, &[1e-3, 1e-4]).unwrap();
+        for p in &c.params {
+            println!("d {name} / d {} = {:.6e}, central differences {:?}", p.param, p.adjoint, p.central);
+            assert!(best_agreement(p) <= 1e-3, "{name}: {p:?}");
+        }
+        assert!(r.value > 0.0 && r.gradient.iter().any(|g| g.abs() > 0.0), "{name}: {r:?}");
+    }
+}

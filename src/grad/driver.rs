@@ -307,6 +307,7 @@ impl Executor<'_> {
             v: &mut p.v.as_mut_slice()[..n0],
             j: &mut p.j.as_mut_slice()[..n0],
             mass: &mut self.adj.mass_bar.as_mut_slice()[..n0],
+            vol0: &mut self.adj.vol0_bar.as_mut_slice()[..n0],
         };
         self.value = Some(self.objective.evaluate(&self.sim, &self.frame, Some(seed))?);
         Ok(())

@@ -21,6 +21,12 @@ pub enum Objective {
     Width { stations: Vec<f64> },
     /// Top of the particles within half a cell of x = station above the base [m], summed.
     Height { stations: Vec<f64> },
+    /// Cross-section area at x = station [m2], summed: the particle volumes V0 J weighted by the
+    /// quadratic B-spline of knot spacing `slab` in x, over the slab (as `sections.csv`'s `area`,
+    /// consistent with the mass balance); with `[observe] mirror_y`, of the mirrored material.
+    Area { stations: Vec<f64> },
+    /// Top of all the material above the base [m].
+    TotalHeight,
     /// Largest x velocity of any particle (the centreline speed of a channel flow).
     VxMax,
     /// Sum of m |v|^2 / 2.
@@ -29,7 +35,7 @@ pub enum Objective {
     MeanZ,
 }
 
-pub const NAMES: &str = "spread, width@X[,X...], height@X[,X...], vx_max, kinetic_energy, mean_z";
+pub const NAMES: &str = "spread, width@X[,X...], height@X[,X...], area@X[,X...], total_height, vx_max, kinetic_energy, mean_z";
 
 impl std::str::FromStr for Objective {
     type Err = String;
@@ -42,8 +48,10 @@ impl std::str::FromStr for Objective {
         match s.split_once('@') {
             Some(("width", x)) => Ok(Objective::Width { stations: stations(x)? }),
             Some(("height", x)) => Ok(Objective::Height { stations: stations(x)? }),
+            Some(("area", x)) => Ok(Objective::Area { stations: stations(x)? }),
             _ => match s {
                 "spread" => Ok(Objective::Spread),
+                "total_height" => Ok(Objective::TotalHeight),
                 "vx_max" => Ok(Objective::VxMax),
                 "kinetic_energy" => Ok(Objective::KineticEnergy),
                 "mean_z" => Ok(Objective::MeanZ),
@@ -54,12 +62,13 @@ impl std::str::FromStr for Objective {
 }
 
 /// Adjoints an objective seeds: of the final positions (grid coordinates), velocities, volume
-/// ratios and masses.
+/// ratios, masses and initial volumes (which emission's entering slab changes).
 pub struct Seed<'a> {
     pub xg: &'a mut [V3],
     pub v: &'a mut [V3],
     pub j: &'a mut [Real],
     pub mass: &'a mut [Real],
+    pub vol0: &'a mut [Real],
 }
 
 /// Geometry the objectives need from the scenario.
@@ -70,6 +79,8 @@ pub struct Frame {
     pub base_z: f64,
     /// `[observe] mirror_y`: the domain is half of a problem symmetric about y = mirror_y.
     pub mirror_y: Option<f64>,
+    /// `[observe] slab`: knot spacing of the area's B-spline in x (default one cell).
+    pub slab: f64,
 }
 
 impl Frame {
@@ -80,7 +91,8 @@ impl Frame {
         let base_z = sc.boundary.platform.as_ref().map_or(sc.domain.min[2], |p| p.z);
         // printed material is laid at the print's spacing
         let ppc = sc.print.as_ref().map_or(ppc, |p| p.particles_per_cell_axis);
-        Frame { dx, spacing: dx / ppc as f64, base_z, mirror_y: sc.observe.as_ref().and_then(|o| o.mirror_y) }
+        let obs = sc.observe.as_ref();
+        Frame { dx, spacing: dx / ppc as f64, base_z, mirror_y: obs.and_then(|o| o.mirror_y), slab: obs.and_then(|o| o.slab).unwrap_or(dx) }
     }
 }
 
@@ -158,6 +170,37 @@ impl Objective {
                 }
                 total
             }
+            Objective::Area { stations } => {
+                let (vol0, jv) = (p.vol0.as_slice(), p.j.as_slice());
+                let copies = if frame.mirror_y.is_some() { 2.0 } else { 1.0 };
+                let slab = frame.slab;
+                let mut total = 0.0;
+                let mut seed = seed;
+                for &station in stations {
+                    for i in 0..n {
+                        let u = (world(i)[0] - station) / slab;
+                        if u.abs() >= 1.5 {
+                            continue;
+                        }
+                        let (b, db) = bspline2(u);
+                        let vol = (vol0[i] * jv[i]) as f64;
+                        total += copies * vol * b / slab;
+                        if let Some(s) = seed.as_mut() {
+                            s.xg[i].x += (copies * vol * db / (slab * slab)) as Real * scale;
+                            s.j[i] += (copies * vol0[i] as f64 * b / slab) as Real;
+                            s.vol0[i] += (copies * jv[i] as f64 * b / slab) as Real;
+                        }
+                    }
+                }
+                total
+            }
+            Objective::TotalHeight => {
+                let top = arg_max(n, |_| true, |i| world(i)[2]).ok_or("objective total_height: no particles")?;
+                if let Some(s) = seed {
+                    s.xg[top].z += scale;
+                }
+                world(top)[2] + 0.5 * frame.spacing - frame.base_z
+            }
             Objective::VxMax => {
                 let v = p.v.as_slice();
                 let i = arg_max(n, |_| true, |i| v[i].x as f64).ok_or("objective vx_max: no particles")?;
@@ -190,6 +233,7 @@ impl Objective {
                         let vi = (vol0[i] * jv[i]) as f64;
                         s.xg[i].z += (vi / w) as Real * scale;
                         s.j[i] += (vol0[i] as f64 * ((world(i)[2] - frame.base_z) - value) / w) as Real;
+                        s.vol0[i] += (jv[i] as f64 * ((world(i)[2] - frame.base_z) - value) / w) as Real;
                     }
                 }
                 value
@@ -203,10 +247,25 @@ impl Objective {
             Objective::Spread => "spread".into(),
             Objective::Width { stations } => format!("width@{}", join(stations)),
             Objective::Height { stations } => format!("height@{}", join(stations)),
+            Objective::Area { stations } => format!("area@{}", join(stations)),
+            Objective::TotalHeight => "total_height".into(),
             Objective::VxMax => "vx_max".into(),
             Objective::KineticEnergy => "kinetic_energy".into(),
             Objective::MeanZ => "mean_z".into(),
         }
+    }
+}
+
+/// The quadratic B-spline of unit knot spacing centred at 0 and its derivative (as
+/// `observe.rs`'s area weight).
+fn bspline2(x: f64) -> (f64, f64) {
+    let a = x.abs();
+    if a < 0.5 {
+        (0.75 - x * x, -2.0 * x)
+    } else if a < 1.5 {
+        (0.5 * (1.5 - a) * (1.5 - a), -(1.5 - a) * x.signum())
+    } else {
+        (0.0, 0.0)
     }
 }
 

@@ -126,6 +126,7 @@ impl StepAdjoint {
                 v: &mut self.next.v.as_mut_slice()[..n],
                 j: &mut self.next.j.as_mut_slice()[..n],
                 mass: &mut self.mass_bar.as_mut_slice()[..n],
+                vol0: &mut self.vol0_bar.as_mut_slice()[..n],
             };
             value = Some(obj.evaluate(sim, frame, Some(seed))?);
         }
