@@ -17,6 +17,7 @@ pub mod disk;
 pub mod grad;
 pub mod grid;
 pub mod materials;
+pub mod measure;
 pub mod memory;
 pub mod observe;
 pub mod output;

@@ -105,6 +105,57 @@ enum Cmd {
         #[arg(long)]
         schedule: Option<String>,
     },
+    /// A virtual rheometer: MODEL's [material] as one material point in simple shear under the
+    /// [rheometer] protocol (rest, shear, sweeps of rates), printing the shear stress at the end
+    /// of every recorded hold.
+    Rheometer {
+        model: PathBuf,
+        /// Protocol file ([[phase]] tables) instead of MODEL's [rheometer] table.
+        #[arg(long)]
+        protocol: Option<PathBuf>,
+        /// Also each reading's derivative with respect to every material parameter (adjoint).
+        #[arg(long)]
+        sensitivity: bool,
+        #[arg(long)]
+        json: bool,
+    },
+    /// Run every experiment the measurements name under MODEL's [material] and compare: each
+    /// observation (measured, model, residual, z), summaries per experiment and per observable,
+    /// and where the model fails most.
+    Compare {
+        /// Model file: the [material] every experiment uses.
+        #[arg(long)]
+        model: PathBuf,
+        /// Measurements CSV: experiment,observable,at,value,uncertainty.
+        #[arg(long)]
+        data: PathBuf,
+        /// Experiments file (TOML): what produced each experiment id.
+        #[arg(long)]
+        experiments: PathBuf,
+        /// Experiments run at once (each is independent).
+        #[arg(long, default_value_t = 1)]
+        jobs: usize,
+        #[arg(long)]
+        json: bool,
+    },
+    /// Synthetic measurements: every experiment's `observe` list under MODEL, with relative
+    /// Gaussian noise from a seed.
+    Synth {
+        #[arg(long)]
+        model: PathBuf,
+        #[arg(long)]
+        experiments: PathBuf,
+        /// Relative noise (standard deviation), also written as each value's uncertainty.
+        #[arg(long, default_value_t = 0.0)]
+        noise: f64,
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Output CSV.
+        #[arg(long)]
+        out: PathBuf,
+        #[arg(long, default_value_t = 1)]
+        jobs: usize,
+    },
     /// Throughput of the peer benchmark scene (3D J-fluid dam break).
     Bench {
         #[arg(long, default_value_t = 262_144)]
@@ -207,6 +258,34 @@ fn main() -> ExitCode {
             } else {
                 print!("{}", strand::grad::driver::report(&r, chk.as_ref()));
             }
+            Ok(true)
+        })(),
+        Cmd::Rheometer { model, protocol, sensitivity, json } => {
+            strand::measure::rheometer::run_cli(&model, protocol.as_deref(), sensitivity, json).map(|s| {
+                print!("{s}");
+                true
+            })
+        }
+        Cmd::Compare { model, data, experiments, jobs, json } => (|| {
+            use strand::measure::{compare, data::{read_observations, Experiments}};
+            let m = compare::Model::load(&model)?;
+            let d = read_observations(&data)?;
+            let e = Experiments::load(&experiments)?;
+            let c = compare::compare(&m, &d, &e, jobs)?;
+            if json {
+                println!("{:#}", serde_json::to_value(&c).map_err(|e| e.to_string())?);
+            } else {
+                print!("{}", compare::report(&c));
+            }
+            Ok(true)
+        })(),
+        Cmd::Synth { model, experiments, noise, seed, out, jobs } => (|| {
+            use strand::measure::{compare, data::{write_observations, Experiments}};
+            let m = compare::Model::load(&model)?;
+            let e = Experiments::load(&experiments)?;
+            let obs = compare::synth(&m, &e, noise, seed, jobs)?;
+            write_observations(&out, &obs)?;
+            eprintln!("{} observations of {} experiments written to {}", obs.len(), e.experiment.len(), out.display());
             Ok(true)
         })(),
         Cmd::Bench { particles, grid, steps, repeats, threads, json } => {

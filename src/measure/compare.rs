@@ -1,0 +1,374 @@
+//! Running the experiments under a model, comparing with measurements, and synthesising
+//! measurements from a model (`strand compare`, `strand synth`).
+//!
+//! A model file holds the `[material]` every experiment uses: it replaces the scenario's own, and
+//! an experiment's `set` overrides apply after it (a rest time that sets `material.lambda0`, a
+//! speed, a geometry). Each experiment runs once, producing every observable asked of it;
+//! experiments are independent jobs, run `jobs` at a time, and give the same numbers however
+//! many run together.
+
+use super::data::{Experiment, Experiments, Observable, Observation};
+use super::rheometer::{Protocol, Rheometer};
+use crate::grad::objective::{Frame, Objective};
+use crate::scenario::Scenario;
+use crate::solver::Simulation;
+use std::path::{Path, PathBuf};
+
+/// The model: the material every experiment runs with.
+#[derive(Clone, Debug)]
+pub struct Model {
+    pub material: toml::Table,
+    pub path: PathBuf,
+}
+
+impl Model {
+    pub fn load(path: &Path) -> Result<Model, String> {
+        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let t: toml::Table = text.parse().map_err(|e| format!("{}: {e}", path.display()))?;
+        Model::from_table(&t).map(|mut m| {
+            m.path = path.to_path_buf();
+            m
+        }).map_err(|e| format!("{}: {e}", path.display()))
+    }
+
+    pub fn from_table(t: &toml::Table) -> Result<Model, String> {
+        match t.get("material") {
+            Some(toml::Value::Table(m)) => {
+                crate::materials::build_material(m)?;
+                Ok(Model { material: m.clone(), path: PathBuf::new() })
+            }
+            _ => Err("no [material] table".into()),
+        }
+    }
+}
+
+fn number(v: &toml::Value) -> f64 {
+    v.as_float().or(v.as_integer().map(|i| i as f64)).unwrap_or(f64::NAN)
+}
+
+/// The model's values of `wanted` for experiment `x`.
+pub fn evaluate(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable]) -> Result<Vec<f64>, String> {
+    let r = match (&x.scenario, &x.protocol) {
+        (Some(s), _) => simulate(model, &exps.base_dir.join(s), x, wanted),
+        (None, Some(p)) => rheometer(model, &exps.base_dir, p, x, wanted),
+        (None, None) => Err("neither scenario nor protocol".into()),
+    };
+    r.map_err(|e| format!("experiment '{}': {e}", x.id))
+}
+
+fn simulate(model: &Model, scenario: &Path, x: &Experiment, wanted: &[Observable]) -> Result<Vec<f64>, String> {
+    let text = std::fs::read_to_string(scenario).map_err(|e| format!("{}: {e}", scenario.display()))?;
+    let mut doc: toml::Table = text.parse().map_err(|e| format!("{}: {e}", scenario.display()))?;
+    doc.insert("material".into(), toml::Value::Table(model.material.clone()));
+    let mut text = toml::to_string(&doc).map_err(|e| e.to_string())?;
+    for (k, v) in &x.set {
+        text = crate::grad::params::with_value(&text, k, number(v)).map_err(|e| format!("set.{k}: {e}"))?;
+    }
+    let mut sc = Scenario::parse(&text).map_err(|e| format!("{}: {e}", scenario.display()))?;
+    sc.base_dir = scenario.parent().map(Path::to_path_buf).unwrap_or_default();
+    sc.checkpoint.enabled = false;
+    let end = sc.simulation.end_time;
+    // (time, objective) per observable: spread may be taken during the run, the rest at the end
+    let mut plan = Vec::new();
+    for o in wanted {
+        let station = || o.at.ok_or_else(|| format!("'{}' needs a station: {}@X", o.name, o.name));
+        let (t, obj) = match o.name.as_str() {
+            "spread" => (o.at.unwrap_or(end), Objective::Spread),
+            "width" => (end, Objective::Width { stations: vec![station()?] }),
+            "height" => (end, Objective::Height { stations: vec![station()?] }),
+            "vx_max" => (end, Objective::VxMax),
+            "kinetic_energy" => (end, Objective::KineticEnergy),
+            "mean_z" => (end, Objective::MeanZ),
+            other => return Err(format!("a simulation cannot observe '{other}'")),
+        };
+        if !(0.0..=end).contains(&t) {
+            return Err(format!("'{o}': time {t} s is outside the run [0, {end}] s"));
+        }
+        plan.push((t, obj));
+    }
+    let mut order: Vec<usize> = (0..plan.len()).collect();
+    order.sort_by(|&a, &b| plan[a].0.total_cmp(&plan[b].0));
+    let mut sim = Simulation::new(&sc).map_err(|e| e.to_string())?;
+    let mut values = vec![0.0; plan.len()];
+    for k in order {
+        let (t, obj) = &plan[k];
+        while sim.time < *t * (1.0 - 1e-12) {
+            sim.step_until(*t).map_err(|e| e.to_string())?;
+        }
+        values[k] = obj.evaluate(&sim, &Frame::of(&sim), None)?;
+    }
+    Ok(values)
+}
+
+fn rheometer(model: &Model, base: &Path, protocol: &toml::Value, x: &Experiment, wanted: &[Observable]) -> Result<Vec<f64>, String> {
+    let mut mat = model.material.clone();
+    for (k, v) in &x.set {
+        let key = k.strip_prefix("material.").ok_or_else(|| format!("set.{k}: a rheometer test takes material keys only"))?;
+        mat.insert(key.to_string(), toml::Value::Float(number(v)));
+    }
+    let material = crate::materials::build_material(&mat)?;
+    let proto: Protocol = match protocol {
+        toml::Value::String(file) => {
+            let p = base.join(file);
+            let text = std::fs::read_to_string(&p).map_err(|e| format!("{}: {e}", p.display()))?;
+            toml::from_str(&text).map_err(|e| format!("{}: {}", p.display(), e.message()))?
+        }
+        v => v.clone().try_into().map_err(|e: toml::de::Error| format!("protocol: {}", e.message()))?,
+    };
+    let readings = Rheometer::new(&*material, &proto)?.run();
+    wanted
+        .iter()
+        .map(|o| {
+            let rate = o.at.ok_or("'stress' needs the shear rate: stress@RATE")?;
+            readings
+                .iter()
+                .rev()
+                .find(|r| (r.rate - rate).abs() <= 1e-9 * rate.abs().max(1.0))
+                .map(|r| r.stress)
+                .ok_or_else(|| format!("'{o}': the protocol records no reading at rate {rate} (it records {:?})", readings.iter().map(|r| r.rate).collect::<Vec<_>>()))
+        })
+        .collect()
+}
+
+/// Evaluate each experiment's `wanted` observables, `jobs` experiments at a time.
+pub fn evaluate_all(model: &Model, exps: &Experiments, wanted: &[(String, Vec<Observable>)], jobs: usize) -> Result<Vec<Vec<f64>>, String> {
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    type Slot = std::sync::Mutex<Option<Result<Vec<f64>, String>>>;
+    let results: Vec<Slot> = wanted.iter().map(|_| Slot::new(None)).collect();
+    std::thread::scope(|s| {
+        for _ in 0..jobs.clamp(1, wanted.len().max(1)) {
+            s.spawn(|| loop {
+                let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                let Some((id, obs)) = wanted.get(k) else { break };
+                let r = match exps.get(id) {
+                    Some(x) => evaluate(model, exps, x, obs),
+                    None => Err(format!("experiment '{id}' is not in the experiments file (it has {})", exps.experiment.iter().map(|e| e.id.as_str()).collect::<Vec<_>>().join(", "))),
+                };
+                *results[k].lock().unwrap() = Some(r);
+            });
+        }
+    });
+    results.into_iter().map(|m| m.into_inner().unwrap().expect("every job ran")).collect()
+}
+
+/// One observation against the model.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Row {
+    pub experiment: String,
+    pub observable: String,
+    pub at: Option<f64>,
+    pub measured: f64,
+    pub uncertainty: f64,
+    pub model: f64,
+    /// model - measured.
+    pub residual: f64,
+    /// residual / uncertainty.
+    pub z: f64,
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Summary {
+    pub name: String,
+    pub n: usize,
+    /// sqrt(mean z^2).
+    pub rms_z: f64,
+    /// Mean |residual| / |measured|.
+    pub mean_rel_error: f64,
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Comparison {
+    pub rows: Vec<Row>,
+    pub by_experiment: Vec<Summary>,
+    pub by_observable: Vec<Summary>,
+    /// Sum of z^2: the loss a calibration minimises.
+    pub chi2: f64,
+}
+
+fn summarise<'a>(rows: impl Iterator<Item = &'a Row>, key: impl Fn(&Row) -> String) -> Vec<Summary> {
+    let mut out: Vec<(String, Vec<&Row>)> = Vec::new();
+    for r in rows {
+        let k = key(r);
+        match out.iter_mut().find(|(n, _)| *n == k) {
+            Some((_, v)) => v.push(r),
+            None => out.push((k, vec![r])),
+        }
+    }
+    out.into_iter()
+        .map(|(name, rs)| {
+            let n = rs.len();
+            let rms_z = (rs.iter().map(|r| r.z * r.z).sum::<f64>() / n as f64).sqrt();
+            let mean_rel_error = rs.iter().map(|r| (r.residual / r.measured).abs()).sum::<f64>() / n as f64;
+            Summary { name, n, rms_z, mean_rel_error }
+        })
+        .collect()
+}
+
+/// Run every experiment the data name and compare.
+pub fn compare(model: &Model, data: &[Observation], exps: &Experiments, jobs: usize) -> Result<Comparison, String> {
+    let mut wanted: Vec<(String, Vec<Observable>)> = Vec::new();
+    for o in data {
+        match wanted.iter_mut().find(|(id, _)| *id == o.experiment) {
+            Some((_, v)) => v.push(o.observable.clone()),
+            None => wanted.push((o.experiment.clone(), vec![o.observable.clone()])),
+        }
+    }
+    let values = evaluate_all(model, exps, &wanted, jobs)?;
+    let mut seen = vec![0usize; wanted.len()];
+    let rows: Vec<Row> = data
+        .iter()
+        .map(|o| {
+            let e = wanted.iter().position(|(id, _)| *id == o.experiment).expect("grouped above");
+            let model = values[e][seen[e]];
+            seen[e] += 1;
+            let residual = model - o.value;
+            Row { experiment: o.experiment.clone(), observable: o.observable.name.clone(), at: o.observable.at, measured: o.value, uncertainty: o.uncertainty, model, residual, z: residual / o.uncertainty }
+        })
+        .collect();
+    let by_experiment = summarise(rows.iter(), |r| r.experiment.clone());
+    let by_observable = summarise(rows.iter(), |r| r.observable.clone());
+    let chi2 = rows.iter().map(|r| r.z * r.z).sum();
+    Ok(Comparison { rows, by_experiment, by_observable, chi2 })
+}
+
+/// The comparison as text: every observation, the summaries, and where the model fails most.
+pub fn report(c: &Comparison) -> String {
+    use std::fmt::Write as _;
+    let mut s = String::new();
+    let _ = writeln!(s, "{:<14} {:<16} {:>10} {:>13} {:>13} {:>13} {:>8}", "experiment", "observable", "at", "measured", "model", "residual", "z");
+    for r in &c.rows {
+        let at = r.at.map_or("-".to_string(), |a| format!("{a}"));
+        let _ = writeln!(s, "{:<14} {:<16} {:>10} {:>13.6e} {:>13.6e} {:>13.4e} {:>8.2}", r.experiment, r.observable, at, r.measured, r.model, r.residual, r.z);
+    }
+    for (title, list) in [("per experiment", &c.by_experiment), ("per observable", &c.by_observable)] {
+        let _ = writeln!(s, "\n{title}:");
+        for m in list {
+            let _ = writeln!(s, "  {:<16} n = {:<4} rms z = {:<10.3} mean |relative error| = {:.2} %", m.name, m.n, m.rms_z, 100.0 * m.mean_rel_error);
+        }
+    }
+    let mut worst: Vec<&Row> = c.rows.iter().collect();
+    worst.sort_by(|a, b| b.z.abs().total_cmp(&a.z.abs()));
+    let _ = writeln!(s, "\nwhere the model fails most (largest |z|):");
+    for r in worst.iter().take(5) {
+        let at = r.at.map_or(String::new(), |a| format!("@{a}"));
+        let dir = if r.residual > 0.0 { "over" } else { "under" };
+        let _ = writeln!(s, "  {} {}{}: z = {:.2} (model {dir}-predicts by {:.2} %)", r.experiment, r.observable, at, r.z, 100.0 * (r.residual / r.measured).abs());
+    }
+    let _ = writeln!(s, "\nchi^2 = {:.6e} over {} observations", c.chi2, c.rows.len());
+    s
+}
+
+/// Measurements of every experiment's `observe` list under `model`, each value times
+/// (1 + noise N(0, 1)) from a seeded generator, with uncertainty noise |value| (at least 1e-6 of
+/// it, so z-scores stay finite without noise).
+pub fn synth(model: &Model, exps: &Experiments, noise: f64, seed: u64, jobs: usize) -> Result<Vec<Observation>, String> {
+    if !(noise.is_finite() && noise >= 0.0) {
+        return Err(format!("--noise must be >= 0, got {noise}"));
+    }
+    let wanted: Vec<(String, Vec<Observable>)> = exps
+        .experiment
+        .iter()
+        .map(|x| Ok((x.id.clone(), x.observe.iter().map(|o| Observable::parse(o)).collect::<Result<Vec<_>, _>>()?)))
+        .collect::<Result<_, String>>()?;
+    if wanted.iter().all(|(_, o)| o.is_empty()) {
+        return Err("no experiment lists anything to observe (observe = [...])".into());
+    }
+    let values = evaluate_all(model, exps, &wanted, jobs)?;
+    let mut rng = Normal::new(seed);
+    let mut out = Vec::new();
+    for ((id, obs), vals) in wanted.iter().zip(values) {
+        for (o, v) in obs.iter().zip(vals) {
+            let value = v * (1.0 + noise * rng.sample());
+            out.push(Observation { experiment: id.clone(), observable: o.clone(), value, uncertainty: noise.max(1e-6) * v.abs().max(1e-300) });
+        }
+    }
+    Ok(out)
+}
+
+/// Standard normal samples: splitmix64 and Box-Muller, so a seed gives the same data anywhere.
+struct Normal {
+    state: u64,
+    spare: Option<f64>,
+}
+
+impl Normal {
+    fn new(seed: u64) -> Normal {
+        Normal { state: seed, spare: None }
+    }
+
+    fn uniform(&mut self) -> f64 {
+        self.state = self.state.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^= z >> 31;
+        ((z >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    }
+
+    fn sample(&mut self) -> f64 {
+        if let Some(s) = self.spare.take() {
+            return s;
+        }
+        let (u, v) = (self.uniform(), self.uniform());
+        let r = (-2.0 * u.ln()).sqrt();
+        let a = 2.0 * std::f64::consts::PI * v;
+        self.spare = Some(r * a.sin());
+        r * a.cos()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const MODEL: &str = "[material]\nkind = \"bingham\"\ndensity = 2100.0\nbulk_modulus = 1e6\nviscosity = 7.5\nyield_stress = 630.0\n";
+    const EXPS: &str = "[[experiment]]\nid = \"flow\"\nobserve = [\"stress@20\", \"stress@5\"]\n[experiment.protocol]\n[[experiment.protocol.phase]]\nkind = \"sweep\"\nrates = [20.0, 5.0]\nhold = 0.5\n\n\
+                        [[experiment]]\nid = \"weak\"\nset = { \"material.yield_stress\" = 300.0 }\nobserve = [\"stress@5\"]\n[experiment.protocol]\n[[experiment.protocol.phase]]\nkind = \"shear\"\nrate = 5.0\nduration = 0.5\n";
+
+    fn setup() -> (Model, Experiments) {
+        let m = Model::from_table(&MODEL.parse().unwrap()).unwrap();
+        let e: Experiments = toml::from_str(EXPS).unwrap();
+        e.validate().unwrap();
+        (m, e)
+    }
+
+    #[test]
+    fn synthetic_data_of_the_model_itself_has_no_residual_and_another_model_has() {
+        let (m, e) = setup();
+        let data = synth(&m, &e, 0.0, 1, 2).unwrap();
+        assert_eq!(data.len(), 3);
+        // tau0 + eta gamma_dot, the override reaching the second experiment only
+        let expect = [630.0 + 7.5 * 20.0, 630.0 + 7.5 * 5.0, 300.0 + 7.5 * 5.0];
+        for (o, x) in data.iter().zip(expect) {
+            assert!((o.value / x - 1.0).abs() < 1e-3, "{o:?} vs {x}");
+        }
+        let c = compare(&m, &data, &e, 1).unwrap();
+        assert!(c.rows.iter().all(|r| r.residual == 0.0), "{c:?}");
+        let other = Model::from_table(&MODEL.replace("viscosity = 7.5", "viscosity = 9.0").parse().unwrap()).unwrap();
+        let c = compare(&other, &data, &e, 1).unwrap();
+        assert!(c.rows.iter().all(|r| r.residual > 0.0) && c.chi2 > 0.0, "{c:?}");
+        let text = report(&c);
+        assert!(text.contains("where the model fails most") && text.contains("flow stress@20"), "{text}");
+    }
+
+    #[test]
+    fn noise_is_seeded_and_jobs_do_not_change_results() {
+        let (m, e) = setup();
+        let a = synth(&m, &e, 0.05, 7, 1).unwrap();
+        assert_eq!(a, synth(&m, &e, 0.05, 7, 3).unwrap());
+        assert_ne!(a, synth(&m, &e, 0.05, 8, 1).unwrap());
+        let rel: Vec<f64> = a.iter().zip(synth(&m, &e, 0.0, 7, 1).unwrap()).map(|(n, c)| n.value / c.value - 1.0).collect();
+        assert!(rel.iter().all(|r| r.abs() < 0.25) && rel.iter().any(|r| r.abs() > 1e-4), "{rel:?}");
+    }
+
+    #[test]
+    fn unknown_experiments_and_readings_are_named() {
+        let (m, e) = setup();
+        let data = vec![Observation { experiment: "nope".into(), observable: Observable::parse("stress@5").unwrap(), value: 1.0, uncertainty: 1.0 }];
+        let err = compare(&m, &data, &e, 1).unwrap_err();
+        assert!(err.contains("'nope'") && err.contains("flow, weak"), "{err}");
+        let data = vec![Observation { experiment: "flow".into(), observable: Observable::parse("stress@7").unwrap(), value: 1.0, uncertainty: 1.0 }];
+        let err = compare(&m, &data, &e, 1).unwrap_err();
+        assert!(err.contains("flow") && err.contains("no reading at rate 7"), "{err}");
+    }
+}

@@ -1,0 +1,235 @@
+//! Measurements and the experiments that produced them.
+//!
+//! Measurements are a tidy CSV, one row per observation:
+//!
+//! ```text
+//! experiment,observable,at,value,uncertainty
+//! SF240,spread,,0.500,0.010
+//! case1,width,0.016,0.0301,0.0005
+//! rheo240,stress,10.0,287.0,5.0
+//! ```
+//!
+//! `at` is the station x [m] of a printed-geometry observable, the time [s] of one observed during
+//! a run (empty for the end), or the shear rate [1/s] of a rheometer reading. The experiments file
+//! (TOML) maps each id to what produced it: a scenario with per-experiment overrides (rest time,
+//! speeds, geometry: any scenario key), or a virtual-rheometer protocol, and lists what it observes
+//! (what `strand synth` produces):
+//!
+//! ```toml
+//! [[experiment]]
+//! id = "SF240"
+//! scenario = "slump.toml"                 # relative to this file
+//! set = { "material.lambda0" = 1.8 }      # overrides, after the model's [material]
+//! observe = ["spread"]
+//!
+//! [[experiment]]
+//! id = "rheo240"
+//! protocol = "rest240.toml"               # a rheometer protocol ([[phase]] tables)
+//! observe = ["stress@10", "stress@1"]
+//! ```
+
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+/// One measured value.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Observation {
+    pub experiment: String,
+    pub observable: Observable,
+    pub value: f64,
+    pub uncertainty: f64,
+}
+
+/// What is observed, and where or when.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Observable {
+    pub name: String,
+    pub at: Option<f64>,
+}
+
+/// Observables a simulation experiment can produce, and those of a rheometer experiment.
+pub const SIMULATION_OBSERVABLES: &[&str] = &["spread", "width", "height", "vx_max", "kinetic_energy", "mean_z"];
+pub const RHEOMETER_OBSERVABLES: &[&str] = &["stress"];
+
+impl Observable {
+    /// `name` or `name@at`.
+    pub fn parse(s: &str) -> Result<Observable, String> {
+        let (name, at) = match s.split_once('@') {
+            Some((n, a)) => (n.trim(), Some(a.trim().parse::<f64>().map_err(|_| format!("'{s}': '{a}' is not a number"))?)),
+            None => (s.trim(), None),
+        };
+        Ok(Observable { name: name.to_string(), at })
+    }
+}
+
+impl std::fmt::Display for Observable {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        match self.at {
+            Some(a) => write!(f, "{}@{a}", self.name),
+            None => write!(f, "{}", self.name),
+        }
+    }
+}
+
+/// Read a measurements CSV; errors name the file and line.
+pub fn read_observations(path: &Path) -> Result<Vec<Observation>, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    parse_observations(&text).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+pub fn parse_observations(text: &str) -> Result<Vec<Observation>, String> {
+    let mut rd = csv::ReaderBuilder::new().trim(csv::Trim::All).comment(Some(b'#')).from_reader(text.as_bytes());
+    let header: Vec<String> = rd.headers().map_err(|e| e.to_string())?.iter().map(str::to_string).collect();
+    let want = ["experiment", "observable", "at", "value", "uncertainty"];
+    let col = |name: &str| header.iter().position(|h| h == name).ok_or_else(|| format!("no '{name}' column (the columns are {})", want.join(",")));
+    let idx: Vec<usize> = want.iter().map(|w| col(w)).collect::<Result<_, _>>()?;
+    let mut out = Vec::new();
+    for rec in rd.records() {
+        let rec = rec.map_err(|e| e.to_string())?;
+        let line = rec.position().map_or(0, |p| p.line());
+        let field = |k: usize| rec.get(idx[k]).unwrap_or("");
+        let number = |k: usize| -> Result<f64, String> {
+            field(k).parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| format!("line {line}: {} '{}' is not a number", want[k], field(k)))
+        };
+        let at = if field(2).is_empty() { None } else { Some(number(2)?) };
+        let uncertainty = number(4)?;
+        if uncertainty <= 0.0 {
+            return Err(format!("line {line}: uncertainty must be > 0, got {uncertainty}"));
+        }
+        if field(0).is_empty() || field(1).is_empty() {
+            return Err(format!("line {line}: experiment and observable must not be empty"));
+        }
+        out.push(Observation {
+            experiment: field(0).to_string(),
+            observable: Observable { name: field(1).to_string(), at },
+            value: number(3)?,
+            uncertainty,
+        });
+    }
+    if out.is_empty() {
+        return Err("no observations".into());
+    }
+    Ok(out)
+}
+
+/// Write observations as the tidy CSV `read_observations` reads.
+pub fn write_observations(path: &Path, obs: &[Observation]) -> Result<(), String> {
+    let mut w = csv::Writer::from_path(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let err = |e: csv::Error| format!("{}: {e}", path.display());
+    w.write_record(["experiment", "observable", "at", "value", "uncertainty"]).map_err(err)?;
+    for o in obs {
+        let at = o.observable.at.map_or(String::new(), |a| format!("{a}"));
+        w.write_record([o.experiment.clone(), o.observable.name.clone(), at, format!("{:e}", o.value), format!("{:e}", o.uncertainty)]).map_err(err)?;
+    }
+    w.flush().map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// The experiments file.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Experiments {
+    pub experiment: Vec<Experiment>,
+    /// Folder the file sits in: scenario and protocol paths are relative to it.
+    #[serde(skip)]
+    pub base_dir: PathBuf,
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Experiment {
+    pub id: String,
+    /// A simulation: the scenario file.
+    #[serde(default)]
+    pub scenario: Option<PathBuf>,
+    /// A virtual-rheometer test: a protocol file, or the protocol inline.
+    #[serde(default)]
+    pub protocol: Option<toml::Value>,
+    /// Scenario keys (`material.yield_stress`, `print.path.0.speed`, ...) set for this
+    /// experiment, after the model's `[material]`.
+    #[serde(default)]
+    pub set: toml::Table,
+    /// What it observes, as `name` or `name@at`.
+    #[serde(default)]
+    pub observe: Vec<String>,
+}
+
+impl Experiments {
+    pub fn load(path: &Path) -> Result<Experiments, String> {
+        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let mut e: Experiments = toml::from_str(&text).map_err(|e| format!("{}: {}", path.display(), e.message()))?;
+        e.base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        e.validate().map_err(|m| format!("{}: {m}", path.display()))?;
+        Ok(e)
+    }
+
+    pub fn validate(&self) -> Result<(), String> {
+        let mut seen = std::collections::HashSet::new();
+        for (i, x) in self.experiment.iter().enumerate() {
+            if !seen.insert(x.id.as_str()) {
+                return Err(format!("experiment.{i}: id '{}' is used twice", x.id));
+            }
+            let names = match (&x.scenario, &x.protocol) {
+                (Some(_), None) => SIMULATION_OBSERVABLES,
+                (None, Some(_)) => RHEOMETER_OBSERVABLES,
+                _ => return Err(format!("experiment '{}': give either scenario (a simulation) or protocol (a rheometer test)", x.id)),
+            };
+            for o in &x.observe {
+                let ob = Observable::parse(o).map_err(|e| format!("experiment '{}': observe {e}", x.id))?;
+                if !names.contains(&ob.name.as_str()) {
+                    return Err(format!("experiment '{}': cannot observe '{}'; it can observe {}", x.id, ob.name, names.join(", ")));
+                }
+            }
+            for (k, v) in &x.set {
+                if v.as_float().or(v.as_integer().map(|i| i as f64)).is_none() {
+                    return Err(format!("experiment '{}': set.{k} must be a number", x.id));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    pub fn get(&self, id: &str) -> Option<&Experiment> {
+        self.experiment.iter().find(|e| e.id == id)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn observations_round_trip_and_bad_rows_name_their_line() {
+        let text = "experiment,observable,at,value,uncertainty\nSF240,spread,,0.5,0.01\n# a comment\ncase1, width ,0.016,0.0301,5e-4\n";
+        let obs = parse_observations(text).unwrap();
+        assert_eq!(obs.len(), 2);
+        assert_eq!(obs[1].observable, Observable { name: "width".into(), at: Some(0.016) });
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("d.csv");
+        write_observations(&p, &obs).unwrap();
+        assert_eq!(read_observations(&p).unwrap(), obs);
+        let e = parse_observations("experiment,observable,at,value,uncertainty\nA,spread,,0.5,0.01\nB,spread,,zero,0.01\n").unwrap_err();
+        assert!(e.contains("line 3") && e.contains("value 'zero'"), "{e}");
+        let e = parse_observations("experiment,observable,at,value,uncertainty\nA,spread,,0.5,0\n").unwrap_err();
+        assert!(e.contains("line 2") && e.contains("uncertainty"), "{e}");
+        let e = parse_observations("experiment,observable,value\nA,spread,0.5\n").unwrap_err();
+        assert!(e.contains("no 'at' column"), "{e}");
+    }
+
+    #[test]
+    fn experiments_are_checked() {
+        let parse = |t: &str| -> Result<Experiments, String> {
+            let e: Experiments = toml::from_str(t).map_err(|e| e.to_string())?;
+            e.validate().map(|_| e)
+        };
+        let ok = parse("[[experiment]]\nid = \"a\"\nscenario = \"s.toml\"\nobserve = [\"spread\", \"width@0.02\"]\nset = { \"material.yield_stress\" = 300.0 }\n").unwrap();
+        assert_eq!(ok.experiment[0].observe.len(), 2);
+        let e = parse("[[experiment]]\nid = \"a\"\nscenario = \"s.toml\"\nobserve = [\"stress@10\"]\n").unwrap_err();
+        assert!(e.contains("cannot observe 'stress'"), "{e}");
+        let e = parse("[[experiment]]\nid = \"a\"\nscenario = \"s.toml\"\nprotocol = \"p.toml\"\n").unwrap_err();
+        assert!(e.contains("either scenario"), "{e}");
+        let e = parse("[[experiment]]\nid = \"a\"\nscenario = \"s.toml\"\n[[experiment]]\nid = \"a\"\nscenario = \"t.toml\"\n").unwrap_err();
+        assert!(e.contains("used twice"), "{e}");
+        let e = parse("[[experiment]]\nid = \"a\"\nscenario = \"s.toml\"\nset = { \"material.kind\" = \"x\" }\n").unwrap_err();
+        assert!(e.contains("must be a number"), "{e}");
+    }
+}

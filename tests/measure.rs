@@ -1,0 +1,125 @@
+//! `strand synth` and `strand compare` end to end: a slump simulation (spread during and after the
+//! run, with a per-experiment override) and a rheometer flow curve, synthesised from one model and
+//! compared against it and against another.
+
+use std::path::Path;
+use std::process::Command;
+
+const SLUMP: &str = r#"
+name = "slump-measure"
+[simulation]
+dx = 0.02
+end_time = 0.15
+dt = 2e-4
+gravity = [0.0, 0.0, -9.81]
+[domain]
+min = [-0.3, -0.3, 0.0]
+max = [0.3, 0.3, 0.32]
+[boundary]
+z_min = "no_slip"
+[material]
+kind = "newtonian"
+density = 1000.0
+bulk_modulus = 1.0e5
+viscosity = 1.0
+[[body]]
+shape = "frustum"
+base_center = [0.0, 0.0, 0.0]
+bottom_radius = 0.1
+top_radius = 0.05
+height = 0.3
+[memory]
+budget = "128 MiB"
+"#;
+
+const EXPERIMENTS: &str = r#"
+[[experiment]]
+id = "SF"
+scenario = "slump.toml"
+observe = ["spread@0.05", "spread"]
+
+[[experiment]]
+id = "SF-stiff"
+scenario = "slump.toml"
+set = { "material.yield_stress" = 400.0 }
+observe = ["spread"]
+
+[[experiment]]
+id = "flow"
+observe = ["stress@10", "stress@1"]
+[experiment.protocol]
+[[experiment.protocol.phase]]
+kind = "sweep"
+rates = [10.0, 1.0]
+hold = 0.5
+"#;
+
+const TRUTH: &str = "[material]\nkind = \"evp_bingham\"\ndensity = 2300.0\nbulk_modulus = 1.0e6\npoisson_ratio = 0.3\nviscosity = 50.0\nyield_stress = 100.0\n";
+
+fn strand(args: &[&str], dir: &Path) -> (i32, String, String) {
+    let o = Command::new(env!("CARGO_BIN_EXE_strand")).args(args).current_dir(dir).output().unwrap();
+    (o.status.code().unwrap_or(-1), String::from_utf8_lossy(&o.stdout).into(), String::from_utf8_lossy(&o.stderr).into())
+}
+
+#[test]
+fn synthesised_measurements_compare_to_their_model_exactly_and_to_another_not() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("slump.toml"), SLUMP).unwrap();
+    std::fs::write(d.join("exps.toml"), EXPERIMENTS).unwrap();
+    std::fs::write(d.join("truth.toml"), TRUTH).unwrap();
+    std::fs::write(d.join("other.toml"), TRUTH.replace("yield_stress = 100.0", "yield_stress = 200.0")).unwrap();
+
+    let (code, _, err) = strand(&["synth", "--model", "truth.toml", "--experiments", "exps.toml", "--out", "data.csv", "--jobs", "2"], d);
+    assert_eq!(code, 0, "{err}");
+    let csv = std::fs::read_to_string(d.join("data.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 1 + 5, "{csv}");
+
+    // the model that made the data: every residual zero (the scenario's own Newtonian material
+    // was replaced by the model's, whatever the number of jobs)
+    let (code, out, err) = strand(&["compare", "--model", "truth.toml", "--data", "data.csv", "--experiments", "exps.toml", "--json", "--jobs", "2"], d);
+    assert_eq!(code, 0, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let rows = v["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 5);
+    assert!(rows.iter().all(|r| r["residual"].as_f64() == Some(0.0)), "{out}");
+    let spread = |id: &str, at: Option<f64>| rows.iter().find(|r| r["experiment"] == id && r["at"].as_f64() == at).unwrap()["model"].as_f64().unwrap();
+    // the slump spreads as it runs, and less with the override's higher yield stress
+    assert!(spread("SF", None) > spread("SF", Some(0.05)), "{out}");
+    assert!(spread("SF-stiff", None) < spread("SF", None), "{out}");
+
+    // a stiffer model under-predicts the spreads and over-predicts the stresses
+    let (code, out, err) = strand(&["compare", "--model", "other.toml", "--data", "data.csv", "--experiments", "exps.toml"], d);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("where the model fails most") && out.contains("per experiment") && out.contains("over-predicts"), "{out}");
+    let (_, out, _) = strand(&["compare", "--model", "other.toml", "--data", "data.csv", "--experiments", "exps.toml", "--json"], d);
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert!(v["chi2"].as_f64().unwrap() > 1e6, "{out}");
+
+    // bad input names the problem
+    std::fs::write(d.join("bad.csv"), "experiment,observable,at,value,uncertainty\nSF,spread,,0.3,0.01\nSF,spread,,wide,0.01\n").unwrap();
+    let (code, _, err) = strand(&["compare", "--model", "truth.toml", "--data", "bad.csv", "--experiments", "exps.toml"], d);
+    assert_eq!(code, 2);
+    assert!(err.contains("bad.csv") && err.contains("line 3"), "{err}");
+    std::fs::write(d.join("ghost.csv"), "experiment,observable,at,value,uncertainty\nSF9,spread,,0.3,0.01\n").unwrap();
+    let (code, _, err) = strand(&["compare", "--model", "truth.toml", "--data", "ghost.csv", "--experiments", "exps.toml"], d);
+    assert_eq!(code, 2);
+    assert!(err.contains("'SF9'") && err.contains("SF, SF-stiff, flow"), "{err}");
+}
+
+#[test]
+fn the_rheometer_prints_a_flow_curve_and_its_sensitivities() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let (code, out, err) = strand(&["rheometer", "fixtures/rheometer/mix_a.toml", "--sensitivity", "--json"], root);
+    assert_eq!(code, 0, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let r = v["readings"].as_array().unwrap();
+    assert_eq!(r.len(), 8);
+    // at 50 /s the structure is broken down: tau0 + eta gamma_dot within 1 %
+    let fast = r.iter().find(|x| x["rate"] == 50.0).unwrap();
+    assert!((fast["stress"].as_f64().unwrap() / (92.0 + 19.5 * 50.0) - 1.0).abs() < 0.01, "{fast}");
+    assert!((fast["d_stress"]["viscosity"].as_f64().unwrap() - 50.0).abs() < 0.1, "{fast}");
+    let (code, _, err) = strand(&["rheometer", "fixtures/scenarios/slump.toml"], root);
+    assert_eq!(code, 2);
+    assert!(err.contains("no [rheometer] table"), "{err}");
+}
