@@ -69,7 +69,8 @@ enum Cmd {
     /// adjoint method under a checkpoint schedule within the RAM and disk caps.
     Grad {
         scenario: PathBuf,
-        /// What to differentiate: spread, width@X, height@X, vx_max, kinetic_energy, mean_z.
+        /// What to differentiate: spread, width@X, height@X, area@X, total_height, vx_max,
+        /// kinetic_energy, mean_z.
         #[arg(long)]
         objective: String,
         /// Parameters, comma-separated scenario keys (material.yield_stress,
