@@ -181,7 +181,6 @@ pub struct Printer {
     pub newest: Newest,
 }
 
-
 /// Slab by slab emission without a thread: `next` is the first slab not yet added.
 pub struct SyncEmission {
     pub next: u64,
