@@ -200,13 +200,18 @@ pub fn cross_section(c: &Cloud, station: f64, slab: f64, base_z: f64) -> CrossSe
 
 /// The quadratic B-spline of unit knot spacing centred at 0 (support |x| < 1.5, unit integral).
 fn quadratic_bspline(x: f64) -> f64 {
+    quadratic_bspline_and_slope(x).0
+}
+
+/// [`quadratic_bspline`] and its derivative (for the area objective's adjoint).
+pub(crate) fn quadratic_bspline_and_slope(x: f64) -> (f64, f64) {
     let a = x.abs();
     if a < 0.5 {
-        0.75 - a * a
+        (0.75 - a * a, -2.0 * x)
     } else if a < 1.5 {
-        0.5 * (1.5 - a) * (1.5 - a)
+        (0.5 * (1.5 - a) * (1.5 - a), -(1.5 - a) * x.signum())
     } else {
-        0.0
+        (0.0, 0.0)
     }
 }
 

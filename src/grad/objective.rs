@@ -182,7 +182,7 @@ impl Objective {
                         if u.abs() >= 1.5 {
                             continue;
                         }
-                        let (b, db) = bspline2(u);
+                        let (b, db) = crate::observe::quadratic_bspline_and_slope(u);
                         let vol = (vol0[i] * jv[i]) as f64;
                         total += copies * vol * b / slab;
                         if let Some(s) = seed.as_mut() {
@@ -253,19 +253,6 @@ impl Objective {
             Objective::KineticEnergy => "kinetic_energy".into(),
             Objective::MeanZ => "mean_z".into(),
         }
-    }
-}
-
-/// The quadratic B-spline of unit knot spacing centred at 0 and its derivative (as
-/// `observe.rs`'s area weight).
-fn bspline2(x: f64) -> (f64, f64) {
-    let a = x.abs();
-    if a < 0.5 {
-        (0.75 - x * x, -2.0 * x)
-    } else if a < 1.5 {
-        (0.5 * (1.5 - a) * (1.5 - a), -(1.5 - a) * x.signum())
-    } else {
-        (0.0, 0.0)
     }
 }
 

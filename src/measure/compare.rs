@@ -42,8 +42,9 @@ impl Model {
     }
 }
 
+/// An override's value (validated as a number when the experiments were loaded).
 fn number(v: &toml::Value) -> f64 {
-    v.as_float().or(v.as_integer().map(|i| i as f64)).unwrap_or(f64::NAN)
+    super::data::number(v).unwrap_or(f64::NAN)
 }
 
 /// The model's values of `wanted` for experiment `x`.

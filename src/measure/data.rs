@@ -124,6 +124,11 @@ pub fn write_observations(path: &Path, obs: &[Observation]) -> Result<(), String
     w.flush().map_err(|e| format!("{}: {e}", path.display()))
 }
 
+/// A TOML number as f64 (integers too); None for anything else.
+pub fn number(v: &toml::Value) -> Option<f64> {
+    v.as_float().or(v.as_integer().map(|i| i as f64))
+}
+
 /// The experiments file.
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -180,7 +185,7 @@ impl Experiments {
                 }
             }
             for (k, v) in &x.set {
-                if v.as_float().or(v.as_integer().map(|i| i as f64)).is_none() {
+                if number(v).is_none() {
                     return Err(format!("experiment '{}': set.{k} must be a number", x.id));
                 }
             }
