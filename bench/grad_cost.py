@@ -36,35 +36,8 @@ budget = "16 MiB"
 """
 
 # The Poiseuille channel of tests/grad.rs (2,048 particles, 4,167 steps), whose state is large
-# enough that the step's fixed costs do not dominate; stored whole (a few MB per state).
-CHANNEL = """
-name = "poiseuille-grad"
-[simulation]
-dx = 0.015625
-end_time = 1.5
-dt = 3.6e-4
-gravity = [0.0, 0.0, 0.0]
-body_force = [2000.0, 0.0, 0.0]
-threads = {threads}
-[domain]
-min = [0.0, 0.0, 0.0]
-max = [0.0625, 0.0625, 0.25]
-periodic = [true, true, false]
-[boundary]
-z_min = "no_slip"
-z_max = "no_slip"
-[material]
-kind = "newtonian"
-density = 2000.0
-bulk_modulus = 3.3e5
-viscosity = 60.0
-[[body]]
-shape = "box"
-min = [0.0, 0.0, 0.0]
-max = [0.0625, 0.0625, 0.25]
-[memory]
-budget = "64 MiB"
-"""
+# enough that the step's fixed costs do not dominate.
+CHANNEL = os.path.join(os.path.dirname(__file__), "..", "fixtures", "scenarios", "grad", "poiseuille.toml")
 
 
 def row(exe, path, args, d):
@@ -96,10 +69,7 @@ def main():
         print()
         print("| N steps | schedule | forward steps run | peak RAM slots | wall [s] | forward step [us] | reverse step [us] | reverse / forward step | gradient / one forward run |")
         print("|---|---|---|---|---|---|---|---|---|")
-        path = os.path.join(d, "channel.toml")
-        with open(path, "w") as f:
-            f.write(CHANNEL.format(threads=2))
-        print(row(exe, path, ["--objective", "vx_max", "--wrt", "simulation.body_force.x,material.viscosity"], d), flush=True)
+        print(row(exe, CHANNEL, ["--objective", "vx_max", "--wrt", "simulation.body_force.x,material.viscosity", "--threads", "2"], d), flush=True)
 
 if __name__ == "__main__":
     main()

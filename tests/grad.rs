@@ -120,33 +120,7 @@ fn poiseuille_centre_speed_derivative_matches_the_closed_form() {
     // Steady plane Poiseuille flow: v_max = F H^2 / (8 eta), so dv_max/dF = H^2 / (8 eta)
     // (paper 000 sec. 4.1). H = 0.25 m, eta = 60 Pa s: the slowest mode decays in
     // H^2 rho / (pi^2 eta) = 0.21 s, so 1.5 s is steady to 1e-3.
-    let text = r#"
-name = "poiseuille-grad"
-[simulation]
-dx = 0.015625
-end_time = 1.5
-dt = 3.6e-4
-gravity = [0.0, 0.0, 0.0]
-body_force = [2000.0, 0.0, 0.0]
-[domain]
-min = [0.0, 0.0, 0.0]
-max = [0.0625, 0.0625, 0.25]
-periodic = [true, true, false]
-[boundary]
-z_min = "no_slip"
-z_max = "no_slip"
-[material]
-kind = "newtonian"
-density = 2000.0
-bulk_modulus = 3.3e5
-viscosity = 60.0
-[[body]]
-shape = "box"
-min = [0.0, 0.0, 0.0]
-max = [0.0625, 0.0625, 0.25]
-[memory]
-budget = "64 MiB"
-"#;
+    let text = include_str!("../fixtures/scenarios/grad/poiseuille.toml");
     let sc = Scenario::parse(text).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let r = gradient(&sc, &"vx_max".parse().unwrap(), &keys(&["simulation.body_force.x"]), &opts(None, dir.path())).unwrap();

@@ -97,7 +97,7 @@ pub fn header(sim: &Simulation, outputs: u64, progress: &Progress, sections: Vec
 }
 
 fn emitted_slabs(sim: &Simulation) -> u64 {
-    sim.printer.as_ref().and_then(|p| p.emitter.as_ref()).map_or(0, |e| e.emitted)
+    sim.printer.as_ref().map_or(0, |p| p.emitted())
 }
 
 /// xxh3 of the resolved toolpath, 0 when not printing.

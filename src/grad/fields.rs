@@ -88,7 +88,7 @@ fn arrays(sim: &Simulation) -> [&[u8]; 6] {
 }
 
 fn next_slab(sim: &Simulation) -> u64 {
-    sim.printer.as_ref().and_then(|p| p.sync.as_ref()).map_or(0, |s| s.next)
+    sim.printer.as_ref().map_or(0, |p| p.emitted())
 }
 
 /// Write the live state into `out` (at least [`state_bytes`] long).

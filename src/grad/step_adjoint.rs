@@ -104,7 +104,7 @@ impl StepAdjoint {
         let t = sim.time;
 
         // recompute the step, keeping what it overwrites
-        let (n_before, first_slab) = (sim.particles.n, sim.printer.as_ref().and_then(|p| p.sync.as_ref()).map_or(0, |s| s.next));
+        let (n_before, first_slab) = (sim.particles.n, sim.printer.as_ref().map_or(0, |p| p.emitted()));
         sim.emit().map_err(|e| e.to_string())?;
         sim.newest_masses();
         let n = sim.particles.n;
