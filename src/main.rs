@@ -157,6 +157,63 @@ enum Cmd {
         #[arg(long, default_value_t = 1)]
         jobs: usize,
     },
+    /// Fit named model parameters to measurements (bounded Levenberg-Marquardt, gradients from
+    /// the adjoints): prints each parameter with its uncertainty and the error before and after,
+    /// writes the calibrated model and a convergence plot.
+    Calibrate {
+        /// Model file: [material] and [effects.NAME].
+        #[arg(long)]
+        model: PathBuf,
+        #[arg(long)]
+        data: PathBuf,
+        #[arg(long)]
+        experiments: PathBuf,
+        /// Parameters to fit: material.KEY or EFFECT.PARAM, comma-separated.
+        #[arg(long, value_delimiter = ',', required = true)]
+        fit: Vec<String>,
+        /// Where the calibrated model goes (default: MODEL's name with .calibrated.toml).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Convergence plot (PNG; default beside --out).
+        #[arg(long)]
+        plot: Option<PathBuf>,
+        #[arg(long, default_value_t = 30)]
+        max_iterations: usize,
+        #[arg(long, default_value_t = 1)]
+        jobs: usize,
+        #[arg(long)]
+        json: bool,
+    },
+    /// Which physical effect the model lacks: fits --fit, scores every effect not in the model
+    /// at its null (score test from the adjoint gradient), fits the significant ones, checks them
+    /// by leave-one-experiment-out, and gives a verdict ("add EFFECT", "explained" or
+    /// "unexplained").
+    Diagnose {
+        #[arg(long)]
+        model: PathBuf,
+        #[arg(long)]
+        data: PathBuf,
+        #[arg(long)]
+        experiments: PathBuf,
+        /// Base parameters refitted first (and in every candidate's fit), comma-separated.
+        #[arg(long, value_delimiter = ',')]
+        fit: Vec<String>,
+        /// Significance level of the score test and of the base model's fit.
+        #[arg(long, default_value_t = 0.01)]
+        alpha: f64,
+        /// Skip the leave-one-experiment-out check.
+        #[arg(long)]
+        no_loo: bool,
+        /// Write the model with the recommended effect, fitted, here.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        #[arg(long, default_value_t = 30)]
+        max_iterations: usize,
+        #[arg(long, default_value_t = 1)]
+        jobs: usize,
+        #[arg(long)]
+        json: bool,
+    },
     /// Throughput of the peer benchmark scene (3D J-fluid dam break).
     Bench {
         #[arg(long, default_value_t = 262_144)]
@@ -287,6 +344,46 @@ fn main() -> ExitCode {
             let obs = compare::synth(&m, &e, noise, seed, jobs)?;
             write_observations(&out, &obs)?;
             eprintln!("{} observations of {} experiments written to {}", obs.len(), e.experiment.len(), out.display());
+            Ok(true)
+        })(),
+        Cmd::Calibrate { model, data, experiments, fit, out, plot, max_iterations, jobs, json } => (|| {
+            use strand::measure::{calibrate, compare, data::{read_observations, Experiments}};
+            let m = compare::Model::load(&model)?;
+            let d = read_observations(&data)?;
+            let e = Experiments::load(&experiments)?;
+            let opts = calibrate::FitOptions { max_iterations, jobs, ..Default::default() };
+            let f = calibrate::calibrate(&m, &d, &e, &fit, &opts)?;
+            let out = out.unwrap_or_else(|| model.with_extension("calibrated.toml"));
+            std::fs::write(&out, f.model.to_toml()).map_err(|e| format!("{}: {e}", out.display()))?;
+            let plot = plot.unwrap_or_else(|| out.with_extension("png"));
+            calibrate::plot_convergence(&f, &plot)?;
+            if json {
+                println!("{:#}", serde_json::to_value(&f).map_err(|e| e.to_string())?);
+            } else {
+                print!("{}", calibrate::report(&f));
+            }
+            eprintln!("calibrated model written to {}, convergence plot to {}", out.display(), plot.display());
+            Ok(true)
+        })(),
+        Cmd::Diagnose { model, data, experiments, fit, alpha, no_loo, out, max_iterations, jobs, json } => (|| {
+            use strand::measure::{calibrate::FitOptions, compare, data::{read_observations, Experiments}, diagnose};
+            if !(alpha > 0.0 && alpha < 1.0) {
+                return Err(format!("--alpha must be in (0, 1), got {alpha}"));
+            }
+            let m = compare::Model::load(&model)?;
+            let d = read_observations(&data)?;
+            let e = Experiments::load(&experiments)?;
+            let opts = diagnose::DiagnoseOptions { fit: FitOptions { max_iterations, jobs, ..Default::default() }, alpha, leave_one_out: !no_loo, ..Default::default() };
+            let r = diagnose::diagnose(&m, &d, &e, &fit, &opts)?;
+            if let (Some(out), Some(best)) = (&out, &r.recommended_model) {
+                std::fs::write(out, best.to_toml()).map_err(|e| format!("{}: {e}", out.display()))?;
+                eprintln!("model with {} written to {}", r.recommended.as_deref().unwrap_or(""), out.display());
+            }
+            if json {
+                println!("{:#}", serde_json::to_value(&r).map_err(|e| e.to_string())?);
+            } else {
+                print!("{}", diagnose::report(&r));
+            }
             Ok(true)
         })(),
         Cmd::Bench { particles, grid, steps, repeats, threads, json } => {

@@ -1,45 +1,32 @@
 //! Running the experiments under a model, comparing with measurements, and synthesising
 //! measurements from a model (`strand compare`, `strand synth`).
 //!
-//! A model file holds the `[material]` every experiment uses: it replaces the scenario's own, and
-//! an experiment's `set` overrides apply after it (a rest time that sets `material.lambda0`, a
-//! speed, a geometry). Each experiment runs once, producing every observable asked of it;
+//! A model file holds the `[material]` every experiment uses and the effects switched on
+//! (`model.rs`): its material replaces the scenario's own, its keys and its effects' keys are set,
+//! and an experiment's `set` overrides apply after them (a speed, a geometry). Each experiment runs once, producing every observable asked of it;
 //! experiments are independent jobs, run `jobs` at a time, and give the same numbers however
 //! many run together.
 
 use super::data::{Experiment, Experiments, Observable, Observation};
-use super::rheometer::{Protocol, Rheometer};
+use super::effects::Keys;
+use super::model::set_path;
+use super::rheometer::{Protocol, Reading, Rheometer};
 use crate::grad::objective::{Frame, Objective};
+use crate::kernels::material::Material;
 use crate::scenario::Scenario;
 use crate::solver::Simulation;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-/// The model: the material every experiment runs with.
-#[derive(Clone, Debug)]
-pub struct Model {
-    pub material: toml::Table,
-    pub path: PathBuf,
-}
+pub use super::model::Model;
 
-impl Model {
-    pub fn load(path: &Path) -> Result<Model, String> {
-        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-        let t: toml::Table = text.parse().map_err(|e| format!("{}: {e}", path.display()))?;
-        Model::from_table(&t).map(|mut m| {
-            m.path = path.to_path_buf();
-            m
-        }).map_err(|e| format!("{}: {e}", path.display()))
+/// The scenario keys experiment `x` runs with: the model's for its covariates, then its own
+/// `set` overrides.
+pub fn experiment_keys(model: &Model, x: &Experiment) -> Result<Keys, String> {
+    let mut keys = model.keys(&x.covariates())?;
+    for (k, v) in &x.set {
+        keys.insert(k.clone(), number(v));
     }
-
-    pub fn from_table(t: &toml::Table) -> Result<Model, String> {
-        match t.get("material") {
-            Some(toml::Value::Table(m)) => {
-                crate::materials::build_material(m)?;
-                Ok(Model { material: m.clone(), path: PathBuf::new() })
-            }
-            _ => Err("no [material] table".into()),
-        }
-    }
+    Ok(keys)
 }
 
 /// An override's value (validated as a number when the experiments were loaded).
@@ -49,44 +36,60 @@ fn number(v: &toml::Value) -> f64 {
 
 /// The model's values of `wanted` for experiment `x`.
 pub fn evaluate(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable]) -> Result<Vec<f64>, String> {
-    let r = match (&x.scenario, &x.protocol) {
-        (Some(s), _) => simulate(model, &exps.base_dir.join(s), x, wanted),
-        (None, Some(p)) => rheometer(model, &exps.base_dir, p, x, wanted),
+    let r = experiment_keys(model, x).and_then(|keys| match (&x.scenario, &x.protocol) {
+        (Some(s), _) => simulate(model, &keys, &exps.base_dir.join(s), wanted),
+        (None, Some(p)) => {
+            let (material, proto) = rheometer_setup(model, &keys, &exps.base_dir, p)?;
+            let readings = Rheometer::new(&*material, &proto)?.run();
+            wanted.iter().map(|o| reading_index(o, &readings).map(|k| readings[k].stress)).collect()
+        }
         (None, None) => Err("neither scenario nor protocol".into()),
-    };
+    });
     r.map_err(|e| format!("experiment '{}': {e}", x.id))
 }
 
-fn simulate(model: &Model, scenario: &Path, x: &Experiment, wanted: &[Observable]) -> Result<Vec<f64>, String> {
+/// The scenario of a simulation experiment: the file's, with the model's `[material]` in place
+/// of its own and every key set.
+pub fn scenario_text(model: &Model, keys: &Keys, scenario: &Path) -> Result<String, String> {
     let text = std::fs::read_to_string(scenario).map_err(|e| format!("{}: {e}", scenario.display()))?;
     let mut doc: toml::Table = text.parse().map_err(|e| format!("{}: {e}", scenario.display()))?;
     doc.insert("material".into(), toml::Value::Table(model.material.clone()));
-    let mut text = toml::to_string(&doc).map_err(|e| e.to_string())?;
-    for (k, v) in &x.set {
-        text = crate::grad::params::with_value(&text, k, number(v)).map_err(|e| format!("set.{k}: {e}"))?;
+    for (k, v) in keys {
+        set_path(&mut doc, k, *v).map_err(|e| format!("set.{k}: {e}"))?;
     }
-    let mut sc = Scenario::parse(&text).map_err(|e| format!("{}: {e}", scenario.display()))?;
+    toml::to_string(&doc).map_err(|e| e.to_string())
+}
+
+pub fn parse_scenario(text: &str, scenario: &Path) -> Result<Scenario, String> {
+    let mut sc = Scenario::parse(text).map_err(|e| format!("{}: {e}", scenario.display()))?;
     sc.base_dir = scenario.parent().map(Path::to_path_buf).unwrap_or_default();
     sc.checkpoint.enabled = false;
-    let end = sc.simulation.end_time;
-    // (time, objective) per observable: spread may be taken during the run, the rest at the end
-    let mut plan = Vec::new();
-    for o in wanted {
-        let station = || o.at.ok_or_else(|| format!("'{}' needs a station: {}@X", o.name, o.name));
-        let (t, obj) = match o.name.as_str() {
-            "spread" => (o.at.unwrap_or(end), Objective::Spread),
-            "width" => (end, Objective::Width { stations: vec![station()?] }),
-            "height" => (end, Objective::Height { stations: vec![station()?] }),
-            "vx_max" => (end, Objective::VxMax),
-            "kinetic_energy" => (end, Objective::KineticEnergy),
-            "mean_z" => (end, Objective::MeanZ),
-            other => return Err(format!("a simulation cannot observe '{other}'")),
-        };
-        if !(0.0..=end).contains(&t) {
-            return Err(format!("'{o}': time {t} s is outside the run [0, {end}] s"));
-        }
-        plan.push((t, obj));
+    Ok(sc)
+}
+
+/// When (time) and what (objective) a simulation observable is: spread may be taken during the
+/// run, the rest at its end `end`.
+pub fn observable_plan(o: &Observable, end: f64) -> Result<(f64, Objective), String> {
+    let station = || o.at.ok_or_else(|| format!("'{}' needs a station: {}@X", o.name, o.name));
+    let (t, obj) = match o.name.as_str() {
+        "spread" => (o.at.unwrap_or(end), Objective::Spread),
+        "width" => (end, Objective::Width { stations: vec![station()?] }),
+        "height" => (end, Objective::Height { stations: vec![station()?] }),
+        "vx_max" => (end, Objective::VxMax),
+        "kinetic_energy" => (end, Objective::KineticEnergy),
+        "mean_z" => (end, Objective::MeanZ),
+        other => return Err(format!("a simulation cannot observe '{other}'")),
+    };
+    if !(0.0..=end).contains(&t) {
+        return Err(format!("'{o}': time {t} s is outside the run [0, {end}] s"));
     }
+    Ok((t, obj))
+}
+
+fn simulate(model: &Model, keys: &Keys, scenario: &Path, wanted: &[Observable]) -> Result<Vec<f64>, String> {
+    let sc = parse_scenario(&scenario_text(model, keys, scenario)?, scenario)?;
+    let end = sc.simulation.end_time;
+    let plan: Vec<(f64, Objective)> = wanted.iter().map(|o| observable_plan(o, end)).collect::<Result<_, _>>()?;
     let mut order: Vec<usize> = (0..plan.len()).collect();
     order.sort_by(|&a, &b| plan[a].0.total_cmp(&plan[b].0));
     let mut sim = Simulation::new(&sc).map_err(|e| e.to_string())?;
@@ -101,11 +104,18 @@ fn simulate(model: &Model, scenario: &Path, x: &Experiment, wanted: &[Observable
     Ok(values)
 }
 
-fn rheometer(model: &Model, base: &Path, protocol: &toml::Value, x: &Experiment, wanted: &[Observable]) -> Result<Vec<f64>, String> {
+/// The material of a rheometer experiment (the model's, with its `material.*` keys; walls do not
+/// reach a rheometer) and its protocol.
+pub fn rheometer_setup(model: &Model, keys: &Keys, base: &Path, protocol: &toml::Value) -> Result<(Box<dyn Material>, Protocol), String> {
     let mut mat = model.material.clone();
-    for (k, v) in &x.set {
-        let key = k.strip_prefix("material.").ok_or_else(|| format!("set.{k}: a rheometer test takes material keys only"))?;
-        mat.insert(key.to_string(), toml::Value::Float(number(v)));
+    for (k, v) in keys {
+        match k.strip_prefix("material.") {
+            Some(key) => {
+                mat.insert(key.to_string(), toml::Value::Float(*v));
+            }
+            None if k.starts_with("boundary.") => {}
+            None => return Err(format!("set.{k}: a rheometer test takes material keys only")),
+        }
     }
     let material = crate::materials::build_material(&mat)?;
     let proto: Protocol = match protocol {
@@ -116,35 +126,74 @@ fn rheometer(model: &Model, base: &Path, protocol: &toml::Value, x: &Experiment,
         }
         v => v.clone().try_into().map_err(|e: toml::de::Error| format!("protocol: {}", e.message()))?,
     };
-    let readings = Rheometer::new(&*material, &proto)?.run();
+    Ok((material, proto))
+}
+
+/// Which reading a rheometer observable is: the last one at its shear rate.
+pub fn reading_index(o: &Observable, readings: &[Reading]) -> Result<usize, String> {
+    let rate = o.at.ok_or("'stress' needs the shear rate: stress@RATE")?;
+    readings.iter().rposition(|r| (r.rate - rate).abs() <= 1e-9 * rate.abs().max(1.0)).ok_or_else(|| {
+        format!("'{o}': the protocol records no reading at rate {rate} (it records {:?})", readings.iter().map(|r| r.rate).collect::<Vec<_>>())
+    })
+}
+
+/// The observations grouped by experiment, in order of first appearance.
+pub fn group(data: &[Observation]) -> Vec<(String, Vec<Observable>)> {
+    let mut wanted: Vec<(String, Vec<Observable>)> = Vec::new();
+    for o in data {
+        match wanted.iter_mut().find(|(id, _)| *id == o.experiment) {
+            Some((_, v)) => v.push(o.observable.clone()),
+            None => wanted.push((o.experiment.clone(), vec![o.observable.clone()])),
+        }
+    }
     wanted
-        .iter()
+}
+
+/// The model's value of every observation, in the data's order.
+pub fn model_values(model: &Model, data: &[Observation], exps: &Experiments, jobs: usize) -> Result<Vec<f64>, String> {
+    let wanted = group(data);
+    let values = evaluate_all(model, exps, &wanted, jobs)?;
+    Ok(ungroup(data, &wanted, &values))
+}
+
+/// Per-experiment results back in the data's order.
+pub fn ungroup<T: Clone>(data: &[Observation], wanted: &[(String, Vec<Observable>)], per: &[Vec<T>]) -> Vec<T> {
+    let mut seen = vec![0usize; wanted.len()];
+    data.iter()
         .map(|o| {
-            let rate = o.at.ok_or("'stress' needs the shear rate: stress@RATE")?;
-            readings
-                .iter()
-                .rev()
-                .find(|r| (r.rate - rate).abs() <= 1e-9 * rate.abs().max(1.0))
-                .map(|r| r.stress)
-                .ok_or_else(|| format!("'{o}': the protocol records no reading at rate {rate} (it records {:?})", readings.iter().map(|r| r.rate).collect::<Vec<_>>()))
+            let e = wanted.iter().position(|(id, _)| *id == o.experiment).expect("grouped");
+            seen[e] += 1;
+            per[e][seen[e] - 1].clone()
         })
         .collect()
 }
 
 /// Evaluate each experiment's `wanted` observables, `jobs` experiments at a time.
 pub fn evaluate_all(model: &Model, exps: &Experiments, wanted: &[(String, Vec<Observable>)], jobs: usize) -> Result<Vec<Vec<f64>>, String> {
+    par_map(wanted.len(), jobs, |k| {
+        let (id, obs) = &wanted[k];
+        evaluate(model, exps, find(exps, id)?, obs)
+    })
+}
+
+/// Experiment `id`, or an error listing the ids there are.
+pub fn find<'a>(exps: &'a Experiments, id: &str) -> Result<&'a Experiment, String> {
+    exps.get(id).ok_or_else(|| format!("experiment '{id}' is not in the experiments file (it has {})", exps.experiment.iter().map(|e| e.id.as_str()).collect::<Vec<_>>().join(", ")))
+}
+
+/// `f(0..n)` as independent jobs, `jobs` at a time; results in index order whatever the number
+/// of jobs, the first error (by index) if any failed.
+pub fn par_map<T: Send>(n: usize, jobs: usize, f: impl Fn(usize) -> Result<T, String> + Sync) -> Result<Vec<T>, String> {
     let next = std::sync::atomic::AtomicUsize::new(0);
-    type Slot = std::sync::Mutex<Option<Result<Vec<f64>, String>>>;
-    let results: Vec<Slot> = wanted.iter().map(|_| Slot::new(None)).collect();
+    let results: Vec<std::sync::Mutex<Option<Result<T, String>>>> = (0..n).map(|_| std::sync::Mutex::new(None)).collect();
     std::thread::scope(|s| {
-        for _ in 0..jobs.clamp(1, wanted.len().max(1)) {
+        for _ in 0..jobs.clamp(1, n.max(1)) {
             s.spawn(|| loop {
                 let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                let Some((id, obs)) = wanted.get(k) else { break };
-                let r = match exps.get(id) {
-                    Some(x) => evaluate(model, exps, x, obs),
-                    None => Err(format!("experiment '{id}' is not in the experiments file (it has {})", exps.experiment.iter().map(|e| e.id.as_str()).collect::<Vec<_>>().join(", "))),
-                };
+                if k >= n {
+                    break;
+                }
+                let r = f(k);
                 *results[k].lock().unwrap() = Some(r);
             });
         }
@@ -207,21 +256,15 @@ fn summarise<'a>(rows: impl Iterator<Item = &'a Row>, key: impl Fn(&Row) -> Stri
 
 /// Run every experiment the data name and compare.
 pub fn compare(model: &Model, data: &[Observation], exps: &Experiments, jobs: usize) -> Result<Comparison, String> {
-    let mut wanted: Vec<(String, Vec<Observable>)> = Vec::new();
-    for o in data {
-        match wanted.iter_mut().find(|(id, _)| *id == o.experiment) {
-            Some((_, v)) => v.push(o.observable.clone()),
-            None => wanted.push((o.experiment.clone(), vec![o.observable.clone()])),
-        }
-    }
-    let values = evaluate_all(model, exps, &wanted, jobs)?;
-    let mut seen = vec![0usize; wanted.len()];
+    Ok(comparison(data, &model_values(model, data, exps, jobs)?))
+}
+
+/// The comparison of `data` with the model's values of it.
+pub fn comparison(data: &[Observation], values: &[f64]) -> Comparison {
     let rows: Vec<Row> = data
         .iter()
-        .map(|o| {
-            let e = wanted.iter().position(|(id, _)| *id == o.experiment).expect("grouped above");
-            let model = values[e][seen[e]];
-            seen[e] += 1;
+        .zip(values)
+        .map(|(o, &model)| {
             let residual = model - o.value;
             Row { experiment: o.experiment.clone(), observable: o.observable.name.clone(), at: o.observable.at, measured: o.value, uncertainty: o.uncertainty, model, residual, z: residual / o.uncertainty }
         })
@@ -229,7 +272,7 @@ pub fn compare(model: &Model, data: &[Observation], exps: &Experiments, jobs: us
     let by_experiment = summarise(rows.iter(), |r| r.experiment.clone());
     let by_observable = summarise(rows.iter(), |r| r.observable.clone());
     let chi2 = rows.iter().map(|r| r.z * r.z).sum();
-    Ok(Comparison { rows, by_experiment, by_observable, chi2 })
+    Comparison { rows, by_experiment, by_observable, chi2 }
 }
 
 /// The comparison as text: every observation, the summaries, and where the model fails most.

@@ -21,6 +21,8 @@
 //! scenario = "slump.toml"                 # relative to this file
 //! set = { "material.lambda0" = 1.8 }      # overrides, after the model's [material]
 //! observe = ["spread"]
+//! rest_time = 240.0                       # covariates the model's effects read: rest before
+//! age = 1800.0                            # the test and material age since mixing [s]
 //!
 //! [[experiment]]
 //! id = "rheo240"
@@ -156,6 +158,18 @@ pub struct Experiment {
     /// What it observes, as `name` or `name@at`.
     #[serde(default)]
     pub observe: Vec<String>,
+    /// Rest before the test [s] (what thixotropy builds on).
+    #[serde(default)]
+    pub rest_time: f64,
+    /// Material age at the test, since mixing [s] (what ageing acts on).
+    #[serde(default)]
+    pub age: f64,
+}
+
+impl Experiment {
+    pub fn covariates(&self) -> super::effects::Covariates {
+        super::effects::Covariates { rest_time: self.rest_time, age: self.age }
+    }
 }
 
 impl Experiments {
@@ -182,6 +196,11 @@ impl Experiments {
                 let ob = Observable::parse(o).map_err(|e| format!("experiment '{}': observe {e}", x.id))?;
                 if !names.contains(&ob.name.as_str()) {
                     return Err(format!("experiment '{}': cannot observe '{}'; it can observe {}", x.id, ob.name, names.join(", ")));
+                }
+            }
+            for (what, v) in [("rest_time", x.rest_time), ("age", x.age)] {
+                if !(v.is_finite() && v >= 0.0) {
+                    return Err(format!("experiment '{}': {what} must be >= 0 seconds, got {v}", x.id));
                 }
             }
             for (k, v) in &x.set {

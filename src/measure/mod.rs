@@ -1,7 +1,15 @@
 //! The measurement loop (issue 6): measurements and the experiments that produced them
-//! (`data.rs`), a virtual rheometer (`rheometer.rs`), and running experiments under a model to
-//! compare with measurements or to synthesise them (`compare.rs`).
+//! (`data.rs`), a model and its effects (`model.rs`, `effects/`), a virtual rheometer
+//! (`rheometer.rs`), running experiments under a model to compare with measurements or to
+//! synthesise them (`compare.rs`), their gradients (`sensitivity.rs`), fitting a model
+//! (`calibrate.rs`) and finding the effect it lacks (`diagnose.rs`).
 
+pub mod calibrate;
 pub mod compare;
 pub mod data;
+pub mod diagnose;
+pub mod effects;
+pub mod linalg;
+pub mod model;
 pub mod rheometer;
+pub mod sensitivity;

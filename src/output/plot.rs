@@ -141,6 +141,60 @@ pub fn plot_cross_section(
     root.present().map_err(|e| err(&e))
 }
 
+/// Plots series of (x, y) points to a PNG of 900 x 500 pixels, as lines with markers (`lines`)
+/// or markers only; axes fitted to the data (5 % padding), non-finite points skipped.
+pub fn plot_xy(path: &Path, title: &str, x_desc: &str, y_desc: &str, series: &[(String, Vec<[f64; 2]>)], lines: bool) -> Result<(), String> {
+    ensure_font()?;
+    let err = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
+    let finite = |p: &&[f64; 2]| p[0].is_finite() && p[1].is_finite();
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for p in series.iter().flat_map(|(_, p)| p.iter()).filter(finite) {
+        for a in 0..2 {
+            lo[a] = lo[a].min(p[a]);
+            hi[a] = hi[a].max(p[a]);
+        }
+    }
+    if !(lo[0] <= hi[0]) {
+        lo = [0.0; 2];
+        hi = [1.0; 2];
+    }
+    let pad = |a: f64, b: f64| {
+        let m = ((b - a) * 0.05).max(1e-3 * a.abs().max(b.abs())).max(1e-12);
+        a - m..b + m
+    };
+    let root = BitMapBackend::new(path, SIZE).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| err(&e))?;
+    let body = root.titled(title, (FAMILY, 22)).map_err(|e| err(&e))?;
+    let mut chart = ChartBuilder::on(&body)
+        .margin(MARGIN)
+        .x_label_area_size(X_LABEL_AREA)
+        .y_label_area_size(Y_LABEL_AREA)
+        .build_cartesian_2d(pad(lo[0], hi[0]), pad(lo[1], hi[1]))
+        .map_err(|e| err(&e))?;
+    chart.configure_mesh().x_desc(x_desc).y_desc(y_desc).label_style((FAMILY, 14)).axis_desc_style((FAMILY, 16)).draw().map_err(|e| err(&e))?;
+    for (i, (label, pts)) in series.iter().enumerate() {
+        let colour = Palette99::pick(i).to_rgba();
+        let pts: Vec<(f64, f64)> = pts.iter().filter(finite).map(|p| (p[0], p[1])).collect();
+        if lines {
+            chart.draw_series(LineSeries::new(pts.clone(), colour.stroke_width(2))).map_err(|e| err(&e))?;
+        }
+        chart
+            .draw_series(pts.into_iter().map(|p| Circle::new(p, 4, colour.filled())))
+            .map_err(|e| err(&e))?
+            .label(label.as_str())
+            .legend(move |(x, y)| Circle::new((x + 10, y), 4, colour.filled()));
+    }
+    chart
+        .configure_series_labels()
+        .label_font((FAMILY, 14))
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .position(SeriesLabelPosition::UpperRight)
+        .draw()
+        .map_err(|e| err(&e))?;
+    root.present().map_err(|e| err(&e))
+}
+
 /// Axis ranges (mm) for the points and whether they share one scale.
 ///
 /// `px` is the plot's size in pixels. Ranges get 5% padding; with equal scales the shorter

@@ -1,0 +1,228 @@
+//! `strand calibrate`: a bounded Levenberg-Marquardt fit of named model parameters to
+//! measurements, minimising chi^2 = sum ((model - measured) / uncertainty)^2 with the Jacobian
+//! from the adjoints (`sensitivity.rs`).
+//!
+//! Parameters move in units of their scale (an effect's typical magnitude, a material number's
+//! starting value), so the damping treats them alike. A parameter at a bound whose gradient
+//! pushes outward is held there for the step (projected LM). Uncertainties are the square roots
+//! of the diagonal of (J^T J)^-1 of the standardised residuals at the optimum: with the data's
+//! uncertainties taken as given (not rescaled by the reduced chi^2, which is reported beside).
+
+use super::data::{Experiments, Observation};
+use super::linalg::{normal_equations, pinv_sym, Mat};
+use super::model::Model;
+use super::sensitivity::sensitivity;
+
+#[derive(Clone, Debug)]
+pub struct FitOptions {
+    pub max_iterations: usize,
+    /// Stop when an accepted step lowers chi^2 by less than this fraction.
+    pub tolerance: f64,
+    pub jobs: usize,
+}
+
+impl Default for FitOptions {
+    fn default() -> FitOptions {
+        FitOptions { max_iterations: 30, tolerance: 1e-6, jobs: 1 }
+    }
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Fit {
+    pub names: Vec<String>,
+    pub start: Vec<f64>,
+    pub values: Vec<f64>,
+    /// One standard deviation; NaN for a parameter held at a bound.
+    pub uncertainty: Vec<f64>,
+    pub at_bound: Vec<bool>,
+    pub chi2_start: f64,
+    pub chi2: f64,
+    /// chi^2 / (observations - free parameters).
+    pub reduced_chi2: f64,
+    /// chi^2 after each accepted iteration (the first is the start).
+    pub history: Vec<f64>,
+    pub converged: bool,
+    pub observations: usize,
+    /// The model's value of every observation at the optimum.
+    pub model_values: Vec<f64>,
+    #[serde(skip)]
+    pub model: Model,
+}
+
+fn chi2(values: &[f64], data: &[Observation]) -> f64 {
+    values.iter().zip(data).map(|(v, o)| ((v - o.value) / o.uncertainty).powi(2)).sum()
+}
+
+/// Fit `names` of `model` to `data`.
+pub fn calibrate(model: &Model, data: &[Observation], exps: &Experiments, names: &[String], opts: &FitOptions) -> Result<Fit, String> {
+    if names.is_empty() {
+        return Err("nothing to fit: name the parameters (--fit P1,P2,...)".into());
+    }
+    let mut model = model.clone();
+    let bounds: Vec<_> = names.iter().map(|n| model.bounds(n)).collect::<Result<_, _>>()?;
+    let start: Vec<f64> = names.iter().map(|n| model.get(n)).collect::<Result<_, _>>()?;
+    let scale: Vec<f64> = bounds.iter().map(|b| b.scale).collect();
+    let mut theta = start.clone();
+    let m = data.len();
+    let n = names.len();
+
+    let mut s = sensitivity(&model, data, exps, Some(names), opts.jobs)?;
+    let mut c2 = chi2(&s.values, data);
+    let chi2_start = c2;
+    let mut history = vec![c2];
+    let mut lambda = 1e-3;
+    let mut converged = false;
+    let mut free = vec![true; n];
+    for _ in 0..opts.max_iterations {
+        let (z, jz) = standardised(&s.values, s.jacobian.as_ref().expect("asked"), data, &scale);
+        let all: Vec<usize> = (0..n).collect();
+        let (_, g) = normal_equations(&jz, &z, &all);
+        // hold a parameter at a bound that the descent direction -g would push past
+        for i in 0..n {
+            let at_lo = theta[i] <= bounds[i].lower;
+            let at_hi = theta[i] >= bounds[i].upper;
+            free[i] = !((at_lo && g[i] > 0.0) || (at_hi && g[i] < 0.0));
+        }
+        let cols: Vec<usize> = (0..n).filter(|&i| free[i]).collect();
+        if cols.is_empty() {
+            converged = true;
+            break;
+        }
+        let (a, g) = normal_equations(&jz, &z, &cols);
+        let mut accepted = false;
+        for _ in 0..12 {
+            let mut damped: Mat = a.clone();
+            for (k, row) in damped.iter_mut().enumerate() {
+                row[k] += lambda * a[k][k].max(1e-12);
+            }
+            let (inv, _) = pinv_sym(&damped, 1e-14);
+            let step: Vec<f64> = inv.iter().map(|r| -r.iter().zip(&g).map(|(a, b)| a * b).sum::<f64>()).collect();
+            let mut trial = theta.clone();
+            for (k, &i) in cols.iter().enumerate() {
+                trial[i] = (theta[i] + step[k] * scale[i]).clamp(bounds[i].lower, bounds[i].upper);
+            }
+            let moved = trial.iter().zip(&theta).zip(&scale).map(|((a, b), s)| ((a - b) / s).abs()).fold(0.0, f64::max);
+            if moved < 1e-12 {
+                break;
+            }
+            let mut tm = model.clone();
+            for (nm, v) in names.iter().zip(&trial) {
+                tm.set(nm, *v)?;
+            }
+            // a trial the model rejects (a material that will not build) is a failed step
+            let tv = match sensitivity(&tm, data, exps, None, opts.jobs) {
+                Ok(t) => t.values,
+                Err(_) => {
+                    lambda *= 4.0;
+                    continue;
+                }
+            };
+            let tc2 = chi2(&tv, data);
+            if tc2.is_finite() && tc2 < c2 {
+                let gain = (c2 - tc2) / c2.max(1e-300);
+                theta = trial;
+                model = tm;
+                lambda = (lambda / 3.0).max(1e-9);
+                s = sensitivity(&model, data, exps, Some(names), opts.jobs)?;
+                c2 = chi2(&s.values, data);
+                history.push(c2);
+                accepted = true;
+                if gain < opts.tolerance {
+                    converged = true;
+                }
+                break;
+            }
+            lambda *= 4.0;
+        }
+        if !accepted || converged {
+            converged = true;
+            break;
+        }
+    }
+
+    // uncertainties from the undamped normal matrix at the optimum
+    let (z, jz) = standardised(&s.values, s.jacobian.as_ref().expect("asked"), data, &scale);
+    let cols: Vec<usize> = (0..n).filter(|&i| free[i]).collect();
+    let (a, _) = normal_equations(&jz, &z, &cols);
+    let (cov, _) = pinv_sym(&a, 1e-12);
+    let mut uncertainty = vec![f64::NAN; n];
+    for (k, &i) in cols.iter().enumerate() {
+        uncertainty[i] = cov[k][k].sqrt() * scale[i];
+    }
+    let at_bound: Vec<bool> = (0..n).map(|i| !free[i]).collect();
+    let dof = m.saturating_sub(cols.len()).max(1);
+    Ok(Fit {
+        names: names.to_vec(),
+        start,
+        values: theta,
+        uncertainty,
+        at_bound,
+        chi2_start,
+        chi2: c2,
+        reduced_chi2: c2 / dof as f64,
+        history,
+        converged,
+        observations: m,
+        model_values: s.values.clone(),
+        model,
+    })
+}
+
+/// Standardised residuals z = (model - measured) / uncertainty and their Jacobian in scaled
+/// parameters (columns times the scales).
+pub fn standardised(values: &[f64], jac: &[Vec<f64>], data: &[Observation], scale: &[f64]) -> (Vec<f64>, Vec<Vec<f64>>) {
+    let z = values.iter().zip(data).map(|(v, o)| (v - o.value) / o.uncertainty).collect();
+    let jz = jac.iter().zip(data).map(|(row, o)| row.iter().zip(scale).map(|(g, s)| g * s / o.uncertainty).collect()).collect();
+    (z, jz)
+}
+
+/// The fit as text: parameters with their uncertainties, and chi^2 before and after.
+pub fn report(f: &Fit) -> String {
+    use std::fmt::Write as _;
+    let mut s = String::new();
+    let _ = writeln!(s, "{:<26} {:>14} {:>14} {:>14}", "parameter", "start", "fitted", "+/- (1 sigma)");
+    for i in 0..f.names.len() {
+        let u = if f.at_bound[i] { "at bound".to_string() } else { format!("{:.4e}", f.uncertainty[i]) };
+        let _ = writeln!(s, "{:<26} {:>14.6e} {:>14.6e} {:>14}", f.names[i], f.start[i], f.values[i], u);
+    }
+    let rms = |c: f64| (c / f.observations as f64).sqrt();
+    let _ = writeln!(s, "\nchi^2: {:.6e} -> {:.6e} over {} observations (rms z {:.3} -> {:.3}; reduced chi^2 {:.3})", f.chi2_start, f.chi2, f.observations, rms(f.chi2_start), rms(f.chi2), f.reduced_chi2);
+    let _ = writeln!(s, "{} after {} accepted steps", if f.converged { "converged" } else { "stopped at the iteration limit" }, f.history.len() - 1);
+    s
+}
+
+/// chi^2 against iteration, as a PNG.
+pub fn plot_convergence(f: &Fit, path: &std::path::Path) -> Result<(), String> {
+    let pts: Vec<[f64; 2]> = f.history.iter().enumerate().map(|(i, c)| [i as f64, c.max(1e-300).log10()]).collect();
+    crate::output::plot::plot_xy(path, "calibration: log10 chi^2 against accepted step", "accepted step", "log10 chi^2", &[("chi^2".to_string(), pts)], true)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const MODEL: &str = "[material]\nkind = \"bingham\"\ndensity = 2100.0\nbulk_modulus = 1e6\nviscosity = 7.5\nyield_stress = 630.0\n";
+    const EXPS: &str = "[[experiment]]\nid = \"flow\"\nobserve = [\"stress@40\", \"stress@20\", \"stress@5\"]\n[experiment.protocol]\n[[experiment.protocol.phase]]\nkind = \"sweep\"\nrates = [40.0, 20.0, 5.0]\nhold = 0.5\n";
+
+    #[test]
+    fn a_bingham_flow_curve_fit_recovers_yield_stress_and_viscosity() {
+        let truth = Model::from_table(&MODEL.parse().unwrap()).unwrap();
+        let e: Experiments = toml::from_str(EXPS).unwrap();
+        let data = super::super::compare::synth(&truth, &e, 0.0, 1, 1).unwrap();
+        let data: Vec<Observation> = data.into_iter().map(|mut o| {
+            o.uncertainty = 1.0;
+            o
+        }).collect();
+        let mut start = truth.clone();
+        start.set("material.yield_stress", 300.0).unwrap();
+        start.set("material.viscosity", 20.0).unwrap();
+        let names = vec!["material.yield_stress".to_string(), "material.viscosity".to_string()];
+        let f = calibrate(&start, &data, &e, &names, &FitOptions::default()).unwrap();
+        assert!(f.chi2 < 1e-6 * f.chi2_start, "{}", report(&f));
+        assert!((f.values[0] / 630.0 - 1.0).abs() < 1e-3 && (f.values[1] / 7.5 - 1.0).abs() < 1e-2, "{}", report(&f));
+        // the history only falls
+        assert!(f.history.windows(2).all(|w| w[1] < w[0]), "{:?}", f.history);
+        // three readings, two parameters, unit uncertainties: sigma = sqrt(diag (A^T A)^-1)
+        assert!(f.uncertainty.iter().all(|u| u.is_finite() && *u > 0.0), "{:?}", f.uncertainty);
+    }
+}

@@ -1,0 +1,326 @@
+//! `strand diagnose`: which physical effect the model lacks.
+//!
+//! 1. The base model's `fit` parameters are calibrated.
+//! 2. Every effect not in the model is switched on at its null, where the model is unchanged,
+//!    and the gradient of the loss L = chi^2 / 2 in its parameters is taken there by the
+//!    adjoints: a score (Lagrange-multiplier) test. With z the standardised residuals, J_f and
+//!    J_e their Jacobians in the fitted and the effect's parameters, and R = (I - P_f) J_e the
+//!    effect's columns with what the fitted parameters already explain projected out, the score
+//!    is S = z^T R (R^T R)^+ R^T z, chi^2-distributed with rank(R) degrees of freedom when the
+//!    effect is absent. An effect's parameters start at their lower bound, so only those whose
+//!    gradient points into the allowed side (-dL/dtheta > 0) count.
+//! 3. Effects are ranked by score; those significant at `alpha` (the top `max_fitted`) are
+//!    fitted with the base parameters, and each is checked by leave-one-experiment-out: refitted
+//!    without each experiment in turn, it must predict the left-out experiments better than the
+//!    base model refitted the same way, or it only overfits and is not recommended.
+//! 4. When no effect is recommended and the base model does not fit (chi^2 beyond its `alpha`
+//!    quantile) the verdict is "unexplained", with the pattern of the residuals.
+
+use super::calibrate::{calibrate, standardised, Fit, FitOptions};
+use super::data::{Experiments, Observation};
+use super::effects::{self, Effect};
+use super::linalg::{chi2_sf, normal_equations, pinv_sym};
+use super::model::Model;
+use super::sensitivity::sensitivity;
+
+#[derive(Clone, Debug)]
+pub struct DiagnoseOptions {
+    pub fit: FitOptions,
+    /// Significance level of the score test and of the base model's goodness of fit.
+    pub alpha: f64,
+    /// How many significant effects are fitted.
+    pub max_fitted: usize,
+    pub leave_one_out: bool,
+}
+
+impl Default for DiagnoseOptions {
+    fn default() -> DiagnoseOptions {
+        DiagnoseOptions { fit: FitOptions::default(), alpha: 0.01, max_fitted: 3, leave_one_out: true }
+    }
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Candidate {
+    pub effect: String,
+    pub about: String,
+    /// 1 = the largest score.
+    pub rank: usize,
+    pub score: f64,
+    pub dof: usize,
+    pub p_value: f64,
+    /// The fitted model with this effect: chi^2 and its parameters.
+    pub fitted_chi2: Option<f64>,
+    /// rms z with the effect over rms z of the base fit.
+    pub error_ratio: Option<f64>,
+    pub fitted: Vec<(String, f64)>,
+    /// Sum of the left-out experiments' chi^2: base model, and with the effect.
+    pub loo_chi2_base: Option<f64>,
+    pub loo_chi2: Option<f64>,
+    pub verdict: String,
+    pub recommended: bool,
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Diagnosis {
+    pub fit: Vec<String>,
+    pub observations: usize,
+    pub base_chi2: f64,
+    pub base_rms_z: f64,
+    /// P(chi^2 > base_chi2) with observations - fitted parameters degrees of freedom.
+    pub base_p_value: f64,
+    pub base_values: Vec<(String, f64)>,
+    pub candidates: Vec<Candidate>,
+    pub recommended: Option<String>,
+    /// "add EFFECT", "unexplained" or "explained".
+    pub verdict: String,
+    /// Where and how the residuals of an unexplained misfit lie.
+    pub pattern: Vec<String>,
+    #[serde(skip)]
+    pub recommended_model: Option<Model>,
+}
+
+fn rms(chi2: f64, n: usize) -> f64 {
+    (chi2 / n.max(1) as f64).sqrt()
+}
+
+pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[String], opts: &DiagnoseOptions) -> Result<Diagnosis, String> {
+    let m = data.len();
+    let base: Fit = if fit.is_empty() {
+        let v = sensitivity(model, data, exps, None, opts.fit.jobs)?.values;
+        let c2 = v.iter().zip(data).map(|(v, o)| ((v - o.value) / o.uncertainty).powi(2)).sum();
+        Fit { names: vec![], start: vec![], values: vec![], uncertainty: vec![], at_bound: vec![], chi2_start: c2, chi2: c2, reduced_chi2: c2 / m as f64, history: vec![c2], converged: true, observations: m, model_values: v, model: model.clone() }
+    } else {
+        calibrate(model, data, exps, fit, &opts.fit)?
+    };
+    let base_p_value = chi2_sf(base.chi2, m.saturating_sub(fit.len()).max(1));
+
+    // every absent effect at its null, differentiated at once
+    let absent: Vec<&'static dyn Effect> = effects::REGISTRY.iter().copied().filter(|e| !base.model.has(e.name())).collect();
+    let mut aug = base.model.clone();
+    for e in &absent {
+        aug = aug.with_effect(*e);
+    }
+    let mut names: Vec<String> = fit.to_vec();
+    let mut cols_of: Vec<Vec<usize>> = Vec::new();
+    for e in &absent {
+        cols_of.push((names.len()..names.len() + e.params().len()).collect());
+        names.extend(e.params().iter().map(|s| format!("{}.{}", e.name(), s.name)));
+    }
+    let s = sensitivity(&aug, data, exps, Some(&names), opts.fit.jobs)?;
+    let scale: Vec<f64> = names.iter().map(|n| aug.bounds(n).map(|b| b.scale)).collect::<Result<_, _>>()?;
+    let (z, jz) = standardised(&s.values, s.jacobian.as_ref().expect("asked"), data, &scale);
+    let fcols: Vec<usize> = (0..fit.len()).collect();
+    let (ff, _) = normal_equations(&jz, &z, &fcols);
+    let (ff_inv, _) = pinv_sym(&ff, 1e-12);
+    // (I - P_f) applied to a column of J or to z
+    let project = |v: &[f64]| -> Vec<f64> {
+        if fcols.is_empty() {
+            return v.to_vec();
+        }
+        let jt_v: Vec<f64> = fcols.iter().map(|&c| jz.iter().zip(v).map(|(r, x)| r[c] * x).sum()).collect();
+        let coef: Vec<f64> = ff_inv.iter().map(|r| r.iter().zip(&jt_v).map(|(a, b)| a * b).sum()).collect();
+        v.iter().enumerate().map(|(i, x)| x - fcols.iter().zip(&coef).map(|(&c, k)| jz[i][c] * k).sum::<f64>()).collect()
+    };
+    let zp = project(&z);
+
+    let mut cands: Vec<Candidate> = Vec::new();
+    for (e, cols) in absent.iter().zip(&cols_of) {
+        let column = |c: usize| -> Vec<f64> { jz.iter().map(|r| r[c]).collect() };
+        let influence = cols.iter().any(|&c| jz.iter().any(|r| r[c] != 0.0));
+        // one-sided: a parameter counts when raising it from its null lowers the loss
+        let kept: Vec<usize> = cols.iter().copied().filter(|&c| column(c).iter().zip(&z).map(|(a, b)| a * b).sum::<f64>() < 0.0).collect();
+        let r: Vec<Vec<f64>> = kept.iter().map(|&c| project(&column(c))).collect();
+        let info: Vec<Vec<f64>> = r.iter().map(|a| r.iter().map(|b| a.iter().zip(b).map(|(x, y)| x * y).sum()).collect()).collect();
+        let g: Vec<f64> = r.iter().map(|a| a.iter().zip(&zp).map(|(x, y)| x * y).sum()).collect();
+        // columns the fitted parameters already explain have ~0 left after projection
+        let raw: f64 = kept.iter().map(|&c| column(c).iter().map(|x| x * x).sum::<f64>()).fold(0.0, f64::max);
+        let (inv, rank) = if kept.is_empty() { (vec![], 0) } else { pinv_sym(&info, 1e-10) };
+        let left = info.iter().enumerate().map(|(i, row)| row[i]).fold(0.0, f64::max);
+        let (score, dof) = if rank == 0 || left <= 1e-10 * raw { (0.0, 0) } else { (g.iter().enumerate().map(|(i, gi)| gi * inv[i].iter().zip(&g).map(|(a, b)| a * b).sum::<f64>()).sum(), rank) };
+        let p_value = if dof == 0 { 1.0 } else { chi2_sf(score, dof) };
+        let verdict = if !influence {
+            "no influence on these experiments".to_string()
+        } else if dof == 0 && !kept.is_empty() {
+            "indistinguishable from the fitted parameters here".to_string()
+        } else if dof == 0 {
+            "would raise the error: its gradient points past its null".to_string()
+        } else if p_value >= opts.alpha {
+            format!("not significant (p = {p_value:.3})")
+        } else {
+            String::new()
+        };
+        cands.push(Candidate { effect: e.name().into(), about: e.about().into(), rank: 0, score, dof, p_value, fitted_chi2: None, error_ratio: None, fitted: vec![], loo_chi2_base: None, loo_chi2: None, verdict, recommended: false });
+    }
+    cands.sort_by(|a, b| b.score.total_cmp(&a.score).then(a.effect.cmp(&b.effect)));
+    for (i, c) in cands.iter_mut().enumerate() {
+        c.rank = i + 1;
+    }
+
+    // fit the significant ones, and check each by leave-one-experiment-out
+    let ids: Vec<String> = super::compare::group(data).into_iter().map(|(id, _)| id).collect();
+    let mut base_loo: Option<f64> = None;
+    let mut models: Vec<Option<Model>> = vec![None; cands.len()];
+    let mut fitted = 0;
+    for (ci, c) in cands.iter_mut().enumerate() {
+        if !c.verdict.is_empty() {
+            continue;
+        }
+        if fitted == opts.max_fitted {
+            c.verdict = format!("significant (p = {:.2e}), not fitted: beyond the top {}", c.p_value, opts.max_fitted);
+            continue;
+        }
+        fitted += 1;
+        let effect = effects::find(&c.effect)?;
+        let with = base.model.with_effect(effect);
+        let mut fnames = fit.to_vec();
+        fnames.extend(effect.params().iter().map(|s| format!("{}.{}", effect.name(), s.name)));
+        let f = calibrate(&with, data, exps, &fnames, &opts.fit)?;
+        c.fitted_chi2 = Some(f.chi2);
+        c.error_ratio = Some(rms(f.chi2, m) / rms(base.chi2, m).max(1e-300));
+        c.fitted = f.names.iter().cloned().zip(f.values.iter().copied()).collect();
+        let better = f.chi2 < base.chi2;
+        if opts.leave_one_out && ids.len() >= 2 {
+            if base_loo.is_none() {
+                base_loo = Some(leave_one_out(&base.model, data, exps, fit, &ids, opts)?);
+            }
+            let loo = leave_one_out(&f.model, data, exps, &fnames, &ids, opts)?;
+            c.loo_chi2_base = base_loo;
+            c.loo_chi2 = Some(loo);
+            c.recommended = better && loo < 0.9 * base_loo.expect("set");
+            c.verdict = if c.recommended {
+                format!("recommended: error x {:.3}, left-out error x {:.3}", c.error_ratio.unwrap_or(1.0), loo / base_loo.expect("set").max(1e-300))
+            } else if better {
+                "overfits: it lowers the error but does not predict left-out experiments better".to_string()
+            } else {
+                "does not lower the error when fitted".to_string()
+            };
+        } else {
+            c.recommended = better;
+            c.verdict = if better {
+                format!("recommended: error x {:.3} (not checked by leave-one-out: {})", c.error_ratio.unwrap_or(1.0), if opts.leave_one_out { "one experiment only" } else { "switched off" })
+            } else {
+                "does not lower the error when fitted".to_string()
+            };
+        }
+        models[ci] = Some(f.model);
+    }
+
+    // the recommendation: the best-ranked recommended effect
+    let best = cands.iter().position(|c| c.recommended);
+    let recommended = best.map(|i| cands[i].effect.clone());
+    let recommended_model = best.and_then(|i| models[i].clone());
+    let (verdict, pattern) = match (&recommended, base_p_value < opts.alpha) {
+        (Some(e), _) => (format!("add {e}"), vec![]),
+        (None, true) => ("unexplained".to_string(), residual_pattern(&base, data, exps)),
+        (None, false) => ("explained".to_string(), vec![]),
+    };
+    Ok(Diagnosis {
+        fit: fit.to_vec(),
+        observations: m,
+        base_chi2: base.chi2,
+        base_rms_z: rms(base.chi2, m),
+        base_p_value,
+        base_values: base.names.iter().cloned().zip(base.values.iter().copied()).collect(),
+        candidates: cands,
+        recommended,
+        verdict,
+        pattern,
+        recommended_model,
+    })
+}
+
+/// Sum over experiments of the chi^2 of each one predicted by `model` refitted (`names`)
+/// without it.
+fn leave_one_out(model: &Model, data: &[Observation], exps: &Experiments, names: &[String], ids: &[String], opts: &DiagnoseOptions) -> Result<f64, String> {
+    let mut total = 0.0;
+    for id in ids {
+        let train: Vec<Observation> = data.iter().filter(|o| o.experiment != *id).cloned().collect();
+        let test: Vec<Observation> = data.iter().filter(|o| o.experiment == *id).cloned().collect();
+        let fitted = if names.is_empty() { model.clone() } else { calibrate(model, &train, exps, names, &opts.fit)?.model };
+        let v = sensitivity(&fitted, &test, exps, None, opts.fit.jobs)?.values;
+        total += v.iter().zip(&test).map(|(v, o)| ((v - o.value) / o.uncertainty).powi(2)).sum::<f64>();
+    }
+    Ok(total)
+}
+
+/// What an unexplained misfit looks like: the largest residuals, the observables worst fitted,
+/// and the covariates the residuals follow.
+fn residual_pattern(base: &Fit, data: &[Observation], exps: &Experiments) -> Vec<String> {
+    let c = super::compare::comparison(data, &base.model_values);
+    let mut out = Vec::new();
+    let mut worst: Vec<&super::compare::Row> = c.rows.iter().collect();
+    worst.sort_by(|a, b| b.z.abs().total_cmp(&a.z.abs()));
+    for r in worst.iter().take(3) {
+        let at = r.at.map_or(String::new(), |a| format!("@{a}"));
+        out.push(format!("largest residual: {} {}{}: z = {:.2} ({}-predicted by {:.2} %)", r.experiment, r.observable, at, r.z, if r.residual > 0.0 { "over" } else { "under" }, 100.0 * (r.residual / r.measured).abs()));
+    }
+    for s in &c.by_observable {
+        out.push(format!("observable {}: rms z = {:.2} over {}", s.name, s.rms_z, s.n));
+    }
+    let cov = |f: &dyn Fn(&Observation) -> Option<f64>| -> Vec<Option<f64>> { data.iter().map(f).collect() };
+    let trends: [(&str, Vec<Option<f64>>); 3] = [
+        ("the station, time or rate (at)", cov(&|o| o.observable.at)),
+        ("the rest time", cov(&|o| exps.get(&o.experiment).map(|x| x.rest_time))),
+        ("the age", cov(&|o| exps.get(&o.experiment).map(|x| x.age))),
+    ];
+    let z: Vec<f64> = c.rows.iter().map(|r| r.z).collect();
+    for (name, x) in trends {
+        if let Some(r) = correlation(&x, &z) {
+            if r.abs() >= 0.5 {
+                out.push(format!("residuals {} with {name} (correlation {r:.2})", if r > 0.0 { "rise" } else { "fall" }));
+            }
+        }
+    }
+    if let Some(r) = correlation(&c.rows.iter().map(|r| Some(r.measured)).collect::<Vec<_>>(), &z) {
+        if r.abs() >= 0.5 {
+            out.push(format!("residuals {} with the measured value (correlation {r:.2}): a trend the model's form misses", if r > 0.0 { "rise" } else { "fall" }));
+        }
+    }
+    out
+}
+
+/// Pearson correlation over the points where x is known, when x varies.
+fn correlation(x: &[Option<f64>], y: &[f64]) -> Option<f64> {
+    let pts: Vec<(f64, f64)> = x.iter().zip(y).filter_map(|(a, b)| a.map(|a| (a, *b))).collect();
+    let n = pts.len() as f64;
+    if pts.len() < 3 {
+        return None;
+    }
+    let (mx, my) = (pts.iter().map(|p| p.0).sum::<f64>() / n, pts.iter().map(|p| p.1).sum::<f64>() / n);
+    let sxy: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+    let sxx: f64 = pts.iter().map(|p| (p.0 - mx).powi(2)).sum();
+    let syy: f64 = pts.iter().map(|p| (p.1 - my).powi(2)).sum();
+    (sxx > 0.0 && syy > 0.0).then(|| sxy / (sxx * syy).sqrt())
+}
+
+/// The diagnosis as text.
+pub fn report(d: &Diagnosis) -> String {
+    use std::fmt::Write as _;
+    let mut s = String::new();
+    let _ = writeln!(s, "base model: chi^2 = {:.4e} over {} observations (rms z {:.3}, p = {:.3e}), fitted: {}", d.base_chi2, d.observations, d.base_rms_z, d.base_p_value, if d.fit.is_empty() { "nothing".into() } else { d.fit.join(", ") });
+    for (n, v) in &d.base_values {
+        let _ = writeln!(s, "  {n} = {v:.6e}");
+    }
+    let _ = writeln!(s, "\n{:<4} {:<14} {:>12} {:>4} {:>10} {:>12} {:>12}  verdict", "rank", "effect", "score", "dof", "p", "error ratio", "left-out");
+    for c in &d.candidates {
+        let er = c.error_ratio.map_or("-".into(), |v| format!("{v:.3}"));
+        let loo = match (c.loo_chi2, c.loo_chi2_base) {
+            (Some(a), Some(b)) => format!("{:.3}", a / b.max(1e-300)),
+            _ => "-".into(),
+        };
+        let _ = writeln!(s, "{:<4} {:<14} {:>12.4e} {:>4} {:>10.3e} {:>12} {:>12}  {}", c.rank, c.effect, c.score, c.dof, c.p_value, er, loo, c.verdict);
+        if !c.fitted.is_empty() {
+            let fitted: Vec<String> = c.fitted.iter().map(|(n, v)| format!("{n} = {v:.4e}")).collect();
+            let _ = writeln!(s, "     fitted: {}", fitted.join(", "));
+        }
+    }
+    let _ = writeln!(s, "\nverdict: {}", match d.verdict.as_str() {
+        "unexplained" => "unexplained: the base model does not fit and no effect in the library explains the residuals".to_string(),
+        "explained" => "explained: the base model fits within the uncertainties; no effect is needed".to_string(),
+        v => v.to_string(),
+    });
+    for p in &d.pattern {
+        let _ = writeln!(s, "  {p}");
+    }
+    s
+}

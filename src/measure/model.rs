@@ -1,0 +1,286 @@
+//! A model: the `[material]` every experiment runs with and the effects switched on, seen as
+//! named parameters (`material.yield_stress`, `thixotropy.a_thix`, ...) that calibration moves and
+//! diagnosis extends.
+//!
+//! ```toml
+//! [material]
+//! kind = "evp_bingham"
+//! yield_stress = 90.0
+//! ...
+//! [effects.thixotropy]      # parameters left out take their null value
+//! a_thix = 0.4
+//! ```
+//!
+//! For one experiment the model gives scenario keys ([`Model::keys`]): the material's numbers as
+//! `material.KEY`, then each effect's keys from its parameters and the experiment's covariates,
+//! in registry order; the experiment's own `set` overrides come last. [`Model::keys_adjoint`]
+//! carries the keys' adjoints back to the parameters.
+
+use super::effects::{self, Covariates, Effect, Keys};
+use std::path::{Path, PathBuf};
+
+#[derive(Clone)]
+pub struct Model {
+    pub material: toml::Table,
+    /// Effects switched on, in registry order, with their parameter values.
+    pub effects: Vec<(&'static dyn Effect, Vec<f64>)>,
+    pub path: PathBuf,
+}
+
+impl std::fmt::Debug for Model {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        let e: Vec<(&str, &Vec<f64>)> = self.effects.iter().map(|(e, p)| (e.name(), p)).collect();
+        f.debug_struct("Model").field("material", &self.material).field("effects", &e).finish()
+    }
+}
+
+/// Bounds of a parameter and its unit step.
+#[derive(Clone, Copy, Debug)]
+pub struct Bounds {
+    pub lower: f64,
+    pub upper: f64,
+    pub scale: f64,
+}
+
+impl Model {
+    pub fn load(path: &Path) -> Result<Model, String> {
+        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let t: toml::Table = text.parse().map_err(|e| format!("{}: {e}", path.display()))?;
+        Model::from_table(&t)
+            .map(|mut m| {
+                m.path = path.to_path_buf();
+                m
+            })
+            .map_err(|e| format!("{}: {e}", path.display()))
+    }
+
+    pub fn from_table(t: &toml::Table) -> Result<Model, String> {
+        if let Some(k) = t.keys().find(|k| *k != "material" && *k != "effects") {
+            return Err(format!("unknown table '{k}' (a model has [material] and [effects.NAME])"));
+        }
+        let material = match t.get("material") {
+            Some(toml::Value::Table(m)) => m.clone(),
+            _ => return Err("no [material] table".into()),
+        };
+        let mut model = Model { material, effects: Vec::new(), path: PathBuf::new() };
+        if let Some(e) = t.get("effects") {
+            let e = e.as_table().ok_or("effects must be a table of [effects.NAME] tables")?;
+            for (name, v) in e {
+                let effect = effects::find(name)?;
+                let v = v.as_table().ok_or_else(|| format!("effects.{name} must be a table"))?;
+                let mut p: Vec<f64> = effect.params().iter().map(|s| s.null).collect();
+                for (k, x) in v {
+                    let i = effect.params().iter().position(|s| s.name == k).ok_or_else(|| {
+                        format!("effects.{name}: unknown parameter '{k}'; it has {}", effect.params().iter().map(|s| s.name).collect::<Vec<_>>().join(", "))
+                    })?;
+                    p[i] = super::data::number(x).ok_or_else(|| format!("effects.{name}.{k} must be a number"))?;
+                }
+                model = model.with_effect(effect);
+                model.effects.iter_mut().find(|(e, _)| e.name() == name).expect("just added").1 = p;
+            }
+        }
+        for n in model.param_names() {
+            let (v, b) = (model.get(&n)?, model.bounds(&n)?);
+            if !(v.is_finite() && v >= b.lower && v <= b.upper) {
+                return Err(format!("{n} = {v} is outside [{}, {}]", b.lower, b.upper));
+            }
+        }
+        crate::materials::build_material(&model.material)?;
+        Ok(model)
+    }
+
+    /// The model with `effect` on at its null (unchanged if it is on already).
+    pub fn with_effect(&self, effect: &'static dyn Effect) -> Model {
+        let mut m = self.clone();
+        if !m.has(effect.name()) {
+            m.effects.push((effect, effect.params().iter().map(|s| s.null).collect()));
+            let rank = |e: &dyn Effect| effects::REGISTRY.iter().position(|r| r.name() == e.name());
+            m.effects.sort_by_key(|(e, _)| rank(*e));
+        }
+        m
+    }
+
+    pub fn has(&self, effect: &str) -> bool {
+        self.effects.iter().any(|(e, _)| e.name() == effect)
+    }
+
+    /// Every parameter: the material's numbers, then each effect's.
+    pub fn param_names(&self) -> Vec<String> {
+        let mut n: Vec<String> = self.material.iter().filter(|(_, v)| super::data::number(v).is_some()).map(|(k, _)| format!("material.{k}")).collect();
+        for (e, _) in &self.effects {
+            n.extend(e.params().iter().map(|s| format!("{}.{}", e.name(), s.name)));
+        }
+        n
+    }
+
+    fn locate(&self, name: &str) -> Result<Slot, String> {
+        let unknown = || format!("unknown parameter '{name}'; the model has {}", self.param_names().join(", "));
+        let (head, key) = name.split_once('.').ok_or_else(unknown)?;
+        if head == "material" {
+            return match self.material.get(key).and_then(super::data::number) {
+                Some(_) => Ok(Slot::Material(key.to_string())),
+                None => Err(unknown()),
+            };
+        }
+        let e = self.effects.iter().position(|(e, _)| e.name() == head).ok_or_else(|| match effects::find(head) {
+            Ok(_) => format!("'{name}': effect '{head}' is not in the model (add [effects.{head}])"),
+            Err(_) => unknown(),
+        })?;
+        let p = self.effects[e].0.params().iter().position(|s| s.name == key).ok_or_else(unknown)?;
+        Ok(Slot::Effect(e, p))
+    }
+
+    pub fn get(&self, name: &str) -> Result<f64, String> {
+        Ok(match self.locate(name)? {
+            Slot::Material(k) => super::data::number(&self.material[&k]).expect("located"),
+            Slot::Effect(e, p) => self.effects[e].1[p],
+        })
+    }
+
+    pub fn set(&mut self, name: &str, v: f64) -> Result<(), String> {
+        match self.locate(name)? {
+            Slot::Material(k) => {
+                self.material.insert(k, toml::Value::Float(v));
+            }
+            Slot::Effect(e, p) => self.effects[e].1[p] = v,
+        }
+        Ok(())
+    }
+
+    /// Bounds of a parameter: an effect's own; a material number stays >= 0, and one that is
+    /// positive stays positive (the materials reject a zero modulus or density).
+    pub fn bounds(&self, name: &str) -> Result<Bounds, String> {
+        Ok(match self.locate(name)? {
+            Slot::Material(_) => {
+                let v = self.get(name)?;
+                Bounds { lower: if v > 0.0 { 1e-6 * v } else { 0.0 }, upper: f64::INFINITY, scale: if v != 0.0 { v.abs() } else { 1.0 } }
+            }
+            Slot::Effect(e, p) => {
+                let s = self.effects[e].0.params()[p];
+                Bounds { lower: s.lower, upper: s.upper, scale: s.scale }
+            }
+        })
+    }
+
+    /// The scenario keys of one experiment (before its `set` overrides).
+    pub fn keys(&self, x: &Covariates) -> Result<Keys, String> {
+        let mut keys: Keys = self.material.iter().filter_map(|(k, v)| super::data::number(v).map(|n| (format!("material.{k}"), n))).collect();
+        for (e, p) in &self.effects {
+            e.apply(p, x, &mut keys).map_err(|m| format!("effect '{}': {m}", e.name()))?;
+        }
+        Ok(keys)
+    }
+
+    /// d(objective)/d(parameter) for `names`, given the adjoints of the keys [`Model::keys`]
+    /// returned for covariates `x`.
+    pub fn keys_adjoint(&self, x: &Covariates, mut keys_bar: Keys, names: &[String]) -> Result<Vec<f64>, String> {
+        // the keys before each effect, replayed forward
+        let mut before = Vec::with_capacity(self.effects.len());
+        let mut keys: Keys = self.material.iter().filter_map(|(k, v)| super::data::number(v).map(|n| (format!("material.{k}"), n))).collect();
+        for (e, p) in &self.effects {
+            before.push(keys.clone());
+            e.apply(p, x, &mut keys)?;
+        }
+        let mut effect_bar: Vec<Vec<f64>> = self.effects.iter().map(|(_, p)| vec![0.0; p.len()]).collect();
+        for (i, (e, p)) in self.effects.iter().enumerate().rev() {
+            e.apply_adjoint(p, x, &before[i], &mut keys_bar, &mut effect_bar[i]);
+        }
+        names
+            .iter()
+            .map(|n| {
+                Ok(match self.locate(n)? {
+                    Slot::Material(k) => effects::bar(&keys_bar, &format!("material.{k}")),
+                    Slot::Effect(e, p) => effect_bar[e][p],
+                })
+            })
+            .collect()
+    }
+
+    /// The model file.
+    pub fn to_toml(&self) -> String {
+        let mut t = toml::Table::new();
+        t.insert("material".into(), toml::Value::Table(self.material.clone()));
+        if !self.effects.is_empty() {
+            let mut e = toml::Table::new();
+            for (eff, p) in &self.effects {
+                let tab: toml::Table = eff.params().iter().zip(p).map(|(s, v)| (s.name.to_string(), toml::Value::Float(*v))).collect();
+                e.insert(eff.name().into(), toml::Value::Table(tab));
+            }
+            t.insert("effects".into(), toml::Value::Table(e));
+        }
+        toml::to_string(&t).expect("a model serialises")
+    }
+}
+
+enum Slot {
+    Material(String),
+    Effect(usize, usize),
+}
+
+/// Set `key` (dotted; numbers and x/y/z index arrays) in a TOML document to `v`, creating the
+/// tables on the way and replacing a non-table value with one (`z_min = "free_slip"` becomes
+/// `z_min = { friction = { mu = v } }`).
+pub fn set_path(doc: &mut toml::Table, key: &str, v: f64) -> Result<(), String> {
+    let parts: Vec<&str> = key.split('.').collect();
+    let mut at: &mut toml::Value = doc.entry(parts[0].to_string()).or_insert_with(|| toml::Value::Table(toml::Table::new()));
+    if parts.len() == 1 {
+        *at = toml::Value::Float(v);
+        return Ok(());
+    }
+    for (i, part) in parts[1..].iter().enumerate() {
+        let last = i + 2 == parts.len();
+        if let toml::Value::Array(a) = at {
+            let idx = part.parse::<usize>().ok().or_else(|| ["x", "y", "z"].iter().position(|x| x == part));
+            let len = a.len();
+            at = idx.and_then(|j| a.get_mut(j)).ok_or_else(|| format!("'{key}': index '{part}' is not in an array of {len}"))?;
+        } else {
+            if !at.is_table() {
+                *at = toml::Value::Table(toml::Table::new());
+            }
+            let t = at.as_table_mut().expect("made a table");
+            at = t.entry(part.to_string()).or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        }
+        if last {
+            *at = toml::Value::Float(v);
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const M: &str = "[material]\nkind = \"evp_bingham\"\ndensity = 2300.0\nbulk_modulus = 1e6\npoisson_ratio = 0.3\nviscosity = 20.0\nyield_stress = 100.0\n[effects.thixotropy]\na_thix = 0.5\n";
+
+    #[test]
+    fn a_model_reads_writes_and_names_its_parameters() {
+        let m = Model::from_table(&M.parse().unwrap()).unwrap();
+        assert_eq!(m.get("thixotropy.a_thix").unwrap(), 0.5);
+        assert_eq!(m.get("thixotropy.alpha").unwrap(), 0.0);
+        let keys = m.keys(&Covariates { rest_time: 100.0, age: 0.0 }).unwrap();
+        assert_eq!(keys["material.lambda0"], 0.5 * 100.0 / 100.0);
+        let back = Model::from_table(&m.to_toml().parse().unwrap()).unwrap();
+        assert_eq!(back.param_names(), m.param_names());
+        for (bad, want) in [
+            (M.replace("a_thix = 0.5", "a_thx = 0.5"), "unknown parameter 'a_thx'"),
+            (M.replace("effects.thixotropy", "effects.thixo"), "unknown effect 'thixo'"),
+            (M.replace("a_thix = 0.5", "a_thix = -0.5"), "thixotropy.a_thix = -0.5 is outside"),
+        ] {
+            let e = Model::from_table(&bad.parse().unwrap()).unwrap_err();
+            assert!(e.contains(want), "{e}");
+        }
+        let e = m.get("ageing.rate").unwrap_err();
+        assert!(e.contains("not in the model"), "{e}");
+    }
+
+    #[test]
+    fn set_path_makes_a_friction_wall_of_a_free_slip_one() {
+        let mut doc: toml::Table = "[boundary]\nz_min = \"free_slip\"\n[print]\npath = [{ speed = 1.0 }]\n".parse().unwrap();
+        set_path(&mut doc, "boundary.z_min.friction.mu", 0.3).unwrap();
+        set_path(&mut doc, "print.path.0.speed", 2.0).unwrap();
+        assert_eq!(doc["boundary"]["z_min"]["friction"]["mu"].as_float(), Some(0.3));
+        assert_eq!(doc["print"]["path"][0]["speed"].as_float(), Some(2.0));
+        assert!(set_path(&mut doc, "print.path.3.speed", 2.0).unwrap_err().contains("index '3'"));
+    }
+}

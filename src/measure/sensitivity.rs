@@ -1,0 +1,98 @@
+//! The model's value of every observation and, on request, its gradient with respect to named
+//! model parameters — by the adjoints: the solver's reverse pass for a simulation (one per
+//! observation, `strand grad`'s driver), the rheometer's for a rheometer test, then the model's
+//! effects backwards ([`Model::keys_adjoint`]).
+//!
+//! Simulations here run the way a gradient run does (fixed step, every particle awake, one sort
+//! by block up front), values and gradients alike, so a fit compares like with like; their values
+//! can differ from `strand compare`'s in the last bits.
+
+use super::compare::{experiment_keys, find, group, observable_plan, par_map, parse_scenario, reading_index, rheometer_setup, scenario_text, ungroup};
+use super::data::{Experiment, Experiments, Observable, Observation};
+use super::effects::Keys;
+use super::model::Model;
+use super::rheometer::Rheometer;
+use crate::grad::{driver, params, GradOptions};
+
+/// Values (one per observation) and, when asked, d value / d parameter (a row per observation).
+pub struct Sensitivity {
+    pub values: Vec<f64>,
+    pub jacobian: Option<Vec<Vec<f64>>>,
+}
+
+/// Values of every observation under `model`, with their gradients in `names` when given;
+/// experiments run `jobs` at a time.
+pub fn sensitivity(model: &Model, data: &[Observation], exps: &Experiments, names: Option<&[String]>, jobs: usize) -> Result<Sensitivity, String> {
+    let wanted = group(data);
+    let threads = if jobs > 1 { Some(1) } else { None };
+    let per = par_map(wanted.len(), jobs, |k| {
+        let (id, obs) = &wanted[k];
+        let x = find(exps, id)?;
+        experiment(model, exps, x, obs, names, threads).map_err(|e| format!("experiment '{id}': {e}"))
+    })?;
+    let flat = ungroup(data, &wanted, &per);
+    Ok(Sensitivity {
+        values: flat.iter().map(|(v, _)| *v).collect(),
+        jacobian: names.map(|_| flat.into_iter().map(|(_, g)| g.expect("asked")).collect()),
+    })
+}
+
+fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>) -> Result<Vec<(f64, Option<Vec<f64>>)>, String> {
+    let keys = experiment_keys(model, x)?;
+    // an override cuts the key from the model
+    let chain = |mut keys_bar: Keys| -> Result<Vec<f64>, String> {
+        for k in x.set.keys() {
+            keys_bar.remove(k);
+        }
+        model.keys_adjoint(&x.covariates(), keys_bar, names.expect("gradients asked"))
+    };
+    match (&x.scenario, &x.protocol) {
+        (Some(s), _) => {
+            let path = exps.base_dir.join(s);
+            let text = scenario_text(model, &keys, &path)?;
+            let end = parse_scenario(&text, &path)?.simulation.end_time;
+            let wrt: Vec<String> = match names {
+                Some(_) => {
+                    let known = params::known(&driver::prepare(&parse_scenario(&text, &path)?, threads)?);
+                    keys.keys().filter(|k| known.contains(k) && !x.set.contains_key(*k)).cloned().collect()
+                }
+                None => Vec::new(),
+            };
+            wanted
+                .iter()
+                .map(|o| {
+                    let (t, obj) = observable_plan(o, end)?;
+                    let text = if t < end { params::with_value(&text, "simulation.end_time", t)? } else { text.clone() };
+                    let sc = parse_scenario(&text, &path)?;
+                    if names.is_none() {
+                        let steps = driver::count_steps(&driver::prepare(&sc, threads)?);
+                        return Ok((driver::forward_value(&sc, &obj, threads, steps)?, None));
+                    }
+                    let opts = GradOptions { ram_bytes: 2 << 30, disk_bytes: 0, disk_dir: std::env::temp_dir(), threads, schedule: None, until_rest: None };
+                    let r = driver::gradient(&sc, &obj, &wrt, &opts)?;
+                    Ok((r.value, Some(chain(wrt.iter().cloned().zip(r.gradient).collect())?)))
+                })
+                .collect()
+        }
+        (None, Some(p)) => {
+            let (material, proto) = rheometer_setup(model, &keys, &exps.base_dir, p)?;
+            let rh = Rheometer::new(&*material, &proto)?;
+            let readings = rh.run();
+            wanted
+                .iter()
+                .map(|o| {
+                    let k = reading_index(o, &readings)?;
+                    if names.is_none() {
+                        return Ok((readings[k].stress, None));
+                    }
+                    let mut w = vec![0.0; readings.len()];
+                    w[k] = 1.0;
+                    let (_, g) = rh.gradient(&w)?;
+                    let kb: Keys = material.param_names().iter().map(|n| format!("material.{n}")).zip(g).collect();
+                    Ok((readings[k].stress, Some(chain(kb)?)))
+                })
+                .collect()
+        }
+        (None, None) => Err("neither scenario nor protocol".into()),
+    }
+}
