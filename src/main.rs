@@ -351,7 +351,7 @@ fn main() -> ExitCode {
             let m = compare::Model::load(&model)?;
             let d = read_observations(&data)?;
             let e = Experiments::load(&experiments)?;
-            let opts = calibrate::FitOptions { max_iterations, jobs, ..Default::default() };
+            let opts = calibrate::FitOptions { max_iterations, jobs, progress: true, ..Default::default() };
             let f = calibrate::calibrate(&m, &d, &e, &fit, &opts)?;
             let out = out.unwrap_or_else(|| model.with_extension("calibrated.toml"));
             std::fs::write(&out, f.model.to_toml()).map_err(|e| format!("{}: {e}", out.display()))?;

@@ -4,7 +4,7 @@
 //!
 //! Parameters move in units of their scale (an effect's typical magnitude, a material number's
 //! starting value), so the damping treats them alike. A parameter at a bound whose gradient
-//! pushes outward is held there for the step (projected LM). Uncertainties are the square roots
+//! Gauss-Newton step would cross it is held there for the step (an active set). Uncertainties are the square roots
 //! of the diagonal of (J^T J)^-1 of the standardised residuals at the optimum: with the data's
 //! uncertainties taken as given (not rescaled by the reduced chi^2, which is reported beside).
 
@@ -19,11 +19,13 @@ pub struct FitOptions {
     /// Stop when an accepted step lowers chi^2 by less than this fraction.
     pub tolerance: f64,
     pub jobs: usize,
+    /// A line on stderr per accepted step.
+    pub progress: bool,
 }
 
 impl Default for FitOptions {
     fn default() -> FitOptions {
-        FitOptions { max_iterations: 30, tolerance: 1e-6, jobs: 1 }
+        FitOptions { max_iterations: 30, tolerance: 1e-5, jobs: 1, progress: false }
     }
 }
 
@@ -75,13 +77,25 @@ pub fn calibrate(model: &Model, data: &[Observation], exps: &Experiments, names:
     let mut free = vec![true; n];
     for _ in 0..opts.max_iterations {
         let (z, jz) = standardised(&s.values, s.jacobian.as_ref().expect("asked"), data, &scale);
-        let all: Vec<usize> = (0..n).collect();
-        let (_, g) = normal_equations(&jz, &z, &all);
-        // hold a parameter at a bound that the descent direction -g would push past
-        for i in 0..n {
-            let at_lo = theta[i] <= bounds[i].lower;
-            let at_hi = theta[i] >= bounds[i].upper;
-            free[i] = !((at_lo && g[i] > 0.0) || (at_hi && g[i] < 0.0));
+        // hold a parameter at a bound when the Gauss-Newton step of the others and itself would
+        // take it past the bound (the step, not its own gradient: a parameter collinear with
+        // another may lower the loss only moving with it)
+        free = vec![true; n];
+        loop {
+            let cols: Vec<usize> = (0..n).filter(|&i| free[i]).collect();
+            if cols.is_empty() {
+                break;
+            }
+            let (a, g) = normal_equations(&jz, &z, &cols);
+            let (inv, _) = pinv_sym(&a, 1e-12);
+            let step: Vec<f64> = inv.iter().map(|r| -r.iter().zip(&g).map(|(a, b)| a * b).sum::<f64>()).collect();
+            let out: Vec<usize> = cols.iter().zip(&step).filter(|&(&i, &d)| (theta[i] <= bounds[i].lower && d < 0.0) || (theta[i] >= bounds[i].upper && d > 0.0)).map(|(&i, _)| i).collect();
+            if out.is_empty() {
+                break;
+            }
+            for i in out {
+                free[i] = false;
+            }
         }
         let cols: Vec<usize> = (0..n).filter(|&i| free[i]).collect();
         if cols.is_empty() {
@@ -126,6 +140,9 @@ pub fn calibrate(model: &Model, data: &[Observation], exps: &Experiments, names:
                 s = sensitivity(&model, data, exps, Some(names), opts.jobs)?;
                 c2 = chi2(&s.values, data);
                 history.push(c2);
+                if opts.progress {
+                    eprintln!("step {}: chi^2 = {c2:.6e} (damping {lambda:.1e})", history.len() - 1);
+                }
                 accepted = true;
                 if gain < opts.tolerance {
                     converged = true;

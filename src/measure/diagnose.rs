@@ -8,7 +8,8 @@
 //!    effect's columns with what the fitted parameters already explain projected out, the score
 //!    is S = z^T R (R^T R)^+ R^T z, chi^2-distributed with rank(R) degrees of freedom when the
 //!    effect is absent. An effect's parameters start at their lower bound, so only those whose
-//!    gradient points into the allowed side (-dL/dtheta > 0) count.
+//!    projected gradient points into the allowed side count, and with one such parameter the
+//!    p-value is half chi^2(1)'s tail (S is 0 half the time under the null).
 //! 3. Effects are ranked by score; those significant at `alpha` (the top `max_fitted`) are
 //!    fitted with the base parameters, and each is checked by leave-one-experiment-out: refitted
 //!    without each experiment in turn, it must predict the left-out experiments better than the
@@ -127,8 +128,9 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
     for (e, cols) in absent.iter().zip(&cols_of) {
         let column = |c: usize| -> Vec<f64> { jz.iter().map(|r| r[c]).collect() };
         let influence = cols.iter().any(|&c| jz.iter().any(|r| r[c] != 0.0));
-        // one-sided: a parameter counts when raising it from its null lowers the loss
-        let kept: Vec<usize> = cols.iter().copied().filter(|&c| column(c).iter().zip(&z).map(|(a, b)| a * b).sum::<f64>() < 0.0).collect();
+        // one-sided: a parameter counts when raising it from its null lowers the loss once the
+        // fitted parameters follow (the projected gradient)
+        let kept: Vec<usize> = cols.iter().copied().filter(|&c| project(&column(c)).iter().zip(&zp).map(|(a, b)| a * b).sum::<f64>() < 0.0).collect();
         let r: Vec<Vec<f64>> = kept.iter().map(|&c| project(&column(c))).collect();
         let info: Vec<Vec<f64>> = r.iter().map(|a| r.iter().map(|b| a.iter().zip(b).map(|(x, y)| x * y).sum()).collect()).collect();
         let g: Vec<f64> = r.iter().map(|a| a.iter().zip(&zp).map(|(x, y)| x * y).sum()).collect();
@@ -137,13 +139,19 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
         let (inv, rank) = if kept.is_empty() { (vec![], 0) } else { pinv_sym(&info, 1e-10) };
         let left = info.iter().enumerate().map(|(i, row)| row[i]).fold(0.0, f64::max);
         let (score, dof) = if rank == 0 || left <= 1e-10 * raw { (0.0, 0) } else { (g.iter().enumerate().map(|(i, gi)| gi * inv[i].iter().zip(&g).map(|(a, b)| a * b).sum::<f64>()).sum(), rank) };
-        let p_value = if dof == 0 { 1.0 } else { chi2_sf(score, dof) };
+        // one parameter held at its bound under the null: S is 0 half the time and chi^2(1)
+        // otherwise (chi-bar-squared); for more, chi^2(dof) is the conservative bound
+        let p_value = match dof {
+            0 => 1.0,
+            1 => 0.5 * chi2_sf(score, 1),
+            _ => chi2_sf(score, dof),
+        };
         let verdict = if !influence {
             "no influence on these experiments".to_string()
         } else if dof == 0 && !kept.is_empty() {
             "indistinguishable from the fitted parameters here".to_string()
         } else if dof == 0 {
-            "would raise the error: its gradient points past its null".to_string()
+            "not significant: raising it from its null raises the error".to_string()
         } else if p_value >= opts.alpha {
             format!("not significant (p = {p_value:.3})")
         } else {
@@ -178,7 +186,8 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
         c.fitted_chi2 = Some(f.chi2);
         c.error_ratio = Some(rms(f.chi2, m) / rms(base.chi2, m).max(1e-300));
         c.fitted = f.names.iter().cloned().zip(f.values.iter().copied()).collect();
-        let better = f.chi2 < base.chi2;
+        // a fit that moves the error by less than 1 % has not found anything
+        let better = f.chi2 < 0.99 * base.chi2;
         if opts.leave_one_out && ids.len() >= 2 {
             if base_loo.is_none() {
                 base_loo = Some(leave_one_out(&base.model, data, exps, fit, &ids, opts)?);
@@ -205,6 +214,19 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
         models[ci] = Some(f.model);
     }
 
+    // Effects equal at first order at the null (linear and exponential ageing) tie on the score;
+    // the fit tells them apart.
+    let key = |c: &Candidate| (c.score * 1e6).round() / 1e6;
+    let mut order: Vec<usize> = (0..cands.len()).collect();
+    order.sort_by(|&a, &b| {
+        let (ca, cb) = (&cands[a], &cands[b]);
+        key(cb).total_cmp(&key(ca)).then(ca.fitted_chi2.unwrap_or(f64::INFINITY).total_cmp(&cb.fitted_chi2.unwrap_or(f64::INFINITY))).then(a.cmp(&b))
+    });
+    let mut cands: Vec<Candidate> = order.iter().map(|&i| cands[i].clone()).collect();
+    let models: Vec<Option<Model>> = order.iter().map(|&i| models[i].clone()).collect();
+    for (i, c) in cands.iter_mut().enumerate() {
+        c.rank = i + 1;
+    }
     // the recommendation: the best-ranked recommended effect
     let best = cands.iter().position(|c| c.recommended);
     let recommended = best.map(|i| cands[i].effect.clone());
@@ -256,6 +278,19 @@ fn residual_pattern(base: &Fit, data: &[Observation], exps: &Experiments) -> Vec
     }
     for s in &c.by_observable {
         out.push(format!("observable {}: rms z = {:.2} over {}", s.name, s.rms_z, s.n));
+    }
+    // residuals that move together within each experiment point at a per-experiment cause
+    let groups = super::compare::group(data);
+    if groups.len() >= 2 && groups.iter().all(|(_, o)| o.len() >= 2) {
+        let per: Vec<Vec<f64>> = groups.iter().map(|(id, _)| c.rows.iter().filter(|r| r.experiment == *id).map(|r| r.z).collect()).collect();
+        let means: Vec<f64> = per.iter().map(|z| z.iter().sum::<f64>() / z.len() as f64).collect();
+        let within = (per.iter().zip(&means).map(|(z, m)| z.iter().map(|v| (v - m).powi(2)).sum::<f64>()).sum::<f64>() / data.len() as f64).sqrt();
+        let mm = means.iter().sum::<f64>() / means.len() as f64;
+        let between = (means.iter().map(|m| (m - mm).powi(2)).sum::<f64>() / means.len() as f64).sqrt();
+        if between > 2.0 * within {
+            let shifts: Vec<String> = groups.iter().zip(&means).map(|((id, _), m)| format!("{id} {m:+.1}")).collect();
+            out.push(format!("residuals move together within each experiment (spread between experiments {between:.2}, within {within:.2}): a per-experiment cause the covariates do not describe; mean z: {}", shifts.join(", ")));
+        }
     }
     let cov = |f: &dyn Fn(&Observation) -> Option<f64>| -> Vec<Option<f64>> { data.iter().map(f).collect() };
     let trends: [(&str, Vec<Option<f64>>); 3] = [
