@@ -95,8 +95,15 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
     };
     let base_p_value = chi2_sf(base.chi2, m.saturating_sub(fit.len()).max(1));
 
-    // every absent effect at its null, differentiated at once
-    let absent: Vec<&'static dyn Effect> = effects::REGISTRY.iter().copied().filter(|e| !base.model.has(e.name())).collect();
+    // every absent effect that can act on these experiments at its null, differentiated at once
+    let mut absent: Vec<&'static dyn Effect> = Vec::new();
+    let mut inapplicable: Vec<Candidate> = Vec::new();
+    for e in effects::REGISTRY.iter().copied().filter(|e| !base.model.has(e.name())) {
+        match applicable(e, data, exps) {
+            Ok(()) => absent.push(e),
+            Err(why) => inapplicable.push(Candidate { effect: e.name().into(), about: e.about().into(), rank: 0, score: 0.0, dof: 0, p_value: 1.0, fitted_chi2: None, error_ratio: None, fitted: vec![], loo_chi2_base: None, loo_chi2: None, verdict: format!("not applicable: {why}"), recommended: false }),
+        }
+    }
     let mut aug = base.model.clone();
     for e in &absent {
         aug = aug.with_effect(*e);
@@ -160,6 +167,7 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
         cands.push(Candidate { effect: e.name().into(), about: e.about().into(), rank: 0, score, dof, p_value, fitted_chi2: None, error_ratio: None, fitted: vec![], loo_chi2_base: None, loo_chi2: None, verdict, recommended: false });
     }
     cands.sort_by(|a, b| b.score.total_cmp(&a.score).then(a.effect.cmp(&b.effect)));
+    cands.extend(inapplicable);
     for (i, c) in cands.iter_mut().enumerate() {
         c.rank = i + 1;
     }
@@ -249,6 +257,19 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
         pattern,
         recommended_model,
     })
+}
+
+/// Whether `effect` can act on every simulation experiment the data name.
+fn applicable(effect: &dyn Effect, data: &[Observation], exps: &Experiments) -> Result<(), String> {
+    for (id, _) in super::compare::group(data) {
+        if let Some(s) = exps.get(&id).and_then(|x| x.scenario.as_ref()) {
+            let path = exps.base_dir.join(s);
+            let text = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+            let doc: toml::Table = text.parse().map_err(|e| format!("{}: {e}", path.display()))?;
+            effect.check_scenario(&doc).map_err(|m| format!("it {m} (experiment '{id}')"))?;
+        }
+    }
+    Ok(())
 }
 
 /// Sum over experiments of the chi^2 of each one predicted by `model` refitted (`names`)

@@ -55,7 +55,8 @@ impl Model {
     }
 
     pub fn from_table(t: &toml::Table) -> Result<Model, String> {
-        if let Some(k) = t.keys().find(|k| *k != "material" && *k != "effects") {
+        // [rheometer] is `strand rheometer`'s protocol, which a model file may carry
+        if let Some(k) = t.keys().find(|k| !["material", "effects", "rheometer"].contains(&k.as_str())) {
             return Err(format!("unknown table '{k}' (a model has [material] and [effects.NAME])"));
         }
         let material = match t.get("material") {

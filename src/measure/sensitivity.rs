@@ -37,7 +37,10 @@ pub fn sensitivity(model: &Model, data: &[Observation], exps: &Experiments, name
     })
 }
 
-fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>) -> Result<Vec<(f64, Option<Vec<f64>>)>, String> {
+/// An observation's value and, when asked, its gradient.
+type Valued = (f64, Option<Vec<f64>>);
+
+fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>) -> Result<Vec<Valued>, String> {
     let keys = experiment_keys(model, x)?;
     // an override cuts the key from the model
     let chain = |mut keys_bar: Keys| -> Result<Vec<f64>, String> {

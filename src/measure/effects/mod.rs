@@ -12,6 +12,7 @@ use std::collections::BTreeMap;
 
 pub mod ageing;
 pub mod thixotropy;
+pub mod viscosity_ageing;
 pub mod wall_friction;
 
 /// Scenario keys and their values for one experiment.
@@ -50,6 +51,11 @@ pub trait Effect: Sync {
     /// Given the keys before `apply` and the adjoints of the keys after it (`keys_bar`, a key
     /// absent = 0), leave in `keys_bar` the adjoints of the keys before it, and add to `p_bar`.
     fn apply_adjoint(&self, p: &[f64], x: &Covariates, keys_in: &Keys, keys_bar: &mut Keys, p_bar: &mut [f64]);
+    /// Whether the effect can act on a simulation experiment's scenario (its TOML document,
+    /// before the keys are set): an error says why not.
+    fn check_scenario(&self, _scenario: &toml::Table) -> Result<(), String> {
+        Ok(())
+    }
 }
 
 /// Every effect, in the order they apply.
@@ -57,6 +63,7 @@ pub const REGISTRY: &[&dyn Effect] = &[
     &ageing::Ageing::LINEAR,
     &ageing::Ageing::EXPONENTIAL,
     &thixotropy::Thixotropy,
+    &viscosity_ageing::ViscosityAgeing,
     &wall_friction::WallFriction,
 ];
 

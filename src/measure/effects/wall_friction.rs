@@ -29,6 +29,17 @@ impl Effect for WallFriction {
         keys.insert(KEY.into(), p[0]);
         Ok(())
     }
+    fn check_scenario(&self, scenario: &toml::Table) -> Result<(), String> {
+        let floor = scenario.get("boundary").and_then(|b| b.get("z_min"));
+        match floor {
+            Some(toml::Value::String(k)) if k == "free_slip" => Ok(()),
+            // a floor with its own friction or no slip is not this effect's null
+            other => Err(format!(
+                "needs a free-slip floor (its null), and boundary.z_min is {}",
+                other.map_or("not set".to_string(), |v| v.to_string())
+            )),
+        }
+    }
     fn apply_adjoint(&self, _: &[f64], _: &Covariates, _: &Keys, keys_bar: &mut Keys, p_bar: &mut [f64]) {
         p_bar[0] += bar(keys_bar, KEY);
         keys_bar.remove(KEY);
