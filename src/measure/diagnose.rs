@@ -357,14 +357,14 @@ pub fn report(d: &Diagnosis) -> String {
     for (n, v) in &d.base_values {
         let _ = writeln!(s, "  {n} = {v:.6e}");
     }
-    let _ = writeln!(s, "\n{:<4} {:<14} {:>12} {:>4} {:>10} {:>12} {:>12}  verdict", "rank", "effect", "score", "dof", "p", "error ratio", "left-out");
+    let _ = writeln!(s, "\n{:<4} {:<17} {:>12} {:>4} {:>10} {:>12} {:>12}  verdict", "rank", "effect", "score", "dof", "p", "error ratio", "left-out");
     for c in &d.candidates {
         let er = c.error_ratio.map_or("-".into(), |v| format!("{v:.3}"));
         let loo = match (c.loo_chi2, c.loo_chi2_base) {
             (Some(a), Some(b)) => format!("{:.3}", a / b.max(1e-300)),
             _ => "-".into(),
         };
-        let _ = writeln!(s, "{:<4} {:<14} {:>12.4e} {:>4} {:>10.3e} {:>12} {:>12}  {}", c.rank, c.effect, c.score, c.dof, c.p_value, er, loo, c.verdict);
+        let _ = writeln!(s, "{:<4} {:<17} {:>12.4e} {:>4} {:>10.3e} {:>12} {:>12}  {}", c.rank, c.effect, c.score, c.dof, c.p_value, er, loo, c.verdict);
         if !c.fitted.is_empty() {
             let fitted: Vec<String> = c.fitted.iter().map(|(n, v)| format!("{n} = {v:.4e}")).collect();
             let _ = writeln!(s, "     fitted: {}", fitted.join(", "));
