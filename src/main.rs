@@ -138,6 +138,10 @@ enum Cmd {
         jobs: usize,
         #[arg(long)]
         json: bool,
+        /// Also write a report into DIR: model against data and z against each covariate
+        /// (PNG), the trends of z (trends.csv, also printed) and index.html showing it all.
+        #[arg(long, value_name = "DIR")]
+        report: Option<PathBuf>,
     },
     /// Synthetic measurements: every experiment's `observe` list under MODEL, with relative
     /// Gaussian noise from a seed.
@@ -324,16 +328,30 @@ fn main() -> ExitCode {
                 true
             })
         }
-        Cmd::Compare { model, data, experiments, jobs, json } => (|| {
-            use strand::measure::{compare, data::{read_observations, Experiments}};
+        Cmd::Compare { model, data, experiments, jobs, json, report } => (|| {
+            use strand::measure::{compare, data::{read_observations, Experiments}, report as folder};
+            if let Some(dir) = &report {
+                folder::prepare_dir(dir)?;
+            }
             let m = compare::Model::load(&model)?;
             let d = read_observations(&data)?;
             let e = Experiments::load(&experiments)?;
             let c = compare::compare(&m, &d, &e, jobs)?;
+            let trends = report.as_deref().map(|dir| folder::write(dir, &c, &e, &m)).transpose()?;
             if json {
-                println!("{:#}", serde_json::to_value(&c).map_err(|e| e.to_string())?);
+                let mut v = serde_json::to_value(&c).map_err(|e| e.to_string())?;
+                if let Some(t) = &trends {
+                    v["trends"] = serde_json::to_value(t).map_err(|e| e.to_string())?;
+                }
+                println!("{v:#}");
             } else {
                 print!("{}", compare::report(&c));
+                if let Some(t) = &trends {
+                    print!("{}", folder::trends_text(t));
+                }
+            }
+            if let Some(dir) = &report {
+                eprintln!("report written to {}", dir.join("index.html").display());
             }
             Ok(true)
         })(),
