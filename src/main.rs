@@ -124,20 +124,12 @@ enum Cmd {
     /// observation (measured, model, residual, z), summaries per experiment and per observable,
     /// and where the model fails most.
     Compare {
-        /// Model file: the [material] every experiment uses.
-        #[arg(long)]
-        model: PathBuf,
-        /// Measurements CSV: experiment,observable,at,value,uncertainty.
-        #[arg(long)]
-        data: PathBuf,
-        /// Experiments file (TOML): what produced each experiment id.
-        #[arg(long)]
-        experiments: PathBuf,
-        /// Experiments run at once (each is independent).
-        #[arg(long, default_value_t = 1)]
-        jobs: usize,
-        #[arg(long)]
-        json: bool,
+        #[command(flatten)]
+        inputs: MeasureInputs,
+        /// Also write a report into DIR: model against data and z against each covariate
+        /// (PNG), the trends of z (trends.csv, also printed) and index.html showing it all.
+        #[arg(long, value_name = "DIR")]
+        report: Option<PathBuf>,
     },
     /// Synthetic measurements: every experiment's `observe` list under MODEL, with relative
     /// Gaussian noise from a seed.
@@ -161,13 +153,8 @@ enum Cmd {
     /// the adjoints): prints each parameter with its uncertainty and the error before and after,
     /// writes the calibrated model and a convergence plot.
     Calibrate {
-        /// Model file: [material] and [effects.NAME].
-        #[arg(long)]
-        model: PathBuf,
-        #[arg(long)]
-        data: PathBuf,
-        #[arg(long)]
-        experiments: PathBuf,
+        #[command(flatten)]
+        inputs: MeasureInputs,
         /// Parameters to fit: material.KEY or EFFECT.PARAM, comma-separated.
         #[arg(long, value_delimiter = ',', required = true)]
         fit: Vec<String>,
@@ -179,22 +166,14 @@ enum Cmd {
         plot: Option<PathBuf>,
         #[arg(long, default_value_t = 30)]
         max_iterations: usize,
-        #[arg(long, default_value_t = 1)]
-        jobs: usize,
-        #[arg(long)]
-        json: bool,
     },
     /// Which physical effect the model lacks: fits --fit, scores every effect not in the model
     /// at its null (score test from the adjoint gradient), fits the significant ones, checks them
     /// by leave-one-experiment-out, and gives a verdict ("add EFFECT", "explained" or
     /// "unexplained").
     Diagnose {
-        #[arg(long)]
-        model: PathBuf,
-        #[arg(long)]
-        data: PathBuf,
-        #[arg(long)]
-        experiments: PathBuf,
+        #[command(flatten)]
+        inputs: MeasureInputs,
         /// Base parameters refitted first (and in every candidate's fit), comma-separated.
         #[arg(long, value_delimiter = ',')]
         fit: Vec<String>,
@@ -209,10 +188,6 @@ enum Cmd {
         out: Option<PathBuf>,
         #[arg(long, default_value_t = 30)]
         max_iterations: usize,
-        #[arg(long, default_value_t = 1)]
-        jobs: usize,
-        #[arg(long)]
-        json: bool,
     },
     /// Throughput of the peer benchmark scene (3D J-fluid dam break).
     Bench {
@@ -232,6 +207,32 @@ enum Cmd {
 }
 
 const DEFAULT_SCENARIO: &str = include_str!("../fixtures/scenarios/default.toml");
+
+/// What every measurement command reads.
+#[derive(clap::Args)]
+struct MeasureInputs {
+    /// Model file: [material] and [effects.NAME].
+    #[arg(long)]
+    model: PathBuf,
+    /// Measurements CSV: experiment,observable,at,value,uncertainty.
+    #[arg(long)]
+    data: PathBuf,
+    /// Experiments file (TOML): what produced each experiment id.
+    #[arg(long)]
+    experiments: PathBuf,
+    /// Experiments run at once (each is independent).
+    #[arg(long, default_value_t = 1)]
+    jobs: usize,
+    #[arg(long)]
+    json: bool,
+}
+
+impl MeasureInputs {
+    fn load(&self) -> Result<(strand::measure::model::Model, Vec<strand::measure::data::Observation>, strand::measure::data::Experiments), String> {
+        use strand::measure::{data, model::Model};
+        Ok((Model::load(&self.model)?, data::read_observations(&self.data)?, data::Experiments::load(&self.experiments)?))
+    }
+}
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
@@ -324,16 +325,28 @@ fn main() -> ExitCode {
                 true
             })
         }
-        Cmd::Compare { model, data, experiments, jobs, json } => (|| {
-            use strand::measure::{compare, data::{read_observations, Experiments}};
-            let m = compare::Model::load(&model)?;
-            let d = read_observations(&data)?;
-            let e = Experiments::load(&experiments)?;
-            let c = compare::compare(&m, &d, &e, jobs)?;
-            if json {
-                println!("{:#}", serde_json::to_value(&c).map_err(|e| e.to_string())?);
+        Cmd::Compare { inputs, report } => (|| {
+            use strand::measure::{compare, report as folder};
+            if let Some(dir) = &report {
+                folder::prepare_dir(dir)?;
+            }
+            let (m, d, e) = inputs.load()?;
+            let c = compare::compare(&m, &d, &e, inputs.jobs)?;
+            let trends = report.as_deref().map(|dir| folder::write(dir, &c, &e, &m)).transpose()?;
+            if inputs.json {
+                let mut v = serde_json::to_value(&c).map_err(|e| e.to_string())?;
+                if let Some(t) = &trends {
+                    v["trends"] = serde_json::to_value(t).map_err(|e| e.to_string())?;
+                }
+                println!("{v:#}");
             } else {
                 print!("{}", compare::report(&c));
+                if let Some(t) = &trends {
+                    print!("{}", folder::trends_text(t));
+                }
+            }
+            if let Some(dir) = &report {
+                eprintln!("report written to {}", dir.join("index.html").display());
             }
             Ok(true)
         })(),
@@ -346,18 +359,16 @@ fn main() -> ExitCode {
             eprintln!("{} observations of {} experiments written to {}", obs.len(), e.experiment.len(), out.display());
             Ok(true)
         })(),
-        Cmd::Calibrate { model, data, experiments, fit, out, plot, max_iterations, jobs, json } => (|| {
-            use strand::measure::{calibrate, compare, data::{read_observations, Experiments}};
-            let m = compare::Model::load(&model)?;
-            let d = read_observations(&data)?;
-            let e = Experiments::load(&experiments)?;
-            let opts = calibrate::FitOptions { max_iterations, jobs, progress: true, ..Default::default() };
+        Cmd::Calibrate { inputs, fit, out, plot, max_iterations } => (|| {
+            use strand::measure::calibrate;
+            let (m, d, e) = inputs.load()?;
+            let opts = calibrate::FitOptions { max_iterations, jobs: inputs.jobs, progress: true, ..Default::default() };
             let f = calibrate::calibrate(&m, &d, &e, &fit, &opts)?;
-            let out = out.unwrap_or_else(|| model.with_extension("calibrated.toml"));
+            let out = out.unwrap_or_else(|| inputs.model.with_extension("calibrated.toml"));
             std::fs::write(&out, f.model.to_toml()).map_err(|e| format!("{}: {e}", out.display()))?;
             let plot = plot.unwrap_or_else(|| out.with_extension("png"));
             calibrate::plot_convergence(&f, &plot)?;
-            if json {
+            if inputs.json {
                 println!("{:#}", serde_json::to_value(&f).map_err(|e| e.to_string())?);
             } else {
                 print!("{}", calibrate::report(&f));
@@ -365,21 +376,19 @@ fn main() -> ExitCode {
             eprintln!("calibrated model written to {}, convergence plot to {}", out.display(), plot.display());
             Ok(true)
         })(),
-        Cmd::Diagnose { model, data, experiments, fit, alpha, no_loo, out, max_iterations, jobs, json } => (|| {
-            use strand::measure::{calibrate::FitOptions, compare, data::{read_observations, Experiments}, diagnose};
+        Cmd::Diagnose { inputs, fit, alpha, no_loo, out, max_iterations } => (|| {
+            use strand::measure::{calibrate::FitOptions, diagnose};
             if !(alpha > 0.0 && alpha < 1.0) {
                 return Err(format!("--alpha must be in (0, 1), got {alpha}"));
             }
-            let m = compare::Model::load(&model)?;
-            let d = read_observations(&data)?;
-            let e = Experiments::load(&experiments)?;
-            let opts = diagnose::DiagnoseOptions { fit: FitOptions { max_iterations, jobs, ..Default::default() }, alpha, leave_one_out: !no_loo, ..Default::default() };
+            let (m, d, e) = inputs.load()?;
+            let opts = diagnose::DiagnoseOptions { fit: FitOptions { max_iterations, jobs: inputs.jobs, ..Default::default() }, alpha, leave_one_out: !no_loo, ..Default::default() };
             let r = diagnose::diagnose(&m, &d, &e, &fit, &opts)?;
             if let (Some(out), Some(best)) = (&out, &r.recommended_model) {
                 std::fs::write(out, best.to_toml()).map_err(|e| format!("{}: {e}", out.display()))?;
                 eprintln!("model with {} written to {}", r.recommended.as_deref().unwrap_or(""), out.display());
             }
-            if json {
+            if inputs.json {
                 println!("{:#}", serde_json::to_value(&r).map_err(|e| e.to_string())?);
             } else {
                 print!("{}", diagnose::report(&r));

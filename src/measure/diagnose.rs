@@ -313,40 +313,15 @@ fn residual_pattern(base: &Fit, data: &[Observation], exps: &Experiments) -> Vec
             out.push(format!("residuals move together within each experiment (spread between experiments {between:.2}, within {within:.2}): a per-experiment cause the covariates do not describe; mean z: {}", shifts.join(", ")));
         }
     }
-    let cov = |f: &dyn Fn(&Observation) -> Option<f64>| -> Vec<Option<f64>> { data.iter().map(f).collect() };
-    let trends: [(&str, Vec<Option<f64>>); 3] = [
-        ("the station, time or rate (at)", cov(&|o| o.observable.at)),
-        ("the rest time", cov(&|o| exps.get(&o.experiment).map(|x| x.rest_time))),
-        ("the age", cov(&|o| exps.get(&o.experiment).map(|x| x.age))),
-    ];
-    let z: Vec<f64> = c.rows.iter().map(|r| r.z).collect();
-    for (name, x) in trends {
-        if let Some(r) = correlation(&x, &z) {
-            if r.abs() >= 0.5 {
-                out.push(format!("residuals {} with {name} (correlation {r:.2})", if r > 0.0 { "rise" } else { "fall" }));
-            }
-        }
-    }
-    if let Some(r) = correlation(&c.rows.iter().map(|r| Some(r.measured)).collect::<Vec<_>>(), &z) {
-        if r.abs() >= 0.5 {
-            out.push(format!("residuals {} with the measured value (correlation {r:.2}): a trend the model's form misses", if r > 0.0 { "rise" } else { "fall" }));
+    // the same trends `strand compare --report` tabulates
+    if let Ok(covs) = super::report::covariates(&c.rows, exps, &base.model) {
+        let mut with_measured = covs;
+        with_measured.push(super::report::Covariate { name: "the measured value".into(), axis: String::new(), values: c.rows.iter().map(|r| Some(r.measured)).collect() });
+        for t in super::report::trends(&c.rows, &with_measured).into_iter().filter(|t| t.trend) {
+            out.push(format!("residuals {} with {} (correlation {:.2} over {})", if t.r > 0.0 { "rise" } else { "fall" }, t.covariate, t.r, t.n));
         }
     }
     out
-}
-
-/// Pearson correlation over the points where x is known, when x varies.
-fn correlation(x: &[Option<f64>], y: &[f64]) -> Option<f64> {
-    let pts: Vec<(f64, f64)> = x.iter().zip(y).filter_map(|(a, b)| a.map(|a| (a, *b))).collect();
-    let n = pts.len() as f64;
-    if pts.len() < 3 {
-        return None;
-    }
-    let (mx, my) = (pts.iter().map(|p| p.0).sum::<f64>() / n, pts.iter().map(|p| p.1).sum::<f64>() / n);
-    let sxy: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
-    let sxx: f64 = pts.iter().map(|p| (p.0 - mx).powi(2)).sum();
-    let syy: f64 = pts.iter().map(|p| (p.1 - my).powi(2)).sum();
-    (sxx > 0.0 && syy > 0.0).then(|| sxy / (sxx * syy).sqrt())
 }
 
 /// The diagnosis as text.

@@ -3,9 +3,12 @@
 //! Text is drawn with DejaVu Sans embedded in the binary (plotters' `ab_glyph` feature), so
 //! plotting needs no system fonts and building needs no fontconfig headers.
 
+use std::ops::Range;
 use std::path::Path;
 use std::sync::OnceLock;
 
+use plotters::coord::types::RangedCoordf64;
+use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::{register_font, FontStyle};
 
@@ -146,9 +149,85 @@ pub fn plot_cross_section(
 pub fn plot_xy(path: &Path, title: &str, x_desc: &str, y_desc: &str, series: &[(String, Vec<[f64; 2]>)], lines: bool) -> Result<(), String> {
     ensure_font()?;
     let err = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
-    let finite = |p: &&[f64; 2]| p[0].is_finite() && p[1].is_finite();
+    let (xr, yr) = fitted_ranges(series.iter().flat_map(|(_, p)| p.iter().copied()));
+    let root = BitMapBackend::new(path, SIZE).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| err(&e))?;
+    let body = root.titled(title, (FAMILY, 22)).map_err(|e| err(&e))?;
+    let mut chart = xy_chart(&body, xr, yr, x_desc, y_desc).map_err(|e| err(&e))?;
+    for (i, (label, pts)) in series.iter().enumerate() {
+        let colour = Palette99::pick(i).to_rgba();
+        let pts: Vec<(f64, f64)> = pts.iter().filter(|p| finite(**p)).map(|p| (p[0], p[1])).collect();
+        if lines {
+            chart.draw_series(LineSeries::new(pts.clone(), colour.stroke_width(2))).map_err(|e| err(&e))?;
+        }
+        chart
+            .draw_series(pts.into_iter().map(|p| Circle::new(p, 4, colour.filled())))
+            .map_err(|e| err(&e))?
+            .label(label.as_str())
+            .legend(move |(x, y)| Circle::new((x + 10, y), 4, colour.filled()));
+    }
+    draw_legend(&mut chart).map_err(|e| err(&e))?;
+    root.present().map_err(|e| err(&e))
+}
+
+/// One measurement and the model's value at the same x, for [`plot_measured_model`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MeasuredPoint {
+    pub x: f64,
+    pub measured: f64,
+    pub uncertainty: f64,
+    pub model: f64,
+}
+
+/// Plots groups of measurements against a model to a PNG of 900 x 500 pixels: in each group's
+/// colour, the measurements as filled markers with +- uncertainty bars and the model as hollow
+/// markers joined in order of x. Axes fitted to the bars and the model (5 % padding); points with
+/// a non-finite coordinate skipped.
+pub fn plot_measured_model(path: &Path, title: &str, x_desc: &str, y_desc: &str, groups: &[(String, Vec<MeasuredPoint>)]) -> Result<(), String> {
+    ensure_font()?;
+    let err = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
+    let usable = |p: &&MeasuredPoint| p.x.is_finite() && p.measured.is_finite() && p.uncertainty.is_finite() && p.model.is_finite();
+    let extent = groups
+        .iter()
+        .flat_map(|(_, g)| g.iter().filter(usable))
+        .flat_map(|p| [[p.x, p.measured - p.uncertainty], [p.x, p.measured + p.uncertainty], [p.x, p.model]]);
+    let (xr, yr) = fitted_ranges(extent);
+    let root = BitMapBackend::new(path, SIZE).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| err(&e))?;
+    let body = root.titled(title, (FAMILY, 22)).map_err(|e| err(&e))?;
+    let mut chart = xy_chart(&body, xr, yr, x_desc, y_desc).map_err(|e| err(&e))?;
+    for (i, (label, points)) in groups.iter().enumerate() {
+        let colour = Palette99::pick(i).to_rgba();
+        let mut points: Vec<MeasuredPoint> = points.iter().filter(usable).copied().collect();
+        points.sort_by(|a, b| a.x.total_cmp(&b.x));
+        let model: Vec<(f64, f64)> = points.iter().map(|p| (p.x, p.model)).collect();
+        chart.draw_series(LineSeries::new(model.clone(), colour.stroke_width(1))).map_err(|e| err(&e))?;
+        chart.draw_series(model.into_iter().map(|p| Circle::new(p, 5, colour.stroke_width(2)))).map_err(|e| err(&e))?;
+        // Caps are offsets in pixels from the bar's ends, so they keep their size whatever the axes.
+        let cap = move |x: f64, y: f64| EmptyElement::at((x, y)) + PathElement::new(vec![(-4, 0), (4, 0)], colour.stroke_width(2));
+        chart
+            .draw_series(points.iter().map(|p| PathElement::new(vec![(p.x, p.measured - p.uncertainty), (p.x, p.measured + p.uncertainty)], colour.stroke_width(2))))
+            .map_err(|e| err(&e))?;
+        chart.draw_series(points.iter().flat_map(|p| [cap(p.x, p.measured - p.uncertainty), cap(p.x, p.measured + p.uncertainty)])).map_err(|e| err(&e))?;
+        chart
+            .draw_series(points.iter().map(|p| Circle::new((p.x, p.measured), 4, colour.filled())))
+            .map_err(|e| err(&e))?
+            .label(label.as_str())
+            .legend(move |(x, y)| Circle::new((x + 10, y), 4, colour.filled()));
+    }
+    draw_legend(&mut chart).map_err(|e| err(&e))?;
+    root.present().map_err(|e| err(&e))
+}
+
+fn finite(p: [f64; 2]) -> bool {
+    p[0].is_finite() && p[1].is_finite()
+}
+
+/// Axis ranges around the finite points, padded by 5 %; a lone value or none still gets a
+/// non-empty range.
+fn fitted_ranges(points: impl Iterator<Item = [f64; 2]>) -> (Range<f64>, Range<f64>) {
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-    for p in series.iter().flat_map(|(_, p)| p.iter()).filter(finite) {
+    for p in points.filter(|p| finite(*p)) {
         for a in 0..2 {
             lo[a] = lo[a].min(p[a]);
             hi[a] = hi[a].max(p[a]);
@@ -162,28 +241,20 @@ pub fn plot_xy(path: &Path, title: &str, x_desc: &str, y_desc: &str, series: &[(
         let m = ((b - a) * 0.05).max(1e-3 * a.abs().max(b.abs())).max(1e-12);
         a - m..b + m
     };
-    let root = BitMapBackend::new(path, SIZE).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| err(&e))?;
-    let body = root.titled(title, (FAMILY, 22)).map_err(|e| err(&e))?;
-    let mut chart = ChartBuilder::on(&body)
-        .margin(MARGIN)
-        .x_label_area_size(X_LABEL_AREA)
-        .y_label_area_size(Y_LABEL_AREA)
-        .build_cartesian_2d(pad(lo[0], hi[0]), pad(lo[1], hi[1]))
-        .map_err(|e| err(&e))?;
-    chart.configure_mesh().x_desc(x_desc).y_desc(y_desc).label_style((FAMILY, 14)).axis_desc_style((FAMILY, 16)).draw().map_err(|e| err(&e))?;
-    for (i, (label, pts)) in series.iter().enumerate() {
-        let colour = Palette99::pick(i).to_rgba();
-        let pts: Vec<(f64, f64)> = pts.iter().filter(finite).map(|p| (p[0], p[1])).collect();
-        if lines {
-            chart.draw_series(LineSeries::new(pts.clone(), colour.stroke_width(2))).map_err(|e| err(&e))?;
-        }
-        chart
-            .draw_series(pts.into_iter().map(|p| Circle::new(p, 4, colour.filled())))
-            .map_err(|e| err(&e))?
-            .label(label.as_str())
-            .legend(move |(x, y)| Circle::new((x + 10, y), 4, colour.filled()));
-    }
+    (pad(lo[0], hi[0]), pad(lo[1], hi[1]))
+}
+
+type XyChart<'a, 'b> = ChartContext<'a, BitMapBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+type PlotError<'b> = DrawingAreaErrorKind<<BitMapBackend<'b> as DrawingBackend>::ErrorType>;
+
+/// The axes and grid of an x-y plot in `body`.
+fn xy_chart<'a, 'b>(body: &'a DrawingArea<BitMapBackend<'b>, Shift>, xr: Range<f64>, yr: Range<f64>, x_desc: &str, y_desc: &str) -> Result<XyChart<'a, 'b>, PlotError<'b>> {
+    let mut chart = ChartBuilder::on(body).margin(MARGIN).x_label_area_size(X_LABEL_AREA).y_label_area_size(Y_LABEL_AREA).build_cartesian_2d(xr, yr)?;
+    chart.configure_mesh().x_desc(x_desc).y_desc(y_desc).label_style((FAMILY, 14)).axis_desc_style((FAMILY, 16)).draw()?;
+    Ok(chart)
+}
+
+fn draw_legend<'a, 'b: 'a>(chart: &mut XyChart<'a, 'b>) -> Result<(), PlotError<'b>> {
     chart
         .configure_series_labels()
         .label_font((FAMILY, 14))
@@ -191,8 +262,6 @@ pub fn plot_xy(path: &Path, title: &str, x_desc: &str, y_desc: &str, series: &[(
         .border_style(BLACK)
         .position(SeriesLabelPosition::UpperRight)
         .draw()
-        .map_err(|e| err(&e))?;
-    root.present().map_err(|e| err(&e))
 }
 
 /// Axis ranges (mm) for the points and whether they share one scale.
@@ -293,6 +362,21 @@ mod tests {
             plot_cross_section(&path, "cross-section", s, m).unwrap();
             let bytes = std::fs::read(&path).unwrap();
             assert_eq!(png_size(&bytes), Some(SIZE), "{name}");
+        }
+    }
+
+    #[test]
+    fn measured_model_plot_writes_png_of_the_right_size() {
+        let dir = tempfile::tempdir().unwrap();
+        let point = |x: f64, measured: f64| MeasuredPoint { x, measured, uncertainty: 0.1 * measured, model: 1.1 * measured };
+        let groups = [
+            ("A".to_string(), vec![point(20.0, 500.0), point(1.0, 120.0), point(5.0, 200.0)]),
+            ("B".to_string(), vec![point(f64::NAN, 1.0), point(3.0, 300.0)]),
+        ];
+        for (name, g) in [("groups.png", &groups[..]), ("none.png", &[])] {
+            let path = dir.path().join(name);
+            plot_measured_model(&path, "stress", "rate [1/s]", "stress [Pa]", g).unwrap();
+            assert_eq!(png_size(&std::fs::read(&path).unwrap()), Some(SIZE), "{name}");
         }
     }
 
