@@ -130,6 +130,19 @@ enum Cmd {
         /// (PNG), the trends of z (trends.csv, also printed) and index.html showing it all.
         #[arg(long, value_name = "DIR")]
         report: Option<PathBuf>,
+        /// Run nothing: write DIR/jobs.txt, one command per experiment (GNU parallel, or the
+        /// Slurm job array DIR/slurm.sh), each saving its values into DIR.
+        #[arg(long, value_name = "DIR", conflicts_with_all = ["collect", "only"])]
+        plan: Option<PathBuf>,
+        /// Compare from the values the planned jobs saved in DIR instead of running.
+        #[arg(long, value_name = "DIR", conflicts_with = "only")]
+        collect: Option<PathBuf>,
+        /// Run this experiment alone (a planned job).
+        #[arg(long, value_name = "ID", requires = "save")]
+        only: Option<String>,
+        /// Where --only saves its values (JSON).
+        #[arg(long, value_name = "FILE", requires = "only")]
+        save: Option<PathBuf>,
     },
     /// Synthetic measurements: every experiment's `observe` list under MODEL, with relative
     /// Gaussian noise from a seed.
@@ -325,13 +338,30 @@ fn main() -> ExitCode {
                 true
             })
         }
-        Cmd::Compare { inputs, report } => (|| {
-            use strand::measure::{compare, report as folder};
+        Cmd::Compare { inputs, report, plan, collect, only, save } => (|| {
+            use strand::measure::{compare, plan as jobs, report as folder};
             if let Some(dir) = &report {
                 folder::prepare_dir(dir)?;
             }
             let (m, d, e) = inputs.load()?;
-            let c = compare::compare(&m, &d, &e, inputs.jobs)?;
+            if let Some(dir) = &plan {
+                let exe = std::env::current_exe().map_err(|e| e.to_string())?;
+                let n = jobs::plan(dir, &exe, &inputs.model, &inputs.data, &inputs.experiments, &d)?;
+                eprintln!("{n} jobs in {0}/jobs.txt: `parallel < {0}/jobs.txt` or `sbatch {0}/slurm.sh`, then --collect {0}", dir.display());
+                return Ok(true);
+            }
+            if let (Some(id), Some(file)) = (&only, &save) {
+                let mine = jobs::only(&d, id)?;
+                let values = compare::model_values(&m, &mine, &e, 1)?;
+                jobs::save(file, id, &mine, &values)?;
+                eprintln!("{id}: {} values saved to {}", values.len(), file.display());
+                return Ok(true);
+            }
+            let values = match &collect {
+                Some(dir) => jobs::collect(dir, &d)?,
+                None => compare::model_values(&m, &d, &e, inputs.jobs)?,
+            };
+            let c = compare::comparison(&d, &values);
             let trends = report.as_deref().map(|dir| folder::write(dir, &c, &e, &m)).transpose()?;
             if inputs.json {
                 let mut v = serde_json::to_value(&c).map_err(|e| e.to_string())?;

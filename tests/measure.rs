@@ -123,3 +123,41 @@ fn the_rheometer_prints_a_flow_curve_and_its_sensitivities() {
     assert_eq!(code, 2);
     assert!(err.contains("no [rheometer] table"), "{err}");
 }
+
+#[test]
+fn planned_jobs_collected_compare_exactly_as_a_local_run() {
+    let fx = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/measure/campaign");
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let exps = fx.join("experiments.toml");
+    let (e, m) = (exps.to_str().unwrap(), fx.join("base.toml"));
+    let truth = fx.join("truth_thixotropy.toml");
+    let (code, _, err) = strand(&["synth", "--model", truth.to_str().unwrap(), "--experiments", e, "--noise", "0.01", "--seed", "5", "--out", "data.csv"], d);
+    assert_eq!(code, 0, "{err}");
+    let args = ["compare", "--model", m.to_str().unwrap(), "--data", "data.csv", "--experiments", e, "--json"];
+    let (code, local, err) = strand(&args, d);
+    assert_eq!(code, 0, "{err}");
+
+    let (code, _, err) = strand(&[&args[..], &["--plan", "jobs"]].concat(), d);
+    assert_eq!(code, 0, "{err}");
+    let lines: Vec<String> = std::fs::read_to_string(d.join("jobs/jobs.txt")).unwrap().lines().map(str::to_string).collect();
+    assert_eq!(lines.len(), 6, "{lines:?}");
+    assert!(std::fs::read_to_string(d.join("jobs/slurm.sh")).unwrap().contains("--array=1-6"));
+    // collecting before every job ran names the one missing
+    for line in &lines[..5] {
+        let o = Command::new("bash").arg("-c").arg(line).current_dir("/").output().unwrap();
+        assert!(o.status.success(), "{line}: {}", String::from_utf8_lossy(&o.stderr));
+    }
+    let (code, _, err) = strand(&[&args[..], &["--collect", "jobs"]].concat(), d);
+    assert_ne!(code, 0);
+    assert!(err.contains("experiment 'F' has no result"), "{err}");
+    let o = Command::new("bash").arg("-c").arg(&lines[5]).output().unwrap();
+    assert!(o.status.success());
+    let (code, collected, err) = strand(&[&args[..], &["--collect", "jobs"]].concat(), d);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(collected, local);
+
+    let (code, _, err) = strand(&["compare", "--model", m.to_str().unwrap(), "--data", "data.csv", "--experiments", e, "--only", "Z", "--save", "z.json"], d);
+    assert_ne!(code, 0);
+    assert!(err.contains("--only Z") && err.contains("A, B, C, D, E, F"), "{err}");
+}

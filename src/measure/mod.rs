@@ -12,6 +12,7 @@ pub mod diagnose;
 pub mod effects;
 pub mod linalg;
 pub mod model;
+pub mod plan;
 pub mod report;
 pub mod rheometer;
 pub mod sensitivity;

@@ -1,0 +1,93 @@
+//! Comparisons that outgrow one machine: `strand compare --plan DIR` writes one command per
+//! experiment (`DIR/jobs.txt`, a line each, for GNU parallel or a Slurm job array, with
+//! `DIR/slurm.sh` for the latter); each command runs its experiment alone (`--only ID`) and saves
+//! its values (`--save DIR/ID.json`); `strand compare --collect DIR` then compares from the
+//! saved values, exactly as a local run would (each experiment is independent, so the numbers
+//! are the same).
+
+use super::compare::group;
+use super::data::{Observable, Observation};
+use std::path::{Path, PathBuf};
+
+/// One experiment's values, as a job saves them.
+#[derive(Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Saved {
+    pub experiment: String,
+    /// `name` or `name@at`, in the data's order.
+    pub observables: Vec<String>,
+    pub values: Vec<f64>,
+}
+
+/// The observations of experiment `id` (an error when the data have none).
+pub fn only(data: &[Observation], id: &str) -> Result<Vec<Observation>, String> {
+    let mine: Vec<Observation> = data.iter().filter(|o| o.experiment == id).cloned().collect();
+    if mine.is_empty() {
+        let ids: Vec<String> = group(data).into_iter().map(|(i, _)| i).collect();
+        return Err(format!("--only {id}: the data have no observation of it (they have {})", ids.join(", ")));
+    }
+    Ok(mine)
+}
+
+pub fn save(path: &Path, id: &str, data: &[Observation], values: &[f64]) -> Result<(), String> {
+    let s = Saved { experiment: id.to_string(), observables: data.iter().map(|o| o.observable.to_string()).collect(), values: values.to_vec() };
+    let text = serde_json::to_string_pretty(&s).map_err(|e| e.to_string())?;
+    std::fs::write(path, text).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// Absolute form of a path the jobs will run with from anywhere.
+fn absolute(p: &Path) -> Result<PathBuf, String> {
+    std::path::absolute(p).map_err(|e| format!("{}: {e}", p.display()))
+}
+
+/// Write `DIR/jobs.txt` (one command per experiment of the data) and `DIR/slurm.sh`; returns
+/// the number of jobs.
+pub fn plan(dir: &Path, exe: &Path, model: &Path, data_path: &Path, experiments: &Path, data: &[Observation]) -> Result<usize, String> {
+    std::fs::create_dir_all(dir).map_err(|e| format!("--plan {}: {e}", dir.display()))?;
+    let dir = absolute(dir)?;
+    let quote = |p: &Path| format!("'{}'", p.display().to_string().replace('\'', "'\\''"));
+    let (exe, model, data_path, experiments) = (absolute(exe)?, absolute(model)?, absolute(data_path)?, absolute(experiments)?);
+    let ids: Vec<String> = group(data).into_iter().map(|(id, _)| id).collect();
+    let mut jobs = String::new();
+    for id in &ids {
+        if id.contains(['/', '\'', '\n']) {
+            return Err(format!("experiment id '{id}' cannot name a job's file"));
+        }
+        jobs.push_str(&format!(
+            "{} compare --model {} --data {} --experiments {} --only '{id}' --save {}\n",
+            quote(&exe),
+            quote(&model),
+            quote(&data_path),
+            quote(&experiments),
+            quote(&dir.join(format!("{id}.json")))
+        ));
+    }
+    let jobs_path = dir.join("jobs.txt");
+    std::fs::write(&jobs_path, jobs).map_err(|e| format!("{}: {e}", jobs_path.display()))?;
+    let slurm = format!(
+        "#!/bin/bash\n# One experiment per array task: sbatch {}\n#SBATCH --array=1-{}\n#SBATCH --cpus-per-task=1\nsed -n \"${{SLURM_ARRAY_TASK_ID}}p\" {} | bash\n",
+        quote(&dir.join("slurm.sh")),
+        ids.len(),
+        quote(&jobs_path)
+    );
+    std::fs::write(dir.join("slurm.sh"), slurm).map_err(|e| format!("{}: {e}", dir.display()))?;
+    Ok(ids.len())
+}
+
+/// The values of every observation, in the data's order, from the jobs' saved files in `dir`.
+pub fn collect(dir: &Path, data: &[Observation]) -> Result<Vec<f64>, String> {
+    let wanted = group(data);
+    let per: Vec<Vec<f64>> = wanted
+        .iter()
+        .map(|(id, obs)| {
+            let path = dir.join(format!("{id}.json"));
+            let text = std::fs::read_to_string(&path).map_err(|e| format!("experiment '{id}' has no result in {} ({e}): run its job from jobs.txt", dir.display()))?;
+            let s: Saved = serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+            let want: Vec<String> = obs.iter().map(Observable::to_string).collect();
+            if s.experiment != *id || s.observables != want || s.values.len() != want.len() {
+                return Err(format!("{}: it holds {} {:?}, the data ask {id} {want:?}: plan and run the jobs again", path.display(), s.experiment, s.observables));
+            }
+            Ok(s.values)
+        })
+        .collect::<Result<_, String>>()?;
+    Ok(super::compare::ungroup(data, &wanted, &per))
+}
