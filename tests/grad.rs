@@ -380,3 +380,21 @@ fn print_area_total_height_and_mean_z_gradients_match_central_differences() {
         assert!(r.value > 0.0 && r.gradient.iter().any(|g| g.abs() > 0.0), "{name}: {r:?}");
     }
 }
+
+#[test]
+fn the_flow_front_against_yield_stress_and_viscosity_agrees_with_central_differences() {
+    // The flow distance of a small slump (fixtures/measure/slump: 2 cm cells, 0.2 s) on a
+    // free-slip floor: the leading particle's x, the observable `front@T` of a flow test.
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/measure/slump/slump.toml");
+    let sc = Scenario::parse(&std::fs::read_to_string(path).unwrap()).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let obj: Objective = "front".parse().unwrap();
+    let r = gradient(&sc, &obj, &keys(&["material.yield_stress", "material.viscosity"]), &opts(None, dir.path())).unwrap();
+    assert!(r.gradient.iter().all(|g| *g < 0.0), "a stiffer or more viscous paste flows less far: {:?}", r.gradient);
+    let c = check(&sc, &obj, &r, None, &REL_STEPS).unwrap();
+    for p in &c.params {
+        println!("d front / d {} = {:.6e}, central differences {:?}", p.param, p.adjoint, p.central);
+        assert!(best_agreement(p) <= 1e-6, "{p:?}");
+    }
+    assert!((c.taylor_slope - 2.0).abs() <= 0.2, "Taylor slope {:.3}: {:?}", c.taylor_slope, c.taylor);
+}

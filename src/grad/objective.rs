@@ -27,6 +27,9 @@ pub enum Objective {
     Area { stations: Vec<f64> },
     /// Top of all the material above the base [m].
     TotalHeight,
+    /// Flow front: the leading edge of the material in x [m] (largest particle x plus half a
+    /// spacing; the flow distance of an L-box or channel test, from the gate at its x).
+    Front,
     /// Largest x velocity of any particle (the centreline speed of a channel flow).
     VxMax,
     /// Sum of m |v|^2 / 2.
@@ -35,7 +38,7 @@ pub enum Objective {
     MeanZ,
 }
 
-pub const NAMES: &str = "spread, width@X[,X...], height@X[,X...], area@X[,X...], total_height, vx_max, kinetic_energy, mean_z";
+pub const NAMES: &str = "spread, width@X[,X...], height@X[,X...], area@X[,X...], total_height, front, vx_max, kinetic_energy, mean_z";
 
 impl std::str::FromStr for Objective {
     type Err = String;
@@ -52,6 +55,7 @@ impl std::str::FromStr for Objective {
             _ => match s {
                 "spread" => Ok(Objective::Spread),
                 "total_height" => Ok(Objective::TotalHeight),
+                "front" => Ok(Objective::Front),
                 "vx_max" => Ok(Objective::VxMax),
                 "kinetic_energy" => Ok(Objective::KineticEnergy),
                 "mean_z" => Ok(Objective::MeanZ),
@@ -201,6 +205,13 @@ impl Objective {
                 }
                 world(top)[2] + 0.5 * frame.spacing - frame.base_z
             }
+            Objective::Front => {
+                let lead = arg_max(n, |_| true, |i| world(i)[0]).ok_or("objective front: no particles")?;
+                if let Some(s) = seed {
+                    s.xg[lead].x += scale;
+                }
+                world(lead)[0] + 0.5 * frame.spacing
+            }
             Objective::VxMax => {
                 let v = p.v.as_slice();
                 let i = arg_max(n, |_| true, |i| v[i].x as f64).ok_or("objective vx_max: no particles")?;
@@ -249,6 +260,7 @@ impl Objective {
             Objective::Height { stations } => format!("height@{}", join(stations)),
             Objective::Area { stations } => format!("area@{}", join(stations)),
             Objective::TotalHeight => "total_height".into(),
+            Objective::Front => "front".into(),
             Objective::VxMax => "vx_max".into(),
             Objective::KineticEnergy => "kinetic_energy".into(),
             Objective::MeanZ => "mean_z".into(),

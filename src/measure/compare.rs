@@ -70,12 +70,13 @@ pub fn parse_scenario(text: &str, scenario: &Path) -> Result<Scenario, String> {
     Ok(sc)
 }
 
-/// When (time) and what (objective) a simulation observable is: spread may be taken during the
-/// run, the rest at its end `end`.
+/// When (time) and what (objective) a simulation observable is: spread and front may be taken
+/// during the run, the rest at its end `end`.
 pub fn observable_plan(o: &Observable, end: f64) -> Result<(f64, Objective), String> {
     let station = || o.at.ok_or_else(|| format!("'{}' needs a station: {}@X", o.name, o.name));
     let (t, obj) = match o.name.as_str() {
         "spread" => (o.at.unwrap_or(end), Objective::Spread),
+        "front" => (o.at.unwrap_or(end), Objective::Front),
         "width" => (end, Objective::Width { stations: vec![station()?] }),
         "height" => (end, Objective::Height { stations: vec![station()?] }),
         "vx_max" => (end, Objective::VxMax),

@@ -10,7 +10,7 @@
 //! ```
 //!
 //! `at` is the station x [m] of a printed-geometry observable, the time [s] of one observed during
-//! a run (empty for the end), or the shear rate [1/s] of a rheometer reading. The experiments file
+//! a run (`spread`, `front`: a slump spread or a flow distance against time; empty for the end), or the shear rate [1/s] of a rheometer reading. The experiments file
 //! (TOML) maps each id to what produced it: a scenario with per-experiment overrides (rest time,
 //! speeds, geometry: any scenario key), or a virtual-rheometer protocol, and lists what it observes
 //! (what `strand synth` produces):
@@ -50,7 +50,7 @@ pub struct Observable {
 }
 
 /// Observables a simulation experiment can produce, and those of a rheometer experiment.
-pub const SIMULATION_OBSERVABLES: &[&str] = &["spread", "width", "height", "vx_max", "kinetic_energy", "mean_z"];
+pub const SIMULATION_OBSERVABLES: &[&str] = &["spread", "front", "width", "height", "vx_max", "kinetic_energy", "mean_z"];
 pub const RHEOMETER_OBSERVABLES: &[&str] = &["stress"];
 
 impl Observable {

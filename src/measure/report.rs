@@ -80,7 +80,7 @@ fn at_meaning(observable: &str) -> &'static str {
     match observable {
         "stress" => "shear rate [1/s]",
         "width" | "height" => "station x [m]",
-        "spread" => "time [s]",
+        "spread" | "front" => "time [s]",
         _ => "at",
     }
 }
