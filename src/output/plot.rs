@@ -132,14 +132,7 @@ pub fn plot_cross_section(
         labelled = true;
     }
     if labelled {
-        chart
-            .configure_series_labels()
-            .label_font((FAMILY, 14))
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .position(SeriesLabelPosition::UpperRight)
-            .draw()
-            .map_err(|e| err(&e))?;
+        draw_legend(&mut chart).map_err(|e| err(&e))?;
     }
     root.present().map_err(|e| err(&e))
 }
