@@ -51,7 +51,8 @@ pub struct Fit {
     pub model: Model,
 }
 
-fn chi2(values: &[f64], data: &[Observation]) -> f64 {
+/// Sum of the squared standardised residuals of `values` against `data`.
+pub fn chi2(values: &[f64], data: &[Observation]) -> f64 {
     values.iter().zip(data).map(|(v, o)| ((v - o.value) / o.uncertainty).powi(2)).sum()
 }
 

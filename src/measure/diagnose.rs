@@ -17,7 +17,7 @@
 //! 4. When no effect is recommended and the base model does not fit (chi^2 beyond its `alpha`
 //!    quantile) the verdict is "unexplained", with the pattern of the residuals.
 
-use super::calibrate::{calibrate, standardised, Fit, FitOptions};
+use super::calibrate::{calibrate, chi2, standardised, Fit, FitOptions};
 use super::data::{Experiments, Observation};
 use super::effects::{self, Effect};
 use super::linalg::{chi2_sf, normal_equations, pinv_sym};
@@ -88,7 +88,7 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
     let m = data.len();
     let base: Fit = if fit.is_empty() {
         let v = sensitivity(model, data, exps, None, opts.fit.jobs)?.values;
-        let c2 = v.iter().zip(data).map(|(v, o)| ((v - o.value) / o.uncertainty).powi(2)).sum();
+        let c2 = chi2(&v, data);
         Fit { names: vec![], start: vec![], values: vec![], uncertainty: vec![], at_bound: vec![], chi2_start: c2, chi2: c2, reduced_chi2: c2 / m as f64, history: vec![c2], converged: true, observations: m, model_values: v, model: model.clone() }
     } else {
         calibrate(model, data, exps, fit, &opts.fit)?
@@ -281,7 +281,7 @@ fn leave_one_out(model: &Model, data: &[Observation], exps: &Experiments, names:
         let test: Vec<Observation> = data.iter().filter(|o| o.experiment == *id).cloned().collect();
         let fitted = if names.is_empty() { model.clone() } else { calibrate(model, &train, exps, names, &opts.fit)?.model };
         let v = sensitivity(&fitted, &test, exps, None, opts.fit.jobs)?.values;
-        total += v.iter().zip(&test).map(|(v, o)| ((v - o.value) / o.uncertainty).powi(2)).sum::<f64>();
+        total += chi2(&v, &test);
     }
     Ok(total)
 }

@@ -165,23 +165,24 @@ impl Model {
 
     /// The scenario keys of one experiment (before its `set` overrides).
     pub fn keys(&self, x: &Covariates) -> Result<Keys, String> {
+        self.keys_traced(x).map(|(keys, _)| keys)
+    }
+
+    /// The keys after every effect, and the keys before each effect (what its adjoint reads).
+    fn keys_traced(&self, x: &Covariates) -> Result<(Keys, Vec<Keys>), String> {
         let mut keys: Keys = self.material.iter().filter_map(|(k, v)| super::data::number(v).map(|n| (format!("material.{k}"), n))).collect();
+        let mut before = Vec::with_capacity(self.effects.len());
         for (e, p) in &self.effects {
+            before.push(keys.clone());
             e.apply(p, x, &mut keys).map_err(|m| format!("effect '{}': {m}", e.name()))?;
         }
-        Ok(keys)
+        Ok((keys, before))
     }
 
     /// d(objective)/d(parameter) for `names`, given the adjoints of the keys [`Model::keys`]
     /// returned for covariates `x`.
     pub fn keys_adjoint(&self, x: &Covariates, mut keys_bar: Keys, names: &[String]) -> Result<Vec<f64>, String> {
-        // the keys before each effect, replayed forward
-        let mut before = Vec::with_capacity(self.effects.len());
-        let mut keys: Keys = self.material.iter().filter_map(|(k, v)| super::data::number(v).map(|n| (format!("material.{k}"), n))).collect();
-        for (e, p) in &self.effects {
-            before.push(keys.clone());
-            e.apply(p, x, &mut keys)?;
-        }
+        let (_, before) = self.keys_traced(x)?;
         let mut effect_bar: Vec<Vec<f64>> = self.effects.iter().map(|(_, p)| vec![0.0; p.len()]).collect();
         for (i, (e, p)) in self.effects.iter().enumerate().rev() {
             e.apply_adjoint(p, x, &before[i], &mut keys_bar, &mut effect_bar[i]);

@@ -53,10 +53,11 @@ fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obser
         (Some(s), _) => {
             let path = exps.base_dir.join(s);
             let text = scenario_text(model, &keys, &path)?;
-            let end = parse_scenario(&text, &path)?.simulation.end_time;
+            let whole = parse_scenario(&text, &path)?;
+            let end = whole.simulation.end_time;
             let wrt: Vec<String> = match names {
                 Some(_) => {
-                    let known = params::known(&driver::prepare(&parse_scenario(&text, &path)?, threads)?);
+                    let known = params::known(&driver::prepare(&whole, threads)?);
                     keys.keys().filter(|k| known.contains(k) && !x.set.contains_key(*k)).cloned().collect()
                 }
                 None => Vec::new(),
