@@ -143,12 +143,8 @@ impl GridGeom {
     /// Block of the stencil base of a particle at grid coordinate `xg`.
     #[inline(always)]
     pub fn particle_block(&self, xg: V3) -> [i32; 3] {
-        let base = (xg - V3::splat(0.5)).floor();
-        [
-            (base.x as i32).div_euclid(BS as i32),
-            (base.y as i32).div_euclid(BS as i32),
-            (base.z as i32).div_euclid(BS as i32),
-        ]
+        let (base, _) = crate::kernels::bspline::base_and_fx(xg);
+        base.map(|b| b.div_euclid(BS as i32))
     }
 }
 

@@ -5,13 +5,23 @@
 //! [0.5, 1.5). The weights of the three nodes along one axis are
 //! `0.5 (1.5 - fx)^2`, `0.75 - (fx - 1)^2`, `0.5 (fx - 0.5)^2`.
 
-use crate::real::{r, V3};
+use crate::real::{r, Real, V3};
 
 /// Stencil base node and the fractional offset of the particle from it.
 #[inline(always)]
 pub fn base_and_fx(xg: V3) -> ([i32; 3], V3) {
-    let b = (xg - V3::splat(r(0.5))).floor();
-    ([b.x as i32, b.y as i32, b.z as i32], xg - b)
+    let s = xg - V3::splat(r(0.5));
+    let b = [floor_i32(s.x), floor_i32(s.y), floor_i32(s.z)];
+    (b, xg - V3::new(b[0] as Real, b[1] as Real, b[2] as Real))
+}
+
+/// `floor(x)` as an integer. Without SSE4.1 (the baseline x86-64 target) `f64::floor` is a libm
+/// call, which profiling showed taking 13 % of a step; truncation plus a correction for negative
+/// non-integers is exact for |x| < 2^31, far beyond any grid coordinate.
+#[inline(always)]
+pub fn floor_i32(x: Real) -> i32 {
+    let t = x as i32;
+    t - ((t as Real) > x) as i32
 }
 
 /// 1D weights for the three stencil nodes along each axis: `w[k][d]` for node offset `k`, axis `d`.
@@ -41,8 +51,16 @@ pub fn weight_sum(w: &[V3; 3]) -> V3 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::real::Real;
     use proptest::prelude::*;
+
+    proptest! {
+        #[test]
+        fn floor_i32_is_floor(x in -1.0e6f64..1.0e6) {
+            let x = x as Real;
+            prop_assert_eq!(floor_i32(x), x.floor() as i32);
+            prop_assert_eq!(floor_i32(x.floor()), x.floor() as i32);
+        }
+    }
 
     proptest! {
         #[test]

@@ -72,26 +72,38 @@ pub fn p2g_block<const SPLIT: bool>(
         let vol = p.vol0[pi] * p.j[pi];
         let impulse = p.stress[pi] * (stress_scale * vol);
         let affine = if SPLIT { p.c[pi] * m } else { p.c[pi] * m + impulse };
-        let mv = p.v[pi] * m;
+        // A node's momentum is affine in its offset e = (a, b, c) - 1 from the stencil centre:
+        // mv + affine (e - (fx - 1)) dx. Building it axis by axis costs three additions per node
+        // instead of a matrix-vector product.
+        let centre = (fx - V3::ONE) * dx;
+        let (ax, ay, az) = (affine.x_axis * dx, affine.y_axis * dx, affine.z_axis * dx);
+        let q0 = p.v[pi] * m - affine * centre;
+        let (ix, iy, iz) = (impulse.x_axis * dx, impulse.y_axis * dx, impulse.z_axis * dx);
+        let i0 = if SPLIT { -(impulse * centre) } else { V3::ZERO };
         let (oi, oj, ok) = (
             (base[0] - origin[0]) as usize,
             (base[1] - origin[1]) as usize,
             (base[2] - origin[2]) as usize,
         );
         for a in 0..3 {
+            let ea = a as Real - r(1.0);
+            let (qa, ia) = (q0 + ax * ea, i0 + ix * ea);
             for b in 0..3 {
+                let eb = b as Real - r(1.0);
                 let wab = w[a].x * w[b].y;
+                let (qab, iab) = (qa + ay * eb, ia + iy * eb);
+                let row = local_index(oi + a, oj + b, ok);
                 for c in 0..3 {
+                    let ec = c as Real - r(1.0);
                     let weight = wab * w[c].z;
-                    let dpos = (V3::new(a as Real, b as Real, c as Real) - fx) * dx;
-                    let mom = (mv + affine * dpos) * weight;
-                    let node = &mut local[local_index(oi + a, oj + b, ok + c)];
+                    let mom = (qab + az * ec) * weight;
+                    let node = &mut local[row + c];
                     node[0] += weight * m;
                     node[1] += mom.x;
                     node[2] += mom.y;
                     node[3] += mom.z;
                     if SPLIT {
-                        let imp = impulse * dpos * weight;
+                        let imp = (iab + iz * ec) * weight;
                         node[4] += imp.x;
                         node[5] += imp.y;
                         node[6] += imp.z;
@@ -100,6 +112,53 @@ pub fn p2g_block<const SPLIT: bool>(
             }
         }
     }
+}
+
+/// The velocity `v = sum w v_i` and `B = sum w v_i (x_i - x_p)^T` a particle gathers from the
+/// node velocities in channels `CH..CH + 3` of its stencil, whose base is local node `o`.
+///
+/// B is separable: with node offsets `e = (a, b, c) - 1` from the stencil centre, its column k is
+/// `dx (sum w v_i e_k - v (fx_k - 1))`, and the inner sums build up axis by axis (three
+/// multiply-adds per node instead of twelve). Centred offsets keep the cancellation against
+/// `v (fx_k - 1)` small. The adjoint recomputes through this same function, bit for bit.
+#[inline(always)]
+pub fn gather_velocity<const CH: usize>(local: &[Node; LNODES], o: [usize; 3], fx: V3, w: &[V3; 3], dx: Real) -> (V3, M3) {
+    let mut v = V3::ZERO;
+    let mut mx = V3::ZERO;
+    let mut my = V3::ZERO;
+    let mut mz = V3::ZERO;
+    for a in 0..3 {
+        // sums over b and c of this a-plane: plain, times e_b, times e_c
+        let (mut t0, mut tb, mut tc) = (V3::ZERO, V3::ZERO, V3::ZERO);
+        for b in 0..3 {
+            let row = local_index(o[0] + a, o[1] + b, o[2]);
+            let node = |c: usize| {
+                let n = &local[row + c];
+                V3::new(n[CH], n[CH + 1], n[CH + 2]) * w[c].z
+            };
+            let (n0, n1, n2) = (node(0), node(1), node(2));
+            let s0 = n0 + n1 + n2;
+            let s1 = n2 - n0;
+            t0 += s0 * w[b].y;
+            tc += s1 * w[b].y;
+            match b {
+                0 => tb -= s0 * w[0].y,
+                2 => tb += s0 * w[2].y,
+                _ => {}
+            }
+        }
+        v += t0 * w[a].x;
+        my += tb * w[a].x;
+        mz += tc * w[a].x;
+        match a {
+            0 => mx -= t0 * w[0].x,
+            2 => mx += t0 * w[2].x,
+            _ => {}
+        }
+    }
+    let centre = fx - V3::ONE;
+    let bmat = M3::from_cols(mx - v * centre.x, my - v * centre.y, mz - v * centre.z) * dx;
+    (v, bmat)
 }
 
 /// Particle data G2P writes.
@@ -157,29 +216,8 @@ pub fn g2p_block(
             (base[1] - origin[1]) as usize,
             (base[2] - origin[2]) as usize,
         );
-        let mut v = V3::ZERO;
-        let mut dv = V3::ZERO;
-        let mut bmat = M3::ZERO;
-        for a in 0..3 {
-            for b in 0..3 {
-                let wab = w[a].x * w[b].y;
-                for c in 0..3 {
-                    let weight = wab * w[c].z;
-                    let dpos = (V3::new(a as Real, b as Real, c as Real) - fx) * dx;
-                    let n = &local[local_index(oi + a, oj + b, ok + c)];
-                    let vi = V3::new(n[1], n[2], n[3]);
-                    v += vi * weight;
-                    if flip > r(0.0) {
-                        dv += (vi - V3::new(n[4], n[5], n[6])) * weight;
-                    }
-                    // outer product vi dpos^T, column-major: column k = vi * dpos[k]
-                    let wv = vi * weight;
-                    bmat.x_axis += wv * dpos.x;
-                    bmat.y_axis += wv * dpos.y;
-                    bmat.z_axis += wv * dpos.z;
-                }
-            }
-        }
+        let (v, bmat) = gather_velocity::<1>(local, [oi, oj, ok], fx, &w, dx);
+        let dv = if flip > r(0.0) { v - gather_velocity::<4>(local, [oi, oj, ok], fx, &w, dx).0 } else { V3::ZERO };
         let cm = bmat * c_scale;
         out.c[pi] = cm;
         out.xg[pi] += v * (tp.dt * inv_dx);

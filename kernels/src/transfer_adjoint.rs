@@ -34,7 +34,7 @@
 
 use crate::bspline::{base_and_fx, weights, weights_adjoint};
 use crate::real::{ddot, r, trace, Real, M3, V3};
-use crate::transfer::{local_index, Node, P2gInput, TransferParams, BS, LNODES};
+use crate::transfer::{gather_velocity, local_index, Node, P2gInput, TransferParams, BS, LNODES};
 
 /// Adjoints of the particle data and parameters P2G reads, indexed like [`P2gInput`]; all
 /// accumulated.
@@ -240,19 +240,7 @@ fn g2p_particle(origin: [i32; 3], local: &[Node; LNODES], tp: &TransferParams, x
     let inv_dx = r(1.0) / dx;
     let c_scale = r(4.0) * inv_dx * inv_dx;
     let stencil = Stencil::new(origin, xg);
-    let mut v = V3::ZERO;
-    let mut bmat = M3::ZERO;
-    for (a, b, c) in stencil_nodes() {
-        let weight = stencil.weight(a, b, c);
-        let dpos = stencil.offset(a, b, c) * dx;
-        let n = &local[stencil.node(a, b, c)];
-        let vi = V3::new(n[1], n[2], n[3]);
-        v += vi * weight;
-        let wv = vi * weight;
-        bmat.x_axis += wv * dpos.x;
-        bmat.y_axis += wv * dpos.y;
-        bmat.z_axis += wv * dpos.z;
-    }
+    let (v, bmat) = gather_velocity::<1>(local, stencil.base, stencil.fx, &stencil.w, dx);
     let tr_c = trace(&(bmat * c_scale));
     G2pParticle { stencil, v, bmat, tr_c, xg_new: xg + v * (tp.dt * inv_dx) }
 }
