@@ -2,13 +2,13 @@
 //! quantities, observables and restart checkpoints, with progress; `--resume` continues from the
 //! newest good checkpoint, and Ctrl-C (SIGINT) or SIGTERM stops the run with a fresh one.
 
-use crate::checkpoint::{self, state, writer::CheckpointWriter, writer::Event, Checkpoint};
+use crate::checkpoint::{self, state, writer::CheckpointWriter, writer::Event, writer::Staged, Checkpoint};
 use crate::disk::{self, DiskFullPolicy};
 use crate::memory::{fmt_bytes, parse_size, Backing, Pool};
 use crate::output::vtu::{vtu_size, write_pvd, write_vtu, VtuData, VtuField};
 use crate::report::Reporter;
 use crate::scenario::Scenario;
-use crate::solver::{SimError, Simulation};
+use crate::solver::{DtLimit, SimError, Simulation};
 use crate::Real;
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
@@ -314,7 +314,9 @@ impl Outputs<'_> {
     }
 }
 
-/// The checkpoint stage as the run loop drives it.
+/// The checkpoint stage as the run loop drives it. Checkpoints are taken in the middle of a
+/// step (see `checkpoint/state.rs`), so one the run needs after a step (at its end, or when the
+/// disk budget refuses a snapshot) is the middle of that step, staged while it was there.
 struct Checkpoints {
     writer: CheckpointWriter,
     cfg: checkpoint::CheckpointConfig,
@@ -323,6 +325,10 @@ struct Checkpoints {
     /// Newest checkpoint known to be on disk, and its step.
     last_good: Option<(PathBuf, u64)>,
     resume: String,
+    /// The middle of the current step when it ends on an output (or the end).
+    staged: Option<Staged>,
+    /// Whether a checkpoint was queued in the middle of the current step.
+    this_step: bool,
 }
 
 impl Checkpoints {
@@ -331,17 +337,47 @@ impl Checkpoints {
             || self.last_wall.elapsed().as_secs_f64() >= self.cfg.wall_interval
     }
 
-    fn submit(&mut self, sim: &Simulation, out: &Outputs) -> Result<(), RunError> {
-        let header = state::header(sim, out.k_out, &out.progress(), Vec::new());
+    /// Queue a checkpoint of `sim`, in the middle of a step of length `dt`.
+    fn submit(&mut self, sim: &Simulation, dt: f64, limit: DtLimit, out: &Outputs) -> Result<(), RunError> {
+        let header = state::header(sim, dt, limit, out.k_out, &out.progress(), Vec::new());
         self.writer.submit(header, &state::sections(sim)).map_err(RunError::Checkpoint)?;
         self.last_wall = Instant::now();
         self.last_step = sim.step;
+        self.this_step = true;
         Ok(())
     }
 
-    /// Write a checkpoint of the current state and wait until it (and any before it) is on disk.
-    fn write_now(&mut self, sim: &Simulation, out: &Outputs) -> Result<(), RunError> {
-        self.submit(sim, out)?;
+    /// Copy the middle of a step ending on an output, in case the run stops after the output.
+    fn stage(&mut self, sim: &Simulation, dt: f64, limit: DtLimit, out: &Outputs) -> Result<(), RunError> {
+        let header = state::header(sim, dt, limit, out.k_out, &out.progress(), Vec::new());
+        self.staged = Some(self.writer.stage(header, &state::sections(sim)).map_err(RunError::Checkpoint)?);
+        Ok(())
+    }
+
+    /// After the step: write the staged middle of it (unless one was queued there anyway) and
+    /// wait until every checkpoint is on disk.
+    fn write_staged(&mut self) -> Result<(), RunError> {
+        if let Some(s) = self.staged.take() {
+            if self.this_step {
+                self.writer.release(s);
+            } else {
+                self.last_step = s.step();
+                self.writer.submit_staged(s).map_err(RunError::Checkpoint)?;
+            }
+        }
+        self.drain()
+    }
+
+    fn release_staged(&mut self) {
+        if let Some(s) = self.staged.take() {
+            self.writer.release(s);
+        }
+    }
+
+    /// Write a checkpoint of `sim` (in the middle of a step) and wait until it (and any before
+    /// it) is on disk.
+    fn write_now(&mut self, sim: &Simulation, dt: f64, limit: DtLimit, out: &Outputs) -> Result<(), RunError> {
+        self.submit(sim, dt, limit, out)?;
         self.drain()
     }
 
@@ -392,7 +428,7 @@ impl Checkpoints {
     }
 }
 
-/// SIGINT and SIGTERM set a flag the run loop checks after every step; a second signal ends the
+/// SIGINT and SIGTERM set a flag the run loop checks in the middle of every step; a second signal ends the
 /// process at once. Unregistered when dropped, so a library caller keeps its own handlers.
 struct Signals {
     flag: std::sync::Arc<std::sync::atomic::AtomicUsize>,
@@ -478,6 +514,8 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
     };
 
     let mut sim = Simulation::new(&sc)?;
+    // the step a checkpoint was taken in, to finish first: (dt, its bound)
+    let mut resume_step = None;
     let mut k_out = 0;
     let mut progress = state::Progress::default();
     if let Some(ck) = &resume_from {
@@ -487,7 +525,8 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
                 ck.path.display()
             )));
         }
-        state::restore(&mut sim, ck).map_err(|e| RunError::Resume(format!("cannot resume from {}: {e}", ck.path.display())))?;
+        let pending = state::restore(&mut sim, ck).map_err(|e| RunError::Resume(format!("cannot resume from {}: {e}", ck.path.display())))?;
+        resume_step = Some(pending);
         k_out = ck.header.outputs;
         progress = serde_json::from_str(&ck.header.progress_json)
             .map_err(|e| RunError::Resume(format!("cannot resume from {}: run progress does not decode: {e}", ck.path.display())))?;
@@ -562,6 +601,8 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
             last_step: sim.step,
             last_good: resume_from.as_ref().map(|c| (c.path.clone(), c.header.step)),
             resume: resume_cmd.clone(),
+            staged: None,
+            this_step: false,
         })
     } else {
         None
@@ -592,26 +633,33 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
         let note = ck.as_ref().map_or("checkpoints are disabled ([checkpoint] enabled = false)".to_string(), |c| c.note());
         RunError::Stopped { source: Box::new(e), note }
     };
+    // keep what a failing step produced, for diagnosis in ParaView
+    let failed = |source: SimError, sim: &Simulation| -> RunError {
+        let snapshot = opts.out.join("failed_state.vtu");
+        match write_snapshot(sim, &snapshot, &mut Vec::new(), |_| Ok(())) {
+            Ok(()) => RunError::Failed { source, snapshot },
+            Err(_) => RunError::Sim(source),
+        }
+    };
+    if let Some((dt, limit)) = resume_step {
+        if let Err(source) = sim.finish_step(dt) {
+            return Err(stopped(failed(source, &sim), &ckpts));
+        }
+        sim.last_dt = dt;
+        sim.last_limit = limit;
+    }
     while sim.time < end * (1.0 - 1e-12) {
         let next_out = ((outputs.k_out + 1) as f64 * interval).min(end);
         while sim.time < next_out * (1.0 - 1e-12) {
-            if let Err(source) = sim.step_until(next_out) {
-                // keep what the failing step produced, for diagnosis in ParaView
-                let snapshot = opts.out.join("failed_state.vtu");
-                let e = match write_snapshot(&sim, &snapshot, &mut Vec::new(), |_| Ok(())) {
-                    Ok(()) => RunError::Failed { source, snapshot },
-                    Err(_) => RunError::Sim(source),
-                };
-                return Err(stopped(e, &ckpts));
+            let (dt, limit) = sim.choose_dt(next_out);
+            if let Err(source) = sim.begin_step(dt) {
+                return Err(stopped(failed(source, &sim), &ckpts));
             }
+            // The middle of the step, where checkpoints are taken (see checkpoint/state.rs).
             if let Some(ck) = &mut ckpts {
+                ck.this_step = false;
                 if let Err(e) = ck.poll() {
                     return Err(stopped(e, &ckpts));
-                }
-                if ck.due(&sim) {
-                    if let Err(e) = ck.submit(&sim, &outputs) {
-                        return Err(stopped(e, &ckpts));
-                    }
                 }
             }
             if let Some(signal) = signals.caught() {
@@ -620,7 +668,7 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
                 }
                 let saved = match &mut ckpts {
                     Some(ck) => {
-                        let r = ck.write_now(&sim, &outputs);
+                        let r = ck.write_now(&sim, dt, limit, &outputs);
                         if let Err(e) = r {
                             return Err(stopped(e, &ckpts));
                         }
@@ -630,6 +678,25 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
                 };
                 return Err(RunError::Interrupted { signal, step: sim.step, time: sim.time, saved, resume: resume_cmd });
             }
+            if let Some(ck) = &mut ckpts {
+                // the same sum finish_step makes: whether this step ends on the output
+                let ends_on_output = sim.time + dt >= next_out * (1.0 - 1e-12);
+                let r = if ck.due(&sim) {
+                    ck.submit(&sim, dt, limit, &outputs)
+                } else if ends_on_output {
+                    ck.stage(&sim, dt, limit, &outputs)
+                } else {
+                    Ok(())
+                };
+                if let Err(e) = r {
+                    return Err(stopped(e, &ckpts));
+                }
+            }
+            if let Err(source) = sim.finish_step(dt) {
+                return Err(stopped(failed(source, &sim), &ckpts));
+            }
+            sim.last_dt = dt;
+            sim.last_limit = limit;
             if let Some(b) = &bar {
                 if sim.step % 16 == 0 {
                     let rate = (sim.step - first_step) as f64 / start.elapsed().as_secs_f64();
@@ -650,23 +717,27 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
         }
         outputs.k_out += 1;
         if let Err(e) = outputs.write(&sim) {
-            // a snapshot over the disk budget: stop with a fresh checkpoint (room was kept for it)
+            // a snapshot over the disk budget: stop with a checkpoint of the middle of the step
+            // before this output (room was kept for it)
             if let (RunError::DiskBudget(_), Some(ck)) = (&e, &mut ckpts) {
-                outputs.k_out -= 1;
-                let _ = ck.write_now(&sim, &outputs);
+                let _ = ck.write_staged();
             }
             return Err(stopped(e, &ckpts));
+        }
+        let last = sim.time >= end * (1.0 - 1e-12);
+        if let Some(ck) = &mut ckpts {
+            if !(last && sc.checkpoint.at_end) {
+                ck.release_staged();
+            }
         }
     }
     if let Some(b) = bar {
         b.finish_and_clear();
     }
     if let Some(ck) = &mut ckpts {
-        let r = if sc.checkpoint.at_end && (ck.last_step != sim.step || ck.last_good.is_none()) {
-            ck.write_now(&sim, &outputs)
-        } else {
-            ck.drain()
-        };
+        // the end checkpoint is the middle of the last step (staged there), unless the run
+        // resumed from it and had nothing left to do
+        let r = if sc.checkpoint.at_end { ck.write_staged() } else { ck.drain() };
         if let Err(e) = r {
             return Err(stopped(e, &ckpts));
         }
@@ -705,7 +776,8 @@ fn clear_old_checkpoints(dir: &Path, opts: &RunOptions) -> Result<(), RunError> 
         let newest = old.iter().rev().find_map(|(_, p)| Checkpoint::open(p).ok());
         if let Some(ck) = newest {
             let end = Scenario::parse(&ck.header.scenario_text).map_or(f64::INFINITY, |s| s.simulation.end_time);
-            if ck.header.time < end * (1.0 - 1e-12) {
+            // the checkpoint is inside a step: the run had finished if that step reaches the end
+            if ck.header.time + ck.header.dt < end * (1.0 - 1e-12) {
                 return Err(RunError::Resume(format!(
                     "{} holds an unfinished run (step {}, t = {:.6} s of {end} s); continue it with --resume, \
                      start over with --overwrite (deletes its checkpoints), or choose another --out",

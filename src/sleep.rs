@@ -10,13 +10,17 @@
 //! when the nozzle tube reaches it (material in the tube must follow the nozzle).
 //!
 //! Sleeping freezes the internal state (no thixotropic build-up while asleep) and the stress;
-//! both resume on waking. Going to sleep is checked every `check_interval` steps (it moves
-//! particles, O(awake particles)); waking is checked every step and moves particles only when a
-//! block actually wakes (O(sleeping particles), rare).
+//! both resume on waking. A particle falling asleep is settled: its velocity and velocity
+//! gradient (below the rest thresholds anyway) become zero and its stress the material's stress
+//! at rest for its state and J, so a restart checkpoint rebuilds all three from (state, J)
+//! instead of storing 84 bytes per sleeping particle in f32. Going to sleep is checked every
+//! `check_interval` steps (it moves particles, O(awake particles)); waking is checked every step
+//! and moves particles only when a block actually wakes (O(sleeping particles), rare).
 
 use crate::grid::{Grid, GridGeom, EMPTY};
 use crate::kernels::transfer::BS;
-use crate::kernels::Real;
+use crate::kernels::material::Material;
+use crate::kernels::{Real, M3, V3};
 use crate::memory::{Backing, MemoryError, MemoryPlan, Pool};
 use crate::particles::Particles;
 use serde::Deserialize;
@@ -144,6 +148,7 @@ impl Sleep {
         &mut self,
         grid: &Grid,
         particles: &mut Particles,
+        material: &dyn Material,
         dt: f64,
         check_sleep: bool,
         keep_awake: Option<([f64; 3], [f64; 3])>,
@@ -237,6 +242,7 @@ impl Sleep {
                 let b = geom.block_index(geom.particle_block(particles.xg.as_slice()[i]));
                 if state[b as usize] == ASLEEP {
                     particles.swap(i, particles.n_sleep);
+                    settle(particles, particles.n_sleep, material);
                     particles.n_sleep += 1;
                 }
             }
@@ -284,6 +290,17 @@ impl Sleep {
             in_table(geom, c) && self.is_asleep(geom.block_index(c))
         })
     }
+}
+
+/// Put particle `i` at rest: zero velocity and velocity gradient, and the stress its material
+/// has at rest with its state and J (see the module notes: what a sleeping particle holds
+/// besides its state and J is rebuilt, not stored).
+pub fn settle(p: &mut Particles, i: usize, material: &dyn Material) {
+    let sl = p.state_len;
+    p.v.as_mut_slice()[i] = V3::ZERO;
+    p.c.as_mut_slice()[i] = M3::ZERO;
+    let state = &p.state.as_slice()[i * sl..(i + 1) * sl];
+    p.stress.as_mut_slice()[i] = material.stress_at_rest(state, p.j.as_slice()[i]);
 }
 
 /// Block holding world point `x`, shifted by `shift` blocks on every axis.

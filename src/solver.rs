@@ -154,7 +154,7 @@ pub struct Simulation {
 }
 
 fn checkpoint_staging_bytes(sc: &Scenario, cap: usize, state_len: usize, max_blocks: usize, table_len: usize) -> usize {
-    crate::checkpoint::state::max_staging_bytes(cap, state_len, max_blocks, table_len, sc.sleep.is_some())
+    crate::checkpoint::state::max_staging_bytes(cap, state_len, max_blocks, table_len, sc.sleep.is_some(), sc.simulation.flip > 0.0)
 }
 
 /// Names of the step's phases, as accumulated in `Simulation::phase_seconds`.
@@ -369,6 +369,16 @@ impl Simulation {
 
     /// One MLS-MPM step of length `dt`.
     pub fn advance(&mut self, dt: f64) -> Result<(), SimError> {
+        self.begin_step(dt)?;
+        self.finish_step(dt)
+    }
+
+    /// The first half of a step: emission, sleeping, binning, P2G and the grid update. Between
+    /// the halves the rest of the step needs only the grid's node velocities, and per particle
+    /// x, J, the material state and id (v too with FLIP): C and stress are rebuilt by G2P and
+    /// the material update. That is where restart checkpoints are taken
+    /// (`checkpoint/state.rs`).
+    pub fn begin_step(&mut self, dt: f64) -> Result<(), SimError> {
         let mut clock = PhaseClock::start();
         self.emit()?;
         let drive = self.printer.as_ref().and_then(|p| p.drive(self.time));
@@ -376,7 +386,8 @@ impl Simulation {
         if let Some(sl) = &mut self.sleep {
             if self.step > 0 {
                 let check = self.step.is_multiple_of(sl.cfg.check_interval);
-                moved = sl.update(&self.grid, &mut self.particles, self.last_dt, check, drive.map(|d| d.bounds()));
+                let mat = &*self.material;
+                moved = sl.update(&self.grid, &mut self.particles, mat, self.last_dt, check, drive.map(|d| d.bounds()));
             }
         }
         self.awake_particle_steps += (self.particles.n - self.particles.n_sleep) as u64;
@@ -392,6 +403,14 @@ impl Simulation {
         clock.lap(&mut self.phase_seconds[2]);
         self.grid_update(dt as Real, drive.as_ref());
         clock.lap(&mut self.phase_seconds[3]);
+        Ok(())
+    }
+
+    /// The second half of a step begun by [`Simulation::begin_step`] with the same `dt` (or put
+    /// back by a checkpoint restore): G2P, the newest slab's blend, the material update.
+    pub fn finish_step(&mut self, dt: f64) -> Result<(), SimError> {
+        let mut clock = PhaseClock::start();
+        let drive = self.printer.as_ref().and_then(|p| p.drive(self.time));
         self.g2p(dt as Real);
         self.follow_feed(dt as Real, drive.as_ref());
         clock.lap(&mut self.phase_seconds[4]);
@@ -416,18 +435,7 @@ impl Simulation {
         } else if let Some(em) = &mut pr.emitter {
             em.drain_due(t, add)?;
         }
-        let after = pr.emitted();
-        let nw = &mut pr.newest;
-        if !pr.plan.partial || after == 0 {
-            (nw.set_from, nw.moving) = (u32::MAX, false);
-            return Ok(());
-        }
-        // Derived from the slab counts alone, so a resumed run needs no extra state: ids are
-        // creation order and particles are never removed.
-        nw.slab = after - 1;
-        nw.first = (self.particles.n - pr.plan.count(after - 1)) as u32;
-        nw.set_from = if after > before && before > 0 { (n_before - pr.plan.count(before - 1)) as u32 } else { nw.first };
-        (nw.fraction, nw.moving) = pr.plan.fraction(after - 1, t);
+        note_newest(pr, t, self.particles.n, before, n_before);
         Ok(())
     }
 
@@ -765,6 +773,23 @@ impl Simulation {
         let s: M3 = self.particles.stress.as_slice()[i];
         -((s.x_axis.x + s.y_axis.y + s.z_axis.z) / 3.0) as f64
     }
+}
+
+/// Note which slab is the newest at time `t` and what fraction of it has been extruded, after
+/// emission took the slab count from `before` (with `n_before` particles) to the printer's
+/// `emitted()` (with `n`). Derived from the slab counts alone, so a resumed run needs no extra
+/// state: ids are creation order and particles are never removed.
+pub(crate) fn note_newest(pr: &mut Printer, t: f64, n: usize, before: u64, n_before: usize) {
+    let after = pr.emitted();
+    let nw = &mut pr.newest;
+    if !pr.plan.partial || after == 0 {
+        (nw.set_from, nw.moving) = (u32::MAX, false);
+        return;
+    }
+    nw.slab = after - 1;
+    nw.first = (n - pr.plan.count(after - 1)) as u32;
+    nw.set_from = if after > before && before > 0 { (n_before - pr.plan.count(before - 1)) as u32 } else { nw.first };
+    (nw.fraction, nw.moving) = pr.plan.fraction(after - 1, t);
 }
 
 /// Append a slab's particles, moved ballistically from its due time to `t` (inside the tube the

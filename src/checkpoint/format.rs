@@ -18,7 +18,7 @@ use xxhash_rust::xxh3::xxh3_64;
 
 pub const MAGIC: &[u8; 8] = b"STRANDCK";
 /// Bump on any change of the header or of a section's layout.
-pub const FORMAT: u32 = 1;
+pub const FORMAT: u32 = 2;
 const PREAMBLE: usize = 8 + 4 + 4 + 8 + 8;
 pub const ALIGN: usize = 64;
 
@@ -45,12 +45,13 @@ pub struct Header {
     pub scenario_text: String,
     /// xxh3 of the resolved toolpath (a G-code file's contents are not in the text).
     pub toolpath_hash: u64,
+    /// Steps completed and the time: the checkpoint is in the middle of the next step, after
+    /// its grid update and before its G2P.
     pub step: u64,
     pub time: f64,
-    /// Largest particle speed after the last step (sets the next time step).
-    pub vmax: f64,
-    pub last_dt: f64,
-    pub last_limit: String,
+    /// Length of the step in progress and the bound that set it.
+    pub dt: f64,
+    pub dt_limit: String,
     pub particles: u64,
     pub asleep: u64,
     pub capacity: u64,
@@ -64,6 +65,10 @@ pub struct Header {
     pub table_len: u64,
     /// Slabs of the print handed to the stepper so far.
     pub emitted_slabs: u64,
+    /// xxh3 of the particles' masses and initial volumes, which are not stored but rebuilt:
+    /// restoring checks the rebuilt arrays against these.
+    pub mass_xxh3: u64,
+    pub vol0_xxh3: u64,
     /// Outputs written so far (the next is number `outputs + 1`), with the run's PVD entries
     /// and observables as JSON.
     pub outputs: u64,
@@ -272,9 +277,8 @@ mod tests {
             toolpath_hash: 0,
             step: 7,
             time: 0.5,
-            vmax: 1.0,
-            last_dt: 1e-4,
-            last_limit: "wave".into(),
+            dt: 1e-4,
+            dt_limit: "wave".into(),
             particles: 3,
             asleep: 0,
             capacity: 3,
@@ -284,6 +288,8 @@ mod tests {
             sleeping_blocks: 0,
             table_len: 0,
             emitted_slabs: 0,
+            mass_xxh3: 0,
+            vol0_xxh3: 0,
             outputs: 1,
             progress_json: "{}".into(),
             state_hash: state_hash(7, 0.5, &sections),

@@ -183,7 +183,7 @@ fn summarise(ck: &Checkpoint) -> (String, serde_json::Value) {
     let memory: Vec<(String, u64)> = h.sections.iter().map(|s| (s.name.clone(), s.bytes)).collect();
     let fmt = crate::memory::fmt_bytes;
     let mut t = format!(
-        "{}: valid (format {}, strand {}, {})\n  scenario '{}' (hash {:016x})\n  step {}  t = {:.6} s  next dt bound {:?} (last dt {:.3e} s, vmax {:.3e} m/s)\n  \
+        "{}: valid (format {}, strand {}, {})\n  scenario '{}' (hash {:016x})\n  step {} in progress from t = {:.6} s (dt {:.3e} s, bound {}; grid updated, G2P next)\n  \
          particles {} of {} ({} asleep), {} state values each\n  bounding box [{:.4}, {:.4}, {:.4}] - [{:.4}, {:.4}, {:.4}] m\n  \
          print slabs emitted {}   outputs written {}\n  state hash {:016x}\n  file {}\n  sections:",
         ck.path.display(),
@@ -192,11 +192,10 @@ fn summarise(ck: &Checkpoint) -> (String, serde_json::Value) {
         h.precision,
         h.scenario_name,
         h.scenario_hash,
-        h.step,
+        h.step + 1,
         h.time,
-        h.last_limit,
-        h.last_dt,
-        h.vmax,
+        h.dt,
+        h.dt_limit,
         h.particles,
         h.capacity,
         h.asleep,
@@ -215,6 +214,9 @@ fn summarise(ck: &Checkpoint) -> (String, serde_json::Value) {
     for (name, b) in &memory {
         t += &format!("\n    {name:<18} {:>12}", fmt(*b));
     }
+    let total: u64 = memory.iter().map(|(_, b)| b).sum();
+    let per_particle = total as f64 / h.particles.max(1) as f64;
+    t += &format!("\n  restart state {per_particle:.1} bytes per particle (every section over the particles)");
     let v = serde_json::json!({
         "path": ck.path,
         "valid": true,
@@ -225,6 +227,9 @@ fn summarise(ck: &Checkpoint) -> (String, serde_json::Value) {
         "scenario_hash": format!("{:016x}", h.scenario_hash),
         "step": h.step,
         "time": h.time,
+        "dt": h.dt,
+        "dt_limit": h.dt_limit,
+        "bytes_per_particle": per_particle,
         "particles": h.particles,
         "capacity": h.capacity,
         "asleep": h.asleep,

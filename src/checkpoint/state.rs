@@ -1,21 +1,192 @@
 //! What of a `Simulation` a checkpoint holds, and putting it back.
 //!
-//! The state that decides every later step: the live particles (every array, in pool order:
-//! the order is part of the state, since sums run in it), the scalars that set the next time
-//! step, the emitter's position in the print, and for sleeping the per-block tables plus the
-//! last step's binning (blocks wake from the activity measured on it). Everything else (grid
-//! nodes, sort scratch) is rebuilt from these by the next step.
+//! A checkpoint is taken in the middle of a step, between the grid update and G2P
+//! (`Simulation::begin_step` / `finish_step`): there the rest of the step needs only the grid's
+//! node velocities and, per particle, x, J, the material state and the id (v too with FLIP);
+//! C and the stress are produced again by G2P and the material update. Everything else is
+//! rebuilt rather than stored (see DESIGN.md, "Checkpoints and resume", for the field table):
+//!
+//! - mass and vol0 from the ids (creation order): the bodies' lattice volumes, the printer's
+//!   particle volume, and the newest slab's fraction from the slab count; their checksums in the
+//!   header prove the rebuilt arrays equal the run's;
+//! - sleeping particles' v, C and stress from (state, J): a particle falling asleep is settled
+//!   to exactly that (`sleep::settle`);
+//! - the step's binning and block slots by binning the restored positions again (the saved
+//!   `grid.slot_block` proves it gave the same slots); the per-block activity by G2P.
 
 use super::format::{checksum, state_hash, Checkpoint, Header, Section};
+use crate::grid::NODES_PER_BLOCK;
+use crate::kernels::transfer::Node;
 use crate::kernels::{Real, M3, V3};
 use crate::solver::{DtLimit, Simulation};
+use std::mem::size_of;
 
 fn bytes<T: bytemuck::Pod>(s: &[T]) -> &[u8] {
     bytemuck::cast_slice(s)
 }
 
-/// The state's arrays as byte views, in file order.
-pub fn sections(sim: &Simulation) -> Vec<(&'static str, &[u8])> {
+/// Where a section's bytes come from.
+pub enum Source<'a> {
+    /// A pool's bytes as they are in memory.
+    Raw(&'a [u8]),
+    /// The active blocks' nodes as one u64 per block, bit `l` set when node `l` has a nonzero
+    /// channel `1..=k`: nodes without mass are zero after the grid update, and so are the
+    /// nodes held still next to sleeping blocks.
+    Moving(&'a [Node], usize),
+    /// Channels `1..=k` (velocity, and with FLIP the velocity before the update) of every
+    /// moving node, in slot then node order.
+    Velocities(&'a [Node], usize),
+    /// A table of `size`-byte elements, mostly zero: the u32 indices of its nonzero elements.
+    NonZeroAt(&'a [u8], usize),
+    /// The nonzero elements themselves, in index order.
+    NonZero(&'a [u8], usize),
+}
+
+/// One section of the restart state.
+pub struct Part<'a> {
+    pub name: &'static str,
+    pub len: usize,
+    /// How many of its values are reals (the rest are integers, whatever the precision).
+    pub reals: usize,
+    pub source: Source<'a>,
+}
+
+impl Part<'_> {
+    fn raw<'a, T: bytemuck::Pod>(name: &'static str, s: &'a [T], reals_each: usize) -> Part<'a> {
+        Part { name, len: std::mem::size_of_val(s), reals: s.len() * reals_each, source: Source::Raw(bytes(s)) }
+    }
+
+    /// Write the section into `dst` (`len` bytes).
+    pub fn fill(&self, dst: &mut [u8]) {
+        match self.source {
+            Source::Raw(b) => dst.copy_from_slice(b),
+            Source::Moving(nodes, k) => {
+                for (blk, out) in nodes.chunks_exact(NODES_PER_BLOCK).zip(dst.chunks_exact_mut(8)) {
+                    let mask = blk.iter().enumerate().fold(0u64, |m, (l, n)| if moving(n, k) { m | 1 << l } else { m });
+                    out.copy_from_slice(&mask.to_le_bytes());
+                }
+            }
+            Source::Velocities(nodes, k) => {
+                let mut out = dst.chunks_exact_mut(size_of::<Real>());
+                for n in nodes.iter().filter(|n| moving(n, k)) {
+                    for x in &n[1..=k] {
+                        out.next().expect("sized by count").copy_from_slice(bytemuck::bytes_of(x));
+                    }
+                }
+            }
+            Source::NonZeroAt(table, size) => {
+                let mut out = dst.chunks_exact_mut(4);
+                for (i, _) in table.chunks_exact(size).enumerate().filter(|(_, e)| nonzero(e)) {
+                    out.next().expect("sized by count").copy_from_slice(&(i as u32).to_le_bytes());
+                }
+            }
+            Source::NonZero(table, size) => {
+                let mut out = dst.chunks_exact_mut(size);
+                for e in table.chunks_exact(size).filter(|e| nonzero(e)) {
+                    out.next().expect("sized by count").copy_from_slice(e);
+                }
+            }
+        }
+    }
+}
+
+/// Whether a node has a velocity channel whose bits are not all zero (+0.0 is the only value
+/// a restore may leave out).
+fn moving(n: &Node, k: usize) -> bool {
+    n[1..=k].iter().any(|x| x.to_bits() != 0)
+}
+
+fn nonzero(e: &[u8]) -> bool {
+    e.iter().any(|&b| b != 0)
+}
+
+/// The two sections of a mostly-zero table: indices of its nonzero elements, then those.
+fn sparse<'a>(name_at: &'static str, name: &'static str, table: &'a [u8], size: usize, real: bool) -> [Part<'a>; 2] {
+    let count = table.chunks_exact(size).filter(|e| nonzero(e)).count();
+    [
+        Part { name: name_at, len: count * 4, reals: 0, source: Source::NonZeroAt(table, size) },
+        Part { name, len: count * size, reals: if real { count } else { 0 }, source: Source::NonZero(table, size) },
+    ]
+}
+
+/// Node channels a restart needs: the velocity, and with FLIP the velocity before the update.
+fn node_channels(sim: &Simulation) -> usize {
+    if sim.scenario.simulation.flip > 0.0 {
+        6
+    } else {
+        3
+    }
+}
+
+/// The restart state's sections, in file order, at the middle of a step (after
+/// `begin_step`; at a step boundary they describe the middle of the step just taken).
+pub fn sections(sim: &Simulation) -> Vec<Part<'_>> {
+    let p = &sim.particles;
+    let (n, sl) = (p.n, p.state_len);
+    let mut v = vec![
+        Part::raw("particles.x", &p.xg.as_slice()[..n], 3),
+        Part::raw("particles.J", &p.j.as_slice()[..n], 1),
+        Part::raw("particles.id", &p.id.as_slice()[..n], 0),
+        Part::raw("particles.state", &p.state.as_slice()[..n * sl], 1),
+    ];
+    if sim.scenario.simulation.flip > 0.0 {
+        // FLIP adds the change of the grid velocity to the particle's own; asleep it is zero
+        v.push(Part::raw("particles.v_awake", &p.v.as_slice()[p.n_sleep..n], 3));
+    }
+    let na = sim.grid.n_active;
+    let nodes = &sim.grid.nodes.as_slice()[..na * NODES_PER_BLOCK];
+    let k = node_channels(sim);
+    let occupied = nodes.iter().filter(|n| moving(n, k)).count();
+    v.push(Part::raw("grid.slot_block", &sim.grid.slot_block.as_slice()[..na], 0));
+    v.push(Part { name: "grid.moving", len: na * 8, reals: 0, source: Source::Moving(nodes, k) });
+    v.push(Part {
+        name: "grid.velocity",
+        len: occupied * k * size_of::<Real>(),
+        reals: occupied * k,
+        source: Source::Velocities(nodes, k),
+    });
+    if let Some(sl) = &sim.sleep {
+        // per block of the whole domain, but zero away from material
+        let (state, rest) = sl.tables();
+        v.extend(sparse("sleep.state_at", "sleep.state", state, 1, false));
+        v.extend(sparse("sleep.rest_at", "sleep.rest", bytes(rest), 4, false));
+    }
+    v
+}
+
+/// Bytes of the restart state per particle with reals of `real_bytes` bytes (4 for f32, 8 for
+/// f64): every section of the checkpoint (particles, grid, sleep tables) over the particles.
+pub fn restart_bytes_per_particle_with(sim: &Simulation, real_bytes: usize) -> f64 {
+    let total: usize = sections(sim).iter().map(|s| s.len - s.reals * size_of::<Real>() + s.reals * real_bytes).sum();
+    total as f64 / sim.particles.n.max(1) as f64
+}
+
+/// Bytes of the restart state per particle in this build's precision (see
+/// [`restart_bytes_per_particle_with`]).
+pub fn restart_bytes_per_particle(sim: &Simulation) -> f64 {
+    restart_bytes_per_particle_with(sim, size_of::<Real>())
+}
+
+/// Bytes of staging a checkpoint can need at the pools' full capacity: `cap` particles with
+/// `state_len` state values, `max_blocks` grid slots, and with sleeping a `table_len` table.
+pub fn max_staging_bytes(cap: usize, state_len: usize, max_blocks: usize, table_len: usize, sleep: bool, flip: bool) -> usize {
+    let real = size_of::<Real>();
+    let per_particle = size_of::<V3>() + real + 4 + state_len * real + if flip { size_of::<V3>() } else { 0 };
+    // a particle's stencil gives mass to 27 nodes, so no more nodes than that can hold mass
+    let nodes = (max_blocks * NODES_PER_BLOCK).min(27 * cap);
+    let channels = if flip { 6 } else { 3 };
+    let align = super::format::ALIGN;
+    let mut total = cap * per_particle + max_blocks * (4 + 8) + nodes * channels * real + 12 * align;
+    if sleep {
+        // sparse tables: at worst every block, with its u32 index
+        total += table_len * (4 + 1 + 4 + 4);
+    }
+    total
+}
+
+/// The arrays of the whole particle state at a step boundary, for the state hash: equal hashes,
+/// bit-identical particles (whatever a checkpoint leaves out to be rebuilt).
+fn full_state(sim: &Simulation) -> Vec<(&'static str, &[u8])> {
     let p = &sim.particles;
     let n = p.n;
     let mut v: Vec<(&'static str, &[u8])> = vec![
@@ -39,20 +210,13 @@ pub fn sections(sim: &Simulation) -> Vec<(&'static str, &[u8])> {
     v
 }
 
-/// Bytes of staging a checkpoint can need at the pools' full capacity: `cap` particles with
-/// `state_len` state values, `max_blocks` grid slots, and with sleeping a `table_len` table.
-pub fn max_staging_bytes(cap: usize, state_len: usize, max_blocks: usize, table_len: usize, sleep: bool) -> usize {
-    let per_particle = 2 * std::mem::size_of::<V3>()
-        + 2 * std::mem::size_of::<M3>()
-        + 3 * std::mem::size_of::<Real>()
-        + 4
-        + state_len * std::mem::size_of::<Real>();
-    let align = super::format::ALIGN;
-    let mut total = cap * per_particle + 9 * align;
-    if sleep {
-        total += max_blocks * (4 + 2 * std::mem::size_of::<Real>()) + table_len * 5 + 4 * align;
-    }
-    total
+/// Hash of the whole state at a step boundary (`strand run --json`'s `state_hash`).
+pub fn current_state_hash(sim: &Simulation) -> u64 {
+    let secs: Vec<Section> = full_state(sim)
+        .into_iter()
+        .map(|(name, b)| Section { name: name.into(), offset: 0, bytes: b.len() as u64, xxh3: checksum(b) })
+        .collect();
+    state_hash(sim.step, sim.time, &secs)
 }
 
 /// Run-level progress a checkpoint carries so a resumed run continues its outputs.
@@ -64,9 +228,11 @@ pub struct Progress {
     pub observations: Vec<crate::report::Observation>,
 }
 
-/// The header of a checkpoint of `sim` (sections given with their checksums).
-pub fn header(sim: &Simulation, outputs: u64, progress: &Progress, sections: Vec<Section>) -> Header {
+/// The header of a checkpoint of `sim` in the middle of a step of length `dt` (bound by
+/// `limit`), sections given with their checksums.
+pub fn header(sim: &Simulation, dt: f64, limit: DtLimit, outputs: u64, progress: &Progress, sections: Vec<Section>) -> Header {
     let p = &sim.particles;
+    let n = p.n;
     Header {
         strand_version: env!("CARGO_PKG_VERSION").to_string(),
         precision: crate::kernels::real::NAME.to_string(),
@@ -76,10 +242,9 @@ pub fn header(sim: &Simulation, outputs: u64, progress: &Progress, sections: Vec
         toolpath_hash: toolpath_hash(sim),
         step: sim.step,
         time: sim.time,
-        vmax: sim.vmax,
-        last_dt: sim.last_dt,
-        last_limit: sim.last_limit.name().to_string(),
-        particles: p.n as u64,
+        dt,
+        dt_limit: limit.name().to_string(),
+        particles: n as u64,
         asleep: p.n_sleep as u64,
         capacity: p.capacity() as u64,
         state_len: p.state_len as u32,
@@ -88,6 +253,8 @@ pub fn header(sim: &Simulation, outputs: u64, progress: &Progress, sections: Vec
         sleeping_blocks: sim.sleep.as_ref().map_or(0, |s| s.sleeping_blocks as u64),
         table_len: sim.grid.geom.table_len() as u64,
         emitted_slabs: emitted_slabs(sim),
+        mass_xxh3: checksum(bytes(&p.mass.as_slice()[..n])),
+        vol0_xxh3: checksum(bytes(&p.vol0.as_slice()[..n])),
         outputs,
         progress_json: serde_json::to_string(progress).unwrap_or_default(),
         state_hash: state_hash(sim.step, sim.time, &sections),
@@ -105,35 +272,28 @@ pub fn toolpath_hash(sim: &Simulation) -> u64 {
     sim.printer.as_ref().map_or(0, |p| checksum(format!("{:?}", p.toolpath.moves()).as_bytes()))
 }
 
-/// Hash of the physical state, as a checkpoint of it would record.
-pub fn current_state_hash(sim: &Simulation) -> u64 {
-    let secs: Vec<Section> = sections(sim)
-        .into_iter()
-        .map(|(name, b)| Section { name: name.into(), offset: 0, bytes: b.len() as u64, xxh3: checksum(b) })
-        .collect();
-    state_hash(sim.step, sim.time, &secs)
-}
-
-/// Put the checkpoint's state into `sim`, freshly built from a compatible scenario. Fails,
-/// naming the mismatch, when the pools or the grid do not have the checkpoint's shape.
-pub fn restore(sim: &mut Simulation, ck: &Checkpoint) -> Result<(), String> {
+/// Put the checkpoint's state into `sim`, freshly built from a compatible scenario, leaving it
+/// in the middle of the step the checkpoint was taken in: the caller finishes that step with
+/// `Simulation::finish_step` and the returned step length (and records its bound). Fails,
+/// naming the mismatch, when the pools, the grid or the rebuilt arrays do not fit.
+pub fn restore(sim: &mut Simulation, ck: &Checkpoint) -> Result<(f64, DtLimit), String> {
     let h = &ck.header;
     let precision = crate::kernels::real::NAME;
     if h.precision != precision {
         return Err(format!("the checkpoint holds {} reals, this strand is built for {precision}", h.precision));
     }
-    let p = &mut sim.particles;
-    if h.state_len as usize != p.state_len {
+    let sl = sim.particles.state_len;
+    if h.state_len as usize != sl {
         return Err(format!(
-            "the checkpoint's material keeps {} state values per particle, the scenario's keeps {}",
-            h.state_len, p.state_len
+            "the checkpoint's material keeps {} state values per particle, the scenario's keeps {sl}",
+            h.state_len
         ));
     }
-    if h.particles as usize > p.capacity() {
+    if h.particles as usize > sim.particles.capacity() {
         return Err(format!(
             "the checkpoint holds {} particles, the pool has room for {} ([memory] max_particles)",
             h.particles,
-            p.capacity()
+            sim.particles.capacity()
         ));
     }
     if h.table_len as usize != sim.grid.geom.table_len() {
@@ -143,7 +303,23 @@ pub fn restore(sim: &mut Simulation, ck: &Checkpoint) -> Result<(), String> {
             sim.grid.geom.table_len()
         ));
     }
+    let flip = sim.scenario.simulation.flip > 0.0;
+    if flip != ck.section("particles.v_awake").is_some() {
+        return Err(format!(
+            "the checkpoint was written {} FLIP, the scenario runs {} it (simulation.flip)",
+            if flip { "without" } else { "with" },
+            if flip { "with" } else { "without" }
+        ));
+    }
+    if sim.sleep.is_some() != ck.section("sleep.state_at").is_some() {
+        return Err("the checkpoint and the scenario differ in sleeping ([sleep])".into());
+    }
+    let limit = DtLimit::from_name(&h.dt_limit).ok_or_else(|| format!("unknown time-step bound '{}'", h.dt_limit))?;
     let n = h.particles as usize;
+    let asleep = h.asleep as usize;
+    if asleep > n {
+        return Err(format!("the checkpoint has {asleep} particles asleep of {n}"));
+    }
     let get = |name: &str, len: usize| -> Result<&[u8], String> {
         let b = ck.section(name).ok_or_else(|| format!("section '{name}' is missing"))?;
         if b.len() != len {
@@ -154,51 +330,122 @@ pub fn restore(sim: &mut Simulation, ck: &Checkpoint) -> Result<(), String> {
     fn put<T: bytemuck::Pod>(dst: &mut [T], src: &[u8]) {
         bytemuck::cast_slice_mut::<T, u8>(dst).copy_from_slice(src);
     }
-    fn size<T>(n: usize) -> usize {
-        n * std::mem::size_of::<T>()
-    }
-    let sl = p.state_len;
-    put(&mut p.xg.as_mut_slice()[..n], get("particles.x", size::<V3>(n))?);
-    put(&mut p.v.as_mut_slice()[..n], get("particles.v", size::<V3>(n))?);
-    put(&mut p.c.as_mut_slice()[..n], get("particles.C", size::<M3>(n))?);
-    put(&mut p.stress.as_mut_slice()[..n], get("particles.stress", size::<M3>(n))?);
-    put(&mut p.j.as_mut_slice()[..n], get("particles.J", size::<Real>(n))?);
-    put(&mut p.mass.as_mut_slice()[..n], get("particles.mass", size::<Real>(n))?);
-    put(&mut p.vol0.as_mut_slice()[..n], get("particles.vol0", size::<Real>(n))?);
-    put(&mut p.id.as_mut_slice()[..n], get("particles.id", size::<u32>(n))?);
-    put(&mut p.state.as_mut_slice()[..n * sl], get("particles.state", size::<Real>(n * sl))?);
-    p.n = n;
-    p.n_sleep = 0;
 
-    sim.grid.reset();
-    if let Some(sleep) = &mut sim.sleep {
-        if ck.section("sleep.state").is_some() {
-            let slots = get("grid.slot_block", size::<u32>(h.active_blocks as usize))?;
-            let slots: &[u32] = bytemuck::cast_slice(slots);
-            for &b in slots {
-                // activating in slot order gives every block the slot it had
-                sim.grid.activate(b).map_err(|e| e.to_string())?;
-            }
-            sim.grid.n_particle_blocks = h.particle_blocks as usize;
-            let (state, rest) = sleep.tables_mut();
-            put(state, get("sleep.state", state.len())?);
-            put(rest, get("sleep.rest", size::<f32>(rest.len()))?);
-            let npb = h.particle_blocks as usize;
-            put(&mut sleep.activity.as_mut_slice()[..npb], get("sleep.activity", size::<[Real; 2]>(npb))?);
-            sleep.sleeping_blocks = h.sleeping_blocks as usize;
-            sim.particles.n_sleep = h.asleep as usize;
+    // The fresh simulation holds the bodies' particles, ids 0..fresh, with the masses and
+    // volumes the run gave them: runs of equal values, one per body.
+    let fresh = sim.particles.n;
+    let mut bodies: Vec<(usize, Real, Real)> = Vec::new();
+    for i in 0..fresh {
+        let (m, v) = (sim.particles.mass.as_slice()[i], sim.particles.vol0.as_slice()[i]);
+        if bodies.last().is_none_or(|&(_, bm, bv)| bm.to_bits() != m.to_bits() || bv.to_bits() != v.to_bits()) {
+            bodies.push((i, m, v));
         }
+    }
+    let rho = sim.material.density() as f64;
+    let printed = sim.printer.as_ref().map(|pr| ((rho * pr.particle_volume) as Real, pr.particle_volume as Real));
+
+    let p = &mut sim.particles;
+    put(&mut p.xg.as_mut_slice()[..n], get("particles.x", n * size_of::<V3>())?);
+    put(&mut p.j.as_mut_slice()[..n], get("particles.J", n * size_of::<Real>())?);
+    put(&mut p.id.as_mut_slice()[..n], get("particles.id", n * 4)?);
+    put(&mut p.state.as_mut_slice()[..n * sl], get("particles.state", n * sl * size_of::<Real>())?);
+    p.v.as_mut_slice()[..n].fill(V3::ZERO);
+    if flip {
+        put(&mut p.v.as_mut_slice()[asleep..n], get("particles.v_awake", (n - asleep) * size_of::<V3>())?);
+    }
+    p.n = n;
+    p.n_sleep = asleep;
+    for i in 0..n {
+        let id = p.id.as_slice()[i] as usize;
+        let (m, v) = if id < fresh {
+            let k = bodies.partition_point(|b| b.0 <= id) - 1;
+            (bodies[k].1, bodies[k].2)
+        } else {
+            printed.ok_or_else(|| format!("particle id {id} was not created by the scenario's bodies ({fresh} particles) and it does not print"))?
+        };
+        p.mass.as_mut_slice()[i] = m;
+        p.vol0.as_mut_slice()[i] = v;
+    }
+    // C and the stress of awake particles come from G2P and the material update of this step;
+    // sleeping ones hold the rest state sleeping gave them
+    p.c.as_mut_slice()[..n].fill(M3::ZERO);
+    p.stress.as_mut_slice()[..n].fill(M3::ZERO);
+    for i in 0..asleep {
+        crate::sleep::settle(p, i, &*sim.material);
     }
     sim.step = h.step;
     sim.time = h.time;
-    sim.vmax = h.vmax;
-    sim.last_dt = h.last_dt;
-    sim.last_limit = DtLimit::from_name(&h.last_limit).ok_or_else(|| format!("unknown time-step bound '{}'", h.last_limit))?;
     if let Some(pr) = &mut sim.printer {
         let queue = sim.scenario.print.as_ref().map_or(64, |c| c.queue);
         // stop the emitter started at slab 0 before starting one where the checkpoint left off
         pr.emitter = None;
         pr.start(queue, h.emitted_slabs);
+        // this step's emission already happened: only the newest slab's fraction matters
+        crate::solver::note_newest(pr, h.time, n, h.emitted_slabs, n);
+    }
+    sim.newest_masses();
+    for (what, arr, want) in
+        [("masses", &sim.particles.mass, h.mass_xxh3), ("initial volumes", &sim.particles.vol0, h.vol0_xxh3)]
+    {
+        if checksum(bytes(&arr.as_slice()[..n])) != want {
+            return Err(format!(
+                "the particle {what} rebuilt from the scenario differ from the run's (its bodies or print changed?)"
+            ));
+        }
+    }
+
+    if let Some(sleep) = &mut sim.sleep {
+        let (state, rest) = sleep.tables_mut();
+        scatter(state, ck, "sleep.state_at", "sleep.state")?;
+        scatter(rest, ck, "sleep.rest_at", "sleep.rest")?;
+        sleep.sleeping_blocks = h.sleeping_blocks as usize;
+    }
+    sim.bin_particles().map_err(|e| e.to_string())?;
+    let na = sim.grid.n_active;
+    let saved: &[u32] = bytemuck::cast_slice(get("grid.slot_block", h.active_blocks as usize * 4)?);
+    if na != h.active_blocks as usize
+        || sim.grid.n_particle_blocks != h.particle_blocks as usize
+        || saved != &sim.grid.slot_block.as_slice()[..na]
+    {
+        return Err("binning the restored particles does not give the checkpoint's grid blocks".into());
+    }
+    let occupied: Vec<u64> = get("grid.moving", na * 8)?
+        .chunks_exact(8)
+        .map(|b| u64::from_le_bytes(b.try_into().expect("8 bytes")))
+        .collect();
+    let k = node_channels(sim);
+    let count: usize = occupied.iter().map(|m| m.count_ones() as usize).sum();
+    let vel: &[u8] = get("grid.velocity", count * k * size_of::<Real>())?;
+    let mut vel = vel.chunks_exact(size_of::<Real>()).map(bytemuck::pod_read_unaligned::<Real>);
+    let nodes = &mut sim.grid.nodes.as_mut_slice()[..na * NODES_PER_BLOCK];
+    for (blk, mask) in nodes.chunks_exact_mut(NODES_PER_BLOCK).zip(&occupied) {
+        for (l, node) in blk.iter_mut().enumerate() {
+            *node = [0.0; 7];
+            if mask >> l & 1 == 1 {
+                // G2P reads only the velocity channels; the mass is not needed again
+                for x in &mut node[1..=k] {
+                    *x = vel.next().expect("counted");
+                }
+            }
+        }
+    }
+    Ok((h.dt, limit))
+}
+
+/// Put a table saved by [`sparse`] back: zero, then its nonzero elements at their indices.
+fn scatter<T: bytemuck::Pod>(table: &mut [T], ck: &Checkpoint, name_at: &str, name: &str) -> Result<(), String> {
+    let size = size_of::<T>();
+    let at = ck.section(name_at).ok_or_else(|| format!("section '{name_at}' is missing"))?;
+    let values = ck.section(name).ok_or_else(|| format!("section '{name}' is missing"))?;
+    if at.len() % 4 != 0 || values.len() != at.len() / 4 * size {
+        return Err(format!("sections '{name_at}' and '{name}' do not match ({} and {} bytes)", at.len(), values.len()));
+    }
+    table.fill(T::zeroed());
+    let bytes: &mut [u8] = bytemuck::cast_slice_mut(table);
+    for (i, v) in at.chunks_exact(4).zip(values.chunks_exact(size)) {
+        let i = u32::from_le_bytes(i.try_into().expect("4 bytes")) as usize;
+        let dst = bytes.get_mut(i * size..(i + 1) * size).ok_or_else(|| format!("section '{name_at}': index {i} outside the table"))?;
+        dst.copy_from_slice(v);
     }
     Ok(())
 }

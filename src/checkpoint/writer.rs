@@ -5,6 +5,7 @@
 //! written when the next is due.
 
 use super::format::{checksum, file_size, layout, state_hash, write_to, Header, Section};
+use super::state::Part;
 use crate::disk;
 use crate::memory::Pool;
 use crossbeam::channel::{bounded, Receiver, Sender};
@@ -59,9 +60,22 @@ struct Job {
     header: Header,
 }
 
+/// A checkpoint copied into the staging buffer but not queued yet: the run keeps the middle of
+/// a step that ends on an output, in case the run must stop with a checkpoint after that
+/// output (at its end, or when the disk budget refuses the snapshot). It holds the one staging
+/// buffer until submitted or released.
+pub struct Staged(Job);
+
+impl Staged {
+    pub fn step(&self) -> u64 {
+        self.0.header.step
+    }
+}
+
 pub struct CheckpointWriter {
     jobs: Option<Sender<Job>>,
     free: Receiver<Pool<u8>>,
+    give_back: Sender<Pool<u8>>,
     events: Receiver<Event>,
     worker: Option<JoinHandle<()>>,
     in_flight: usize,
@@ -82,6 +96,7 @@ impl CheckpointWriter {
         let (free_tx, free_rx) = bounded::<Pool<u8>>(1);
         let (ev_tx, ev_rx) = bounded::<Event>(64);
         free_tx.send(staging).expect("room for the one buffer");
+        let give_back = free_tx.clone();
         let worker = std::thread::Builder::new().name("strand-checkpoint".into()).spawn(move || {
             for job in job_rx {
                 let step = job.header.step;
@@ -90,31 +105,46 @@ impl CheckpointWriter {
                 let _ = ev_tx.send(ev.unwrap_or_else(|error| Event::Failed { step, error }));
             }
         })?;
-        Ok(CheckpointWriter { jobs: Some(job_tx), free: free_rx, events: ev_rx, worker: Some(worker), in_flight: 0 })
+        Ok(CheckpointWriter { jobs: Some(job_tx), free: free_rx, give_back, events: ev_rx, worker: Some(worker), in_flight: 0 })
     }
 
     /// Copy `sections` into the staging buffer (waiting for the previous checkpoint to be
     /// written if it is not yet) and queue the checkpoint. `header` is complete but for the
     /// sections, their checksums and the state hash, which the writer fills in.
-    pub fn submit(&mut self, mut header: Header, sections: &[(&'static str, &[u8])]) -> Result<(), String> {
+    pub fn submit(&mut self, header: Header, sections: &[Part]) -> Result<(), String> {
+        let staged = self.stage(header, sections)?;
+        self.submit_staged(staged)
+    }
+
+    /// Copy `sections` into the staging buffer (waiting for it as `submit` does) without
+    /// queueing them.
+    pub fn stage(&mut self, mut header: Header, sections: &[Part]) -> Result<Staged, String> {
         let mut staging = self.free.recv().map_err(|_| "the checkpoint writer has stopped".to_string())?;
-        let lay = layout(sections.iter().map(|(n, b)| (*n, b.len())));
+        let lay = layout(sections.iter().map(|p| (p.name, p.len)));
         let need = lay.last().map_or(0, |(_, o, b)| (o + b) as usize);
         if need > staging.len() {
-            return Err(format!("checkpoint staging holds {} bytes, the state needs {need}", staging.len()));
+            let have = staging.len();
+            let _ = self.give_back.send(staging);
+            return Err(format!("checkpoint staging holds {have} bytes, the state needs {need}"));
         }
         let buf = staging.as_mut_slice();
-        for ((_, off, len), (_, b)) in lay.iter().zip(sections) {
-            buf[*off as usize..(*off + *len) as usize].copy_from_slice(b);
+        for ((_, off, len), part) in lay.iter().zip(sections) {
+            part.fill(&mut buf[*off as usize..(*off + *len) as usize]);
         }
         header.sections = lay.into_iter().map(|(name, offset, bytes)| Section { name, offset, bytes, xxh3: 0 }).collect();
-        self.jobs
-            .as_ref()
-            .expect("writer running")
-            .send(Job { staging, header })
-            .map_err(|_| "the checkpoint writer has stopped".to_string())?;
+        Ok(Staged(Job { staging, header }))
+    }
+
+    /// Queue a staged checkpoint for writing.
+    pub fn submit_staged(&mut self, staged: Staged) -> Result<(), String> {
+        self.jobs.as_ref().expect("writer running").send(staged.0).map_err(|_| "the checkpoint writer has stopped".to_string())?;
         self.in_flight += 1;
         Ok(())
+    }
+
+    /// Drop a staged checkpoint, giving its buffer back.
+    pub fn release(&mut self, staged: Staged) {
+        let _ = self.give_back.send(staged.0.staging);
     }
 
     /// An event, if one is ready.

@@ -482,6 +482,11 @@ impl Material for DruckerPrager {
         self.consts_adjoint([k_bar, g_bar, q_phi_bar, k_phi_bar, q_psi_bar, sigma_t_bar, tau_p_bar], out.params_bar);
     }
 
+    fn stress_at_rest(&self, state: &[Real], _j: Real) -> M3 {
+        // the full Cauchy stress is the state (the pressure is not an EOS of J)
+        sym_from_slice(&state[..6])
+    }
+
     fn stability(&self) -> StabilityInfo {
         StabilityInfo {
             density: r(self.density),

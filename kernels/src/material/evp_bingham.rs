@@ -316,6 +316,11 @@ impl Material for EvpBingham {
         params_bar[6] += state_bar[6];
     }
 
+    fn stress_at_rest(&self, state: &[Real], j: Real) -> M3 {
+        // the deviator is the state itself; update returns it minus the EOS pressure
+        sym_from_slice(&state[..6]) - M3::from_diagonal(V3::splat(self.eos.pressure(r(self.bulk_modulus), j)))
+    }
+
     fn stability(&self) -> StabilityInfo {
         StabilityInfo {
             density: r(self.density),

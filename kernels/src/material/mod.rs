@@ -109,6 +109,13 @@ pub trait Material: Send + Sync + std::fmt::Debug {
     /// * `state` — this particle's internal state (`state_names().len()` reals).
     fn update(&self, grad_v: &M3, j: Real, dt: Real, state: &mut [Real]) -> M3;
 
+    /// The stress `update` returns with `grad_v = 0` (a particle at rest), from the state it
+    /// leaves and the volume ratio, bit for bit. A sleeping particle keeps this stress with zero
+    /// velocity and velocity gradient, so a restart checkpoint need not store any of the three:
+    /// they are rebuilt from the state and J (for materials whose stress lives in the state, it
+    /// is the stress `update` returns for any `grad_v`).
+    fn stress_at_rest(&self, state: &[Real], j: Real) -> M3;
+
     /// Data for the automatic time step.
     fn stability(&self) -> StabilityInfo;
 

@@ -68,6 +68,11 @@ impl Material for Newtonian {
         out.params_bar[1] += r(2.0) * ddot(stress_bar, &dev(&sym(grad_v)));
     }
 
+    fn stress_at_rest(&self, _state: &[Real], j: Real) -> M3 {
+        // update's viscous part vanishes at grad_v = 0, leaving +0 - p off and on the diagonal
+        M3::ZERO - M3::from_diagonal(V3::splat(self.eos.pressure(r(self.bulk_modulus), j)))
+    }
+
     fn stability(&self) -> StabilityInfo {
         StabilityInfo {
             density: r(self.density),

@@ -306,6 +306,11 @@ impl Material for PapanastasiouRoussel {
         }
     }
 
+    fn stress_at_rest(&self, _state: &[Real], j: Real) -> M3 {
+        // update's viscous part vanishes at grad_v = 0, leaving +0 - p off and on the diagonal
+        M3::ZERO - M3::from_diagonal(V3::splat(self.eos.pressure(r(self.bulk_modulus), j)))
+    }
+
     fn stability(&self) -> StabilityInfo {
         StabilityInfo {
             density: r(self.density),
