@@ -102,6 +102,9 @@ pub struct BenchResult {
     pub runs_s: Vec<f64>,
     /// Share of the timed wall time per phase of the step.
     pub phases: Vec<(&'static str, f64)>,
+    /// Bytes per particle a restart checkpoint of the scene holds after the timed steps, in this
+    /// build's precision (`strand inspect` gives it for any checkpoint).
+    pub restart_bytes_per_particle: f64,
 }
 
 pub fn run_bench(
@@ -144,13 +147,14 @@ pub fn run_bench(
             crate::solver::PHASES.iter().zip(sim.phase_seconds).map(|(n, t)| (*n, t / total)).collect()
         },
         runs_s: runs,
+        restart_bytes_per_particle: crate::checkpoint::state::restart_bytes_per_particle(&sim),
     };
     if json {
         println!("{}", serde_json::to_string(&r).unwrap_or_default());
     } else {
         println!(
-            "strand particles={} grid={}^3 steps={} dtype={} threads={} sec_per_step={:.6} particle_steps_per_s={:.4e}",
-            r.particles, r.grid, r.steps, r.dtype, r.threads, r.sec_per_step, r.particle_steps_per_s
+            "strand particles={} grid={}^3 steps={} dtype={} threads={} sec_per_step={:.6} particle_steps_per_s={:.4e} restart_bytes_per_particle={:.1}",
+            r.particles, r.grid, r.steps, r.dtype, r.threads, r.sec_per_step, r.particle_steps_per_s, r.restart_bytes_per_particle
         );
         let shares: Vec<String> = r.phases.iter().map(|(n, s)| format!("{n} {:.0}%", 100.0 * s)).collect();
         eprintln!("phases: {}", shares.join(", "));
