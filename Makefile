@@ -2,7 +2,7 @@
 CARGO ?= cargo
 OUT ?= out
 
-.PHONY: run test verify verify-quick bench bench-layers bench-peer build fmt clippy clean
+.PHONY: run test verify verify-quick bench bench-peer bench-restart bench-kernels bench-case1 bench-layers build fmt clippy clean
 
 build:
 	$(CARGO) build --release
@@ -28,10 +28,26 @@ verify: build
 verify-quick: build
 	./target/release/strand verify --quick
 
-# strand on the ../shared/peer scene, f64 and f32, 1 and 2 threads, next to Taichi's figure
-# measured in the same run (bench/peer.sh creates the peer's venv if needed).
-bench:
+# Issue 7's figures: strand on the ../shared/peer scene, f64 and f32, 1 and 2 threads, next to
+# Taichi's figure measured in the same run (bench/peer.sh creates the peer's venv if needed), the
+# parallel efficiency and restart bytes that follow from it; the restart state of an EVP print;
+# the kernels' criterion benchmarks. About 15 minutes; nothing else should run meanwhile.
+bench: bench-peer bench-restart bench-kernels
+
+bench-peer:
 	bash bench/compare.sh
+
+bench-restart:
+	$(CARGO) test --release --test resume the_evp_print_restart_state -- --nocapture 2>&1 | grep -E "B/particle|test result"
+
+bench-kernels:
+	$(CARGO) bench -p strand-kernels --bench kernels
+	$(CARGO) bench -p strand-kernels --bench kernels --features f32
+
+# Paper 000's case 1 at 1 mm with the time-step and sleeping savings (issue 7 item 4; about an
+# hour on 2 cores): wall time, steps and the cross-sections at x = 50, 75, 100 mm.
+bench-case1: build
+	./target/release/strand run fixtures/scenarios/print/case1_full_scaled.toml --out $(OUT)/case1_full_scaled --json
 
 # Per-step cost against layers printed (sleeping), from the ten-layer fixture.
 bench-layers: build

@@ -38,5 +38,14 @@ for dtype in f64 f32; do
     done
     sm=$(printf '%s\n' "${s_rates[@]}" | median); tm=$(printf '%s\n' "${t_rates[@]}" | median)
     echo "| $dtype | $t | $(awk -v x="$sm" 'BEGIN{printf "%.2f", x/1e6}') ($(printf '%s\n' "${s_rates[@]}" | awk '{print $1/1e6}' | range)) | $(awk -v x="$tm" 'BEGIN{printf "%.2f", x/1e6}') ($(printf '%s\n' "${t_rates[@]}" | awk '{print $1/1e6}' | range)) | $(printf '%s\n' "${ratios[@]}" | median) |"
+    eval "strand_${dtype}_t${t}=$sm"
   done
+done
+echo
+# issue 7's figures that follow from the table: parallel efficiency 1 -> 2 threads (medians), and
+# the restart state of the peer scene (strand bench's last line)
+for dtype in f64 f32; do
+  eval "two=\$strand_${dtype}_t2; one=\$strand_${dtype}_t1"
+  awk -v a="$two" -v b="$one" -v d="$dtype" 'BEGIN{printf "parallel efficiency %s, 1 -> 2 threads: %.0f %%\n", d, 100*a/(2*b)}'
+  sed -n 's/.*restart_bytes_per_particle=\([0-9.]*\).*/restart bytes per particle, peer scene, '"$dtype"': \1/p' "$LOG/strand_${dtype}_t1_1.log" | tail -n 1
 done

@@ -9,8 +9,10 @@
 //! material arriving, or a load making its neighbour move), when an awake particle enters it, or
 //! when the nozzle tube reaches it (material in the tube must follow the nozzle).
 //!
-//! Sleeping freezes the internal state (no thixotropic build-up while asleep) and the stress;
-//! both resume on waking. A particle falling asleep is settled: its velocity and velocity
+//! Sleeping freezes the stress. The internal state is not stepped either, but material at rest
+//! still builds up structure (thixotropy): a block remembers when it fell asleep, and on waking
+//! its particles get the whole rest interval at once ([`Material::rest_for`]), so a deposited
+//! layer gains the strength it would have had awake. A particle falling asleep is settled: its velocity and velocity
 //! gradient (below the rest thresholds anyway) become zero and its stress the material's stress
 //! at rest for its state and J, so a restart checkpoint rebuilds all three from (state, J)
 //! instead of storing 84 bytes per sleeping particle in f32. Going to sleep is checked every
@@ -95,14 +97,28 @@ impl SleepConfig {
 
 const AWAKE: u8 = 0;
 const ASLEEP: u8 = 1;
+/// Within one update: woken, its sleep start still in `rest` until its particles had their rest.
+const WOKEN: u8 = 2;
+
+#[inline]
+fn wake(b: u32, state: &mut [u8], woken: &mut [u32], n_woken: &mut usize) {
+    if state[b as usize] == ASLEEP {
+        state[b as usize] = WOKEN;
+        woken[*n_woken] = b;
+        *n_woken += 1;
+    }
+}
 
 /// Per-block sleep bookkeeping, over the dense block table.
 pub struct Sleep {
     pub cfg: SleepConfig,
     /// ASLEEP or AWAKE per block.
     state: Pool<u8>,
-    /// Time each block's material has been at rest [s].
+    /// Awake block: time its material has been at rest [s]. Sleeping block: the simulation time
+    /// at which it fell asleep [s] (for the build-up owed on waking).
     rest: Pool<f32>,
+    /// Blocks woken by the current update (scratch; never more than the table holds).
+    woken: Pool<u32>,
     /// (max speed, max strain rate) of each particle block of the last step, by slot.
     pub activity: Pool<[Real; 2]>,
     /// Blocks asleep now.
@@ -113,6 +129,7 @@ impl Sleep {
     pub fn plan(plan: &mut MemoryPlan, geom: &GridGeom, max_blocks: usize) {
         plan.add::<u8>("sleep.state", geom.table_len());
         plan.add::<f32>("sleep.rest", geom.table_len());
+        plan.add::<u32>("sleep.woken", geom.table_len());
         plan.add::<[Real; 2]>("sleep.activity", max_blocks);
     }
 
@@ -121,6 +138,7 @@ impl Sleep {
             cfg,
             state: Pool::new("sleep.state", geom.table_len(), b)?,
             rest: Pool::new("sleep.rest", geom.table_len(), b)?,
+            woken: Pool::new("sleep.woken", geom.table_len(), b)?,
             activity: Pool::new("sleep.activity", max_blocks, b)?,
             sleeping_blocks: 0,
         })
@@ -140,16 +158,19 @@ impl Sleep {
         self.state.as_slice()[block as usize] == ASLEEP
     }
 
-    /// Update rest times from the last step's activity (grid still binned as in that step), wake
-    /// and put blocks to sleep, and move particles accordingly. Blocks reaching into `keep_awake`
-    /// (the nozzle tube: its material must follow the nozzle even while it rests) neither sleep
-    /// nor stay asleep. Returns whether particles moved.
+    /// Update rest times from the last step's activity (grid still binned as in that step, of
+    /// length `dt`, ending at time `now`), wake and put blocks to sleep, and move particles
+    /// accordingly. Blocks reaching into `keep_awake` (the nozzle tube: its material must follow
+    /// the nozzle even while it rests) neither sleep nor stay asleep. Returns whether particles
+    /// moved.
+    #[allow(clippy::too_many_arguments)]
     pub fn update(
         &mut self,
         grid: &Grid,
         particles: &mut Particles,
         material: &dyn Material,
         dt: f64,
+        now: f64,
         check_sleep: bool,
         keep_awake: Option<([f64; 3], [f64; 3])>,
     ) -> bool {
@@ -161,28 +182,22 @@ impl Sleep {
         let (wake_v, rest_v, rest_rate) = (self.cfg.wake_speed as Real, self.cfg.speed as Real, self.cfg.strain_rate as Real);
         let state = self.state.as_mut_slice();
         let rest = self.rest.as_mut_slice();
-        let mut woke = 0usize;
+        let woken = self.woken.as_mut_slice();
+        let mut n_woken = 0usize;
         for s in 0..npb {
             let b = slot_block[s];
             let [v, rate] = activity[s];
-            if v < rest_v && rate < rest_rate {
+            // awake material inside a sleeping block, or fast material next to one, wakes it
+            if state[b as usize] != AWAKE {
+                wake(b, state, woken, &mut n_woken);
+            } else if v < rest_v && rate < rest_rate {
                 rest[b as usize] += dt as f32;
             } else {
                 rest[b as usize] = 0.0;
             }
-            // awake material inside a sleeping block, or fast material next to one, wakes it
-            if state[b as usize] == ASLEEP {
-                state[b as usize] = AWAKE;
-                rest[b as usize] = 0.0;
-                woke += 1;
-            }
             if v > wake_v {
                 for nb in neighbours(geom, b) {
-                    if state[nb as usize] == ASLEEP {
-                        state[nb as usize] = AWAKE;
-                        rest[nb as usize] = 0.0;
-                        woke += 1;
-                    }
+                    wake(nb, state, woken, &mut n_woken);
                 }
             }
         }
@@ -195,22 +210,23 @@ impl Sleep {
                     for k in lo[2]..=hi[2] {
                         let b = geom.wrap_block([i, j, k]);
                         if in_table(geom, b) {
-                            let idx = geom.block_index(b) as usize;
-                            rest[idx] = 0.0;
-                            if state[idx] == ASLEEP {
-                                state[idx] = AWAKE;
-                                woke += 1;
+                            let idx = geom.block_index(b);
+                            if state[idx as usize] == AWAKE {
+                                rest[idx as usize] = 0.0;
+                            } else {
+                                wake(idx, state, woken, &mut n_woken);
                             }
                         }
                     }
                 }
             }
         }
+        let woke = n_woken;
         let mut slept = 0usize;
         if check_sleep {
             let rest_time = self.cfg.rest_time as f32;
             for &b in &slot_block[..npb] {
-                if rest[b as usize] < rest_time || state[b as usize] == ASLEEP {
+                if rest[b as usize] < rest_time || state[b as usize] != AWAKE {
                     continue;
                 }
                 let calm = neighbours(geom, b).all(|nb| {
@@ -219,22 +235,34 @@ impl Sleep {
                 });
                 if calm {
                     state[b as usize] = ASLEEP;
+                    rest[b as usize] = now as f32;
                     slept += 1;
                 }
             }
         }
         self.sleeping_blocks = self.sleeping_blocks + slept - woke;
         if woke > 0 {
-            // move particles of woken blocks out of the sleeping prefix
+            // the rest each woken block owes its particles, then they leave the sleeping prefix
+            for &b in &woken[..woke] {
+                rest[b as usize] = (now - rest[b as usize] as f64).max(0.0) as f32;
+            }
+            let sl = particles.state_len;
             let mut i = 0;
             while i < particles.n_sleep {
                 let b = geom.block_index(geom.particle_block(particles.xg.as_slice()[i]));
                 if state[b as usize] == ASLEEP {
                     i += 1;
                 } else {
+                    let st = &mut particles.state.as_mut_slice()[i * sl..(i + 1) * sl];
+                    material.rest_for(st, rest[b as usize] as Real);
+                    particles.stress.as_mut_slice()[i] = material.stress_at_rest(st, particles.j.as_slice()[i]);
                     particles.n_sleep -= 1;
                     particles.swap(i, particles.n_sleep);
                 }
+            }
+            for &b in &woken[..woke] {
+                state[b as usize] = AWAKE;
+                rest[b as usize] = 0.0;
             }
         }
         if slept > 0 {

@@ -387,7 +387,7 @@ impl Simulation {
             if self.step > 0 {
                 let check = self.step.is_multiple_of(sl.cfg.check_interval);
                 let mat = &*self.material;
-                moved = sl.update(&self.grid, &mut self.particles, mat, self.last_dt, check, drive.map(|d| d.bounds()));
+                moved = sl.update(&self.grid, &mut self.particles, mat, self.last_dt, self.time, check, drive.map(|d| d.bounds()));
             }
         }
         self.awake_particle_steps += (self.particles.n - self.particles.n_sleep) as u64;

@@ -95,6 +95,44 @@ fn sleeping_blocks_skip_work_and_barely_change_the_result() {
 }
 
 #[test]
+fn sleeping_material_builds_up_structure_as_if_awake() {
+    // Roussel build-up without breakdown (alpha = 0): lambda = lambda0 + A_thix / tau0 x age
+    // whatever the flow, so particles that slept and woke must carry the same lambda as awake
+    let thix = |sleep| {
+        common::tiny_print(2, 2, sleep, "256 MiB").replace("yield_stress = 630.0", "yield_stress = 630.0\na_thix = 50.0")
+    };
+    let t_end = 2.0;
+    let a = run_to(&thix(false), t_end);
+    // the first layer's settled end falls asleep at about 1 s and the second layer wakes it
+    let mut b = Simulation::new(&Scenario::parse(&thix(true)).unwrap()).unwrap();
+    let mut most_asleep = 0;
+    while b.time < t_end {
+        b.step_until(t_end).unwrap();
+        most_asleep = most_asleep.max(b.particles.n_sleep);
+    }
+    assert!(most_asleep > b.particles.n_sleep, "nothing slept and woke: {most_asleep} asleep at most, {} at the end", b.particles.n_sleep);
+    let lambda_by_id = |s: &Simulation, awake_only: bool| {
+        let p = &s.particles;
+        let first = if awake_only { p.n_sleep } else { 0 };
+        let mut v: Vec<(u64, f64)> =
+            (first..p.n).map(|i| (p.id.as_slice()[i] as u64, p.state.as_slice()[i * p.state_len + 6] as f64)).collect();
+        v.sort_by_key(|e| e.0);
+        v
+    };
+    let awake = lambda_by_id(&a, false);
+    let woken = lambda_by_id(&b, true);
+    let (mut compared, mut oldest) = (0, 0.0f64);
+    for (id, lb) in &woken {
+        let i = awake.binary_search_by_key(id, |e| e.0).expect("same particles in both runs");
+        let la = awake[i].1;
+        assert!((lb - la).abs() <= 1e-3 * la.abs().max(1e-3), "particle {id}: lambda {lb} after sleeping, {la} awake");
+        compared += 1;
+        oldest = oldest.max(la);
+    }
+    eprintln!("{compared} awake particles compared ({most_asleep} were asleep at most), oldest lambda {oldest:.4}");
+}
+
+#[test]
 fn too_small_a_particle_pool_is_refused_at_start_up() {
     let text = common::tiny_print(1, 1, false, "256 MiB").replace("[memory]", "[memory]\nmax_particles = 100");
     let e = Simulation::new(&Scenario::parse(&text).unwrap()).err().expect("must fail").to_string();

@@ -17,8 +17,9 @@ use std::path::{Path, PathBuf};
 use xxhash_rust::xxh3::xxh3_64;
 
 pub const MAGIC: &[u8; 8] = b"STRANDCK";
-/// Bump on any change of the header or of a section's layout.
-pub const FORMAT: u32 = 2;
+/// Bump on any change of the header or of a section's layout or meaning (3: a sleeping block's
+/// `sleep.rest` entry is the time it fell asleep, no longer its rest clock).
+pub const FORMAT: u32 = 3;
 const PREAMBLE: usize = 8 + 4 + 4 + 8 + 8;
 pub const ALIGN: usize = 64;
 

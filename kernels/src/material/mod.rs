@@ -116,6 +116,13 @@ pub trait Material: Send + Sync + std::fmt::Debug {
     /// is the stress `update` returns for any `grad_v`).
     fn stress_at_rest(&self, state: &[Real], j: Real) -> M3;
 
+    /// Advance the internal state over `duration` at rest (`grad_v = 0`, below yield), in one go:
+    /// what `duration / dt` calls of `update` would do, up to round-off. A sleeping particle skips
+    /// the per-step update, and gets this when its block wakes, so structural build-up
+    /// (thixotropy) goes on while material sleeps. Materials whose state does not evolve at rest
+    /// keep the default, which does nothing.
+    fn rest_for(&self, _state: &mut [Real], _duration: Real) {}
+
     /// Data for the automatic time step.
     fn stability(&self) -> StabilityInfo;
 

@@ -311,6 +311,11 @@ impl Material for PapanastasiouRoussel {
         M3::ZERO - M3::from_diagonal(V3::splat(self.eos.pressure(r(self.bulk_modulus), j)))
     }
 
+    fn rest_for(&self, state: &mut [Real], duration: Real) {
+        // gamma_dot = 0: linear build-up up to the cap, as the clamp of `update` does step by step
+        state[0] = (state[0] + self.build_up_rate() * duration).max(r(0.0)).min(r(self.lambda_cap()));
+    }
+
     fn stability(&self) -> StabilityInfo {
         StabilityInfo {
             density: r(self.density),
@@ -424,6 +429,11 @@ mod tests {
         let t = n as Real * dt;
         let expect = 0.2 + 0.5 * t / 100.0;
         assert!(rel(st[0], expect) < 1e-4, "{} vs {expect}", st[0]);
+        // a sleeping particle's build-up, in one call
+        let mut slept = [0.0];
+        m.init_state(&mut slept);
+        m.rest_for(&mut slept, t);
+        assert!(rel(slept[0], st[0]) < 1e-5, "{} vs {}", slept[0], st[0]);
     }
 
     #[test]
@@ -436,6 +446,9 @@ mod tests {
             m.update(&M3::ZERO, 1.0, 1.0, &mut st);
         }
         assert_eq!(st[0], 0.3);
+        let mut slept = [0.0];
+        m.rest_for(&mut slept, 100.0);
+        assert_eq!(slept[0], 0.3);
         // The stability bound covers the saturated state: eta + tau0 (1 + 0.3) m.
         assert!(rel(m.stability().max_viscosity, 30.0 + 100.0 * 1.3 * 10.0) < EPS);
     }
