@@ -69,8 +69,9 @@ enum Cmd {
     /// adjoint method under a checkpoint schedule within the RAM and disk caps.
     Grad {
         scenario: PathBuf,
-        /// What to differentiate: spread, width@X, height@X, area@X, total_height, vx_max,
-        /// kinetic_energy, mean_z.
+        /// What to differentiate: spread, width@X, height@X, area@X, profile@X:Y (the section's
+        /// top at x = X, y = Y), layer_height@X:K, layer_width@X:K (layer K = 1, 2, ... at x = X),
+        /// total_height, front, vx_max, kinetic_energy, mean_z.
         #[arg(long)]
         objective: String,
         /// Parameters, comma-separated scenario keys (material.yield_stress,

@@ -60,7 +60,7 @@ impl Cloud<'_> {
 ///
 /// Centring on a particle coordinate (the minimum) puts every column of an undeformed
 /// lattice at a bin centre, whatever the lattice offset, so no column is split or merged.
-fn bin(v: f64, origin: f64, h: f64) -> i64 {
+pub(crate) fn bin(v: f64, origin: f64, h: f64) -> i64 {
     // `as` saturates, so a far outlier lands in an extreme bin instead of panicking.
     ((v - origin) / h).round() as i64
 }
@@ -251,6 +251,22 @@ fn area_under(line: &[[f64; 2]], base_z: f64) -> f64 {
         .sum()
 }
 
+/// The z of a profile polyline (as [`CrossSection::profile`], ordered by y) at lateral position
+/// `y`: linear between its points, the highest where a vertical edge stands at `y` (so the top of
+/// a run's end column counts up to its edge). None for an empty profile or a `y` outside it.
+pub fn profile_z_at(profile: &[[f64; 2]], y: f64) -> Option<f64> {
+    let mut best: Option<f64> = None;
+    for w in profile.windows(2) {
+        let ([y0, z0], [y1, z1]) = (w[0], w[1]);
+        if !(y0 <= y && y <= y1) {
+            continue;
+        }
+        let z = if y1 > y0 { z0 + (z1 - z0) * (y - y0) / (y1 - y0) } else { z0.max(z1) };
+        best = Some(best.map_or(z, |b: f64| b.max(z)));
+    }
+    best
+}
+
 /// Height of the whole deposit: `max z + spacing / 2 - base_z`; 0 for an empty cloud.
 pub fn total_height(c: &Cloud, base_z: f64) -> f64 {
     c.particles()
@@ -285,17 +301,14 @@ pub fn layer_heights(
     layer_tops: &[f64],
     base_z: f64,
 ) -> Vec<f64> {
-    let valid =
-        layer_tops.iter().all(|t| t.is_finite()) && layer_tops.windows(2).all(|w| w[0] < w[1]);
-    if layer_tops.is_empty() || !valid {
+    if !valid_layer_tops(layer_tops) {
         return Vec::new();
     }
     let n = layer_tops.len();
     let h = c.spacing;
     let mut tops: Vec<Option<f64>> = vec![None; n];
     for (p, _) in c.slab(station, slab) {
-        // Number of nominal tops at or below z = index of the interval holding z.
-        let k = layer_tops.partition_point(|&t| t <= p[2]).min(n - 1);
+        let k = layer_of(layer_tops, p[2]);
         let top = p[2] + h / 2.0;
         tops[k] = Some(tops[k].map_or(top, |t: f64| t.max(top)));
     }
@@ -309,6 +322,36 @@ pub fn layer_heights(
             }
             None => 0.0,
         })
+        .collect()
+}
+
+/// Whether `layer_tops` can assign particles to layers: not empty, finite, strictly ascending.
+pub(crate) fn valid_layer_tops(layer_tops: &[f64]) -> bool {
+    !layer_tops.is_empty()
+        && layer_tops.iter().all(|t| t.is_finite())
+        && layer_tops.windows(2).all(|w| w[0] < w[1])
+}
+
+/// The layer (0-based) a particle at height `z` is assigned to, as [`layer_heights`] says:
+/// the number of nominal tops at or below z, the last layer taking everything above.
+pub(crate) fn layer_of(layer_tops: &[f64], z: f64) -> usize {
+    layer_tops.partition_point(|&t| t <= z).min(layer_tops.len() - 1)
+}
+
+/// Width of each printed layer in the slab `|x - station| <= slab / 2`: the y extent of the
+/// particles [`layer_heights`] assigns to it, `max y - min y + spacing`; 0 for an empty layer.
+/// Returns an empty Vec where [`layer_heights`] does.
+pub fn layer_widths(c: &Cloud, station: f64, slab: f64, layer_tops: &[f64]) -> Vec<f64> {
+    if !valid_layer_tops(layer_tops) {
+        return Vec::new();
+    }
+    let mut ext: Vec<Option<(f64, f64)>> = vec![None; layer_tops.len()];
+    for (p, _) in c.slab(station, slab) {
+        let e = &mut ext[layer_of(layer_tops, p[2])];
+        *e = Some(e.map_or((p[1], p[1]), |(lo, hi)| (lo.min(p[1]), hi.max(p[1]))));
+    }
+    ext.iter()
+        .map(|e| e.map_or(0.0, |(lo, hi)| hi - lo + c.spacing))
         .collect()
 }
 
@@ -625,6 +668,21 @@ mod tests {
             s.profile_area
         );
         assert!(close(s.width, 10.0 * H, 1e-12));
+        // read back at any y: the run's tops, the base in the gap, nothing beside the section
+        let at = |y: f64| profile_z_at(p, y * H);
+        for (y, z) in [(0.3, 5.0), (2.5, 5.0), (4.9, 5.0), (5.0, 5.0), (6.0, 0.0), (8.0, 3.0), (9.7, 3.0)] {
+            assert!(close(at(y).unwrap(), BASE + z * H, 1e-12), "y = {y} h: {:?}", at(y));
+        }
+        assert_eq!((at(-0.1), at(10.1), profile_z_at(&[], 0.0)), (None, None, None));
+    }
+
+    #[test]
+    fn profile_z_at_is_linear_between_column_tops() {
+        let profile = [[0.0, BASE], [0.0, BASE + 2.0 * H], [0.5 * H, BASE + 2.0 * H], [1.5 * H, BASE + 4.0 * H], [2.0 * H, BASE + 4.0 * H], [2.0 * H, BASE]];
+        assert!(close(profile_z_at(&profile, 0.75 * H).unwrap(), BASE + 2.5 * H, 1e-12));
+        assert!(close(profile_z_at(&profile, 1.25 * H).unwrap(), BASE + 3.5 * H, 1e-12));
+        // on a vertical edge, the top
+        assert!(close(profile_z_at(&profile, 2.0 * H).unwrap(), BASE + 4.0 * H, 1e-12));
     }
 
     #[test]
@@ -651,6 +709,11 @@ mod tests {
         for (g, (nz, _)) in got.iter().zip(layers) {
             assert!(close(*g, nz as f64 * H, 1e-12), "{got:?}");
         }
+        let widths = layer_widths(&c, 1.5 * H, 3.0 * H, &tops);
+        for (w, (_, ny)) in widths.iter().zip(layers) {
+            assert!(close(*w, ny as f64 * H, 1e-12), "{widths:?}");
+        }
+        assert!(layer_widths(&c, 1.5 * H, 3.0 * H, &[tops[1], tops[0]]).is_empty());
         // The top layer bulging above its nominal top still counts for it.
         let raised: Vec<f64> = tops.iter().map(|t| t - H).collect();
         let got = layer_heights(&c, 1.5 * H, 3.0 * H, &raised, BASE);
@@ -669,6 +732,9 @@ mod tests {
             close(got[1], 0.0, 0.0) && close(got[2], 3.0 * H, 1e-12),
             "{got:?}"
         );
+        let widths = layer_widths(&c, 1.5 * H, 3.0 * H, &[tops[0], tops[0] + 0.25 * H, tops[1], tops[2]]);
+        assert_eq!(widths.len(), 4);
+        assert!(close(widths[1], 0.0, 0.0) && close(widths[2], 8.0 * H, 1e-12), "{widths:?}");
     }
 
     #[test]

@@ -161,3 +161,58 @@ fn planned_jobs_collected_compare_exactly_as_a_local_run() {
     assert_ne!(code, 0);
     assert!(err.contains("--only Z") && err.contains("A, B, C, D, E, F"), "{err}");
 }
+
+#[test]
+fn printed_profile_points_and_layers_measured_by_synth_are_what_the_run_writes() {
+    // The measurement loop's profile@X:Y, layer_height@X:K and layer_width@X:K of the two-layer
+    // print against the run's own profiles.csv and layers.csv, then compared with another model.
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let fixture = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/scenarios/grad/two_layers.toml");
+    std::fs::copy(&fixture, d.join("print.toml")).unwrap();
+    let ys = [-0.006, -0.0025, 0.0, 0.004, 0.0055, 0.0068];
+    let mut observe: Vec<String> = ys.iter().map(|y| format!("\"profile@0.015:{y}\"")).collect();
+    observe.extend(["\"layer_height@0.015:1\"", "\"layer_height@0.015:2\"", "\"layer_width@0.015:1\""].map(String::from));
+    std::fs::write(d.join("exps.toml"), format!("[[experiment]]\nid = \"P\"\nscenario = \"print.toml\"\nobserve = [{}]\n", observe.join(", "))).unwrap();
+    let truth = "[material]\nkind = \"evp_bingham\"\ndensity = 2100.0\nbulk_modulus = 2.0e5\npoisson_ratio = 0.3\nviscosity = 20.0\nyield_stress = 100.0\n";
+    std::fs::write(d.join("truth.toml"), truth).unwrap();
+    std::fs::write(d.join("other.toml"), truth.replace("yield_stress = 100.0", "yield_stress = 150.0")).unwrap();
+
+    let (code, _, err) = strand(&["run", "print.toml", "--out", "out", "--quiet"], d);
+    assert_eq!(code, 0, "{err}");
+    let (code, _, err) = strand(&["synth", "--model", "truth.toml", "--experiments", "exps.toml", "--out", "data.csv"], d);
+    assert_eq!(code, 0, "{err}");
+    let csv = std::fs::read_to_string(d.join("data.csv")).unwrap();
+    assert!(csv.contains("P,profile,0.015:0.004,") && csv.contains("P,layer_height,0.015:2,"), "{csv}");
+    let data = strand::measure::data::read_observations(&d.join("data.csv")).unwrap();
+    assert_eq!(data.len(), ys.len() + 3);
+
+    // the run's outline at its last output (the base is the floor, z = 0)
+    let profiles = std::fs::read_to_string(d.join("out/profiles.csv")).unwrap();
+    let rows: Vec<Vec<f64>> = profiles.lines().skip(1).map(|l| l.split(',').map(|f| f.parse().unwrap()).collect()).collect();
+    let last = rows.iter().map(|r| r[0]).fold(f64::MIN, f64::max);
+    assert!((last - 1.0).abs() < 1e-9, "{last}");
+    let outline: Vec<[f64; 2]> = rows.iter().filter(|r| r[0] == last).map(|r| [r[2], r[3]]).collect();
+    for (o, y) in data.iter().zip(ys) {
+        assert_eq!((o.observable.name.as_str(), o.observable.at2), ("profile", Some(y)));
+        let z = strand::observe::profile_z_at(&outline, y).unwrap();
+        assert!(z > 0.004 && (o.value - z).abs() <= 1e-12, "profile@0.015:{y}: synth {} against the run's outline {z}", o.value);
+    }
+    // layers.csv: time,station,layer,thickness,total_height (9 digits)
+    let layers = std::fs::read_to_string(d.join("out/layers.csv")).unwrap();
+    let thickness: Vec<f64> = layers.lines().skip(1).map(|l| l.split(',').collect::<Vec<_>>()).filter(|f| f[0].parse::<f64>().unwrap() == last).map(|f| f[3].parse().unwrap()).collect();
+    assert_eq!(thickness.len(), 2, "{layers}");
+    for k in 0..2 {
+        let o = &data[ys.len() + k];
+        assert!((o.value - thickness[k]).abs() <= 1e-11, "layer_height@0.015:{}: synth {} against layers.csv {}", k + 1, o.value, thickness[k]);
+    }
+    assert!(data[ys.len() + 2].value > 0.01, "{:?}", data[ys.len() + 2]);
+
+    // a stiffer model stands taller; the report plots the profile against y
+    let (code, out, err) = strand(&["compare", "--model", "other.toml", "--data", "data.csv", "--experiments", "exps.toml", "--report", "rep"], d);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("0.015:0.004") && out.contains("over-predicts"), "{out}");
+    for f in ["model_vs_data_profile.png", "model_vs_data_layer_height.png", "model_vs_data_layer_width.png", "index.html"] {
+        assert!(d.join("rep").join(f).exists(), "{f}");
+    }
+}

@@ -4,8 +4,8 @@
 //! They follow the observables of `observe.rs` (a particle stands for a cube of side
 //! `spacing`): extents add one spacing to the spread of particle centres. An extent is a max
 //! minus a min, so its gradient flows through the extreme particles only; which particle is
-//! extreme, and which particles fall into a slab or band, is held fixed (piecewise constant in
-//! the positions).
+//! extreme, and which particles fall into a slab or band, a profile's y bin or a printed layer,
+//! is held fixed (piecewise constant in the positions).
 
 use crate::kernels::{Real, V3};
 use crate::solver::Simulation;
@@ -25,6 +25,28 @@ pub enum Objective {
     /// quadratic B-spline of knot spacing `slab` in x, over the slab (as `sections.csv`'s `area`,
     /// consistent with the mass balance); with `[observe] mirror_y`, of the mirrored material.
     Area { stations: Vec<f64> },
+    /// A point of the printed cross-section's profile: the height above the base [m] of the top
+    /// outline of the section at x = station, at lateral position y [m]. Exactly
+    /// `observe::profile_z_at(cross_section(..).profile, y) - base_z` as the run's reporter builds
+    /// the section: the particles with |x - station| <= slab / 2 (`[observe] slab`, default one
+    /// cell), with `[observe] mirror_y` together with their mirror images, binned in y at the
+    /// print's spacing h from the lowest y; a bin's top is its highest particle + h / 2, the
+    /// outline runs linearly between bin centres, flat over the outer half of a run's end bins,
+    /// and at the base elsewhere (0 in a gap or beside the material). Its adjoint flows through
+    /// the particles that set the tops of the (at most two) bins around y, and through the one
+    /// that sets the lowest y (the bins' origin); which particles those are is held fixed.
+    Profile { station: f64, y: f64 },
+    /// Thickness [m] of printed layer `layer` (1 = the bottom one) at x = station, as
+    /// `observe::layer_heights` (the run's `layers.csv`) gives it: the slab's particles are
+    /// assigned to layers by their z against the toolpath's layer heights (the nominal tops);
+    /// a layer's top is its highest particle + h / 2, its thickness that top minus the top of
+    /// the nearest non-empty layer below (the base for the first); 0 for an empty layer. The
+    /// assignment and the top particles are held fixed.
+    LayerHeight { station: f64, layer: usize },
+    /// Width [m] of printed layer `layer` at x = station (`observe::layer_widths`): the y
+    /// extent + h of the particles `LayerHeight` assigns to it; with `[observe] mirror_y`, of
+    /// them together with their mirror images; 0 for an empty layer.
+    LayerWidth { station: f64, layer: usize },
     /// Top of all the material above the base [m].
     TotalHeight,
     /// Flow front: the leading edge of the material in x [m] (largest particle x plus half a
@@ -38,7 +60,7 @@ pub enum Objective {
     MeanZ,
 }
 
-pub const NAMES: &str = "spread, width@X[,X...], height@X[,X...], area@X[,X...], total_height, front, vx_max, kinetic_energy, mean_z";
+pub const NAMES: &str = "spread, width@X[,X...], height@X[,X...], area@X[,X...], profile@X:Y, layer_height@X:K, layer_width@X:K, total_height, front, vx_max, kinetic_energy, mean_z";
 
 impl std::str::FromStr for Objective {
     type Err = String;
@@ -52,6 +74,18 @@ impl std::str::FromStr for Objective {
             Some(("width", x)) => Ok(Objective::Width { stations: stations(x)? }),
             Some(("height", x)) => Ok(Objective::Height { stations: stations(x)? }),
             Some(("area", x)) => Ok(Objective::Area { stations: stations(x)? }),
+            Some((name @ ("profile" | "layer_height" | "layer_width"), x)) => {
+                let what = if name == "profile" { "X:Y, the station x and the lateral position y in metres" } else { "X:K, the station x in metres and the layer K (1 = the bottom one)" };
+                let bad = || format!("objective '{s}': {name} takes {what}");
+                let (a, b) = x.split_once(':').ok_or_else(bad)?;
+                let station = a.trim().parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(bad)?;
+                if name == "profile" {
+                    let y = b.trim().parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(bad)?;
+                    return Ok(Objective::Profile { station, y });
+                }
+                let layer = b.trim().parse::<usize>().ok().filter(|&k| k >= 1).ok_or_else(bad)?;
+                Ok(if name == "layer_height" { Objective::LayerHeight { station, layer } } else { Objective::LayerWidth { station, layer } })
+            }
             _ => match s {
                 "spread" => Ok(Objective::Spread),
                 "total_height" => Ok(Objective::TotalHeight),
@@ -92,10 +126,11 @@ impl Frame {
         let sc = &sim.scenario;
         let dx = sc.simulation.dx;
         let ppc = sc.bodies.first().map_or(2, |b| b.particles_per_cell_axis());
-        let base_z = sc.boundary.platform.as_ref().map_or(sc.domain.min[2], |p| p.z);
         // printed material is laid at the print's spacing
         let ppc = sc.print.as_ref().map_or(ppc, |p| p.particles_per_cell_axis);
         let obs = sc.observe.as_ref();
+        // as the run's reporter: `[observe] base_z`, else the platform top, else the domain floor
+        let base_z = obs.and_then(|o| o.base_z).or(sc.boundary.platform.as_ref().map(|p| p.z)).unwrap_or(sc.domain.min[2]);
         Frame { dx, spacing: dx / ppc as f64, base_z, mirror_y: obs.and_then(|o| o.mirror_y), slab: obs.and_then(|o| o.slab).unwrap_or(dx) }
     }
 }
@@ -198,6 +233,78 @@ impl Objective {
                 }
                 total
             }
+            Objective::Profile { station, y } => {
+                let h = frame.spacing;
+                let pts = section_points(sim, frame, *station).ok_or_else(|| format!("objective {}: no particle within half a slab of x = {station} m", self.name()))?;
+                let py = |pt: &(usize, f64)| pt.1 * world(pt.0)[1] + if pt.1 < 0.0 { 2.0 * frame.mirror_y.unwrap_or(0.0) } else { 0.0 };
+                // the bins' origin: the lowest y (first on ties), and each bin's top particle
+                let o = pts.iter().enumerate().fold(0, |b, (k, pt)| if py(pt) < py(&pts[b]) { k } else { b });
+                let origin = py(&pts[o]);
+                let mut tops: std::collections::BTreeMap<i64, (f64, usize)> = std::collections::BTreeMap::new();
+                for pt in &pts {
+                    let top = world(pt.0)[2] + 0.5 * h;
+                    let e = tops.entry(crate::observe::bin(py(pt), origin, h)).or_insert((top, pt.0));
+                    if top > e.0 {
+                        *e = (top, pt.0);
+                    }
+                }
+                let u = (y - origin) / h;
+                let k0 = u.floor();
+                let t = u - k0;
+                let k0 = k0 as i64;
+                // (weight, particle) of the tops the point interpolates, and d value / d origin
+                let (terms, d_origin): (Vec<(f64, usize)>, f64) = match (tops.get(&k0), tops.get(&(k0 + 1))) {
+                    (Some(&(a, ia)), Some(&(b, ib))) => (vec![(1.0 - t, ia), (t, ib)], -(b - a) / h),
+                    (Some(&(_, ia)), None) if t <= 0.5 => (vec![(1.0, ia)], 0.0),
+                    (None, Some(&(_, ib))) if t >= 0.5 => (vec![(1.0, ib)], 0.0),
+                    _ => (Vec::new(), 0.0),
+                };
+                let value = if terms.is_empty() { 0.0 } else { terms.iter().map(|&(w, i)| w * (world(i)[2] + 0.5 * h)).sum::<f64>() - frame.base_z };
+                if let Some(s) = seed {
+                    for &(w, i) in &terms {
+                        s.xg[i].z += w as Real * scale;
+                    }
+                    let (io, sign) = pts[o];
+                    s.xg[io].y += (sign * d_origin) as Real * scale;
+                }
+                value
+            }
+            Objective::LayerHeight { station, layer } | Objective::LayerWidth { station, layer } => {
+                let tops = layer_tops(sim).ok_or_else(|| format!("objective {}: the scenario prints no layers whose heights ascend (the toolpath's layer z, as layers.csv takes them)", self.name()))?;
+                if *layer == 0 || *layer > tops.len() {
+                    return Err(format!("objective {}: layer {layer} is not one of the toolpath's layers 1..={}", self.name(), tops.len()));
+                }
+                let pts = section_points(sim, frame, *station).ok_or_else(|| format!("objective {}: no particle within half a slab of x = {station} m", self.name()))?;
+                let k = *layer - 1;
+                let mine: Vec<(usize, f64)> = pts.into_iter().filter(|pt| crate::observe::layer_of(&tops, world(pt.0)[2]) == k).collect();
+                if mine.is_empty() {
+                    return Ok(0.0);
+                }
+                if matches!(self, Objective::LayerHeight { .. }) {
+                    // the top of the nearest non-empty layer below (the mirror images add nothing in z)
+                    let half = 0.5 * frame.slab;
+                    let top_of = |l: usize| arg_max(n, |i| (world(i)[0] - station).abs() <= half && crate::observe::layer_of(&tops, world(i)[2]) == l, |i| world(i)[2]);
+                    let it = top_of(k).expect("the layer has particles");
+                    let below = (0..k).rev().find_map(top_of);
+                    let value = world(it)[2] + 0.5 * frame.spacing - below.map_or(frame.base_z, |ib| world(ib)[2] + 0.5 * frame.spacing);
+                    if let Some(s) = seed {
+                        s.xg[it].z += scale;
+                        if let Some(ib) = below {
+                            s.xg[ib].z -= scale;
+                        }
+                    }
+                    value
+                } else {
+                    let py = |pt: &(usize, f64)| pt.1 * world(pt.0)[1] + if pt.1 < 0.0 { 2.0 * frame.mirror_y.unwrap_or(0.0) } else { 0.0 };
+                    let hi = mine.iter().fold(mine[0], |b, pt| if py(pt) > py(&b) { *pt } else { b });
+                    let lo = mine.iter().fold(mine[0], |b, pt| if py(pt) < py(&b) { *pt } else { b });
+                    if let Some(s) = seed {
+                        s.xg[hi.0].y += hi.1 as Real * scale;
+                        s.xg[lo.0].y -= lo.1 as Real * scale;
+                    }
+                    py(&hi) - py(&lo) + frame.spacing
+                }
+            }
             Objective::TotalHeight => {
                 let top = arg_max(n, |_| true, |i| world(i)[2]).ok_or("objective total_height: no particles")?;
                 if let Some(s) = seed {
@@ -259,6 +366,9 @@ impl Objective {
             Objective::Width { stations } => format!("width@{}", join(stations)),
             Objective::Height { stations } => format!("height@{}", join(stations)),
             Objective::Area { stations } => format!("area@{}", join(stations)),
+            Objective::Profile { station, y } => format!("profile@{station}:{y}"),
+            Objective::LayerHeight { station, layer } => format!("layer_height@{station}:{layer}"),
+            Objective::LayerWidth { station, layer } => format!("layer_width@{station}:{layer}"),
             Objective::TotalHeight => "total_height".into(),
             Objective::Front => "front".into(),
             Objective::VxMax => "vx_max".into(),
@@ -268,6 +378,197 @@ impl Objective {
     }
 }
 
+/// The particles of the cross-section slab |x - station| <= slab / 2 as the reporter's cloud
+/// holds them: (index, +1) for each, and with `mirror_y` also (index, -1) for its mirror image
+/// (y -> 2 y0 - y). None if the slab is empty.
+fn section_points(sim: &Simulation, frame: &Frame, station: f64) -> Option<Vec<(usize, f64)>> {
+    let p = &sim.particles;
+    let half = 0.5 * frame.slab;
+    let inside: Vec<usize> = (0..p.n).filter(|&i| (sim.position(i)[0] - station).abs() <= half).collect();
+    let mut pts: Vec<(usize, f64)> = inside.iter().map(|&i| (i, 1.0)).collect();
+    if frame.mirror_y.is_some() {
+        pts.extend(inside.iter().map(|&i| (i, -1.0)));
+    }
+    (!pts.is_empty()).then_some(pts)
+}
+
+/// The nominal layer tops `layers.csv` assigns particles by: the z of each of the toolpath's
+/// layers; None without a print or when they do not ascend.
+fn layer_tops(sim: &Simulation) -> Option<Vec<f64>> {
+    let tops: Vec<f64> = sim.printer.as_ref()?.toolpath.layers().iter().map(|l| l.0).collect();
+    crate::observe::valid_layer_tops(&tops).then_some(tops)
+}
+
 fn join(stations: &[f64]) -> String {
     stations.iter().map(|s| s.to_string()).collect::<Vec<_>>().join(",")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::observe::{self, Cloud};
+    use crate::scenario::Scenario;
+
+    /// The two-layer print of the gradient tests, its y >= 0 half observed with the mirror image
+    /// (`half`) or whole, at three stations.
+    fn two_layers(half: bool) -> String {
+        let text = include_str!("../../fixtures/scenarios/grad/two_layers.toml").replace("stations = [0.015]", "stations = [0.006, 0.015, 0.024]");
+        if half {
+            return text;
+        }
+        text.replace("min = [-0.02, 0.0, 0.0]", "min = [-0.02, -0.04, 0.0]").replace("y_min = \"symmetry\"\n", "").replace("mirror_y = 0.0\n", "")
+    }
+
+    fn run(text: &str) -> (Scenario, Simulation) {
+        let sc = Scenario::parse(text).unwrap();
+        let mut sim = Simulation::new(&sc).unwrap();
+        let end = sc.simulation.end_time;
+        while sim.time < end * (1.0 - 1e-12) {
+            sim.step_until(end).unwrap();
+        }
+        (sc, sim)
+    }
+
+    /// The reporter's cloud: positions and volumes, with the mirror images under `mirror_y`.
+    fn cloud_of(sim: &Simulation, mirror_y: Option<f64>) -> (Vec<[f64; 3]>, Vec<f64>) {
+        let p = &sim.particles;
+        let mut pos: Vec<[f64; 3]> = (0..p.n).map(|i| sim.position(i)).collect();
+        let mut vol: Vec<f64> = (0..p.n).map(|i| (p.vol0.as_slice()[i] * p.j.as_slice()[i]) as f64).collect();
+        if let Some(y0) = mirror_y {
+            for i in 0..p.n {
+                pos.push([pos[i][0], 2.0 * y0 - pos[i][1], pos[i][2]]);
+                vol.push(vol[i]);
+            }
+        }
+        (pos, vol)
+    }
+
+    fn value(sim: &Simulation, frame: &Frame, name: &str) -> f64 {
+        name.parse::<Objective>().unwrap().evaluate(sim, frame, None).unwrap()
+    }
+
+    #[test]
+    fn profile_points_and_layer_heights_and_widths_are_the_reporters_observables() {
+        for half in [true, false] {
+            let (sc, sim) = run(&two_layers(half));
+            let frame = Frame::of(&sim);
+            assert_eq!(frame.mirror_y, half.then_some(0.0));
+            let mut reporter = crate::report::Reporter::new(&sc, &sim).unwrap().unwrap();
+            let o = reporter.observe(&sim).clone();
+            let (pos, vol) = cloud_of(&sim, frame.mirror_y);
+            let cloud = Cloud { pos: &pos, vol: &vol, spacing: frame.spacing };
+            let tops: Vec<f64> = sim.printer.as_ref().unwrap().toolpath.layers().iter().map(|l| l.0).collect();
+            assert_eq!(tops, [0.006, 0.012]);
+            let mut interpolated = 0;
+            for (k, section) in o.sections.iter().enumerate() {
+                let x = section.station;
+                let (first, last) = (section.profile[0][0], section.profile.last().unwrap()[0]);
+                // across the section and 3 mm beyond, off the bin edges (where the outline is vertical)
+                for j in 0..=200 {
+                    let y = first - 0.003 + (last - first + 0.006) * (j as f64 + 0.37) / 200.0;
+                    let want = observe::profile_z_at(&section.profile, y).map_or(0.0, |z| z - frame.base_z);
+                    let got = value(&sim, &frame, &format!("profile@{x}:{y}"));
+                    assert!((got - want).abs() <= 1e-12, "half {half}, profile@{x}:{y}: {got} against the reporter's outline {want}");
+                    interpolated += usize::from(got > 0.0 && section.profile.iter().all(|p| p[0] != y));
+                }
+                let widths = observe::layer_widths(&cloud, x, frame.slab, &tops);
+                assert_eq!(o.layers[k].len(), 2);
+                for layer in 1..=2 {
+                    let got = value(&sim, &frame, &format!("layer_height@{x}:{layer}"));
+                    assert!((got - o.layers[k][layer - 1]).abs() <= 1e-12, "half {half}, layer_height@{x}:{layer}: {got} against {:?}", o.layers[k]);
+                    let got = value(&sim, &frame, &format!("layer_width@{x}:{layer}"));
+                    assert!((got - widths[layer - 1]).abs() <= 1e-12, "half {half}, layer_width@{x}:{layer}: {got} against {widths:?}");
+                    assert!(widths[layer - 1] > 0.0 && o.layers[k][layer - 1] > 0.0);
+                }
+                // the layers add up to the section's height, and the widest layer is the section's width
+                assert!((o.layers[k].iter().sum::<f64>() - section.height).abs() <= 1e-12, "{:?} against {}", o.layers[k], section.height);
+                assert!((widths.iter().cloned().fold(0.0, f64::max) - section.width).abs() <= 1e-12, "{widths:?} against {}", section.width);
+            }
+            assert!(interpolated > 100, "{interpolated} points between outline vertices");
+            // no such layer, no material
+            let e = "layer_height@0.015:3".parse::<Objective>().unwrap().evaluate(&sim, &frame, None).unwrap_err();
+            assert!(e.contains("layer 3") && e.contains("1..=2"), "{e}");
+            let e = "profile@0.05:0".parse::<Objective>().unwrap().evaluate(&sim, &frame, None).unwrap_err();
+            assert!(e.contains("no particle"), "{e}");
+        }
+    }
+
+    #[test]
+    fn the_profile_drops_to_the_base_between_filaments_and_beside_them() {
+        // two boxes of 2 x 5 x 4 and 2 x 2 x 2 particles (10 mm cells, 2 per cell), 15 mm apart
+        let text = r#"
+name = "two-boxes"
+[simulation]
+dx = 0.01
+end_time = 0.1
+[domain]
+min = [0.0, 0.0, 0.0]
+max = [0.1, 0.1, 0.1]
+[material]
+kind = "newtonian"
+density = 1000.0
+bulk_modulus = 1e5
+viscosity = 1.0
+[[body]]
+shape = "box"
+min = [0.02, 0.02, 0.0]
+max = [0.03, 0.045, 0.02]
+[[body]]
+shape = "box"
+min = [0.02, 0.06, 0.0]
+max = [0.03, 0.07, 0.01]
+[memory]
+budget = "16 MiB"
+"#;
+        let sc = Scenario::parse(text).unwrap();
+        let sim = Simulation::new(&sc).unwrap();
+        let frame = Frame::of(&sim);
+        let (pos, vol) = cloud_of(&sim, None);
+        let cloud = Cloud { pos: &pos, vol: &vol, spacing: frame.spacing };
+        let section = observe::cross_section(&cloud, 0.025, frame.slab, frame.base_z);
+        assert_eq!(section.profile.len(), 5 + 2 + 8, "{:?}", section.profile);
+        for j in 0..100 {
+            let y = 0.01 + 0.07 * (j as f64 + 0.5) / 100.0;
+            let want = observe::profile_z_at(&section.profile, y).map_or(0.0, |z| z - frame.base_z);
+            let got = value(&sim, &frame, &format!("profile@0.025:{y}"));
+            assert!((got - want).abs() <= 1e-12, "y = {y}: {got} against {want}");
+            let expect = if (0.02..=0.045).contains(&y) {
+                0.02
+            } else if (0.06..=0.07).contains(&y) {
+                0.01
+            } else {
+                0.0
+            };
+            assert!((got - expect).abs() <= 1e-9, "y = {y}: {got}, a box top of {expect}");
+        }
+    }
+
+    #[test]
+    fn names_parse_and_print_back_and_bad_ones_say_what_they_take() {
+        for name in ["profile@0.075:0.01", "profile@0.075:-0.002", "layer_height@0.075:2", "layer_width@0.03:1"] {
+            let o: Objective = name.parse().unwrap();
+            assert_eq!(o.name(), name);
+            assert_eq!(o.name().parse::<Objective>().unwrap(), o);
+        }
+        assert_eq!("profile@0.075:0.01".parse::<Objective>().unwrap(), Objective::Profile { station: 0.075, y: 0.01 });
+        assert_eq!(" layer_height@0.075: 3".trim().parse::<Objective>().unwrap(), Objective::LayerHeight { station: 0.075, layer: 3 });
+        for (bad, want) in [
+            ("profile@0.075", "profile takes X:Y"),
+            ("profile@0.075:", "profile takes X:Y"),
+            ("profile@a:0.01", "profile takes X:Y"),
+            ("profile@0.075:0.01:0.02", "profile takes X:Y"),
+            ("profile@0.075:inf", "profile takes X:Y"),
+            ("layer_height@0.075", "layer_height takes X:K"),
+            ("layer_height@0.075:0", "layer K (1 = the bottom one)"),
+            ("layer_height@0.075:1.5", "layer_height takes X:K"),
+            ("layer_width@0.075:-1", "layer_width takes X:K"),
+            ("profile", "unknown objective 'profile'"),
+        ] {
+            let e = bad.parse::<Objective>().unwrap_err();
+            assert!(e.contains(want) && e.contains(bad), "{bad}: {e}");
+        }
+        for name in ["profile@X:Y", "layer_height@X:K", "layer_width@X:K"] {
+            assert!(NAMES.contains(name), "{NAMES}");
+        }
+    }
 }

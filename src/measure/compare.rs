@@ -7,7 +7,7 @@
 //! experiments are independent jobs, run `jobs` at a time, and give the same numbers however
 //! many run together.
 
-use super::data::{Experiment, Experiments, Observable, Observation};
+use super::data::{at_text, Experiment, Experiments, Observable, Observation, SIMULATION_OBSERVABLES};
 use super::effects::Keys;
 use super::model::set_path;
 use super::rheometer::{Protocol, Reading, Rheometer};
@@ -73,12 +73,45 @@ pub fn parse_scenario(text: &str, scenario: &Path) -> Result<Scenario, String> {
 /// When (time) and what (objective) a simulation observable is: spread and front may be taken
 /// during the run, the rest at its end `end`.
 pub fn observable_plan(o: &Observable, end: f64) -> Result<(f64, Objective), String> {
+    let second = match o.name.as_str() {
+        "profile" => Some("a station and a lateral position: profile@X:Y (metres)"),
+        "layer_height" => Some("a station and a layer: layer_height@X:K (K = 1 the bottom layer)"),
+        "layer_width" => Some("a station and a layer: layer_width@X:K (K = 1 the bottom layer)"),
+        _ => None,
+    };
+    if o.at2.is_some() && second.is_none() && SIMULATION_OBSERVABLES.contains(&o.name.as_str()) {
+        return Err(format!("'{o}': {} takes one coordinate after '@', not two", o.name));
+    }
     let station = || o.at.ok_or_else(|| format!("'{}' needs a station: {}@X", o.name, o.name));
+    let both = || match (o.at, o.at2, second) {
+        (Some(x), Some(y), _) => Ok((x, y)),
+        (_, _, what) => Err(format!("'{o}' needs {}", what.unwrap_or("two coordinates"))),
+    };
+    let layer = || {
+        let (x, k) = both()?;
+        if k >= 1.0 && k.fract() == 0.0 && k <= u32::MAX as f64 {
+            Ok((x, k as usize))
+        } else {
+            Err(format!("'{o}': the layer must be a whole number from 1 (the bottom layer), got {k}"))
+        }
+    };
     let (t, obj) = match o.name.as_str() {
         "spread" => (o.at.unwrap_or(end), Objective::Spread),
         "front" => (o.at.unwrap_or(end), Objective::Front),
         "width" => (end, Objective::Width { stations: vec![station()?] }),
         "height" => (end, Objective::Height { stations: vec![station()?] }),
+        "profile" => {
+            let (station, y) = both()?;
+            (end, Objective::Profile { station, y })
+        }
+        "layer_height" => {
+            let (station, layer) = layer()?;
+            (end, Objective::LayerHeight { station, layer })
+        }
+        "layer_width" => {
+            let (station, layer) = layer()?;
+            (end, Objective::LayerWidth { station, layer })
+        }
         "vx_max" => (end, Objective::VxMax),
         "kinetic_energy" => (end, Objective::KineticEnergy),
         "mean_z" => (end, Objective::MeanZ),
@@ -135,10 +168,19 @@ pub fn rheometer_setup(model: &Model, keys: &Keys, base: &Path, protocol: &toml:
 
 /// Which reading a rheometer observable is: the last one at its shear rate.
 pub fn reading_index(o: &Observable, readings: &[Reading]) -> Result<usize, String> {
-    let rate = o.at.ok_or("'stress' needs the shear rate: stress@RATE")?;
+    let rate = reading_rate(o)?;
     readings.iter().rposition(|r| (r.rate - rate).abs() <= 1e-9 * rate.abs().max(1.0)).ok_or_else(|| {
         format!("'{o}': the protocol records no reading at rate {rate} (it records {:?})", readings.iter().map(|r| r.rate).collect::<Vec<_>>())
     })
+}
+
+/// The shear rate of a rheometer observable, `stress@RATE`.
+pub fn reading_rate(o: &Observable) -> Result<f64, String> {
+    match (o.at, o.at2) {
+        (Some(rate), None) => Ok(rate),
+        (Some(_), Some(_)) => Err(format!("'{o}': stress takes one coordinate, the shear rate: stress@RATE")),
+        (None, _) => Err("'stress' needs the shear rate: stress@RATE".into()),
+    }
 }
 
 /// The observations grouped by experiment, in order of first appearance.
@@ -211,6 +253,9 @@ pub struct Row {
     pub experiment: String,
     pub observable: String,
     pub at: Option<f64>,
+    /// The second coordinate (`profile@X:Y`'s y, `layer_height@X:K`'s layer).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub at2: Option<f64>,
     pub measured: f64,
     pub uncertainty: f64,
     pub model: f64,
@@ -270,7 +315,7 @@ pub fn comparison(data: &[Observation], values: &[f64]) -> Comparison {
         .zip(values)
         .map(|(o, &model)| {
             let residual = model - o.value;
-            Row { experiment: o.experiment.clone(), observable: o.observable.name.clone(), at: o.observable.at, measured: o.value, uncertainty: o.uncertainty, model, residual, z: residual / o.uncertainty }
+            Row { experiment: o.experiment.clone(), observable: o.observable.name.clone(), at: o.observable.at, at2: o.observable.at2, measured: o.value, uncertainty: o.uncertainty, model, residual, z: residual / o.uncertainty }
         })
         .collect();
     let by_experiment = summarise(rows.iter(), |r| r.experiment.clone());
@@ -285,7 +330,7 @@ pub fn report(c: &Comparison) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "{:<14} {:<16} {:>10} {:>13} {:>13} {:>13} {:>8}", "experiment", "observable", "at", "measured", "model", "residual", "z");
     for r in &c.rows {
-        let at = r.at.map_or("-".to_string(), |a| format!("{a}"));
+        let at = if r.at.is_some() { at_text(r.at, r.at2) } else { "-".to_string() };
         let _ = writeln!(s, "{:<14} {:<16} {:>10} {:>13.6e} {:>13.6e} {:>13.4e} {:>8.2}", r.experiment, r.observable, at, r.measured, r.model, r.residual, r.z);
     }
     for (title, list) in [("per experiment", &c.by_experiment), ("per observable", &c.by_observable)] {
@@ -298,7 +343,7 @@ pub fn report(c: &Comparison) -> String {
     worst.sort_by(|a, b| b.z.abs().total_cmp(&a.z.abs()));
     let _ = writeln!(s, "\nwhere the model fails most (largest |z|):");
     for r in worst.iter().take(5) {
-        let at = r.at.map_or(String::new(), |a| format!("@{a}"));
+        let at = if r.at.is_some() { format!("@{}", at_text(r.at, r.at2)) } else { String::new() };
         let dir = if r.residual > 0.0 { "over" } else { "under" };
         let _ = writeln!(s, "  {} {}{}: z = {:.2} (model {dir}-predicts by {:.2} %)", r.experiment, r.observable, at, r.z, 100.0 * (r.residual / r.measured).abs());
     }
@@ -407,6 +452,40 @@ mod tests {
         assert_ne!(a, synth(&m, &e, 0.05, 8, 1).unwrap());
         let rel: Vec<f64> = a.iter().zip(synth(&m, &e, 0.0, 7, 1).unwrap()).map(|(n, c)| n.value / c.value - 1.0).collect();
         assert!(rel.iter().all(|r| r.abs() < 0.25) && rel.iter().any(|r| r.abs() > 1e-4), "{rel:?}");
+    }
+
+    #[test]
+    fn printed_geometry_observables_are_their_objectives_at_the_end() {
+        let plan = |s: &str| observable_plan(&Observable::parse(s).unwrap(), 2.0);
+        assert_eq!(plan("profile@0.075:0.01").unwrap(), (2.0, Objective::Profile { station: 0.075, y: 0.01 }));
+        assert_eq!(plan("layer_height@0.075:2").unwrap(), (2.0, Objective::LayerHeight { station: 0.075, layer: 2 }));
+        assert_eq!(plan("layer_width@0.075:1").unwrap(), (2.0, Objective::LayerWidth { station: 0.075, layer: 1 }));
+        // each objective's name is the observable's own
+        for s in ["profile@0.075:0.01", "layer_height@0.075:2", "layer_width@0.075:1", "height@0.075"] {
+            assert_eq!(plan(s).unwrap().1.name(), s);
+        }
+        let e = plan("layer_height@0.075:-2").unwrap_err();
+        assert!(e.contains("'layer_height@0.075:-2'") && e.contains("whole number from 1"), "{e}");
+        let e = plan("profile").unwrap_err();
+        assert!(e.contains("profile@X:Y"), "{e}");
+        let e = plan("front@1:2").unwrap_err();
+        assert!(e.contains("front takes one coordinate"), "{e}");
+        let e = reading_rate(&Observable::parse("stress@1:2").unwrap()).unwrap_err();
+        assert!(e.contains("stress@RATE"), "{e}");
+    }
+
+    #[test]
+    fn the_report_shows_both_coordinates() {
+        let data: Vec<Observation> = ["profile@0.075:0.01", "layer_height@0.075:2"]
+            .iter()
+            .map(|s| Observation { experiment: "print".into(), observable: Observable::parse(s).unwrap(), value: 0.01, uncertainty: 1e-4 })
+            .collect();
+        let c = comparison(&data, &[0.011, 0.012]);
+        assert_eq!((c.rows[0].at, c.rows[0].at2), (Some(0.075), Some(0.01)));
+        let text = report(&c);
+        assert!(text.contains("print profile@0.075:0.01: z = 10.00") && text.contains("0.075:2"), "{text}");
+        let json = serde_json::to_value(&c).unwrap();
+        assert_eq!(json["rows"][1]["at2"], 2.0);
     }
 
     #[test]

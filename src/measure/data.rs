@@ -10,7 +10,11 @@
 //! ```
 //!
 //! `at` is the station x [m] of a printed-geometry observable, the time [s] of one observed during
-//! a run (`spread`, `front`: a slump spread or a flow distance against time; empty for the end), or the shear rate [1/s] of a rheometer reading. The experiments file
+//! a run (`spread`, `front`: a slump spread or a flow distance against time; empty for the end), or the shear rate [1/s] of a rheometer reading.
+//! Three printed-geometry observables take a second coordinate after a colon, `X:Y` in the `at`
+//! column as in `name@X:Y`: `profile` the lateral position y [m] of a point of the section's top
+//! outline (`profile@0.075:0.01`), `layer_height` and `layer_width` the layer, 1 = the bottom one
+//! (`layer_height@0.075:2`). The experiments file
 //! (TOML) maps each id to what produced it: a scenario with per-experiment overrides (rest time,
 //! speeds, geometry: any scenario key), or a virtual-rheometer protocol, and lists what it observes
 //! (what `strand synth` produces):
@@ -47,27 +51,58 @@ pub struct Observation {
 pub struct Observable {
     pub name: String,
     pub at: Option<f64>,
+    /// The second coordinate, after `:` (only with `at`): `profile`'s lateral position y [m],
+    /// `layer_height`'s and `layer_width`'s layer (1 = the bottom one).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub at2: Option<f64>,
 }
 
 /// Observables a simulation experiment can produce, and those of a rheometer experiment.
-pub const SIMULATION_OBSERVABLES: &[&str] = &["spread", "front", "width", "height", "vx_max", "kinetic_energy", "mean_z"];
+pub const SIMULATION_OBSERVABLES: &[&str] = &["spread", "front", "width", "height", "profile", "layer_height", "layer_width", "vx_max", "kinetic_energy", "mean_z"];
 pub const RHEOMETER_OBSERVABLES: &[&str] = &["stress"];
 
+/// `X` or `X:Y`, finite numbers, as the `at` of an observable; the error says what is wrong.
+pub fn parse_at(a: &str) -> Result<(f64, Option<f64>), String> {
+    let number = |v: &str| v.trim().parse::<f64>().ok().filter(|x| x.is_finite()).ok_or_else(|| format!("'{}' is not a number", v.trim()));
+    let mut parts = a.split(':');
+    let at = number(parts.next().unwrap_or(""))?;
+    let at2 = parts.next().map(number).transpose()?;
+    if parts.next().is_some() {
+        return Err(format!("'{}' has more than two coordinates (X or X:Y)", a.trim()));
+    }
+    Ok((at, at2))
+}
+
+/// `at` and `at2` as `X` or `X:Y` (empty for neither).
+pub fn at_text(at: Option<f64>, at2: Option<f64>) -> String {
+    match (at, at2) {
+        (Some(a), Some(b)) => format!("{a}:{b}"),
+        (Some(a), None) => format!("{a}"),
+        (None, _) => String::new(),
+    }
+}
+
 impl Observable {
-    /// `name` or `name@at`.
+    /// `name`, `name@X` or `name@X:Y`.
     pub fn parse(s: &str) -> Result<Observable, String> {
-        let (name, at) = match s.split_once('@') {
-            Some((n, a)) => (n.trim(), Some(a.trim().parse::<f64>().map_err(|_| format!("'{s}': '{a}' is not a number"))?)),
-            None => (s.trim(), None),
+        let (name, at, at2) = match s.split_once('@') {
+            Some((n, a)) => {
+                let (at, at2) = parse_at(a).map_err(|e| format!("'{s}': {e}"))?;
+                (n.trim(), Some(at), at2)
+            }
+            None => (s.trim(), None, None),
         };
-        Ok(Observable { name: name.to_string(), at })
+        if name.is_empty() {
+            return Err(format!("'{s}': no observable name before '@'"));
+        }
+        Ok(Observable { name: name.to_string(), at, at2 })
     }
 }
 
 impl std::fmt::Display for Observable {
     fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
         match self.at {
-            Some(a) => write!(f, "{}@{a}", self.name),
+            Some(_) => write!(f, "{}@{}", self.name, at_text(self.at, self.at2)),
             None => write!(f, "{}", self.name),
         }
     }
@@ -93,7 +128,12 @@ pub fn parse_observations(text: &str) -> Result<Vec<Observation>, String> {
         let number = |k: usize| -> Result<f64, String> {
             field(k).parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| format!("line {line}: {} '{}' is not a number", want[k], field(k)))
         };
-        let at = if field(2).is_empty() { None } else { Some(number(2)?) };
+        let (at, at2) = if field(2).is_empty() {
+            (None, None)
+        } else {
+            let (a, b) = parse_at(field(2)).map_err(|e| format!("line {line}: at {e} (X, or X:Y for profile@X:Y and layer_height@X:K)"))?;
+            (Some(a), b)
+        };
         let uncertainty = number(4)?;
         if uncertainty <= 0.0 {
             return Err(format!("line {line}: uncertainty must be > 0, got {uncertainty}"));
@@ -103,7 +143,7 @@ pub fn parse_observations(text: &str) -> Result<Vec<Observation>, String> {
         }
         out.push(Observation {
             experiment: field(0).to_string(),
-            observable: Observable { name: field(1).to_string(), at },
+            observable: Observable { name: field(1).to_string(), at, at2 },
             value: number(3)?,
             uncertainty,
         });
@@ -120,7 +160,7 @@ pub fn write_observations(path: &Path, obs: &[Observation]) -> Result<(), String
     let err = |e: csv::Error| format!("{}: {e}", path.display());
     w.write_record(["experiment", "observable", "at", "value", "uncertainty"]).map_err(err)?;
     for o in obs {
-        let at = o.observable.at.map_or(String::new(), |a| format!("{a}"));
+        let at = at_text(o.observable.at, o.observable.at2);
         w.write_record([o.experiment.clone(), o.observable.name.clone(), at, format!("{:e}", o.value), format!("{:e}", o.uncertainty)]).map_err(err)?;
     }
     w.flush().map_err(|e| format!("{}: {e}", path.display()))
@@ -197,6 +237,9 @@ impl Experiments {
                 if !names.contains(&ob.name.as_str()) {
                     return Err(format!("experiment '{}': cannot observe '{}'; it can observe {}", x.id, ob.name, names.join(", ")));
                 }
+                // the coordinates each takes (the time of one taken during the run is checked when it runs)
+                let checked = if x.scenario.is_some() { super::compare::observable_plan(&ob, f64::INFINITY).map(|_| ()) } else { super::compare::reading_rate(&ob).map(|_| ()) };
+                checked.map_err(|e| format!("experiment '{}': observe {e}", x.id))?;
             }
             for (what, v) in [("rest_time", x.rest_time), ("age", x.age)] {
                 if !(v.is_finite() && v >= 0.0) {
@@ -226,7 +269,7 @@ mod tests {
         let text = "experiment,observable,at,value,uncertainty\nSF240,spread,,0.5,0.01\n# a comment\ncase1, width ,0.016,0.0301,5e-4\n";
         let obs = parse_observations(text).unwrap();
         assert_eq!(obs.len(), 2);
-        assert_eq!(obs[1].observable, Observable { name: "width".into(), at: Some(0.016) });
+        assert_eq!(obs[1].observable, Observable { name: "width".into(), at: Some(0.016), at2: None });
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("d.csv");
         write_observations(&p, &obs).unwrap();
@@ -255,5 +298,56 @@ mod tests {
         assert!(e.contains("used twice"), "{e}");
         let e = parse("[[experiment]]\nid = \"a\"\nscenario = \"s.toml\"\nset = { \"material.kind\" = \"x\" }\n").unwrap_err();
         assert!(e.contains("must be a number"), "{e}");
+        // the printed geometry's observables and the coordinates each takes
+        let observe = |list: &str, what: &str| parse(&format!("[[experiment]]\nid = \"a\"\n{what} = \"s.toml\"\nobserve = [{list}]\n"));
+        let ok = observe("\"profile@0.075:0.01\", \"layer_height@0.075:2\", \"layer_width@0.075:1\", \"height@0.075\"", "scenario").unwrap();
+        assert_eq!(ok.experiment[0].observe.len(), 4);
+        for (list, want) in [
+            ("\"profile@0.075\"", "needs a station and a lateral position: profile@X:Y"),
+            ("\"layer_height@0.075\"", "needs a station and a layer: layer_height@X:K"),
+            ("\"layer_width@0.075:0\"", "the layer must be a whole number from 1"),
+            ("\"layer_height@0.075:1.5\"", "the layer must be a whole number from 1"),
+            ("\"width@0.02:0.01\"", "width takes one coordinate"),
+            ("\"spread@0.5:1\"", "spread takes one coordinate"),
+            ("\"profile@0.075:0.01:1\"", "more than two coordinates"),
+        ] {
+            let e = observe(list, "scenario").unwrap_err();
+            assert!(e.contains("experiment 'a'") && e.contains(want), "{list}: {e}");
+        }
+        let e = observe("\"stress@5:1\"", "protocol").unwrap_err();
+        assert!(e.contains("stress takes one coordinate"), "{e}");
+    }
+
+    #[test]
+    fn a_second_coordinate_parses_prints_back_and_bad_ones_are_named() {
+        let o = Observable::parse("profile@0.075:0.01").unwrap();
+        assert_eq!(o, Observable { name: "profile".into(), at: Some(0.075), at2: Some(0.01) });
+        for s in ["profile@0.075:0.01", "profile@0.075:-0.002", "layer_height@0.075:2", "layer_width@0.03:1", "width@0.016", "spread"] {
+            assert_eq!(Observable::parse(s).unwrap().to_string(), s);
+        }
+        assert_eq!(Observable::parse(" profile @ 0.075 : 0.01 ").unwrap(), o);
+        for (bad, want) in [
+            ("profile@0.075:", "'' is not a number"),
+            ("profile@0.075:y", "'y' is not a number"),
+            ("profile@:0.01", "'' is not a number"),
+            ("profile@0.075:0.01:0.02", "'0.075:0.01:0.02' has more than two coordinates (X or X:Y)"),
+            ("width@inf", "'inf' is not a number"),
+            ("@0.1", "no observable name"),
+        ] {
+            let e = Observable::parse(bad).unwrap_err();
+            assert!(e.starts_with(&format!("'{bad}': ")) && e.contains(want), "{bad}: {e}");
+        }
+        // in the measurements CSV the at column holds X:Y
+        let text = "experiment,observable,at,value,uncertainty\ncase1,profile,0.075:0.01,0.012,5e-4\ncase1,layer_height,0.075:2,0.006,2e-4\ncase1,height,0.075,0.018,5e-4\n";
+        let obs = parse_observations(text).unwrap();
+        let names: Vec<String> = obs.iter().map(|o| o.observable.to_string()).collect();
+        assert_eq!(names, ["profile@0.075:0.01", "layer_height@0.075:2", "height@0.075"]);
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("d.csv");
+        write_observations(&p, &obs).unwrap();
+        assert!(std::fs::read_to_string(&p).unwrap().contains("case1,profile,0.075:0.01,"));
+        assert_eq!(read_observations(&p).unwrap(), obs);
+        let e = parse_observations("experiment,observable,at,value,uncertainty\ncase1,profile,0.075:y,0.012,5e-4\n").unwrap_err();
+        assert!(e.contains("line 2") && e.contains("at 'y' is not a number"), "{e}");
     }
 }

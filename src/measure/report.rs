@@ -23,7 +23,7 @@ const WORST: usize = 10;
 /// apply (the `at` of another observable, a key an experiment does not have).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Covariate {
-    /// `rest_time`, `age`, `at(OBSERVABLE)` or `set.KEY`.
+    /// `rest_time`, `age`, `at(OBSERVABLE)`, `at2(OBSERVABLE)` (a second coordinate) or `set.KEY`.
     pub name: String,
     /// The plot's axis title.
     pub axis: String,
@@ -67,6 +67,10 @@ pub fn covariates(rows: &[Row], exps: &Experiments, model: &Model) -> Result<Vec
     for observable in observables(rows) {
         let values = rows.iter().map(|r| if r.observable == observable { r.at } else { None }).collect();
         out.push(Covariate { name: format!("at({observable})"), axis: format!("{observable}: {}", at_meaning(observable)), values });
+        if rows.iter().any(|r| r.observable == observable && r.at2.is_some()) {
+            let values = rows.iter().map(|r| if r.observable == observable { r.at2 } else { None }).collect();
+            out.push(Covariate { name: format!("at2({observable})"), axis: format!("{observable}: {}", at2_meaning(observable)), values });
+        }
     }
     for key in set_names {
         let values = rows.iter().map(|r| keys[r.experiment.as_str()].get(&key).copied()).collect();
@@ -79,9 +83,18 @@ pub fn covariates(rows: &[Row], exps: &Experiments, model: &Model) -> Result<Vec
 fn at_meaning(observable: &str) -> &'static str {
     match observable {
         "stress" => "shear rate [1/s]",
-        "width" | "height" => "station x [m]",
+        "width" | "height" | "profile" | "layer_height" | "layer_width" => "station x [m]",
         "spread" | "front" => "time [s]",
         _ => "at",
+    }
+}
+
+/// What the second coordinate (after `:`) is for an observable.
+fn at2_meaning(observable: &str) -> &'static str {
+    match observable {
+        "profile" => "lateral position y [m]",
+        "layer_height" | "layer_width" => "layer (1 = the bottom one)",
+        _ => "second coordinate",
     }
 }
 
@@ -204,22 +217,38 @@ fn unique_name(taken: &mut HashSet<String>, stem: &str) -> String {
 
 /// One observable's measurements and model values, a group per experiment: against `at` when
 /// every row has one, else against the experiment's place in the data, so that no row drops out.
+/// An observable with a second coordinate on every row (a profile's y, a layer) is plotted
+/// against that, a group per experiment and station.
 fn plot_model_vs_data(path: &Path, rows: &[Row], observable: &str) -> Result<(), String> {
     let rows: Vec<&Row> = rows.iter().filter(|r| r.observable == observable).collect();
+    let by_at2 = rows.iter().all(|r| r.at.is_some() && r.at2.is_some());
     let by_at = rows.iter().all(|r| r.at.is_some());
     let mut groups: Vec<(String, Vec<MeasuredPoint>)> = Vec::new();
     for r in rows {
-        let k = match groups.iter().position(|(id, _)| *id == r.experiment) {
+        let id = if by_at2 { format!("{} x = {}", r.experiment, r.at.unwrap_or(f64::NAN)) } else { r.experiment.clone() };
+        let k = match groups.iter().position(|(g, _)| *g == id) {
             Some(k) => k,
             None => {
-                groups.push((r.experiment.clone(), Vec::new()));
+                groups.push((id, Vec::new()));
                 groups.len() - 1
             }
         };
-        let x = if by_at { r.at.unwrap_or(f64::NAN) } else { (k + 1) as f64 };
+        let x = if by_at2 {
+            r.at2.unwrap_or(f64::NAN)
+        } else if by_at {
+            r.at.unwrap_or(f64::NAN)
+        } else {
+            (k + 1) as f64
+        };
         groups[k].1.push(MeasuredPoint { x, measured: r.measured, uncertainty: r.uncertainty, model: r.model });
     }
-    let x_desc = if by_at { at_meaning(observable).to_string() } else { "experiment (1 = first in the data)".to_string() };
+    let x_desc = if by_at2 {
+        at2_meaning(observable).to_string()
+    } else if by_at {
+        at_meaning(observable).to_string()
+    } else {
+        "experiment (1 = first in the data)".to_string()
+    };
     let title = format!("{observable}: measured (filled, +- uncertainty) and model (hollow)");
     plot_measured_model(path, &title, &x_desc, observable, &groups)
 }
@@ -313,7 +342,7 @@ fn html(c: &Comparison, trends: &[Trend], fits: &[Figure], residuals: &[Figure],
     worst.sort_by(|a, b| b.z.abs().total_cmp(&a.z.abs()));
     let _ = writeln!(s, "<h2>Where the model fails most ({} largest |z|)</h2>", worst.len().min(WORST));
     let worst_rows = worst.iter().take(WORST).map(|r| {
-        let at = r.at.map_or("-".to_string(), |a| format!("{a}"));
+        let at = if r.at.is_some() { super::data::at_text(r.at, r.at2) } else { "-".to_string() };
         (false, vec![r.experiment.clone(), r.observable.clone(), at, format!("{:.6e}", r.measured), format!("{:.6e}", r.model), format!("{:.4e}", r.residual), format!("{:.2}", r.z)])
     });
     table(&mut s, &["experiment", "observable", "at", "measured", "model", "residual", "z"], worst_rows);
@@ -344,7 +373,7 @@ mod tests {
 
     /// Rows whose z equals `z`, one per experiment `e0`, `e1`, ...
     fn rows(z: &[f64]) -> Vec<Row> {
-        let data: Vec<Observation> = (0..z.len()).map(|k| Observation { experiment: format!("e{k}"), observable: Observable { name: "stress".into(), at: Some(1.0) }, value: 100.0, uncertainty: 1.0 }).collect();
+        let data: Vec<Observation> = (0..z.len()).map(|k| Observation { experiment: format!("e{k}"), observable: Observable { name: "stress".into(), at: Some(1.0), at2: None }, value: 100.0, uncertainty: 1.0 }).collect();
         let values: Vec<f64> = z.iter().map(|z| 100.0 + z).collect();
         comparison(&data, &values).rows
     }
@@ -400,7 +429,7 @@ set = { "material.density" = 2000.0 }
         let model = Model::from_table(&MODEL.parse().unwrap()).unwrap();
         let exps: Experiments = toml::from_str(EXPERIMENTS).unwrap();
         exps.validate().unwrap();
-        let obs = |e: &str, at: f64, value: f64| Observation { experiment: e.into(), observable: Observable { name: "stress".into(), at: Some(at) }, value, uncertainty: 2.0 };
+        let obs = |e: &str, at: f64, value: f64| Observation { experiment: e.into(), observable: Observable { name: "stress".into(), at: Some(at), at2: None }, value, uncertainty: 2.0 };
         let data = [obs("a", 5.0, 150.0), obs("a", 1.0, 118.0), obs("b", 5.0, 260.0), obs("b", 1.0, 200.0)];
         let c = comparison(&data, &[145.0, 120.0, 200.0, 120.0]);
         (model, exps, c)
@@ -419,6 +448,26 @@ set = { "material.density" = 2000.0 }
         // age and the density are the same everywhere
         let t: Vec<String> = trends(&c.rows, &covs).into_iter().map(|t| t.covariate).collect();
         assert_eq!(t, ["rest_time", "at(stress)", "set.material.viscosity"]);
+    }
+
+    #[test]
+    fn a_second_coordinate_is_a_covariate_and_the_plot_axis() {
+        let (model, exps, _) = setup();
+        let obs = |e: &str, s: &str, value: f64| Observation { experiment: e.into(), observable: Observable::parse(s).unwrap(), value, uncertainty: 1e-4 };
+        let data = [obs("a", "profile@0.075:-0.01", 0.010), obs("a", "profile@0.075:0.0", 0.012), obs("b", "profile@0.075:0.01", 0.011), obs("b", "height@0.075", 0.012)];
+        let c = comparison(&data, &[0.0101, 0.0125, 0.0118, 0.0121]);
+        let covs = covariates(&c.rows, &exps, &model).unwrap();
+        let names: Vec<&str> = covs.iter().map(|c| c.name.as_str()).collect();
+        assert_eq!(names, ["rest_time", "age", "at(profile)", "at2(profile)", "at(height)", "set.material.density", "set.material.viscosity"]);
+        assert_eq!(covs[3].values, [Some(-0.01), Some(0.0), Some(0.01), None]);
+        assert_eq!(covs[3].axis, "profile: lateral position y [m]");
+        // z grows with y: a trend the page shows, with both coordinates in its table
+        let t = trends(&c.rows, &covs);
+        assert!(t.iter().any(|t| t.covariate == "at2(profile)" && t.trend), "{t:?}");
+        let dir = tempfile::tempdir().unwrap();
+        write(dir.path(), &c, &exps, &model).unwrap();
+        let page = std::fs::read_to_string(dir.path().join("index.html")).unwrap();
+        assert!(page.contains("<td>0.075:0.01</td>") && page.contains("residuals_vs_at2_profile.png"), "{page}");
     }
 
     #[test]
