@@ -19,9 +19,10 @@ test:
 
 # The verification suite (the closed-form cases at full resolution, printing at reduced
 # resolution; the closed-form cases take 10 minutes on 2 cores, the printing cases roughly an hour
-# more — estimated from their single runs, the whole suite was not timed). The 1 mm printing case
-# runs only when named:
+# more — estimated from their single runs, the whole suite was not timed). The 1 mm printing cases
+# run only when named:
 # ./target/release/strand verify --case print_mass_balance_full
+# ./target/release/strand verify --case print_mass_balance_full_scaled
 verify: build
 	./target/release/strand verify
 
@@ -44,8 +45,9 @@ bench-kernels:
 	$(CARGO) bench -p strand-kernels --bench kernels
 	$(CARGO) bench -p strand-kernels --bench kernels --features f32
 
-# Paper 000's case 1 at 1 mm with the time-step and sleeping savings (issue 7 item 4; about an
-# hour on 2 cores): wall time, steps and the cross-sections at x = 50, 75, 100 mm.
+# Paper 000's case 1 at 1 mm with the elastic moduli scaled down 10x (3.2x fewer steps; the area
+# is right, the shape is not, see the fixture): wall time, steps and the cross-sections at
+# x = 50, 75, 100 mm (issue 7 item 4, BENCHMARKS.md "Case 1 at 1 mm").
 bench-case1: build
 	./target/release/strand run fixtures/scenarios/print/case1_full_scaled.toml --out $(OUT)/case1_full_scaled --json
 

@@ -46,14 +46,17 @@ pub const CASES: &[(&str, Case)] = &[
     ("hydrostatic_column", hydrostatic),
     ("dam_break_martin_moyce", dam_break),
     ("slump_roussel", slump),
-    ("print_mass_balance", |_, t| super::print::mass_balance(false, t)),
+    ("print_mass_balance", |_, t| super::print::mass_balance(super::print::MassBalance::Reduced, t)),
     ("print_sleep", super::print::sleep_agreement),
     ("print_cases_trend", super::print::cases_trend),
 ];
 
 /// Cases too slow for the full suite (hours on 2 cores): they run only when named exactly with
 /// `--case`.
-pub const SLOW_CASES: &[(&str, Case)] = &[("print_mass_balance_full", |_, t| super::print::mass_balance(true, t))];
+pub const SLOW_CASES: &[(&str, Case)] = &[
+    ("print_mass_balance_full", |_, t| super::print::mass_balance(super::print::MassBalance::Full, t)),
+    ("print_mass_balance_full_scaled", |_, t| super::print::mass_balance(super::print::MassBalance::FullScaled, t)),
+];
 
 pub(super) fn sim_of(text: &str, threads: usize) -> Result<Simulation, String> {
     let mut sc = Scenario::parse(text).map_err(|e| e.to_string())?;
