@@ -12,12 +12,13 @@
 //! Sleeping freezes the stress. The internal state is not stepped either, but material at rest
 //! still builds up structure (thixotropy): a block remembers when it fell asleep, and on waking
 //! its particles get the whole rest interval at once ([`Material::rest_for`]), so a deposited
-//! layer gains the strength it would have had awake. A particle falling asleep is settled: its velocity and velocity
-//! gradient (below the rest thresholds anyway) become zero and its stress the material's stress
-//! at rest for its state and J, so a restart checkpoint rebuilds all three from (state, J)
-//! instead of storing 84 bytes per sleeping particle in f32. Going to sleep is checked every
-//! `check_interval` steps (it moves particles, O(awake particles)); waking is checked every step
-//! and moves particles only when a block actually wakes (O(sleeping particles), rare).
+//! layer gains the strength it would have had awake. A particle falling asleep is settled: its
+//! velocity and velocity gradient (below the rest thresholds anyway) become zero and its stress
+//! the material's stress at rest for its state and J, so a restart checkpoint rebuilds all three
+//! from (state, J) instead of storing 84 bytes per sleeping particle in f32. Going to sleep is
+//! checked every `check_interval` steps (it moves particles, O(awake particles)); waking is
+//! checked every step and moves particles only when a block actually wakes (O(sleeping
+//! particles), rare).
 
 use crate::grid::{Grid, GridGeom, EMPTY};
 use crate::kernels::transfer::BS;
@@ -112,7 +113,7 @@ fn wake(b: u32, state: &mut [u8], woken: &mut [u32], n_woken: &mut usize) {
 /// Per-block sleep bookkeeping, over the dense block table.
 pub struct Sleep {
     pub cfg: SleepConfig,
-    /// ASLEEP or AWAKE per block.
+    /// ASLEEP or AWAKE per block (WOKEN only inside `update`).
     state: Pool<u8>,
     /// Awake block: time its material has been at rest [s]. Sleeping block: the simulation time
     /// at which it fell asleep [s] (for the build-up owed on waking).
