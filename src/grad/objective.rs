@@ -236,7 +236,7 @@ impl Objective {
             Objective::Profile { station, y } => {
                 let h = frame.spacing;
                 let pts = section_points(sim, frame, *station).ok_or_else(|| format!("objective {}: no particle within half a slab of x = {station} m", self.name()))?;
-                let py = |pt: &(usize, f64)| pt.1 * world(pt.0)[1] + if pt.1 < 0.0 { 2.0 * frame.mirror_y.unwrap_or(0.0) } else { 0.0 };
+                let py = |pt: &(usize, f64)| section_y(frame, world(pt.0)[1], pt.1);
                 // the bins' origin: the lowest y (first on ties), and each bin's top particle
                 let o = pts.iter().enumerate().fold(0, |b, (k, pt)| if py(pt) < py(&pts[b]) { k } else { b });
                 let origin = py(&pts[o]);
@@ -276,16 +276,24 @@ impl Objective {
                 }
                 let pts = section_points(sim, frame, *station).ok_or_else(|| format!("objective {}: no particle within half a slab of x = {station} m", self.name()))?;
                 let k = *layer - 1;
-                let mine: Vec<(usize, f64)> = pts.into_iter().filter(|pt| crate::observe::layer_of(&tops, world(pt.0)[2]) == k).collect();
+                let layer_of = |pt: &(usize, f64)| crate::observe::layer_of(&tops, world(pt.0)[2]);
+                let mine: Vec<(usize, f64)> = pts.iter().copied().filter(|pt| layer_of(pt) == k).collect();
                 if mine.is_empty() {
                     return Ok(0.0);
                 }
                 if matches!(self, Objective::LayerHeight { .. }) {
-                    // the top of the nearest non-empty layer below (the mirror images add nothing in z)
-                    let half = 0.5 * frame.slab;
-                    let top_of = |l: usize| arg_max(n, |i| (world(i)[0] - station).abs() <= half && crate::observe::layer_of(&tops, world(i)[2]) == l, |i| world(i)[2]);
-                    let it = top_of(k).expect("the layer has particles");
-                    let below = (0..k).rev().find_map(top_of);
+                    // each layer's top particle in the slab (the first on ties; the mirror images,
+                    // listed after the originals, add nothing in z), then this layer's and the
+                    // nearest non-empty one's below it
+                    let mut top: Vec<Option<usize>> = vec![None; k + 1];
+                    for pt in &pts {
+                        let l = layer_of(pt);
+                        if l <= k && top[l].is_none_or(|b| world(pt.0)[2] > world(b)[2]) {
+                            top[l] = Some(pt.0);
+                        }
+                    }
+                    let it = top[k].expect("the layer has particles");
+                    let below = top[..k].iter().rev().find_map(|&t| t);
                     let value = world(it)[2] + 0.5 * frame.spacing - below.map_or(frame.base_z, |ib| world(ib)[2] + 0.5 * frame.spacing);
                     if let Some(s) = seed {
                         s.xg[it].z += scale;
@@ -295,7 +303,7 @@ impl Objective {
                     }
                     value
                 } else {
-                    let py = |pt: &(usize, f64)| pt.1 * world(pt.0)[1] + if pt.1 < 0.0 { 2.0 * frame.mirror_y.unwrap_or(0.0) } else { 0.0 };
+                    let py = |pt: &(usize, f64)| section_y(frame, world(pt.0)[1], pt.1);
                     let hi = mine.iter().fold(mine[0], |b, pt| if py(pt) > py(&b) { *pt } else { b });
                     let lo = mine.iter().fold(mine[0], |b, pt| if py(pt) < py(&b) { *pt } else { b });
                     if let Some(s) = seed {
@@ -390,6 +398,12 @@ fn section_points(sim: &Simulation, frame: &Frame, station: f64) -> Option<Vec<(
         pts.extend(inside.iter().map(|&i| (i, -1.0)));
     }
     (!pts.is_empty()).then_some(pts)
+}
+
+/// The y of a section point: a particle's own (`sign` 1) or its mirror image about
+/// `[observe] mirror_y` (`sign` -1), as `section_points` lists them.
+fn section_y(frame: &Frame, y: f64, sign: f64) -> f64 {
+    sign * y + if sign < 0.0 { 2.0 * frame.mirror_y.unwrap_or(0.0) } else { 0.0 }
 }
 
 /// The nominal layer tops `layers.csv` assigns particles by: the z of each of the toolpath's
