@@ -265,6 +265,22 @@ pub struct Row {
     pub z: f64,
 }
 
+impl Row {
+    /// Where the observation was taken, as a table cell: `X`, `X:Y`, or `-` for none.
+    pub fn at_cell(&self) -> String {
+        if self.at.is_some() {
+            at_text(self.at, self.at2)
+        } else {
+            "-".to_string()
+        }
+    }
+
+    /// The observable as written in the data: `name`, `name@X` or `name@X:Y`.
+    pub fn label(&self) -> String {
+        Observable { name: self.observable.clone(), at: self.at, at2: self.at2 }.to_string()
+    }
+}
+
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Summary {
     pub name: String,
@@ -330,8 +346,7 @@ pub fn report(c: &Comparison) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "{:<14} {:<16} {:>10} {:>13} {:>13} {:>13} {:>8}", "experiment", "observable", "at", "measured", "model", "residual", "z");
     for r in &c.rows {
-        let at = if r.at.is_some() { at_text(r.at, r.at2) } else { "-".to_string() };
-        let _ = writeln!(s, "{:<14} {:<16} {:>10} {:>13.6e} {:>13.6e} {:>13.4e} {:>8.2}", r.experiment, r.observable, at, r.measured, r.model, r.residual, r.z);
+        let _ = writeln!(s, "{:<14} {:<16} {:>10} {:>13.6e} {:>13.6e} {:>13.4e} {:>8.2}", r.experiment, r.observable, r.at_cell(), r.measured, r.model, r.residual, r.z);
     }
     for (title, list) in [("per experiment", &c.by_experiment), ("per observable", &c.by_observable)] {
         let _ = writeln!(s, "\n{title}:");
@@ -343,9 +358,8 @@ pub fn report(c: &Comparison) -> String {
     worst.sort_by(|a, b| b.z.abs().total_cmp(&a.z.abs()));
     let _ = writeln!(s, "\nwhere the model fails most (largest |z|):");
     for r in worst.iter().take(5) {
-        let at = if r.at.is_some() { format!("@{}", at_text(r.at, r.at2)) } else { String::new() };
         let dir = if r.residual > 0.0 { "over" } else { "under" };
-        let _ = writeln!(s, "  {} {}{}: z = {:.2} (model {dir}-predicts by {:.2} %)", r.experiment, r.observable, at, r.z, 100.0 * (r.residual / r.measured).abs());
+        let _ = writeln!(s, "  {} {}: z = {:.2} (model {dir}-predicts by {:.2} %)", r.experiment, r.label(), r.z, 100.0 * (r.residual / r.measured).abs());
     }
     let _ = writeln!(s, "\nchi^2 = {:.6e} over {} observations", c.chi2, c.rows.len());
     s

@@ -294,8 +294,7 @@ fn residual_pattern(base: &Fit, data: &[Observation], exps: &Experiments) -> Vec
     let mut worst: Vec<&super::compare::Row> = c.rows.iter().collect();
     worst.sort_by(|a, b| b.z.abs().total_cmp(&a.z.abs()));
     for r in worst.iter().take(3) {
-        let at = if r.at.is_some() { format!("@{}", super::data::at_text(r.at, r.at2)) } else { String::new() };
-        out.push(format!("largest residual: {} {}{}: z = {:.2} ({}-predicted by {:.2} %)", r.experiment, r.observable, at, r.z, if r.residual > 0.0 { "over" } else { "under" }, 100.0 * (r.residual / r.measured).abs()));
+        out.push(format!("largest residual: {} {}: z = {:.2} ({}-predicted by {:.2} %)", r.experiment, r.label(), r.z, if r.residual > 0.0 { "over" } else { "under" }, 100.0 * (r.residual / r.measured).abs()));
     }
     for s in &c.by_observable {
         out.push(format!("observable {}: rms z = {:.2} over {}", s.name, s.rms_z, s.n));

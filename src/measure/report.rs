@@ -342,8 +342,7 @@ fn html(c: &Comparison, trends: &[Trend], fits: &[Figure], residuals: &[Figure],
     worst.sort_by(|a, b| b.z.abs().total_cmp(&a.z.abs()));
     let _ = writeln!(s, "<h2>Where the model fails most ({} largest |z|)</h2>", worst.len().min(WORST));
     let worst_rows = worst.iter().take(WORST).map(|r| {
-        let at = if r.at.is_some() { super::data::at_text(r.at, r.at2) } else { "-".to_string() };
-        (false, vec![r.experiment.clone(), r.observable.clone(), at, format!("{:.6e}", r.measured), format!("{:.6e}", r.model), format!("{:.4e}", r.residual), format!("{:.2}", r.z)])
+        (false, vec![r.experiment.clone(), r.observable.clone(), r.at_cell(), format!("{:.6e}", r.measured), format!("{:.6e}", r.model), format!("{:.4e}", r.residual), format!("{:.2}", r.z)])
     });
     table(&mut s, &["experiment", "observable", "at", "measured", "model", "residual", "z"], worst_rows);
 
