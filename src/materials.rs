@@ -75,10 +75,13 @@ mod tests {
             seed ^= seed << 17;
             ((seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0) as Real
         };
-        for (kind, params) in examples() {
+        // and the EVP material with its Maxwell branch, whose stress relaxes at rest
+        let maxwell = ("evp_bingham", "density = 2100.0\nbulk_modulus = 1e6\npoisson_ratio = 0.3\nviscosity = 7.5\nyield_stress = 630.0\na_thix = 0.5\nmaxwell_modulus = 2e3\nmaxwell_time = 0.01");
+        for (kind, params) in examples().into_iter().chain([maxwell]) {
             let table: toml::Table = toml::from_str(&format!("kind = \"{kind}\"\n{params}")).unwrap();
             let m = build_material(&table).unwrap();
             let sl = m.state_names().len();
+            assert_eq!(sl == 14, params.contains("maxwell"), "{kind}: the Maxwell branch's state");
             let n = 64;
             let mut state = vec![0.0 as Real; n * sl];
             for p in 0..n {

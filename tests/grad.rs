@@ -399,6 +399,49 @@ fn the_flow_front_against_yield_stress_and_viscosity_agrees_with_central_differe
     assert!((c.taylor_slope - 2.0).abs() <= 0.2, "Taylor slope {:.3}: {:?}", c.taylor_slope, c.taylor);
 }
 
+#[test]
+fn the_flow_front_against_the_maxwell_branch_agrees_with_differences_on_and_at_its_null() {
+    // The slump of the previous test with a Maxwell branch (eta_M = G_M t_M = 15 Pa s beside the
+    // plastic viscosity's 20): its two parameters against central differences and the Taylor
+    // test; then at the null G_M = 0 (the score test's point, where G_M cannot go below 0) the
+    // derivative in G_M against one-sided differences, and the one in t_M exactly 0.
+    use strand::grad::{driver::forward_value, params::with_value};
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/measure/slump/slump.toml");
+    let base = std::fs::read_to_string(path).unwrap();
+    let with = |g_m: f64, t_m: f64| base.replace("yield_stress = 60.0\n", &format!("yield_stress = 60.0\nmaxwell_modulus = {g_m:?}\nmaxwell_time = {t_m:?}\n"));
+    let dir = tempfile::tempdir().unwrap();
+    let obj: Objective = "front".parse().unwrap();
+    let wrt = keys(&["material.maxwell_modulus", "material.maxwell_time"]);
+    let sc = Scenario::parse(&with(300.0, 0.05)).unwrap();
+    let r = gradient(&sc, &obj, &wrt, &opts(None, dir.path())).unwrap();
+    assert!(r.gradient[0] < 0.0, "a viscoelastic branch holds the paste back: {:?}", r.gradient);
+    let c = check(&sc, &obj, &r, None, &REL_STEPS).unwrap();
+    for p in &c.params {
+        println!("d front / d {} = {:.6e}, central differences {:?}", p.param, p.adjoint, p.central);
+        assert!(best_agreement(p) <= 1e-6, "{p:?}");
+    }
+    println!("Taylor slope {:.3} {:?}", c.taylor_slope, c.taylor);
+    assert!((c.taylor_slope - 2.0).abs() <= 0.2, "Taylor slope {:.3}: {:?}", c.taylor_slope, c.taylor);
+
+    let null = Scenario::parse(&with(0.0, 1.0)).unwrap();
+    let r = gradient(&null, &obj, &wrt, &opts(None, dir.path())).unwrap();
+    assert_eq!(r.gradient[1], 0.0, "at G_M = 0 nothing depends on t_M");
+    let value = |g_m: f64| forward_value(&Scenario::parse(&with_value(&null.source, "material.maxwell_modulus", g_m).unwrap()).unwrap(), &obj, None, r.steps).unwrap();
+    let j0 = value(0.0);
+    assert_eq!(j0, r.value, "the gradient's forward is the run");
+    let errs: Vec<(f64, f64, f64)> = [3.0, 0.3, 0.03]
+        .iter()
+        .map(|&h| {
+            // second order, one-sided
+            let fd = (4.0 * value(h) - 3.0 * j0 - value(2.0 * h)) / (2.0 * h);
+            (h, fd, (fd - r.gradient[0]).abs() / fd.abs())
+        })
+        .collect();
+    println!("at the null: d front / d maxwell_modulus = {:.6e}, one-sided differences {errs:?}", r.gradient[0]);
+    assert!(r.gradient[0] < 0.0);
+    assert!(errs.iter().map(|e| e.2).fold(f64::INFINITY, f64::min) <= 1e-4, "{errs:?}");
+}
+
 /// fixtures/scenarios/grad/two_layers.toml: two short EVP Bingham layers at 5 mm, the y >= 0 half
 /// behind a symmetry wall observed with its mirror image (`half`), or the whole strand.
 fn two_layers(half: bool) -> Scenario {

@@ -332,6 +332,8 @@ fn evp_bingham() -> EvpBingham {
         a_thix: 0.0,
         alpha: 0.0,
         lambda0: 0.0,
+        maxwell_modulus: None,
+        maxwell_time: 1.0,
         eos: Eos::Linear,
     }
 }

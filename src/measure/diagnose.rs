@@ -99,7 +99,7 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
     let mut absent: Vec<&'static dyn Effect> = Vec::new();
     let mut inapplicable: Vec<Candidate> = Vec::new();
     for e in effects::REGISTRY.iter().copied().filter(|e| !base.model.has(e.name())) {
-        match applicable(e, data, exps) {
+        match applicable(e, &base.model, data, exps) {
             Ok(()) => absent.push(e),
             Err(why) => inapplicable.push(Candidate { effect: e.name().into(), about: e.about().into(), rank: 0, score: 0.0, dof: 0, p_value: 1.0, fitted_chi2: None, error_ratio: None, fitted: vec![], loo_chi2_base: None, loo_chi2: None, verdict: format!("not applicable: {why}"), recommended: false }),
         }
@@ -259,13 +259,15 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
     })
 }
 
-/// Whether `effect` can act on every simulation experiment the data name.
-fn applicable(effect: &dyn Effect, data: &[Observation], exps: &Experiments) -> Result<(), String> {
+/// Whether `effect` can act on every simulation experiment the data name, each run with
+/// `model`'s `[material]`.
+fn applicable(effect: &dyn Effect, model: &Model, data: &[Observation], exps: &Experiments) -> Result<(), String> {
     for (id, _) in super::compare::group(data) {
         if let Some(s) = exps.get(&id).and_then(|x| x.scenario.as_ref()) {
             let path = exps.base_dir.join(s);
             let text = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
-            let doc: toml::Table = text.parse().map_err(|e| format!("{}: {e}", path.display()))?;
+            let mut doc: toml::Table = text.parse().map_err(|e| format!("{}: {e}", path.display()))?;
+            doc.insert("material".into(), toml::Value::Table(model.material.clone()));
             effect.check_scenario(&doc).map_err(|m| format!("it {m} (experiment '{id}')"))?;
         }
     }

@@ -316,6 +316,24 @@ mod tests {
     }
 
     #[test]
+    fn a_maxwell_branch_adds_eta_m_gamma_dot_to_the_flow_curve() {
+        let evp = "kind = \"evp_bingham\"\ndensity = 2400.0\nbulk_modulus = 1e6\nshear_modulus = 1e5\nviscosity = 19.5\nyield_stress = 92.0\n";
+        // eta_M = G_M t_M = 10 Pa s; each hold lasts 10 t_M, so the branch is at its steady state
+        let (g_m, t_m) = (200.0, 0.05);
+        let p = protocol("[[phase]]\nkind = \"sweep\"\nrates = [4.0, 1.0, 0.25]\nhold = 0.5\n");
+        let without = Rheometer::new(&*material(evp), &p).unwrap().run();
+        let with = Rheometer::new(&*material(&format!("{evp}maxwell_modulus = {g_m}\nmaxwell_time = {t_m}\n")), &p).unwrap().run();
+        for (a, b) in without.iter().zip(&with) {
+            // the Jaumann Maxwell model's steady shear stress, eta_M gamma_dot / (1 + Wi^2) with
+            // the Weissenberg number Wi = t_M gamma_dot (0.2 at the fastest rate)
+            let wi = t_m * a.rate;
+            let expect = g_m * t_m * a.rate / (1.0 + wi * wi);
+            let added = b.stress - a.stress;
+            assert!((added / expect - 1.0).abs() < 1e-3, "rate {}: the branch adds {added} Pa, expected {expect}", a.rate);
+        }
+    }
+
+    #[test]
     fn bad_protocols_name_the_phase_and_key() {
         let m = material(BINGHAM);
         let e = |text: &str| Rheometer::new(&*m, &protocol(text)).err().unwrap();
@@ -338,6 +356,9 @@ mod tests {
             "kind = \"evp_bingham\"\ndensity = 2400.0\nbulk_modulus = 1e6\nshear_modulus = 2e4\nviscosity = 19.5\nyield_stress = 92.0\na_thix = 0.39\nalpha = 0.15\nlambda0 = 0.2\n",
             BINGHAM,
             "kind = \"papanastasiou_roussel\"\ndensity = 2100.0\nbulk_modulus = 1e6\nviscosity = 7.5\nyield_stress = 630.0\n",
+            // with the Maxwell branch, and at its null (G_M = 0, where d/d t_M is 0)
+            "kind = \"evp_bingham\"\ndensity = 2400.0\nbulk_modulus = 1e6\nshear_modulus = 2e4\nviscosity = 19.5\nyield_stress = 92.0\na_thix = 0.39\nalpha = 0.15\nlambda0 = 0.2\nmaxwell_modulus = 300.0\nmaxwell_time = 0.2\n",
+            "kind = \"evp_bingham\"\ndensity = 2400.0\nbulk_modulus = 1e6\nshear_modulus = 2e4\nviscosity = 19.5\nyield_stress = 92.0\na_thix = 0.39\nalpha = 0.15\nlambda0 = 0.2\nmaxwell_modulus = 0.0\nmaxwell_time = 1.0\n",
         ];
         for text in cases {
             let table: toml::Table = text.parse().unwrap();
@@ -352,14 +373,22 @@ mod tests {
             };
             for (k, name) in m.param_names().iter().enumerate() {
                 let Some(v) = table.get(*name).and_then(|v| v.as_float()) else { continue };
-                let h = 1e-6 * v.abs().max(1e-3);
-                let mut plus = table.clone();
-                plus.insert(name.to_string(), toml::Value::Float(v + h));
-                let mut minus = table.clone();
-                minus.insert(name.to_string(), toml::Value::Float(v - h));
-                let cd = (loss(&plus) - loss(&minus)) / (2.0 * h);
+                let h = if v == 0.0 { 1e-3 } else { 1e-6 * v.abs().max(1e-3) };
+                let at = |x: f64| {
+                    let mut t = table.clone();
+                    t.insert(name.to_string(), toml::Value::Float(x));
+                    t
+                };
+                // at a parameter's lower bound (G_M = 0), the one-sided second-order difference
+                let cd = if build_material(&at(v - h)).is_ok() {
+                    (loss(&at(v + h)) - loss(&at(v - h))) / (2.0 * h)
+                } else {
+                    (4.0 * loss(&at(v + h)) - 3.0 * loss(&table) - loss(&at(v + 2.0 * h))) / (2.0 * h)
+                };
                 let scale = cd.abs().max(grad[k].abs()).max(1e-8);
                 assert!((grad[k] - cd).abs() <= 1e-5 * scale, "{}: {name}: adjoint {}, central difference {cd}", m.name(), grad[k]);
+                // the branch counts, at its null too (its score)
+                assert!(*name != "maxwell_modulus" || cd.abs() > 1e-2, "{name}: {cd}");
             }
         }
     }

@@ -35,16 +35,30 @@
 //! EOS tangent at the current J (a few percent apart in the weakly compressible range), so the
 //! elastic shear response does not follow the density noise of the pressure field.
 //!
-//! Per-particle state (8 reals):
-//! `[s_xx, s_yy, s_zz, s_xy, s_yz, s_xz, lambda, gamma_p]` — the deviatoric Cauchy stress [Pa],
-//! the flocculation state [-] (initially `lambda0`), and the accumulated plastic shear strain
-//! gamma_p = integral of gamma_dot_p dt [-] (engineering shear measure; the von Mises equivalent
-//! plastic strain is gamma_p / sqrt(3)).
+//! Optional viscoelastic Maxwell branch in parallel (paper 004; [`crate::material::maxwell`]):
+//! with `maxwell_modulus` G_M given, the Cauchy stress is sigma = s + s_M - p I, where s_M obeys
+//! ds_M/dt = 2 G_M D' - s_M / t_M (Jaumann rate, the rotation R of step 1, relaxation time
+//! t_M = `maxwell_time` = eta_M / G_M) and is integrated exactly for the step's constant D'. The
+//! branch does not enter the yield test: the EVP element and the Maxwell element see the same
+//! velocity gradient and their stresses add, so in steady flow the shear stress is
+//! tau0 (1 + lambda) + eta gamma_dot + s_M,xy with s_M,xy -> eta_M gamma_dot at Weissenberg
+//! number t_M gamma_dot << 1. Without `maxwell_modulus` (the default) there is no branch and no
+//! state for it, and the update is the EVP one to the bit. `maxwell_modulus = 0` is the same
+//! material (s_M stays exactly 0) but carries the branch's state, which a gradient with respect
+//! to `maxwell_modulus` or `maxwell_time` needs (at G_M = 0 the derivative in G_M is carried by
+//! s_M through time).
+//!
+//! Per-particle state (8 reals, 14 with the Maxwell branch):
+//! `[s_xx, s_yy, s_zz, s_xy, s_yz, s_xz, lambda, gamma_p]` — the deviatoric Cauchy stress of the
+//! EVP element [Pa], the flocculation state [-] (initially `lambda0`), and the accumulated plastic
+//! shear strain gamma_p = integral of gamma_dot_p dt [-] (engineering shear measure; the von
+//! Mises equivalent plastic strain is gamma_p / sqrt(3)); then, with the branch,
+//! `[sM_xx, sM_yy, sM_zz, sM_xy, sM_yz, sM_xz]`, the Maxwell branch's deviatoric stress [Pa].
 
 use serde::Deserialize;
 
 use crate::material::eos::{resolve_shear_modulus, shear_modulus_of};
-use crate::material::{non_negative, positive, Eos, Material, StabilityInfo, UpdateAdjoint};
+use crate::material::{maxwell, non_negative, positive, Eos, Material, StabilityInfo, UpdateAdjoint};
 use crate::real::{
     ddot, dev, jaumann_rotation, jaumann_rotation_adjoint, r, skew, sym, sym_from_slice, sym_from_slice_adjoint,
     sym_to_array, sym_to_array_adjoint, Real, M3, V3,
@@ -77,9 +91,26 @@ pub struct EvpBingham {
     /// Initial flocculation state lambda0 [-].
     #[serde(default)]
     pub lambda0: f64,
+    /// Shear modulus G_M of the Maxwell branch [Pa]; absent (the default): no branch, which is
+    /// G_M = 0 without the branch's six state reals.
+    #[serde(default)]
+    pub maxwell_modulus: Option<f64>,
+    /// Relaxation time t_M = eta_M / G_M of the Maxwell branch [s], > 0; default 1 s (the
+    /// time scale of a rheometer's hold; only read with `maxwell_modulus`).
+    #[serde(default = "default_maxwell_time")]
+    pub maxwell_time: f64,
     #[serde(default)]
     pub eos: Eos,
 }
+
+fn default_maxwell_time() -> f64 {
+    1.0
+}
+
+const STATE: [&str; 8] = ["s_xx", "s_yy", "s_zz", "s_xy", "s_yz", "s_xz", "lambda", "gamma_p"];
+const STATE_MAXWELL: [&str; 14] = [
+    "s_xx", "s_yy", "s_zz", "s_xy", "s_yz", "s_xz", "lambda", "gamma_p", "sM_xx", "sM_yy", "sM_zz", "sM_xy", "sM_yz", "sM_xz",
+];
 
 impl EvpBingham {
     pub fn validate(&self) -> Result<(), String> {
@@ -97,6 +128,10 @@ impl EvpBingham {
         non_negative("material.a_thix", self.a_thix)?;
         non_negative("material.alpha", self.alpha)?;
         non_negative("material.lambda0", self.lambda0)?;
+        if let Some(g_m) = self.maxwell_modulus {
+            non_negative("material.maxwell_modulus", g_m)?;
+        }
+        positive("material.maxwell_time", self.maxwell_time)?;
         if self.a_thix > 0.0 && self.yield_stress == 0.0 {
             return Err(
                 "material.yield_stress must be > 0 when material.a_thix > 0 (eq. 22 divides by it)"
@@ -116,6 +151,12 @@ impl EvpBingham {
     #[inline]
     fn build_up_rate(&self) -> Real {
         crate::material::build_up_rate(self.a_thix, self.yield_stress)
+    }
+
+    /// (G_M, t_M) of the Maxwell branch, when there is one.
+    #[inline]
+    fn maxwell(&self) -> Option<(Real, Real)> {
+        self.maxwell_modulus.map(|g_m| (r(g_m), r(self.maxwell_time)))
     }
 }
 
@@ -147,15 +188,20 @@ impl Material for EvpBingham {
     }
 
     fn state_names(&self) -> &'static [&'static str] {
-        &[
-            "s_xx", "s_yy", "s_zz", "s_xy", "s_yz", "s_xz", "lambda", "gamma_p",
-        ]
+        if self.maxwell_modulus.is_some() {
+            &STATE_MAXWELL
+        } else {
+            &STATE
+        }
     }
 
     fn init_state(&self, state: &mut [Real]) {
         state[..6].fill(r(0.0));
         state[6] = r(self.lambda0);
         state[7] = r(0.0);
+        if self.maxwell_modulus.is_some() {
+            state[8..14].fill(r(0.0));
+        }
     }
 
     #[inline]
@@ -165,7 +211,7 @@ impl Material for EvpBingham {
         let tau0 = r(self.yield_stress);
         let alpha = r(self.alpha);
 
-        let (s_tr, _) = trial_deviator(grad_v, g, dt, &sym_from_slice(&state[..6]));
+        let (s_tr, rot) = trial_deviator(grad_v, g, dt, &sym_from_slice(&state[..6]));
         let lambda_tr = state[6] + self.build_up_rate() * dt;
         let tau_tr = (r(0.5) * ddot(&s_tr, &s_tr)).sqrt();
         let f_tr = tau_tr - (r(1.0) + lambda_tr) * tau0;
@@ -186,14 +232,28 @@ impl Material for EvpBingham {
 
         state[..6].copy_from_slice(&sym_to_array(&s));
         state[6] = lambda;
-        s - M3::from_diagonal(V3::splat(self.eos.pressure(r(self.bulk_modulus), j)))
+        let p = M3::from_diagonal(V3::splat(self.eos.pressure(r(self.bulk_modulus), j)));
+        match self.maxwell() {
+            None => s - p,
+            Some((g_m, t_m)) => {
+                let s_m = maxwell::update(&rot, &dev(&sym(grad_v)), g_m, t_m, dt, &sym_from_slice(&state[8..14]));
+                state[8..14].copy_from_slice(&sym_to_array(&s_m));
+                (s + s_m) - p
+            }
+        }
     }
 
+    /// With the Maxwell branch, `maxwell_modulus` and `maxwell_time` follow (indices 7, 8).
     fn param_names(&self) -> &'static [&'static str] {
-        if self.shear_modulus.is_some() {
-            &["bulk_modulus", "shear_modulus", "viscosity", "yield_stress", "a_thix", "alpha", "lambda0"]
-        } else {
-            &["bulk_modulus", "poisson_ratio", "viscosity", "yield_stress", "a_thix", "alpha", "lambda0"]
+        match (self.shear_modulus.is_some(), self.maxwell_modulus.is_some()) {
+            (true, false) => &["bulk_modulus", "shear_modulus", "viscosity", "yield_stress", "a_thix", "alpha", "lambda0"],
+            (false, false) => &["bulk_modulus", "poisson_ratio", "viscosity", "yield_stress", "a_thix", "alpha", "lambda0"],
+            (true, true) => &[
+                "bulk_modulus", "shear_modulus", "viscosity", "yield_stress", "a_thix", "alpha", "lambda0", "maxwell_modulus", "maxwell_time",
+            ],
+            (false, true) => &[
+                "bulk_modulus", "poisson_ratio", "viscosity", "yield_stress", "a_thix", "alpha", "lambda0", "maxwell_modulus", "maxwell_time",
+            ],
         }
     }
 
@@ -288,7 +348,17 @@ impl Material for EvpBingham {
         *out.grad_v_bar += proj_bar * (r(2.0) * g * dt);
         g_bar += r(2.0) * dt * ddot(&s_tr_bar, &d_dev);
         let s_old_bar = rot.transpose() * proj_bar * rot;
-        let rot_bar = (proj_bar + proj_bar.transpose()) * rot * s_old;
+        let mut rot_bar = (proj_bar + proj_bar.transpose()) * rot * s_old;
+        if let Some((g_m, t_m)) = self.maxwell() {
+            // sigma = (s + s_M) - p I: s_M's adjoint is the stress's plus its state's
+            let s_m_bar = *stress_bar + sym_to_array_adjoint(&state_out_bar[8..14]);
+            let a = maxwell::update_adjoint(&rot, &d_dev, g_m, t_m, dt, &sym_from_slice(&state_in[8..14]), &s_m_bar);
+            rot_bar += a.rot_bar;
+            *out.grad_v_bar += dev(&sym(&a.d_dev_bar));
+            sym_from_slice_adjoint(&a.s_old_bar, &mut out.state_bar[8..14]);
+            out.params_bar[7] += a.modulus_bar;
+            out.params_bar[8] += a.time_bar;
+        }
         let w_bar = jaumann_rotation_adjoint(&w, dt, &rot_bar);
         *out.grad_v_bar += skew(&w_bar);
         sym_from_slice_adjoint(&s_old_bar, &mut out.state_bar[..6]);
@@ -316,21 +386,34 @@ impl Material for EvpBingham {
         params_bar[6] += state_bar[6];
     }
 
+    /// The deviators are the state itself (the EVP's, and the Maxwell branch's), so this is the
+    /// stress `update` returned for any grad v, bit for bit, in the same order of operations.
+    /// A sleeping particle keeps it: the Maxwell stress relaxes at rest, but not while asleep; on
+    /// waking, `rest_for` relaxes it over the whole interval at once.
     fn stress_at_rest(&self, state: &[Real], j: Real) -> M3 {
-        // the deviator is the state itself; update returns it minus the EOS pressure
-        sym_from_slice(&state[..6]) - M3::from_diagonal(V3::splat(self.eos.pressure(r(self.bulk_modulus), j)))
+        let p = M3::from_diagonal(V3::splat(self.eos.pressure(r(self.bulk_modulus), j)));
+        match self.maxwell() {
+            None => sym_from_slice(&state[..6]) - p,
+            Some(_) => (sym_from_slice(&state[..6]) + sym_from_slice(&state[8..14])) - p,
+        }
     }
 
     fn rest_for(&self, state: &mut [Real], duration: Real) {
-        // at rest below yield only eq. 22's build-up acts, and it is linear in time
+        // at rest below yield only eq. 22's build-up acts, and it is linear in time; the Maxwell
+        // stress relaxes as exp(-duration / t_M)
         state[6] += self.build_up_rate() * duration;
+        if let Some((_, t_m)) = self.maxwell() {
+            maxwell::relax(&mut state[8..14], t_m, duration);
+        }
     }
 
+    /// The Maxwell branch adds at most 2 G_M dt D' per step (a spring G_M; see `maxwell`), so
+    /// G_M counts with G in the elastic wave speed.
     fn stability(&self) -> StabilityInfo {
         StabilityInfo {
             density: r(self.density),
             bulk_modulus: r(self.bulk_modulus),
-            shear_modulus: r(self.shear_modulus()),
+            shear_modulus: r(self.shear_modulus() + self.maxwell_modulus.unwrap_or(0.0)),
             max_viscosity: r(self.viscosity),
         }
     }
@@ -356,6 +439,8 @@ mod tests {
             a_thix: 0.0,
             alpha: 0.0,
             lambda0: 0.0,
+            maxwell_modulus: None,
+            maxwell_time: 1.0,
             eos: Eos::Linear,
         }
     }
@@ -709,6 +794,8 @@ mod tests {
             a_thix: p[4],
             alpha: p[5],
             lambda0: p[6],
+            maxwell_modulus: p.get(7).copied(),
+            maxwell_time: p.get(8).copied().unwrap_or(1.0),
             eos,
         }
     }
@@ -758,6 +845,206 @@ mod tests {
             let param_scale = [1e6, if poisson { 0.1 } else { params[1] }, 10.0, 500.0, 1e4, 1000.0, 1.0];
             check_update_adjoint(label, make(poisson, eos), &params, l_of(l), j, dt, &state, 1.0, &state_scale, &param_scale, 1e-6, 17 + k as u64);
         }
+    }
+
+    /// A hash of the bits of every stress and state a fixed sequence of updates gives, over every
+    /// branch (elastic, plastic with and without thixotropy, spin, rest, Tait): the fingerprint
+    /// of the EVP update as it was before the Maxwell branch was added (commit 6aef083), which
+    /// the update without the branch must keep to the bit.
+    fn fingerprint(m: &EvpBingham) -> u64 {
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        let mut u = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            ((seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0) as Real
+        };
+        let mut h = 0xcbf2_9ce4_8422_2325u64;
+        let mut eat = |x: Real| {
+            h ^= x.to_bits() as u64;
+            h = h.wrapping_mul(0x0100_0000_01b3).rotate_left(7);
+        };
+        let mut st = vec![0.0 as Real; m.state_names().len()];
+        m.init_state(&mut st);
+        for step in 0..400 {
+            let rest = step % 5 == 4;
+            let scale = if step < 100 { 0.5 } else { 40.0 };
+            let l = if rest { M3::ZERO } else { M3::from_cols(V3::new(u(), u(), u()), V3::new(u(), u(), u()), V3::new(u(), u(), u())) * scale };
+            let j = 1.0 + 0.01 * u();
+            let s = m.update(&l, j, 1e-3, &mut st);
+            s.to_cols_array().into_iter().for_each(&mut eat);
+            st.iter().copied().for_each(&mut eat);
+        }
+        assert!(st[7] > 0.0 && st.iter().all(|x| x.is_finite()), "the sequence must reach the plastic branch: {st:?}");
+        h
+    }
+
+    #[test]
+    fn without_the_maxwell_branch_the_update_is_the_one_before_it_to_the_bit() {
+        let cases = [
+            solid(),
+            EvpBingham { a_thix: 0.8, alpha: 0.3, lambda0: 0.2, eos: Eos::Tait { gamma: 7.0 }, ..solid() },
+            EvpBingham { shear_modulus: None, poisson_ratio: Some(0.3), alpha: 100.0, viscosity: 0.0, ..solid() },
+        ];
+        let got: Vec<u64> = cases.iter().map(fingerprint).collect();
+        println!("fingerprints {got:#x?}");
+        let want: [u64; 3] = if cfg!(feature = "f32") {
+            [0xcfa53d7191755a36, 0x8eeb6c43221c9738, 0x706f929aaa08474a]
+        } else {
+            [0xce2deec75ee1aa93, 0xe44adc1c480de49e, 0x1cedc622f99803ce]
+        };
+        assert_eq!(got, want);
+    }
+
+    /// The Maxwell branch's adjoint within the whole update: elastic and plastic EVP steps, with
+    /// thixotropy, nu and Tait, spin, dt / t_M small and large, and at G_M = 0 (the effect's
+    /// null, where the derivative in G_M is what the score test reads). State: the EVP's 8, then
+    /// s_M.
+    #[cfg(not(feature = "f32"))]
+    #[test]
+    fn adjoint_with_the_maxwell_branch_matches_central_differences() {
+        use crate::material::test_util::check_update_adjoint;
+        let spin = [0.3, -2.0, 0.5, 3.0, -0.4, 1.2, -0.7, 0.9, 0.2];
+        let tait = Eos::Tait { gamma: 7.0 };
+        let s_m = [30.0, -10.0, -20.0, 25.0, -8.0, 12.0];
+        let evp_el = [100.0, -40.0, -60.0, 80.0, -30.0, 20.0, 0.0, 0.01];
+        let evp_pl = [500.0, -200.0, -300.0, 400.0, -150.0, 250.0, 0.4, 0.3];
+        let join = |a: [f64; 8], b: [f64; 6]| -> Vec<f64> { a.iter().chain(&b).copied().collect() };
+        // (label, poisson, eos, params, L, J, dt, state)
+        type Case = (&'static str, bool, Eos, [f64; 9], [f64; 9], f64, f64, Vec<f64>);
+        let cases: Vec<Case> = vec![
+            // J = 1: the pressure's round-off in the differences would swamp the derivative in t_M,
+            // which is O(dt / t_M) small here (the plastic cases take J != 1)
+            ("elastic, maxwell", false, Eos::Linear, [1e6, 2e5, 7.5, 630.0, 3.0, 0.0, 0.0, 400.0, 0.5], spin, 1.0, 1e-3, join(evp_el, s_m)),
+            ("plastic, maxwell, dt / t_M = 2", false, Eos::Linear, [1e6, 2e5, 7.5, 630.0, 3.0, 0.0, 0.0, 400.0, 5e-4], spin.map(|x| 40.0 * x), 1.02, 1e-3, join(evp_pl, s_m)),
+            ("plastic, thixotropic, nu, Tait, maxwell", true, tait, [1e6, 0.3, 7.5, 630.0, 50.0, 0.5, 0.2, 2e3, 0.1], spin.map(|x| 40.0 * x), 0.99, 1e-3, join(evp_pl, s_m)),
+            ("elastic, maxwell at its null G_M = 0", false, Eos::Linear, [1e6, 2e5, 7.5, 630.0, 3.0, 0.0, 0.0, 0.0, 1.0], spin, 1.0, 1e-3, join(evp_el, [0.0; 6])),
+            ("plastic, maxwell at its null G_M = 0", true, tait, [1e6, 0.3, 7.5, 630.0, 50.0, 0.5, 0.2, 0.0, 1.0], spin.map(|x| 40.0 * x), 1.01, 1e-3, join(evp_pl, [0.0; 6])),
+        ];
+        for (k, (label, poisson, eos, params, l, j, dt, state)) in cases.into_iter().enumerate() {
+            let mat = make(poisson, eos)(&params);
+            assert_eq!((mat.state_names().len(), mat.param_names().len()), (14, 9));
+            let mut st: Vec<Real> = state.clone();
+            let _ = mat.update(&l_of(l), j, dt, &mut st);
+            assert_eq!(st[7] > state[7], label.starts_with("plastic"), "{label}: branch");
+            let state_scale: Vec<f64> = state.iter().map(|v| v.abs().max(1.0)).collect();
+            let param_scale = [1e6, if poisson { 0.1 } else { params[1] }, 10.0, 500.0, 1e4, 1000.0, 1.0, 1e3, params[8]];
+            check_update_adjoint(label, make(poisson, eos), &params, l_of(l), j, dt, &state, 1.0, &state_scale, &param_scale, 1e-6, 41 + k as u64);
+        }
+    }
+
+    /// A particle's history under the material: random flow (yielding) with every fourth step at
+    /// rest; returns every stress and the final state.
+    fn history(m: &EvpBingham, steps: usize) -> (Vec<M3>, Vec<Real>) {
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut u = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            ((seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0) as Real
+        };
+        let mut st = vec![0.0 as Real; m.state_names().len()];
+        m.init_state(&mut st);
+        let stresses = (0..steps)
+            .map(|step| {
+                let l = if step % 4 == 3 { M3::ZERO } else { M3::from_cols(V3::new(u(), u(), u()), V3::new(u(), u(), u()), V3::new(u(), u(), u())) * 40.0 };
+                m.update(&l, 1.0 + 0.01 * u(), 1e-3, &mut st)
+            })
+            .collect();
+        (stresses, st)
+    }
+
+    #[test]
+    fn a_zero_maxwell_modulus_is_the_material_without_the_branch() {
+        let base = EvpBingham { a_thix: 0.8, alpha: 0.3, lambda0: 0.2, ..solid() };
+        let null = EvpBingham { maxwell_modulus: Some(0.0), maxwell_time: 0.01, ..base.clone() };
+        assert_eq!((base.state_names().len(), null.state_names().len()), (8, 14));
+        assert_eq!(base.stability(), null.stability());
+        let (s0, st0) = history(&base, 300);
+        let (s1, st1) = history(&null, 300);
+        assert!(st0[7] > 0.0, "the history must yield");
+        // equal as numbers (a -0.0 of the EVP stress may come out +0.0 once 0 is added)
+        assert_eq!(s0, s1);
+        assert_eq!(st0[..], st1[..8]);
+        assert!(st1[8..].iter().all(|&x| x == 0.0), "{:?}", &st1[8..]);
+        // and the branch on does change it
+        let (s2, _) = history(&EvpBingham { maxwell_modulus: Some(50.0), ..null }, 300);
+        assert_ne!(s0, s2);
+    }
+
+    #[test]
+    fn steady_flow_adds_eta_m_gamma_dot_to_the_bingham_stress() {
+        // simple shear above yield at Weissenberg number t_M gamma_dot = 0.01; the Bingham part
+        // tau0 + eta gamma_dot as in the test without the branch, the Maxwell part G_M t_M
+        // gamma_dot (1 - exp(-t / t_M)) -> eta_M gamma_dot, to O(Wi^2)
+        let (g_m, t_m) = (2000.0, 0.005);
+        let m = EvpBingham { maxwell_modulus: Some(g_m), maxwell_time: t_m, ..solid() };
+        let (g, dt) = (2.0 as Real, 1e-5 as Real);
+        let mut st = vec![0.0 as Real; 14];
+        m.init_state(&mut st);
+        for n in 1..=10_000 {
+            let s = m.update(&simple_shear(g), 1.0, dt, &mut st);
+            let t = n as Real * dt;
+            let maxwell = (g_m * t_m) as Real * g * (1.0 - (-t / t_m as Real).exp());
+            if n == 250 || n == 10_000 {
+                assert!(st[7] > 0.0, "flowing");
+                assert!(rel(st[11], maxwell) < 2e-4, "t = {t}: s_M,xy {} vs {maxwell}", st[11]);
+                let bingham = 100.0 + 30.0 * g;
+                assert!(rel(s.y_axis.x, bingham + maxwell) < 2e-4, "t = {t}: {} vs {}", s.y_axis.x, bingham + maxwell);
+            }
+        }
+        // eta_M gamma_dot = 20 Pa at steady state, on top of tau0 + eta gamma_dot = 160 Pa
+        assert!(rel(st[11], 20.0) < 2e-4, "{}", st[11]);
+    }
+
+    #[test]
+    fn with_the_branch_the_stress_at_rest_is_the_state_and_relaxes_at_rest() {
+        // a yield stress the loading stays below: at rest the EVP stress then stays put (a
+        // viscous overstress would relax plastically)
+        let m = EvpBingham { yield_stress: 1e6, a_thix: 5e3, lambda0: 0.1, maxwell_modulus: Some(500.0), maxwell_time: 0.2, ..solid() };
+        let mut st = vec![0.0 as Real; 14];
+        m.init_state(&mut st);
+        // elastic shear, loading both branches
+        for _ in 0..100 {
+            m.update(&simple_shear(0.5), 1.0, 1e-3, &mut st);
+        }
+        assert_eq!(st[7], 0.0, "elastic");
+        let s_m0: Vec<Real> = st[8..].to_vec();
+        let evp0: Vec<Real> = st[..6].to_vec();
+        assert!(s_m0[3] > 0.0);
+        let mut slept = st.clone();
+        let (dt, n) = (1e-3 as Real, 300);
+        let mut s = M3::ZERO;
+        for _ in 0..n {
+            s = m.update(&M3::ZERO, 1.0, dt, &mut st);
+        }
+        let bits = |a: &M3| a.to_cols_array().map(|x| x.to_bits());
+        assert_eq!(bits(&m.stress_at_rest(&st, 1.0)), bits(&s));
+        // the Maxwell stress relaxed by exp(-t / t_M), the EVP stress did not change
+        let e = (-(n as Real) * dt / 0.2).exp();
+        for k in 0..6 {
+            assert!((st[8 + k] - s_m0[k] * e).abs() <= 1e-9 * s_m0[3].abs() || cfg!(feature = "f32"), "entry {k}");
+            assert!((st[k] - evp0[k]).abs() <= 10.0 * EPS * evp0[3].abs(), "entry {k}");
+        }
+        // what a sleeping particle gets on waking
+        m.rest_for(&mut slept, n as Real * dt);
+        for k in 0..14 {
+            assert!((slept[k] - st[k]).abs() <= 1e-4 * st[k].abs().max(1e-3), "entry {k}: {} vs {}", slept[k], st[k]);
+        }
+    }
+
+    #[test]
+    fn maxwell_keys_are_validated_and_stiffen_the_time_step() {
+        let m = EvpBingham { maxwell_modulus: Some(300.0), ..solid() };
+        assert!(m.validate().is_ok());
+        assert_eq!(m.stability().shear_modulus, 1.0e6 + 300.0);
+        let bad = EvpBingham { maxwell_modulus: Some(-1.0), ..solid() };
+        assert_eq!(bad.validate().unwrap_err(), "material.maxwell_modulus must be >= 0, got -1");
+        let bad = EvpBingham { maxwell_time: 0.0, ..m.clone() };
+        assert_eq!(bad.validate().unwrap_err(), "material.maxwell_time must be > 0, got 0");
+        assert_eq!(&m.param_names()[7..], ["maxwell_modulus", "maxwell_time"]);
+        assert_eq!(&m.state_names()[8..], ["sM_xx", "sM_yy", "sM_zz", "sM_xy", "sM_yz", "sM_xz"]);
+        assert_eq!((solid().param_names().len(), solid().state_names().len()), (7, 8));
     }
 
     #[cfg(not(feature = "f32"))]

@@ -14,6 +14,7 @@ pub mod newtonian;
 pub mod bingham;
 pub mod papanastasiou_roussel;
 pub mod evp_bingham;
+pub mod maxwell;
 pub mod drucker_prager;
 
 pub use eos::Eos;

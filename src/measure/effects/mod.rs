@@ -11,6 +11,7 @@
 use std::collections::BTreeMap;
 
 pub mod ageing;
+pub mod maxwell;
 pub mod thixotropy;
 pub mod viscosity_ageing;
 pub mod wall_friction;
@@ -51,8 +52,8 @@ pub trait Effect: Sync {
     /// Given the keys before `apply` and the adjoints of the keys after it (`keys_bar`, a key
     /// absent = 0), leave in `keys_bar` the adjoints of the keys before it, and add to `p_bar`.
     fn apply_adjoint(&self, p: &[f64], x: &Covariates, keys_in: &Keys, keys_bar: &mut Keys, p_bar: &mut [f64]);
-    /// Whether the effect can act on a simulation experiment's scenario (its TOML document,
-    /// before the keys are set): an error says why not.
+    /// Whether the effect can act on a simulation experiment's scenario (its TOML document with
+    /// the model's `[material]` in place, before the keys are set): an error says why not.
     fn check_scenario(&self, _scenario: &toml::Table) -> Result<(), String> {
         Ok(())
     }
@@ -65,6 +66,7 @@ pub const REGISTRY: &[&dyn Effect] = &[
     &thixotropy::Thixotropy,
     &viscosity_ageing::ViscosityAgeing,
     &wall_friction::WallFriction,
+    &maxwell::Maxwell,
 ];
 
 pub fn find(name: &str) -> Result<&'static dyn Effect, String> {
@@ -92,7 +94,17 @@ mod tests {
     use super::*;
 
     fn base_keys() -> Keys {
-        [("material.yield_stress", 120.0), ("material.viscosity", 20.0), ("material.a_thix", 0.0), ("material.alpha", 0.0), ("material.lambda0", 0.0)]
+        // the keys a base model sets, with the Maxwell branch's at the material's defaults (no
+        // branch is G_M = 0; t_M defaults to 1 s), so the nulls are checked on them too
+        [
+            ("material.yield_stress", 120.0),
+            ("material.viscosity", 20.0),
+            ("material.a_thix", 0.0),
+            ("material.alpha", 0.0),
+            ("material.lambda0", 0.0),
+            ("material.maxwell_modulus", 0.0),
+            ("material.maxwell_time", 1.0),
+        ]
             .into_iter()
             .map(|(k, v)| (k.to_string(), v))
             .collect()
