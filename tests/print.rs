@@ -133,6 +133,31 @@ fn sleeping_material_builds_up_structure_as_if_awake() {
 }
 
 #[test]
+fn a_maxwell_branch_prints_through_sleep_and_at_its_null_prints_the_base() {
+    // The tiny two-layer print with sleeping: the EVP material, the same with the Maxwell
+    // branch at its null (G_M = 0: six more state reals, an exactly zero stress), and with the
+    // branch on, through falling asleep and waking (rest_for relaxes the branch's stress)
+    let text = |maxwell: &str| common::tiny_print(1, 2, true, "256 MiB").replace("yield_stress = 630.0", &format!("yield_stress = 630.0\n{maxwell}"));
+    let t_end = 2.0;
+    let base = run_to(&text(""), t_end);
+    let null = run_to(&text("maxwell_modulus = 0.0\nmaxwell_time = 1.0"), t_end);
+    assert_eq!((base.particles.state_len, null.particles.state_len), (8, 14));
+    assert_eq!(state_hash(&base), state_hash(&null), "the branch at its null changed the print");
+    let mut on = Simulation::new(&Scenario::parse(&text("maxwell_modulus = 2000.0\nmaxwell_time = 0.05")).unwrap()).unwrap();
+    let mut most_asleep = 0;
+    while on.time < t_end {
+        on.step_until(t_end).unwrap();
+        most_asleep = most_asleep.max(on.particles.n_sleep);
+    }
+    assert!(most_asleep > on.particles.n_sleep, "nothing slept and woke: {most_asleep} asleep at most, {} at the end", on.particles.n_sleep);
+    assert_ne!(state_hash(&base), state_hash(&on));
+    let p = &on.particles;
+    assert!(p.state.as_slice()[..p.n * p.state_len].iter().all(|x| x.is_finite()));
+    // the branch carried a stress somewhere
+    assert!((0..p.n).any(|i| p.state.as_slice()[i * 14 + 8..i * 14 + 14].iter().any(|x| *x != 0.0)));
+}
+
+#[test]
 fn too_small_a_particle_pool_is_refused_at_start_up() {
     let text = common::tiny_print(1, 1, false, "256 MiB").replace("[memory]", "[memory]\nmax_particles = 100");
     let e = Simulation::new(&Scenario::parse(&text).unwrap()).err().expect("must fail").to_string();

@@ -851,6 +851,7 @@ mod tests {
     /// branch (elastic, plastic with and without thixotropy, spin, rest, Tait): the fingerprint
     /// of the EVP update as it was before the Maxwell branch was added (commit 6aef083), which
     /// the update without the branch must keep to the bit.
+    #[allow(clippy::unnecessary_cast)] // to_bits is u32 in f32 builds
     fn fingerprint(m: &EvpBingham) -> u64 {
         let mut seed = 0x9e37_79b9_7f4a_7c15u64;
         let mut u = move || {
