@@ -20,7 +20,7 @@ use crate::particles::Particles;
 use crate::print::emitter::Slab;
 use crate::print::{NozzleDrive, Printer};
 use crate::scenario::{Body, Scenario};
-use crate::sleep::Sleep;
+use crate::sleep::{unit_in_block, Sleep, UnitActivity, EMPTY_UNIT, UNITS};
 use crate::threads::{SharedSlice, ThreadTeam};
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -709,7 +709,7 @@ impl Simulation {
                 }
                 if let Some(act) = &activity {
                     // SAFETY: slot s belongs to this thread.
-                    unsafe { *act.get_mut(s) = block_activity(ord, &*o.v, &*o.c) };
+                    unsafe { *act.get_mut(s) = block_activity(origin, ord, &*o.xg, &*o.v, &*o.c) };
                 }
             }
             out[tid].store((vmax as f64).to_bits(), Ordering::Relaxed);
@@ -920,15 +920,17 @@ pub(crate) fn apply_drive(geom: &GridGeom, drive: Option<&NozzleDrive>, g: [i32;
     vd * w + v * (1.0 - w)
 }
 
-/// Largest speed and strain rate |sym(C)| of a block's particles, for the sleep test.
-fn block_activity(ord: &[u32], v: &[V3], c: &[M3]) -> [Real; 2] {
-    let mut a: [Real; 2] = [0.0; 2];
+/// Largest speed and strain rate |sym(C)| of the particles of each sleep unit of a block (by
+/// their new stencil base), for the sleep test.
+fn block_activity(origin: [i32; 3], ord: &[u32], xg: &[V3], v: &[V3], c: &[M3]) -> UnitActivity {
+    let mut a = [EMPTY_UNIT; UNITS];
     for &pi in ord {
         let pi = pi as usize;
         let e = crate::kernels::real::sym(&c[pi]);
         let rate = (e.x_axis.length_squared() + e.y_axis.length_squared() + e.z_axis.length_squared()).sqrt();
-        a[0] = a[0].max(v[pi].length());
-        a[1] = a[1].max(rate);
+        let u = &mut a[unit_in_block(origin, crate::kernels::bspline::base_and_fx(xg[pi]).0)];
+        u[0] = u[0].max(v[pi].length());
+        u[1] = u[1].max(rate);
     }
     a
 }

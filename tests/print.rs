@@ -77,7 +77,7 @@ fn print_is_bit_identical_for_any_thread_count_with_and_without_sleeping() {
 }
 
 #[test]
-fn sleeping_blocks_skip_work_and_barely_change_the_result() {
+fn sleeping_material_skips_work_and_barely_changes_the_result() {
     let text_awake = common::tiny_print(2, 2, false, "256 MiB");
     let text_sleep = common::tiny_print(2, 2, true, "256 MiB");
     let dir = tempfile::tempdir().unwrap();

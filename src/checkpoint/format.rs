@@ -18,8 +18,9 @@ use xxhash_rust::xxh3::xxh3_64;
 
 pub const MAGIC: &[u8; 8] = b"STRANDCK";
 /// Bump on any change of the header or of a section's layout or meaning (3: a sleeping block's
-/// `sleep.rest` entry is the time it fell asleep, no longer its rest clock).
-pub const FORMAT: u32 = 3;
+/// `sleep.rest` entry is the time it fell asleep, no longer its rest clock; 4: the sleep tables
+/// are per 2-cell unit, 8 to a block, and the header counts sleeping units).
+pub const FORMAT: u32 = 4;
 const PREAMBLE: usize = 8 + 4 + 4 + 8 + 8;
 pub const ALIGN: usize = 64;
 
@@ -61,7 +62,7 @@ pub struct Header {
     /// particles (sleeping needs the last step's binning).
     pub active_blocks: u64,
     pub particle_blocks: u64,
-    pub sleeping_blocks: u64,
+    pub sleeping_units: u64,
     /// Length of the dense block table (the grid's shape).
     pub table_len: u64,
     /// Slabs of the print handed to the stepper so far.
@@ -286,7 +287,7 @@ mod tests {
             state_len: 0,
             active_blocks: 0,
             particle_blocks: 0,
-            sleeping_blocks: 0,
+            sleeping_units: 0,
             table_len: 0,
             emitted_slabs: 0,
             mass_xxh3: 0,

@@ -146,7 +146,7 @@ pub fn sections(sim: &Simulation) -> Vec<Part<'_>> {
         source: Source::Velocities(nodes, k),
     });
     if let Some(sl) = &sim.sleep {
-        // per block of the whole domain, but zero away from material
+        // per unit of the whole domain, but zero away from material
         let (state, rest) = sl.tables();
         v.extend(sparse("sleep.state_at", "sleep.state", state, 1, false));
         v.extend(sparse("sleep.rest_at", "sleep.rest", bytes(rest), 4, false));
@@ -178,8 +178,8 @@ pub fn max_staging_bytes(cap: usize, state_len: usize, max_blocks: usize, table_
     let align = super::format::ALIGN;
     let mut total = cap * per_particle + max_blocks * (4 + 8) + nodes * channels * real + 12 * align;
     if sleep {
-        // sparse tables: at worst every block, with its u32 index
-        total += table_len * (4 + 1 + 4 + 4);
+        // sparse tables: at worst every unit, with its u32 index
+        total += table_len * crate::sleep::UNITS * (4 + 1 + 4 + 4);
     }
     total
 }
@@ -250,7 +250,7 @@ pub fn header(sim: &Simulation, dt: f64, limit: DtLimit, outputs: u64, progress:
         state_len: p.state_len as u32,
         active_blocks: sim.grid.n_active as u64,
         particle_blocks: sim.grid.n_particle_blocks as u64,
-        sleeping_blocks: sim.sleep.as_ref().map_or(0, |s| s.sleeping_blocks as u64),
+        sleeping_units: sim.sleep.as_ref().map_or(0, |s| s.sleeping_units as u64),
         table_len: sim.grid.geom.table_len() as u64,
         emitted_slabs: emitted_slabs(sim),
         mass_xxh3: checksum(bytes(&p.mass.as_slice()[..n])),
@@ -398,7 +398,10 @@ pub fn restore(sim: &mut Simulation, ck: &Checkpoint) -> Result<(f64, DtLimit), 
         let (state, rest) = sleep.tables_mut();
         scatter(state, ck, "sleep.state_at", "sleep.state")?;
         scatter(rest, ck, "sleep.rest_at", "sleep.rest")?;
-        sleep.sleeping_blocks = h.sleeping_blocks as usize;
+        sleep.recount();
+        if sleep.sleeping_units != h.sleeping_units as usize {
+            return Err(format!("the sleep table holds {} sleeping units, the header {}", sleep.sleeping_units, h.sleeping_units));
+        }
     }
     sim.bin_particles().map_err(|e| e.to_string())?;
     let na = sim.grid.n_active;
