@@ -49,7 +49,7 @@ pub struct SleepConfig {
     /// Speed of neighbouring material that wakes a sleeping unit [m/s].
     #[serde(default = "default_wake")]
     pub wake_speed: f64,
-    /// Steps between checks for blocks to put to sleep.
+    /// Steps between checks for units to put to sleep.
     #[serde(default = "default_check")]
     pub check_interval: u64,
 }

@@ -709,7 +709,7 @@ impl Simulation {
                 }
                 if let Some(act) = &activity {
                     // SAFETY: slot s belongs to this thread.
-                    unsafe { *act.get_mut(s) = block_activity(origin, ord, &*o.xg, &*o.v, &*o.c) };
+                    unsafe { *act.get_mut(s) = unit_activity(origin, ord, &*o.xg, &*o.v, &*o.c) };
                 }
             }
             out[tid].store((vmax as f64).to_bits(), Ordering::Relaxed);
@@ -922,7 +922,7 @@ pub(crate) fn apply_drive(geom: &GridGeom, drive: Option<&NozzleDrive>, g: [i32;
 
 /// Largest speed and strain rate |sym(C)| of the particles of each sleep unit of a block (by
 /// their new stencil base), for the sleep test.
-fn block_activity(origin: [i32; 3], ord: &[u32], xg: &[V3], v: &[V3], c: &[M3]) -> UnitActivity {
+fn unit_activity(origin: [i32; 3], ord: &[u32], xg: &[V3], v: &[V3], c: &[M3]) -> UnitActivity {
     let mut a = [EMPTY_UNIT; UNITS];
     for &pi in ord {
         let pi = pi as usize;
