@@ -49,6 +49,9 @@ pub struct SleepConfig {
     /// Speed of neighbouring material that wakes a sleeping unit [m/s].
     #[serde(default = "default_wake")]
     pub wake_speed: f64,
+    /// Time a woken unit settles before its own speed can wake its neighbours [s].
+    #[serde(default = "default_grace")]
+    pub wake_grace: f64,
     /// Steps between checks for units to put to sleep.
     #[serde(default = "default_check")]
     pub check_interval: u64,
@@ -78,6 +81,13 @@ fn default_wake() -> f64 {
     // 4e-3, 1.02 %; with 2e-3, 0.26 %.
     2e-3
 }
+fn default_grace() -> f64 {
+    // Long enough for a woken unit's pulse to pass (a 5 mm unit rings at c / 2L ~ 3 kHz, and
+    // viscosity damps it over rho L^2 / mu ~ 7 ms), short enough that flow reaching a sleeping
+    // neighbour is held back by at most 0.02 s x 2 mm/s = 0.04 mm. Ten layers at 5 mm cost 269
+    // CPU s with 0.02 s, 296 s with 0.1 s, 423 s without (BENCHMARKS.md "Sleeping").
+    0.02
+}
 fn default_check() -> u64 {
     64
 }
@@ -89,6 +99,7 @@ impl SleepConfig {
             ("sleep.strain_rate", self.strain_rate),
             ("sleep.rest_time", self.rest_time),
             ("sleep.wake_speed", self.wake_speed),
+            ("sleep.wake_grace", self.wake_grace),
         ] {
             if !(v >= 0.0 && v.is_finite()) {
                 return Err(format!("{k} must be >= 0, got {v}"));
@@ -121,13 +132,47 @@ fn wake(b: u32, state: &mut [u8], woken: &mut [u32], n_woken: &mut usize) {
     }
 }
 
+/// The speeds and strain rate of [`SleepConfig`] in the solver's precision.
+struct Limits {
+    rest_speed: Real,
+    rest_rate: Real,
+    wake_speed: Real,
+}
+
+impl Limits {
+    fn of(cfg: &SleepConfig) -> Self {
+        Limits { rest_speed: cfg.speed as Real, rest_rate: cfg.strain_rate as Real, wake_speed: cfg.wake_speed as Real }
+    }
+}
+
+/// One step of an awake unit's clock `rest` (see [`Sleep`]) under its material's (max speed,
+/// max strain rate): the new clock, and whether the unit wakes its sleeping neighbours.
+///
+/// A unit that has just woken settles for `wake_grace` first (negative clock) and wakes nobody
+/// meanwhile. Why: a sleeping unit is held still, so the weight of the layers printed onto it
+/// while it slept rests on its held nodes, not on its stress. When it wakes, that load reaches
+/// its material at once and sends an elastic pulse through it (the weight of a 12.5 mm layer
+/// on K = 1 MPa concrete moves it at about 4 mm/s, above `wake_speed`); without the grace the
+/// pulse woke the next unit, whose own load woke the next, down the whole stack, several times a
+/// layer (BENCHMARKS.md "Sleeping"). Material that really flows keeps flowing after the grace and
+/// wakes its neighbours then.
+#[inline]
+fn tick(rest: f32, [v, rate]: [Real; 2], dt: f32, lim: &Limits) -> (f32, bool) {
+    if rest < 0.0 {
+        return ((rest + dt).min(0.0), false);
+    }
+    let at_rest = v < lim.rest_speed && rate < lim.rest_rate;
+    (if at_rest { rest + dt } else { 0.0 }, v > lim.wake_speed)
+}
+
 /// Per-unit sleep bookkeeping, over the dense block table refined to units.
 pub struct Sleep {
     pub cfg: SleepConfig,
     /// ASLEEP or AWAKE per unit (WOKEN only inside `update`), indexed by [`unit_index`].
     state: Pool<u8>,
-    /// Awake unit: time its material has been at rest [s]. Sleeping unit: the simulation time
-    /// at which it fell asleep [s] (for the build-up owed on waking).
+    /// Awake unit: time its material has been at rest [s], or, negative, minus the settling
+    /// time left since it woke (`wake_grace`). Sleeping unit: the simulation time at which it
+    /// fell asleep [s] (for the build-up owed on waking).
     rest: Pool<f32>,
     /// Units woken by the current update (scratch; never more than the table holds).
     woken: Pool<u32>,
@@ -271,7 +316,8 @@ impl Sleep {
         let slot_block = grid.slot_block.as_slice();
         let table = grid.table.as_slice();
         let activity = &self.activity.as_slice()[..npb];
-        let (wake_v, rest_v, rest_rate) = (self.cfg.wake_speed as Real, self.cfg.speed as Real, self.cfg.strain_rate as Real);
+        let limits = Limits::of(&self.cfg);
+        let wake_v = limits.wake_speed;
         let state = self.state.as_mut_slice();
         let rest = self.rest.as_mut_slice();
         let woken = self.woken.as_mut_slice();
@@ -287,14 +333,15 @@ impl Sleep {
                     continue;
                 }
                 // awake material inside a sleeping unit, or fast material next to one, wakes it
-                if state[u as usize] != AWAKE {
-                    wake(u, state, woken, &mut n_woken);
-                } else if v < rest_v && rate < rest_rate {
-                    rest[u as usize] += dt as f32;
+                let wakes_neighbours = if state[u as usize] == AWAKE {
+                    let (r, loud) = tick(rest[u as usize], [v, rate], dt as f32, &limits);
+                    rest[u as usize] = r;
+                    loud
                 } else {
-                    rest[u as usize] = 0.0;
-                }
-                if v > wake_v {
+                    wake(u, state, woken, &mut n_woken);
+                    v > limits.wake_speed
+                };
+                if wakes_neighbours {
                     for nb in neighbours(geom, u) {
                         wake(nb, state, woken, &mut n_woken);
                     }
@@ -312,7 +359,7 @@ impl Sleep {
                         if unit_in_table(geom, u) {
                             let idx = unit_index(geom, u);
                             if state[idx as usize] == AWAKE {
-                                rest[idx as usize] = 0.0;
+                                rest[idx as usize] = rest[idx as usize].min(0.0);
                             } else {
                                 wake(idx, state, woken, &mut n_woken);
                             }
@@ -322,6 +369,7 @@ impl Sleep {
             }
         }
         let woke = n_woken;
+        let grace = self.cfg.wake_grace as f32;
         let per_block = self.asleep_in_block.as_mut_slice();
         let mut slept = 0usize;
         if check_sleep {
@@ -368,7 +416,7 @@ impl Sleep {
             }
             for &u in &woken[..woke] {
                 state[u as usize] = AWAKE;
-                rest[u as usize] = 0.0;
+                rest[u as usize] = -grace;
             }
         }
         if slept > 0 {
@@ -459,6 +507,37 @@ mod tests {
         }
         s.recount();
         s
+    }
+
+    #[test]
+    fn a_woken_unit_settles_before_it_wakes_neighbours() {
+        let cfg: SleepConfig = toml::from_str("wake_grace = 0.01").unwrap();
+        let lim = Limits::of(&cfg);
+        let (fast, calm, slow) = ([5e-3, 1.0], [1e-4, 1e-3], [1.5e-3, 1e-3]);
+        let dt = 1e-3;
+        // just woken: fast material wakes nobody until the grace is over, and does not rest
+        let mut rest = -cfg.wake_grace as f32;
+        let mut steps = 0;
+        loop {
+            let (r, loud) = tick(rest, fast, dt, &lim);
+            rest = r;
+            steps += 1;
+            if loud {
+                break;
+            }
+            assert!(rest <= 0.0 && steps < 100, "step {steps}: clock {rest}");
+        }
+        assert!((10..=12).contains(&steps), "woke neighbours after {steps} steps of 1 ms, grace 10 ms");
+        assert_eq!(rest, 0.0, "fast material is not at rest");
+        // after the grace: at rest counts up, moving (above the rest speed) resets, fast is loud
+        let (r, loud) = tick(0.0, calm, dt, &lim);
+        assert!(r == dt && !loud);
+        let (r, loud) = tick(r, slow, dt, &lim);
+        assert!(r == 0.0 && !loud, "1.5 mm/s is neither at rest nor loud");
+        assert!(tick(0.02, fast, dt, &lim) == (0.0, true));
+        // without a grace, a woken unit is loud at once
+        let cfg: SleepConfig = toml::from_str("wake_grace = 0.0").unwrap();
+        assert!(tick(-0.0, fast, dt, &Limits::of(&cfg)).1);
     }
 
     #[test]
