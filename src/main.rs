@@ -182,16 +182,17 @@ enum Cmd {
         max_iterations: usize,
     },
     /// Which physical effect the model lacks: fits --fit, scores every effect not in the model
-    /// at its null (score test from the adjoint gradient), fits the significant ones, checks them
-    /// by leave-one-experiment-out, and gives a verdict ("add EFFECT", "explained" or
-    /// "unexplained").
+    /// at its null (score test from the adjoint gradient; a likelihood-ratio test, from a fit,
+    /// for an effect whose null the solver cannot run at: G or K = infinity), fits the
+    /// significant ones, checks them by leave-one-experiment-out, and gives a verdict ("add
+    /// EFFECT", "explained" or "unexplained").
     Diagnose {
         #[command(flatten)]
         inputs: MeasureInputs,
         /// Base parameters refitted first (and in every candidate's fit), comma-separated.
         #[arg(long, value_delimiter = ',')]
         fit: Vec<String>,
-        /// Significance level of the score test and of the base model's fit.
+        /// Significance level of the score and likelihood-ratio tests and of the base model's fit.
         #[arg(long, default_value_t = 0.01)]
         alpha: f64,
         /// Skip the leave-one-experiment-out check.

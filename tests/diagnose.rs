@@ -46,11 +46,13 @@ fn diagnose(dir: &str, truth: &str, truth_exps: &str, noise: &str, jobs: &str) -
 
 fn assert_found(v: &serde_json::Value, effect: &str) {
     let c = v["candidates"].as_array().unwrap();
-    // every effect of the library that is not in the model is a candidate, with a score, the
-    // error when fitted (null when not) and a verdict
-    assert_eq!(c.len(), 6, "{v:#}");
+    // every effect of the library that is not in the model is a candidate, with the test it
+    // got, its statistic, the error when fitted (null when not) and a verdict
+    assert_eq!(c.len(), 8, "{v:#}");
     for x in c {
         assert!(x["score"].is_number() && x.get("fitted_chi2").is_some() && x["verdict"].is_string(), "{x:#}");
+        let test = if x["effect"] == "elasticity" || x["effect"] == "compressibility" { "likelihood-ratio" } else { "score" };
+        assert_eq!(x["test"], test, "{x:#}");
     }
     assert_eq!(c[0]["effect"], effect, "{v:#}");
     assert_eq!(v["verdict"], format!("add {effect}"), "{v:#}");
@@ -76,6 +78,20 @@ fn hidden_ageing_is_ranked_first_and_recalibrated() {
     let c = v["candidates"].as_array().unwrap();
     assert_eq!(c[1]["effect"], "ageing_exp", "{v:#}");
     assert!(c[1]["fitted_chi2"].as_f64().unwrap() > c[0]["fitted_chi2"].as_f64().unwrap());
+}
+
+#[test]
+fn hidden_elasticity_is_found_by_the_likelihood_ratio_and_recalibrated() {
+    // start-up readings below yield: the base model's G (4e5 Pa, its stand-in for rigid) is
+    // twenty times the truth's, and no gradient can be taken at G = infinity
+    let v = diagnose("elastic", "truth_elasticity.toml", "experiments.toml", "0.01", "1");
+    assert_found(&v, "elasticity");
+    let c = &v["candidates"][0];
+    // the statistic is the drop in chi^2 the fit brought
+    let drop = v["base_chi2"].as_f64().unwrap() - c["fitted_chi2"].as_f64().unwrap();
+    assert!((c["score"].as_f64().unwrap() / drop - 1.0).abs() < 1e-9, "{c:#}");
+    let g = c["fitted"].as_array().unwrap().iter().find(|p| p[0] == "elasticity.shear_modulus").unwrap()[1].as_f64().unwrap();
+    assert!((g / 2e4 - 1.0).abs() < 0.05, "G {g} against the truth's 2e4");
 }
 
 #[test]

@@ -64,6 +64,9 @@ pub fn calibrate(model: &Model, data: &[Observation], exps: &Experiments, names:
     let mut model = model.clone();
     let bounds: Vec<_> = names.iter().map(|n| model.bounds(n)).collect::<Result<_, _>>()?;
     let start: Vec<f64> = names.iter().map(|n| model.get(n)).collect::<Result<_, _>>()?;
+    if let Some((n, v)) = names.iter().zip(&start).find(|(_, v)| !v.is_finite()) {
+        return Err(format!("{n} starts at {v}, its null, where the solver cannot run: give it a finite start in the model"));
+    }
     let scale: Vec<f64> = bounds.iter().map(|b| b.scale).collect();
     let mut theta = start.clone();
     let m = data.len();

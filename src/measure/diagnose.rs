@@ -10,16 +10,26 @@
 //!    effect is absent. An effect's parameters start at their lower bound, so only those whose
 //!    projected gradient points into the allowed side count, and with one such parameter the
 //!    p-value is half chi^2(1)'s tail (S is 0 half the time under the null).
-//! 3. Effects are ranked by score; those significant at `alpha` (the top `max_fitted`) are
-//!    fitted with the base parameters, and each is checked by leave-one-experiment-out: refitted
-//!    without each experiment in turn, it must predict the left-out experiments better than the
-//!    base model refitted the same way, or it only overfits and is not recommended.
+//!    An effect whose null the solver cannot run at (elasticity, compressibility: G or K =
+//!    infinity, where the explicit step goes to 0) has no gradient there: it is fitted with the
+//!    base parameters from the finite value the base model runs in the null's place
+//!    ([`Effect::stand_in`], where the model is the base model), and tested by the likelihood
+//!    ratio LR = chi^2_base - chi^2_fitted instead, with the same chi^2(dof) tail, halved for
+//!    one parameter (the null is the boundary of the parameter space, 1/G >= 0).
+//! 3. Effects are ranked by statistic, S or LR: both measure the drop in chi^2 the effect
+//!    brings (S is its Gauss-Newton estimate at the null, LR the drop itself), so they share
+//!    one scale, where p-values would underflow to 0 and tie for every strong effect. Those
+//!    significant at `alpha` (the top `max_fitted`) are fitted with the base parameters (the
+//!    likelihood ratio's fit is that fit), and each is checked by leave-one-experiment-out:
+//!    refitted without each experiment in turn, it must predict the left-out experiments
+//!    better than the base model refitted the same way, or it only overfits and is not
+//!    recommended.
 //! 4. When no effect is recommended and the base model does not fit (chi^2 beyond its `alpha`
 //!    quantile) the verdict is "unexplained", with the pattern of the residuals.
 
 use super::calibrate::{calibrate, chi2, standardised, Fit, FitOptions};
 use super::data::{Experiments, Observation};
-use super::effects::{self, Effect};
+use super::effects::{self, Covariates, Effect};
 use super::linalg::{chi2_sf, normal_equations, pinv_sym};
 use super::model::Model;
 use super::sensitivity::sensitivity;
@@ -27,7 +37,8 @@ use super::sensitivity::sensitivity;
 #[derive(Clone, Debug)]
 pub struct DiagnoseOptions {
     pub fit: FitOptions,
-    /// Significance level of the score test and of the base model's goodness of fit.
+    /// Significance level of the score and likelihood-ratio tests and of the base model's
+    /// goodness of fit.
     pub alpha: f64,
     /// How many significant effects are fitted.
     pub max_fitted: usize,
@@ -44,8 +55,11 @@ impl Default for DiagnoseOptions {
 pub struct Candidate {
     pub effect: String,
     pub about: String,
-    /// 1 = the largest score.
+    /// 1 = the largest statistic.
     pub rank: usize,
+    /// "score", or "likelihood-ratio" for an effect whose null the solver cannot run at.
+    pub test: String,
+    /// The test's statistic: the score S, or LR = chi^2_base - chi^2_fitted.
     pub score: f64,
     pub dof: usize,
     pub p_value: f64,
@@ -84,6 +98,31 @@ fn rms(chi2: f64, n: usize) -> f64 {
     (chi2 / n.max(1) as f64).sqrt()
 }
 
+/// The test an effect gets: the score at its null, or, where the solver cannot run the null,
+/// the likelihood ratio of its fit.
+pub fn test_of(e: &dyn Effect) -> &'static str {
+    if e.null_at_infinity() {
+        "likelihood-ratio"
+    } else {
+        "score"
+    }
+}
+
+/// The p-value of a statistic with `dof` degrees of freedom: with one parameter held at its
+/// bound under the null, the statistic is 0 half the time and chi^2(1) otherwise
+/// (chi-bar-squared); for more, chi^2(dof) is the conservative bound.
+fn p_value(stat: f64, dof: usize) -> f64 {
+    match dof {
+        0 => 1.0,
+        1 => 0.5 * chi2_sf(stat, 1),
+        _ => chi2_sf(stat, dof),
+    }
+}
+
+fn candidate(e: &dyn Effect, score: f64, dof: usize, p_value: f64, verdict: String) -> Candidate {
+    Candidate { effect: e.name().into(), about: e.about().into(), rank: 0, test: test_of(e).into(), score, dof, p_value, fitted_chi2: None, error_ratio: None, fitted: vec![], loo_chi2_base: None, loo_chi2: None, verdict, recommended: false }
+}
+
 pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[String], opts: &DiagnoseOptions) -> Result<Diagnosis, String> {
     let m = data.len();
     let base: Fit = if fit.is_empty() {
@@ -97,11 +136,13 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
 
     // every absent effect that can act on these experiments at its null, differentiated at once
     let mut absent: Vec<&'static dyn Effect> = Vec::new();
+    let mut unreachable: Vec<&'static dyn Effect> = Vec::new();
     let mut inapplicable: Vec<Candidate> = Vec::new();
     for e in effects::REGISTRY.iter().copied().filter(|e| !base.model.has(e.name())) {
         match applicable(e, &base.model, data, exps) {
-            Ok(()) => absent.push(e),
-            Err(why) => inapplicable.push(Candidate { effect: e.name().into(), about: e.about().into(), rank: 0, score: 0.0, dof: 0, p_value: 1.0, fitted_chi2: None, error_ratio: None, fitted: vec![], loo_chi2_base: None, loo_chi2: None, verdict: format!("not applicable: {why}"), recommended: false }),
+            Ok(()) if test_of(e) == "score" => absent.push(e),
+            Ok(()) => unreachable.push(e),
+            Err(why) => inapplicable.push(candidate(e, 0.0, 0, 1.0, format!("not applicable: {why}"))),
         }
     }
     let mut aug = base.model.clone();
@@ -146,13 +187,7 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
         let (inv, rank) = if kept.is_empty() { (vec![], 0) } else { pinv_sym(&info, 1e-10) };
         let left = info.iter().enumerate().map(|(i, row)| row[i]).fold(0.0, f64::max);
         let (score, dof) = if rank == 0 || left <= 1e-10 * raw { (0.0, 0) } else { (g.iter().enumerate().map(|(i, gi)| gi * inv[i].iter().zip(&g).map(|(a, b)| a * b).sum::<f64>()).sum(), rank) };
-        // one parameter held at its bound under the null: S is 0 half the time and chi^2(1)
-        // otherwise (chi-bar-squared); for more, chi^2(dof) is the conservative bound
-        let p_value = match dof {
-            0 => 1.0,
-            1 => 0.5 * chi2_sf(score, 1),
-            _ => chi2_sf(score, dof),
-        };
+        let p_value = p_value(score, dof);
         let verdict = if !influence {
             "no influence on these experiments".to_string()
         } else if dof == 0 && !kept.is_empty() {
@@ -164,7 +199,47 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
         } else {
             String::new()
         };
-        cands.push(Candidate { effect: e.name().into(), about: e.about().into(), rank: 0, score, dof, p_value, fitted_chi2: None, error_ratio: None, fitted: vec![], loo_chi2_base: None, loo_chi2: None, verdict, recommended: false });
+        cands.push(candidate(*e, score, dof, p_value, verdict));
+    }
+    // the likelihood ratio: the effect fitted from the base model's stand-in for the null, where
+    // the model is the base model, with the fitted parameters from the base fit's values (so
+    // chi^2 starts at chi^2_base and the fit only lowers it) and from the model's own: the base
+    // fit may have gone where the effect has no gradient (a yield stress fitted so low that every
+    // reading is past yield, where G drops out), and the better of the two fits counts
+    let mut prefit: std::collections::BTreeMap<String, Fit> = Default::default();
+    for e in &unreachable {
+        let start = e.stand_in(&base.model.keys(&Covariates::default())?)?;
+        let mut fnames = fit.to_vec();
+        fnames.extend(e.params().iter().map(|s| format!("{}.{}", e.name(), s.name)));
+        let mut best: Option<Fit> = None;
+        for from in if fit.is_empty() { vec![&base.model] } else { vec![&base.model, model] } {
+            let mut with = from.with_effect(*e);
+            for (n, v) in fnames[fit.len()..].iter().zip(&start) {
+                with.set(n, *v)?;
+            }
+            let f = calibrate(&with, data, exps, &fnames, &opts.fit)?;
+            if best.as_ref().is_none_or(|b| f.chi2 < b.chi2) {
+                best = Some(f);
+            }
+        }
+        let f = best.expect("one start at least");
+        // a drop within round-off is a fit that found nothing to move (no influence)
+        let lr = if base.chi2 - f.chi2 > 1e-9 * base.chi2 { base.chi2 - f.chi2 } else { 0.0 };
+        let dof = if lr > 0.0 { e.params().len() } else { 0 };
+        let p = p_value(lr, dof);
+        let verdict = if dof == 0 {
+            "not significant: fitting it from the base model's stand-in does not lower the error".to_string()
+        } else if p >= opts.alpha {
+            format!("not significant (p = {p:.3})")
+        } else {
+            String::new()
+        };
+        let mut c = candidate(*e, lr, dof, p, verdict);
+        c.fitted_chi2 = Some(f.chi2);
+        c.error_ratio = Some(rms(f.chi2, m) / rms(base.chi2, m).max(1e-300));
+        c.fitted = f.names.iter().cloned().zip(f.values.iter().copied()).collect();
+        cands.push(c);
+        prefit.insert(e.name().to_string(), f);
     }
     cands.sort_by(|a, b| b.score.total_cmp(&a.score).then(a.effect.cmp(&b.effect)));
     cands.extend(inapplicable);
@@ -182,15 +257,18 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
             continue;
         }
         if fitted == opts.max_fitted {
-            c.verdict = format!("significant (p = {:.2e}), not fitted: beyond the top {}", c.p_value, opts.max_fitted);
+            let done = if prefit.contains_key(&c.effect) { "fitted, not checked by leave-one-out" } else { "not fitted" };
+            c.verdict = format!("significant (p = {:.2e}), {done}: beyond the top {}", c.p_value, opts.max_fitted);
             continue;
         }
         fitted += 1;
         let effect = effects::find(&c.effect)?;
-        let with = base.model.with_effect(effect);
         let mut fnames = fit.to_vec();
         fnames.extend(effect.params().iter().map(|s| format!("{}.{}", effect.name(), s.name)));
-        let f = calibrate(&with, data, exps, &fnames, &opts.fit)?;
+        let f = match prefit.remove(&c.effect) {
+            Some(f) => f,
+            None => calibrate(&base.model.with_effect(effect), data, exps, &fnames, &opts.fit)?,
+        };
         c.fitted_chi2 = Some(f.chi2);
         c.error_ratio = Some(rms(f.chi2, m) / rms(base.chi2, m).max(1e-300));
         c.fitted = f.names.iter().cloned().zip(f.values.iter().copied()).collect();
@@ -223,7 +301,8 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
     }
 
     // Effects equal at first order at the null (linear and exponential ageing) tie on the score;
-    // the fit tells them apart.
+    // the fit tells them apart. The statistic ranks, score and likelihood ratio alike (module
+    // doc).
     let key = |c: &Candidate| (c.score * 1e6).round() / 1e6;
     let mut order: Vec<usize> = (0..cands.len()).collect();
     order.sort_by(|&a, &b| {
@@ -259,9 +338,10 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
     })
 }
 
-/// Whether `effect` can act on every simulation experiment the data name, each run with
-/// `model`'s `[material]`.
-fn applicable(effect: &dyn Effect, model: &Model, data: &[Observation], exps: &Experiments) -> Result<(), String> {
+/// Whether `effect` can act on `model`'s keys and on every simulation experiment the data name,
+/// each run with `model`'s `[material]`.
+fn applicable(effect: &'static dyn Effect, model: &Model, data: &[Observation], exps: &Experiments) -> Result<(), String> {
+    model.with_effect(effect).keys(&Covariates::default()).map_err(|m| format!("in this model, {m}"))?;
     for (id, _) in super::compare::group(data) {
         if let Some(s) = exps.get(&id).and_then(|x| x.scenario.as_ref()) {
             let path = exps.base_dir.join(s);
@@ -333,18 +413,22 @@ pub fn report(d: &Diagnosis) -> String {
     for (n, v) in &d.base_values {
         let _ = writeln!(s, "  {n} = {v:.6e}");
     }
-    let _ = writeln!(s, "\n{:<4} {:<17} {:>12} {:>4} {:>10} {:>12} {:>12}  verdict", "rank", "effect", "score", "dof", "p", "error ratio", "left-out");
+    let _ = writeln!(s, "\n{:<4} {:<17} {:<5} {:>12} {:>4} {:>10} {:>12} {:>12}  verdict", "rank", "effect", "test", "statistic", "dof", "p", "error ratio", "left-out");
     for c in &d.candidates {
         let er = c.error_ratio.map_or("-".into(), |v| format!("{v:.3}"));
         let loo = match (c.loo_chi2, c.loo_chi2_base) {
             (Some(a), Some(b)) => format!("{:.3}", a / b.max(1e-300)),
             _ => "-".into(),
         };
-        let _ = writeln!(s, "{:<4} {:<17} {:>12.4e} {:>4} {:>10.3e} {:>12} {:>12}  {}", c.rank, c.effect, c.score, c.dof, c.p_value, er, loo, c.verdict);
+        let test = if c.test == "score" { "score" } else { "LR" };
+        let _ = writeln!(s, "{:<4} {:<17} {:<5} {:>12.4e} {:>4} {:>10.3e} {:>12} {:>12}  {}", c.rank, c.effect, test, c.score, c.dof, c.p_value, er, loo, c.verdict);
         if !c.fitted.is_empty() {
             let fitted: Vec<String> = c.fitted.iter().map(|(n, v)| format!("{n} = {v:.4e}")).collect();
             let _ = writeln!(s, "     fitted: {}", fitted.join(", "));
         }
+    }
+    if d.candidates.iter().any(|c| c.test != "score") {
+        let _ = writeln!(s, "(LR: likelihood ratio chi^2_base - chi^2_fitted, for an effect whose null the solver cannot run at)");
     }
     let _ = writeln!(s, "\nverdict: {}", match d.verdict.as_str() {
         "unexplained" => "unexplained: the base model does not fit and no effect in the library explains the residuals".to_string(),
@@ -355,4 +439,24 @@ pub fn report(d: &Diagnosis) -> String {
         let _ = writeln!(s, "  {p}");
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_effect_whose_null_the_solver_cannot_run_gets_the_likelihood_ratio_and_the_others_the_score() {
+        for e in effects::REGISTRY {
+            let want = if ["elasticity", "compressibility"].contains(&e.name()) { "likelihood-ratio" } else { "score" };
+            assert_eq!(test_of(*e), want, "{}", e.name());
+            // a likelihood-ratio fit starts where the solver runs; a score test at the null
+            let start = e.stand_in(&[("material.shear_modulus".to_string(), 4e5), ("material.bulk_modulus".to_string(), 1e6)].into_iter().collect()).unwrap();
+            assert!(start.iter().all(|v| v.is_finite()), "{}: {start:?}", e.name());
+        }
+        // the halved tail for one parameter at its bound, the full one for more, none without
+        assert!((p_value(3.841458820694124, 1) - 0.025).abs() < 1e-9);
+        assert!((p_value(5.991464547107979, 2) - 0.05).abs() < 1e-9);
+        assert_eq!(p_value(10.0, 0), 1.0);
+    }
 }

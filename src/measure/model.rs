@@ -82,7 +82,8 @@ impl Model {
         }
         for n in model.param_names() {
             let (v, b) = (model.get(&n)?, model.bounds(&n)?);
-            if !(v.is_finite() && v >= b.lower && v <= b.upper) {
+            // an infinite null (elasticity's rigid G) is where the effect is off, so it may be written
+            if !((v.is_finite() || v == model.null(&n)) && v >= b.lower && v <= b.upper) {
                 return Err(format!("{n} = {v} is outside [{}, {}]", b.lower, b.upper));
             }
         }
@@ -99,6 +100,14 @@ impl Model {
             m.effects.sort_by_key(|(e, _)| rank(*e));
         }
         m
+    }
+
+    /// An effect parameter's null; NaN for a material number (which has none).
+    fn null(&self, name: &str) -> f64 {
+        match self.locate(name) {
+            Ok(Slot::Effect(e, p)) => self.effects[e].0.params()[p].null,
+            _ => f64::NAN,
+        }
     }
 
     pub fn has(&self, effect: &str) -> bool {

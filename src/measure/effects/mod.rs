@@ -11,6 +11,8 @@
 use std::collections::BTreeMap;
 
 pub mod ageing;
+pub mod compressibility;
+pub mod elasticity;
 pub mod maxwell;
 pub mod thixotropy;
 pub mod viscosity_ageing;
@@ -57,6 +59,18 @@ pub trait Effect: Sync {
     fn check_scenario(&self, _scenario: &toml::Table) -> Result<(), String> {
         Ok(())
     }
+    /// Whether the null is a value the solver cannot run at (G = infinity, a rigid material: the
+    /// explicit step goes to 0 with it). No gradient can be taken there, so diagnose tests such
+    /// an effect by the likelihood ratio, fitting it from [`Effect::stand_in`], instead of by the
+    /// score at the null.
+    fn null_at_infinity(&self) -> bool {
+        false
+    }
+    /// The parameters at which the effect leaves `keys` (a base model's) as they are: for a null
+    /// at infinity, the finite value the base model runs in its place.
+    fn stand_in(&self, _keys: &Keys) -> Result<Vec<f64>, String> {
+        Ok(self.params().iter().map(|s| s.null).collect())
+    }
 }
 
 /// Every effect, in the order they apply.
@@ -67,6 +81,8 @@ pub const REGISTRY: &[&dyn Effect] = &[
     &viscosity_ageing::ViscosityAgeing,
     &wall_friction::WallFriction,
     &maxwell::Maxwell,
+    &elasticity::Elasticity,
+    &compressibility::Compressibility,
 ];
 
 pub fn find(name: &str) -> Result<&'static dyn Effect, String> {
@@ -78,6 +94,16 @@ pub fn find(name: &str) -> Result<&'static dyn Effect, String> {
 /// A key an effect reads, or an error naming what the model lacks.
 pub fn read(keys: &Keys, effect: &str, key: &str) -> Result<f64, String> {
     keys.get(key).copied().ok_or_else(|| format!("effect '{effect}' needs {key}, which the model does not set"))
+}
+
+/// A modulus an effect sets in place of the model's own, which the model runs as the stand-in
+/// for the effect's null at infinity; or an error naming what the model lacks. A model giving
+/// `poisson_ratio` ties G to K, so neither could be set alone.
+pub fn read_modulus(keys: &Keys, effect: &str, key: &str) -> Result<f64, String> {
+    if keys.contains_key("material.poisson_ratio") {
+        return Err(format!("sets {key}, so the model must give material.shear_modulus, not poisson_ratio, which ties G to K (G = 3 K (1 - 2 nu) / (2 (1 + nu)))"));
+    }
+    read(keys, effect, key)
 }
 
 /// The adjoint of a key (0 when absent).
@@ -95,7 +121,8 @@ mod tests {
 
     fn base_keys() -> Keys {
         // the keys a base model sets, with the Maxwell branch's at the material's defaults (no
-        // branch is G_M = 0; t_M defaults to 1 s), so the nulls are checked on them too
+        // branch is G_M = 0; t_M defaults to 1 s), so the nulls are checked on them too, and G
+        // and K, the stand-ins for the nulls of elasticity and compressibility
         [
             ("material.yield_stress", 120.0),
             ("material.viscosity", 20.0),
@@ -104,6 +131,8 @@ mod tests {
             ("material.lambda0", 0.0),
             ("material.maxwell_modulus", 0.0),
             ("material.maxwell_time", 1.0),
+            ("material.shear_modulus", 4e5),
+            ("material.bulk_modulus", 1e6),
         ]
             .into_iter()
             .map(|(k, v)| (k.to_string(), v))
@@ -111,12 +140,15 @@ mod tests {
     }
 
     /// J = sum_k w_k keys_k after the effect, against central differences in every parameter
-    /// and every key it reads, at a point away from the null.
+    /// and every key it reads, at a point away from the null. J is summed as differences from
+    /// the unperturbed keys, so a large key (G ~ 1e5 Pa) does not drown the others' differences
+    /// in round-off.
     #[test]
     fn every_effect_adjoint_agrees_with_central_differences() {
         let x = Covariates { rest_time: 240.0, age: 1800.0 };
         for e in REGISTRY {
-            let p: Vec<f64> = e.params().iter().map(|s| s.null + 0.7 * s.scale).collect();
+            // a null at infinity is left for a value the solver runs, as a fit would
+            let p: Vec<f64> = e.params().iter().map(|s| if s.null.is_finite() { s.null } else { 0.0 } + 0.7 * s.scale).collect();
             let keys = base_keys();
             let mut out = keys.clone();
             e.apply(&p, &x, &mut out).unwrap();
@@ -124,7 +156,7 @@ mod tests {
             let j = |p: &[f64], keys: &Keys| {
                 let mut o = keys.clone();
                 e.apply(p, &x, &mut o).unwrap();
-                o.iter().map(|(k, v)| w[k] * v).sum::<f64>()
+                o.iter().map(|(k, v)| w[k] * (v - out[k])).sum::<f64>()
             };
             let mut kb = w.clone();
             let mut pb = vec![0.0; p.len()];
