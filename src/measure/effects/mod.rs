@@ -11,9 +11,8 @@
 use std::collections::BTreeMap;
 
 pub mod ageing;
-pub mod compressibility;
-pub mod elasticity;
 pub mod maxwell;
+pub mod modulus;
 pub mod thixotropy;
 pub mod viscosity_ageing;
 pub mod wall_friction;
@@ -81,8 +80,8 @@ pub const REGISTRY: &[&dyn Effect] = &[
     &viscosity_ageing::ViscosityAgeing,
     &wall_friction::WallFriction,
     &maxwell::Maxwell,
-    &elasticity::Elasticity,
-    &compressibility::Compressibility,
+    &modulus::Modulus::ELASTICITY,
+    &modulus::Modulus::COMPRESSIBILITY,
 ];
 
 pub fn find(name: &str) -> Result<&'static dyn Effect, String> {
