@@ -82,10 +82,10 @@ fn default_wake() -> f64 {
     2e-3
 }
 fn default_grace() -> f64 {
-    // Long enough for a woken unit's pulse to pass (a 5 mm unit rings at c / 2L ~ 3 kHz, and
-    // viscosity damps it over rho L^2 / mu ~ 7 ms), short enough that flow reaching a sleeping
-    // neighbour is held back by at most 0.02 s x 2 mm/s = 0.04 mm. Ten layers at 5 mm cost 269
-    // CPU s with 0.02 s, 296 s with 0.1 s, 423 s without (BENCHMARKS.md "Sleeping").
+    // Many times the pulse's passage through a unit (5 mm at c ~ 28 m/s: 0.2 ms), leaving room
+    // for the ringing after it; short enough that flow reaching a sleeping neighbour is held
+    // back by at most 0.02 s x 2 mm/s = 0.04 mm. Measured, ten layers at 5 mm: 268 CPU s with
+    // 0.02 s, 295 s with 0.1 s, 423 s without (BENCHMARKS.md "Sleeping").
     0.02
 }
 fn default_check() -> u64 {
