@@ -317,7 +317,6 @@ impl Sleep {
         let table = grid.table.as_slice();
         let activity = &self.activity.as_slice()[..npb];
         let limits = Limits::of(&self.cfg);
-        let wake_v = limits.wake_speed;
         let state = self.state.as_mut_slice();
         let rest = self.rest.as_mut_slice();
         let woken = self.woken.as_mut_slice();
@@ -382,7 +381,7 @@ impl Sleep {
                     }
                     let calm = neighbours(geom, u).all(|nb| {
                         let t = table[nb as usize / UNITS];
-                        t == EMPTY || (t as usize) >= npb || activity[t as usize][nb as usize % UNITS][0] <= wake_v
+                        t == EMPTY || (t as usize) >= npb || activity[t as usize][nb as usize % UNITS][0] <= limits.wake_speed
                     });
                     if calm {
                         state[u as usize] = ASLEEP;

@@ -119,6 +119,23 @@ fn p_value(stat: f64, dof: usize) -> f64 {
     }
 }
 
+/// The base parameters refitted with every candidate, then the effect's own.
+fn fit_names(fit: &[String], e: &dyn Effect) -> Vec<String> {
+    let mut names = fit.to_vec();
+    names.extend(e.params().iter().map(|s| format!("{}.{}", e.name(), s.name)));
+    names
+}
+
+impl Candidate {
+    /// The candidate's fit: its chi^2, its error against the base model's (`base_chi2` over `m`
+    /// observations), and the fitted values.
+    fn record(&mut self, f: &Fit, base_chi2: f64, m: usize) {
+        self.fitted_chi2 = Some(f.chi2);
+        self.error_ratio = Some(rms(f.chi2, m) / rms(base_chi2, m).max(1e-300));
+        self.fitted = f.names.iter().cloned().zip(f.values.iter().copied()).collect();
+    }
+}
+
 fn candidate(e: &dyn Effect, score: f64, dof: usize, p_value: f64, verdict: String) -> Candidate {
     Candidate { effect: e.name().into(), about: e.about().into(), rank: 0, test: test_of(e).into(), score, dof, p_value, fitted_chi2: None, error_ratio: None, fitted: vec![], loo_chi2_base: None, loo_chi2: None, verdict, recommended: false }
 }
@@ -140,7 +157,7 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
     let mut inapplicable: Vec<Candidate> = Vec::new();
     for e in effects::REGISTRY.iter().copied().filter(|e| !base.model.has(e.name())) {
         match applicable(e, &base.model, data, exps) {
-            Ok(()) if test_of(e) == "score" => absent.push(e),
+            Ok(()) if !e.null_at_infinity() => absent.push(e),
             Ok(()) => unreachable.push(e),
             Err(why) => inapplicable.push(candidate(e, 0.0, 0, 1.0, format!("not applicable: {why}"))),
         }
@@ -207,10 +224,10 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
     // fit may have gone where the effect has no gradient (a yield stress fitted so low that every
     // reading is past yield, where G drops out), and the better of the two fits counts
     let mut prefit: std::collections::BTreeMap<String, Fit> = Default::default();
+    let base_keys = base.model.keys(&Covariates::default())?;
     for e in &unreachable {
-        let start = e.stand_in(&base.model.keys(&Covariates::default())?)?;
-        let mut fnames = fit.to_vec();
-        fnames.extend(e.params().iter().map(|s| format!("{}.{}", e.name(), s.name)));
+        let start = e.stand_in(&base_keys)?;
+        let fnames = fit_names(fit, *e);
         let mut best: Option<Fit> = None;
         for from in if fit.is_empty() { vec![&base.model] } else { vec![&base.model, model] } {
             let mut with = from.with_effect(*e);
@@ -235,9 +252,7 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
             String::new()
         };
         let mut c = candidate(*e, lr, dof, p, verdict);
-        c.fitted_chi2 = Some(f.chi2);
-        c.error_ratio = Some(rms(f.chi2, m) / rms(base.chi2, m).max(1e-300));
-        c.fitted = f.names.iter().cloned().zip(f.values.iter().copied()).collect();
+        c.record(&f, base.chi2, m);
         cands.push(c);
         prefit.insert(e.name().to_string(), f);
     }
@@ -263,15 +278,12 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
         }
         fitted += 1;
         let effect = effects::find(&c.effect)?;
-        let mut fnames = fit.to_vec();
-        fnames.extend(effect.params().iter().map(|s| format!("{}.{}", effect.name(), s.name)));
+        let fnames = fit_names(fit, effect);
         let f = match prefit.remove(&c.effect) {
             Some(f) => f,
             None => calibrate(&base.model.with_effect(effect), data, exps, &fnames, &opts.fit)?,
         };
-        c.fitted_chi2 = Some(f.chi2);
-        c.error_ratio = Some(rms(f.chi2, m) / rms(base.chi2, m).max(1e-300));
-        c.fitted = f.names.iter().cloned().zip(f.values.iter().copied()).collect();
+        c.record(&f, base.chi2, m);
         // a fit that moves the error by less than 1 % has not found anything
         let better = f.chi2 < 0.99 * base.chi2;
         if opts.leave_one_out && ids.len() >= 2 {
