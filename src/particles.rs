@@ -4,6 +4,7 @@
 
 use crate::kernels::{Real, M3, V3};
 use crate::memory::{Backing, MemoryError, MemoryPlan, Pool};
+use crate::threads::{SharedSlice, ThreadTeam};
 
 pub struct Particles {
     /// Live particles: indices `0..n`.
@@ -92,26 +93,21 @@ impl Particles {
     /// Reorder the awake particles `n_sleep..n` so that index `n_sleep + k` holds old particle
     /// `order[k]` (absolute indices); `scratch` must hold at least
     /// `n * max(size_of::<M3>(), state_len * size_of::<Real>())` bytes.
-    pub fn permute(&mut self, order: &[u32], scratch: &mut [u8]) {
+    /// The copies are shared out over `team` (they are most of a reordering step's time).
+    pub fn permute(&mut self, order: &[u32], scratch: &mut [u8], team: &ThreadTeam) {
         let r = self.n_sleep..self.n;
         let order = &order[..r.len()];
         let s = self.state_len;
-        permute_pod(&mut self.xg.as_mut_slice()[..r.end], r.start, order, scratch);
-        permute_pod(&mut self.v.as_mut_slice()[..r.end], r.start, order, scratch);
-        permute_pod(&mut self.c.as_mut_slice()[..r.end], r.start, order, scratch);
-        permute_pod(&mut self.stress.as_mut_slice()[..r.end], r.start, order, scratch);
-        permute_pod(&mut self.j.as_mut_slice()[..r.end], r.start, order, scratch);
-        permute_pod(&mut self.mass.as_mut_slice()[..r.end], r.start, order, scratch);
-        permute_pod(&mut self.vol0.as_mut_slice()[..r.end], r.start, order, scratch);
-        permute_pod(&mut self.id.as_mut_slice()[..r.end], r.start, order, scratch);
+        permute_pod(&mut self.xg.as_mut_slice()[..r.end], r.start, order, scratch, 1, team);
+        permute_pod(&mut self.v.as_mut_slice()[..r.end], r.start, order, scratch, 1, team);
+        permute_pod(&mut self.c.as_mut_slice()[..r.end], r.start, order, scratch, 1, team);
+        permute_pod(&mut self.stress.as_mut_slice()[..r.end], r.start, order, scratch, 1, team);
+        permute_pod(&mut self.j.as_mut_slice()[..r.end], r.start, order, scratch, 1, team);
+        permute_pod(&mut self.mass.as_mut_slice()[..r.end], r.start, order, scratch, 1, team);
+        permute_pod(&mut self.vol0.as_mut_slice()[..r.end], r.start, order, scratch, 1, team);
+        permute_pod(&mut self.id.as_mut_slice()[..r.end], r.start, order, scratch, 1, team);
         if s > 0 {
-            let tmp: &mut [Real] = bytemuck::cast_slice_mut(&mut scratch[..r.len() * s * std::mem::size_of::<Real>()]);
-            let st = &mut self.state.as_mut_slice()[..r.end * s];
-            for (k, &o) in order.iter().enumerate() {
-                let o = o as usize;
-                tmp[k * s..(k + 1) * s].copy_from_slice(&st[o * s..(o + 1) * s]);
-            }
-            st[r.start * s..].copy_from_slice(tmp);
+            permute_pod(&mut self.state.as_mut_slice()[..r.end * s], r.start, order, scratch, s, team);
         }
     }
 
@@ -141,12 +137,29 @@ impl Particles {
     }
 }
 
-/// `data[start + k] = old data[order[k]]` for every k.
-fn permute_pod<T: bytemuck::Pod>(data: &mut [T], start: usize, order: &[u32], scratch: &mut [u8]) {
+/// `data[start + k] = old data[order[k]]` for every k, where an element is `width`
+/// consecutive values of `data`.
+fn permute_pod<T: bytemuck::Pod + Send + Sync>(data: &mut [T], start: usize, order: &[u32], scratch: &mut [u8], width: usize, team: &ThreadTeam) {
     let n = order.len();
-    let tmp: &mut [T] = bytemuck::cast_slice_mut(&mut scratch[..n * std::mem::size_of::<T>()]);
-    for (k, &o) in order.iter().enumerate() {
-        tmp[k] = data[o as usize];
+    let w = width;
+    let tmp = SharedSlice::new(bytemuck::cast_slice_mut::<u8, T>(&mut scratch[..n * w * std::mem::size_of::<T>()]));
+    let threads = team.threads();
+    {
+        let src: &[T] = data;
+        team.run(|tid| {
+            let ks = ThreadTeam::share(n, tid, threads);
+            // SAFETY: shares are disjoint.
+            let out = unsafe { tmp.slice_mut(ks.start * w..ks.end * w) };
+            for (k, &o) in order[ks].iter().enumerate() {
+                let o = o as usize;
+                out[k * w..(k + 1) * w].copy_from_slice(&src[o * w..(o + 1) * w]);
+            }
+        });
     }
-    data[start..start + n].copy_from_slice(tmp);
+    let dst = SharedSlice::new(&mut data[start * w..(start + n) * w]);
+    team.run(|tid| {
+        let ks = ThreadTeam::share(n, tid, threads);
+        // SAFETY: shares are disjoint, and the gather above has finished.
+        unsafe { dst.slice_mut(ks.start * w..ks.end * w).copy_from_slice(&tmp.as_slice()[ks.start * w..ks.end * w]) };
+    });
 }

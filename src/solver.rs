@@ -461,17 +461,29 @@ impl Simulation {
     /// particle, and doing it in one order makes slot numbering deterministic.
     pub(crate) fn bin_particles(&mut self) -> Result<(), SimError> {
         let n = self.particles.n;
+        let first = self.particles.n_sleep;
         let grid = &mut self.grid;
         let sc = &mut self.scratch;
         grid.reset();
-        let xg = self.particles.xg.as_slice();
+        // each particle's block key, in parallel; slots are then handed out serially in particle
+        // order, so that they do not depend on the number of threads
         let pslot = sc.pslot.as_mut_slice();
+        {
+            let xg = &self.particles.xg.as_slice()[first..n];
+            let keys = SharedSlice::new(&mut pslot[first..n]);
+            let (geom, threads) = (&grid.geom, self.team.threads());
+            self.team.run(|tid| {
+                for p in ThreadTeam::share(n - first, tid, threads) {
+                    // SAFETY: shares are disjoint.
+                    unsafe { *keys.get_mut(p) = geom.block_index(geom.particle_block(xg[p])) };
+                }
+            });
+        }
         let count = sc.cursor.as_mut_slice();
         let mut last_key = u32::MAX;
         let mut last_slot = 0u32;
-        let first = self.particles.n_sleep;
         for p in first..n {
-            let key = grid.geom.block_index(grid.geom.particle_block(xg[p]));
+            let key = pslot[p];
             if key != last_key {
                 let before = grid.n_active;
                 last_slot = grid.activate(key)?;
@@ -540,7 +552,7 @@ impl Simulation {
     /// Move particles into block order so the transfers stream through memory.
     pub(crate) fn reorder_particles(&mut self) {
         let (first, n) = (self.particles.n_sleep, self.particles.n);
-        self.particles.permute(&self.scratch.order.as_slice()[..n - first], self.scratch.permute.as_mut_slice());
+        self.particles.permute(&self.scratch.order.as_slice()[..n - first], self.scratch.permute.as_mut_slice(), &self.team);
         for (k, o) in self.scratch.order.as_mut_slice()[..n - first].iter_mut().enumerate() {
             *o = (first + k) as u32;
         }
