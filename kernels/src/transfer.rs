@@ -8,7 +8,7 @@
 //! race, and run unchanged on any thread.
 
 use crate::bspline::{base_and_fx, weights};
-use crate::real::{r, Real, M3, V3};
+use crate::real::{r, Real, M3, V3, V3A};
 
 /// Nodes per block edge.
 pub const BS: usize = 4;
@@ -123,18 +123,18 @@ pub fn p2g_block<const SPLIT: bool>(
 /// `v (fx_k - 1)` small. The adjoint recomputes through this same function, bit for bit.
 #[inline(always)]
 pub fn gather_velocity<const CH: usize>(local: &[Node; LNODES], o: [usize; 3], fx: V3, w: &[V3; 3], dx: Real) -> (V3, M3) {
-    let mut v = V3::ZERO;
-    let mut mx = V3::ZERO;
-    let mut my = V3::ZERO;
-    let mut mz = V3::ZERO;
+    let mut v = V3A::ZERO;
+    let mut mx = V3A::ZERO;
+    let mut my = V3A::ZERO;
+    let mut mz = V3A::ZERO;
     for a in 0..3 {
         // sums over b and c of this a-plane: plain, times e_b, times e_c
-        let (mut t0, mut tb, mut tc) = (V3::ZERO, V3::ZERO, V3::ZERO);
+        let (mut t0, mut tb, mut tc) = (V3A::ZERO, V3A::ZERO, V3A::ZERO);
         for b in 0..3 {
             let row = local_index(o[0] + a, o[1] + b, o[2]);
             let node = |c: usize| {
                 let n = &local[row + c];
-                V3::new(n[CH], n[CH + 1], n[CH + 2]) * w[c].z
+                V3A::new(n[CH], n[CH + 1], n[CH + 2]) * w[c].z
             };
             let (n0, n1, n2) = (node(0), node(1), node(2));
             let s0 = n0 + n1 + n2;
@@ -156,6 +156,7 @@ pub fn gather_velocity<const CH: usize>(local: &[Node; LNODES], o: [usize; 3], f
             _ => {}
         }
     }
+    let (v, mx, my, mz) = (V3::from(v), V3::from(mx), V3::from(my), V3::from(mz));
     let centre = fx - V3::ONE;
     let bmat = M3::from_cols(mx - v * centre.x, my - v * centre.y, mz - v * centre.z) * dx;
     (v, bmat)
