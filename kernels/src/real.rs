@@ -4,7 +4,7 @@
 mod imp {
     pub type Real = f64;
     pub type V3 = glam::DVec3;
-    /// Accumulator vector of the transfers' inner loops (glam has no SIMD f64 vector of 3).
+    /// Accumulator vector of G2P's gather (glam has no SIMD f64 vector of 3).
     pub type V3A = glam::DVec3;
     pub type M3 = glam::DMat3;
     pub const NAME: &str = "f64";
@@ -13,7 +13,7 @@ mod imp {
 mod imp {
     pub type Real = f32;
     pub type V3 = glam::Vec3;
-    /// Accumulator vector of the transfers' inner loops: one SIMD register, the same IEEE
+    /// Accumulator vector of G2P's gather: one SIMD register, the same IEEE
     /// operations lane by lane as `V3`, so results are bit-identical.
     pub type V3A = glam::Vec3A;
     pub type M3 = glam::Mat3;
