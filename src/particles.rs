@@ -4,7 +4,7 @@
 
 use crate::kernels::{Real, M3, V3};
 use crate::memory::{Backing, MemoryError, MemoryPlan, Pool};
-use crate::threads::{SharedSlice, ThreadTeam};
+use crate::threads::ThreadTeam;
 
 pub struct Particles {
     /// Live particles: indices `0..n`.
@@ -142,24 +142,14 @@ impl Particles {
 fn permute_pod<T: bytemuck::Pod + Send + Sync>(data: &mut [T], start: usize, order: &[u32], scratch: &mut [u8], width: usize, team: &ThreadTeam) {
     let n = order.len();
     let w = width;
-    let tmp = SharedSlice::new(bytemuck::cast_slice_mut::<u8, T>(&mut scratch[..n * w * std::mem::size_of::<T>()]));
-    let threads = team.threads();
-    {
-        let src: &[T] = data;
-        team.run(|tid| {
-            let ks = ThreadTeam::share(n, tid, threads);
-            // SAFETY: shares are disjoint.
-            let out = unsafe { tmp.slice_mut(ks.start * w..ks.end * w) };
-            for (k, &o) in order[ks].iter().enumerate() {
-                let o = o as usize;
-                out[k * w..(k + 1) * w].copy_from_slice(&src[o * w..(o + 1) * w]);
-            }
-        });
-    }
-    let dst = SharedSlice::new(&mut data[start * w..(start + n) * w]);
-    team.run(|tid| {
-        let ks = ThreadTeam::share(n, tid, threads);
-        // SAFETY: shares are disjoint, and the gather above has finished.
-        unsafe { dst.slice_mut(ks.start * w..ks.end * w).copy_from_slice(&tmp.as_slice()[ks.start * w..ks.end * w]) };
+    let tmp = bytemuck::cast_slice_mut::<u8, T>(&mut scratch[..n * w * std::mem::size_of::<T>()]);
+    let src: &[T] = data;
+    team.for_each_share(tmp, w, |ks, out| {
+        for (k, &o) in order[ks].iter().enumerate() {
+            let o = o as usize;
+            out[k * w..(k + 1) * w].copy_from_slice(&src[o * w..(o + 1) * w]);
+        }
     });
+    let tmp: &[T] = tmp;
+    team.for_each_share(&mut data[start * w..(start + n) * w], w, |ks, out| out.copy_from_slice(&tmp[ks.start * w..ks.end * w]));
 }

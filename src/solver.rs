@@ -468,17 +468,12 @@ impl Simulation {
         // each particle's block key, in parallel; slots are then handed out serially in particle
         // order, so that they do not depend on the number of threads
         let pslot = sc.pslot.as_mut_slice();
-        {
-            let xg = &self.particles.xg.as_slice()[first..n];
-            let keys = SharedSlice::new(&mut pslot[first..n]);
-            let (geom, threads) = (&grid.geom, self.team.threads());
-            self.team.run(|tid| {
-                for p in ThreadTeam::share(n - first, tid, threads) {
-                    // SAFETY: shares are disjoint.
-                    unsafe { *keys.get_mut(p) = geom.block_index(geom.particle_block(xg[p])) };
-                }
-            });
-        }
+        let (xg, geom) = (&self.particles.xg.as_slice()[first..n], &grid.geom);
+        self.team.for_each_share(&mut pslot[first..n], 1, |r, keys| {
+            for (key, &x) in keys.iter_mut().zip(&xg[r]) {
+                *key = geom.block_index(geom.particle_block(x));
+            }
+        });
         let count = sc.cursor.as_mut_slice();
         let mut last_key = u32::MAX;
         let mut last_slot = 0u32;
@@ -560,13 +555,7 @@ impl Simulation {
 
     pub(crate) fn clear_grid(&mut self) {
         let n = self.grid.n_active * NODES_PER_BLOCK;
-        let nodes = SharedSlice::new(&mut self.grid.nodes.as_mut_slice()[..n]);
-        let t = self.team.threads();
-        self.team.run(|tid| {
-            let r = ThreadTeam::share(n, tid, t);
-            // SAFETY: shares are disjoint.
-            unsafe { nodes.slice_mut(r) }.fill([0.0; 7]);
-        });
+        self.team.for_each_share(&mut self.grid.nodes.as_mut_slice()[..n], 1, |_, nodes| nodes.fill([0.0; 7]));
     }
 
     pub(crate) fn p2g(&mut self, dt: Real) {

@@ -83,6 +83,20 @@ impl ThreadTeam {
         let hi = n * (tid + 1) / threads;
         lo..hi
     }
+
+    /// Run `f(range, chunk)` on every thread, `data` cut into elements of `width` values and
+    /// shared out as by [`ThreadTeam::share`]: `chunk` is the thread's elements `range`.
+    pub fn for_each_share<T: Send>(&self, data: &mut [T], width: usize, f: impl Fn(std::ops::Range<usize>, &mut [T]) + Sync) {
+        let n = data.len() / width.max(1);
+        let threads = self.n;
+        let data = SharedSlice::new(data);
+        self.run(|tid| {
+            let r = ThreadTeam::share(n, tid, threads);
+            // SAFETY: shares are disjoint.
+            let chunk = unsafe { data.slice_mut(r.start * width..r.end * width) };
+            f(r, chunk);
+        });
+    }
 }
 
 impl Drop for ThreadTeam {
