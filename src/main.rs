@@ -183,7 +183,7 @@ enum Cmd {
     },
     /// Which physical effect the model lacks: fits --fit, scores every effect not in the model
     /// at its null (score test from the adjoint gradient; a likelihood-ratio test, from a fit,
-    /// for an effect whose null the solver cannot run at: G or K = infinity), fits the
+    /// for an effect whose null lies at infinity: G, K or the floor's mu = infinity), fits the
     /// significant ones, checks them by leave-one-experiment-out, and gives a verdict ("add
     /// EFFECT", "explained" or "unexplained").
     Diagnose {
@@ -198,6 +198,10 @@ enum Cmd {
         /// Skip the leave-one-experiment-out check.
         #[arg(long)]
         no_loo: bool,
+        /// How many significant effects, best first, are fitted and checked by leave-one-out
+        /// (each check refits once per experiment); the rest are reported significant.
+        #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..))]
+        max_fitted: u64,
         /// Write the model with the recommended effect, fitted, here.
         #[arg(long)]
         out: Option<PathBuf>,
@@ -408,13 +412,13 @@ fn main() -> ExitCode {
             eprintln!("calibrated model written to {}, convergence plot to {}", out.display(), plot.display());
             Ok(true)
         })(),
-        Cmd::Diagnose { inputs, fit, alpha, no_loo, out, max_iterations } => (|| {
+        Cmd::Diagnose { inputs, fit, alpha, no_loo, max_fitted, out, max_iterations } => (|| {
             use strand::measure::{calibrate::FitOptions, diagnose};
             if !(alpha > 0.0 && alpha < 1.0) {
                 return Err(format!("--alpha must be in (0, 1), got {alpha}"));
             }
             let (m, d, e) = inputs.load()?;
-            let opts = diagnose::DiagnoseOptions { fit: FitOptions { max_iterations, jobs: inputs.jobs, ..Default::default() }, alpha, leave_one_out: !no_loo, ..Default::default() };
+            let opts = diagnose::DiagnoseOptions { fit: FitOptions { max_iterations, jobs: inputs.jobs, ..Default::default() }, alpha, leave_one_out: !no_loo, max_fitted: max_fitted as usize };
             let r = diagnose::diagnose(&m, &d, &e, &fit, &opts)?;
             if let (Some(out), Some(best)) = (&out, &r.recommended_model) {
                 std::fs::write(out, best.to_toml()).map_err(|e| format!("{}: {e}", out.display()))?;

@@ -34,9 +34,13 @@ pub struct Fit {
     pub names: Vec<String>,
     pub start: Vec<f64>,
     pub values: Vec<f64>,
-    /// One standard deviation; NaN for a parameter held at a bound.
+    /// One standard deviation; NaN for a parameter held at a bound, infinity for one without
+    /// influence.
     pub uncertainty: Vec<f64>,
     pub at_bound: Vec<bool>,
+    /// Whether any observation depends on the parameter at the optimum (its Jacobian column is
+    /// not all zero): a wall friction does not reach a rheometer test.
+    pub influence: Vec<bool>,
     pub chi2_start: f64,
     pub chi2: f64,
     /// chi^2 / (observations - free parameters).
@@ -65,7 +69,7 @@ pub fn calibrate(model: &Model, data: &[Observation], exps: &Experiments, names:
     let bounds: Vec<_> = names.iter().map(|n| model.bounds(n)).collect::<Result<_, _>>()?;
     let start: Vec<f64> = names.iter().map(|n| model.get(n)).collect::<Result<_, _>>()?;
     if let Some((n, v)) = names.iter().zip(&start).find(|(_, v)| !v.is_finite()) {
-        return Err(format!("{n} starts at {v}, its null, where the solver cannot run: give it a finite start in the model"));
+        return Err(format!("{n} starts at {v}, its null at infinity, where there is no gradient to move it by: give it a finite start in the model"));
     }
     let scale: Vec<f64> = bounds.iter().map(|b| b.scale).collect();
     let mut theta = start.clone();
@@ -166,9 +170,11 @@ pub fn calibrate(model: &Model, data: &[Observation], exps: &Experiments, names:
     let cols: Vec<usize> = (0..n).filter(|&i| free[i]).collect();
     let (a, _) = normal_equations(&jz, &z, &cols);
     let (cov, _) = pinv_sym(&a, 1e-12);
+    let influence: Vec<bool> = (0..n).map(|i| jz.iter().any(|r| r[i] != 0.0)).collect();
     let mut uncertainty = vec![f64::NAN; n];
     for (k, &i) in cols.iter().enumerate() {
-        uncertainty[i] = cov[k][k].sqrt() * scale[i];
+        // the pseudo-inverse gives 0 where the data say nothing
+        uncertainty[i] = if influence[i] { cov[k][k].sqrt() * scale[i] } else { f64::INFINITY };
     }
     let at_bound: Vec<bool> = (0..n).map(|i| !free[i]).collect();
     let dof = m.saturating_sub(cols.len()).max(1);
@@ -178,6 +184,7 @@ pub fn calibrate(model: &Model, data: &[Observation], exps: &Experiments, names:
         values: theta,
         uncertainty,
         at_bound,
+        influence,
         chi2_start,
         chi2: c2,
         reduced_chi2: c2 / dof as f64,
@@ -203,7 +210,13 @@ pub fn report(f: &Fit) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "{:<26} {:>14} {:>14} {:>14}", "parameter", "start", "fitted", "+/- (1 sigma)");
     for i in 0..f.names.len() {
-        let u = if f.at_bound[i] { "at bound".to_string() } else { format!("{:.4e}", f.uncertainty[i]) };
+        let u = if f.at_bound[i] {
+            "at bound".to_string()
+        } else if !f.influence[i] {
+            "no influence".to_string()
+        } else {
+            format!("{:.4e}", f.uncertainty[i])
+        };
         let _ = writeln!(s, "{:<26} {:>14.6e} {:>14.6e} {:>14}", f.names[i], f.start[i], f.values[i], u);
     }
     let rms = |c: f64| (c / f.observations as f64).sqrt();

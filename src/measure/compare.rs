@@ -57,6 +57,7 @@ pub fn scenario_text(model: &Model, keys: &Keys, scenario: &Path) -> Result<Stri
     for (e, _) in &model.effects {
         e.check_scenario(&doc).map_err(|m| format!("effect '{}' {m} in {}", e.name(), scenario.display()))?;
     }
+    doc.insert("material".into(), toml::Value::Table(model.material_for(keys)));
     for (k, v) in keys {
         set_path(&mut doc, k, *v).map_err(|e| format!("set.{k}: {e}"))?;
     }
@@ -144,7 +145,7 @@ fn simulate(model: &Model, keys: &Keys, scenario: &Path, wanted: &[Observable]) 
 /// The material of a rheometer experiment (the model's, with its `material.*` keys; walls do not
 /// reach a rheometer) and its protocol.
 pub fn rheometer_setup(model: &Model, keys: &Keys, base: &Path, protocol: &toml::Value) -> Result<(Box<dyn Material>, Protocol), String> {
-    let mut mat = model.material.clone();
+    let mut mat = model.material_for(keys);
     for (k, v) in keys {
         match k.strip_prefix("material.") {
             Some(key) => {

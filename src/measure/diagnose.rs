@@ -10,12 +10,14 @@
 //!    effect is absent. An effect's parameters start at their lower bound, so only those whose
 //!    projected gradient points into the allowed side count, and with one such parameter the
 //!    p-value is half chi^2(1)'s tail (S is 0 half the time under the null).
-//!    An effect whose null the solver cannot run at (elasticity, compressibility: G or K =
-//!    infinity, where the explicit step goes to 0) has no gradient there: it is fitted with the
-//!    base parameters from the finite value the base model runs in the null's place
-//!    ([`Effect::stand_in`], where the model is the base model), and tested by the likelihood
-//!    ratio LR = chi^2_base - chi^2_fitted instead, with the same chi^2(dof) tail, halved for
-//!    one parameter (the null is the boundary of the parameter space, 1/G >= 0).
+//!    An effect whose null lies at infinity, where no finite parameter puts it and the loss has
+//!    no gradient (elasticity, compressibility: G or K = infinity, where the explicit step goes
+//!    to 0; wall friction: mu = infinity, a floor that sticks), is fitted with the base
+//!    parameters from [`Effect::lr_start`] (for a modulus the finite value the base model runs
+//!    in the null's place, where the model is the base model; for friction a typical mu) and
+//!    tested by the likelihood ratio LR = max(0, chi^2_base - chi^2_fitted) instead, with the
+//!    same chi^2(dof) tail, halved for one parameter (the null is the boundary of the parameter
+//!    space, 1/G >= 0).
 //! 3. Effects are ranked by statistic, S or LR: both measure the drop in chi^2 the effect
 //!    brings (S is its Gauss-Newton estimate at the null, LR the drop itself), so they share
 //!    one scale, where p-values would underflow to 0 and tie for every strong effect. Those
@@ -57,7 +59,7 @@ pub struct Candidate {
     pub about: String,
     /// 1 = the largest statistic.
     pub rank: usize,
-    /// "score", or "likelihood-ratio" for an effect whose null the solver cannot run at.
+    /// "score", or "likelihood-ratio" for an effect whose null lies at infinity.
     pub test: String,
     /// The test's statistic: the score S, or LR = chi^2_base - chi^2_fitted.
     pub score: f64,
@@ -98,8 +100,8 @@ fn rms(chi2: f64, n: usize) -> f64 {
     (chi2 / n.max(1) as f64).sqrt()
 }
 
-/// The test an effect gets: the score at its null, or, where the solver cannot run the null,
-/// the likelihood ratio of its fit.
+/// The test an effect gets: the score at its null, or, for a null at infinity, the likelihood
+/// ratio of its fit.
 pub fn test_of(e: &dyn Effect) -> &'static str {
     if e.null_at_infinity() {
         "likelihood-ratio"
@@ -145,7 +147,7 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
     let base: Fit = if fit.is_empty() {
         let v = sensitivity(model, data, exps, None, opts.fit.jobs)?.values;
         let c2 = chi2(&v, data);
-        Fit { names: vec![], start: vec![], values: vec![], uncertainty: vec![], at_bound: vec![], chi2_start: c2, chi2: c2, reduced_chi2: c2 / m as f64, history: vec![c2], converged: true, observations: m, model_values: v, model: model.clone() }
+        Fit { names: vec![], start: vec![], values: vec![], uncertainty: vec![], at_bound: vec![], influence: vec![], chi2_start: c2, chi2: c2, reduced_chi2: c2 / m as f64, history: vec![c2], converged: true, observations: m, model_values: v, model: model.clone() }
     } else {
         calibrate(model, data, exps, fit, &opts.fit)?
     };
@@ -218,15 +220,16 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
         };
         cands.push(candidate(*e, score, dof, p_value, verdict));
     }
-    // the likelihood ratio: the effect fitted from the base model's stand-in for the null, where
-    // the model is the base model, with the fitted parameters from the base fit's values (so
-    // chi^2 starts at chi^2_base and the fit only lowers it) and from the model's own: the base
-    // fit may have gone where the effect has no gradient (a yield stress fitted so low that every
-    // reading is past yield, where G drops out), and the better of the two fits counts
+    // the likelihood ratio: the effect fitted from its start (a modulus: the base model's
+    // stand-in for the null, where the model is the base model), with the fitted parameters from
+    // the base fit's values (so a modulus's chi^2 starts at chi^2_base and the fit only lowers
+    // it) and from the model's own: the base fit may have gone where the effect has no gradient
+    // (a yield stress fitted so low that every reading is past yield, where G drops out), and
+    // the better of the two fits counts
     let mut prefit: std::collections::BTreeMap<String, Fit> = Default::default();
     let base_keys = base.model.keys(&Covariates::default())?;
     for e in &unreachable {
-        let start = e.stand_in(&base_keys)?;
+        let start = e.lr_start(&base_keys)?;
         let fnames = fit_names(fit, *e);
         let mut best: Option<Fit> = None;
         for from in if fit.is_empty() { vec![&base.model] } else { vec![&base.model, model] } {
@@ -244,8 +247,11 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
         let lr = if base.chi2 - f.chi2 > 1e-9 * base.chi2 { base.chi2 - f.chi2 } else { 0.0 };
         let dof = if lr > 0.0 { e.params().len() } else { 0 };
         let p = p_value(lr, dof);
-        let verdict = if dof == 0 {
-            "not significant: fitting it from the base model's stand-in does not lower the error".to_string()
+        let reach = f.influence[fit.len()..].iter().any(|&i| i);
+        let verdict = if dof == 0 && !reach {
+            "no influence on these experiments".to_string()
+        } else if dof == 0 {
+            "not significant: fitted, it does not lower the error".to_string()
         } else if p >= opts.alpha {
             format!("not significant (p = {p:.3})")
         } else {
@@ -440,7 +446,7 @@ pub fn report(d: &Diagnosis) -> String {
         }
     }
     if d.candidates.iter().any(|c| c.test != "score") {
-        let _ = writeln!(s, "(LR: likelihood ratio chi^2_base - chi^2_fitted, for an effect whose null the solver cannot run at)");
+        let _ = writeln!(s, "(LR: likelihood ratio chi^2_base - chi^2_fitted, for an effect whose null lies at infinity)");
     }
     let _ = writeln!(s, "\nverdict: {}", match d.verdict.as_str() {
         "unexplained" => "unexplained: the base model does not fit and no effect in the library explains the residuals".to_string(),
@@ -460,10 +466,10 @@ mod tests {
     #[test]
     fn an_effect_whose_null_the_solver_cannot_run_gets_the_likelihood_ratio_and_the_others_the_score() {
         for e in effects::REGISTRY {
-            let want = if ["elasticity", "compressibility"].contains(&e.name()) { "likelihood-ratio" } else { "score" };
+            let want = if ["elasticity", "compressibility", "wall_friction"].contains(&e.name()) { "likelihood-ratio" } else { "score" };
             assert_eq!(test_of(*e), want, "{}", e.name());
             // a likelihood-ratio fit starts where the solver runs; a score test at the null
-            let start = e.stand_in(&[("material.shear_modulus".to_string(), 4e5), ("material.bulk_modulus".to_string(), 1e6)].into_iter().collect()).unwrap();
+            let start = e.lr_start(&[("material.shear_modulus".to_string(), 4e5), ("material.bulk_modulus".to_string(), 1e6)].into_iter().collect()).unwrap();
             assert!(start.iter().all(|v| v.is_finite()), "{}: {start:?}", e.name());
         }
         // the halved tail for one parameter at its bound, the full one for more, none without

@@ -58,16 +58,20 @@ pub trait Effect: Sync {
     fn check_scenario(&self, _scenario: &toml::Table) -> Result<(), String> {
         Ok(())
     }
-    /// Whether the null is a value the solver cannot run at (G = infinity, a rigid material: the
-    /// explicit step goes to 0 with it). No gradient can be taken there, so diagnose tests such
-    /// an effect by the likelihood ratio, fitting it from [`Effect::stand_in`], instead of by the
-    /// score at the null.
+    /// Whether the null lies at infinity, where no finite parameter puts it and no gradient can
+    /// be taken (G = infinity, a rigid material, where the explicit step goes to 0; mu =
+    /// infinity, a floor that sticks, where the loss no longer depends on mu). Diagnose tests
+    /// such an effect by the likelihood ratio, fitting it from [`Effect::lr_start`], instead of by
+    /// the score at the null.
     fn null_at_infinity(&self) -> bool {
         false
     }
-    /// The parameters at which the effect leaves `keys` (a base model's) as they are: for a null
-    /// at infinity, the finite value the base model runs in its place.
-    fn stand_in(&self, _keys: &Keys) -> Result<Vec<f64>, String> {
+    /// Where the likelihood-ratio fit of an effect with its null at infinity starts, given the
+    /// base model's keys. Best is where the effect leaves those keys as they are (a modulus: the
+    /// model's own finite G or K, which the solver runs in the rigid null's place), so chi^2
+    /// starts at the base model's and the fit only lowers it; where no finite value does that (no
+    /// finite mu is a no-slip floor), a value the effect typically takes.
+    fn lr_start(&self, _keys: &Keys) -> Result<Vec<f64>, String> {
         Ok(self.params().iter().map(|s| s.null).collect())
     }
 }
@@ -95,15 +99,21 @@ pub fn read(keys: &Keys, effect: &str, key: &str) -> Result<f64, String> {
     keys.get(key).copied().ok_or_else(|| format!("effect '{effect}' needs {key}, which the model does not set"))
 }
 
-/// A modulus an effect sets in place of the model's own, which the model runs as the stand-in
-/// for the effect's null at infinity; or an error naming what the model lacks. A model giving
-/// `poisson_ratio` ties G to K, so neither could be set alone.
-pub fn read_modulus(keys: &Keys, effect: &str, key: &str) -> Result<f64, String> {
-    if keys.contains_key("material.poisson_ratio") {
-        return Err(format!("sets {key}, so the model must give material.shear_modulus, not poisson_ratio, which ties G to K (G = 3 K (1 - 2 nu) / (2 (1 + nu)))"));
+/// The model's shear modulus G: its `shear_modulus`, or G = 3 K (1 - 2 nu) / (2 (1 + nu)) from
+/// `poisson_ratio` nu and `bulk_modulus` K (as the material computes it); or an error naming
+/// what the model lacks.
+pub fn shear_modulus(keys: &Keys, effect: &str) -> Result<f64, String> {
+    match keys.get(POISSON_RATIO) {
+        Some(&nu) => Ok(crate::kernels::material::eos::shear_modulus_of(read(keys, effect, BULK_MODULUS)?, None, Some(nu))),
+        None => read(keys, effect, SHEAR_MODULUS),
     }
-    read(keys, effect, key)
 }
+
+pub const SHEAR_MODULUS: &str = "material.shear_modulus";
+pub const BULK_MODULUS: &str = "material.bulk_modulus";
+/// A key an effect may remove (the moduli, to set G and K apart): a material number whose key
+/// is absent is left out of the material the experiment runs with.
+pub const POISSON_RATIO: &str = "material.poisson_ratio";
 
 /// The adjoint of a key (0 when absent).
 pub fn bar(keys_bar: &Keys, key: &str) -> f64 {
@@ -118,11 +128,12 @@ pub fn add_bar(keys_bar: &mut Keys, key: &str, v: f64) {
 mod tests {
     use super::*;
 
-    fn base_keys() -> Keys {
-        // the keys a base model sets, with the Maxwell branch's at the material's defaults (no
-        // branch is G_M = 0; t_M defaults to 1 s), so the nulls are checked on them too, and G
-        // and K, the stand-ins for the nulls of elasticity and compressibility
-        [
+    /// The keys a base model sets, with the Maxwell branch's at the material's defaults (no
+    /// branch is G_M = 0; t_M defaults to 1 s), so the nulls are checked on them too, and K with
+    /// G, or with the Poisson ratio that ties G to it: the stand-ins for the nulls of elasticity
+    /// and compressibility.
+    fn base_keys() -> [Keys; 2] {
+        let common = [
             ("material.yield_stress", 120.0),
             ("material.viscosity", 20.0),
             ("material.a_thix", 0.0),
@@ -130,12 +141,10 @@ mod tests {
             ("material.lambda0", 0.0),
             ("material.maxwell_modulus", 0.0),
             ("material.maxwell_time", 1.0),
-            ("material.shear_modulus", 4e5),
             ("material.bulk_modulus", 1e6),
-        ]
-            .into_iter()
-            .map(|(k, v)| (k.to_string(), v))
-            .collect()
+        ];
+        [("material.shear_modulus", 4e5), ("material.poisson_ratio", 0.3)]
+            .map(|g| common.iter().chain([&g]).map(|(k, v)| (k.to_string(), *v)).collect())
     }
 
     /// J = sum_k w_k keys_k after the effect, against central differences in every parameter
@@ -145,10 +154,9 @@ mod tests {
     #[test]
     fn every_effect_adjoint_agrees_with_central_differences() {
         let x = Covariates { rest_time: 240.0, age: 1800.0 };
-        for e in REGISTRY {
+        for (e, keys) in REGISTRY.iter().flat_map(|e| base_keys().map(|k| (e, k))) {
             // a null at infinity is left for a value the solver runs, as a fit would
             let p: Vec<f64> = e.params().iter().map(|s| if s.null.is_finite() { s.null } else { 0.0 } + 0.7 * s.scale).collect();
-            let keys = base_keys();
             let mut out = keys.clone();
             e.apply(&p, &x, &mut out).unwrap();
             let w: Keys = out.keys().enumerate().map(|(i, k)| (k.clone(), 1.0 + 0.37 * i as f64)).collect();
@@ -182,9 +190,8 @@ mod tests {
     #[test]
     fn every_effect_vanishes_at_its_null() {
         let x = Covariates { rest_time: 240.0, age: 1800.0 };
-        for e in REGISTRY {
+        for (e, keys) in REGISTRY.iter().flat_map(|e| base_keys().map(|k| (e, k))) {
             let null: Vec<f64> = e.params().iter().map(|s| s.null).collect();
-            let keys = base_keys();
             let mut out = keys.clone();
             e.apply(&null, &x, &mut out).unwrap();
             for (k, v) in &keys {

@@ -5,18 +5,22 @@
 //!   elastic stress), against a rigid-viscoplastic one. Sets `material.shear_modulus` = G.
 //! * `compressibility`: the material changes volume under pressure with bulk modulus K
 //!   (entrained air, a loose granular skeleton), against an incompressible one. Sets
-//!   `material.bulk_modulus` = K, the K of the equation of state. Simple shear in the rheometer
-//!   keeps the volume, so only simulations see it.
+//!   `material.bulk_modulus` = K, the K of the equation of state, and holds G at the model's.
+//!   Simple shear in the rheometer keeps the volume, so only simulations see it.
 //!
 //! Null: the modulus at infinity (compliance 0), which the explicit solver cannot run: the wave
 //! speed, and so the stable step, goes with its square root. The base model runs its own finite
-//! modulus as the stand-in for it, and at infinity the effect leaves that key alone, so the
+//! modulus as the stand-in for it, and at infinity the effect leaves the keys alone, so the
 //! effect at its null is the base model as run. Diagnose fits the effect from that stand-in
-//! (`stand_in`) and tests it by the likelihood ratio, not by the score at the null (see
-//! `diagnose.rs`). A model that gives `poisson_ratio` would tie G to K: it is told to give
-//! `shear_modulus`.
+//! (`lr_start`) and tests it by the likelihood ratio, not by the score at the null (see
+//! `diagnose.rs`).
+//!
+//! A model giving `poisson_ratio` nu ties G to K (G = 3 K (1 - 2 nu) / (2 (1 + nu))), so neither
+//! could move alone: a finite modulus here replaces nu by the model's G (`shear_modulus`, what
+//! the material computes from nu), and then sets its own. At the stand-in the material is the
+//! base model's to the bit.
 
-use super::{bar, read_modulus, Covariates, Effect, Keys, ParamSpec};
+use super::{bar, shear_modulus, Covariates, Effect, Keys, ParamSpec, POISSON_RATIO, SHEAR_MODULUS};
 
 pub struct Modulus {
     name: &'static str,
@@ -53,25 +57,40 @@ impl Effect for Modulus {
         self.params
     }
     fn apply(&self, p: &[f64], _: &Covariates, keys: &mut Keys) -> Result<(), String> {
-        // checked at the null too, so a model that cannot take the effect is told before a fit
-        read_modulus(keys, self.name, self.key)?;
+        // read at the null too, so a model that cannot take the effect is told before a fit
+        let g = shear_modulus(keys, self.name)?;
         if p[0].is_finite() {
+            if keys.remove(POISSON_RATIO).is_some() {
+                keys.insert(SHEAR_MODULUS.into(), g);
+            }
             keys.insert(self.key.into(), p[0]);
         }
         Ok(())
     }
-    fn apply_adjoint(&self, p: &[f64], _: &Covariates, _: &Keys, keys_bar: &mut Keys, p_bar: &mut [f64]) {
-        if p[0].is_finite() {
-            p_bar[0] += bar(keys_bar, self.key);
-            // the model's own modulus is overwritten
-            keys_bar.insert(self.key.into(), 0.0);
+    fn apply_adjoint(&self, p: &[f64], _: &Covariates, keys_in: &Keys, keys_bar: &mut Keys, p_bar: &mut [f64]) {
+        if !p[0].is_finite() {
+            return;
+        }
+        p_bar[0] += bar(keys_bar, self.key);
+        // the model's own modulus is overwritten
+        keys_bar.insert(self.key.into(), 0.0);
+        if let Some(&nu) = keys_in.get(POISSON_RATIO) {
+            // G = 3 K (1 - 2 nu) / (2 (1 + nu)) went on as the material's G (0 when it is the key
+            // overwritten above); K and nu were not keys after it
+            let g_bar = bar(keys_bar, SHEAR_MODULUS);
+            let k = keys_in[super::BULK_MODULUS];
+            keys_bar.insert(SHEAR_MODULUS.into(), 0.0);
+            keys_bar.insert(POISSON_RATIO.into(), -g_bar * 9.0 * k / (2.0 * (1.0 + nu) * (1.0 + nu)));
+            let k_bar = if self.key == super::BULK_MODULUS { 0.0 } else { bar(keys_bar, super::BULK_MODULUS) };
+            keys_bar.insert(super::BULK_MODULUS.into(), k_bar + g_bar * 3.0 * (1.0 - 2.0 * nu) / (2.0 * (1.0 + nu)));
         }
     }
     fn null_at_infinity(&self) -> bool {
         true
     }
-    fn stand_in(&self, keys: &Keys) -> Result<Vec<f64>, String> {
-        Ok(vec![read_modulus(keys, self.name, self.key)?])
+    fn lr_start(&self, keys: &Keys) -> Result<Vec<f64>, String> {
+        let g = shear_modulus(keys, self.name)?;
+        Ok(vec![if self.key == SHEAR_MODULUS { g } else { super::read(keys, self.name, self.key)? }])
     }
 }
 
@@ -95,10 +114,39 @@ mod tests {
                 assert_eq!(back.keys(&x).unwrap()[key], want, "{name}");
             }
             let base = Model::from_table(&BASE.parse().unwrap()).unwrap();
-            assert_eq!(e.stand_in(&base.keys(&x).unwrap()).unwrap(), vec![own], "{name}");
-            let nu = BASE.replace("shear_modulus = 4e5", "poisson_ratio = 0.3");
-            let err = Model::from_table(&format!("{nu}[effects.{name}]\n").parse().unwrap()).unwrap().keys(&x).unwrap_err();
-            assert!(err.contains("not poisson_ratio"), "{name}: {err}");
+            assert_eq!(e.lr_start(&base.keys(&x).unwrap()).unwrap(), vec![own], "{name}");
+        }
+    }
+
+    /// With `poisson_ratio` nu, G is the material's G(K, nu) at the stand-in, and a finite
+    /// modulus moves alone: the material built from the keys has the other one unchanged.
+    #[test]
+    fn a_model_with_a_poisson_ratio_has_its_moduli_set_apart() {
+        let x = Covariates::default();
+        let nu = BASE.replace("shear_modulus = 4e5", "poisson_ratio = 0.3");
+        let base = Model::from_table(&nu.parse().unwrap()).unwrap();
+        let moduli = |m: &Model| {
+            let keys = m.keys(&x).unwrap();
+            let mut mat = m.material_for(&keys);
+            for (k, v) in &keys {
+                mat.insert(k.strip_prefix("material.").unwrap().to_string(), toml::Value::Float(*v));
+            }
+            let s = crate::materials::build_material(&mat).unwrap().stability();
+            (s.shear_modulus as f64, s.bulk_modulus as f64)
+        };
+        let (g, k) = moduli(&base);
+        assert!((g - 3e6 * 0.4 / 2.6).abs() < 1e-6 * g, "{g}");
+        for (e, set) in [(&Modulus::ELASTICITY, 2e4), (&Modulus::COMPRESSIBILITY, 3e5)] {
+            let start = e.lr_start(&base.keys(&x).unwrap()).unwrap()[0];
+            assert_eq!(start, if e.key == SHEAR_MODULUS { g } else { k }, "{}", e.name);
+            let mut m = base.with_effect(e);
+            assert_eq!(moduli(&m), (g, k), "{} at its null", e.name);
+            let p = format!("{}.{}", e.name, e.params[0].name);
+            m.set(&p, start).unwrap();
+            assert_eq!(moduli(&m), (g, k), "{} at its stand-in", e.name);
+            m.set(&p, set).unwrap();
+            let want = if e.key == SHEAR_MODULUS { (set, k) } else { (g, set) };
+            assert_eq!(moduli(&m), want, "{}", e.name);
         }
     }
 }
