@@ -2,8 +2,9 @@
 //! truth with an effect the base model lacks; `strand diagnose` must rank that effect first,
 //! recommend it, and the recalibrated error must fall to 30 % of the base model's or less. A
 //! truth without effects flags nothing; a truth whose cause is outside the effect library is
-//! reported "unexplained". Rheometer campaigns run in milliseconds; the floor-friction case runs
-//! slump simulations with their adjoints (a few minutes on 2 cores).
+//! reported "unexplained". Rheometer campaigns run in milliseconds; the floor-friction and
+//! compressibility cases run slump simulations with their adjoints (a few minutes each on 2
+//! cores).
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -21,16 +22,19 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
-/// Synthesise data from `truth` (with `truth_exps`), then diagnose `base` against it (with
-/// `extra` arguments).
-fn diagnose(dir: &str, truth: &str, truth_exps: &str, noise: &str, jobs: &str, extra: &[&str]) -> serde_json::Value {
+/// Synthesised and diagnosed with the same experiments.
+const EXPS: [&str; 2] = ["experiments.toml"; 2];
+
+/// Synthesise data from `truth` (with `truth_exps`), then diagnose `base` against it with `exps`
+/// (and `extra` arguments).
+fn diagnose(dir: &str, truth: &str, [truth_exps, exps]: [&str; 2], noise: &str, jobs: &str, extra: &[&str]) -> serde_json::Value {
     let d = fixtures(dir);
     let tmp = tempfile::tempdir().unwrap();
     let data = tmp.path().join("data.csv");
     let (code, _, err) = strand(&["synth", "--model", s(&d.join(truth)), "--experiments", s(&d.join(truth_exps)), "--noise", noise, "--seed", "7", "--out", s(&data), "--jobs", jobs]);
     assert_eq!(code, 0, "{err}");
     let out = tmp.path().join("best.toml");
-    let (base, exps) = (d.join("base.toml"), d.join("experiments.toml"));
+    let (base, exps) = (d.join("base.toml"), d.join(exps));
     let args = [
         "diagnose", "--model", s(&base), "--data", s(&data), "--experiments", s(&exps),
         "--fit", "material.yield_stress,material.viscosity", "--json", "--jobs", jobs, "--out", s(&out),
@@ -66,7 +70,7 @@ fn assert_found(v: &serde_json::Value, effect: &str) {
 
 #[test]
 fn hidden_thixotropy_is_ranked_first_and_recalibrated() {
-    let v = diagnose("campaign", "truth_thixotropy.toml", "experiments.toml", "0.01", "1", &[]);
+    let v = diagnose("campaign", "truth_thixotropy.toml", EXPS, "0.01", "1", &[]);
     assert_found(&v, "thixotropy");
     let fitted = v["candidates"][0]["fitted"].as_array().unwrap();
     let a = fitted.iter().find(|p| p[0] == "thixotropy.a_thix").unwrap()[1].as_f64().unwrap();
@@ -75,7 +79,7 @@ fn hidden_thixotropy_is_ranked_first_and_recalibrated() {
 
 #[test]
 fn hidden_ageing_is_ranked_first_and_recalibrated() {
-    let v = diagnose("campaign", "truth_ageing.toml", "experiments.toml", "0.01", "1", &[]);
+    let v = diagnose("campaign", "truth_ageing.toml", EXPS, "0.01", "1", &[]);
     assert_found(&v, "ageing");
     // the exponential form is the same effect to first order: it scores the same, fits worse
     let c = v["candidates"].as_array().unwrap();
@@ -87,7 +91,7 @@ fn hidden_ageing_is_ranked_first_and_recalibrated() {
 fn hidden_elasticity_is_found_by_the_likelihood_ratio_and_recalibrated() {
     // start-up readings below yield: the base model's G (4e5 Pa, its stand-in for rigid) is
     // twenty times the truth's, and no gradient can be taken at G = infinity
-    let v = diagnose("elastic", "truth_elasticity.toml", "experiments.toml", "0.01", "1", &[]);
+    let v = diagnose("elastic", "truth_elasticity.toml", EXPS, "0.01", "1", &[]);
     assert_found(&v, "elasticity");
     let c = &v["candidates"][0];
     // the statistic is the drop in chi^2 the fit brought
@@ -99,7 +103,7 @@ fn hidden_elasticity_is_found_by_the_likelihood_ratio_and_recalibrated() {
 
 #[test]
 fn a_truth_without_effects_flags_nothing() {
-    let v = diagnose("campaign", "truth_null.toml", "experiments.toml", "0.01", "1", &[]);
+    let v = diagnose("campaign", "truth_null.toml", EXPS, "0.01", "1", &[]);
     assert_eq!(v["verdict"], "explained", "{v:#}");
     assert!(v["recommended"].is_null());
     assert!(v["candidates"].as_array().unwrap().iter().all(|c| c["recommended"] == false && c["p_value"].as_f64().unwrap() > 0.01), "{v:#}");
@@ -109,7 +113,7 @@ fn a_truth_without_effects_flags_nothing() {
 fn a_cause_outside_the_library_is_unexplained() {
     // batch-to-batch water content: every experiment's yield stress and viscosity scaled by its
     // own factor, unrelated to rest or age
-    let v = diagnose("campaign", "truth_null.toml", "experiments_batches.toml", "0.01", "1", &[]);
+    let v = diagnose("campaign", "truth_null.toml", ["experiments_batches.toml", "experiments.toml"], "0.01", "1", &[]);
     assert_eq!(v["verdict"], "unexplained", "{v:#}");
     assert!(v["base_p_value"].as_f64().unwrap() < 1e-6, "{v:#}");
     let pattern: Vec<&str> = v["pattern"].as_array().unwrap().iter().map(|p| p.as_str().unwrap()).collect();
@@ -121,11 +125,23 @@ fn hidden_floor_friction_is_found_from_slump_flow() {
     // against the base model's no-slip floor, mu = infinity, where no gradient can be taken; the
     // runner-up effects are fitted without their leave-one-out refits, which would triple the
     // test's minutes
-    let v = diagnose("slump", "truth_friction.toml", "experiments.toml", "0.003", "2", &["--max-fitted", "1"]);
+    let v = diagnose("slump", "truth_friction.toml", EXPS, "0.003", "2", &["--max-fitted", "1"]);
     assert_found(&v, "wall_friction");
     let c = &v["candidates"][0];
     let drop = v["base_chi2"].as_f64().unwrap() - c["fitted_chi2"].as_f64().unwrap();
     assert!((c["score"].as_f64().unwrap() / drop - 1.0).abs() < 1e-9, "{c:#}");
+}
+
+#[test]
+fn hidden_compressibility_is_found_from_the_slumps_height() {
+    // K five times below the base model's, with G held: the centre of mass sinks as the
+    // material compresses, which neither the yield stress nor the viscosity can do
+    let exps = ["experiments_volume.toml"; 2];
+    let v = diagnose("slump", "truth_compressibility.toml", exps, "0.003", "2", &["--max-fitted", "1"]);
+    assert_found(&v, "compressibility");
+    let k = v["candidates"][0]["fitted"].as_array().unwrap().iter().find(|p| p[0] == "compressibility.bulk_modulus").unwrap()[1].as_f64().unwrap();
+    // six readings, three parameters: K trades a little against the yield stress
+    assert!((k / 2e5 - 1.0).abs() < 0.3, "K {k} against the truth's 2e5");
 }
 
 #[test]

@@ -71,8 +71,9 @@ pub fn parse_scenario(text: &str, scenario: &Path) -> Result<Scenario, String> {
     Ok(sc)
 }
 
-/// When (time) and what (objective) a simulation observable is: spread and front may be taken
-/// during the run, the rest at its end `end`.
+/// When (time) and what (objective) a simulation observable is: those of the whole material
+/// (spread, front, vx_max, kinetic_energy, mean_z) may be taken during the run, `@T`; a section's
+/// (width, height, profile, layers), whose `@` is a station, at its end `end`.
 pub fn observable_plan(o: &Observable, end: f64) -> Result<(f64, Objective), String> {
     let second = match o.name.as_str() {
         "profile" => Some("a station and a lateral position: profile@X:Y (metres)"),
@@ -113,9 +114,9 @@ pub fn observable_plan(o: &Observable, end: f64) -> Result<(f64, Objective), Str
             let (station, layer) = layer()?;
             (end, Objective::LayerWidth { station, layer })
         }
-        "vx_max" => (end, Objective::VxMax),
-        "kinetic_energy" => (end, Objective::KineticEnergy),
-        "mean_z" => (end, Objective::MeanZ),
+        "vx_max" => (o.at.unwrap_or(end), Objective::VxMax),
+        "kinetic_energy" => (o.at.unwrap_or(end), Objective::KineticEnergy),
+        "mean_z" => (o.at.unwrap_or(end), Objective::MeanZ),
         other => return Err(format!("a simulation cannot observe '{other}'")),
     };
     if !(0.0..=end).contains(&t) {
@@ -483,6 +484,12 @@ mod tests {
         assert!(e.contains("'layer_height@0.075:-2'") && e.contains("whole number from 1"), "{e}");
         let e = plan("profile").unwrap_err();
         assert!(e.contains("profile@X:Y"), "{e}");
+        // the whole material's observables at a time during the run, or at its end
+        for name in ["spread", "front", "vx_max", "kinetic_energy", "mean_z"] {
+            assert_eq!(plan(&format!("{name}@0.5")).unwrap().0, 0.5, "{name}");
+            assert_eq!(plan(name).unwrap().0, 2.0, "{name}");
+        }
+        assert!(plan("mean_z@3").unwrap_err().contains("outside the run"));
         let e = plan("front@1:2").unwrap_err();
         assert!(e.contains("front takes one coordinate"), "{e}");
         let e = reading_rate(&Observable::parse("stress@1:2").unwrap()).unwrap_err();
