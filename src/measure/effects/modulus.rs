@@ -20,7 +20,7 @@
 //! the material computes from nu), and then sets its own. At the stand-in the material is the
 //! base model's to the bit.
 
-use super::{bar, shear_modulus, Covariates, Effect, Keys, ParamSpec, POISSON_RATIO, SHEAR_MODULUS};
+use super::{bar, read, shear_modulus, Covariates, Effect, Keys, ParamSpec, BULK_MODULUS, POISSON_RATIO, SHEAR_MODULUS};
 
 pub struct Modulus {
     name: &'static str,
@@ -78,11 +78,11 @@ impl Effect for Modulus {
             // G = 3 K (1 - 2 nu) / (2 (1 + nu)) went on as the material's G (0 when it is the key
             // overwritten above); K and nu were not keys after it
             let g_bar = bar(keys_bar, SHEAR_MODULUS);
-            let k = keys_in[super::BULK_MODULUS];
+            let k = keys_in[BULK_MODULUS];
             keys_bar.insert(SHEAR_MODULUS.into(), 0.0);
             keys_bar.insert(POISSON_RATIO.into(), -g_bar * 9.0 * k / (2.0 * (1.0 + nu) * (1.0 + nu)));
-            let k_bar = if self.key == super::BULK_MODULUS { 0.0 } else { bar(keys_bar, super::BULK_MODULUS) };
-            keys_bar.insert(super::BULK_MODULUS.into(), k_bar + g_bar * 3.0 * (1.0 - 2.0 * nu) / (2.0 * (1.0 + nu)));
+            let k_bar = if self.key == BULK_MODULUS { 0.0 } else { bar(keys_bar, BULK_MODULUS) };
+            keys_bar.insert(BULK_MODULUS.into(), k_bar + g_bar * 3.0 * (1.0 - 2.0 * nu) / (2.0 * (1.0 + nu)));
         }
     }
     fn null_at_infinity(&self) -> bool {
@@ -90,7 +90,7 @@ impl Effect for Modulus {
     }
     fn lr_start(&self, keys: &Keys) -> Result<Vec<f64>, String> {
         let g = shear_modulus(keys, self.name)?;
-        Ok(vec![if self.key == SHEAR_MODULUS { g } else { super::read(keys, self.name, self.key)? }])
+        Ok(vec![if self.key == SHEAR_MODULUS { g } else { read(keys, self.name, self.key)? }])
     }
 }
 

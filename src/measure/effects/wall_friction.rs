@@ -33,6 +33,9 @@ impl Effect for WallFriction {
         Ok(())
     }
     fn check_scenario(&self, scenario: &toml::Table) -> Result<(), String> {
+        if scenario.get("boundary").and_then(|b| b.get("platform")).is_some() {
+            return Err("acts on the z_min floor, and this scenario's material stands on boundary.platform".into());
+        }
         let floor = scenario.get("boundary").and_then(|b| b.get("z_min"));
         match floor {
             // no-slip is the floor's default
@@ -52,5 +55,20 @@ impl Effect for WallFriction {
     }
     fn lr_start(&self, _: &Keys) -> Result<Vec<f64>, String> {
         Ok(vec![PARAMS[0].scale])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn it_needs_a_no_slip_floor_and_no_platform() {
+        let check = |b: &str| WallFriction.check_scenario(&format!("[boundary]\n{b}").parse().unwrap());
+        assert!(check("").is_ok() && check("z_min = \"no_slip\"\n").is_ok());
+        for (floor, says) in [("z_min = \"free_slip\"\n", "\"free_slip\""), ("z_min = { friction = { mu = 0.3 } }\n", "mu = 0.3"), ("platform = { z = 0.01, xy_min = [0.0, 0.0], xy_max = [1.0, 1.0] }\n", "platform")] {
+            let e = check(floor).unwrap_err();
+            assert!(e.contains(says), "{e}");
+        }
     }
 }
