@@ -53,11 +53,10 @@ pub fn evaluate(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obs
 pub fn scenario_text(model: &Model, keys: &Keys, scenario: &Path) -> Result<String, String> {
     let text = std::fs::read_to_string(scenario).map_err(|e| format!("{}: {e}", scenario.display()))?;
     let mut doc: toml::Table = text.parse().map_err(|e| format!("{}: {e}", scenario.display()))?;
-    doc.insert("material".into(), toml::Value::Table(model.material.clone()));
+    doc.insert("material".into(), toml::Value::Table(model.material_for(keys)));
     for (e, _) in &model.effects {
         e.check_scenario(&doc).map_err(|m| format!("effect '{}' {m} in {}", e.name(), scenario.display()))?;
     }
-    doc.insert("material".into(), toml::Value::Table(model.material_for(keys)));
     for (k, v) in keys {
         set_path(&mut doc, k, *v).map_err(|e| format!("set.{k}: {e}"))?;
     }

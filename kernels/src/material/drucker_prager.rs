@@ -46,7 +46,7 @@
 
 use serde::Deserialize;
 
-use crate::material::eos::{resolve_shear_modulus, shear_modulus_of};
+use crate::material::eos::{resolve_shear_modulus, shear_modulus_of, shear_modulus_of_partials};
 use crate::material::{Material, StabilityInfo, UpdateAdjoint};
 use crate::real::{
     ddot, dev, jaumann_rotation, jaumann_rotation_adjoint, r, skew, sym, sym_from_slice, sym_from_slice_adjoint, sym_to_array,
@@ -233,8 +233,8 @@ impl DruckerPrager {
         }
         let (k_total, second) = match (self.shear_modulus, self.poisson_ratio) {
             (None, Some(nu)) => {
-                // G = 3 K (1 - 2 nu) / (2 (1 + nu))
-                (k_bar + g_bar * 3.0 * (1.0 - 2.0 * nu) / (2.0 * (1.0 + nu)), g_bar * -9.0 * self.bulk_modulus / (2.0 * (1.0 + nu) * (1.0 + nu)))
+                let (dg_dk, dg_dnu) = shear_modulus_of_partials(self.bulk_modulus, nu);
+                (k_bar + g_bar * dg_dk, g_bar * dg_dnu)
             }
             _ => (k_bar, g_bar),
         };

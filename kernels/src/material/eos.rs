@@ -94,6 +94,13 @@ pub fn shear_modulus_of(
     }
 }
 
+/// Partial derivatives (dG/dK, dG/dnu) of [`shear_modulus_of`]'s G = 3 K (1 - 2 nu) / (2 (1 + nu)),
+/// for the adjoints of the materials that take `poisson_ratio`.
+#[inline]
+pub fn shear_modulus_of_partials(bulk_modulus: f64, nu: f64) -> (f64, f64) {
+    (3.0 * (1.0 - 2.0 * nu) / (2.0 * (1.0 + nu)), -9.0 * bulk_modulus / (2.0 * (1.0 + nu) * (1.0 + nu)))
+}
+
 /// Shear modulus of a material whose scenario gives exactly one of `shear_modulus` (G) and
 /// `poisson_ratio` (nu); with nu, G = 3 K (1 - 2 nu) / (2 (1 + nu)) from the reference bulk modulus
 /// K (paper 001 eq. 18). Errors name the keys under `key` (e.g. "material").

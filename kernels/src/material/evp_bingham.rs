@@ -57,7 +57,7 @@
 
 use serde::Deserialize;
 
-use crate::material::eos::{resolve_shear_modulus, shear_modulus_of};
+use crate::material::eos::{resolve_shear_modulus, shear_modulus_of, shear_modulus_of_partials};
 use crate::material::{maxwell, non_negative, positive, Eos, Material, StabilityInfo, UpdateAdjoint};
 use crate::real::{
     ddot, dev, jaumann_rotation, jaumann_rotation_adjoint, r, skew, sym, sym_from_slice, sym_from_slice_adjoint,
@@ -366,9 +366,7 @@ impl Material for EvpBingham {
         let (nu_or_g, k_extra) = match (self.shear_modulus, self.poisson_ratio) {
             (Some(_), _) => (g_bar, r(0.0)),
             (None, Some(nu)) => {
-                // G = 3 K (1 - 2 nu) / (2 (1 + nu))
-                let dg_dk = 3.0 * (1.0 - 2.0 * nu) / (2.0 * (1.0 + nu));
-                let dg_dnu = -9.0 * self.bulk_modulus / (2.0 * (1.0 + nu) * (1.0 + nu));
+                let (dg_dk, dg_dnu) = shear_modulus_of_partials(self.bulk_modulus, nu);
                 (g_bar * r(dg_dnu), g_bar * r(dg_dk))
             }
             (None, None) => (r(0.0), r(0.0)),

@@ -20,6 +20,7 @@
 //! the material computes from nu), and then sets its own. At the stand-in the material is the
 //! base model's to the bit.
 
+use crate::kernels::material::eos::shear_modulus_of_partials;
 use super::{bar, read, shear_modulus, Covariates, Effect, Keys, ParamSpec, BULK_MODULUS, POISSON_RATIO, SHEAR_MODULUS};
 
 pub struct Modulus {
@@ -78,11 +79,11 @@ impl Effect for Modulus {
             // G = 3 K (1 - 2 nu) / (2 (1 + nu)) went on as the material's G (0 when it is the key
             // overwritten above); K and nu were not keys after it
             let g_bar = bar(keys_bar, SHEAR_MODULUS);
-            let k = keys_in[BULK_MODULUS];
+            let (dg_dk, dg_dnu) = shear_modulus_of_partials(keys_in[BULK_MODULUS], nu);
             keys_bar.insert(SHEAR_MODULUS.into(), 0.0);
-            keys_bar.insert(POISSON_RATIO.into(), -g_bar * 9.0 * k / (2.0 * (1.0 + nu) * (1.0 + nu)));
+            keys_bar.insert(POISSON_RATIO.into(), g_bar * dg_dnu);
             let k_bar = if self.key == BULK_MODULUS { 0.0 } else { bar(keys_bar, BULK_MODULUS) };
-            keys_bar.insert(BULK_MODULUS.into(), k_bar + g_bar * 3.0 * (1.0 - 2.0 * nu) / (2.0 * (1.0 + nu)));
+            keys_bar.insert(BULK_MODULUS.into(), k_bar + g_bar * dg_dk);
         }
     }
     fn null_at_infinity(&self) -> bool {

@@ -33,11 +33,11 @@ impl Effect for WallFriction {
         Ok(())
     }
     fn check_scenario(&self, scenario: &toml::Table) -> Result<(), String> {
-        if scenario.get("boundary").and_then(|b| b.get("platform")).is_some() {
+        let boundary = scenario.get("boundary");
+        if boundary.and_then(|b| b.get("platform")).is_some() {
             return Err("acts on the z_min floor, and this scenario's material stands on boundary.platform".into());
         }
-        let floor = scenario.get("boundary").and_then(|b| b.get("z_min"));
-        match floor {
+        match boundary.and_then(|b| b.get("z_min")) {
             // no-slip is the floor's default
             None => Ok(()),
             Some(toml::Value::String(k)) if k == "no_slip" => Ok(()),
