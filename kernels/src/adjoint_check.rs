@@ -4,6 +4,10 @@
 //! Only compiled for tests, and only meaningful in f64 (central differences in f32 resolve
 //! about three digits).
 
+// `v as Real` and `as f64` are no-ops in the default f64 build and real conversions under
+// `--features f32`; both builds compile this file.
+#![allow(clippy::unnecessary_cast)]
+
 use crate::material::{Material, UpdateAdjoint};
 use crate::real::{Real, M3};
 

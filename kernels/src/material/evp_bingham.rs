@@ -813,7 +813,8 @@ mod tests {
         let spin = [0.3, -2.0, 0.5, 3.0, -0.4, 1.2, -0.7, 0.9, 0.2];
         let tait = Eos::Tait { gamma: 7.0 };
         // (label, poisson, eos, params, L, J, dt, state)
-        let cases: Vec<(&str, bool, Eos, [f64; 7], [f64; 9], f64, f64, [f64; 8])> = vec![
+        type Case = (&'static str, bool, Eos, [f64; 7], [f64; 9], f64, f64, [f64; 8]);
+        let cases: Vec<Case> = vec![
             ("elastic", false, Eos::Linear, [1e6, 2e5, 7.5, 630.0, 3.0, 0.0, 0.0], spin, 0.98,
              1e-3, [100.0, -40.0, -60.0, 80.0, -30.0, 20.0, 0.0, 0.01]),
             ("plastic, alpha = 0", false, Eos::Linear, [1e6, 2e5, 7.5, 630.0, 3.0, 0.0, 0.0], spin.map(|x| 40.0 * x), 1.02,
