@@ -2,21 +2,96 @@
 //!
 //! The step loop dispatches several parallel phases per step; spawning threads (or queueing boxed
 //! jobs) would allocate on every dispatch. This team is created once; `run` hands the workers a
-//! borrowed closure and waits on a barrier, so a dispatch allocates nothing. Work is split
-//! statically by thread index, so results never depend on timing.
+//! borrowed closure, so a dispatch allocates nothing. Work is split statically by thread index,
+//! so results never depend on timing.
+//!
+//! Waiting spins first and sleeps only after [`SPIN`]: a step dispatches about ten phases, each
+//! tens to hundreds of microseconds on a small print or slump, and waking a sleeping thread costs
+//! a futex call and a context switch on each side. With two `std::sync::Barrier`s per dispatch
+//! (what this team used before), the quick print-sleep check spent as much time in the kernel as
+//! in its own code (68.8 s sys against 67.8 s user, 383k futex calls in its first 20 s;
+//! BENCHMARKS.md "Thread team").
 
-use std::sync::{Arc, Barrier, Mutex};
+use std::cell::UnsafeCell;
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering::SeqCst};
+use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
 
 type Job = dyn Fn(usize) + Sync;
 
-struct Shared {
-    start: Barrier,
-    done: Barrier,
-    /// The current job, valid between the two barriers of one `run`.
-    job: Mutex<Option<&'static Job>>,
-    quit: std::sync::atomic::AtomicBool,
+/// How long a waiting thread spins before it sleeps: longer than a step's serial stretches on a
+/// small problem, short enough that a thread waiting on an oversubscribed machine gives its core
+/// back soon.
+const SPIN: Duration = Duration::from_micros(100);
+
+/// Spin until `ready()` or [`SPIN`] has passed; whether it became ready.
+#[inline]
+fn spin_until(ready: impl Fn() -> bool) -> bool {
+    let t0 = Instant::now();
+    loop {
+        for _ in 0..64 {
+            if ready() {
+                return true;
+            }
+            std::hint::spin_loop();
+        }
+        if t0.elapsed() > SPIN {
+            return ready();
+        }
+    }
 }
+
+/// A wake-up flag a thread can sleep on after spinning: `sleeping` tells the waker whether the
+/// lock and the notification (a system call) are needed.
+#[derive(Default)]
+struct Sleeper {
+    sleeping: AtomicUsize,
+    lock: Mutex<()>,
+    cv: Condvar,
+}
+
+impl Sleeper {
+    /// Wait until `ready()`: spin, then sleep. `ready` must become true only by a write that is
+    /// followed by [`Sleeper::wake`].
+    fn wait(&self, ready: impl Fn() -> bool) {
+        if spin_until(&ready) {
+            return;
+        }
+        let mut g = self.lock.lock().unwrap_or_else(|e| e.into_inner());
+        // SeqCst on both sides: either the waker sees this count, or this thread sees its write
+        self.sleeping.fetch_add(1, SeqCst);
+        while !ready() {
+            g = self.cv.wait(g).unwrap_or_else(|e| e.into_inner());
+        }
+        self.sleeping.fetch_sub(1, SeqCst);
+    }
+
+    /// After the write that makes the waiters ready.
+    fn wake(&self) {
+        if self.sleeping.load(SeqCst) > 0 {
+            // the lock makes sure a sleeper counted above is in `cv.wait`, not about to enter it
+            let _g = self.lock.lock().unwrap_or_else(|e| e.into_inner());
+            self.cv.notify_all();
+        }
+    }
+}
+
+struct Shared {
+    /// Bumped by `run` to start a job (and by `drop`, with `quit`, to stop the workers).
+    epoch: AtomicU64,
+    /// Workers still in the current job.
+    running: AtomicUsize,
+    /// The current job, written before `epoch` is bumped and read after it is seen.
+    job: UnsafeCell<Option<&'static Job>>,
+    quit: AtomicBool,
+    start: Sleeper,
+    done: Sleeper,
+}
+
+// SAFETY: `job` is written only by `run` while no worker reads it (every worker has finished the
+// previous job, `running` == 0) and read by workers only after the epoch that publishes it.
+unsafe impl Sync for Shared {}
 
 pub struct ThreadTeam {
     n: usize,
@@ -24,30 +99,39 @@ pub struct ThreadTeam {
     workers: Vec<JoinHandle<()>>,
 }
 
-
 impl ThreadTeam {
     /// A team of `n >= 1` threads: the caller plus `n - 1` workers.
     pub fn new(n: usize) -> Self {
         let n = n.max(1);
         let shared = Arc::new(Shared {
-            start: Barrier::new(n),
-            done: Barrier::new(n),
-            job: Mutex::new(None),
-            quit: std::sync::atomic::AtomicBool::new(false),
+            epoch: AtomicU64::new(0),
+            running: AtomicUsize::new(0),
+            job: UnsafeCell::new(None),
+            quit: AtomicBool::new(false),
+            start: Sleeper::default(),
+            done: Sleeper::default(),
         });
         let workers = (1..n)
             .map(|tid| {
                 let s = shared.clone();
                 std::thread::Builder::new()
                     .name(format!("strand-worker-{tid}"))
-                    .spawn(move || loop {
-                        s.start.wait();
-                        if s.quit.load(std::sync::atomic::Ordering::Acquire) {
-                            return;
+                    .spawn(move || {
+                        let mut seen = 0;
+                        loop {
+                            s.start.wait(|| s.epoch.load(SeqCst) != seen);
+                            seen = s.epoch.load(SeqCst);
+                            if s.quit.load(SeqCst) {
+                                return;
+                            }
+                            // SAFETY: published by the epoch just seen; `run` keeps it alive
+                            // until `running` falls to 0 below.
+                            let job = unsafe { (*s.job.get()).expect("job set before its epoch") };
+                            job(tid);
+                            if s.running.fetch_sub(1, SeqCst) == 1 {
+                                s.done.wake();
+                            }
                         }
-                        let job = s.job.lock().unwrap_or_else(|e| e.into_inner()).expect("job set before start");
-                        job(tid);
-                        s.done.wait();
                     })
                     .expect("cannot spawn worker thread")
             })
@@ -66,15 +150,20 @@ impl ThreadTeam {
             return;
         }
         let job: &(dyn Fn(usize) + Sync + '_) = &f;
-        // SAFETY: the 'static is a lie told only to the workers, who use the reference strictly
-        // between the `start` and `done` barriers; `run` does not return (and `f` stays alive)
-        // until every worker has passed `done`, and the slot is cleared before returning.
+        // SAFETY: the 'static is a lie told only to the workers, who call it strictly between
+        // the epoch below and their decrement of `running`; `run` does not return (and `f` stays
+        // alive) until `running` is 0, and the slot is cleared before returning.
         let job: &'static Job = unsafe { std::mem::transmute::<&(dyn Fn(usize) + Sync + '_), &'static Job>(job) };
-        *self.shared.job.lock().unwrap_or_else(|e| e.into_inner()) = Some(job);
-        self.shared.start.wait();
+        let s = &*self.shared;
+        // SAFETY: no worker is in a job (the last `run` waited for `running` == 0).
+        unsafe { *s.job.get() = Some(job) };
+        s.running.store(self.n - 1, SeqCst);
+        s.epoch.fetch_add(1, SeqCst);
+        s.start.wake();
         f(0);
-        self.shared.done.wait();
-        *self.shared.job.lock().unwrap_or_else(|e| e.into_inner()) = None;
+        s.done.wait(|| s.running.load(SeqCst) == 0);
+        // SAFETY: every worker is done with it.
+        unsafe { *s.job.get() = None };
     }
 
     /// The half-open range of `0..n` that thread `tid` of `threads` owns (contiguous, balanced).
@@ -102,8 +191,9 @@ impl ThreadTeam {
 impl Drop for ThreadTeam {
     fn drop(&mut self) {
         if self.n > 1 {
-            self.shared.quit.store(true, std::sync::atomic::Ordering::Release);
-            self.shared.start.wait();
+            self.shared.quit.store(true, SeqCst);
+            self.shared.epoch.fetch_add(1, SeqCst);
+            self.shared.start.wake();
             for w in self.workers.drain(..) {
                 let _ = w.join();
             }
