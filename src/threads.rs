@@ -11,23 +11,116 @@
 //! (what this team used before), the quick print-sleep check spent as much time in the kernel as
 //! in its own code (68.8 s sys against 67.8 s user, 383k futex calls in its first 20 s;
 //! BENCHMARKS.md "Thread team").
+//!
+//! Spinning pays only while every team thread has a core of its own; otherwise the spinner takes
+//! the core from the very thread it waits for. `cargo test --release --test grad` (two tests at
+//! once, each with a two-thread team, on two cores) took more than 8.5 min against 154-193 s with
+//! the barriers, and with one other single-thread process on the two cores the quick slump check
+//! took 131 s against 19 s. So a waiter spins only while (1) the team threads in use in this
+//! process fit in the machine's cores ([`IN_USE`]) and (2) the thread that dispatches has lately
+//! not waited for a core ([`check_in`]: the second rule sees other processes); otherwise it sleeps
+//! at once, as with the barriers.
 
-use std::cell::UnsafeCell;
-use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering::SeqCst};
-use std::sync::{Arc, Condvar, Mutex};
+use std::cell::{Cell, UnsafeCell};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering::Relaxed, Ordering::SeqCst};
+use std::sync::{Arc, Condvar, Mutex, OnceLock};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 type Job = dyn Fn(usize) + Sync;
 
 /// How long a waiting thread spins before it sleeps: longer than a step's serial stretches on a
-/// small problem, short enough that a thread waiting on an oversubscribed machine gives its core
-/// back soon.
+/// small problem, short enough that a thread left waiting (a serial stretch between runs) gives
+/// its core back soon.
 const SPIN: Duration = Duration::from_micros(100);
 
-/// Spin until `ready()` or [`SPIN`] has passed; whether it became ready.
+/// How often a dispatching thread measures how long it waited for a core.
+const SAMPLE: Duration = Duration::from_millis(20);
+
+/// Waiters may spin only while a dispatching thread waits for a core less than this fraction of
+/// the time. Measured on 2 cores, per thread: 0 % spinning and 0-4 % sleeping with the team
+/// alone, 23-49 % with one other busy thread (BENCHMARKS.md "Thread team").
+const CALM: f64 = 0.05;
+
+/// Team threads in use in the process: each thread that has dispatched to a team of two or more
+/// counts that team's size (callers included), from its first dispatch until it exits. Counting
+/// per dispatching thread rather than per live team leaves out a team that is alive but idle (its
+/// workers asleep, as when a verify case keeps one simulation while it runs the next on the same
+/// thread), and counts tests or jobs that run at once, each on its own thread. A thread that stops
+/// dispatching stays counted until it exits, which can only make waiters sleep sooner.
+static IN_USE: AtomicUsize = AtomicUsize::new(0);
+
+/// Whether the last measurement of a dispatching thread found the cores free; see [`check_in`].
+static CALM_CORES: AtomicBool = AtomicBool::new(false);
+
+/// A dispatching thread's share of [`IN_USE`] and its last measurement of waiting for a core.
+struct Caller {
+    counted: Cell<usize>,
+    /// When, and this thread's total wait for a core then (ns).
+    sampled: Cell<Option<(Instant, u64)>>,
+}
+
+impl Drop for Caller {
+    fn drop(&mut self) {
+        IN_USE.fetch_sub(self.counted.get(), Relaxed);
+    }
+}
+
+thread_local! {
+    static CALLER: Caller = const { Caller { counted: Cell::new(0), sampled: Cell::new(None) } };
+}
+
+/// Called by `run` on the dispatching thread: count it as using a team of `n`, and every [`SAMPLE`]
+/// set [`CALM_CORES`] from the share of the time since the last sample it spent runnable but
+/// without a core. That share is the direct measure of oversubscription, whoever causes it;
+/// sleeping waiters do not hide it (a woken thread still queues for a core), so the rule does not
+/// flip back to spinning while the cores stay busy. Where it cannot be measured, never spin.
+fn check_in(n: usize) {
+    // `try_with`: during thread teardown the state is gone, and then nothing is counted
+    let _ = CALLER.try_with(|c| {
+        if c.counted.get() < n {
+            IN_USE.fetch_add(n - c.counted.get(), Relaxed);
+            c.counted.set(n);
+        }
+        let now = Instant::now();
+        let last = c.sampled.get();
+        if last.is_some_and(|(t, _)| now - t < SAMPLE) {
+            return;
+        }
+        let waited = run_delay_ns();
+        let calm = match (last, waited) {
+            (Some((t, w0)), Some(w)) => (w.saturating_sub(w0) as f64) < CALM * (now - t).as_nanos() as f64,
+            _ => false,
+        };
+        CALM_CORES.store(calm, Relaxed);
+        c.sampled.set(Some((now, waited.unwrap_or(0))));
+    });
+}
+
+/// This thread's total time runnable but waiting for a core (ns), from Linux's schedstat; `None`
+/// where that cannot be read. Allocates nothing (the step loop must not).
+fn run_delay_ns() -> Option<u64> {
+    use std::io::Read;
+    let mut buf = [0u8; 96];
+    let n = std::fs::File::open("/proc/thread-self/schedstat").ok()?.read(&mut buf).ok()?;
+    std::str::from_utf8(&buf[..n]).ok()?.split_ascii_whitespace().nth(1)?.parse().ok()
+}
+
+/// Whether a waiter should sleep at once rather than spin (hints read without ordering: a stale
+/// value costs at most one wait's spin or one sleep).
+fn oversubscribed() -> bool {
+    static CORES: OnceLock<usize> = OnceLock::new();
+    let cores = *CORES.get_or_init(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    IN_USE.load(Relaxed) > cores || !CALM_CORES.load(Relaxed)
+}
+
+/// Spin until `ready()` or [`SPIN`] has passed, not at all if [`oversubscribed`]; whether it
+/// became ready.
 #[inline]
 fn spin_until(ready: impl Fn() -> bool) -> bool {
+    if oversubscribed() {
+        return ready();
+    }
     let t0 = Instant::now();
     loop {
         for _ in 0..64 {
@@ -149,6 +242,7 @@ impl ThreadTeam {
             f(0);
             return;
         }
+        check_in(self.n);
         let job: &(dyn Fn(usize) + Sync + '_) = &f;
         // SAFETY: the 'static is a lie told only to the workers, who call it strictly between
         // the epoch below and their decrement of `running`; `run` does not return (and `f` stays
@@ -261,6 +355,21 @@ mod tests {
         for h in &hits {
             assert_eq!(h.load(Ordering::Relaxed), 100);
         }
+    }
+
+    #[test]
+    fn a_dispatching_thread_counts_its_largest_team_once() {
+        std::thread::spawn(|| {
+            let two = ThreadTeam::new(2);
+            two.run(|_| {});
+            two.run(|_| {});
+            ThreadTeam::new(3).run(|_| {});
+            two.run(|_| {});
+            ThreadTeam::new(1).run(|_| {});
+            assert_eq!(CALLER.with(|c| c.counted.get()), 3);
+        })
+        .join()
+        .unwrap();
     }
 
     #[test]
