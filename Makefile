@@ -7,7 +7,7 @@ OUT ?= out
 build:
 	$(CARGO) build --release
 
-# The embedded default scenario (two short printed layers, a few minutes on 2 cores): VTU
+# The embedded default scenario (two short printed layers, about a minute on 2 cores): VTU
 # snapshots, globals.csv, the cross-section CSVs and PNG in $(OUT)/.
 run: build
 	./target/release/strand run --out $(OUT)
