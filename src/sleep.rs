@@ -8,7 +8,8 @@
 //! body: grid nodes inside a sleeping unit's stencil reach are held at rest. A sleeping unit
 //! wakes as soon as material faster than `wake_speed` is binned next to it (new material
 //! arriving, or a load making its neighbour move), when an awake particle enters it, or when the
-//! nozzle tube reaches it (material in the tube must follow the nozzle).
+//! nozzle tube reaches it while the nozzle moves or extrudes (material in the tube must follow
+//! the nozzle; a still tube holds its nodes at rest, as a sleeping unit does).
 //!
 //! Why units and not the grid's 4-cell blocks: the awake region is what moves plus a one-unit
 //! halo around it (the calm and wake tests look at the 26 neighbours), and a printed layer is

@@ -387,7 +387,10 @@ impl Simulation {
             if self.step > 0 {
                 let check = self.step.is_multiple_of(sl.cfg.check_interval);
                 let mat = &*self.material;
-                moved = sl.update(&self.grid, &mut self.particles, mat, self.last_dt, self.time, check, drive.map(|d| d.bounds()));
+                // A still nozzle (a pause) holds its tube's nodes at rest, as sleeping material's held
+                // nodes are: material resting under or in it may sleep through the dwell.
+                let moving_tube = drive.filter(|d| d.velocity != [0.0; 3]).map(|d| d.bounds());
+                moved = sl.update(&self.grid, &mut self.particles, mat, self.last_dt, self.time, check, moving_tube);
             }
         }
         self.awake_particle_steps += (self.particles.n - self.particles.n_sleep) as u64;
