@@ -2,10 +2,14 @@
 """Per-step cost while printing each layer of fixtures/scenarios/print/ten_layers.toml, from the
 globals.csv of a run: CPU seconds (all threads) per step over the second half of each layer's
 printing interval (the nozzle past the start-up transient of the layer).
-Usage: bench/layer_cost.py OUT_DIR [OUT_DIR ...]"""
+Usage: bench/layer_cost.py [--pause SECONDS] OUT_DIR [OUT_DIR ...]
+(--pause: the dwell after each layer, 0.1 s in the fixture.)"""
 import csv, sys
 
 PRINT, PAUSE, LAYER = 0.1 / 0.03, 0.1, 0.25
+args = sys.argv[1:]
+if args[:1] == ["--pause"]:
+    PAUSE, args = float(args[1]), args[2:]
 
 
 def layer_intervals(n=10):
@@ -33,7 +37,7 @@ def costs(path):
     return res
 
 
-for d in sys.argv[1:]:
+for d in args:
     print(f"# {d}")
     print("layer  cpu_ms_per_step  wall_ms_per_step  particles  asleep  cpu_cost_vs_layer1")
     rs = costs(d)
