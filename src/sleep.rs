@@ -6,10 +6,26 @@
 //! faster than `wake_speed`. Its particles move into the sleeping prefix `0..n_sleep` of the
 //! pool, out of every per-step loop. Active material that reaches them sees a still, no-slip
 //! body: grid nodes inside a sleeping unit's stencil reach are held at rest. A sleeping unit
-//! wakes as soon as material faster than `wake_speed` is binned next to it (new material
-//! arriving, or a load making its neighbour move), when an awake particle enters it, or when the
-//! nozzle tube reaches it while the nozzle moves or extrudes (material in the tube must follow
-//! the nozzle; a still tube holds its nodes at rest, as a sleeping unit does).
+//! wakes when an awake particle enters it, when the moving nozzle tube reaches it (material in the
+//! tube must follow the nozzle), when material faster than `wake_speed` is binned beside or below it,
+//! and when the load of the material above it could make it yield (the wake test on load, below).
+//!
+//! The wake test on load. Material printed onto a sleeping layer rests on the layer's held nodes;
+//! what those nodes take from it each step (the momentum they remove, over dt) is the load on the
+//! sleeping units holding them. Averaged over `load_time`, that force over a unit's face is a
+//! traction t, and a traction adds at most |t| / sqrt(3) to tau = sqrt(J2) under a column (it is
+//! that for a vertical load on a free-standing column; the triangle inequality bounds the sum
+//! with the stress already there). A unit sleeps with the least margin to yield of its particles
+//! ([`Material::yield_margin`]), which grows while it sleeps as its material builds up structure
+//! ([`Material::strength_gain`]). The load reaches through the sleeping material below the unit,
+//! so it wakes the contiguous sleeping units under it in its column down to the deepest whose
+//! margin it passes: a layer at its yield stress at the bottom wakes under the next layer's
+//! weight, one that has built up enough strength stays asleep. Why not wake on the speed of the
+//! material above, as before: the new layer's arrival then woke the layer below over the nozzle's
+//! whole zone, and it slept again only once the new layer had settled above it, ~30 mm behind the
+//! nozzle; that layer was what every layer after the first cost above the first (BENCHMARKS.md
+//! "Sleeping"). The speed of material beside or below a unit still wakes it: a load test cannot
+//! see material sliding past or giving way under it.
 //!
 //! Why units and not the grid's 4-cell blocks: the awake region is what moves plus a one-unit
 //! halo around it (the calm and wake tests look at the 26 neighbours), and a printed layer is
@@ -27,7 +43,7 @@
 //! checked every step and moves particles only when a unit actually wakes (O(sleeping
 //! particles), rare).
 
-use crate::grid::{Grid, GridGeom, EMPTY};
+use crate::grid::{Grid, GridGeom, EMPTY, NODES_PER_BLOCK};
 use crate::kernels::transfer::BS;
 use crate::kernels::material::Material;
 use crate::kernels::{Real, M3, V3};
@@ -56,6 +72,13 @@ pub struct SleepConfig {
     /// Steps between checks for units to put to sleep.
     #[serde(default = "default_check")]
     pub check_interval: u64,
+    /// Wake a sleeping unit under the load of the material above it when that load can make it
+    /// yield, instead of when the material above moves faster than `wake_speed`.
+    #[serde(default = "default_wake_by_load")]
+    pub wake_by_load: bool,
+    /// Time over which the load on a sleeping unit is averaged [s].
+    #[serde(default = "default_load_time")]
+    pub load_time: f64,
 }
 
 fn default_speed() -> f64 {
@@ -92,6 +115,15 @@ fn default_grace() -> f64 {
 fn default_check() -> u64 {
     64
 }
+fn default_wake_by_load() -> bool {
+    true
+}
+fn default_load_time() -> f64 {
+    // Many times the elastic ringing of a layer (2 x 12.5 mm at c ~ 28 m/s: 0.9 ms) and the
+    // impact of each arriving slab, which average out; short against the nozzle's passage over a
+    // unit (~0.2 s), whose squeeze is the load that matters.
+    0.02
+}
 
 impl SleepConfig {
     pub fn validate(&self) -> Result<(), String> {
@@ -101,6 +133,7 @@ impl SleepConfig {
             ("sleep.rest_time", self.rest_time),
             ("sleep.wake_speed", self.wake_speed),
             ("sleep.wake_grace", self.wake_grace),
+            ("sleep.load_time", self.load_time),
         ] {
             if !(v >= 0.0 && v.is_finite()) {
                 return Err(format!("{k} must be >= 0, got {v}"));
@@ -123,10 +156,25 @@ const AWAKE: u8 = 0;
 const ASLEEP: u8 = 1;
 /// Within one update: woken, its sleep start still in `rest` until its particles had their rest.
 const WOKEN: u8 = 2;
+/// Asleep, and loaded past its margin in the step just taken: the next update wakes it. (Its
+/// particles are still in the sleeping prefix, so its nodes stay held until then.)
+const LOADED: u8 = 3;
+
+pub static TRACE: [std::sync::atomic::AtomicU64; 8] = [const { std::sync::atomic::AtomicU64::new(0) }; 8];
+fn tr(i: usize, n: u64) { TRACE[i].fetch_add(n, std::sync::atomic::Ordering::Relaxed); }
+
+#[inline]
+fn asleep(s: u8) -> bool {
+    s == ASLEEP || s == LOADED
+}
+
+/// Share of a traction's magnitude that reaches tau = sqrt(J2): 1/sqrt(3), exact for a
+/// vertical load on a free-standing column (see the module notes).
+const LOAD_SHARE: f32 = 0.577_350_26;
 
 #[inline]
 fn wake(b: u32, state: &mut [u8], woken: &mut [u32], n_woken: &mut usize) {
-    if state[b as usize] == ASLEEP {
+    if asleep(state[b as usize]) {
         state[b as usize] = WOKEN;
         woken[*n_woken] = b;
         *n_woken += 1;
@@ -184,6 +232,33 @@ pub struct Sleep {
     pub activity: Pool<UnitActivity>,
     /// Units asleep now.
     pub sleeping_units: usize,
+    /// Sleeping unit: the load on it [N], averaged over `load_time` (an exponential average,
+    /// brought up to date whenever a step loads it).
+    load: Pool<[f32; 3]>,
+    /// Sleeping unit: the step whose load `load` last took in.
+    load_step: Pool<u32>,
+    /// Sleeping unit: the least margin to yield of its particles when it fell asleep [Pa].
+    margin: Pool<f32>,
+    /// Sleeping unit: |load| [N] once it had slept `load_time` (NaN before): the load its
+    /// frozen stress already carries, from the material that lay on it when it fell asleep.
+    base: Pool<f32>,
+    /// Units the last step loaded past their margin (state LOADED), for the next update.
+    loaded: Pool<u32>,
+    n_loaded: usize,
+    /// Per grid node of the last grid update: the reaction of a held node [N] (zero elsewhere;
+    /// written only in blocks near a sleeping unit).
+    pub(crate) reactions: Pool<[f32; 3]>,
+    /// Axis and sign of gravity (down), when gravity lies along an axis and loads are tested.
+    down: Option<(usize, i32)>,
+    /// 1 / (a unit's face area) [1/m^2].
+    per_area: f32,
+}
+
+/// What the grid update needs of the sleeping units: which nodes they hold.
+pub struct Holds<'a> {
+    state: &'a [u8],
+    asleep_in_block: &'a [u8],
+    sleeping_units: usize,
 }
 
 /// Edge of a sleep unit in cells.
@@ -252,32 +327,70 @@ fn unit_in_table(geom: &GridGeom, u: [i32; 3]) -> bool {
 
 impl Sleep {
     pub fn plan(plan: &mut MemoryPlan, geom: &GridGeom, max_blocks: usize) {
-        plan.add::<u8>("sleep.state", geom.table_len() * UNITS);
-        plan.add::<f32>("sleep.rest", geom.table_len() * UNITS);
-        plan.add::<u32>("sleep.woken", geom.table_len() * UNITS);
+        let units = geom.table_len() * UNITS;
+        plan.add::<u8>("sleep.state", units);
+        plan.add::<f32>("sleep.rest", units);
+        plan.add::<u32>("sleep.woken", units);
         plan.add::<u8>("sleep.asleep_in_block", geom.table_len());
         plan.add::<UnitActivity>("sleep.activity", max_blocks);
+        plan.add::<[f32; 3]>("sleep.load", units);
+        plan.add::<u32>("sleep.load_step", units);
+        plan.add::<f32>("sleep.margin", units);
+        plan.add::<f32>("sleep.base", units);
+        plan.add::<u32>("sleep.loaded", units);
+        plan.add::<[f32; 3]>("sleep.reactions", max_blocks * NODES_PER_BLOCK);
     }
 
-    pub fn new(cfg: SleepConfig, geom: &GridGeom, max_blocks: usize, b: &Backing) -> Result<Self, MemoryError> {
+    /// Tables for `geom`'s domain with `max_blocks` grid slots, under `gravity`.
+    pub fn new(cfg: SleepConfig, geom: &GridGeom, max_blocks: usize, gravity: [f64; 3], b: &Backing) -> Result<Self, MemoryError> {
+        let units = geom.table_len() * UNITS;
+        let axes: Vec<usize> = (0..3).filter(|&a| gravity[a] != 0.0).collect();
+        let down = match axes[..] {
+            [a] if cfg.wake_by_load => Some((a, gravity[a].signum() as i32)),
+            _ => None,
+        };
+        let face = US as f64 * geom.dx;
         Ok(Sleep {
             cfg,
-            state: Pool::new("sleep.state", geom.table_len() * UNITS, b)?,
-            rest: Pool::new("sleep.rest", geom.table_len() * UNITS, b)?,
-            woken: Pool::new("sleep.woken", geom.table_len() * UNITS, b)?,
+            state: Pool::new("sleep.state", units, b)?,
+            rest: Pool::new("sleep.rest", units, b)?,
+            woken: Pool::new("sleep.woken", units, b)?,
             asleep_in_block: Pool::new("sleep.asleep_in_block", geom.table_len(), b)?,
             activity: Pool::new("sleep.activity", max_blocks, b)?,
             sleeping_units: 0,
+            load: Pool::new("sleep.load", units, b)?,
+            load_step: Pool::new("sleep.load_step", units, b)?,
+            margin: Pool::new("sleep.margin", units, b)?,
+            base: Pool::new("sleep.base", units, b)?,
+            loaded: Pool::new("sleep.loaded", units, b)?,
+            n_loaded: 0,
+            reactions: Pool::new("sleep.reactions", max_blocks * NODES_PER_BLOCK, b)?,
+            down,
+            per_area: (1.0 / (face * face)) as f32,
         })
     }
 
-    /// The per-unit tables (state, rest time), for checkpoints.
-    pub fn tables(&self) -> (&[u8], &[f32]) {
-        (self.state.as_slice(), self.rest.as_slice())
+    /// The per-unit tables, for checkpoints.
+    pub fn tables(&self) -> SleepTables<'_> {
+        SleepTables {
+            state: self.state.as_slice(),
+            rest: self.rest.as_slice(),
+            load: self.load.as_slice(),
+            load_step: self.load_step.as_slice(),
+            margin: self.margin.as_slice(),
+            base: self.base.as_slice(),
+        }
     }
 
-    pub fn tables_mut(&mut self) -> (&mut [u8], &mut [f32]) {
-        (self.state.as_mut_slice(), self.rest.as_mut_slice())
+    pub fn tables_mut(&mut self) -> SleepTablesMut<'_> {
+        SleepTablesMut {
+            state: self.state.as_mut_slice(),
+            rest: self.rest.as_mut_slice(),
+            load: self.load.as_mut_slice(),
+            load_step: self.load_step.as_mut_slice(),
+            margin: self.margin.as_mut_slice(),
+            base: self.base.as_mut_slice(),
+        }
     }
 
     /// Rebuild what follows from the state table (after a checkpoint wrote it).
@@ -286,14 +399,26 @@ impl Sleep {
         let per_block = self.asleep_in_block.as_mut_slice();
         self.sleeping_units = 0;
         for (b, n) in per_block.iter_mut().enumerate() {
-            *n = state[b * UNITS..(b + 1) * UNITS].iter().filter(|&&s| s == ASLEEP).count() as u8;
+            *n = state[b * UNITS..(b + 1) * UNITS].iter().filter(|&&s| asleep(s)).count() as u8;
             self.sleeping_units += *n as usize;
+        }
+        let loaded = self.loaded.as_mut_slice();
+        self.n_loaded = 0;
+        for (u, _) in state.iter().enumerate().filter(|(_, &s)| s == LOADED) {
+            loaded[self.n_loaded] = u as u32;
+            self.n_loaded += 1;
         }
     }
 
-    #[inline]
-    fn is_asleep(&self, unit: u32) -> bool {
-        self.state.as_slice()[unit as usize] == ASLEEP
+    /// Which nodes the sleeping units hold.
+    pub fn holds(&self) -> Holds<'_> {
+        Holds { state: self.state.as_slice(), asleep_in_block: self.asleep_in_block.as_slice(), sleeping_units: self.sleeping_units }
+    }
+
+    /// [`Sleep::holds`], and the per-node buffer the grid update leaves held nodes' reactions in.
+    pub fn holds_and_reactions(&mut self) -> (Holds<'_>, &mut [[f32; 3]]) {
+        let holds = Holds { state: self.state.as_slice(), asleep_in_block: self.asleep_in_block.as_slice(), sleeping_units: self.sleeping_units };
+        (holds, self.reactions.as_mut_slice())
     }
 
     /// Update rest times from the last step's activity (grid still binned as in that step, of
@@ -309,6 +434,7 @@ impl Sleep {
         material: &dyn Material,
         dt: f64,
         now: f64,
+        step: u64,
         check_sleep: bool,
         keep_awake: Option<([f64; 3], [f64; 3])>,
     ) -> bool {
@@ -322,6 +448,18 @@ impl Sleep {
         let rest = self.rest.as_mut_slice();
         let woken = self.woken.as_mut_slice();
         let mut n_woken = 0usize;
+        // below (what a unit's speed may not wake) and above (what a unit falling asleep may
+        // lie under while it moves) when loads are tested
+        let (below, above) = match self.down {
+            Some((a, sign)) => (Some((a, sign)), Some((a, -sign))),
+            None => (None, None),
+        };
+        for &u in &self.loaded.as_slice()[..self.n_loaded] {
+            wake(u, state, woken, &mut n_woken);
+        }
+        tr(0, n_woken as u64);
+        let n0 = n_woken;
+        self.n_loaded = 0;
         for s in 0..npb {
             for (k, &[v, rate]) in activity[s].iter().enumerate() {
                 let u = slot_block[s] * UNITS as u32 + k as u32;
@@ -338,13 +476,17 @@ impl Sleep {
                     rest[u as usize] = r;
                     loud
                 } else {
+                    let k0 = n_woken;
                     wake(u, state, woken, &mut n_woken);
+                    tr(1, (n_woken - k0) as u64);
                     v > limits.wake_speed
                 };
                 if wakes_neighbours {
-                    for nb in neighbours(geom, u) {
+                    let k0 = n_woken;
+                    for nb in neighbours(geom, u, below) {
                         wake(nb, state, woken, &mut n_woken);
                     }
+                    tr(2, (n_woken - k0) as u64);
                 }
             }
         }
@@ -368,7 +510,16 @@ impl Sleep {
                 }
             }
         }
+        let _ = n0;
         let woke = n_woken;
+        if std::env::var_os("STRAND_TRACE").is_some() {
+            static LAST: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+            let ds = (now * 2.0) as u64;
+            if LAST.swap(ds, std::sync::atomic::Ordering::Relaxed) != ds {
+                let g = |i: usize| TRACE[i].swap(0, std::sync::atomic::Ordering::Relaxed);
+                eprintln!("trace t={now:.2} loaded={} entry={} speed={} touched={} marked={} asleep_units={}", g(0), g(1), g(2), g(3), g(4), self.sleeping_units);
+            }
+        }
         let grace = self.cfg.wake_grace as f32;
         let per_block = self.asleep_in_block.as_mut_slice();
         let mut slept = 0usize;
@@ -380,7 +531,7 @@ impl Sleep {
                     if rest[u as usize] < rest_time || state[u as usize] != AWAKE || activity[s][k] == EMPTY_UNIT {
                         continue;
                     }
-                    let calm = neighbours(geom, u).all(|nb| {
+                    let calm = neighbours(geom, u, above).all(|nb| {
                         let t = table[nb as usize / UNITS];
                         t == EMPTY || (t as usize) >= npb || activity[t as usize][nb as usize % UNITS][0] <= limits.wake_speed
                     });
@@ -388,7 +539,12 @@ impl Sleep {
                         state[u as usize] = ASLEEP;
                         rest[u as usize] = now as f32;
                         per_block[u as usize / UNITS] += 1;
+                        woken[n_woken + slept] = u;
                         slept += 1;
+                        self.margin.as_mut_slice()[u as usize] = 0.0;
+                        self.base.as_mut_slice()[u as usize] = f32::NAN;
+                        self.load.as_mut_slice()[u as usize] = [0.0; 3];
+                        self.load_step.as_mut_slice()[u as usize] = step as u32;
                     }
                 }
             }
@@ -404,7 +560,7 @@ impl Sleep {
             let mut i = 0;
             while i < particles.n_sleep {
                 let u = unit_index(geom, particle_unit(particles.xg.as_slice()[i]));
-                if state[u as usize] == ASLEEP {
+                if asleep(state[u as usize]) {
                     i += 1;
                 } else {
                     let st = &mut particles.state.as_mut_slice()[i * sl..(i + 1) * sl];
@@ -414,32 +570,174 @@ impl Sleep {
                     particles.swap(i, particles.n_sleep);
                 }
             }
+            let (load, load_step) = (self.load.as_mut_slice(), self.load_step.as_mut_slice());
+            let (margin, base) = (self.margin.as_mut_slice(), self.base.as_mut_slice());
             for &u in &woken[..woke] {
                 state[u as usize] = AWAKE;
                 rest[u as usize] = -grace;
+                // zero, so that checkpoints store only sleeping units' entries
+                (load[u as usize], load_step[u as usize], margin[u as usize], base[u as usize]) = ([0.0; 3], 0, 0.0, 0.0);
             }
         }
         if slept > 0 {
+            let margin = self.margin.as_mut_slice();
+            let sl = particles.state_len;
             for i in particles.n_sleep..particles.n {
                 let u = unit_index(geom, particle_unit(particles.xg.as_slice()[i]));
                 if state[u as usize] == ASLEEP {
                     particles.swap(i, particles.n_sleep);
-                    settle(particles, particles.n_sleep, material);
+                    let k = particles.n_sleep;
+                    settle(particles, k, material);
+                    let m = material.yield_margin(&particles.state.as_slice()[k * sl..(k + 1) * sl]) as f32;
+                    margin[u as usize] += m;
+                    self.load.as_mut_slice()[u as usize][0] += 1.0;
                     particles.n_sleep += 1;
                 }
+            }
+            // the mean margin of each unit's particles
+            let load = self.load.as_mut_slice();
+            for &u in &woken[woke..woke + slept] {
+                margin[u as usize] /= load[u as usize][0].max(1.0);
+                load[u as usize][0] = 0.0;
             }
         }
         woke > 0 || slept > 0
     }
 
+    /// Take in the load of the grid update just done (its held nodes' reactions in
+    /// `reactions`, step `step` of length `dt`, ending at `now`): each held node's reaction is
+    /// shared among the sleeping units holding it, each unit's average load brought up to date,
+    /// and units whose load passes the margin of the sleeping column under them are marked
+    /// LOADED for the next update to wake (module notes).
+    pub fn take_loads(&mut self, grid: &Grid, dt: f64, step: u64, now: f64, material: &dyn Material) {
+        if self.sleeping_units == 0 || self.down.is_none() {
+            return;
+        }
+        let geom = &grid.geom;
+        let slot_block = grid.slot_block.as_slice();
+        let a = if self.cfg.load_time > 0.0 { (dt / self.cfg.load_time).min(1.0) as f32 } else { 1.0 };
+        let step32 = step as u32;
+        let touched = self.woken.as_mut_slice();
+        let mut n_touched = 0usize;
+        let holds = Holds { state: self.state.as_slice(), asleep_in_block: self.asleep_in_block.as_slice(), sleeping_units: self.sleeping_units };
+        let (load, load_step) = (self.load.as_mut_slice(), self.load_step.as_mut_slice());
+        let reactions = self.reactions.as_slice();
+        for (s, &bi) in slot_block[..grid.n_active].iter().enumerate() {
+            let b = geom.block_coords(bi);
+            if !holds.near_block(geom, b) {
+                continue;
+            }
+            for li in 0..NODES_PER_BLOCK {
+                let f = reactions[s * NODES_PER_BLOCK + li];
+                if f == [0.0; 3] {
+                    continue;
+                }
+                let mut holders = [0u32; 8];
+                let mut n = 0;
+                for u in holds.holders(geom, geom.node_of(b, li)) {
+                    holders[n] = u;
+                    n += 1;
+                }
+                let share = a / n as f32;
+                for &u in &holders[..n] {
+                    let (l, last) = (&mut load[u as usize], &mut load_step[u as usize]);
+                    if *last != step32 {
+                        // first share this step: decay over the steps since the last one
+                        let gap = step32.wrapping_sub(*last).min(1 << 16) as i32;
+                        let keep = (1.0 - a).powi(gap);
+                        *l = l.map(|x| x * keep);
+                        *last = step32;
+                        touched[n_touched] = u;
+                        n_touched += 1;
+                    }
+                    for k in 0..3 {
+                        l[k] += share * f[k];
+                    }
+                }
+            }
+        }
+        let (down_axis, sign) = self.down.expect("checked above");
+        let (state, rest, margin) = (self.state.as_mut_slice(), self.rest.as_slice(), self.margin.as_slice());
+        let base = self.base.as_mut_slice();
+        let loaded = self.loaded.as_mut_slice();
+        let tau = self.cfg.load_time;
+        static TOL: std::sync::OnceLock<f32> = std::sync::OnceLock::new();
+        let tol = *TOL.get_or_init(|| std::env::var("STRAND_TOL").ok().and_then(|v| v.parse().ok()).unwrap_or(20.0));
+        tr(3, n_touched as u64);
+        for &u in &touched[..n_touched] {
+            let l = load[u as usize];
+            // the average has run since the unit fell asleep, from zero: unbias it
+            let slept = now - rest[u as usize] as f64;
+            let weight = if tau > 0.0 { 1.0 - (-slept / tau).exp() } else { 1.0 };
+            if weight < 0.9 {
+                continue;
+            }
+            let size = (l[0] * l[0] + l[1] * l[1] + l[2] * l[2]).sqrt() / weight as f32;
+            if base[u as usize].is_nan() {
+                base[u as usize] = size;
+                continue;
+            }
+            // only what was added since: the load it fell asleep under is in its stress
+            let t = LOAD_SHARE * self.per_area * (size - base[u as usize]);
+            static LOADS: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+            let show = *LOADS.get_or_init(|| std::env::var_os("STRAND_LOADS").is_some());
+            // the deepest unit of the sleeping column from u down whose margin the load passes
+            let mut c = unit_coords(geom, u);
+            let (mut w, mut deepest) = (u, None);
+            loop {
+                let gain = material.strength_gain((now - rest[w as usize] as f64).max(0.0) as Real) as f32;
+                if t > margin[w as usize].max(0.0) + gain + tol {
+                    deepest = Some(c[down_axis]);
+                }
+                c[down_axis] += sign;
+                let next = wrap_unit(geom, c);
+                if !unit_in_table(geom, next) || !asleep(state[unit_index(geom, next) as usize]) {
+                    break;
+                }
+                w = unit_index(geom, next);
+            }
+            let Some(last) = deepest else { continue };
+            if show {
+                let c0 = unit_coords(geom, u);
+                eprintln!("mark t={now:.3} u={:?} down_to={last} size={:.3e} base={:.3e} t={t:.1} margin={:.1} gain={:.1} slept={:.3}", c0, size, base[u as usize], margin[u as usize], material.strength_gain((now - rest[u as usize] as f64) as Real), slept);
+            }
+            let mut c = unit_coords(geom, u);
+            loop {
+                let w = unit_index(geom, wrap_unit(geom, c));
+                if state[w as usize] == ASLEEP {
+                    tr(4, 1);
+                    state[w as usize] = LOADED;
+                    loaded[self.n_loaded] = w;
+                    self.n_loaded += 1;
+                }
+                if c[down_axis] == last {
+                    break;
+                }
+                c[down_axis] += sign;
+            }
+        }
+    }
+}
+
+impl Holds<'_> {
     /// Whether grid node `g` lies in the stencil reach of a sleeping unit: nodes
     /// 2u..=2u+3 on each axis, the nodes a particle of unit u can touch.
     #[inline]
     pub fn holds_node(&self, geom: &GridGeom, g: [i32; 3]) -> bool {
+        self.holders(geom, g).next().is_some()
+    }
+
+    /// The sleeping units whose stencil reach holds node `g` (at most 8).
+    #[inline]
+    fn holders<'g>(&'g self, geom: &'g GridGeom, g: [i32; 3]) -> impl Iterator<Item = u32> + 'g {
         let c = g.map(|x| x.div_euclid(US));
-        (0..8).any(|d| {
+        (0..8).filter_map(move |d| {
             let u = wrap_unit(geom, [c[0] - (d >> 2 & 1), c[1] - (d >> 1 & 1), c[2] - (d & 1)]);
-            unit_in_table(geom, u) && self.is_asleep(unit_index(geom, u))
+            if !unit_in_table(geom, u) {
+                return None;
+            }
+            let idx = unit_index(geom, u);
+            asleep(self.state[idx as usize]).then_some(idx)
         })
     }
 
@@ -450,12 +748,31 @@ impl Sleep {
         if self.sleeping_units == 0 {
             return false;
         }
-        let per_block = self.asleep_in_block.as_slice();
         (0..8).any(|d| {
             let c = geom.wrap_block([b[0] - (d >> 2 & 1), b[1] - (d >> 1 & 1), b[2] - (d & 1)]);
-            in_table(geom, c) && per_block[geom.block_index(c) as usize] > 0
+            in_table(geom, c) && self.asleep_in_block[geom.block_index(c) as usize] > 0
         })
     }
+}
+
+/// The per-unit tables a checkpoint stores.
+pub struct SleepTables<'a> {
+    pub state: &'a [u8],
+    pub rest: &'a [f32],
+    pub load: &'a [[f32; 3]],
+    pub load_step: &'a [u32],
+    pub margin: &'a [f32],
+    pub base: &'a [f32],
+}
+
+/// [`SleepTables`], to restore.
+pub struct SleepTablesMut<'a> {
+    pub state: &'a mut [u8],
+    pub rest: &'a mut [f32],
+    pub load: &'a mut [[f32; 3]],
+    pub load_step: &'a mut [u32],
+    pub margin: &'a mut [f32],
+    pub base: &'a mut [f32],
 }
 
 /// Put particle `i` at rest: zero velocity and velocity gradient, and the stress its material
@@ -480,11 +797,16 @@ fn in_table(geom: &GridGeom, b: [i32; 3]) -> bool {
     (0..3).all(|a| b[a] >= 0 && b[a] < geom.nb[a])
 }
 
-/// The 26 neighbours of unit `u` inside the table.
-fn neighbours(geom: &GridGeom, u: u32) -> impl Iterator<Item = u32> + '_ {
+/// The 26 neighbours of unit `u` inside the table, but those one unit off along `skip`'s axis
+/// in its direction (`(axis, sign)`; e.g. `(2, -1)`: the nine below).
+fn neighbours(geom: &GridGeom, u: u32, skip: Option<(usize, i32)>) -> impl Iterator<Item = u32> + '_ {
     let c = unit_coords(geom, u);
     (0..27).filter(|&d| d != 13).filter_map(move |d| {
-        let n = wrap_unit(geom, [c[0] + d / 9 - 1, c[1] + (d / 3) % 3 - 1, c[2] + d % 3 - 1]);
+        let off = [d / 9 - 1, (d / 3) % 3 - 1, d % 3 - 1];
+        if skip.is_some_and(|(a, sign)| off[a] == sign) {
+            return None;
+        }
+        let n = wrap_unit(geom, [c[0] + off[0], c[1] + off[1], c[2] + off[2]]);
         unit_in_table(geom, n).then(|| unit_index(geom, n))
     })
 }
@@ -501,7 +823,7 @@ mod tests {
 
     fn sleep_with(geom: &GridGeom, asleep: &[[i32; 3]]) -> Sleep {
         let cfg: SleepConfig = toml::from_str("").unwrap();
-        let mut s = Sleep::new(cfg, geom, 4, &Backing::default()).unwrap();
+        let mut s = Sleep::new(cfg, geom, 4, [0.0, 0.0, -9.81], &Backing::default()).unwrap();
         for &u in asleep {
             s.state.as_mut_slice()[unit_index(geom, u) as usize] = ASLEEP;
         }
@@ -579,10 +901,10 @@ mod tests {
                             if periodic[a] { d.rem_euclid(g.cells[a]) } else { d }
                         };
                         let want = asleep.iter().any(|u| (0..3).all(|a| (0..=3).contains(&off(u, a))));
-                        assert_eq!(s.holds_node(&g, n), want, "node {n:?}");
+                        assert_eq!(s.holds().holds_node(&g, n), want, "node {n:?}");
                         let b = n.map(|c| c.div_euclid(BS as i32));
                         if want && in_table(&g, g.wrap_block(b)) {
-                            assert!(s.near_block(&g, b), "block {b:?} holds node {n:?} but fails the pre-test");
+                            assert!(s.holds().near_block(&g, b), "block {b:?} holds node {n:?} but fails the pre-test");
                         }
                     }
                 }

@@ -229,7 +229,7 @@ impl Simulation {
         let grid = Grid::new(geom, max_blocks, &backing)?;
         let scratch = Scratch::new(cap, max_blocks, state_len, &backing)?;
         let sleep = match &scenario.sleep {
-            Some(cfg) => Some(Sleep::new(cfg.clone(), &grid.geom, max_blocks, &backing)?),
+            Some(cfg) => Some(Sleep::new(cfg.clone(), &grid.geom, max_blocks, scenario.simulation.gravity, &backing)?),
             None => None,
         };
 
@@ -390,7 +390,7 @@ impl Simulation {
                 // A still nozzle (a pause) holds its tube's nodes at rest, as sleeping material's held
                 // nodes are: material resting under or in it may sleep through the dwell.
                 let moving_tube = drive.filter(|d| d.velocity != [0.0; 3]).map(|d| d.bounds());
-                moved = sl.update(&self.grid, &mut self.particles, mat, self.last_dt, self.time, check, moving_tube);
+                moved = sl.update(&self.grid, &mut self.particles, mat, self.last_dt, self.time, self.step, check, moving_tube);
             }
         }
         self.awake_particle_steps += (self.particles.n - self.particles.n_sleep) as u64;
@@ -405,6 +405,9 @@ impl Simulation {
         self.p2g(dt as Real);
         clock.lap(&mut self.phase_seconds[2]);
         self.grid_update(dt as Real, drive.as_ref());
+        if let Some(sl) = &mut self.sleep {
+            sl.take_loads(&self.grid, dt, self.step, self.time + dt, &*self.material);
+        }
         clock.lap(&mut self.phase_seconds[3]);
         Ok(())
     }
@@ -624,15 +627,30 @@ impl Simulation {
         let table = self.grid.table.as_slice();
         let threads = self.team.threads();
         let drive_box = drive.map(|d| d.bounds());
-        let sleep = self.sleep.as_ref();
+        let (holds, reactions) = match self.sleep.as_mut() {
+            Some(z) => {
+                let (h, r) = z.holds_and_reactions();
+                (Some(h), Some(SharedSlice::new(r)))
+            }
+            None => (None, None),
+        };
         self.team.run(|tid| {
             for s in ThreadTeam::share(na, tid, threads) {
                 let b = geom.block_coords(slot_block[s]);
-                let near_sleep = sleep.is_some_and(|z| z.near_block(geom, b));
+                let near_sleep = holds.as_ref().is_some_and(|z| z.near_block(geom, b));
                 let driven = drive_box.is_some_and(|bx| geom.block_overlaps(b, bx));
                 // SAFETY: each slot belongs to one thread.
                 let blk = unsafe { nodes.slice_mut(s * NODES_PER_BLOCK..(s + 1) * NODES_PER_BLOCK) };
+                // the reaction of each held node: the momentum holding it removes, over dt
+                let mut held = match (&reactions, near_sleep) {
+                    // SAFETY: as for the nodes
+                    (Some(r), true) => Some(unsafe { r.slice_mut(s * NODES_PER_BLOCK..(s + 1) * NODES_PER_BLOCK) }),
+                    _ => None,
+                };
                 for (li, node) in blk.iter_mut().enumerate() {
+                    if let Some(h) = held.as_mut() {
+                        h[li] = [0.0; 3];
+                    }
                     let m = node[0];
                     if m <= 0.0 {
                         *node = [0.0; 7];
@@ -641,7 +659,11 @@ impl Simulation {
                     let g = geom.node_of(b, li);
                     let old = V3::new(node[1], node[2], node[3]) / m;
                     let mut v = old + V3::new(node[4], node[5], node[6]) / m + accel * dt;
-                    if near_sleep && sleep.is_some_and(|z| z.holds_node(geom, g)) {
+                    if near_sleep && holds.as_ref().is_some_and(|z| z.holds_node(geom, g)) {
+                        if let Some(h) = held.as_mut() {
+                            let f = v * (m / dt);
+                            h[li] = [f.x as f32, f.y as f32, f.z as f32];
+                        }
                         v = V3::ZERO;
                     }
                     if driven {
