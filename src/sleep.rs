@@ -6,26 +6,37 @@
 //! faster than `wake_speed`. Its particles move into the sleeping prefix `0..n_sleep` of the
 //! pool, out of every per-step loop. Active material that reaches them sees a still, no-slip
 //! body: grid nodes inside a sleeping unit's stencil reach are held at rest. A sleeping unit
-//! wakes when an awake particle enters it, when the moving nozzle tube reaches it (material in the
-//! tube must follow the nozzle), when material faster than `wake_speed` is binned beside or below it,
-//! and when the load of the material above it could make it yield (the wake test on load, below).
+//! wakes as soon as material faster than `wake_speed` is binned next to it (new material
+//! arriving, or a load making its neighbour move), when an awake particle enters it, or when the
+//! nozzle tube reaches it while the nozzle moves or extrudes (material in the tube must follow
+//! the nozzle; a still tube holds its nodes at rest, as a sleeping unit does). That speed rule is
+//! the default.
 //!
-//! The wake test on load. Material printed onto a sleeping layer rests on the layer's held nodes;
+//! The wake test on load (`wake_by_load`, off by default). Material arriving above a sleeping
+//! unit then wakes it by its load, not its speed, and moving material above a unit no longer
+//! keeps it from falling asleep; the speed of material beside or below a unit still wakes it (a
+//! load test cannot see material sliding past or giving way under it). Why: under the speed rule
+//! the new layer's arrival wakes the layer below over the nozzle's whole zone, and it sleeps
+//! again only once the new layer has settled above it, ~30 mm behind the nozzle; that layer is
+//! what every layer after the first costs above the first (BENCHMARKS.md "Sleeping"). The load
+//! rule pays only when the layer below has built up strength by the time the next one arrives
+//! (real layer times, dwells): material that just stopped flowing rests at its yield stress and
+//! the next layer's weight makes it yield, so on a print with short layer times the load rule
+//! costs as much as the speed rule (measured on ten layers at 5 mm, BENCHMARKS.md).
+//!
+//! How loads are tested. Material printed onto a sleeping layer rests on the layer's held nodes;
 //! what those nodes take from it each step (the momentum they remove, over dt) is the load on the
 //! sleeping units holding them. Averaged over `load_time`, that force over a unit's face is a
 //! traction t, and a traction adds at most |t| / sqrt(3) to tau = sqrt(J2) under a column (it is
 //! that for a vertical load on a free-standing column; the triangle inequality bounds the sum
-//! with the stress already there). A unit sleeps with the least margin to yield of its particles
-//! ([`Material::yield_margin`]), which grows while it sleeps as its material builds up structure
-//! ([`Material::strength_gain`]). The load reaches through the sleeping material below the unit,
-//! so it wakes the contiguous sleeping units under it in its column down to the deepest whose
-//! margin it passes: a layer at its yield stress at the bottom wakes under the next layer's
-//! weight, one that has built up enough strength stays asleep. Why not wake on the speed of the
-//! material above, as before: the new layer's arrival then woke the layer below over the nozzle's
-//! whole zone, and it slept again only once the new layer had settled above it, ~30 mm behind the
-//! nozzle; that layer was what every layer after the first cost above the first (BENCHMARKS.md
-//! "Sleeping"). The speed of material beside or below a unit still wakes it: a load test cannot
-//! see material sliding past or giving way under it.
+//! with the stress already there). Only the load added since the unit fell asleep counts: what
+//! lay on it then is in its frozen stress. A unit sleeps with the mean margin to yield of its
+//! particles ([`Material::yield_margin`]), which grows while it sleeps as its material builds up
+//! structure ([`Material::strength_gain`]), and a load must pass that margin by `load_floor`.
+//! The load reaches through the sleeping material below the unit, so it wakes the contiguous
+//! sleeping units under it in its column down to the deepest whose margin it passes: a layer at
+//! its yield stress at the bottom wakes under the next layer's weight, one that has built up
+//! enough strength stays asleep.
 //!
 //! Why units and not the grid's 4-cell blocks: the awake region is what moves plus a one-unit
 //! halo around it (the calm and wake tests look at the 26 neighbours), and a printed layer is
@@ -72,13 +83,23 @@ pub struct SleepConfig {
     /// Steps between checks for units to put to sleep.
     #[serde(default = "default_check")]
     pub check_interval: u64,
-    /// Wake a sleeping unit under the load of the material above it when that load can make it
-    /// yield, instead of when the material above moves faster than `wake_speed`.
-    #[serde(default = "default_wake_by_load")]
+    /// Material above a sleeping unit wakes it by its load, not its speed: when the load can
+    /// make the unit yield (module notes). Use it for prints whose lower layers have built up
+    /// strength by the time the next layer arrives (real layer times, dwells between layers).
+    /// Off (the default), the speed rule alone decides. It needs gravity along an axis (the
+    /// test must know which way is down) and does nothing otherwise.
+    #[serde(default)]
     pub wake_by_load: bool,
-    /// Time over which the load on a sleeping unit is averaged [s].
+    /// Time over which the load on a sleeping unit is averaged [s] (with `wake_by_load`).
     #[serde(default = "default_load_time")]
     pub load_time: f64,
+    /// Least amount [Pa] by which a load's share of tau must pass a sleeping unit's margin to
+    /// yield to wake it (with `wake_by_load`): a load that adds less than this to tau never
+    /// wakes a unit. Why: EVP material that stopped flowing rests on its yield surface (margins
+    /// of -0.5 to +1 Pa were measured), so the averaged load's fluctuations of a few Pa would
+    /// otherwise wake units that just fell asleep.
+    #[serde(default = "default_load_floor")]
+    pub load_floor: f64,
 }
 
 fn default_speed() -> f64 {
@@ -115,14 +136,17 @@ fn default_grace() -> f64 {
 fn default_check() -> u64 {
     64
 }
-fn default_wake_by_load() -> bool {
-    true
-}
 fn default_load_time() -> f64 {
     // Many times the elastic ringing of a layer (2 x 12.5 mm at c ~ 28 m/s: 0.9 ms) and the
     // impact of each arriving slab, which average out; short against the nozzle's passage over a
     // unit (~0.2 s), whose squeeze is the load that matters.
     0.02
+}
+fn default_load_floor() -> f64 {
+    // Several times the averaged load's fluctuations on a unit at rest (a few Pa, measured on
+    // the ten-layer print at 5 mm; BENCHMARKS.md "Sleeping"), and small against a layer's
+    // weight on the one below (~150 Pa for 12.5 mm).
+    20.0
 }
 
 impl SleepConfig {
@@ -134,6 +158,7 @@ impl SleepConfig {
             ("sleep.wake_speed", self.wake_speed),
             ("sleep.wake_grace", self.wake_grace),
             ("sleep.load_time", self.load_time),
+            ("sleep.load_floor", self.load_floor),
         ] {
             if !(v >= 0.0 && v.is_finite()) {
                 return Err(format!("{k} must be >= 0, got {v}"));
@@ -150,6 +175,21 @@ impl SleepConfig {
         }
         Ok(())
     }
+
+    /// Whether loads wake sleeping units under `gravity`: `wake_by_load`, and gravity along an
+    /// axis (the test needs to know which way is down).
+    pub fn tests_loads(&self, gravity: [f64; 3]) -> bool {
+        self.down(gravity).is_some()
+    }
+
+    /// Axis and sign of `gravity` when loads are tested under it.
+    fn down(&self, gravity: [f64; 3]) -> Option<(usize, i32)> {
+        let mut axes = (0..3).filter(|&a| gravity[a] != 0.0);
+        match (axes.next(), axes.next()) {
+            (Some(a), None) if self.wake_by_load => Some((a, gravity[a].signum() as i32)),
+            _ => None,
+        }
+    }
 }
 
 const AWAKE: u8 = 0;
@@ -159,9 +199,6 @@ const WOKEN: u8 = 2;
 /// Asleep, and loaded past its margin in the step just taken: the next update wakes it. (Its
 /// particles are still in the sleeping prefix, so its nodes stay held until then.)
 const LOADED: u8 = 3;
-
-pub static TRACE: [std::sync::atomic::AtomicU64; 8] = [const { std::sync::atomic::AtomicU64::new(0) }; 8];
-fn tr(i: usize, n: u64) { TRACE[i].fetch_add(n, std::sync::atomic::Ordering::Relaxed); }
 
 #[inline]
 fn asleep(s: u8) -> bool {
@@ -232,22 +269,25 @@ pub struct Sleep {
     pub activity: Pool<UnitActivity>,
     /// Units asleep now.
     pub sleeping_units: usize,
-    /// Sleeping unit: the load on it [N], averaged over `load_time` (an exponential average,
-    /// brought up to date whenever a step loads it).
+    /// The load tables, `load` to `reactions`, are empty unless loads are tested. Sleeping
+    /// unit: the load on it [N], averaged over `load_time` (an exponential average, brought up
+    /// to date whenever a step loads it).
     load: Pool<[f32; 3]>,
     /// Sleeping unit: the step whose load `load` last took in.
     load_step: Pool<u32>,
-    /// Sleeping unit: the least margin to yield of its particles when it fell asleep [Pa].
+    /// Sleeping unit: the mean margin to yield of its particles when it fell asleep [Pa] (the
+    /// least is near zero in material that just stopped flowing; see `load_floor`).
     margin: Pool<f32>,
-    /// Sleeping unit: |load| [N] once it had slept `load_time` (NaN before): the load its
-    /// frozen stress already carries, from the material that lay on it when it fell asleep.
+    /// Sleeping unit: |load| [N] once its average had run long enough to be unbiased (NaN
+    /// before): the load its frozen stress already carries, from the material that lay on it
+    /// when it fell asleep.
     base: Pool<f32>,
     /// Units the last step loaded past their margin (state LOADED), for the next update.
     loaded: Pool<u32>,
     n_loaded: usize,
     /// Per grid node of the last grid update: the reaction of a held node [N] (zero elsewhere;
     /// written only in blocks near a sleeping unit).
-    pub(crate) reactions: Pool<[f32; 3]>,
+    reactions: Pool<[f32; 3]>,
     /// Axis and sign of gravity (down), when gravity lies along an axis and loads are tested.
     down: Option<(usize, i32)>,
     /// 1 / (a unit's face area) [1/m^2].
@@ -326,29 +366,30 @@ fn unit_in_table(geom: &GridGeom, u: [i32; 3]) -> bool {
 }
 
 impl Sleep {
-    pub fn plan(plan: &mut MemoryPlan, geom: &GridGeom, max_blocks: usize) {
+    pub fn plan(plan: &mut MemoryPlan, cfg: &SleepConfig, geom: &GridGeom, max_blocks: usize, gravity: [f64; 3]) {
         let units = geom.table_len() * UNITS;
         plan.add::<u8>("sleep.state", units);
         plan.add::<f32>("sleep.rest", units);
         plan.add::<u32>("sleep.woken", units);
         plan.add::<u8>("sleep.asleep_in_block", geom.table_len());
         plan.add::<UnitActivity>("sleep.activity", max_blocks);
-        plan.add::<[f32; 3]>("sleep.load", units);
-        plan.add::<u32>("sleep.load_step", units);
-        plan.add::<f32>("sleep.margin", units);
-        plan.add::<f32>("sleep.base", units);
-        plan.add::<u32>("sleep.loaded", units);
-        plan.add::<[f32; 3]>("sleep.reactions", max_blocks * NODES_PER_BLOCK);
+        if cfg.tests_loads(gravity) {
+            plan.add::<[f32; 3]>("sleep.load", units);
+            plan.add::<u32>("sleep.load_step", units);
+            plan.add::<f32>("sleep.margin", units);
+            plan.add::<f32>("sleep.base", units);
+            plan.add::<u32>("sleep.loaded", units);
+            plan.add::<[f32; 3]>("sleep.reactions", max_blocks * NODES_PER_BLOCK);
+        }
     }
 
-    /// Tables for `geom`'s domain with `max_blocks` grid slots, under `gravity`.
+    /// Tables for `geom`'s domain with `max_blocks` grid slots, under `gravity` (the load
+    /// tables empty unless loads are tested).
     pub fn new(cfg: SleepConfig, geom: &GridGeom, max_blocks: usize, gravity: [f64; 3], b: &Backing) -> Result<Self, MemoryError> {
         let units = geom.table_len() * UNITS;
-        let axes: Vec<usize> = (0..3).filter(|&a| gravity[a] != 0.0).collect();
-        let down = match axes[..] {
-            [a] if cfg.wake_by_load => Some((a, gravity[a].signum() as i32)),
-            _ => None,
-        };
+        let down = cfg.down(gravity);
+        let per_unit = if down.is_some() { units } else { 0 };
+        let per_node = if down.is_some() { max_blocks * NODES_PER_BLOCK } else { 0 };
         let face = US as f64 * geom.dx;
         Ok(Sleep {
             cfg,
@@ -358,13 +399,13 @@ impl Sleep {
             asleep_in_block: Pool::new("sleep.asleep_in_block", geom.table_len(), b)?,
             activity: Pool::new("sleep.activity", max_blocks, b)?,
             sleeping_units: 0,
-            load: Pool::new("sleep.load", units, b)?,
-            load_step: Pool::new("sleep.load_step", units, b)?,
-            margin: Pool::new("sleep.margin", units, b)?,
-            base: Pool::new("sleep.base", units, b)?,
-            loaded: Pool::new("sleep.loaded", units, b)?,
+            load: Pool::new("sleep.load", per_unit, b)?,
+            load_step: Pool::new("sleep.load_step", per_unit, b)?,
+            margin: Pool::new("sleep.margin", per_unit, b)?,
+            base: Pool::new("sleep.base", per_unit, b)?,
+            loaded: Pool::new("sleep.loaded", per_unit, b)?,
             n_loaded: 0,
-            reactions: Pool::new("sleep.reactions", max_blocks * NODES_PER_BLOCK, b)?,
+            reactions: Pool::new("sleep.reactions", per_node, b)?,
             down,
             per_area: (1.0 / (face * face)) as f32,
         })
@@ -395,6 +436,11 @@ impl Sleep {
 
     /// Rebuild what follows from the state table (after a checkpoint wrote it).
     pub fn recount(&mut self) {
+        if !self.tests_loads() {
+            // a checkpoint of a run with the load test, resumed without it: a unit its last step
+            // loaded past its margin just sleeps on
+            self.state.as_mut_slice().iter_mut().filter(|s| **s == LOADED).for_each(|s| *s = ASLEEP);
+        }
         let state = self.state.as_slice();
         let per_block = self.asleep_in_block.as_mut_slice();
         self.sleeping_units = 0;
@@ -413,6 +459,12 @@ impl Sleep {
     /// Which nodes the sleeping units hold.
     pub fn holds(&self) -> Holds<'_> {
         Holds { state: self.state.as_slice(), asleep_in_block: self.asleep_in_block.as_slice(), sleeping_units: self.sleeping_units }
+    }
+
+    /// Whether loads wake sleeping units (`wake_by_load`, under gravity along an axis): only
+    /// then does the grid update need to leave held nodes' reactions for [`Sleep::take_loads`].
+    pub fn tests_loads(&self) -> bool {
+        self.down.is_some()
     }
 
     /// [`Sleep::holds`], and the per-node buffer the grid update leaves held nodes' reactions in.
@@ -444,12 +496,14 @@ impl Sleep {
         let table = grid.table.as_slice();
         let activity = &self.activity.as_slice()[..npb];
         let limits = Limits::of(&self.cfg);
+        let loads = self.tests_loads();
         let state = self.state.as_mut_slice();
         let rest = self.rest.as_mut_slice();
         let woken = self.woken.as_mut_slice();
         let mut n_woken = 0usize;
         // below (what a unit's speed may not wake) and above (what a unit falling asleep may
-        // lie under while it moves) when loads are tested
+        // lie under while it moves) when loads are tested; without, the speed rule looks at all
+        // 26 neighbours
         let (below, above) = match self.down {
             Some((a, sign)) => (Some((a, sign)), Some((a, -sign))),
             None => (None, None),
@@ -457,8 +511,6 @@ impl Sleep {
         for &u in &self.loaded.as_slice()[..self.n_loaded] {
             wake(u, state, woken, &mut n_woken);
         }
-        tr(0, n_woken as u64);
-        let n0 = n_woken;
         self.n_loaded = 0;
         for s in 0..npb {
             for (k, &[v, rate]) in activity[s].iter().enumerate() {
@@ -476,17 +528,13 @@ impl Sleep {
                     rest[u as usize] = r;
                     loud
                 } else {
-                    let k0 = n_woken;
                     wake(u, state, woken, &mut n_woken);
-                    tr(1, (n_woken - k0) as u64);
                     v > limits.wake_speed
                 };
                 if wakes_neighbours {
-                    let k0 = n_woken;
                     for nb in neighbours(geom, u, below) {
                         wake(nb, state, woken, &mut n_woken);
                     }
-                    tr(2, (n_woken - k0) as u64);
                 }
             }
         }
@@ -510,16 +558,7 @@ impl Sleep {
                 }
             }
         }
-        let _ = n0;
         let woke = n_woken;
-        if std::env::var_os("STRAND_TRACE").is_some() {
-            static LAST: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
-            let ds = (now * 2.0) as u64;
-            if LAST.swap(ds, std::sync::atomic::Ordering::Relaxed) != ds {
-                let g = |i: usize| TRACE[i].swap(0, std::sync::atomic::Ordering::Relaxed);
-                eprintln!("trace t={now:.2} loaded={} entry={} speed={} touched={} marked={} asleep_units={}", g(0), g(1), g(2), g(3), g(4), self.sleeping_units);
-            }
-        }
         let grace = self.cfg.wake_grace as f32;
         let per_block = self.asleep_in_block.as_mut_slice();
         let mut slept = 0usize;
@@ -541,10 +580,12 @@ impl Sleep {
                         per_block[u as usize / UNITS] += 1;
                         woken[n_woken + slept] = u;
                         slept += 1;
-                        self.margin.as_mut_slice()[u as usize] = 0.0;
-                        self.base.as_mut_slice()[u as usize] = f32::NAN;
-                        self.load.as_mut_slice()[u as usize] = [0.0; 3];
-                        self.load_step.as_mut_slice()[u as usize] = step as u32;
+                        if loads {
+                            self.margin.as_mut_slice()[u as usize] = 0.0;
+                            self.base.as_mut_slice()[u as usize] = f32::NAN;
+                            self.load.as_mut_slice()[u as usize] = [0.0; 3];
+                            self.load_step.as_mut_slice()[u as usize] = step as u32;
+                        }
                     }
                 }
             }
@@ -570,13 +611,17 @@ impl Sleep {
                     particles.swap(i, particles.n_sleep);
                 }
             }
-            let (load, load_step) = (self.load.as_mut_slice(), self.load_step.as_mut_slice());
-            let (margin, base) = (self.margin.as_mut_slice(), self.base.as_mut_slice());
             for &u in &woken[..woke] {
                 state[u as usize] = AWAKE;
                 rest[u as usize] = -grace;
-                // zero, so that checkpoints store only sleeping units' entries
-                (load[u as usize], load_step[u as usize], margin[u as usize], base[u as usize]) = ([0.0; 3], 0, 0.0, 0.0);
+            }
+            if loads {
+                let (load, load_step) = (self.load.as_mut_slice(), self.load_step.as_mut_slice());
+                let (margin, base) = (self.margin.as_mut_slice(), self.base.as_mut_slice());
+                for &u in &woken[..woke] {
+                    // zero, so that checkpoints store only sleeping units' entries
+                    (load[u as usize], load_step[u as usize], margin[u as usize], base[u as usize]) = ([0.0; 3], 0, 0.0, 0.0);
+                }
             }
         }
         if slept > 0 {
@@ -588,17 +633,21 @@ impl Sleep {
                     particles.swap(i, particles.n_sleep);
                     let k = particles.n_sleep;
                     settle(particles, k, material);
-                    let m = material.yield_margin(&particles.state.as_slice()[k * sl..(k + 1) * sl]) as f32;
-                    margin[u as usize] += m;
-                    self.load.as_mut_slice()[u as usize][0] += 1.0;
+                    if loads {
+                        // summed here, counted in the unit's load (still zero), divided below
+                        margin[u as usize] += material.yield_margin(&particles.state.as_slice()[k * sl..(k + 1) * sl]) as f32;
+                        self.load.as_mut_slice()[u as usize][0] += 1.0;
+                    }
                     particles.n_sleep += 1;
                 }
             }
-            // the mean margin of each unit's particles
-            let load = self.load.as_mut_slice();
-            for &u in &woken[woke..woke + slept] {
-                margin[u as usize] /= load[u as usize][0].max(1.0);
-                load[u as usize][0] = 0.0;
+            if loads {
+                // the mean margin of each unit's particles
+                let load = self.load.as_mut_slice();
+                for &u in &woken[woke..woke + slept] {
+                    margin[u as usize] /= load[u as usize][0].max(1.0);
+                    load[u as usize][0] = 0.0;
+                }
             }
         }
         woke > 0 || slept > 0
@@ -610,7 +659,7 @@ impl Sleep {
     /// and units whose load passes the margin of the sleeping column under them are marked
     /// LOADED for the next update to wake (module notes).
     pub fn take_loads(&mut self, grid: &Grid, dt: f64, step: u64, now: f64, material: &dyn Material) {
-        if self.sleeping_units == 0 || self.down.is_none() {
+        if self.sleeping_units == 0 || !self.tests_loads() {
             return;
         }
         let geom = &grid.geom;
@@ -661,9 +710,8 @@ impl Sleep {
         let base = self.base.as_mut_slice();
         let loaded = self.loaded.as_mut_slice();
         let tau = self.cfg.load_time;
-        static TOL: std::sync::OnceLock<f32> = std::sync::OnceLock::new();
-        let tol = *TOL.get_or_init(|| std::env::var("STRAND_TOL").ok().and_then(|v| v.parse().ok()).unwrap_or(20.0));
-        tr(3, n_touched as u64);
+        let floor = self.cfg.load_floor as f32;
+        let column = geom.nb[down_axis] * (BS as i32 / US);
         for &u in &touched[..n_touched] {
             let l = load[u as usize];
             // the average has run since the unit fell asleep, from zero: unbias it
@@ -679,33 +727,27 @@ impl Sleep {
             }
             // only what was added since: the load it fell asleep under is in its stress
             let t = LOAD_SHARE * self.per_area * (size - base[u as usize]);
-            static LOADS: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-            let show = *LOADS.get_or_init(|| std::env::var_os("STRAND_LOADS").is_some());
             // the deepest unit of the sleeping column from u down whose margin the load passes
             let mut c = unit_coords(geom, u);
             let (mut w, mut deepest) = (u, None);
-            loop {
+            for depth in 1.. {
                 let gain = material.strength_gain((now - rest[w as usize] as f64).max(0.0) as Real) as f32;
-                if t > margin[w as usize].max(0.0) + gain + tol {
+                if t > margin[w as usize].max(0.0) + gain + floor {
                     deepest = Some(c[down_axis]);
                 }
                 c[down_axis] += sign;
                 let next = wrap_unit(geom, c);
-                if !unit_in_table(geom, next) || !asleep(state[unit_index(geom, next) as usize]) {
+                // (a column asleep all round a periodic axis ends where it began)
+                if depth == column || !unit_in_table(geom, next) || !asleep(state[unit_index(geom, next) as usize]) {
                     break;
                 }
                 w = unit_index(geom, next);
             }
             let Some(last) = deepest else { continue };
-            if show {
-                let c0 = unit_coords(geom, u);
-                eprintln!("mark t={now:.3} u={:?} down_to={last} size={:.3e} base={:.3e} t={t:.1} margin={:.1} gain={:.1} slept={:.3}", c0, size, base[u as usize], margin[u as usize], material.strength_gain((now - rest[u as usize] as f64) as Real), slept);
-            }
             let mut c = unit_coords(geom, u);
             loop {
                 let w = unit_index(geom, wrap_unit(geom, c));
                 if state[w as usize] == ASLEEP {
-                    tr(4, 1);
                     state[w as usize] = LOADED;
                     loaded[self.n_loaded] = w;
                     self.n_loaded += 1;
@@ -821,9 +863,11 @@ mod tests {
         GridGeom { dx: 0.01, origin: [0.0; 3], cells, nb, periodic, lo: [0.0; 3], hi: [0.1; 3] }
     }
 
-    fn sleep_with(geom: &GridGeom, asleep: &[[i32; 3]]) -> Sleep {
-        let cfg: SleepConfig = toml::from_str("").unwrap();
-        let mut s = Sleep::new(cfg, geom, 4, [0.0, 0.0, -9.81], &Backing::default()).unwrap();
+    /// Sleep tables for `geom` under gravity along -z, `config` its `[sleep]` keys, with units
+    /// `asleep` asleep.
+    fn sleep_with(geom: &GridGeom, config: &str, asleep: &[[i32; 3]]) -> Sleep {
+        let cfg: SleepConfig = toml::from_str(config).unwrap();
+        let mut s = Sleep::new(cfg, geom, geom.table_len(), [0.0, 0.0, -9.81], &Backing::default()).unwrap();
         for &u in asleep {
             s.state.as_mut_slice()[unit_index(geom, u) as usize] = ASLEEP;
         }
@@ -888,7 +932,7 @@ mod tests {
         for periodic in [[false; 3], [true, false, true]] {
             let g = geom(periodic);
             let asleep = [[0, 0, 0], [3, 1, 5], [5, 3, 7], [2, 2, 2]];
-            let s = sleep_with(&g, &asleep);
+            let s = sleep_with(&g, "", &asleep);
             assert_eq!(s.sleeping_units, asleep.len());
             for x in -2..g.cells[0] + 2 {
                 for y in -2..g.cells[1] + 2 {
@@ -910,5 +954,135 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn the_load_keys_parse_with_their_defaults_and_validate() {
+        let cfg: SleepConfig = toml::from_str("").unwrap();
+        assert!(!cfg.wake_by_load, "the load test is opt-in");
+        assert_eq!((cfg.load_time, cfg.load_floor), (0.02, 20.0));
+        assert!(cfg.validate().is_ok());
+        assert!(!cfg.tests_loads([0.0, 0.0, -9.81]));
+        let on: SleepConfig = toml::from_str("wake_by_load = true\nload_floor = 5.0\nload_time = 0.01").unwrap();
+        assert!(on.wake_by_load && on.load_floor == 5.0 && on.load_time == 0.01);
+        assert!(on.validate().is_ok());
+        assert!(on.tests_loads([0.0, 0.0, -9.81]) && on.tests_loads([9.81, 0.0, 0.0]));
+        assert!(!on.tests_loads([0.0, 1.0, -9.81]) && !on.tests_loads([0.0; 3]), "no axis is down");
+        for bad in [-1.0, f64::NAN, f64::INFINITY] {
+            let cfg = SleepConfig { load_floor: bad, ..on.clone() };
+            let e = cfg.validate().expect_err("an invalid floor passed");
+            assert!(e.contains("sleep.load_floor"), "{e}");
+        }
+        let e = toml::from_str::<SleepConfig>("load_floor = nan").unwrap().validate().unwrap_err();
+        assert!(e.contains("sleep.load_floor"), "{e}");
+    }
+
+    fn evp(a_thix: f64) -> Box<dyn Material> {
+        let text = format!(
+            "kind = \"evp_bingham\"\ndensity = 2100.0\nbulk_modulus = 1e6\npoisson_ratio = 0.3\nviscosity = 7.5\nyield_stress = 630.0\na_thix = {a_thix}\n"
+        );
+        crate::materials::build_material(&text.parse::<toml::Table>().unwrap()).unwrap()
+    }
+
+    /// A grid on `geom` whose first active slots are `first` (then every other block), the
+    /// first `particle_blocks` of them holding particles.
+    fn grid_with(geom: &GridGeom, first: &[[i32; 3]], particle_blocks: usize) -> Grid {
+        let mut grid = Grid::new(geom.clone(), geom.table_len(), &Backing::default()).unwrap();
+        for &b in first {
+            grid.activate(geom.block_index(b)).unwrap();
+        }
+        for b in 0..geom.table_len() as u32 {
+            grid.activate(b).unwrap();
+        }
+        grid.n_particle_blocks = particle_blocks;
+        grid
+    }
+
+    /// The speed rule is the default: fast material above a sleeping unit wakes it. With the
+    /// load test it does not (its load does, if it can make the unit yield).
+    #[test]
+    fn fast_material_above_wakes_a_sleeping_unit_only_under_the_speed_rule() {
+        let g = geom([false; 3]);
+        let mat = evp(0.0);
+        let (below, above): ([i32; 3], [i32; 3]) = ([2, 1, 4], [2, 1, 5]);
+        let block = above.map(|c| c.div_euclid(BS as i32 / US));
+        let k = unit_index(&g, above) as usize % UNITS;
+        for (config, wakes) in [("", true), ("wake_by_load = true", false)] {
+            let mut s = sleep_with(&g, config, &[below]);
+            assert_eq!(s.tests_loads(), !wakes);
+            let grid = grid_with(&g, &[block], 1);
+            let mut act = [EMPTY_UNIT; UNITS];
+            act[k] = [5.0 * s.cfg.wake_speed as Real, 1.0];
+            s.activity.as_mut_slice()[0] = act;
+            let mut particles = Particles::new(1, mat.state_names().len(), &Backing::default()).unwrap();
+            let moved = s.update(&grid, &mut particles, &*mat, 1e-3, 1.0, 1000, false, None);
+            let state = s.state.as_slice()[unit_index(&g, below) as usize];
+            assert_eq!((moved, state == AWAKE, s.sleeping_units), (wakes, wakes, !wakes as usize), "config '{config}'");
+        }
+    }
+
+    /// The load rule on a sleeping column: the load added on its top unit since it fell asleep,
+    /// averaged, wakes the column down to the deepest unit whose margin (plus its build-up and
+    /// `load_floor`) the load's share of tau passes, and no unit when it passes none.
+    #[test]
+    fn a_load_wakes_the_sleeping_column_down_to_the_deepest_unit_it_makes_yield() {
+        let g = geom([false; 3]);
+        let a_thix = 10.0;
+        let mat = evp(a_thix);
+        // top to bottom; the floor is 20 Pa
+        let column = [([2, 1, 4], 30.0), ([2, 1, 3], 80.0), ([2, 1, 2], 10.0), ([2, 1, 1], 150.0)];
+        let units: Vec<[i32; 3]> = column.iter().map(|c| c.0).collect();
+        let mut s = sleep_with(&g, "wake_by_load = true", &units);
+        for &(u, m) in &column {
+            let i = unit_index(&g, u) as usize;
+            // fell asleep at t = 0 in step 0, as `update` leaves a unit falling asleep
+            (s.rest.as_mut_slice()[i], s.margin.as_mut_slice()[i], s.base.as_mut_slice()[i]) = (0.0, m, f32::NAN);
+        }
+        // a node only the top unit holds (its stencil reach is nodes 2u..=2u+3): the weight on
+        // the column
+        let node: [i32; 3] = [5, 3, 11];
+        let holders: Vec<u32> = s.holds().holders(&g, node).collect();
+        assert_eq!(holders, [unit_index(&g, column[0].0)]);
+        let b = node.map(|c| c.div_euclid(BS as i32));
+        let grid = grid_with(&g, &[b], 0);
+        let li = (0..NODES_PER_BLOCK).find(|&li| g.node_of(b, li) == node).unwrap();
+        let at = grid.slot(g.block_index(b)) as usize * NODES_PER_BLOCK + li;
+        // the load whose share of tau is `tau` [Pa] (what it adds on the unit's face)
+        let share = LOAD_SHARE * s.per_area;
+        let force = |tau: f32| tau / share;
+        let dt = 1e-3;
+        let mut step = 0u64;
+        // ten `load_time`s a phase: the average has converged
+        let mut carry = |s: &mut Sleep, load: f32| {
+            for _ in 0..200 {
+                step += 1;
+                s.reactions.as_mut_slice()[at] = [0.0, 0.0, -load];
+                s.take_loads(&grid, dt, step, step as f64 * dt, &*mat);
+            }
+            step as f64 * dt
+        };
+        let states = |s: &Sleep| column.map(|(u, _)| s.state.as_slice()[unit_index(&g, u) as usize]);
+        // the weight it fell asleep under is the base: it never wakes it
+        let weight = force(300.0);
+        carry(&mut s, weight);
+        let base = s.base.as_slice()[holders[0] as usize];
+        assert!((base / weight - 1.0).abs() < 0.01, "base {base} N under a {weight} N load");
+        assert_eq!(states(&s), [ASLEEP; 4]);
+        // 25 Pa more passes the bottom-but-one unit's margin (10 Pa, plus under 6 Pa of build-up)
+        // but not by the floor: all sleep on
+        let now = carry(&mut s, weight + force(25.0));
+        assert!(mat.strength_gain(now as Real) < 6.0);
+        assert_eq!(states(&s), [ASLEEP; 4]);
+        assert_eq!(s.n_loaded, 0);
+        // 70 Pa more passes the top unit's and the bottom-but-one's margins: the three upper
+        // units are loaded, the bottom one (150 Pa) is not
+        let now = carry(&mut s, weight + force(70.0));
+        assert_eq!(states(&s), [LOADED, LOADED, LOADED, ASLEEP]);
+        assert_eq!(s.n_loaded, 3);
+        // the next update wakes them; their nodes were held until then
+        let mut particles = Particles::new(1, mat.state_names().len(), &Backing::default()).unwrap();
+        assert!(s.update(&grid, &mut particles, &*mat, dt, now, step, false, None));
+        assert_eq!(states(&s), [AWAKE, AWAKE, AWAKE, ASLEEP]);
+        assert_eq!((s.sleeping_units, s.n_loaded), (1, 0));
     }
 }

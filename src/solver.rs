@@ -154,7 +154,8 @@ pub struct Simulation {
 }
 
 fn checkpoint_staging_bytes(sc: &Scenario, cap: usize, state_len: usize, max_blocks: usize, table_len: usize) -> usize {
-    crate::checkpoint::state::max_staging_bytes(cap, state_len, max_blocks, table_len, sc.sleep.is_some(), sc.simulation.flip > 0.0)
+    let loads = sc.sleep.as_ref().is_some_and(|c| c.tests_loads(sc.simulation.gravity));
+    crate::checkpoint::state::max_staging_bytes(cap, state_len, max_blocks, table_len, sc.sleep.is_some(), loads, sc.simulation.flip > 0.0)
 }
 
 /// Names of the step's phases, as accumulated in `Simulation::phase_seconds`.
@@ -207,8 +208,8 @@ impl Simulation {
         Particles::plan(&mut memory, cap, state_len);
         Grid::plan(&mut memory, &geom, max_blocks);
         Scratch::plan(&mut memory, cap, max_blocks, state_len);
-        if scenario.sleep.is_some() {
-            Sleep::plan(&mut memory, &geom, max_blocks);
+        if let Some(cfg) = &scenario.sleep {
+            Sleep::plan(&mut memory, cfg, &geom, max_blocks, scenario.simulation.gravity);
         }
         if scenario.checkpoint.enabled {
             let bytes = checkpoint_staging_bytes(scenario, cap, state_len, max_blocks, geom.table_len());
@@ -627,10 +628,12 @@ impl Simulation {
         let table = self.grid.table.as_slice();
         let threads = self.team.threads();
         let drive_box = drive.map(|d| d.bounds());
+        // reactions only for the load test: the speed rule needs just the holds
         let (holds, reactions) = match self.sleep.as_mut() {
             Some(z) => {
+                let loads = z.tests_loads();
                 let (h, r) = z.holds_and_reactions();
-                (Some(h), Some(SharedSlice::new(r)))
+                (Some(h), loads.then(|| SharedSlice::new(r)))
             }
             None => (None, None),
         };
