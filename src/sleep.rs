@@ -9,7 +9,35 @@
 //! wakes as soon as material faster than `wake_speed` is binned next to it (new material
 //! arriving, or a load making its neighbour move), when an awake particle enters it, or when the
 //! nozzle tube reaches it while the nozzle moves or extrudes (material in the tube must follow
-//! the nozzle; a still tube holds its nodes at rest, as a sleeping unit does).
+//! the nozzle; a still tube holds its nodes at rest, as a sleeping unit does). That speed rule is
+//! the default.
+//!
+//! The wake test on load (`wake_by_load`, off by default). Material arriving above a sleeping
+//! unit then wakes it by its load, not its speed, and moving material above a unit no longer
+//! keeps it from falling asleep; the speed of material beside or below a unit still wakes it (a
+//! load test cannot see material sliding past or giving way under it). Why: under the speed rule
+//! the new layer's arrival wakes the layer below over the nozzle's whole zone, and it sleeps
+//! again only once the new layer has settled above it, ~30 mm behind the nozzle; that layer is
+//! what every layer after the first costs above the first (BENCHMARKS.md "Sleeping"). The load
+//! rule pays only when the layer below has built up strength by the time the next one arrives
+//! (real layer times, dwells): material that just stopped flowing rests at its yield stress and
+//! the next layer's weight makes it yield, so on a print with short layer times the load rule
+//! costs as much as the speed rule (measured on ten layers at 5 mm, BENCHMARKS.md).
+//!
+//! How loads are tested. Material printed onto a sleeping layer rests on the layer's held nodes;
+//! what those nodes take from it each step (the momentum they remove, over dt) is the load on the
+//! sleeping units holding them. Averaged over `load_time`, that force over a unit's face is a
+//! traction t, and a traction adds at most |t| / sqrt(3) to tau = sqrt(J2) under a column (it is
+//! that for a vertical load on a free-standing column; the triangle inequality bounds the sum
+//! with the stress already there). Only the load added since the unit fell asleep counts: what
+//! lay on it then is in its frozen stress. A unit sleeps with the mean margin to yield of its
+//! particles ([`Material::yield_margin`]), which grows while it sleeps as its material builds up
+//! structure ([`Material::strength_gain`]), and a load must pass `load_fraction` of that
+//! margin by `load_floor` (a load the unit takes at once overshoots to twice its static effect).
+//! The load reaches through the sleeping material below the unit, so it wakes the contiguous
+//! sleeping units under it in its column down to the deepest whose margin it passes: a layer at
+//! its yield stress at the bottom wakes under the next layer's weight, one that has built up
+//! enough strength stays asleep.
 //!
 //! Why units and not the grid's 4-cell blocks: the awake region is what moves plus a one-unit
 //! halo around it (the calm and wake tests look at the 26 neighbours), and a printed layer is
@@ -27,7 +55,7 @@
 //! checked every step and moves particles only when a unit actually wakes (O(sleeping
 //! particles), rare).
 
-use crate::grid::{Grid, GridGeom, EMPTY};
+use crate::grid::{Grid, GridGeom, EMPTY, NODES_PER_BLOCK};
 use crate::kernels::transfer::BS;
 use crate::kernels::material::Material;
 use crate::kernels::{Real, M3, V3};
@@ -56,6 +84,31 @@ pub struct SleepConfig {
     /// Steps between checks for units to put to sleep.
     #[serde(default = "default_check")]
     pub check_interval: u64,
+    /// Material above a sleeping unit wakes it by its load, not its speed: when the load can
+    /// make the unit yield (module notes). Use it for prints whose lower layers have built up
+    /// strength by the time the next layer arrives (real layer times, dwells between layers).
+    /// Off (the default), the speed rule alone decides. It needs gravity along an axis (the
+    /// test must know which way is down) and does nothing otherwise.
+    #[serde(default)]
+    pub wake_by_load: bool,
+    /// Time over which the load on a sleeping unit is averaged [s] (with `wake_by_load`).
+    #[serde(default = "default_load_time")]
+    pub load_time: f64,
+    /// Least amount [Pa] by which a load's share of tau must pass a sleeping unit's margin to
+    /// yield to wake it (with `wake_by_load`): a load that adds less than this to tau never
+    /// wakes a unit. Why: EVP material that stopped flowing rests on its yield surface (margins
+    /// of -0.5 to +1 Pa were measured), so the averaged load's fluctuations of a few Pa would
+    /// otherwise wake units that just fell asleep.
+    #[serde(default = "default_load_floor")]
+    pub load_floor: f64,
+    /// Share of a sleeping unit's margin to yield that a load must pass to wake it (with
+    /// `wake_by_load`), in (0, 1]. Why not all of it: the unit's held nodes carry the load until
+    /// it wakes, and its material then takes it at once, and a load applied at once swings an
+    /// elastic body to twice its static response. Woken at its whole margin, a column yields
+    /// under that overshoot and spreads (the dwell print at 2.5 mm: +1.6 % width after two
+    /// layers against the speed rule, +0.37 % at 0.5; BENCHMARKS.md "Sleeping").
+    #[serde(default = "default_load_fraction")]
+    pub load_fraction: f64,
 }
 
 fn default_speed() -> f64 {
@@ -92,6 +145,22 @@ fn default_grace() -> f64 {
 fn default_check() -> u64 {
     64
 }
+fn default_load_time() -> f64 {
+    // Many times the elastic ringing of a layer (2 x 12.5 mm at c ~ 28 m/s: 0.9 ms) and the
+    // impact of each arriving slab, which average out; short against the nozzle's passage over a
+    // unit (~0.2 s), whose squeeze is the load that matters.
+    0.02
+}
+fn default_load_fraction() -> f64 {
+    // the dynamic overshoot of a suddenly applied load, 2x, stays within the margin
+    0.5
+}
+fn default_load_floor() -> f64 {
+    // Several times the averaged load's fluctuations on a unit at rest (a few Pa, measured on
+    // the ten-layer print at 5 mm; BENCHMARKS.md "Sleeping"), and small against a layer's
+    // weight on the one below (~150 Pa for 12.5 mm).
+    20.0
+}
 
 impl SleepConfig {
     pub fn validate(&self) -> Result<(), String> {
@@ -101,10 +170,15 @@ impl SleepConfig {
             ("sleep.rest_time", self.rest_time),
             ("sleep.wake_speed", self.wake_speed),
             ("sleep.wake_grace", self.wake_grace),
+            ("sleep.load_time", self.load_time),
+            ("sleep.load_floor", self.load_floor),
         ] {
             if !(v >= 0.0 && v.is_finite()) {
                 return Err(format!("{k} must be >= 0, got {v}"));
             }
+        }
+        if !(self.load_fraction > 0.0 && self.load_fraction <= 1.0) {
+            return Err(format!("sleep.load_fraction must be in (0, 1], got {}", self.load_fraction));
         }
         if self.wake_speed < self.speed {
             return Err(format!(
@@ -117,16 +191,43 @@ impl SleepConfig {
         }
         Ok(())
     }
+
+    /// Whether loads wake sleeping units under `gravity`: `wake_by_load`, and gravity along an
+    /// axis (the test needs to know which way is down).
+    pub fn tests_loads(&self, gravity: [f64; 3]) -> bool {
+        self.down(gravity).is_some()
+    }
+
+    /// Axis and sign of `gravity` when loads are tested under it.
+    fn down(&self, gravity: [f64; 3]) -> Option<(usize, i32)> {
+        let mut axes = (0..3).filter(|&a| gravity[a] != 0.0);
+        match (axes.next(), axes.next()) {
+            (Some(a), None) if self.wake_by_load => Some((a, gravity[a].signum() as i32)),
+            _ => None,
+        }
+    }
 }
 
 const AWAKE: u8 = 0;
 const ASLEEP: u8 = 1;
 /// Within one update: woken, its sleep start still in `rest` until its particles had their rest.
 const WOKEN: u8 = 2;
+/// Asleep, and loaded past its margin in the step just taken: the next update wakes it. (Its
+/// particles are still in the sleeping prefix, so its nodes stay held until then.)
+const LOADED: u8 = 3;
+
+#[inline]
+fn asleep(s: u8) -> bool {
+    s == ASLEEP || s == LOADED
+}
+
+/// Share of a traction's magnitude that reaches tau = sqrt(J2): 1/sqrt(3), exact for a
+/// vertical load on a free-standing column (see the module notes).
+const LOAD_SHARE: f32 = 0.577_350_26;
 
 #[inline]
 fn wake(b: u32, state: &mut [u8], woken: &mut [u32], n_woken: &mut usize) {
-    if state[b as usize] == ASLEEP {
+    if asleep(state[b as usize]) {
         state[b as usize] = WOKEN;
         woken[*n_woken] = b;
         *n_woken += 1;
@@ -184,6 +285,36 @@ pub struct Sleep {
     pub activity: Pool<UnitActivity>,
     /// Units asleep now.
     pub sleeping_units: usize,
+    /// The load tables, `load` to `reactions`, are empty unless loads are tested. Sleeping
+    /// unit: the load on it [N], averaged over `load_time` (an exponential average, brought up
+    /// to date whenever a step loads it).
+    load: Pool<[f32; 3]>,
+    /// Sleeping unit: the step whose load `load` last took in.
+    load_step: Pool<u32>,
+    /// Sleeping unit: the mean margin to yield of its particles when it fell asleep [Pa] (the
+    /// least is near zero in material that just stopped flowing; see `load_floor`).
+    margin: Pool<f32>,
+    /// Sleeping unit: |load| [N] once its average had run long enough to be unbiased (NaN
+    /// before): the load its frozen stress already carries, from the material that lay on it
+    /// when it fell asleep.
+    base: Pool<f32>,
+    /// Units the last step loaded past their margin (state LOADED), for the next update.
+    loaded: Pool<u32>,
+    n_loaded: usize,
+    /// Per grid node of the last grid update: the reaction of a held node [N] (zero elsewhere;
+    /// written only in blocks near a sleeping unit).
+    reactions: Pool<[f32; 3]>,
+    /// Axis and sign of gravity (down), when gravity lies along an axis and loads are tested.
+    down: Option<(usize, i32)>,
+    /// 1 / (a unit's face area) [1/m^2].
+    per_area: f32,
+}
+
+/// What the grid update needs of the sleeping units: which nodes they hold.
+pub struct Holds<'a> {
+    state: &'a [u8],
+    asleep_in_block: &'a [u8],
+    sleeping_units: usize,
 }
 
 /// Edge of a sleep unit in cells.
@@ -251,49 +382,111 @@ fn unit_in_table(geom: &GridGeom, u: [i32; 3]) -> bool {
 }
 
 impl Sleep {
-    pub fn plan(plan: &mut MemoryPlan, geom: &GridGeom, max_blocks: usize) {
-        plan.add::<u8>("sleep.state", geom.table_len() * UNITS);
-        plan.add::<f32>("sleep.rest", geom.table_len() * UNITS);
-        plan.add::<u32>("sleep.woken", geom.table_len() * UNITS);
+    pub fn plan(plan: &mut MemoryPlan, cfg: &SleepConfig, geom: &GridGeom, max_blocks: usize, gravity: [f64; 3]) {
+        let units = geom.table_len() * UNITS;
+        plan.add::<u8>("sleep.state", units);
+        plan.add::<f32>("sleep.rest", units);
+        plan.add::<u32>("sleep.woken", units);
         plan.add::<u8>("sleep.asleep_in_block", geom.table_len());
         plan.add::<UnitActivity>("sleep.activity", max_blocks);
+        if cfg.tests_loads(gravity) {
+            plan.add::<[f32; 3]>("sleep.load", units);
+            plan.add::<u32>("sleep.load_step", units);
+            plan.add::<f32>("sleep.margin", units);
+            plan.add::<f32>("sleep.base", units);
+            plan.add::<u32>("sleep.loaded", units);
+            plan.add::<[f32; 3]>("sleep.reactions", max_blocks * NODES_PER_BLOCK);
+        }
     }
 
-    pub fn new(cfg: SleepConfig, geom: &GridGeom, max_blocks: usize, b: &Backing) -> Result<Self, MemoryError> {
+    /// Tables for `geom`'s domain with `max_blocks` grid slots, under `gravity` (the load
+    /// tables empty unless loads are tested).
+    pub fn new(cfg: SleepConfig, geom: &GridGeom, max_blocks: usize, gravity: [f64; 3], b: &Backing) -> Result<Self, MemoryError> {
+        let units = geom.table_len() * UNITS;
+        let down = cfg.down(gravity);
+        let per_unit = if down.is_some() { units } else { 0 };
+        let per_node = if down.is_some() { max_blocks * NODES_PER_BLOCK } else { 0 };
+        let face = US as f64 * geom.dx;
         Ok(Sleep {
             cfg,
-            state: Pool::new("sleep.state", geom.table_len() * UNITS, b)?,
-            rest: Pool::new("sleep.rest", geom.table_len() * UNITS, b)?,
-            woken: Pool::new("sleep.woken", geom.table_len() * UNITS, b)?,
+            state: Pool::new("sleep.state", units, b)?,
+            rest: Pool::new("sleep.rest", units, b)?,
+            woken: Pool::new("sleep.woken", units, b)?,
             asleep_in_block: Pool::new("sleep.asleep_in_block", geom.table_len(), b)?,
             activity: Pool::new("sleep.activity", max_blocks, b)?,
             sleeping_units: 0,
+            load: Pool::new("sleep.load", per_unit, b)?,
+            load_step: Pool::new("sleep.load_step", per_unit, b)?,
+            margin: Pool::new("sleep.margin", per_unit, b)?,
+            base: Pool::new("sleep.base", per_unit, b)?,
+            loaded: Pool::new("sleep.loaded", per_unit, b)?,
+            n_loaded: 0,
+            reactions: Pool::new("sleep.reactions", per_node, b)?,
+            down,
+            per_area: (1.0 / (face * face)) as f32,
         })
     }
 
-    /// The per-unit tables (state, rest time), for checkpoints.
-    pub fn tables(&self) -> (&[u8], &[f32]) {
-        (self.state.as_slice(), self.rest.as_slice())
+    /// The per-unit tables, for checkpoints.
+    pub fn tables(&self) -> SleepTables<'_> {
+        SleepTables {
+            state: self.state.as_slice(),
+            rest: self.rest.as_slice(),
+            load: self.load.as_slice(),
+            load_step: self.load_step.as_slice(),
+            margin: self.margin.as_slice(),
+            base: self.base.as_slice(),
+        }
     }
 
-    pub fn tables_mut(&mut self) -> (&mut [u8], &mut [f32]) {
-        (self.state.as_mut_slice(), self.rest.as_mut_slice())
+    pub fn tables_mut(&mut self) -> SleepTablesMut<'_> {
+        SleepTablesMut {
+            state: self.state.as_mut_slice(),
+            rest: self.rest.as_mut_slice(),
+            load: self.load.as_mut_slice(),
+            load_step: self.load_step.as_mut_slice(),
+            margin: self.margin.as_mut_slice(),
+            base: self.base.as_mut_slice(),
+        }
     }
 
     /// Rebuild what follows from the state table (after a checkpoint wrote it).
     pub fn recount(&mut self) {
+        if !self.tests_loads() {
+            // a checkpoint of a run with the load test, resumed without it: a unit its last step
+            // loaded past its margin just sleeps on
+            self.state.as_mut_slice().iter_mut().filter(|s| **s == LOADED).for_each(|s| *s = ASLEEP);
+        }
         let state = self.state.as_slice();
         let per_block = self.asleep_in_block.as_mut_slice();
         self.sleeping_units = 0;
         for (b, n) in per_block.iter_mut().enumerate() {
-            *n = state[b * UNITS..(b + 1) * UNITS].iter().filter(|&&s| s == ASLEEP).count() as u8;
+            *n = state[b * UNITS..(b + 1) * UNITS].iter().filter(|&&s| asleep(s)).count() as u8;
             self.sleeping_units += *n as usize;
+        }
+        let loaded = self.loaded.as_mut_slice();
+        self.n_loaded = 0;
+        for (u, _) in state.iter().enumerate().filter(|(_, &s)| s == LOADED) {
+            loaded[self.n_loaded] = u as u32;
+            self.n_loaded += 1;
         }
     }
 
-    #[inline]
-    fn is_asleep(&self, unit: u32) -> bool {
-        self.state.as_slice()[unit as usize] == ASLEEP
+    /// Which nodes the sleeping units hold.
+    pub fn holds(&self) -> Holds<'_> {
+        Holds { state: self.state.as_slice(), asleep_in_block: self.asleep_in_block.as_slice(), sleeping_units: self.sleeping_units }
+    }
+
+    /// Whether loads wake sleeping units (`wake_by_load`, under gravity along an axis): only
+    /// then does the grid update need to leave held nodes' reactions for [`Sleep::take_loads`].
+    pub fn tests_loads(&self) -> bool {
+        self.down.is_some()
+    }
+
+    /// [`Sleep::holds`], and the per-node buffer the grid update leaves held nodes' reactions in.
+    pub fn holds_and_reactions(&mut self) -> (Holds<'_>, &mut [[f32; 3]]) {
+        let holds = Holds { state: self.state.as_slice(), asleep_in_block: self.asleep_in_block.as_slice(), sleeping_units: self.sleeping_units };
+        (holds, self.reactions.as_mut_slice())
     }
 
     /// Update rest times from the last step's activity (grid still binned as in that step, of
@@ -309,6 +502,7 @@ impl Sleep {
         material: &dyn Material,
         dt: f64,
         now: f64,
+        step: u64,
         check_sleep: bool,
         keep_awake: Option<([f64; 3], [f64; 3])>,
     ) -> bool {
@@ -318,10 +512,22 @@ impl Sleep {
         let table = grid.table.as_slice();
         let activity = &self.activity.as_slice()[..npb];
         let limits = Limits::of(&self.cfg);
+        let loads = self.tests_loads();
         let state = self.state.as_mut_slice();
         let rest = self.rest.as_mut_slice();
         let woken = self.woken.as_mut_slice();
         let mut n_woken = 0usize;
+        // below (what a unit's speed may not wake) and above (what a unit falling asleep may
+        // lie under while it moves) when loads are tested; without, the speed rule looks at all
+        // 26 neighbours
+        let (below, above) = match self.down {
+            Some((a, sign)) => (Some((a, sign)), Some((a, -sign))),
+            None => (None, None),
+        };
+        for &u in &self.loaded.as_slice()[..self.n_loaded] {
+            wake(u, state, woken, &mut n_woken);
+        }
+        self.n_loaded = 0;
         for s in 0..npb {
             for (k, &[v, rate]) in activity[s].iter().enumerate() {
                 let u = slot_block[s] * UNITS as u32 + k as u32;
@@ -342,7 +548,7 @@ impl Sleep {
                     v > limits.wake_speed
                 };
                 if wakes_neighbours {
-                    for nb in neighbours(geom, u) {
+                    for nb in neighbours(geom, u, below) {
                         wake(nb, state, woken, &mut n_woken);
                     }
                 }
@@ -380,7 +586,7 @@ impl Sleep {
                     if rest[u as usize] < rest_time || state[u as usize] != AWAKE || activity[s][k] == EMPTY_UNIT {
                         continue;
                     }
-                    let calm = neighbours(geom, u).all(|nb| {
+                    let calm = neighbours(geom, u, above).all(|nb| {
                         let t = table[nb as usize / UNITS];
                         t == EMPTY || (t as usize) >= npb || activity[t as usize][nb as usize % UNITS][0] <= limits.wake_speed
                     });
@@ -388,7 +594,14 @@ impl Sleep {
                         state[u as usize] = ASLEEP;
                         rest[u as usize] = now as f32;
                         per_block[u as usize / UNITS] += 1;
+                        woken[n_woken + slept] = u;
                         slept += 1;
+                        if loads {
+                            self.margin.as_mut_slice()[u as usize] = 0.0;
+                            self.base.as_mut_slice()[u as usize] = f32::NAN;
+                            self.load.as_mut_slice()[u as usize] = [0.0; 3];
+                            self.load_step.as_mut_slice()[u as usize] = step as u32;
+                        }
                     }
                 }
             }
@@ -404,7 +617,7 @@ impl Sleep {
             let mut i = 0;
             while i < particles.n_sleep {
                 let u = unit_index(geom, particle_unit(particles.xg.as_slice()[i]));
-                if state[u as usize] == ASLEEP {
+                if asleep(state[u as usize]) {
                     i += 1;
                 } else {
                     let st = &mut particles.state.as_mut_slice()[i * sl..(i + 1) * sl];
@@ -418,28 +631,171 @@ impl Sleep {
                 state[u as usize] = AWAKE;
                 rest[u as usize] = -grace;
             }
+            if loads {
+                let (load, load_step) = (self.load.as_mut_slice(), self.load_step.as_mut_slice());
+                let (margin, base) = (self.margin.as_mut_slice(), self.base.as_mut_slice());
+                for &u in &woken[..woke] {
+                    // zero, so that checkpoints store only sleeping units' entries
+                    (load[u as usize], load_step[u as usize], margin[u as usize], base[u as usize]) = ([0.0; 3], 0, 0.0, 0.0);
+                }
+            }
         }
         if slept > 0 {
+            let margin = self.margin.as_mut_slice();
+            let sl = particles.state_len;
             for i in particles.n_sleep..particles.n {
                 let u = unit_index(geom, particle_unit(particles.xg.as_slice()[i]));
                 if state[u as usize] == ASLEEP {
                     particles.swap(i, particles.n_sleep);
-                    settle(particles, particles.n_sleep, material);
+                    let k = particles.n_sleep;
+                    settle(particles, k, material);
+                    if loads {
+                        // summed here, counted in the unit's load (still zero), divided below
+                        margin[u as usize] += material.yield_margin(&particles.state.as_slice()[k * sl..(k + 1) * sl]) as f32;
+                        self.load.as_mut_slice()[u as usize][0] += 1.0;
+                    }
                     particles.n_sleep += 1;
+                }
+            }
+            if loads {
+                // the mean margin of each unit's particles
+                let load = self.load.as_mut_slice();
+                for &u in &woken[woke..woke + slept] {
+                    margin[u as usize] /= load[u as usize][0].max(1.0);
+                    load[u as usize][0] = 0.0;
                 }
             }
         }
         woke > 0 || slept > 0
     }
 
+    /// Take in the load of the grid update just done (its held nodes' reactions in
+    /// `reactions`, step `step` of length `dt`, ending at `now`): each held node's reaction is
+    /// shared among the sleeping units holding it, each unit's average load brought up to date,
+    /// and units whose load passes the margin of the sleeping column under them are marked
+    /// LOADED for the next update to wake (module notes).
+    pub fn take_loads(&mut self, grid: &Grid, dt: f64, step: u64, now: f64, material: &dyn Material) {
+        if self.sleeping_units == 0 || !self.tests_loads() {
+            return;
+        }
+        let geom = &grid.geom;
+        let slot_block = grid.slot_block.as_slice();
+        let a = if self.cfg.load_time > 0.0 { (dt / self.cfg.load_time).min(1.0) as f32 } else { 1.0 };
+        let step32 = step as u32;
+        let touched = self.woken.as_mut_slice();
+        let mut n_touched = 0usize;
+        let holds = Holds { state: self.state.as_slice(), asleep_in_block: self.asleep_in_block.as_slice(), sleeping_units: self.sleeping_units };
+        let (load, load_step) = (self.load.as_mut_slice(), self.load_step.as_mut_slice());
+        let reactions = self.reactions.as_slice();
+        for (s, &bi) in slot_block[..grid.n_active].iter().enumerate() {
+            let b = geom.block_coords(bi);
+            if !holds.near_block(geom, b) {
+                continue;
+            }
+            for li in 0..NODES_PER_BLOCK {
+                let f = reactions[s * NODES_PER_BLOCK + li];
+                if f == [0.0; 3] {
+                    continue;
+                }
+                let mut holders = [0u32; 8];
+                let mut n = 0;
+                for u in holds.holders(geom, geom.node_of(b, li)) {
+                    holders[n] = u;
+                    n += 1;
+                }
+                let share = a / n as f32;
+                for &u in &holders[..n] {
+                    let (l, last) = (&mut load[u as usize], &mut load_step[u as usize]);
+                    if *last != step32 {
+                        // first share this step: decay over the steps since the last one
+                        let gap = step32.wrapping_sub(*last).min(1 << 16) as i32;
+                        let keep = (1.0 - a).powi(gap);
+                        *l = l.map(|x| x * keep);
+                        *last = step32;
+                        touched[n_touched] = u;
+                        n_touched += 1;
+                    }
+                    for k in 0..3 {
+                        l[k] += share * f[k];
+                    }
+                }
+            }
+        }
+        let (down_axis, sign) = self.down.expect("checked above");
+        let (state, rest, margin) = (self.state.as_mut_slice(), self.rest.as_slice(), self.margin.as_slice());
+        let base = self.base.as_mut_slice();
+        let loaded = self.loaded.as_mut_slice();
+        let tau = self.cfg.load_time;
+        let (floor, fraction) = (self.cfg.load_floor as f32, self.cfg.load_fraction as f32);
+        let column = geom.nb[down_axis] * (BS as i32 / US);
+        for &u in &touched[..n_touched] {
+            let l = load[u as usize];
+            // the average has run since the unit fell asleep, from zero: unbias it
+            let slept = now - rest[u as usize] as f64;
+            let weight = if tau > 0.0 { 1.0 - (-slept / tau).exp() } else { 1.0 };
+            if weight < 0.9 {
+                continue;
+            }
+            let size = (l[0] * l[0] + l[1] * l[1] + l[2] * l[2]).sqrt() / weight as f32;
+            if base[u as usize].is_nan() {
+                base[u as usize] = size;
+                continue;
+            }
+            // only what was added since: the load it fell asleep under is in its stress
+            let t = LOAD_SHARE * self.per_area * (size - base[u as usize]);
+            // the deepest unit of the sleeping column from u down whose margin the load passes
+            let mut c = unit_coords(geom, u);
+            let (mut w, mut deepest) = (u, None);
+            for depth in 1.. {
+                let gain = material.strength_gain((now - rest[w as usize] as f64).max(0.0) as Real) as f32;
+                if t > fraction * (margin[w as usize].max(0.0) + gain) + floor {
+                    deepest = Some(c[down_axis]);
+                }
+                c[down_axis] += sign;
+                let next = wrap_unit(geom, c);
+                // (a column asleep all round a periodic axis ends where it began)
+                if depth == column || !unit_in_table(geom, next) || !asleep(state[unit_index(geom, next) as usize]) {
+                    break;
+                }
+                w = unit_index(geom, next);
+            }
+            let Some(last) = deepest else { continue };
+            let mut c = unit_coords(geom, u);
+            loop {
+                let w = unit_index(geom, wrap_unit(geom, c));
+                if state[w as usize] == ASLEEP {
+                    state[w as usize] = LOADED;
+                    loaded[self.n_loaded] = w;
+                    self.n_loaded += 1;
+                }
+                if c[down_axis] == last {
+                    break;
+                }
+                c[down_axis] += sign;
+            }
+        }
+    }
+}
+
+impl Holds<'_> {
     /// Whether grid node `g` lies in the stencil reach of a sleeping unit: nodes
     /// 2u..=2u+3 on each axis, the nodes a particle of unit u can touch.
     #[inline]
     pub fn holds_node(&self, geom: &GridGeom, g: [i32; 3]) -> bool {
+        self.holders(geom, g).next().is_some()
+    }
+
+    /// The sleeping units whose stencil reach holds node `g` (at most 8).
+    #[inline]
+    fn holders<'g>(&'g self, geom: &'g GridGeom, g: [i32; 3]) -> impl Iterator<Item = u32> + 'g {
         let c = g.map(|x| x.div_euclid(US));
-        (0..8).any(|d| {
+        (0..8).filter_map(move |d| {
             let u = wrap_unit(geom, [c[0] - (d >> 2 & 1), c[1] - (d >> 1 & 1), c[2] - (d & 1)]);
-            unit_in_table(geom, u) && self.is_asleep(unit_index(geom, u))
+            if !unit_in_table(geom, u) {
+                return None;
+            }
+            let idx = unit_index(geom, u);
+            asleep(self.state[idx as usize]).then_some(idx)
         })
     }
 
@@ -450,12 +806,31 @@ impl Sleep {
         if self.sleeping_units == 0 {
             return false;
         }
-        let per_block = self.asleep_in_block.as_slice();
         (0..8).any(|d| {
             let c = geom.wrap_block([b[0] - (d >> 2 & 1), b[1] - (d >> 1 & 1), b[2] - (d & 1)]);
-            in_table(geom, c) && per_block[geom.block_index(c) as usize] > 0
+            in_table(geom, c) && self.asleep_in_block[geom.block_index(c) as usize] > 0
         })
     }
+}
+
+/// The per-unit tables a checkpoint stores.
+pub struct SleepTables<'a> {
+    pub state: &'a [u8],
+    pub rest: &'a [f32],
+    pub load: &'a [[f32; 3]],
+    pub load_step: &'a [u32],
+    pub margin: &'a [f32],
+    pub base: &'a [f32],
+}
+
+/// [`SleepTables`], to restore.
+pub struct SleepTablesMut<'a> {
+    pub state: &'a mut [u8],
+    pub rest: &'a mut [f32],
+    pub load: &'a mut [[f32; 3]],
+    pub load_step: &'a mut [u32],
+    pub margin: &'a mut [f32],
+    pub base: &'a mut [f32],
 }
 
 /// Put particle `i` at rest: zero velocity and velocity gradient, and the stress its material
@@ -480,11 +855,16 @@ fn in_table(geom: &GridGeom, b: [i32; 3]) -> bool {
     (0..3).all(|a| b[a] >= 0 && b[a] < geom.nb[a])
 }
 
-/// The 26 neighbours of unit `u` inside the table.
-fn neighbours(geom: &GridGeom, u: u32) -> impl Iterator<Item = u32> + '_ {
+/// The 26 neighbours of unit `u` inside the table, but those one unit off along `skip`'s axis
+/// in its direction (`(axis, sign)`; e.g. `(2, -1)`: the nine below).
+fn neighbours(geom: &GridGeom, u: u32, skip: Option<(usize, i32)>) -> impl Iterator<Item = u32> + '_ {
     let c = unit_coords(geom, u);
     (0..27).filter(|&d| d != 13).filter_map(move |d| {
-        let n = wrap_unit(geom, [c[0] + d / 9 - 1, c[1] + (d / 3) % 3 - 1, c[2] + d % 3 - 1]);
+        let off = [d / 9 - 1, (d / 3) % 3 - 1, d % 3 - 1];
+        if skip.is_some_and(|(a, sign)| off[a] == sign) {
+            return None;
+        }
+        let n = wrap_unit(geom, [c[0] + off[0], c[1] + off[1], c[2] + off[2]]);
         unit_in_table(geom, n).then(|| unit_index(geom, n))
     })
 }
@@ -499,9 +879,11 @@ mod tests {
         GridGeom { dx: 0.01, origin: [0.0; 3], cells, nb, periodic, lo: [0.0; 3], hi: [0.1; 3] }
     }
 
-    fn sleep_with(geom: &GridGeom, asleep: &[[i32; 3]]) -> Sleep {
-        let cfg: SleepConfig = toml::from_str("").unwrap();
-        let mut s = Sleep::new(cfg, geom, 4, &Backing::default()).unwrap();
+    /// Sleep tables for `geom` under gravity along -z, `config` its `[sleep]` keys, with units
+    /// `asleep` asleep.
+    fn sleep_with(geom: &GridGeom, config: &str, asleep: &[[i32; 3]]) -> Sleep {
+        let cfg: SleepConfig = toml::from_str(config).unwrap();
+        let mut s = Sleep::new(cfg, geom, geom.table_len(), [0.0, 0.0, -9.81], &Backing::default()).unwrap();
         for &u in asleep {
             s.state.as_mut_slice()[unit_index(geom, u) as usize] = ASLEEP;
         }
@@ -566,7 +948,7 @@ mod tests {
         for periodic in [[false; 3], [true, false, true]] {
             let g = geom(periodic);
             let asleep = [[0, 0, 0], [3, 1, 5], [5, 3, 7], [2, 2, 2]];
-            let s = sleep_with(&g, &asleep);
+            let s = sleep_with(&g, "", &asleep);
             assert_eq!(s.sleeping_units, asleep.len());
             for x in -2..g.cells[0] + 2 {
                 for y in -2..g.cells[1] + 2 {
@@ -579,14 +961,166 @@ mod tests {
                             if periodic[a] { d.rem_euclid(g.cells[a]) } else { d }
                         };
                         let want = asleep.iter().any(|u| (0..3).all(|a| (0..=3).contains(&off(u, a))));
-                        assert_eq!(s.holds_node(&g, n), want, "node {n:?}");
+                        assert_eq!(s.holds().holds_node(&g, n), want, "node {n:?}");
                         let b = n.map(|c| c.div_euclid(BS as i32));
                         if want && in_table(&g, g.wrap_block(b)) {
-                            assert!(s.near_block(&g, b), "block {b:?} holds node {n:?} but fails the pre-test");
+                            assert!(s.holds().near_block(&g, b), "block {b:?} holds node {n:?} but fails the pre-test");
                         }
                     }
                 }
             }
         }
+    }
+
+    #[test]
+    fn the_load_keys_parse_with_their_defaults_and_validate() {
+        let cfg: SleepConfig = toml::from_str("").unwrap();
+        assert!(!cfg.wake_by_load, "the load test is opt-in");
+        assert_eq!((cfg.load_time, cfg.load_floor, cfg.load_fraction), (0.02, 20.0, 0.5));
+        assert!(cfg.validate().is_ok());
+        assert!(!cfg.tests_loads([0.0, 0.0, -9.81]));
+        let on: SleepConfig = toml::from_str("wake_by_load = true\nload_floor = 5.0\nload_time = 0.01").unwrap();
+        assert!(on.wake_by_load && on.load_floor == 5.0 && on.load_time == 0.01);
+        assert!(on.validate().is_ok());
+        assert!(on.tests_loads([0.0, 0.0, -9.81]) && on.tests_loads([9.81, 0.0, 0.0]));
+        assert!(!on.tests_loads([0.0, 1.0, -9.81]) && !on.tests_loads([0.0; 3]), "no axis is down");
+        for bad in [-1.0, f64::NAN, f64::INFINITY] {
+            let cfg = SleepConfig { load_floor: bad, ..on.clone() };
+            let e = cfg.validate().expect_err("an invalid floor passed");
+            assert!(e.contains("sleep.load_floor"), "{e}");
+        }
+        let e = toml::from_str::<SleepConfig>("load_floor = nan").unwrap().validate().unwrap_err();
+        assert!(e.contains("sleep.load_floor"), "{e}");
+        for bad in [0.0, -0.5, 1.5, f64::NAN] {
+            let cfg = SleepConfig { load_fraction: bad, ..on.clone() };
+            let e = cfg.validate().expect_err("an invalid fraction passed");
+            assert!(e.contains("sleep.load_fraction"), "{e}");
+        }
+        assert!(SleepConfig { load_fraction: 1.0, ..on.clone() }.validate().is_ok());
+    }
+
+    fn evp(a_thix: f64) -> Box<dyn Material> {
+        let text = format!(
+            "kind = \"evp_bingham\"\ndensity = 2100.0\nbulk_modulus = 1e6\npoisson_ratio = 0.3\nviscosity = 7.5\nyield_stress = 630.0\na_thix = {a_thix}\n"
+        );
+        crate::materials::build_material(&text.parse::<toml::Table>().unwrap()).unwrap()
+    }
+
+    /// A grid on `geom` whose first active slots are `first` (then every other block), the
+    /// first `particle_blocks` of them holding particles.
+    fn grid_with(geom: &GridGeom, first: &[[i32; 3]], particle_blocks: usize) -> Grid {
+        let mut grid = Grid::new(geom.clone(), geom.table_len(), &Backing::default()).unwrap();
+        for &b in first {
+            grid.activate(geom.block_index(b)).unwrap();
+        }
+        for b in 0..geom.table_len() as u32 {
+            grid.activate(b).unwrap();
+        }
+        grid.n_particle_blocks = particle_blocks;
+        grid
+    }
+
+    /// The speed rule is the default: fast material above a sleeping unit wakes it. With the
+    /// load test it does not (its load does, if it can make the unit yield).
+    #[test]
+    fn fast_material_above_wakes_a_sleeping_unit_only_under_the_speed_rule() {
+        let g = geom([false; 3]);
+        let mat = evp(0.0);
+        let (below, above): ([i32; 3], [i32; 3]) = ([2, 1, 4], [2, 1, 5]);
+        let block = above.map(|c| c.div_euclid(BS as i32 / US));
+        let k = unit_index(&g, above) as usize % UNITS;
+        for (config, wakes) in [("", true), ("wake_by_load = true", false)] {
+            let mut s = sleep_with(&g, config, &[below]);
+            assert_eq!(s.tests_loads(), !wakes);
+            let grid = grid_with(&g, &[block], 1);
+            let mut act = [EMPTY_UNIT; UNITS];
+            act[k] = [5.0 * s.cfg.wake_speed as Real, 1.0];
+            s.activity.as_mut_slice()[0] = act;
+            let mut particles = Particles::new(1, mat.state_names().len(), &Backing::default()).unwrap();
+            let moved = s.update(&grid, &mut particles, &*mat, 1e-3, 1.0, 1000, false, None);
+            let state = s.state.as_slice()[unit_index(&g, below) as usize];
+            assert_eq!((moved, state == AWAKE, s.sleeping_units), (wakes, wakes, !wakes as usize), "config '{config}'");
+        }
+    }
+
+    /// A sleeping column for the load rule under `config`, top to bottom, with these margins
+    /// [Pa] (A_thix = 10 Pa/s): the load it fell asleep under sets its base and never wakes it,
+    /// and 25 Pa more wakes nothing (that passes the bottom-but-one unit's 10 Pa margin, plus
+    /// under 6 Pa of build-up, but not by the 20 Pa floor). Then `extra` Pa over the base: the
+    /// column's states, the time, the step, and what `update` needs to wake the loaded units.
+    fn loaded_column(config: &str, extra: f32) -> ([u8; 4], Sleep, Grid, Box<dyn Material>, f64, u64) {
+        let g = geom([false; 3]);
+        let mat = evp(10.0);
+        let column = [([2, 1, 4], 30.0), ([2, 1, 3], 80.0), ([2, 1, 2], 10.0), ([2, 1, 1], 150.0)];
+        let units: Vec<[i32; 3]> = column.iter().map(|c| c.0).collect();
+        let mut s = sleep_with(&g, config, &units);
+        for &(u, m) in &column {
+            let i = unit_index(&g, u) as usize;
+            // fell asleep at t = 0 in step 0, as `update` leaves a unit falling asleep
+            (s.rest.as_mut_slice()[i], s.margin.as_mut_slice()[i], s.base.as_mut_slice()[i]) = (0.0, m, f32::NAN);
+        }
+        // a node only the top unit holds (its stencil reach is nodes 2u..=2u+3): the weight on
+        // the column
+        let node: [i32; 3] = [5, 3, 11];
+        let holders: Vec<u32> = s.holds().holders(&g, node).collect();
+        assert_eq!(holders, [unit_index(&g, column[0].0)]);
+        let b = node.map(|c| c.div_euclid(BS as i32));
+        let grid = grid_with(&g, &[b], 0);
+        let li = (0..NODES_PER_BLOCK).find(|&li| g.node_of(b, li) == node).unwrap();
+        let at = grid.slot(g.block_index(b)) as usize * NODES_PER_BLOCK + li;
+        // the load whose share of tau is `tau` [Pa] (what it adds on the unit's face)
+        let share = LOAD_SHARE * s.per_area;
+        let force = |tau: f32| tau / share;
+        let dt = 1e-3;
+        let mut step = 0u64;
+        // ten `load_time`s a phase: the average has converged
+        let mut carry = |s: &mut Sleep, load: f32| {
+            for _ in 0..200 {
+                step += 1;
+                s.reactions.as_mut_slice()[at] = [0.0, 0.0, -load];
+                s.take_loads(&grid, dt, step, step as f64 * dt, &*mat);
+            }
+            step as f64 * dt
+        };
+        let states = |s: &Sleep| column.map(|(u, _)| s.state.as_slice()[unit_index(&g, u) as usize]);
+        let weight = force(300.0);
+        carry(&mut s, weight);
+        let base = s.base.as_slice()[holders[0] as usize];
+        assert!((base / weight - 1.0).abs() < 0.01, "base {base} N under a {weight} N load");
+        assert_eq!(states(&s), [ASLEEP; 4]);
+        let now = carry(&mut s, weight + force(25.0));
+        assert!(mat.strength_gain(now as Real) < 6.0);
+        assert_eq!((states(&s), s.n_loaded), ([ASLEEP; 4], 0), "config '{config}'");
+        let now = carry(&mut s, weight + force(extra));
+        (states(&s), s, grid, mat, now, step)
+    }
+
+    /// The load rule on a sleeping column: the load added on its top unit since it fell asleep,
+    /// averaged, wakes the column down to the deepest unit whose margin (plus its build-up and
+    /// `load_floor`) the load's share of tau passes, and no unit when it passes none.
+    #[test]
+    fn a_load_wakes_the_sleeping_column_down_to_the_deepest_unit_it_makes_yield() {
+        // 70 Pa more passes the top unit's and the bottom-but-one's margins: the three upper
+        // units are loaded, the bottom one (150 Pa) is not
+        let (states, mut s, grid, mat, now, step) = loaded_column("wake_by_load = true\nload_fraction = 1.0", 70.0);
+        assert_eq!(states, [LOADED, LOADED, LOADED, ASLEEP]);
+        assert_eq!(s.n_loaded, 3);
+        // the next update wakes them; their nodes were held until then
+        let mut particles = Particles::new(1, mat.state_names().len(), &Backing::default()).unwrap();
+        assert!(s.update(&grid, &mut particles, &*mat, 1e-3, now, step, false, None));
+        let g = geom([false; 3]);
+        let after = [[2, 1, 4], [2, 1, 3], [2, 1, 2], [2, 1, 1]].map(|u| s.state.as_slice()[unit_index(&g, u) as usize]);
+        assert_eq!(after, [AWAKE, AWAKE, AWAKE, ASLEEP]);
+        assert_eq!((s.sleeping_units, s.n_loaded), (1, 0));
+    }
+
+    /// `load_fraction` (0.5 by default): a unit wakes once the load passes that share of its
+    /// margin. 100 Pa passes half the bottom unit's 150 Pa (plus the floor) but not all of it.
+    #[test]
+    fn a_load_wakes_at_its_fraction_of_the_margin() {
+        let (whole, ..) = loaded_column("wake_by_load = true\nload_fraction = 1.0", 100.0);
+        assert_eq!(whole, [LOADED, LOADED, LOADED, ASLEEP]);
+        let (half, ..) = loaded_column("wake_by_load = true", 100.0);
+        assert_eq!(half, [LOADED; 4]);
     }
 }

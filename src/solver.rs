@@ -154,7 +154,8 @@ pub struct Simulation {
 }
 
 fn checkpoint_staging_bytes(sc: &Scenario, cap: usize, state_len: usize, max_blocks: usize, table_len: usize) -> usize {
-    crate::checkpoint::state::max_staging_bytes(cap, state_len, max_blocks, table_len, sc.sleep.is_some(), sc.simulation.flip > 0.0)
+    let loads = sc.sleep.as_ref().is_some_and(|c| c.tests_loads(sc.simulation.gravity));
+    crate::checkpoint::state::max_staging_bytes(cap, state_len, max_blocks, table_len, sc.sleep.is_some(), loads, sc.simulation.flip > 0.0)
 }
 
 /// Names of the step's phases, as accumulated in `Simulation::phase_seconds`.
@@ -207,8 +208,8 @@ impl Simulation {
         Particles::plan(&mut memory, cap, state_len);
         Grid::plan(&mut memory, &geom, max_blocks);
         Scratch::plan(&mut memory, cap, max_blocks, state_len);
-        if scenario.sleep.is_some() {
-            Sleep::plan(&mut memory, &geom, max_blocks);
+        if let Some(cfg) = &scenario.sleep {
+            Sleep::plan(&mut memory, cfg, &geom, max_blocks, scenario.simulation.gravity);
         }
         if scenario.checkpoint.enabled {
             let bytes = checkpoint_staging_bytes(scenario, cap, state_len, max_blocks, geom.table_len());
@@ -229,7 +230,7 @@ impl Simulation {
         let grid = Grid::new(geom, max_blocks, &backing)?;
         let scratch = Scratch::new(cap, max_blocks, state_len, &backing)?;
         let sleep = match &scenario.sleep {
-            Some(cfg) => Some(Sleep::new(cfg.clone(), &grid.geom, max_blocks, &backing)?),
+            Some(cfg) => Some(Sleep::new(cfg.clone(), &grid.geom, max_blocks, scenario.simulation.gravity, &backing)?),
             None => None,
         };
 
@@ -390,7 +391,7 @@ impl Simulation {
                 // A still nozzle (a pause) holds its tube's nodes at rest, as sleeping material's held
                 // nodes are: material resting under or in it may sleep through the dwell.
                 let moving_tube = drive.filter(|d| d.velocity != [0.0; 3]).map(|d| d.bounds());
-                moved = sl.update(&self.grid, &mut self.particles, mat, self.last_dt, self.time, check, moving_tube);
+                moved = sl.update(&self.grid, &mut self.particles, mat, self.last_dt, self.time, self.step, check, moving_tube);
             }
         }
         self.awake_particle_steps += (self.particles.n - self.particles.n_sleep) as u64;
@@ -405,6 +406,9 @@ impl Simulation {
         self.p2g(dt as Real);
         clock.lap(&mut self.phase_seconds[2]);
         self.grid_update(dt as Real, drive.as_ref());
+        if let Some(sl) = &mut self.sleep {
+            sl.take_loads(&self.grid, dt, self.step, self.time + dt, &*self.material);
+        }
         clock.lap(&mut self.phase_seconds[3]);
         Ok(())
     }
@@ -624,15 +628,32 @@ impl Simulation {
         let table = self.grid.table.as_slice();
         let threads = self.team.threads();
         let drive_box = drive.map(|d| d.bounds());
-        let sleep = self.sleep.as_ref();
+        // reactions only for the load test: the speed rule needs just the holds
+        let (holds, reactions) = match self.sleep.as_mut() {
+            Some(z) => {
+                let loads = z.tests_loads();
+                let (h, r) = z.holds_and_reactions();
+                (Some(h), loads.then(|| SharedSlice::new(r)))
+            }
+            None => (None, None),
+        };
         self.team.run(|tid| {
             for s in ThreadTeam::share(na, tid, threads) {
                 let b = geom.block_coords(slot_block[s]);
-                let near_sleep = sleep.is_some_and(|z| z.near_block(geom, b));
+                let near_sleep = holds.as_ref().is_some_and(|z| z.near_block(geom, b));
                 let driven = drive_box.is_some_and(|bx| geom.block_overlaps(b, bx));
                 // SAFETY: each slot belongs to one thread.
                 let blk = unsafe { nodes.slice_mut(s * NODES_PER_BLOCK..(s + 1) * NODES_PER_BLOCK) };
+                // the reaction of each held node: the momentum holding it removes, over dt
+                let mut held = match (&reactions, near_sleep) {
+                    // SAFETY: as for the nodes
+                    (Some(r), true) => Some(unsafe { r.slice_mut(s * NODES_PER_BLOCK..(s + 1) * NODES_PER_BLOCK) }),
+                    _ => None,
+                };
                 for (li, node) in blk.iter_mut().enumerate() {
+                    if let Some(h) = held.as_mut() {
+                        h[li] = [0.0; 3];
+                    }
                     let m = node[0];
                     if m <= 0.0 {
                         *node = [0.0; 7];
@@ -641,7 +662,11 @@ impl Simulation {
                     let g = geom.node_of(b, li);
                     let old = V3::new(node[1], node[2], node[3]) / m;
                     let mut v = old + V3::new(node[4], node[5], node[6]) / m + accel * dt;
-                    if near_sleep && sleep.is_some_and(|z| z.holds_node(geom, g)) {
+                    if near_sleep && holds.as_ref().is_some_and(|z| z.holds_node(geom, g)) {
+                        if let Some(h) = held.as_mut() {
+                            let f = v * (m / dt);
+                            h[li] = [f.x as f32, f.y as f32, f.z as f32];
+                        }
                         v = V3::ZERO;
                     }
                     if driven {

@@ -11,9 +11,16 @@ use std::time::{Duration, Instant};
 
 const BIN: &str = env!("CARGO_BIN_EXE_strand");
 
-/// The tiny print (5 mm, sleeping, one worker) with a checkpoint every 500 steps, 3 kept.
-fn scenario(layers: usize) -> String {
-    common::tiny_print(1, layers, true, "64 MiB") + "[checkpoint]\nstep_interval = 500\nkeep = 3\n"
+/// The tiny print (5 mm, sleeping, one worker) with a checkpoint every 500 steps, 3 kept; with
+/// `load`, sleeping units wake by the load on them (`[sleep] wake_by_load`), whose tables the
+/// checkpoints then carry.
+fn scenario(layers: usize, load: bool) -> String {
+    let mut text = common::tiny_print(1, layers, true, "64 MiB");
+    if load {
+        assert!(text.contains("[sleep]\n"), "{text}");
+        text = text.replace("[sleep]\n", "[sleep]\nwake_by_load = true\n");
+    }
+    text + "[checkpoint]\nstep_interval = 500\nkeep = 3\n"
 }
 
 fn write_scenario(dir: &Path, name: &str, text: &str) -> PathBuf {
@@ -88,20 +95,27 @@ fn assert_same_outputs(a: &Path, b: &Path) {
     }
 }
 
-/// The uninterrupted runs everyone compares against (2 and 3 layers), computed once.
+/// The uninterrupted runs everyone compares against (2 and 3 layers; 2 with the load test),
+/// computed once.
 struct Reference {
     _dir: tempfile::TempDir,
     out: PathBuf,
     hash: String,
 }
 
-fn reference(layers: usize) -> &'static Reference {
+fn reference(layers: usize, load: bool) -> &'static Reference {
     static R2: OnceLock<Reference> = OnceLock::new();
     static R3: OnceLock<Reference> = OnceLock::new();
-    let cell = if layers == 2 { &R2 } else { &R3 };
+    static R2_LOAD: OnceLock<Reference> = OnceLock::new();
+    let cell = match (layers, load) {
+        (2, false) => &R2,
+        (3, false) => &R3,
+        (2, true) => &R2_LOAD,
+        _ => unreachable!("no reference for {layers} layers, load {load}"),
+    };
     cell.get_or_init(|| {
         let dir = tempfile::tempdir().unwrap();
-        let sc = write_scenario(dir.path(), "s.toml", &scenario(layers));
+        let sc = write_scenario(dir.path(), "s.toml", &scenario(layers, load));
         let out = dir.path().join("out");
         let hash = hash_of(&run(&sc, &out, &[], &[]));
         Reference { _dir: dir, out, hash }
@@ -139,11 +153,12 @@ fn wait_for_progress(child: &mut Child, out: &Path, after: Option<u64>) -> bool 
     }
 }
 
-#[test]
-fn sigkill_at_random_steps_and_resume_ends_bit_identical() {
-    let r = reference(2);
+/// Five SIGKILLs at random steps of the two-layer print, each run resumed from the newest
+/// checkpoint: the end is bit-identical to the run in one go.
+fn sigkill_at_random_steps_and_resume(load: bool) {
+    let r = reference(2, load);
     let dir = tempfile::tempdir().unwrap();
-    let sc = write_scenario(dir.path(), "s.toml", &scenario(2));
+    let sc = write_scenario(dir.path(), "s.toml", &scenario(2, load));
     let out = dir.path().join("out");
     let mut rng = Rng::new();
     let mut killed_after = Vec::new();
@@ -165,10 +180,22 @@ fn sigkill_at_random_steps_and_resume_ends_bit_identical() {
 }
 
 #[test]
+fn sigkill_at_random_steps_and_resume_ends_bit_identical() {
+    sigkill_at_random_steps_and_resume(false);
+}
+
+/// The same with the wake test on load: its per-unit tables (the averaged load, its step, the
+/// margin, the base load) ride in the checkpoints.
+#[test]
+fn sigkill_at_random_steps_and_resume_ends_bit_identical_with_the_load_test() {
+    sigkill_at_random_steps_and_resume(true);
+}
+
+#[test]
 fn three_layers_stopped_by_sigint_then_sigterm_equal_the_run_in_one_go() {
-    let r = reference(3);
+    let r = reference(3, false);
     let dir = tempfile::tempdir().unwrap();
-    let sc = write_scenario(dir.path(), "s.toml", &scenario(3));
+    let sc = write_scenario(dir.path(), "s.toml", &scenario(3, false));
     let out = dir.path().join("out");
     let mut rng = Rng::new();
     for stop in 0..2 {
@@ -206,12 +233,12 @@ fn copy_dir(from: &Path, to: &Path) {
 
 #[test]
 fn a_corrupt_truncated_or_deleted_newest_checkpoint_falls_back_to_the_previous() {
-    let r = reference(2);
+    let r = reference(2, false);
     let steps = checkpoint_steps(&r.out);
     assert_eq!(steps.len(), 3, "{steps:?}");
     let (prev, last) = (steps[1], steps[2]);
     let dir = tempfile::tempdir().unwrap();
-    let sc = write_scenario(dir.path(), "s.toml", &scenario(2));
+    let sc = write_scenario(dir.path(), "s.toml", &scenario(2, false));
     let name = |s: u64| format!("step_{s:012}.ckpt");
     type Damage = fn(&Path);
     let cases: [(&str, Damage, &str); 3] = [
@@ -257,11 +284,11 @@ fn a_corrupt_truncated_or_deleted_newest_checkpoint_falls_back_to_the_previous()
 
 #[test]
 fn a_changed_scenario_is_refused_naming_the_key_unless_forced() {
-    let r = reference(2);
+    let r = reference(2, false);
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out");
     copy_dir(&r.out, &out);
-    let changed = scenario(2).replace("yield_stress = 630.0", "yield_stress = 700.0");
+    let changed = scenario(2, false).replace("yield_stress = 630.0", "yield_stress = 700.0");
     let sc = write_scenario(dir.path(), "changed.toml", &changed);
     let o = run(&sc, &out, &["--resume"], &[]);
     let err = stderr(&o);
@@ -269,7 +296,7 @@ fn a_changed_scenario_is_refused_naming_the_key_unless_forced() {
     assert!(err.contains("material.yield_stress: 630.0 in the checkpoint, 700.0 now") && err.contains("--force"), "{err}");
     assert!(run(&sc, &out, &["--resume", "--force"], &[]).status.success());
     // keys that cannot change the result (threads, budgets, checkpoint settings) may differ
-    let same = scenario(2).replace("threads = 1", "threads = 2").replace("keep = 3", "keep = 2");
+    let same = scenario(2, false).replace("threads = 1", "threads = 2").replace("keep = 3", "keep = 2");
     let sc = write_scenario(dir.path(), "same.toml", &same);
     let out2 = dir.path().join("out2");
     copy_dir(&r.out, &out2);
@@ -278,7 +305,7 @@ fn a_changed_scenario_is_refused_naming_the_key_unless_forced() {
 
 /// The 2-layer scenario writing snapshots under a disk budget.
 fn with_budget(budget: &str, policy: &str, vtu: bool) -> String {
-    scenario(2).replace(
+    scenario(2, false).replace(
         "vtu = false",
         &format!("vtu = {vtu}\ndisk_budget = \"{budget}\"\non_disk_full = \"{policy}\""),
     )
@@ -294,7 +321,7 @@ fn usage(dir: &Path) -> u64 {
 
 #[test]
 fn a_full_disk_budget_stops_cleanly_and_a_larger_one_resumes() {
-    let r = reference(2);
+    let r = reference(2, false);
     let dir = tempfile::tempdir().unwrap();
     let limit = 7u64 << 20;
     let sc = write_scenario(dir.path(), "s.toml", &with_budget("7 MiB", "stop", true));
@@ -315,7 +342,7 @@ fn a_full_disk_budget_stops_cleanly_and_a_larger_one_resumes() {
 
 #[test]
 fn prune_snapshots_keeps_the_run_within_its_disk_budget() {
-    let r = reference(2);
+    let r = reference(2, false);
     let dir = tempfile::tempdir().unwrap();
     let limit = 7u64 << 20;
     let sc = write_scenario(dir.path(), "s.toml", &with_budget("7 MiB", "prune_snapshots", true));
@@ -347,7 +374,7 @@ fn no_room_for_a_checkpoint_stops_the_run_within_budget() {
 
 #[test]
 fn enospc_stops_the_run_with_the_last_good_checkpoint_intact() {
-    let r = reference(2);
+    let r = reference(2, false);
     let dir = tempfile::tempdir().unwrap();
     for (case, vtu) in [("checkpoints", false), ("snapshots", true)] {
         let sc = write_scenario(dir.path(), "s.toml", &with_budget("1 GiB", "stop", vtu));
@@ -372,21 +399,21 @@ fn enospc_stops_the_run_with_the_last_good_checkpoint_intact() {
 #[test]
 fn a_resumed_run_stays_within_its_memory_budget() {
     let dir = tempfile::tempdir().unwrap();
-    let sc = write_scenario(dir.path(), "s.toml", &scenario(2).replace("64 MiB", "48 MiB"));
+    let sc = write_scenario(dir.path(), "s.toml", &scenario(2, false).replace("64 MiB", "48 MiB"));
     let out = dir.path().join("out");
-    copy_dir(&reference(2).out, &out);
+    copy_dir(&reference(2, false).out, &out);
     // resume from the middle: drop the later checkpoints
     let steps = checkpoint_steps(&out);
     std::fs::remove_file(out.join("checkpoints").join(format!("step_{:012}.ckpt", steps[2]))).unwrap();
     let v = common::run_within_budget(&sc, &out, &["--resume"]);
-    assert_eq!(v["state_hash"].as_str().unwrap(), reference(2).hash);
+    assert_eq!(v["state_hash"].as_str().unwrap(), reference(2, false).hash);
 }
 
 #[test]
 fn a_fresh_run_does_not_silently_replace_an_unfinished_one() {
-    let r = reference(2);
+    let r = reference(2, false);
     let dir = tempfile::tempdir().unwrap();
-    let sc = write_scenario(dir.path(), "s.toml", &scenario(2));
+    let sc = write_scenario(dir.path(), "s.toml", &scenario(2, false));
     let out = dir.path().join("out");
     copy_dir(&r.out, &out);
     // a finished run's folder is simply replaced: drop nothing, run again
@@ -411,7 +438,7 @@ fn a_fresh_run_does_not_silently_replace_an_unfinished_one() {
 #[test]
 fn the_evp_print_restart_state_fits_64_bytes_per_particle_in_f32() {
     use strand::checkpoint::state::restart_bytes_per_particle_with;
-    let sc = strand::scenario::Scenario::parse(&scenario(2)).unwrap();
+    let sc = strand::scenario::Scenario::parse(&scenario(2, false)).unwrap();
     let mut sim = strand::solver::Simulation::new(&sc).unwrap();
     let mut worst = 0.0f64;
     for k in 1..=5 {

@@ -146,10 +146,17 @@ pub fn sections(sim: &Simulation) -> Vec<Part<'_>> {
         source: Source::Velocities(nodes, k),
     });
     if let Some(sl) = &sim.sleep {
-        // per unit of the whole domain, but zero away from material
-        let (state, rest) = sl.tables();
-        v.extend(sparse("sleep.state_at", "sleep.state", state, 1, false));
-        v.extend(sparse("sleep.rest_at", "sleep.rest", bytes(rest), 4, false));
+        // per unit of the whole domain, but zero away from material (and the load tables
+        // away from sleeping units; without the load test they hold nothing and are left out)
+        let t = sl.tables();
+        v.extend(sparse("sleep.state_at", "sleep.state", t.state, 1, false));
+        v.extend(sparse("sleep.rest_at", "sleep.rest", bytes(t.rest), 4, false));
+        if sl.tests_loads() {
+            v.extend(sparse("sleep.load_at", "sleep.load", bytes(t.load), 12, false));
+            v.extend(sparse("sleep.load_step_at", "sleep.load_step", bytes(t.load_step), 4, false));
+            v.extend(sparse("sleep.margin_at", "sleep.margin", bytes(t.margin), 4, false));
+            v.extend(sparse("sleep.base_at", "sleep.base", bytes(t.base), 4, false));
+        }
     }
     v
 }
@@ -168,8 +175,9 @@ pub fn restart_bytes_per_particle(sim: &Simulation) -> f64 {
 }
 
 /// Bytes of staging a checkpoint can need at the pools' full capacity: `cap` particles with
-/// `state_len` state values, `max_blocks` grid slots, and with sleeping a `table_len` table.
-pub fn max_staging_bytes(cap: usize, state_len: usize, max_blocks: usize, table_len: usize, sleep: bool, flip: bool) -> usize {
+/// `state_len` state values, `max_blocks` grid slots, and with sleeping a `table_len` table
+/// (and its load tables with `loads`).
+pub fn max_staging_bytes(cap: usize, state_len: usize, max_blocks: usize, table_len: usize, sleep: bool, loads: bool, flip: bool) -> usize {
     let real = size_of::<Real>();
     let per_particle = size_of::<V3>() + real + 4 + state_len * real + if flip { size_of::<V3>() } else { 0 };
     // a particle's stencil gives mass to 27 nodes, so no more nodes than that can hold mass
@@ -178,8 +186,12 @@ pub fn max_staging_bytes(cap: usize, state_len: usize, max_blocks: usize, table_
     let align = super::format::ALIGN;
     let mut total = cap * per_particle + max_blocks * (4 + 8) + nodes * channels * real + 12 * align;
     if sleep {
-        // sparse tables: at worst every unit, with its u32 index
-        total += table_len * crate::sleep::UNITS * (4 + 1 + 4 + 4);
+        // sparse tables: at worst every unit, with its u32 index (state, rest)
+        total += table_len * crate::sleep::UNITS * ((4 + 1) + (4 + 4));
+    }
+    if sleep && loads {
+        // load, load step, margin, base
+        total += table_len * crate::sleep::UNITS * ((4 + 12) + (4 + 4) + (4 + 4) + (4 + 4));
     }
     total
 }
@@ -201,10 +213,16 @@ fn full_state(sim: &Simulation) -> Vec<(&'static str, &[u8])> {
         ("particles.state", bytes(&p.state.as_slice()[..n * p.state_len])),
     ];
     if let Some(sl) = &sim.sleep {
-        let (state, rest) = sl.tables();
+        let t = sl.tables();
         v.push(("grid.slot_block", bytes(&sim.grid.slot_block.as_slice()[..sim.grid.n_active])));
-        v.push(("sleep.state", bytes(state)));
-        v.push(("sleep.rest", bytes(rest)));
+        v.push(("sleep.state", bytes(t.state)));
+        v.push(("sleep.rest", bytes(t.rest)));
+        if sl.tests_loads() {
+            v.push(("sleep.load", bytes(t.load)));
+            v.push(("sleep.load_step", bytes(t.load_step)));
+            v.push(("sleep.margin", bytes(t.margin)));
+            v.push(("sleep.base", bytes(t.base)));
+        }
         v.push(("sleep.activity", bytes(&sl.activity.as_slice()[..sim.grid.n_particle_blocks])));
     }
     v
@@ -395,9 +413,21 @@ pub fn restore(sim: &mut Simulation, ck: &Checkpoint) -> Result<(f64, DtLimit), 
     }
 
     if let Some(sleep) = &mut sim.sleep {
-        let (state, rest) = sleep.tables_mut();
-        scatter(state, ck, "sleep.state_at", "sleep.state")?;
-        scatter(rest, ck, "sleep.rest_at", "sleep.rest")?;
+        let loads = sleep.tests_loads();
+        if loads && ck.section("sleep.load_at").is_none() {
+            // forced on a scenario that turned the load test on: its sleeping units have no
+            // margins to test loads against
+            return Err("the checkpoint holds no sleep load tables (written without sleep.wake_by_load)".into());
+        }
+        let t = sleep.tables_mut();
+        scatter(t.state, ck, "sleep.state_at", "sleep.state")?;
+        scatter(t.rest, ck, "sleep.rest_at", "sleep.rest")?;
+        if loads {
+            scatter(t.load, ck, "sleep.load_at", "sleep.load")?;
+            scatter(t.load_step, ck, "sleep.load_step_at", "sleep.load_step")?;
+            scatter(t.margin, ck, "sleep.margin_at", "sleep.margin")?;
+            scatter(t.base, ck, "sleep.base_at", "sleep.base")?;
+        }
         sleep.recount();
         if sleep.sleeping_units != h.sleeping_units as usize {
             return Err(format!("the sleep table holds {} sleeping units, the header {}", sleep.sleeping_units, h.sleeping_units));

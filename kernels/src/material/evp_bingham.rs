@@ -405,6 +405,18 @@ impl Material for EvpBingham {
         }
     }
 
+    /// f = tau - (1 + lambda) tau0 (eq. 14) of the EVP element's deviator; the Maxwell branch
+    /// does not enter the yield test.
+    fn yield_margin(&self, state: &[Real]) -> Real {
+        let s = sym_from_slice(&state[..6]);
+        (r(1.0) + state[6]) * r(self.yield_stress) - (r(0.5) * ddot(&s, &s)).sqrt()
+    }
+
+    /// Eq. 22 at rest: lambda grows by A_thix / tau0 per second, so (1 + lambda) tau0 by A_thix.
+    fn strength_gain(&self, duration: Real) -> Real {
+        self.build_up_rate() * duration * r(self.yield_stress)
+    }
+
     /// The Maxwell branch adds at most 2 G_M dt D' per step (a spring G_M; see `maxwell`), so
     /// G_M counts with G in the elastic wave speed.
     fn stability(&self) -> StabilityInfo {
@@ -622,6 +634,33 @@ mod tests {
         let dir = s * (1.0 / tau_new) - s_tr * (1.0 / tau_tr);
         assert!(max_abs(&dir) < 100.0 * EPS, "{dir:?}");
         (tau_new, st[7] / dt, st[6], tau_tr, f_tr, lambda_tr)
+    }
+
+    /// The margin is what tau may still grow before the yield test of `update` fails: a
+    /// deviator scaled to the margin's edge sits on the yield surface, and rest grows the margin
+    /// by exactly what `rest_for` adds to the yield stress.
+    #[test]
+    fn yield_margin_is_the_distance_to_the_yield_surface() {
+        let m = EvpBingham { a_thix: 40.0, lambda0: 0.3, ..solid() };
+        let mut st = fresh(&m);
+        let s0 = M3::from_cols(V3::new(20.0, 15.0, 0.0), V3::new(15.0, -5.0, 10.0), V3::new(0.0, 10.0, -15.0));
+        st[..6].copy_from_slice(&sym_to_array(&s0));
+        let tau0 = tau_of(&s0);
+        let margin = m.yield_margin(&st);
+        assert!(rel(margin, 1.3 * 100.0 - tau0) < 1e-6, "{margin} against {}", 130.0 - tau0);
+        // a deviator of tau = tau0 + margin: f = 0, just below: elastic, just above: plastic
+        for (k, elastic) in [(0.999, true), (1.001, false)] {
+            let mut s2 = st.clone();
+            let scaled = s0 * (k * (tau0 + margin) / tau0);
+            s2[..6].copy_from_slice(&sym_to_array(&scaled));
+            let before = s2[7];
+            m.update(&M3::ZERO, 1.0, 1e-9, &mut s2);
+            assert_eq!(s2[7] == before, elastic, "k = {k}");
+        }
+        let mut rested = st.clone();
+        m.rest_for(&mut rested, 2.5);
+        assert!(rel(m.yield_margin(&rested), margin + m.strength_gain(2.5)) < 1e-6);
+        assert!(rel(m.strength_gain(2.5), 100.0) < 1e-6, "A_thix x 2.5 s = 100 Pa");
     }
 
     #[test]

@@ -124,6 +124,22 @@ pub trait Material: Send + Sync + std::fmt::Debug {
     /// keep the default, which does nothing.
     fn rest_for(&self, _state: &mut [Real], _duration: Real) {}
 
+    /// How far tau = sqrt(J2) of the stress held in `state` may rise before the material
+    /// yields [Pa]: the margin a sleeping unit keeps against loads put on it while it sleeps
+    /// (the solver's `sleep.rs` wakes it when the load's share passes the margin). Materials
+    /// whose stress does not live in their state, or that have no yield stress, keep the
+    /// default 0: any added load wakes them.
+    fn yield_margin(&self, _state: &[Real]) -> Real {
+        0.0
+    }
+
+    /// Yield stress gained by `duration` at rest (structural build-up) [Pa], no more than
+    /// [`Material::rest_for`] gives any particle: what a sleeping unit's margin grows by while
+    /// it sleeps.
+    fn strength_gain(&self, _duration: Real) -> Real {
+        0.0
+    }
+
     /// Data for the automatic time step.
     fn stability(&self) -> StabilityInfo;
 
