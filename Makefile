@@ -2,7 +2,7 @@
 CARGO ?= cargo
 OUT ?= out
 
-.PHONY: run test verify verify-quick bench bench-peer bench-restart bench-kernels bench-case1 bench-layers build fmt clippy clean
+.PHONY: run test verify verify-quick bench bench-peer bench-restart bench-kernels bench-case1 bench-layers bench-layers-dwell build fmt clippy clean
 
 build:
 	$(CARGO) build --release
@@ -55,6 +55,12 @@ bench-case1: build
 bench-layers: build
 	./target/release/strand run fixtures/scenarios/print/ten_layers.toml --out $(OUT)/ten_layers --quiet
 	python3 bench/layer_cost.py $(OUT)/ten_layers
+
+# The same with a 20 s dwell after each layer and the wake test on load (about an hour on one
+# core; BENCHMARKS.md "Sleeping", "Dwells between layers").
+bench-layers-dwell: build
+	./target/release/strand run fixtures/scenarios/print/ten_layers_dwell.toml --out $(OUT)/ten_layers_dwell --quiet
+	python3 bench/layer_cost.py --pause 20 $(OUT)/ten_layers_dwell
 
 clippy:
 	$(CARGO) clippy --workspace --all-targets
