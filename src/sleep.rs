@@ -265,7 +265,7 @@ struct Limits {
     rest_speed: Real,
     rest_rate: Real,
     wake_speed: Real,
-    /// `arrive_speed`, infinite when unset.
+    /// `arrive_speed` (infinite: material above wakes by its load alone).
     arrive_speed: Real,
 }
 
