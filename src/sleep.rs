@@ -583,8 +583,10 @@ impl Sleep {
                 if wakes_neighbours {
                     // material arriving fast enough wakes the units under it too
                     let skip = if v > limits.arrive_speed { None } else { below };
-                    for nb in neighbours(geom, u, skip) {
-                        wake(nb, state, woken, &mut n_woken);
+                    for (off, nb) in neighbours(geom, u) {
+                        if !on_side(skip, off) {
+                            wake(nb, state, woken, &mut n_woken);
+                        }
                     }
                 }
             }
@@ -621,14 +623,13 @@ impl Sleep {
                     if rest[u as usize] < rest_time || state[u as usize] != AWAKE || activity[s][k] == EMPTY_UNIT {
                         continue;
                     }
-                    let slower = |limit: Real| {
-                        move |nb: u32| {
-                            let t = table[nb as usize / UNITS];
-                            t == EMPTY || (t as usize) >= npb || activity[t as usize][nb as usize % UNITS][0] <= limit
-                        }
-                    };
-                    let calm = neighbours(geom, u, above).all(slower(limits.wake_speed))
-                        && above.is_none_or(|side| side_units(geom, u, side).all(slower(limits.arrive_speed)));
+                    // material above may move up to `arrive_speed` (loads tested), the rest up to
+                    // `wake_speed`
+                    let calm = neighbours(geom, u).all(|(off, nb)| {
+                        let limit = if on_side(above, off) { limits.arrive_speed } else { limits.wake_speed };
+                        let t = table[nb as usize / UNITS];
+                        t == EMPTY || (t as usize) >= npb || activity[t as usize][nb as usize % UNITS][0] <= limit
+                    });
                     if calm {
                         state[u as usize] = ASLEEP;
                         rest[u as usize] = now as f32;
@@ -894,31 +895,20 @@ fn in_table(geom: &GridGeom, b: [i32; 3]) -> bool {
     (0..3).all(|a| b[a] >= 0 && b[a] < geom.nb[a])
 }
 
-/// The 26 neighbours of unit `u` inside the table, but those one unit off along `skip`'s axis
-/// in its direction (`(axis, sign)`; e.g. `(2, -1)`: the nine below).
-fn neighbours(geom: &GridGeom, u: u32, skip: Option<(usize, i32)>) -> impl Iterator<Item = u32> + '_ {
+/// The 26 neighbours of unit `u` inside the table, each with its offset from `u`.
+fn neighbours(geom: &GridGeom, u: u32) -> impl Iterator<Item = ([i32; 3], u32)> + '_ {
     let c = unit_coords(geom, u);
     (0..27).filter(|&d| d != 13).filter_map(move |d| {
         let off = [d / 9 - 1, (d / 3) % 3 - 1, d % 3 - 1];
-        if skip.is_some_and(|(a, sign)| off[a] == sign) {
-            return None;
-        }
         let n = wrap_unit(geom, [c[0] + off[0], c[1] + off[1], c[2] + off[2]]);
-        unit_in_table(geom, n).then(|| unit_index(geom, n))
+        unit_in_table(geom, n).then(|| (off, unit_index(geom, n)))
     })
 }
 
-/// The 9 units next to unit `u` on `side` (axis, sign).
-fn side_units(geom: &GridGeom, u: u32, (axis, sign): (usize, i32)) -> impl Iterator<Item = u32> + '_ {
-    let c = unit_coords(geom, u);
-    (0..9).filter_map(move |d| {
-        let mut n = c;
-        n[axis] += sign;
-        let (a, b) = ((axis + 1) % 3, (axis + 2) % 3);
-        (n[a], n[b]) = (c[a] + d / 3 - 1, c[b] + d % 3 - 1);
-        let n = wrap_unit(geom, n);
-        unit_in_table(geom, n).then(|| unit_index(geom, n))
-    })
+/// Whether a neighbour at offset `off` lies on `side` (`(axis, sign)`; e.g. `(2, -1)`: one of
+/// the nine below); never when there is no side.
+fn on_side(side: Option<(usize, i32)>, off: [i32; 3]) -> bool {
+    side.is_some_and(|(a, sign)| off[a] == sign)
 }
 
 #[cfg(test)]
