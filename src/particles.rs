@@ -11,6 +11,9 @@ pub struct Particles {
     pub n: usize,
     /// Particles `0..n_sleep` are asleep (see `sleep.rs`); the step works on `n_sleep..n`.
     pub n_sleep: usize,
+    /// Id of the next particle created: ids are creation order, and stay unique when sleeping
+    /// material is coarsened (`coarsen.rs`), which removes particles.
+    pub next_id: u32,
     /// Internal state reals per particle (the material's `state_names().len()`).
     pub state_len: usize,
     /// Grid-coordinate position.
@@ -50,6 +53,7 @@ impl Particles {
         Ok(Particles {
             n: 0,
             n_sleep: 0,
+            next_id: 0,
             state_len,
             xg: Pool::new("particles.x", cap, backing)?,
             v: Pool::new("particles.v", cap, backing)?,
@@ -85,7 +89,8 @@ impl Particles {
         self.j.as_mut_slice()[i] = 1.0;
         self.mass.as_mut_slice()[i] = mass;
         self.vol0.as_mut_slice()[i] = vol0;
-        self.id.as_mut_slice()[i] = i as u32;
+        self.id.as_mut_slice()[i] = self.next_id;
+        self.next_id += 1;
         self.n += 1;
         Ok(i)
     }

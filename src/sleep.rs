@@ -67,6 +67,7 @@ use crate::kernels::transfer::BS;
 use crate::kernels::material::Material;
 use crate::kernels::{Real, M3, V3};
 use crate::memory::{Backing, MemoryError, MemoryPlan, Pool};
+use crate::coarsen::Coarsen;
 use crate::particles::Particles;
 use serde::Deserialize;
 
@@ -119,6 +120,10 @@ pub struct SleepConfig {
     /// below before its weight has built up a load (module notes).
     #[serde(default = "default_arrive_speed")]
     pub arrive_speed: f64,
+    /// Carry the interior of sleeping material by one particle per cell (`coarsen.rs`): the
+    /// layers below cost less when the next layer wakes them. Off by default.
+    #[serde(default)]
+    pub coarsen: bool,
 }
 
 fn default_speed() -> f64 {
@@ -341,6 +346,8 @@ pub struct Sleep {
     down: Option<(usize, i32)>,
     /// 1 / (a unit's face area) [1/m^2].
     per_area: f32,
+    /// Merging scratch, with `coarsen`.
+    coarsen: Option<Coarsen>,
 }
 
 /// What the grid update needs of the sleeping units: which nodes they hold.
@@ -373,7 +380,7 @@ pub fn unit_index(geom: &GridGeom, u: [i32; 3]) -> u32 {
 
 /// Unit lattice coordinates of the unit with table index `idx`.
 #[inline]
-fn unit_coords(geom: &GridGeom, idx: u32) -> [i32; 3] {
+pub(crate) fn unit_coords(geom: &GridGeom, idx: u32) -> [i32; 3] {
     let per = BS as i32 / US;
     let b = geom.block_coords(idx / UNITS as u32);
     let k = (idx % UNITS as u32) as i32;
@@ -398,7 +405,7 @@ fn particle_unit(xg: V3) -> [i32; 3] {
 
 /// Wrap a unit coordinate on periodic axes.
 #[inline]
-fn wrap_unit(geom: &GridGeom, mut u: [i32; 3]) -> [i32; 3] {
+pub(crate) fn wrap_unit(geom: &GridGeom, mut u: [i32; 3]) -> [i32; 3] {
     let per = BS as i32 / US;
     for a in 0..3 {
         if geom.periodic[a] {
@@ -409,13 +416,13 @@ fn wrap_unit(geom: &GridGeom, mut u: [i32; 3]) -> [i32; 3] {
 }
 
 #[inline]
-fn unit_in_table(geom: &GridGeom, u: [i32; 3]) -> bool {
+pub(crate) fn unit_in_table(geom: &GridGeom, u: [i32; 3]) -> bool {
     let per = BS as i32 / US;
     (0..3).all(|a| u[a] >= 0 && u[a] < geom.nb[a] * per)
 }
 
 impl Sleep {
-    pub fn plan(plan: &mut MemoryPlan, cfg: &SleepConfig, geom: &GridGeom, max_blocks: usize, gravity: [f64; 3]) {
+    pub fn plan(plan: &mut MemoryPlan, cfg: &SleepConfig, geom: &GridGeom, max_blocks: usize, capacity: usize, gravity: [f64; 3]) {
         let units = geom.table_len() * UNITS;
         plan.add::<u8>("sleep.state", units);
         plan.add::<f32>("sleep.rest", units);
@@ -430,18 +437,23 @@ impl Sleep {
             plan.add::<u32>("sleep.loaded", units);
             plan.add::<[f32; 3]>("sleep.reactions", max_blocks * NODES_PER_BLOCK);
         }
+        if cfg.coarsen {
+            Coarsen::plan(plan, geom, capacity);
+        }
     }
 
-    /// Tables for `geom`'s domain with `max_blocks` grid slots, under `gravity` (the load
-    /// tables empty unless loads are tested).
-    pub fn new(cfg: SleepConfig, geom: &GridGeom, max_blocks: usize, gravity: [f64; 3], b: &Backing) -> Result<Self, MemoryError> {
+    /// Tables for `geom`'s domain with `max_blocks` grid slots and room for `capacity`
+    /// particles, under `gravity` (the load tables empty unless loads are tested).
+    pub fn new(cfg: SleepConfig, geom: &GridGeom, max_blocks: usize, capacity: usize, gravity: [f64; 3], b: &Backing) -> Result<Self, MemoryError> {
         let units = geom.table_len() * UNITS;
         let down = cfg.down(gravity);
         let per_unit = if down.is_some() { units } else { 0 };
         let per_node = if down.is_some() { max_blocks * NODES_PER_BLOCK } else { 0 };
         let face = US as f64 * geom.dx;
+        let coarsen = if cfg.coarsen { Some(Coarsen::new(geom, capacity, b)?) } else { None };
         Ok(Sleep {
             cfg,
+            coarsen,
             state: Pool::new("sleep.state", units, b)?,
             rest: Pool::new("sleep.rest", units, b)?,
             woken: Pool::new("sleep.woken", units, b)?,
@@ -681,6 +693,7 @@ impl Sleep {
             }
         }
         if slept > 0 {
+            let from = particles.n_sleep;
             let margin = self.margin.as_mut_slice();
             let sl = particles.state_len;
             for i in particles.n_sleep..particles.n {
@@ -704,6 +717,9 @@ impl Sleep {
                     margin[u as usize] /= load[u as usize][0].max(1.0);
                     load[u as usize][0] = 0.0;
                 }
+            }
+            if let Some(c) = &mut self.coarsen {
+                c.merge_interior(geom, particles, from, material);
             }
         }
         woke > 0 || slept > 0
@@ -925,7 +941,7 @@ mod tests {
     /// `asleep` asleep.
     fn sleep_with(geom: &GridGeom, config: &str, asleep: &[[i32; 3]]) -> Sleep {
         let cfg: SleepConfig = toml::from_str(config).unwrap();
-        let mut s = Sleep::new(cfg, geom, geom.table_len(), [0.0, 0.0, -9.81], &Backing::default()).unwrap();
+        let mut s = Sleep::new(cfg, geom, geom.table_len(), 1, [0.0, 0.0, -9.81], &Backing::default()).unwrap();
         for &u in asleep {
             s.state.as_mut_slice()[unit_index(geom, u) as usize] = ASLEEP;
         }

@@ -155,7 +155,8 @@ pub struct Simulation {
 
 fn checkpoint_staging_bytes(sc: &Scenario, cap: usize, state_len: usize, max_blocks: usize, table_len: usize) -> usize {
     let loads = sc.sleep.as_ref().is_some_and(|c| c.tests_loads(sc.simulation.gravity));
-    crate::checkpoint::state::max_staging_bytes(cap, state_len, max_blocks, table_len, sc.sleep.is_some(), loads, sc.simulation.flip > 0.0)
+    let coarsen = sc.sleep.as_ref().is_some_and(|c| c.coarsen);
+    crate::checkpoint::state::max_staging_bytes(cap, state_len, max_blocks, table_len, sc.sleep.is_some(), loads, coarsen, sc.simulation.flip > 0.0)
 }
 
 /// Names of the step's phases, as accumulated in `Simulation::phase_seconds`.
@@ -209,7 +210,7 @@ impl Simulation {
         Grid::plan(&mut memory, &geom, max_blocks);
         Scratch::plan(&mut memory, cap, max_blocks, state_len);
         if let Some(cfg) = &scenario.sleep {
-            Sleep::plan(&mut memory, cfg, &geom, max_blocks, scenario.simulation.gravity);
+            Sleep::plan(&mut memory, cfg, &geom, max_blocks, cap, scenario.simulation.gravity);
         }
         if scenario.checkpoint.enabled {
             let bytes = checkpoint_staging_bytes(scenario, cap, state_len, max_blocks, geom.table_len());
@@ -230,7 +231,7 @@ impl Simulation {
         let grid = Grid::new(geom, max_blocks, &backing)?;
         let scratch = Scratch::new(cap, max_blocks, state_len, &backing)?;
         let sleep = match &scenario.sleep {
-            Some(cfg) => Some(Sleep::new(cfg.clone(), &grid.geom, max_blocks, scenario.simulation.gravity, &backing)?),
+            Some(cfg) => Some(Sleep::new(cfg.clone(), &grid.geom, max_blocks, cap, scenario.simulation.gravity, &backing)?),
             None => None,
         };
 
@@ -434,7 +435,7 @@ impl Simulation {
         let Some(pr) = &mut self.printer else { return Ok(()) };
         let t = self.time;
         let vol = pr.particle_volume;
-        let (before, n_before) = (pr.emitted(), self.particles.n);
+        let (before, id_before) = (pr.emitted(), self.particles.next_id);
         let (geom, particles, mat) = (&self.grid.geom, &mut self.particles, &*self.material);
         let add = |slab: &Slab| add_slab(geom, particles, mat, vol, t, slab);
         if let Some(sync) = &mut pr.sync {
@@ -442,7 +443,7 @@ impl Simulation {
         } else if let Some(em) = &mut pr.emitter {
             em.drain_due(t, add)?;
         }
-        note_newest(pr, t, self.particles.n, before, n_before);
+        note_newest(pr, t, self.particles.next_id, before, id_before);
         Ok(())
     }
 
@@ -808,7 +809,7 @@ impl Simulation {
 /// emission took the slab count from `before` (with `n_before` particles) to the printer's
 /// `emitted()` (with `n`). Derived from the slab counts alone, so a resumed run needs no extra
 /// state: ids are creation order and particles are never removed.
-pub(crate) fn note_newest(pr: &mut Printer, t: f64, n: usize, before: u64, n_before: usize) {
+pub(crate) fn note_newest(pr: &mut Printer, t: f64, next_id: u32, before: u64, id_before: u32) {
     let after = pr.emitted();
     let nw = &mut pr.newest;
     if !pr.plan.partial || after == 0 {
@@ -816,8 +817,8 @@ pub(crate) fn note_newest(pr: &mut Printer, t: f64, n: usize, before: u64, n_bef
         return;
     }
     nw.slab = after - 1;
-    nw.first = (n - pr.plan.count(after - 1)) as u32;
-    nw.set_from = if after > before && before > 0 { (n_before - pr.plan.count(before - 1)) as u32 } else { nw.first };
+    nw.first = next_id - pr.plan.count(after - 1) as u32;
+    nw.set_from = if after > before && before > 0 { id_before - pr.plan.count(before - 1) as u32 } else { nw.first };
     (nw.fraction, nw.moving) = pr.plan.fraction(after - 1, t);
 }
 

@@ -82,6 +82,22 @@ budget = "{budget}"
     )
 }
 
+/// [`tiny_print`] (sleeping) with a wider strand, a 20 mm nozzle, thick enough at 5 mm for
+/// cells inside it after two layers; with `coarsen`, their sleeping particles merge
+/// (`[sleep] coarsen`).
+pub fn wide_tiny_print(threads: usize, layers: usize, coarsen: bool, budget: &str) -> String {
+    let text = tiny_print(threads, layers, true, budget);
+    for key in ["diameter = 0.012", "extrusion = 0.04", "[sleep]\n"] {
+        assert!(text.contains(key), "{key} not in {text}");
+    }
+    let text = text.replace("diameter = 0.012", "diameter = 0.02").replace("extrusion = 0.04", "extrusion = 0.06");
+    if coarsen {
+        text.replace("[sleep]\n", "[sleep]\ncoarsen = true\n")
+    } else {
+        text
+    }
+}
+
 /// Resident memory a strand process may hold beyond its declared budget: the binary and its
 /// libraries, thread stacks, the allocator's arenas and the output stage's buffers (measured:
 /// a tiny print peaks at about 10 MiB in all, pools included).

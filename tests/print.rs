@@ -94,6 +94,28 @@ fn sleeping_material_skips_work_and_barely_changes_the_result() {
     assert!(wb < 0.9 * wa, "sleeping saved too little: {wb} vs {wa} awake particle-steps");
 }
 
+/// Three layers of the wide tiny print: merging the sleeping interior of the first two layers
+/// (`[sleep] coarsen`) leaves the section within 1 % and takes work off the third, and stays
+/// bit-identical across thread counts.
+#[test]
+fn merging_sleeping_particles_keeps_the_section_and_saves_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let opts = |d: &str| RunOptions { out: dir.path().join(d), quiet: true, ..Default::default() };
+    let fine = run_scenario(&Scenario::parse(&common::wide_tiny_print(2, 3, false, "256 MiB")).unwrap(), &opts("a")).unwrap();
+    let coarse = run_scenario(&Scenario::parse(&common::wide_tiny_print(1, 3, true, "256 MiB")).unwrap(), &opts("b")).unwrap();
+    let (sa, sb) = (&fine.observations.last().unwrap().sections[0], &coarse.observations.last().unwrap().sections[0]);
+    assert!(sa.width > 0.0 && sa.height > 0.0);
+    assert!((sb.width / sa.width - 1.0).abs() < 0.01, "width {} vs {}", sb.width, sa.width);
+    assert!((sb.height / sa.height - 1.0).abs() < 0.01, "height {} vs {}", sb.height, sa.height);
+    let (wa, wb) = (fine.awake_particle_steps as f64, coarse.awake_particle_steps as f64);
+    eprintln!("awake particle-steps: {wb} merging, {wa} not ({:.2})", wb / wa);
+    assert!(wb < 0.98 * wa, "merging saved too little: {wb} vs {wa} awake particle-steps");
+    let one = run_to(&common::wide_tiny_print(1, 3, true, "256 MiB"), 3.2);
+    let two = run_to(&common::wide_tiny_print(2, 3, true, "256 MiB"), 3.2);
+    assert!((one.particles.n as u32) < one.particles.next_id, "nothing merged by t = 3.2 s");
+    assert_eq!(state_hash(&one), state_hash(&two), "merging: 1 vs 2 threads");
+}
+
 #[test]
 fn sleeping_material_builds_up_structure_as_if_awake() {
     // Roussel build-up without breakdown (alpha = 0): lambda = lambda0 + A_thix / tau0 x age

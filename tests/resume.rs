@@ -191,6 +191,42 @@ fn sigkill_at_random_steps_and_resume_ends_bit_identical_with_the_load_test() {
     sigkill_at_random_steps_and_resume(true);
 }
 
+/// Killed once its newest checkpoint holds merged particles, the coarsened print resumes
+/// bit-identical to the run in one go: the checkpoints carry the merged particles' masses and
+/// volumes, and the next id, which ids can no longer tell.
+#[test]
+fn a_print_merging_sleeping_particles_resumes_bit_identical() {
+    let dir = tempfile::tempdir().unwrap();
+    let sc = write_scenario(dir.path(), "s.toml", &(common::wide_tiny_print(1, 2, true, "64 MiB") + "[checkpoint]\nstep_interval = 500\nkeep = 3\n"));
+    let whole = dir.path().join("whole");
+    let hash = hash_of(&run(&sc, &whole, &[], &[]));
+    // the first output at which the pool has lost particles, and its step
+    let rows: Vec<(u64, u64)> = std::fs::read_to_string(whole.join("globals.csv"))
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            (f[1].parse().unwrap(), f[4].parse().unwrap())
+        })
+        .collect();
+    let merged = rows.windows(2).find(|w| w[1].1 < w[0].1).map(|w| w[1].0);
+    let merged = merged.expect("the print merged no particles");
+    let out = dir.path().join("out");
+    let mut child = spawn(&sc, &out, false);
+    loop {
+        assert!(!wait_for_progress(&mut child, &out, newest(&out)), "the run ended before a checkpoint after step {merged}");
+        if newest(&out).unwrap() > merged {
+            break;
+        }
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let o = run(&sc, &out, &["--resume"], &[]);
+    assert_eq!(hash_of(&o), hash, "the resumed run differs from the run in one go");
+    assert_same_outputs(&out, &whole);
+}
+
 #[test]
 fn three_layers_stopped_by_sigint_then_sigterm_equal_the_run_in_one_go() {
     let r = reference(3, false);

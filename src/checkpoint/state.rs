@@ -8,7 +8,9 @@
 //!
 //! - mass and vol0 from the ids (creation order): the bodies' lattice volumes, the printer's
 //!   particle volume, and the newest slab's fraction from the slab count; their checksums in the
-//!   header prove the rebuilt arrays equal the run's;
+//!   header prove the rebuilt arrays equal the run's (a run merging sleeping particles,
+//!   `[sleep] coarsen`, stores mass, vol0 and the next id instead: merged particles are no
+//!   longer what their ids say);
 //! - sleeping particles' v, C and stress from (state, J): a particle falling asleep is settled
 //!   to exactly that (`sleep::settle`);
 //! - the step's binning and block slots by binning the restored positions again (the saved
@@ -145,6 +147,12 @@ pub fn sections(sim: &Simulation) -> Vec<Part<'_>> {
         reals: occupied * k,
         source: Source::Velocities(nodes, k),
     });
+    if coarsens(sim) {
+        // merged particles carry what their ids no longer tell (module notes)
+        v.push(Part::raw("particles.mass", &p.mass.as_slice()[..n], 1));
+        v.push(Part::raw("particles.vol0", &p.vol0.as_slice()[..n], 1));
+        v.push(Part::raw("particles.next_id", std::slice::from_ref(&p.next_id), 0));
+    }
     if let Some(sl) = &sim.sleep {
         // per unit of the whole domain, but zero away from material (and the load tables
         // away from sleeping units; without the load test they hold nothing and are left out)
@@ -159,6 +167,11 @@ pub fn sections(sim: &Simulation) -> Vec<Part<'_>> {
         }
     }
     v
+}
+
+/// Whether `sim` merges sleeping particles (`[sleep] coarsen`).
+fn coarsens(sim: &Simulation) -> bool {
+    sim.sleep.as_ref().is_some_and(|s| s.cfg.coarsen)
 }
 
 /// Bytes of the restart state per particle with reals of `real_bytes` bytes (4 for f32, 8 for
@@ -177,14 +190,15 @@ pub fn restart_bytes_per_particle(sim: &Simulation) -> f64 {
 /// Bytes of staging a checkpoint can need at the pools' full capacity: `cap` particles with
 /// `state_len` state values, `max_blocks` grid slots, and with sleeping a `table_len` table
 /// (and its load tables with `loads`).
-pub fn max_staging_bytes(cap: usize, state_len: usize, max_blocks: usize, table_len: usize, sleep: bool, loads: bool, flip: bool) -> usize {
+#[allow(clippy::too_many_arguments)]
+pub fn max_staging_bytes(cap: usize, state_len: usize, max_blocks: usize, table_len: usize, sleep: bool, loads: bool, coarsen: bool, flip: bool) -> usize {
     let real = size_of::<Real>();
-    let per_particle = size_of::<V3>() + real + 4 + state_len * real + if flip { size_of::<V3>() } else { 0 };
+    let per_particle = size_of::<V3>() + real + 4 + state_len * real + if flip { size_of::<V3>() } else { 0 } + if coarsen { 2 * real } else { 0 };
     // a particle's stencil gives mass to 27 nodes, so no more nodes than that can hold mass
     let nodes = (max_blocks * NODES_PER_BLOCK).min(27 * cap);
     let channels = if flip { 6 } else { 3 };
     let align = super::format::ALIGN;
-    let mut total = cap * per_particle + max_blocks * (4 + 8) + nodes * channels * real + 12 * align;
+    let mut total = cap * per_particle + max_blocks * (4 + 8) + nodes * channels * real + 15 * align + 4;
     if sleep {
         // sparse tables: at worst every unit, with its u32 index (state, rest)
         total += table_len * crate::sleep::UNITS * ((4 + 1) + (4 + 4));
@@ -332,6 +346,9 @@ pub fn restore(sim: &mut Simulation, ck: &Checkpoint) -> Result<(f64, DtLimit), 
     if sim.sleep.is_some() != ck.section("sleep.state_at").is_some() {
         return Err("the checkpoint and the scenario differ in sleeping ([sleep])".into());
     }
+    if coarsens(sim) != ck.section("particles.next_id").is_some() {
+        return Err("the checkpoint and the scenario differ in merging sleeping particles ([sleep] coarsen)".into());
+    }
     let limit = DtLimit::from_name(&h.dt_limit).ok_or_else(|| format!("unknown time-step bound '{}'", h.dt_limit))?;
     let n = h.particles as usize;
     let asleep = h.asleep as usize;
@@ -362,6 +379,7 @@ pub fn restore(sim: &mut Simulation, ck: &Checkpoint) -> Result<(f64, DtLimit), 
     let rho = sim.material.density() as f64;
     let printed = sim.printer.as_ref().map(|pr| ((rho * pr.particle_volume) as Real, pr.particle_volume as Real));
 
+    let coarsens_now = coarsens(sim);
     let p = &mut sim.particles;
     put(&mut p.xg.as_mut_slice()[..n], get("particles.x", n * size_of::<V3>())?);
     put(&mut p.j.as_mut_slice()[..n], get("particles.J", n * size_of::<Real>())?);
@@ -373,7 +391,15 @@ pub fn restore(sim: &mut Simulation, ck: &Checkpoint) -> Result<(f64, DtLimit), 
     }
     p.n = n;
     p.n_sleep = asleep;
-    for i in 0..n {
+    if let Some(b) = ck.section("particles.next_id") {
+        put(&mut p.mass.as_mut_slice()[..n], get("particles.mass", n * size_of::<Real>())?);
+        put(&mut p.vol0.as_mut_slice()[..n], get("particles.vol0", n * size_of::<Real>())?);
+        p.next_id = u32::from_le_bytes(b.try_into().map_err(|_| "section 'particles.next_id' is not 4 bytes".to_string())?);
+    } else {
+        // without merging, ids are 0..n in some order
+        p.next_id = n as u32;
+    }
+    for i in (0..n).take_while(|_| !coarsens_now) {
         let id = p.id.as_slice()[i] as usize;
         let (m, v) = if id < fresh {
             let k = bodies.partition_point(|b| b.0 <= id) - 1;
@@ -399,7 +425,7 @@ pub fn restore(sim: &mut Simulation, ck: &Checkpoint) -> Result<(f64, DtLimit), 
         pr.emitter = None;
         pr.start(queue, h.emitted_slabs);
         // this step's emission already happened: only the newest slab's fraction matters
-        crate::solver::note_newest(pr, h.time, n, h.emitted_slabs, n);
+        crate::solver::note_newest(pr, h.time, sim.particles.next_id, h.emitted_slabs, sim.particles.next_id);
     }
     sim.newest_masses();
     for (what, arr, want) in

@@ -650,14 +650,14 @@ mod tests {
         assert!(rel(margin, 1.3 * 100.0 - tau0) < 1e-6, "{margin} against {}", 130.0 - tau0);
         // a deviator of tau = tau0 + margin: f = 0, just below: elastic, just above: plastic
         for (k, elastic) in [(0.999, true), (1.001, false)] {
-            let mut s2 = st.clone();
+            let mut s2 = st;
             let scaled = s0 * (k * (tau0 + margin) / tau0);
             s2[..6].copy_from_slice(&sym_to_array(&scaled));
             let before = s2[7];
             m.update(&M3::ZERO, 1.0, 1e-9, &mut s2);
             assert_eq!(s2[7] == before, elastic, "k = {k}");
         }
-        let mut rested = st.clone();
+        let mut rested = st;
         m.rest_for(&mut rested, 2.5);
         assert!(rel(m.yield_margin(&rested), margin + m.strength_gain(2.5)) < 1e-6);
         assert!(rel(m.strength_gain(2.5), 100.0) < 1e-6, "A_thix x 2.5 s = 100 Pa");
