@@ -61,6 +61,9 @@
 //! checked every `check_interval` steps (it moves particles, O(awake particles)); waking is
 //! checked every step and moves particles only when a unit actually wakes (O(sleeping
 //! particles), rare).
+//!
+//! With `coarsen`, the interior of material falling asleep merges to one particle per cell
+//! (`coarsen.rs`), so what the next layer wakes costs less.
 
 use crate::grid::{Grid, GridGeom, EMPTY, NODES_PER_BLOCK};
 use crate::kernels::transfer::BS;
