@@ -115,6 +115,8 @@ pub fn load(sim: &mut Simulation, bytes: &[u8]) {
     }
     let p = &mut sim.particles;
     p.n = word(2) as usize;
+    // nothing merges without sleeping (which gradients refuse): ids are 0..n
+    p.next_id = p.n as u32;
     let n = p.n;
     let sl = p.state_len;
     let mut at = HEADER;
