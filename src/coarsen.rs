@@ -11,8 +11,8 @@
 //! particle's stencil base, so a merged particle stays in its unit) whose 26 neighbour cells all
 //! hold material. Cells on the surface keep their particles, so the surface the observables see
 //! (widths, heights, profiles: extents of the particle cloud with the emitted spacing) is drawn
-//! at the emitted resolution, and the cross-section area's B-spline window (one cell wide by
-//! default) integrates rows one cell apart exactly. A layer's top cells become interior, and are
+//! at the emitted resolution; the cross-section area's B-spline window (one cell wide by
+//! default) integrates rows one cell apart exactly, and merged rows are nearly that. A layer's top cells become interior, and are
 //! merged, once the next layer covers them and they fall asleep again.
 //!
 //! The merged particle keeps the mass, the initial volume and the current volume (so J) of its
@@ -128,7 +128,7 @@ fn merge(p: &mut Particles, group: impl Iterator<Item = usize> + Clone, material
     let (mut m, mut v0, mut vol) = (0.0f64, 0.0f64, 0.0f64);
     let mut mx = [0.0f64; 3];
     let mut id = u32::MAX;
-    // state sums in the first particle's slot would lose its own values; sum in f64 first
+    // summed apart, in f64: the first particle's own values are summands
     let mut state = [0.0f64; 32];
     assert!(sl <= state.len(), "a material state of {sl} values is longer than coarsening sums");
     for i in group.clone() {
@@ -267,7 +267,7 @@ mod tests {
     }
 
     #[test]
-    fn a_cube_too_thin_for_an_interior_and_a_lone_particle_are_left_alone() {
+    fn a_cube_too_thin_for_an_interior_is_left_alone() {
         let g = geom();
         let mut p = cube(2, 2, 0);
         let mut c = Coarsen::new(&g, p.capacity(), &Backing::default()).unwrap();

@@ -379,7 +379,6 @@ pub fn restore(sim: &mut Simulation, ck: &Checkpoint) -> Result<(f64, DtLimit), 
     let rho = sim.material.density() as f64;
     let printed = sim.printer.as_ref().map(|pr| ((rho * pr.particle_volume) as Real, pr.particle_volume as Real));
 
-    let coarsens_now = coarsens(sim);
     let p = &mut sim.particles;
     put(&mut p.xg.as_mut_slice()[..n], get("particles.x", n * size_of::<V3>())?);
     put(&mut p.j.as_mut_slice()[..n], get("particles.J", n * size_of::<Real>())?);
@@ -398,17 +397,17 @@ pub fn restore(sim: &mut Simulation, ck: &Checkpoint) -> Result<(f64, DtLimit), 
     } else {
         // without merging, ids are 0..n in some order
         p.next_id = n as u32;
-    }
-    for i in (0..n).take_while(|_| !coarsens_now) {
-        let id = p.id.as_slice()[i] as usize;
-        let (m, v) = if id < fresh {
-            let k = bodies.partition_point(|b| b.0 <= id) - 1;
-            (bodies[k].1, bodies[k].2)
-        } else {
-            printed.ok_or_else(|| format!("particle id {id} was not created by the scenario's bodies ({fresh} particles) and it does not print"))?
-        };
-        p.mass.as_mut_slice()[i] = m;
-        p.vol0.as_mut_slice()[i] = v;
+        for i in 0..n {
+            let id = p.id.as_slice()[i] as usize;
+            let (m, v) = if id < fresh {
+                let k = bodies.partition_point(|b| b.0 <= id) - 1;
+                (bodies[k].1, bodies[k].2)
+            } else {
+                printed.ok_or_else(|| format!("particle id {id} was not created by the scenario's bodies ({fresh} particles) and it does not print"))?
+            };
+            p.mass.as_mut_slice()[i] = m;
+            p.vol0.as_mut_slice()[i] = v;
+        }
     }
     // C and the stress of awake particles come from G2P and the material update of this step;
     // sleeping ones hold the rest state sleeping gave them
