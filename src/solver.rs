@@ -400,7 +400,7 @@ impl Simulation {
         if !self.frozen_order && (moved || self.step.is_multiple_of(self.scenario.simulation.reorder_interval)) {
             self.reorder_particles();
         }
-        self.newest_masses();
+        self.newest_masses(self.particles.n_sleep);
         clock.lap(&mut self.phase_seconds[0]);
         self.clear_grid();
         clock.lap(&mut self.phase_seconds[1]);
@@ -447,11 +447,12 @@ impl Simulation {
         Ok(())
     }
 
-    /// Set the masses emission changed this step (see `print/newest.rs`); after reordering.
-    pub(crate) fn newest_masses(&mut self) {
+    /// Set the masses emission changed this step among particles `from..` (see
+    /// `print/newest.rs`); after reordering.
+    pub(crate) fn newest_masses(&mut self, from: usize) {
         if let Some(pr) = &mut self.printer {
             let rho = self.material.density() as f64;
-            pr.newest.set_masses(&mut self.particles, rho, pr.particle_volume);
+            pr.newest.set_masses(&mut self.particles, rho, pr.particle_volume, from);
         }
     }
 

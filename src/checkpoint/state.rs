@@ -426,7 +426,8 @@ pub fn restore(sim: &mut Simulation, ck: &Checkpoint) -> Result<(f64, DtLimit), 
         // this step's emission already happened: only the newest slab's fraction matters
         crate::solver::note_newest(pr, h.time, sim.particles.next_id, h.emitted_slabs, sim.particles.next_id);
     }
-    sim.newest_masses();
+    // every particle: the rebuilt masses of a sleeping slab's particles are full ones
+    sim.newest_masses(0);
     for (what, arr, want) in
         [("masses", &sim.particles.mass, h.mass_xxh3), ("initial volumes", &sim.particles.vol0, h.vol0_xxh3)]
     {

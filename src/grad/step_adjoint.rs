@@ -106,7 +106,7 @@ impl StepAdjoint {
         // recompute the step, keeping what it overwrites
         let (n_before, first_slab) = (sim.particles.n, sim.printer.as_ref().map_or(0, |p| p.emitted()));
         sim.emit().map_err(|e| e.to_string())?;
-        sim.newest_masses();
+        sim.newest_masses(0); // (gradients run without sleeping)
         let n = sim.particles.n;
         let drive = sim.printer.as_ref().and_then(|p| p.drive(t));
         self.tape.copy_from(sim);

@@ -56,10 +56,14 @@ impl Newest {
         }
     }
 
-    /// Set the masses and volumes of particles `set_from..` (the slab's to its fraction, a just
-    /// completed one's to full), and find the slab's particles. A scan with one compare per
-    /// particle: once particles are reordered, ids are not indices.
-    pub fn set_masses(&mut self, p: &mut Particles, rho: f64, vol: f64) {
+    /// Set the masses and volumes of particles `set_from..` among `p`'s particles `from..` (the
+    /// slab's to its fraction, a just completed one's to full), and find the slab's particles
+    /// there. A scan with one compare per particle: once particles are reordered, ids are not
+    /// indices. Stepping passes `from = n_sleep`: the fraction changes only while the nozzle
+    /// extrudes, and an extruding tube keeps its units awake, so a sleeping particle's mass is
+    /// already its slab's (and scanning the sleeping prefix every step would cost what has been
+    /// printed, not what moves).
+    pub fn set_masses(&mut self, p: &mut Particles, rho: f64, vol: f64, from: usize) {
         self.index.clear();
         self.x0.clear();
         self.j0.clear();
@@ -68,7 +72,7 @@ impl Newest {
         }
         let n = p.n;
         let (id, mass, vol0) = (p.id.as_slice(), p.mass.as_mut_slice(), p.vol0.as_mut_slice());
-        for i in 0..n {
+        for i in from..n {
             if id[i] >= self.set_from {
                 let f = if id[i] >= self.first { self.fraction } else { 1.0 };
                 mass[i] = (rho * vol * f) as Real;
