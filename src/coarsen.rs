@@ -27,7 +27,7 @@ use crate::kernels::material::Material;
 use crate::kernels::{Real, V3};
 use crate::memory::{Backing, MemoryError, MemoryPlan, Pool};
 use crate::particles::Particles;
-use crate::sleep::{unit_in_table, unit_index, wrap_unit, UNITS, US};
+use crate::sleep::{offsets_26, unit_in_table, unit_index, wrap_unit, UNITS, US};
 
 /// Scratch for merging, preallocated.
 pub struct Coarsen {
@@ -115,8 +115,8 @@ fn interior(geom: &GridGeom, occupied: &[u8], key: u32) -> bool {
     let (u, bit) = (key / 8, key % 8);
     let uc = crate::sleep::unit_coords(geom, u);
     let c = [uc[0] * US + (bit >> 2) as i32, uc[1] * US + (bit >> 1 & 1) as i32, uc[2] * US + (bit & 1) as i32];
-    (0..27).filter(|&d| d != 13).all(|d| {
-        let n = [c[0] + d / 9 - 1, c[1] + (d / 3) % 3 - 1, c[2] + d % 3 - 1];
+    offsets_26().all(|off| {
+        let n = [c[0] + off[0], c[1] + off[1], c[2] + off[2]];
         cell_of(geom, n).is_some_and(|(nu, nb)| occupied[nu as usize] >> nb & 1 == 1)
     })
 }

@@ -914,11 +914,15 @@ fn in_table(geom: &GridGeom, b: [i32; 3]) -> bool {
     (0..3).all(|a| b[a] >= 0 && b[a] < geom.nb[a])
 }
 
+/// The offsets of the 26 neighbours of a lattice point (units here, cells in `coarsen.rs`).
+pub(crate) fn offsets_26() -> impl Iterator<Item = [i32; 3]> + Clone {
+    (0..27).filter(|&d| d != 13).map(|d| [d / 9 - 1, (d / 3) % 3 - 1, d % 3 - 1])
+}
+
 /// The 26 neighbours of unit `u` inside the table, each with its offset from `u`.
 fn neighbours(geom: &GridGeom, u: u32) -> impl Iterator<Item = ([i32; 3], u32)> + '_ {
     let c = unit_coords(geom, u);
-    (0..27).filter(|&d| d != 13).filter_map(move |d| {
-        let off = [d / 9 - 1, (d / 3) % 3 - 1, d % 3 - 1];
+    offsets_26().filter_map(move |off| {
         let n = wrap_unit(geom, [c[0] + off[0], c[1] + off[1], c[2] + off[2]]);
         unit_in_table(geom, n).then(|| (off, unit_index(geom, n)))
     })

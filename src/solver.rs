@@ -807,9 +807,9 @@ impl Simulation {
 }
 
 /// Note which slab is the newest at time `t` and what fraction of it has been extruded, after
-/// emission took the slab count from `before` (with `n_before` particles) to the printer's
-/// `emitted()` (with `n`). Derived from the slab counts alone, so a resumed run needs no extra
-/// state: ids are creation order and particles are never removed.
+/// emission took the slab count from `before` (the next particle id then `id_before`) to the
+/// printer's `emitted()` (the next id now `next_id`). Derived from the slab counts and ids
+/// alone: ids are creation order, whether or not merging has removed particles since.
 pub(crate) fn note_newest(pr: &mut Printer, t: f64, next_id: u32, before: u64, id_before: u32) {
     let after = pr.emitted();
     let nw = &mut pr.newest;

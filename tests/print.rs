@@ -76,20 +76,27 @@ fn print_is_bit_identical_for_any_thread_count_with_and_without_sleeping() {
     }
 }
 
+/// Run `reference` and `other` to their end, assert the last section of `other` has the
+/// width and height of the reference's within `tol` (relative), and return the work of their
+/// particle loops, (reference, other): awake particle-steps, counted, so that other jobs on the
+/// machine cannot blur it.
+fn same_section(reference: &str, other: &str, tol: f64) -> (f64, f64) {
+    let dir = tempfile::tempdir().unwrap();
+    let opts = |d: &str| RunOptions { out: dir.path().join(d), quiet: true, ..Default::default() };
+    let a = run_scenario(&Scenario::parse(reference).unwrap(), &opts("a")).unwrap();
+    let b = run_scenario(&Scenario::parse(other).unwrap(), &opts("b")).unwrap();
+    let (sa, sb) = (&a.observations.last().unwrap().sections[0], &b.observations.last().unwrap().sections[0]);
+    assert!(sa.width > 0.0 && sa.height > 0.0);
+    assert!((sb.width / sa.width - 1.0).abs() < tol, "width {} vs {}", sb.width, sa.width);
+    assert!((sb.height / sa.height - 1.0).abs() < tol, "height {} vs {}", sb.height, sa.height);
+    (a.awake_particle_steps as f64, b.awake_particle_steps as f64)
+}
+
 #[test]
 fn sleeping_material_skips_work_and_barely_changes_the_result() {
     let text_awake = common::tiny_print(2, 2, false, "256 MiB");
     let text_sleep = common::tiny_print(2, 2, true, "256 MiB");
-    let dir = tempfile::tempdir().unwrap();
-    let opts = |d: &str| RunOptions { out: dir.path().join(d), quiet: true, ..Default::default() };
-    let a = run_scenario(&Scenario::parse(&text_awake).unwrap(), &opts("a")).unwrap();
-    let b = run_scenario(&Scenario::parse(&text_sleep).unwrap(), &opts("b")).unwrap();
-    let (sa, sb) = (&a.observations.last().unwrap().sections[0], &b.observations.last().unwrap().sections[0]);
-    assert!(sa.width > 0.0 && sa.height > 0.0);
-    assert!((sb.width / sa.width - 1.0).abs() < 0.02, "width {} vs {}", sb.width, sa.width);
-    assert!((sb.height / sa.height - 1.0).abs() < 0.02, "height {} vs {}", sb.height, sa.height);
-    // the work of the particle loops (counted, so other jobs on the machine cannot blur it)
-    let (wa, wb) = (a.awake_particle_steps as f64, b.awake_particle_steps as f64);
+    let (wa, wb) = same_section(&text_awake, &text_sleep, 0.02);
     eprintln!("awake particle-steps: {wb} with sleeping, {wa} without ({:.2})", wb / wa);
     assert!(wb < 0.9 * wa, "sleeping saved too little: {wb} vs {wa} awake particle-steps");
 }
@@ -99,15 +106,8 @@ fn sleeping_material_skips_work_and_barely_changes_the_result() {
 /// bit-identical across thread counts.
 #[test]
 fn merging_sleeping_particles_keeps_the_section_and_saves_work() {
-    let dir = tempfile::tempdir().unwrap();
-    let opts = |d: &str| RunOptions { out: dir.path().join(d), quiet: true, ..Default::default() };
-    let fine = run_scenario(&Scenario::parse(&common::wide_tiny_print(2, 3, false, "256 MiB")).unwrap(), &opts("a")).unwrap();
-    let coarse = run_scenario(&Scenario::parse(&common::wide_tiny_print(1, 3, true, "256 MiB")).unwrap(), &opts("b")).unwrap();
-    let (sa, sb) = (&fine.observations.last().unwrap().sections[0], &coarse.observations.last().unwrap().sections[0]);
-    assert!(sa.width > 0.0 && sa.height > 0.0);
-    assert!((sb.width / sa.width - 1.0).abs() < 0.01, "width {} vs {}", sb.width, sa.width);
-    assert!((sb.height / sa.height - 1.0).abs() < 0.01, "height {} vs {}", sb.height, sa.height);
-    let (wa, wb) = (fine.awake_particle_steps as f64, coarse.awake_particle_steps as f64);
+    let fine = common::wide_tiny_print(2, 3, false, "256 MiB");
+    let (wa, wb) = same_section(&fine, &common::wide_tiny_print(1, 3, true, "256 MiB"), 0.01);
     eprintln!("awake particle-steps: {wb} merging, {wa} not ({:.2})", wb / wa);
     assert!(wb < 0.98 * wa, "merging saved too little: {wb} vs {wa} awake particle-steps");
     let one = run_to(&common::wide_tiny_print(1, 3, true, "256 MiB"), 3.2);
