@@ -319,7 +319,7 @@ pub struct Sleep {
     rest: Pool<f32>,
     /// Units woken by the current update (scratch; never more than the table holds).
     woken: Pool<u32>,
-    /// Sleeping units per grid block, for the cheap test of [`Sleep::near_block`].
+    /// Sleeping units per grid block, for the cheap pre-test of [`Holds::block`].
     asleep_in_block: Pool<u8>,
     /// (max speed, max strain rate) of each unit of each particle block of the last step, by
     /// slot; [`EMPTY_UNIT`] where the unit held no particle.
@@ -747,10 +747,9 @@ impl Sleep {
         let (load, load_step) = (self.load.as_mut_slice(), self.load_step.as_mut_slice());
         let reactions = self.reactions.as_slice();
         for (s, &bi) in slot_block[..grid.n_active].iter().enumerate() {
-            let b = geom.block_coords(bi);
-            if !holds.near_block(geom, b) {
+            let Some(window) = holds.block(geom, geom.block_coords(bi)) else {
                 continue;
-            }
+            };
             for li in 0..NODES_PER_BLOCK {
                 let f = reactions[s * NODES_PER_BLOCK + li];
                 if f == [0.0; 3] {
@@ -758,7 +757,7 @@ impl Sleep {
                 }
                 let mut holders = [0u32; 8];
                 let mut n = 0;
-                for u in holds.holders(geom, geom.node_of(b, li)) {
+                for u in window.holders(li) {
                     holders[n] = u;
                     n += 1;
                 }
@@ -837,37 +836,70 @@ impl Sleep {
 }
 
 impl Holds<'_> {
-    /// Whether grid node `g` lies in the stencil reach of a sleeping unit: nodes
-    /// 2u..=2u+3 on each axis, the nodes a particle of unit u can touch.
-    #[inline]
-    pub fn holds_node(&self, geom: &GridGeom, g: [i32; 3]) -> bool {
-        self.holders(geom, g).next().is_some()
-    }
-
-    /// The sleeping units whose stencil reach holds node `g` (at most 8).
-    #[inline]
-    fn holders<'g>(&'g self, geom: &'g GridGeom, g: [i32; 3]) -> impl Iterator<Item = u32> + 'g {
-        let c = g.map(|x| x.div_euclid(US));
-        (0..8).filter_map(move |d| {
-            let u = wrap_unit(geom, [c[0] - (d >> 2 & 1), c[1] - (d >> 1 & 1), c[2] - (d & 1)]);
-            if !unit_in_table(geom, u) {
-                return None;
-            }
-            let idx = unit_index(geom, u);
-            asleep(self.state[idx as usize]).then_some(idx)
-        })
-    }
-
-    /// Whether any unit whose stencil reach overlaps grid block `b` sleeps (a cheap pre-test):
-    /// such a unit lies in block b or in a block one below it on some axes.
-    #[inline]
-    pub fn near_block(&self, geom: &GridGeom, b: [i32; 3]) -> bool {
+    /// The sleeping units whose stencil reach overlaps grid block `b` (None when there are
+    /// none near it): a unit holds nodes 2u..=2u+3 on each axis, so these are the block's own
+    /// units and one more below it on each axis. Looked up once per block, because the grid
+    /// update and the load test ask for every node of a block near sleeping material.
+    pub fn block(&self, geom: &GridGeom, b: [i32; 3]) -> Option<BlockHolds> {
         if self.sleeping_units == 0 {
-            return false;
+            return None;
         }
-        (0..8).any(|d| {
-            let c = geom.wrap_block([b[0] - (d >> 2 & 1), b[1] - (d >> 1 & 1), b[2] - (d & 1)]);
-            in_table(geom, c) && self.asleep_in_block[geom.block_index(c) as usize] > 0
+        // block b and the blocks one below it on some axes (bit 2 - a of `d` set: below on
+        // axis a), where they are in the table and hold a sleeping unit
+        let mut near = [None; 8];
+        for (d, slot) in near.iter_mut().enumerate() {
+            let c = geom.wrap_block([b[0] - (d >> 2 & 1) as i32, b[1] - (d >> 1 & 1) as i32, b[2] - (d & 1) as i32]);
+            if in_table(geom, c) && self.asleep_in_block[geom.block_index(c) as usize] > 0 {
+                *slot = Some(geom.block_index(c));
+            }
+        }
+        if near == [None; 8] {
+            return None;
+        }
+        let mut units = [NO_UNIT; WINDOW];
+        for (w, slot) in units.iter_mut().enumerate() {
+            // window coordinate 0 is the last unit of the block below, 1..=PER block b's units
+            let wa = [w / (WE * WE), w / WE % WE, w % WE];
+            let d = ((wa[0] == 0) as usize) << 2 | ((wa[1] == 0) as usize) << 1 | (wa[2] == 0) as usize;
+            let Some(bi) = near[d] else { continue };
+            let l = wa.map(|x| if x == 0 { PER - 1 } else { x - 1 });
+            let idx = bi * UNITS as u32 + ((l[0] * PER + l[1]) * PER + l[2]) as u32;
+            if asleep(self.state[idx as usize]) {
+                *slot = idx;
+            }
+        }
+        Some(BlockHolds { units })
+    }
+}
+
+/// Units per block edge.
+const PER: usize = BS / US as usize;
+/// Edge of the window of units that can hold a block's nodes, and its size.
+const WE: usize = PER + 1;
+const WINDOW: usize = WE * WE * WE;
+const NO_UNIT: u32 = u32::MAX;
+
+/// The sleeping units that can hold the nodes of one grid block ([`Holds::block`]).
+pub struct BlockHolds {
+    /// Table index of each unit of the window, or NO_UNIT where it is awake or outside the table.
+    units: [u32; WINDOW],
+}
+
+impl BlockHolds {
+    /// Whether node `li` of the block is held.
+    #[inline]
+    pub fn holds(&self, li: usize) -> bool {
+        self.holders(li).next().is_some()
+    }
+
+    /// The sleeping units holding node `li` of the block (at most 8): the units c - o, o in
+    /// {0, 1}^3, of the node's unit c.
+    #[inline]
+    pub fn holders(&self, li: usize) -> impl Iterator<Item = u32> + '_ {
+        let l = [li / (BS * BS), li / BS % BS, li % BS].map(|c| c / US as usize + 1);
+        (0..8).filter_map(move |d| {
+            let u = self.units[((l[0] - (d >> 2 & 1)) * WE + l[1] - (d >> 1 & 1)) * WE + l[2] - (d & 1)];
+            (u != NO_UNIT).then_some(u)
         })
     }
 }
@@ -1006,8 +1038,8 @@ mod tests {
         assert!(seen.iter().all(|&s| s));
     }
 
-    /// A node is held exactly when it lies in the stencil reach 2u..=2u+3 of a sleeping unit,
-    /// and `near_block` passes every grid block holding such a node (it is the pre-test).
+    /// A node is held exactly by the sleeping units whose stencil reach 2u..=2u+3 holds it,
+    /// in every block of the table.
     #[test]
     fn held_nodes_are_the_stencil_reach_of_sleeping_units() {
         for periodic in [[false; 3], [true, false, true]] {
@@ -1015,25 +1047,29 @@ mod tests {
             let asleep = [[0, 0, 0], [3, 1, 5], [5, 3, 7], [2, 2, 2]];
             let s = sleep_with(&g, "", &asleep);
             assert_eq!(s.sleeping_units, asleep.len());
-            for x in -2..g.cells[0] + 2 {
-                for y in -2..g.cells[1] + 2 {
-                    for z in -2..g.cells[2] + 2 {
-                        let n = [x, y, z];
-                        // offset of the node from the unit's first reach node (around the
-                        // period on periodic axes)
-                        let off = |u: &[i32; 3], a: usize| {
-                            let d = n[a] - 2 * u[a];
-                            if periodic[a] { d.rem_euclid(g.cells[a]) } else { d }
-                        };
-                        let want = asleep.iter().any(|u| (0..3).all(|a| (0..=3).contains(&off(u, a))));
-                        assert_eq!(s.holds().holds_node(&g, n), want, "node {n:?}");
-                        let b = n.map(|c| c.div_euclid(BS as i32));
-                        if want && in_table(&g, g.wrap_block(b)) {
-                            assert!(s.holds().near_block(&g, b), "block {b:?} holds node {n:?} but fails the pre-test");
-                        }
-                    }
+            let mut held = 0;
+            for bi in 0..g.table_len() as u32 {
+                let b = g.block_coords(bi);
+                let window = s.holds().block(&g, b);
+                for li in 0..NODES_PER_BLOCK {
+                    let n = g.node_of(b, li);
+                    // offset of the node from the unit's first reach node (around the period on
+                    // periodic axes)
+                    let off = |u: &[i32; 3], a: usize| {
+                        let d = n[a] - 2 * u[a];
+                        if periodic[a] { d.rem_euclid(g.cells[a]) } else { d }
+                    };
+                    let mut want: Vec<u32> = asleep.iter().filter(|u| (0..3).all(|a| (0..=3).contains(&off(u, a)))).map(|&u| unit_index(&g, u)).collect();
+                    let mut got: Vec<u32> = window.as_ref().map(|w| w.holders(li).collect()).unwrap_or_default();
+                    want.sort();
+                    got.sort();
+                    assert_eq!(got, want, "node {n:?}");
+                    assert_eq!(window.as_ref().is_some_and(|w| w.holds(li)), !want.is_empty());
+                    held += !want.is_empty() as usize;
                 }
             }
+            // [0, 0, 0] and [2, 2, 2] hold 4^3 nodes each; the others fewer where the grid ends
+            assert!(held >= 2 * 64, "{held} nodes held");
         }
     }
 
@@ -1170,11 +1206,11 @@ mod tests {
         // a node only the top unit holds (its stencil reach is nodes 2u..=2u+3): the weight on
         // the column
         let node: [i32; 3] = [5, 3, 11];
-        let holders: Vec<u32> = s.holds().holders(&g, node).collect();
-        assert_eq!(holders, [unit_index(&g, column[0].0)]);
         let b = node.map(|c| c.div_euclid(BS as i32));
-        let grid = grid_with(&g, &[b], 0);
         let li = (0..NODES_PER_BLOCK).find(|&li| g.node_of(b, li) == node).unwrap();
+        let holders: Vec<u32> = s.holds().block(&g, b).unwrap().holders(li).collect();
+        assert_eq!(holders, [unit_index(&g, column[0].0)]);
+        let grid = grid_with(&g, &[b], 0);
         let at = grid.slot(g.block_index(b)) as usize * NODES_PER_BLOCK + li;
         // the load whose share of tau is `tau` [Pa] (what it adds on the unit's face)
         let share = LOAD_SHARE * s.per_area;

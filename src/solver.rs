@@ -642,14 +642,14 @@ impl Simulation {
         self.team.run(|tid| {
             for s in ThreadTeam::share(na, tid, threads) {
                 let b = geom.block_coords(slot_block[s]);
-                let near_sleep = holds.as_ref().is_some_and(|z| z.near_block(geom, b));
+                let window = holds.as_ref().and_then(|z| z.block(geom, b));
                 let driven = drive_box.is_some_and(|bx| geom.block_overlaps(b, bx));
                 // SAFETY: each slot belongs to one thread.
                 let blk = unsafe { nodes.slice_mut(s * NODES_PER_BLOCK..(s + 1) * NODES_PER_BLOCK) };
                 // the reaction of each held node: the momentum holding it removes, over dt
-                let mut held = match (&reactions, near_sleep) {
+                let mut held = match (&reactions, &window) {
                     // SAFETY: as for the nodes
-                    (Some(r), true) => Some(unsafe { r.slice_mut(s * NODES_PER_BLOCK..(s + 1) * NODES_PER_BLOCK) }),
+                    (Some(r), Some(_)) => Some(unsafe { r.slice_mut(s * NODES_PER_BLOCK..(s + 1) * NODES_PER_BLOCK) }),
                     _ => None,
                 };
                 for (li, node) in blk.iter_mut().enumerate() {
@@ -664,7 +664,7 @@ impl Simulation {
                     let g = geom.node_of(b, li);
                     let old = V3::new(node[1], node[2], node[3]) / m;
                     let mut v = old + V3::new(node[4], node[5], node[6]) / m + accel * dt;
-                    if near_sleep && holds.as_ref().is_some_and(|z| z.holds_node(geom, g)) {
+                    if window.as_ref().is_some_and(|w| w.holds(li)) {
                         if let Some(h) = held.as_mut() {
                             let f = v * (m / dt);
                             h[li] = [f.x as f32, f.y as f32, f.z as f32];
