@@ -12,8 +12,9 @@
 //! hold material. Cells on the surface keep their particles, so the surface the observables see
 //! (widths, heights, profiles: extents of the particle cloud with the emitted spacing) is drawn
 //! at the emitted resolution; the cross-section area's B-spline window (one cell wide by
-//! default) integrates rows one cell apart exactly, and merged rows are nearly that. A layer's top cells become interior, and are
-//! merged, once the next layer covers them and they fall asleep again.
+//! default) integrates rows one cell apart exactly, and merged rows are nearly that. A layer's
+//! top cells become interior, and are merged, once the next layer covers them and they fall
+//! asleep again.
 //!
 //! The merged particle keeps the mass, the initial volume and the current volume (so J) of its
 //! cell's particles; it sits at their centre of mass; its internal state is their

@@ -849,8 +849,9 @@ impl Holds<'_> {
         let mut near = [None; 8];
         for (d, slot) in near.iter_mut().enumerate() {
             let c = geom.wrap_block([b[0] - (d >> 2 & 1) as i32, b[1] - (d >> 1 & 1) as i32, b[2] - (d & 1) as i32]);
-            if in_table(geom, c) && self.asleep_in_block[geom.block_index(c) as usize] > 0 {
-                *slot = Some(geom.block_index(c));
+            if in_table(geom, c) {
+                let bi = geom.block_index(c);
+                *slot = (self.asleep_in_block[bi as usize] > 0).then_some(bi);
             }
         }
         if near == [None; 8] {

@@ -107,10 +107,11 @@ fn sleeping_material_skips_work_and_barely_changes_the_result() {
 #[test]
 fn merging_sleeping_particles_keeps_the_section_and_saves_work() {
     let fine = common::wide_tiny_print(2, 3, false, "256 MiB");
-    let (wa, wb) = same_section(&fine, &common::wide_tiny_print(1, 3, true, "256 MiB"), 0.01);
+    let merging = common::wide_tiny_print(1, 3, true, "256 MiB");
+    let (wa, wb) = same_section(&fine, &merging, 0.01);
     eprintln!("awake particle-steps: {wb} merging, {wa} not ({:.2})", wb / wa);
     assert!(wb < 0.98 * wa, "merging saved too little: {wb} vs {wa} awake particle-steps");
-    let one = run_to(&common::wide_tiny_print(1, 3, true, "256 MiB"), 3.2);
+    let one = run_to(&merging, 3.2);
     let two = run_to(&common::wide_tiny_print(2, 3, true, "256 MiB"), 3.2);
     assert!((one.particles.n as u32) < one.particles.next_id, "nothing merged by t = 3.2 s");
     assert_eq!(state_hash(&one), state_hash(&two), "merging: 1 vs 2 threads");
