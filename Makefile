@@ -47,7 +47,7 @@ bench-kernels:
 
 # Paper 000's case 1 at 1 mm with the elastic moduli scaled down 10x (3.2x fewer steps; the area
 # is right, the shape is not, see the fixture): wall time, steps and the cross-sections at
-# x = 50, 75, 100 mm (issue 7 item 4, BENCHMARKS.md "Case 1 at 1 mm").
+# x = 50, 75, 100 mm (BENCHMARKS.md "Case 1 at 1 mm").
 bench-case1: build
 	./target/release/strand run fixtures/scenarios/print/case1_full_scaled.toml --out $(OUT)/case1_full_scaled --json
 
@@ -57,7 +57,7 @@ bench-layers: build
 	python3 bench/layer_cost.py $(OUT)/ten_layers
 
 # The same with a 20 s dwell after each layer and the wake test on load (about an hour on one
-# core; BENCHMARKS.md "Sleeping", "Dwells between layers").
+# core; BENCHMARKS.md "Sleeping: cost per step against layers printed").
 bench-layers-dwell: build
 	./target/release/strand run fixtures/scenarios/print/ten_layers_dwell.toml --out $(OUT)/ten_layers_dwell --quiet
 	python3 bench/layer_cost.py --pause 20 $(OUT)/ten_layers_dwell
