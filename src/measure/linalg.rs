@@ -1,65 +1,33 @@
-//! The small dense algebra calibration and diagnosis need (a handful of parameters): symmetric
-//! eigen-decomposition by cyclic Jacobi rotations, the pseudo-inverse built on it, and the chi^2
-//! distribution's upper tail.
+//! The small dense algebra calibration and diagnosis need (a handful of parameters): the
+//! pseudo-inverse of a symmetric positive semi-definite matrix, normal equations, and the chi^2
+//! distribution's upper tail. The decomposition is nalgebra's symmetric eigen-solver and the
+//! tail statrs's chi^2 distribution; this file only adapts them to the row-major `Mat` the
+//! fit code builds.
+
+use nalgebra::{DMatrix, SymmetricEigen};
+use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 /// A row-major square matrix.
 pub type Mat = Vec<Vec<f64>>;
-
-/// Eigenvalues and eigenvectors (as columns of `v`) of the symmetric `a`.
-pub fn sym_eigen(a: &Mat) -> (Vec<f64>, Mat) {
-    let n = a.len();
-    let mut a = a.clone();
-    let mut v: Mat = (0..n).map(|i| (0..n).map(|j| if i == j { 1.0 } else { 0.0 }).collect()).collect();
-    for _sweep in 0..100 {
-        let off: f64 = (0..n).flat_map(|i| (0..n).filter(move |&j| j != i).map(move |j| (i, j))).map(|(i, j)| a[i][j] * a[i][j]).sum();
-        let diag: f64 = (0..n).map(|i| a[i][i] * a[i][i]).sum();
-        if off <= 1e-30 * diag.max(1e-300) {
-            break;
-        }
-        for p in 0..n {
-            for q in p + 1..n {
-                if a[p][q] == 0.0 {
-                    continue;
-                }
-                let theta = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
-                let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
-                let t = if theta == 0.0 { 1.0 } else { t };
-                let (c, s) = (1.0 / (t * t + 1.0).sqrt(), t / (t * t + 1.0).sqrt());
-                for k in 0..n {
-                    let (akp, akq) = (a[k][p], a[k][q]);
-                    a[k][p] = c * akp - s * akq;
-                    a[k][q] = s * akp + c * akq;
-                }
-                for k in 0..n {
-                    let (apk, aqk) = (a[p][k], a[q][k]);
-                    a[p][k] = c * apk - s * aqk;
-                    a[q][k] = s * apk + c * aqk;
-                }
-                for row in v.iter_mut() {
-                    let (vp, vq) = (row[p], row[q]);
-                    row[p] = c * vp - s * vq;
-                    row[q] = s * vp + c * vq;
-                }
-            }
-        }
-    }
-    ((0..n).map(|i| a[i][i]).collect(), v)
-}
 
 /// The pseudo-inverse of the symmetric positive semi-definite `a`, dropping eigenvalues below
 /// `rel` times the largest, and the rank kept.
 pub fn pinv_sym(a: &Mat, rel: f64) -> (Mat, usize) {
     let n = a.len();
-    let (w, v) = sym_eigen(a);
-    let top = w.iter().cloned().fold(0.0, f64::max);
+    if n == 0 {
+        return (Vec::new(), 0);
+    }
+    let eig = SymmetricEigen::new(DMatrix::from_fn(n, n, |i, j| a[i][j]));
+    let top = eig.eigenvalues.iter().cloned().fold(0.0, f64::max);
     let mut out = vec![vec![0.0; n]; n];
     let mut rank = 0;
-    for (k, &wk) in w.iter().enumerate() {
+    for (k, &wk) in eig.eigenvalues.iter().enumerate() {
         if wk > rel * top && wk > 0.0 {
             rank += 1;
+            let v = eig.eigenvectors.column(k);
             for i in 0..n {
                 for j in 0..n {
-                    out[i][j] += v[i][k] * v[j][k] / wk;
+                    out[i][j] += v[i] * v[j] / wk;
                 }
             }
         }
@@ -87,80 +55,12 @@ pub fn normal_equations(j: &[Vec<f64>], z: &[f64], cols: &[usize]) -> (Mat, Vec<
     (a, g)
 }
 
-/// P(X > x) for X ~ chi^2 with k degrees of freedom (the regularised upper incomplete gamma
-/// function Q(k/2, x/2), by its series below a + 1 and its continued fraction above).
+/// P(X > x) for X ~ chi^2 with k degrees of freedom (1 for k = 0 or x <= 0).
 pub fn chi2_sf(x: f64, k: usize) -> f64 {
-    if k == 0 {
+    if k == 0 || x <= 0.0 {
         return 1.0;
     }
-    if x <= 0.0 {
-        return 1.0;
-    }
-    let (a, x) = (k as f64 / 2.0, x / 2.0);
-    let ln_front = a * x.ln() - x - ln_gamma(a);
-    if x < a + 1.0 {
-        let (mut sum, mut term, mut ap) = (1.0 / a, 1.0 / a, a);
-        for _ in 0..1000 {
-            ap += 1.0;
-            term *= x / ap;
-            sum += term;
-            if term.abs() < sum.abs() * 1e-16 {
-                break;
-            }
-        }
-        (1.0 - sum * ln_front.exp()).max(0.0)
-    } else {
-        // Lentz's method
-        let tiny = 1e-300;
-        let mut b = x + 1.0 - a;
-        let mut c = 1.0 / tiny;
-        let mut d = 1.0 / b;
-        let mut h = d;
-        for i in 1..1000 {
-            let an = -(i as f64) * (i as f64 - a);
-            b += 2.0;
-            d = an * d + b;
-            if d.abs() < tiny {
-                d = tiny;
-            }
-            c = b + an / c;
-            if c.abs() < tiny {
-                c = tiny;
-            }
-            d = 1.0 / d;
-            let del = d * c;
-            h *= del;
-            if (del - 1.0).abs() < 1e-16 {
-                break;
-            }
-        }
-        (ln_front.exp() * h).min(1.0)
-    }
-}
-
-/// ln Gamma(x) for x > 0 (Lanczos, g = 7, 9 terms).
-fn ln_gamma(x: f64) -> f64 {
-    const G: [f64; 9] = [
-        0.999_999_999_999_809_9,
-        676.520_368_121_885_1,
-        -1_259.139_216_722_402_8,
-        771.323_428_777_653_1,
-        -176.615_029_162_140_6,
-        12.507_343_278_686_905,
-        -0.138_571_095_265_720_12,
-        9.984_369_578_019_572e-6,
-        1.505_632_735_149_311_6e-7,
-    ];
-    if x < 0.5 {
-        return (std::f64::consts::PI / (std::f64::consts::PI * x).sin()).ln() - ln_gamma(1.0 - x);
-    }
-    let x = x - 1.0;
-    let mut a = G[0];
-    let t = x + 7.5;
-    for (i, g) in G.iter().enumerate().skip(1) {
-        a += g / (x + i as f64);
-    }
-    0.5 * (2.0 * std::f64::consts::PI).ln() + (x + 0.5) * t.ln() - t + a.ln()
+    ChiSquared::new(k as f64).expect("k > 0 degrees of freedom").sf(x)
 }
 
 #[cfg(test)]
