@@ -159,15 +159,14 @@ fn write_atomic(path: &Path, text: &str) -> Result<(), String> {
     std::fs::write(&tmp, text).and_then(|_| std::fs::rename(&tmp, path)).map_err(|e| format!("{}: {e}", path.display()))
 }
 
-/// The last `n` lines of a log, for an error message.
-fn tail(path: &Path, n: usize) -> String {
+/// The last lines of a log, for an error message; `none` when it is empty or absent.
+fn tail(path: &Path, none: &str) -> String {
     match std::fs::read_to_string(path) {
         Ok(t) if !t.trim().is_empty() => {
-            let lines: Vec<&str> = t.trim_end().lines().collect();
-            lines[lines.len().saturating_sub(n)..].iter().map(|l| format!("\n      | {l}")).collect()
+            let lines: Vec<&str> = t.trim_end().lines().filter(|l| !l.trim().is_empty()).collect();
+            lines[lines.len().saturating_sub(6)..].iter().map(|l| format!("\n      | {l}")).collect()
         }
-        Ok(_) => " (empty: the job did not start)".into(),
-        Err(_) => " (absent: the job did not start)".into(),
+        _ => format!(" ({none})"),
     }
 }
 
@@ -218,7 +217,8 @@ impl Scheduler {
             provenance: Provenance::of(model, exps, x),
             model: model.to_toml(),
             experiment: toml::to_string(x).map_err(|e| format!("experiment '{}': {e}", x.id))?,
-            base_dir: std::path::absolute(&exps.base_dir).map_err(|e| e.to_string())?,
+            // an experiments file named without a folder sits in the current one
+            base_dir: std::path::absolute(Path::new(".").join(&exps.base_dir)).map_err(|e| format!("{}: {e}", exps.base_dir.display()))?,
             observables: obs.iter().map(Observable::to_string).collect(),
             names: names.map(<[String]>::to_vec),
             threads: self.threads,
@@ -272,18 +272,19 @@ impl Scheduler {
         let missing: Vec<String> = pending
             .iter()
             .filter(|(_, key, _)| !path("results", key, "json").exists())
-            .map(|(k, key, _)| format!("  experiment '{}': no result; job {}, log {}{}", wanted[*k].0, path("jobs", key, "json").display(), path("logs", key, "log").display(), tail(&path("logs", key, "log"), 5)))
+            .map(|(k, key, _)| format!("  experiment '{}': no result; job {}, log {}{}", wanted[*k].0, path("jobs", key, "json").display(), path("logs", key, "log").display(), tail(&path("logs", key, "log"), "empty: the job did not start")))
             .collect();
         if missing.is_empty() {
             return Ok(());
         }
         Err(format!(
-            "the engine's command exited with {status} and {} of {} jobs left no result:\n{}\n  the command: {command}\n  its output: {}{}\nThe results computed are kept in {}: run the same command again to compute only what is missing.",
+            "the engine's command {} and {} of {} jobs left no result:\n{}\n  the command: {command}\n  its output: {}{}\nThe results computed are kept in {}: run the same command again to compute only what is missing.",
+            status.code().map_or("was stopped by a signal".to_string(), |c| format!("exited with status {c}")),
             missing.len(),
             pending.len(),
             missing.join("\n"),
             log.display(),
-            tail(&log, 5),
+            tail(&log, "empty"),
             self.dir.join("results").display()
         ))
     }
@@ -343,7 +344,7 @@ pub fn evaluate(job_path: &Path, out: &Path) -> Result<String, String> {
     let exps = Experiments { experiment: vec![x], base_dir: job.base_dir.clone() };
     let model = job_model(&job.model).map_err(|e| format!("{}: {e}", job_path.display()))?;
     // the files as they are now must be those the job was planned with
-    Provenance::of(&model, &exps, &exps.experiment[0]).check(&job.provenance, &id, job_path).map_err(|e| format!("{e} (planned with other files or another strand)"))?;
+    Provenance::of(&model, &exps, &exps.experiment[0]).check(&job.provenance, &id, job_path).map_err(|e| format!("{e}: the job was planned with other files or another strand; run the campaign again to plan it anew"))?;
     let obs: Vec<Observable> = job.observables.iter().map(|o| Observable::parse(o)).collect::<Result<_, _>>()?;
     let outcome = match sensitivity::one(&model, &exps, &id, &obs, job.names.as_deref(), job.threads) {
         Ok(per) => Outcome::Values {

@@ -89,7 +89,7 @@ pub fn collect(dir: &Path, model: &Model, exps: &Experiments, data: &[Observatio
             let path = dir.join(format!("{id}.json"));
             let text = std::fs::read_to_string(&path).map_err(|e| format!("experiment '{id}' has no result in {} ({e}): run its job from jobs.txt", dir.display()))?;
             let s: Saved = serde_json::from_str(&text).map_err(|e| format!("experiment '{id}': {} is not a result of this strand ({e}): run its job from jobs.txt again", path.display()))?;
-            Provenance::of(model, exps, find(exps, id)?).check(&s.provenance, id, &path).map_err(|e| format!("{e} (plan and run the jobs again)"))?;
+            Provenance::of(model, exps, find(exps, id)?).check(&s.provenance, id, &path).map_err(|e| format!("{e}: plan and run the jobs again under the current model and files"))?;
             let want: Vec<String> = obs.iter().map(Observable::to_string).collect();
             if s.experiment != *id || s.observables != want || s.values.len() != want.len() {
                 return Err(format!("{}: it holds {} {:?}, the data ask {id} {want:?}: plan and run the jobs again", path.display(), s.experiment, s.observables));

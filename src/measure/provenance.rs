@@ -61,7 +61,7 @@ impl Provenance {
         if differ.is_empty() {
             return Ok(());
         }
-        Err(format!("experiment '{id}': {} was computed under {}; refusing it: compute it again under the current model and files", file.display(), differ.join(" and ")))
+        Err(format!("experiment '{id}': {} comes from {}; refusing it", file.display(), differ.join(" and ")))
     }
 }
 
