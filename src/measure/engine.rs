@@ -35,11 +35,12 @@ use super::provenance::{self, exact, plain, Exact, Provenance};
 use super::sensitivity::{self, Sensitivity, Valued};
 use std::path::{Path, PathBuf};
 
-/// The preset schedulers: name, command template, what it is.
-pub const PRESETS: &[(&str, &str, &str)] = &[
-    ("parallel", "parallel --will-cite < {jobs}", "GNU parallel on this machine (or over ssh with --sshloginfile in a template of your own)"),
-    ("slurm", "sbatch --wait --job-name=strand --array=1-{n} --output={dir}/batches/slurm-%A_%a.out {task}", "a Slurm job array, one experiment per task"),
-    ("hq", "hq submit --wait --name=strand --array=1-{n} {task}", "a HyperQueue task array (a running `hq server` with workers)"),
+/// The preset schedulers and their command templates: GNU parallel on this machine, a Slurm job
+/// array, a HyperQueue task array (docs/distributed.md).
+pub const PRESETS: &[(&str, &str)] = &[
+    ("parallel", "parallel --will-cite < {jobs}"),
+    ("slurm", "sbatch --wait --job-name=strand --array=1-{n} --output={dir}/batches/slurm-%A_%a.out {task}"),
+    ("hq", "hq submit --wait --name=strand --cwd={dir}/batches --array=1-{n} {task}"),
 ];
 
 /// Where evaluations run.
@@ -74,13 +75,16 @@ impl Engine {
     /// go in (created).
     pub fn new(name: &str, dir: Option<&Path>, exe: &Path, threads: Option<usize>) -> Result<Engine, String> {
         if name == "local" {
-            return Ok(Engine::Local);
+            return match dir {
+                None => Ok(Engine::Local),
+                Some(d) => Err(format!("--engine-dir {} is the folder of a scheduler's jobs; the local engine runs in this process (name a scheduler with --engine)", d.display())),
+            };
         }
-        let template = match PRESETS.iter().find(|(n, _, _)| *n == name) {
-            Some((_, t, _)) => t.to_string(),
+        let template = match PRESETS.iter().find(|(n, _)| *n == name) {
+            Some((_, t)) => t.to_string(),
             None if name.contains("{jobs}") || name.contains("{task}") => name.to_string(),
             None => {
-                let names: Vec<&str> = PRESETS.iter().map(|(n, _, _)| *n).collect();
+                let names: Vec<&str> = PRESETS.iter().map(|(n, _)| *n).collect();
                 return Err(format!("--engine {name}: not an engine; give local, {}, or a command template naming {{jobs}} (the file of job commands) or {{task}} (a job array's task script)", names.join(", ")));
             }
         };
