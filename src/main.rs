@@ -180,6 +180,8 @@ enum Cmd {
         plot: Option<PathBuf>,
         #[arg(long, default_value_t = 30)]
         max_iterations: usize,
+        #[command(flatten)]
+        engine: EngineArgs,
     },
     /// Which physical effect the model lacks: fits --fit, scores every effect not in the model
     /// at its null (score test from the adjoint gradient; a likelihood-ratio test, from a fit,
@@ -207,6 +209,15 @@ enum Cmd {
         out: Option<PathBuf>,
         #[arg(long, default_value_t = 30)]
         max_iterations: usize,
+        #[command(flatten)]
+        engine: EngineArgs,
+    },
+    /// One job of calibrate's or diagnose's --engine: compute the experiment a job file names
+    /// (its values, and gradients when asked) and save the result with its provenance.
+    Evaluate {
+        job: PathBuf,
+        #[arg(long)]
+        out: PathBuf,
     },
     /// Throughput of the peer benchmark scene (3D J-fluid dam break).
     Bench {
@@ -244,6 +255,31 @@ struct MeasureInputs {
     jobs: usize,
     #[arg(long)]
     json: bool,
+}
+
+/// Where calibrate's and diagnose's per-experiment evaluations run (docs/distributed.md).
+#[derive(clap::Args)]
+struct EngineArgs {
+    /// local (in this process, --jobs at a time), parallel (GNU parallel), slurm (sbatch --wait
+    /// --array), hq (HyperQueue), or a command template naming {jobs} (a file of job commands,
+    /// one per line) or {task} (a job array's task script), with {n} and {dir}.
+    #[arg(long, default_value = "local")]
+    engine: String,
+    /// The engine's folder (jobs, results, logs), readable and writable by every job; results
+    /// already there are collected, not computed again.
+    #[arg(long, value_name = "DIR")]
+    engine_dir: Option<PathBuf>,
+    /// Threads per job (0: all the job is given).
+    #[arg(long, default_value_t = 1)]
+    job_threads: usize,
+}
+
+impl EngineArgs {
+    fn engine(&self) -> Result<strand::measure::engine::Engine, String> {
+        let exe = std::env::current_exe().map_err(|e| e.to_string())?;
+        let threads = if self.job_threads == 0 { None } else { Some(self.job_threads) };
+        strand::measure::engine::Engine::new(&self.engine, self.engine_dir.as_deref(), &exe, threads)
+    }
 }
 
 impl MeasureInputs {
@@ -359,12 +395,12 @@ fn main() -> ExitCode {
             if let (Some(id), Some(file)) = (&only, &save) {
                 let mine = jobs::only(&d, id)?;
                 let values = compare::model_values(&m, &mine, &e, 1)?;
-                jobs::save(file, id, &mine, &values)?;
+                jobs::save(file, &m, &e, id, &mine, &values)?;
                 eprintln!("{id}: {} values saved to {}", values.len(), file.display());
                 return Ok(true);
             }
             let values = match &collect {
-                Some(dir) => jobs::collect(dir, &d)?,
+                Some(dir) => jobs::collect(dir, &m, &e, &d)?,
                 None => compare::model_values(&m, &d, &e, inputs.jobs)?,
             };
             let c = compare::comparison(&d, &values);
@@ -395,10 +431,10 @@ fn main() -> ExitCode {
             eprintln!("{} observations of {} experiments written to {}", obs.len(), e.experiment.len(), out.display());
             Ok(true)
         })(),
-        Cmd::Calibrate { inputs, fit, out, plot, max_iterations } => (|| {
+        Cmd::Calibrate { inputs, fit, out, plot, max_iterations, engine } => (|| {
             use strand::measure::calibrate;
             let (m, d, e) = inputs.load()?;
-            let opts = calibrate::FitOptions { max_iterations, jobs: inputs.jobs, progress: true, ..Default::default() };
+            let opts = calibrate::FitOptions { max_iterations, jobs: inputs.jobs, engine: engine.engine()?, progress: true, ..Default::default() };
             let f = calibrate::calibrate(&m, &d, &e, &fit, &opts)?;
             let out = out.unwrap_or_else(|| inputs.model.with_extension("calibrated.toml"));
             std::fs::write(&out, f.model.to_toml()).map_err(|e| format!("{}: {e}", out.display()))?;
@@ -412,13 +448,13 @@ fn main() -> ExitCode {
             eprintln!("calibrated model written to {}, convergence plot to {}", out.display(), plot.display());
             Ok(true)
         })(),
-        Cmd::Diagnose { inputs, fit, alpha, no_loo, max_fitted, out, max_iterations } => (|| {
+        Cmd::Diagnose { inputs, fit, alpha, no_loo, max_fitted, out, max_iterations, engine } => (|| {
             use strand::measure::{calibrate::FitOptions, diagnose};
             if !(alpha > 0.0 && alpha < 1.0) {
                 return Err(format!("--alpha must be in (0, 1), got {alpha}"));
             }
             let (m, d, e) = inputs.load()?;
-            let opts = diagnose::DiagnoseOptions { fit: FitOptions { max_iterations, jobs: inputs.jobs, ..Default::default() }, alpha, leave_one_out: !no_loo, max_fitted: max_fitted as usize };
+            let opts = diagnose::DiagnoseOptions { fit: FitOptions { max_iterations, jobs: inputs.jobs, engine: engine.engine()?, ..Default::default() }, alpha, leave_one_out: !no_loo, max_fitted: max_fitted as usize };
             let r = diagnose::diagnose(&m, &d, &e, &fit, &opts)?;
             if let (Some(out), Some(best)) = (&out, &r.recommended_model) {
                 std::fs::write(out, best.to_toml()).map_err(|e| format!("{}: {e}", out.display()))?;
@@ -431,6 +467,10 @@ fn main() -> ExitCode {
             }
             Ok(true)
         })(),
+        Cmd::Evaluate { job, out } => strand::measure::engine::evaluate(&job, &out).map(|line| {
+            eprintln!("{line}");
+            true
+        }),
         Cmd::Bench { particles, grid, steps, repeats, threads, json } => {
             strand::bench::run_bench(particles, grid, steps, repeats, threads, json).map(|_| true)
         }

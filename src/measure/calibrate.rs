@@ -11,7 +11,7 @@
 use super::data::{Experiments, Observation};
 use super::linalg::{normal_equations, pinv_sym, Mat};
 use super::model::Model;
-use super::sensitivity::sensitivity;
+use super::engine::Engine;
 
 #[derive(Clone, Debug)]
 pub struct FitOptions {
@@ -19,13 +19,16 @@ pub struct FitOptions {
     /// Stop when an accepted step lowers chi^2 by less than this fraction.
     pub tolerance: f64,
     pub jobs: usize,
+    /// Where each evaluation's experiments run (`engine.rs`): here, `jobs` at a time, or as a
+    /// scheduler's jobs.
+    pub engine: Engine,
     /// A line on stderr per accepted step.
     pub progress: bool,
 }
 
 impl Default for FitOptions {
     fn default() -> FitOptions {
-        FitOptions { max_iterations: 30, tolerance: 1e-5, jobs: 1, progress: false }
+        FitOptions { max_iterations: 30, tolerance: 1e-5, jobs: 1, engine: Engine::Local, progress: false }
     }
 }
 
@@ -76,7 +79,7 @@ pub fn calibrate(model: &Model, data: &[Observation], exps: &Experiments, names:
     let m = data.len();
     let n = names.len();
 
-    let mut s = sensitivity(&model, data, exps, Some(names), opts.jobs)?;
+    let mut s = opts.engine.sensitivity(opts.jobs, &model, data, exps, Some(names))??;
     let mut c2 = chi2(&s.values, data);
     let chi2_start = c2;
     let mut history = vec![c2];
@@ -131,8 +134,9 @@ pub fn calibrate(model: &Model, data: &[Observation], exps: &Experiments, names:
             for (nm, v) in names.iter().zip(&trial) {
                 tm.set(nm, *v)?;
             }
-            // a trial the model rejects (a material that will not build) is a failed step
-            let tv = match sensitivity(&tm, data, exps, None, opts.jobs) {
+            // a trial the model rejects (a material that will not build) is a failed step; the
+            // engine failing to run it is an error
+            let tv = match opts.engine.sensitivity(opts.jobs, &tm, data, exps, None)? {
                 Ok(t) => t.values,
                 Err(_) => {
                     lambda *= 4.0;
@@ -145,7 +149,7 @@ pub fn calibrate(model: &Model, data: &[Observation], exps: &Experiments, names:
                 theta = trial;
                 model = tm;
                 lambda = (lambda / 3.0).max(1e-9);
-                s = sensitivity(&model, data, exps, Some(names), opts.jobs)?;
+                s = opts.engine.sensitivity(opts.jobs, &model, data, exps, Some(names))??;
                 c2 = chi2(&s.values, data);
                 history.push(c2);
                 if opts.progress {

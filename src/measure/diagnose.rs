@@ -34,7 +34,6 @@ use super::data::{Experiments, Observation};
 use super::effects::{self, Covariates, Effect};
 use super::linalg::{chi2_sf, normal_equations, pinv_sym};
 use super::model::Model;
-use super::sensitivity::sensitivity;
 
 #[derive(Clone, Debug)]
 pub struct DiagnoseOptions {
@@ -145,7 +144,7 @@ fn candidate(e: &dyn Effect, score: f64, dof: usize, p_value: f64, verdict: Stri
 pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[String], opts: &DiagnoseOptions) -> Result<Diagnosis, String> {
     let m = data.len();
     let base: Fit = if fit.is_empty() {
-        let v = sensitivity(model, data, exps, None, opts.fit.jobs)?.values;
+        let v = opts.fit.engine.sensitivity(opts.fit.jobs, model, data, exps, None)??.values;
         let c2 = chi2(&v, data);
         Fit { names: vec![], start: vec![], values: vec![], uncertainty: vec![], at_bound: vec![], influence: vec![], chi2_start: c2, chi2: c2, reduced_chi2: c2 / m as f64, history: vec![c2], converged: true, observations: m, model_values: v, model: model.clone() }
     } else {
@@ -174,7 +173,7 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
         cols_of.push((names.len()..names.len() + e.params().len()).collect());
         names.extend(e.params().iter().map(|s| format!("{}.{}", e.name(), s.name)));
     }
-    let s = sensitivity(&aug, data, exps, Some(&names), opts.fit.jobs)?;
+    let s = opts.fit.engine.sensitivity(opts.fit.jobs, &aug, data, exps, Some(&names))??;
     let scale: Vec<f64> = names.iter().map(|n| aug.bounds(n).map(|b| b.scale)).collect::<Result<_, _>>()?;
     let (z, jz) = standardised(&s.values, s.jacobian.as_ref().expect("asked"), data, &scale);
     let fcols: Vec<usize> = (0..fit.len()).collect();
@@ -380,7 +379,7 @@ fn leave_one_out(model: &Model, data: &[Observation], exps: &Experiments, names:
         let train: Vec<Observation> = data.iter().filter(|o| o.experiment != *id).cloned().collect();
         let test: Vec<Observation> = data.iter().filter(|o| o.experiment == *id).cloned().collect();
         let fitted = if names.is_empty() { model.clone() } else { calibrate(model, &train, exps, names, &opts.fit)?.model };
-        let v = sensitivity(&fitted, &test, exps, None, opts.fit.jobs)?.values;
+        let v = opts.fit.engine.sensitivity(opts.fit.jobs, &fitted, &test, exps, None)??.values;
         total += chi2(&v, &test);
     }
     Ok(total)

@@ -3,16 +3,20 @@
 //! (`rheometer.rs`), running experiments under a model to compare with measurements or to
 //! synthesise them (`compare.rs`) and the comparison as a folder of plots and trends
 //! (`report.rs`), their gradients (`sensitivity.rs`), fitting a model
-//! (`calibrate.rs`) and finding the effect it lacks (`diagnose.rs`).
+//! (`calibrate.rs`) and finding the effect it lacks (`diagnose.rs`); where the experiments run
+//! (`engine.rs`: here, or as a scheduler's jobs) and what a saved result was computed from
+//! (`provenance.rs`).
 
 pub mod calibrate;
 pub mod compare;
 pub mod data;
 pub mod diagnose;
 pub mod effects;
+pub mod engine;
 pub mod linalg;
 pub mod model;
 pub mod plan;
+pub mod provenance;
 pub mod report;
 pub mod rheometer;
 pub mod sensitivity;

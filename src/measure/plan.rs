@@ -3,19 +3,23 @@
 //! `DIR/slurm.sh` for the latter); each command runs its experiment alone (`--only ID`) and saves
 //! its values (`--save DIR/ID.json`); `strand compare --collect DIR` then compares from the
 //! saved values, exactly as a local run would (each experiment is independent, so the numbers
-//! are the same).
+//! are the same, and saved exactly). Each saved file carries the [`Provenance`] of its values,
+//! and collect refuses one computed under another model, scenario, experiments entry or binary.
 
-use super::compare::group;
-use super::data::{Observable, Observation};
+use super::compare::{find, group};
+use super::data::{Experiments, Observable, Observation};
+use super::model::Model;
+use super::provenance::{exact, plain, Exact, Provenance};
 use std::path::{Path, PathBuf};
 
 /// One experiment's values, as a job saves them.
-#[derive(Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, serde::Serialize, serde::Deserialize)]
 pub struct Saved {
     pub experiment: String,
+    pub provenance: Provenance,
     /// `name` or `name@at`, in the data's order.
     pub observables: Vec<String>,
-    pub values: Vec<f64>,
+    pub values: Vec<Exact>,
 }
 
 /// The observations of experiment `id` (an error when the data have none).
@@ -28,8 +32,10 @@ pub fn only(data: &[Observation], id: &str) -> Result<Vec<Observation>, String> 
     Ok(mine)
 }
 
-pub fn save(path: &Path, id: &str, data: &[Observation], values: &[f64]) -> Result<(), String> {
-    let s = Saved { experiment: id.to_string(), observables: data.iter().map(|o| o.observable.to_string()).collect(), values: values.to_vec() };
+/// Save experiment `id`'s `values` of `data` under `model`.
+pub fn save(path: &Path, model: &Model, exps: &Experiments, id: &str, data: &[Observation], values: &[f64]) -> Result<(), String> {
+    let provenance = Provenance::of(model, exps, find(exps, id)?);
+    let s = Saved { experiment: id.to_string(), provenance, observables: data.iter().map(|o| o.observable.to_string()).collect(), values: exact(values) };
     let text = serde_json::to_string_pretty(&s).map_err(|e| e.to_string())?;
     std::fs::write(path, text).map_err(|e| format!("{}: {e}", path.display()))
 }
@@ -73,20 +79,22 @@ pub fn plan(dir: &Path, exe: &Path, model: &Path, data_path: &Path, experiments:
     Ok(ids.len())
 }
 
-/// The values of every observation, in the data's order, from the jobs' saved files in `dir`.
-pub fn collect(dir: &Path, data: &[Observation]) -> Result<Vec<f64>, String> {
+/// The values of every observation, in the data's order, from the jobs' saved files in `dir`,
+/// each computed under `model` with the experiments as they are now.
+pub fn collect(dir: &Path, model: &Model, exps: &Experiments, data: &[Observation]) -> Result<Vec<f64>, String> {
     let wanted = group(data);
     let per: Vec<Vec<f64>> = wanted
         .iter()
         .map(|(id, obs)| {
             let path = dir.join(format!("{id}.json"));
             let text = std::fs::read_to_string(&path).map_err(|e| format!("experiment '{id}' has no result in {} ({e}): run its job from jobs.txt", dir.display()))?;
-            let s: Saved = serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+            let s: Saved = serde_json::from_str(&text).map_err(|e| format!("experiment '{id}': {} is not a result of this strand ({e}): run its job from jobs.txt again", path.display()))?;
+            Provenance::of(model, exps, find(exps, id)?).check(&s.provenance, id, &path).map_err(|e| format!("{e}: plan and run the jobs again under the current model and files"))?;
             let want: Vec<String> = obs.iter().map(Observable::to_string).collect();
             if s.experiment != *id || s.observables != want || s.values.len() != want.len() {
                 return Err(format!("{}: it holds {} {:?}, the data ask {id} {want:?}: plan and run the jobs again", path.display(), s.experiment, s.observables));
             }
-            Ok(s.values)
+            Ok(plain(&s.values))
         })
         .collect::<Result<_, String>>()?;
     Ok(super::compare::ungroup(data, &wanted, &per))

@@ -25,20 +25,28 @@ pub struct Sensitivity {
 pub fn sensitivity(model: &Model, data: &[Observation], exps: &Experiments, names: Option<&[String]>, jobs: usize) -> Result<Sensitivity, String> {
     let wanted = group(data);
     let threads = if jobs > 1 { Some(1) } else { None };
-    let per = par_map(wanted.len(), jobs, |k| {
-        let (id, obs) = &wanted[k];
-        let x = find(exps, id)?;
-        experiment(model, exps, x, obs, names, threads).map_err(|e| format!("experiment '{id}': {e}"))
-    })?;
-    let flat = ungroup(data, &wanted, &per);
-    Ok(Sensitivity {
+    let per = par_map(wanted.len(), jobs, |k| one(model, exps, &wanted[k].0, &wanted[k].1, names, threads))?;
+    Ok(assemble(data, &wanted, &per, names))
+}
+
+/// One experiment's values of `wanted` and, with `names`, their gradients: the unit of work
+/// [`sensitivity`] runs side by side and a scheduler's job runs alone (`engine.rs`).
+pub fn one(model: &Model, exps: &Experiments, id: &str, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>) -> Result<Vec<Valued>, String> {
+    let x = find(exps, id)?;
+    experiment(model, exps, x, wanted, names, threads).map_err(|e| format!("experiment '{id}': {e}"))
+}
+
+/// The experiments' results ([`one`] each, in `wanted`'s order) in the data's order.
+pub fn assemble(data: &[Observation], wanted: &[(String, Vec<Observable>)], per: &[Vec<Valued>], names: Option<&[String]>) -> Sensitivity {
+    let flat = ungroup(data, wanted, per);
+    Sensitivity {
         values: flat.iter().map(|(v, _)| *v).collect(),
         jacobian: names.map(|_| flat.into_iter().map(|(_, g)| g.expect("asked")).collect()),
-    })
+    }
 }
 
 /// An observation's value and, when asked, its gradient.
-type Valued = (f64, Option<Vec<f64>>);
+pub type Valued = (f64, Option<Vec<f64>>);
 
 fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>) -> Result<Vec<Valued>, String> {
     let keys = experiment_keys(model, x)?;

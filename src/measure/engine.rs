@@ -1,0 +1,367 @@
+//! Where calibrate's and diagnose's per-experiment evaluations run: in this process (`local`,
+//! experiments side by side on threads), or as jobs of an existing scheduler — GNU parallel, a
+//! Slurm job array, HyperQueue, or any command given as a template. The unit of work is one
+//! experiment's values, and their Jacobian when the fit needs it ([`sensitivity::one`]); each
+//! evaluation of a campaign is planned as job files in the engine's folder, run elsewhere by
+//! `strand evaluate JOB --out RESULT`, and collected.
+//!
+//! The folder:
+//! - `jobs/KEY.json`: what to compute: the model (as strand writes it), the experiment's entry
+//!   and the folder its paths are relative to, the observables, the parameters differentiated,
+//!   and the [`Provenance`] all this has at planning;
+//! - `results/KEY.json`: what the job computed (the values, or the model's own failure, such as
+//!   a material that will not build) with its provenance;
+//! - `logs/KEY.log`: the job's output, appended on every attempt;
+//! - `batches/NNNN.txt`: one submission's commands, a line per job (GNU parallel's input), and
+//!   `NNNN.sh`, a job array's task (runs line `$1`, `$SLURM_ARRAY_TASK_ID` or `$HQ_TASK_ID`);
+//!   `NNNN.log` the scheduler's own output.
+//!
+//! KEY is the experiment's id and a hash of everything its result depends on. A result already
+//! in the folder with that provenance is collected instead of computed again, so a campaign
+//! stopped by a failed job loses nothing: run again, it submits only what is missing. The job
+//! recomputes the provenance from the files it reads and refuses to run if they changed since
+//! planning; the collector checks the result's provenance again.
+//!
+//! Results are bit-identical to a local run: the job runs the same function on the same model
+//! (the model file strand writes, whose numbers read back to the same bits, checked by the
+//! model's hash), every number is saved exactly ([`Exact`]), and a run's result does not depend
+//! on its thread count.
+
+use super::compare::{find, group};
+use super::data::{Experiment, Experiments, Observable, Observation};
+use super::effects;
+use super::model::Model;
+use super::provenance::{self, exact, plain, Exact, Provenance};
+use super::sensitivity::{self, Sensitivity, Valued};
+use std::path::{Path, PathBuf};
+
+/// The preset schedulers and their command templates: GNU parallel on this machine, a Slurm job
+/// array, a HyperQueue task array (docs/distributed.md).
+pub const PRESETS: &[(&str, &str)] = &[
+    ("parallel", "parallel --will-cite < {jobs}"),
+    ("slurm", "sbatch --wait --job-name=strand --array=1-{n} --output={dir}/batches/slurm-%A_%a.out {task}"),
+    ("hq", "hq submit --wait --name=strand --cwd={dir}/batches --array=1-{n} {task}"),
+];
+
+/// Where evaluations run.
+#[derive(Clone, Debug, Default)]
+pub enum Engine {
+    /// In this process, `jobs` experiments at a time.
+    #[default]
+    Local,
+    Scheduler(Scheduler),
+}
+
+/// An existing scheduler, driven by a command template run with `bash -c` once per evaluation
+/// of a campaign. In the template `{jobs}` is the file of commands (a line per job), `{task}`
+/// the job array's task script, `{n}` the number of jobs and `{dir}` the engine's folder, paths
+/// shell-quoted; the command returns once every job has finished (or failed).
+#[derive(Clone, Debug)]
+pub struct Scheduler {
+    pub template: String,
+    pub dir: PathBuf,
+    /// The strand binary the jobs run.
+    pub exe: PathBuf,
+    /// Threads per job (None: all the job is given).
+    pub threads: Option<usize>,
+}
+
+/// The model's answer for a campaign: the values (and Jacobian), or why the model cannot give
+/// them (calibrate rejects such a trial step). Distinct from the engine failing to run a job.
+pub type Answer = Result<Sensitivity, String>;
+
+impl Engine {
+    /// `local`, a preset's name ([`PRESETS`]) or a command template, with the folder the jobs
+    /// go in (created).
+    pub fn new(name: &str, dir: Option<&Path>, exe: &Path, threads: Option<usize>) -> Result<Engine, String> {
+        if name == "local" {
+            return match dir {
+                None => Ok(Engine::Local),
+                Some(d) => Err(format!("--engine-dir {} is the folder of a scheduler's jobs; the local engine runs in this process (name a scheduler with --engine)", d.display())),
+            };
+        }
+        let template = match PRESETS.iter().find(|(n, _)| *n == name) {
+            Some((_, t)) => t.to_string(),
+            None if name.contains("{jobs}") || name.contains("{task}") => name.to_string(),
+            None => {
+                let names: Vec<&str> = PRESETS.iter().map(|(n, _)| *n).collect();
+                return Err(format!("--engine {name}: not an engine; give local, {}, or a command template naming {{jobs}} (the file of job commands) or {{task}} (a job array's task script)", names.join(", ")));
+            }
+        };
+        let dir = dir.ok_or_else(|| format!("--engine {name} needs --engine-dir DIR, a folder every job can read and write (the results are kept there)"))?;
+        for sub in ["jobs", "results", "logs", "batches"] {
+            std::fs::create_dir_all(dir.join(sub)).map_err(|e| format!("--engine-dir {}: {e}", dir.display()))?;
+        }
+        let dir = std::path::absolute(dir).map_err(|e| format!("--engine-dir {}: {e}", dir.display()))?;
+        let exe = std::path::absolute(exe).map_err(|e| format!("{}: {e}", exe.display()))?;
+        Ok(Engine::Scheduler(Scheduler { template, dir, exe, threads }))
+    }
+
+    /// The values of every observation under `model`, with their gradients in `names` when
+    /// given. `Err` is the engine failing (a job that left no result, named with its log);
+    /// `Ok(Err)` the model's own failure, as a local run gives it.
+    pub fn sensitivity(&self, jobs: usize, model: &Model, data: &[Observation], exps: &Experiments, names: Option<&[String]>) -> Result<Answer, String> {
+        match self {
+            Engine::Local => Ok(sensitivity::sensitivity(model, data, exps, names, jobs)),
+            Engine::Scheduler(s) => s.sensitivity(model, data, exps, names),
+        }
+    }
+}
+
+/// One job: what `strand evaluate` computes.
+#[derive(serde::Serialize, serde::Deserialize)]
+pub struct Job {
+    pub provenance: Provenance,
+    /// The model file ([`Model::to_toml`]).
+    pub model: String,
+    /// The experiment's entry (TOML) and the folder its scenario or protocol is relative to.
+    pub experiment: String,
+    pub base_dir: PathBuf,
+    /// `name` or `name@at`.
+    pub observables: Vec<String>,
+    /// Parameters differentiated; none for values only.
+    pub names: Option<Vec<String>>,
+    pub threads: Option<usize>,
+}
+
+/// What a job computed.
+#[derive(serde::Serialize, serde::Deserialize)]
+pub struct Computed {
+    pub experiment: String,
+    pub observables: Vec<String>,
+    pub names: Option<Vec<String>>,
+    pub provenance: Provenance,
+    pub outcome: Outcome,
+}
+
+#[derive(serde::Serialize, serde::Deserialize)]
+pub enum Outcome {
+    /// A value per observable and, with names, a gradient row per observable.
+    Values { values: Vec<Exact>, jacobian: Option<Vec<Vec<Exact>>> },
+    /// The model's failure, as the local evaluation reports it.
+    Failed(String),
+}
+
+impl Job {
+    /// The file stem of this job and of its result and log: the experiment id (made safe for a
+    /// file name) and a hash of what the result depends on.
+    fn key(&self, id: &str) -> String {
+        let safe: String = id.chars().map(|c| if c.is_ascii_alphanumeric() || "-_.".contains(c) { c } else { '_' }).collect();
+        let what = serde_json::to_string(&(&self.provenance, &self.observables, &self.names)).expect("serialises");
+        format!("{safe}-{}", &provenance::hash(&what)[..16])
+    }
+}
+
+/// `'text'` for bash.
+fn quote(p: &Path) -> String {
+    format!("'{}'", p.display().to_string().replace('\'', "'\\''"))
+}
+
+/// Write `text` to `path` whole or not at all (a job killed mid-write leaves no result).
+fn write_atomic(path: &Path, text: &str) -> Result<(), String> {
+    let tmp = path.with_extension(format!("tmp{}", std::process::id()));
+    std::fs::write(&tmp, text).and_then(|_| std::fs::rename(&tmp, path)).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// The last lines of a log, for an error message; `none` when it is empty or absent.
+fn tail(path: &Path, none: &str) -> String {
+    match std::fs::read_to_string(path) {
+        Ok(t) if !t.trim().is_empty() => {
+            let lines: Vec<&str> = t.trim_end().lines().filter(|l| !l.trim().is_empty()).collect();
+            lines[lines.len().saturating_sub(6)..].iter().map(|l| format!("\n      | {l}")).collect()
+        }
+        _ => format!(" ({none})"),
+    }
+}
+
+impl Scheduler {
+    fn sensitivity(&self, model: &Model, data: &[Observation], exps: &Experiments, names: Option<&[String]>) -> Result<Answer, String> {
+        let wanted = group(data);
+        // each experiment: its answer when known (collected, or the experiment is not in the
+        // file), else the job that computes it
+        let mut answers: Vec<Option<Result<Vec<Valued>, String>>> = Vec::with_capacity(wanted.len());
+        let mut pending: Vec<(usize, String, Job)> = Vec::new();
+        let mut collected = 0;
+        for (k, (id, obs)) in wanted.iter().enumerate() {
+            let x = match find(exps, id) {
+                Ok(x) => x,
+                Err(e) => {
+                    answers.push(Some(Err(e)));
+                    continue;
+                }
+            };
+            let job = self.job(model, exps, x, obs, names)?;
+            let key = job.key(id);
+            let result = self.dir.join("results").join(format!("{key}.json"));
+            if result.exists() {
+                answers.push(Some(read_result(&result, &job, id)?));
+                collected += 1;
+                continue;
+            }
+            let text = serde_json::to_string_pretty(&job).map_err(|e| e.to_string())?;
+            write_atomic(&self.dir.join("jobs").join(format!("{key}.json")), &text)?;
+            answers.push(None);
+            pending.push((k, key, job));
+        }
+        if !pending.is_empty() {
+            self.submit(&wanted, &pending, collected)?;
+            for (k, key, job) in &pending {
+                answers[*k] = Some(read_result(&self.dir.join("results").join(format!("{key}.json")), job, &wanted[*k].0)?);
+            }
+        }
+        let per: Vec<Vec<Valued>> = match answers.into_iter().map(|a| a.expect("every experiment answered")).collect::<Result<_, _>>() {
+            Ok(per) => per,
+            Err(e) => return Ok(Err(e)),
+        };
+        Ok(Ok(sensitivity::assemble(data, &wanted, &per, names)))
+    }
+
+    fn job(&self, model: &Model, exps: &Experiments, x: &Experiment, obs: &[Observable], names: Option<&[String]>) -> Result<Job, String> {
+        Ok(Job {
+            provenance: Provenance::of(model, exps, x),
+            model: model.to_toml(),
+            experiment: toml::to_string(x).map_err(|e| format!("experiment '{}': {e}", x.id))?,
+            // an experiments file named without a folder sits in the current one
+            base_dir: std::path::absolute(Path::new(".").join(&exps.base_dir)).map_err(|e| format!("{}: {e}", exps.base_dir.display()))?,
+            observables: obs.iter().map(Observable::to_string).collect(),
+            names: names.map(<[String]>::to_vec),
+            threads: self.threads,
+        })
+    }
+
+    /// Write a batch of the `pending` jobs and run the scheduler's command on it; every job
+    /// must leave its result, or the error names each one missing with its log.
+    fn submit(&self, wanted: &[(String, Vec<Observable>)], pending: &[(usize, String, Job)], collected: usize) -> Result<(), String> {
+        let batches = self.dir.join("batches");
+        let mut number = 1;
+        let lines_path = loop {
+            let p = batches.join(format!("{number:04}.txt"));
+            match std::fs::OpenOptions::new().write(true).create_new(true).open(&p) {
+                Ok(_) => break p,
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => number += 1,
+                Err(e) => return Err(format!("{}: {e}", p.display())),
+            }
+        };
+        let path = |sub: &str, key: &str, ext: &str| self.dir.join(sub).join(format!("{key}.{ext}"));
+        let mut lines = String::new();
+        for (_, key, _) in pending {
+            lines += &format!("{} evaluate {} --out {} >> {} 2>&1\n", quote(&self.exe), quote(&path("jobs", key, "json")), quote(&path("results", key, "json")), quote(&path("logs", key, "log")));
+        }
+        std::fs::write(&lines_path, &lines).map_err(|e| format!("{}: {e}", lines_path.display()))?;
+        let task = lines_path.with_extension("sh");
+        let script = format!(
+            "#!/bin/bash\n# Job K of batch {number:04}: bash {0} K, or a job array's task (K from the scheduler)\nk=${{1:-${{SLURM_ARRAY_TASK_ID:-${{HQ_TASK_ID:?no task index: give it as the first argument}}}}}}\nsed -n \"${{k}}p\" {1} | bash\n",
+            quote(&task),
+            quote(&lines_path)
+        );
+        std::fs::write(&task, script).map_err(|e| format!("{}: {e}", task.display()))?;
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            std::fs::set_permissions(&task, std::fs::Permissions::from_mode(0o755)).map_err(|e| format!("{}: {e}", task.display()))?;
+        }
+        let command = self.template.replace("{jobs}", &quote(&lines_path)).replace("{task}", &quote(&task)).replace("{n}", &pending.len().to_string()).replace("{dir}", &quote(&self.dir));
+        let log = lines_path.with_extension("log");
+        let out = std::fs::File::create(&log).map_err(|e| format!("{}: {e}", log.display()))?;
+        let err = out.try_clone().map_err(|e| e.to_string())?;
+        eprintln!("engine: batch {number:04}, {} jobs submitted ({collected} collected from earlier runs): {command}", pending.len());
+        let status = std::process::Command::new("bash")
+            .arg("-c")
+            .arg(&command)
+            .stdin(std::process::Stdio::null())
+            .stdout(out)
+            .stderr(err)
+            .status()
+            .map_err(|e| format!("the engine's command could not start ({e}): {command}"))?;
+        let missing: Vec<String> = pending
+            .iter()
+            .filter(|(_, key, _)| !path("results", key, "json").exists())
+            .map(|(k, key, _)| format!("  experiment '{}': no result; job {}, log {}{}", wanted[*k].0, path("jobs", key, "json").display(), path("logs", key, "log").display(), tail(&path("logs", key, "log"), "empty: the job did not start")))
+            .collect();
+        if missing.is_empty() {
+            return Ok(());
+        }
+        Err(format!(
+            "the engine's command {} and {} of {} jobs left no result:\n{}\n  the command: {command}\n  its output: {}{}\nThe results computed are kept in {}: run the same command again to compute only what is missing.",
+            status.code().map_or("was stopped by a signal".to_string(), |c| format!("exited with status {c}")),
+            missing.len(),
+            pending.len(),
+            missing.join("\n"),
+            log.display(),
+            tail(&log, "empty"),
+            self.dir.join("results").display()
+        ))
+    }
+}
+
+/// A result file of `job`, checked against it: the model's answer, or an error naming
+/// experiment `id` and what differs.
+fn read_result(path: &Path, job: &Job, id: &str) -> Result<Result<Vec<Valued>, String>, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("experiment '{id}': {}: {e}", path.display()))?;
+    let c: Computed = serde_json::from_str(&text).map_err(|e| format!("experiment '{id}': {} is not a result of this strand ({e}): delete it to compute it again", path.display()))?;
+    job.provenance.check(&c.provenance, id, path)?;
+    if c.experiment != id || c.observables != job.observables || c.names != job.names {
+        return Err(format!("experiment '{id}': {} holds {} {:?} differentiated in {:?}, the campaign asks {:?} in {:?}: delete it to compute it again", path.display(), c.experiment, c.observables, c.names, job.observables, job.names));
+    }
+    Ok(match c.outcome {
+        Outcome::Failed(e) => Err(e),
+        Outcome::Values { values, jacobian } => {
+            let n = job.observables.len();
+            let rows = jacobian.map(|j| j.iter().map(|r| plain(r)).collect::<Vec<_>>());
+            if values.len() != n || rows.as_ref().is_some_and(|r| r.len() != n) || rows.is_some() != job.names.is_some() {
+                return Err(format!("experiment '{id}': {} holds {} values for {n} observables: delete it to compute it again", path.display(), values.len()));
+            }
+            let values = plain(&values);
+            Ok(match rows {
+                Some(r) => values.into_iter().zip(r).map(|(v, g)| (v, Some(g))).collect(),
+                None => values.into_iter().map(|v| (v, None)).collect(),
+            })
+        }
+    })
+}
+
+/// The model of a job file: exactly the numbers written, without the checks a model file
+/// read by a user gets (a trial model that will not build must fail in the evaluation, as it
+/// does locally, not here).
+fn job_model(text: &str) -> Result<Model, String> {
+    let t: toml::Table = text.parse().map_err(|e| format!("the job's model: {e}"))?;
+    let material = t.get("material").and_then(|m| m.as_table()).cloned().ok_or("the job's model has no [material]")?;
+    let mut model = Model { material, effects: Vec::new(), path: PathBuf::new() };
+    for (name, v) in t.get("effects").and_then(|e| e.as_table()).into_iter().flatten() {
+        let effect = effects::find(name)?;
+        model = model.with_effect(effect);
+        for (k, x) in v.as_table().into_iter().flatten() {
+            let value = super::data::number(x).ok_or_else(|| format!("the job's model: effects.{name}.{k} is not a number"))?;
+            model.set(&format!("{name}.{k}"), value)?;
+        }
+    }
+    Ok(model)
+}
+
+/// `strand evaluate JOB --out RESULT`: compute one planned job and save its result; the line
+/// to print.
+pub fn evaluate(job_path: &Path, out: &Path) -> Result<String, String> {
+    let text = std::fs::read_to_string(job_path).map_err(|e| format!("{}: {e}", job_path.display()))?;
+    let job: Job = serde_json::from_str(&text).map_err(|e| format!("{}: not a job of this strand ({e})", job_path.display()))?;
+    let x: Experiment = toml::from_str(&job.experiment).map_err(|e| format!("{}: the experiment: {}", job_path.display(), e.message()))?;
+    let id = x.id.clone();
+    let exps = Experiments { experiment: vec![x], base_dir: job.base_dir.clone() };
+    let model = job_model(&job.model).map_err(|e| format!("{}: {e}", job_path.display()))?;
+    // the files as they are now must be those the job was planned with
+    Provenance::of(&model, &exps, &exps.experiment[0]).check(&job.provenance, &id, job_path).map_err(|e| format!("{e}: the job was planned with other files or another strand; run the campaign again to plan it anew"))?;
+    let obs: Vec<Observable> = job.observables.iter().map(|o| Observable::parse(o)).collect::<Result<_, _>>()?;
+    let outcome = match sensitivity::one(&model, &exps, &id, &obs, job.names.as_deref(), job.threads) {
+        Ok(per) => Outcome::Values {
+            values: exact(&per.iter().map(|(v, _)| *v).collect::<Vec<_>>()),
+            jacobian: job.names.as_ref().map(|_| per.iter().map(|(_, g)| exact(g.as_deref().unwrap_or_default())).collect()),
+        },
+        Err(e) => Outcome::Failed(e),
+    };
+    let line = match &outcome {
+        Outcome::Values { values, jacobian } => format!("experiment '{id}': {} values{} saved to {}", values.len(), if jacobian.is_some() { " and their gradients" } else { "" }, out.display()),
+        Outcome::Failed(e) => format!("experiment '{id}': the model fails here ({e}); saved as its result to {}", out.display()),
+    };
+    let c = Computed { experiment: id, observables: job.observables, names: job.names, provenance: job.provenance, outcome };
+    write_atomic(out, &serde_json::to_string_pretty(&c).map_err(|e| e.to_string())?)?;
+    Ok(line)
+}
