@@ -11,8 +11,10 @@
 use std::collections::BTreeMap;
 
 pub mod ageing;
+pub mod extrusion_factor;
 pub mod maxwell;
 pub mod modulus;
+pub mod standoff_offset;
 pub mod thixotropy;
 pub mod viscosity_ageing;
 pub mod wall_friction;
@@ -86,6 +88,8 @@ pub const REGISTRY: &[&dyn Effect] = &[
     &maxwell::Maxwell,
     &modulus::Modulus::ELASTICITY,
     &modulus::Modulus::COMPRESSIBILITY,
+    &extrusion_factor::ExtrusionFactor,
+    &standoff_offset::StandoffOffset,
 ];
 
 pub fn find(name: &str) -> Result<&'static dyn Effect, String> {
@@ -114,6 +118,30 @@ pub const BULK_MODULUS: &str = "material.bulk_modulus";
 /// A key an effect may remove (the moduli, to set G and K apart): a material number whose key
 /// is absent is left out of the material the experiment runs with.
 pub const POISSON_RATIO: &str = "material.poisson_ratio";
+
+/// Where `key` lands in a scenario (its TOML document): the floor's friction
+/// ([`wall_friction::KEY`]) on the platform the material is printed on when the scenario has
+/// one, on the `z_min` face otherwise; every other key where it says.
+pub fn placed(key: &str, scenario: &toml::Table) -> String {
+    if key != wall_friction::KEY {
+        return key.to_string();
+    }
+    match wall_friction::on_platform(scenario) {
+        true => wall_friction::PLATFORM_KEY.to_string(),
+        false => wall_friction::Z_MIN_KEY.to_string(),
+    }
+}
+
+/// Whether a process effect setting `print.FIELD` can act on a scenario: it prints, and leaves
+/// the field at the effect's null (`null`), which the effect replaces.
+pub fn check_print_key(scenario: &toml::Table, field: &str, null: f64) -> Result<(), String> {
+    let print = scenario.get("print").ok_or("acts on the printing process, and this scenario prints nothing (no [print])")?;
+    match print.get(field).map(|v| super::data::number(v)) {
+        None => Ok(()),
+        Some(Some(v)) if v == null => Ok(()),
+        Some(v) => Err(format!("needs print.{field} at its null {null}, and the scenario sets {}", v.map_or("a non-number".to_string(), |v| v.to_string()))),
+    }
+}
 
 /// The adjoint of a key (0 when absent).
 pub fn bar(keys_bar: &Keys, key: &str) -> f64 {
