@@ -11,10 +11,9 @@
 use std::collections::BTreeMap;
 
 pub mod ageing;
-pub mod extrusion_factor;
 pub mod maxwell;
 pub mod modulus;
-pub mod standoff_offset;
+pub mod process;
 pub mod thixotropy;
 pub mod viscosity_ageing;
 pub mod wall_friction;
@@ -88,8 +87,8 @@ pub const REGISTRY: &[&dyn Effect] = &[
     &maxwell::Maxwell,
     &modulus::Modulus::ELASTICITY,
     &modulus::Modulus::COMPRESSIBILITY,
-    &extrusion_factor::ExtrusionFactor,
-    &standoff_offset::StandoffOffset,
+    &process::Process::EXTRUSION_FACTOR,
+    &process::Process::STANDOFF_OFFSET,
 ];
 
 pub fn find(name: &str) -> Result<&'static dyn Effect, String> {
@@ -129,17 +128,6 @@ pub fn placed(key: &str, scenario: &toml::Table) -> String {
     match wall_friction::on_platform(scenario) {
         true => wall_friction::PLATFORM_KEY.to_string(),
         false => wall_friction::Z_MIN_KEY.to_string(),
-    }
-}
-
-/// Whether a process effect setting `print.FIELD` can act on a scenario: it prints, and leaves
-/// the field at the effect's null (`null`), which the effect replaces.
-pub fn check_print_key(scenario: &toml::Table, field: &str, null: f64) -> Result<(), String> {
-    let print = scenario.get("print").ok_or("acts on the printing process, and this scenario prints nothing (no [print])")?;
-    match print.get(field).map(|v| super::data::number(v)) {
-        None => Ok(()),
-        Some(Some(v)) if v == null => Ok(()),
-        Some(v) => Err(format!("needs print.{field} at its null {null}, and the scenario sets {}", v.map_or("a non-number".to_string(), |v| v.to_string()))),
     }
 }
 
