@@ -199,8 +199,9 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
         let influence = cols.iter().any(|&c| jz.iter().any(|r| r[c] != 0.0));
         // one-sided: a parameter counts when raising it from its null lowers the loss once the
         // fitted parameters follow (the projected gradient); one whose null lies inside its
-        // bounds (a process effect's factor or offset) counts either way
-        let inside = |c: usize| aug.bounds(&names[c]).is_ok_and(|b| b.lower < aug.get(&names[c]).unwrap_or(b.lower));
+        // bounds (a process effect's factor or offset) and that reaches the data counts either
+        // way (the Maxwell time's null lies inside too, but its column is 0 at the branch's null)
+        let inside = |c: usize| aug.bounds(&names[c]).is_ok_and(|b| b.lower < aug.get(&names[c]).unwrap_or(b.lower)) && jz.iter().any(|r| r[c] != 0.0);
         let kept: Vec<usize> = cols.iter().copied().filter(|&c| inside(c) || project(&column(c)).iter().zip(&zp).map(|(a, b)| a * b).sum::<f64>() < 0.0).collect();
         let r: Vec<Vec<f64>> = kept.iter().map(|&c| project(&column(c))).collect();
         let info: Vec<Vec<f64>> = r.iter().map(|a| r.iter().map(|b| a.iter().zip(b).map(|(x, y)| x * y).sum()).collect()).collect();
