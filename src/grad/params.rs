@@ -19,9 +19,14 @@ pub enum Param {
     /// Coulomb coefficient of the wall on `axis`, `side` (0 = min, 1 = max).
     WallFriction { axis: usize, side: usize },
     PlatformFriction,
-    /// `print.path.<i>.speed`, `.extrusion` or `.duration` (see `print_adjoint.rs`).
+    /// `print.path.<i>.speed`, `.extrusion` or `.duration`, or one of [`WHOLE_TOOLPATH`] (see
+    /// `print_adjoint.rs`).
     Toolpath,
 }
+
+/// Toolpath parameters acting on every move, path or G-code: delivered over commanded flow, and
+/// the nozzle's height offset.
+pub const WHOLE_TOOLPATH: [&str; 2] = ["print.extrusion_factor", "print.z_offset"];
 
 const AXES: [&str; 3] = ["x", "y", "z"];
 const FACES: [[&str; 2]; 3] = [["x_min", "x_max"], ["y_min", "y_max"], ["z_min", "z_max"]];
@@ -54,6 +59,7 @@ pub fn known(sim: &Simulation) -> Vec<String> {
         k.push("boundary.platform.kind.friction.mu".into());
     }
     if let Some(p) = &sim.scenario.print {
+        k.extend(WHOLE_TOOLPATH.iter().map(|f| f.to_string()));
         for (i, seg) in p.path.iter().enumerate() {
             use crate::print::toolpath::Segment;
             let fields: &[&str] = match seg {
@@ -79,7 +85,7 @@ pub fn resolve(sim: &Simulation, key: &str) -> Result<Param, String> {
             (Ok(body), Some(axis)) if body < sim.scenario.bodies.len() => Some(Param::BodyVelocity { body, axis }),
             _ => None,
         },
-        ["print", "path", _, _] => known(sim).iter().any(|k| k == key).then_some(Param::Toolpath),
+        ["print", "path", _, _] | ["print", "extrusion_factor" | "z_offset"] => known(sim).iter().any(|k| k == key).then_some(Param::Toolpath),
         ["boundary", "platform", "kind", "friction", "mu"] => {
             matches!(sim.walls.platform, Some((_, _, WallKind::Friction { .. }))).then_some(Param::PlatformFriction)
         }

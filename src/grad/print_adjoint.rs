@@ -1,6 +1,8 @@
 //! Toolpath parameters: the speed, extrusion speed or pause duration of one toolpath segment
 //! (`print.path.<i>.speed`, `.extrusion`, `.duration`), each constant over its interval (paper 000
-//! sec. 4.2). They reach the simulation two ways, both chained here:
+//! sec. 4.2), and the two acting on the whole toolpath, path or G-code: the extrusion factor
+//! (delivered over commanded flow, `print.extrusion_factor`) and the nozzle's Z offset
+//! (`print.z_offset`). They reach the simulation two ways, both chained here:
 //!
 //! - the nozzle drive of every step: its outlet position (through the smoothed indicator) and the
 //!   velocity it imposes inside the tube;
@@ -16,7 +18,8 @@
 //! points of the outlet lie inside the domain.
 
 use crate::print::emitter::{EmissionPlan, Slab};
-use crate::print::toolpath::{Segment, Toolpath};
+use crate::print::toolpath::Segment;
+use crate::print::PrintConfig;
 use crate::scenario::Scenario;
 use std::sync::Arc;
 
@@ -35,18 +38,30 @@ pub struct PrintParams {
     slabs: [Slab; 3],
 }
 
-/// Which value of segment `index` a key names, and the segment list with it set to `v`.
-fn set(segs: &[Segment], index: usize, field: &str, v: f64) -> Result<Vec<Segment>, String> {
-    let mut segs = segs.to_vec();
-    let seg = segs.get_mut(index).ok_or_else(|| format!("print.path has no segment {index}"))?;
-    match (seg, field) {
-        (Segment::Print { speed, .. } | Segment::Travel { speed, .. }, "speed") => *speed = v,
-        (Segment::Layer { speed, .. }, "speed") => *speed = Some(v),
-        (Segment::Print { extrusion, .. }, "extrusion") => *extrusion = v,
-        (Segment::Pause { duration }, "duration") => *duration = v,
-        (seg, _) => return Err(format!("print.path.{index} is a {} segment without a differentiable '{field}'", seg.kind_name())),
+/// The `[print]` table with the toolpath parameter `key` set to `v`: a segment's value
+/// (`print.path.<i>.<field>`), or one acting on the whole toolpath (`print.extrusion_factor`,
+/// `print.z_offset`).
+fn set(cfg: &PrintConfig, key: &str, v: f64) -> Result<PrintConfig, String> {
+    let mut cfg = cfg.clone();
+    match key {
+        "print.extrusion_factor" => cfg.extrusion_factor = v,
+        "print.z_offset" => cfg.z_offset = v,
+        _ => {
+            let (index, field) = parse_key(key).ok_or_else(|| format!("'{key}' is not print.path.<i>.<speed|extrusion|duration>, print.extrusion_factor or print.z_offset"))?;
+            if cfg.gcode.is_some() {
+                return Err(format!("'{key}': segment parameters are taken on print.path segments, not on G-code"));
+            }
+            let seg = cfg.path.get_mut(index).ok_or_else(|| format!("print.path has no segment {index}"))?;
+            match (seg, field) {
+                (Segment::Print { speed, .. } | Segment::Travel { speed, .. }, "speed") => *speed = v,
+                (Segment::Layer { speed, .. }, "speed") => *speed = Some(v),
+                (Segment::Print { extrusion, .. }, "extrusion") => *extrusion = v,
+                (Segment::Pause { duration }, "duration") => *duration = v,
+                (seg, _) => return Err(format!("print.path.{index} is a {} segment without a differentiable '{field}'", seg.kind_name())),
+            }
+        }
     }
-    Ok(segs)
+    Ok(cfg)
 }
 
 /// Parse `print.path.<i>.<field>`.
@@ -64,16 +79,11 @@ impl PrintParams {
     /// The toolpath parameters among `keys` (others are skipped); `values` are their values.
     pub fn new(sc: &Scenario, base: &EmissionPlan, keys: &[(String, f64)]) -> Result<PrintParams, String> {
         let cfg = sc.print.as_ref().ok_or("toolpath parameters need a [print] table")?;
-        if cfg.gcode.is_some() {
-            return Err("toolpath parameters are taken on print.path segments, not on G-code".into());
-        }
-        let start = cfg.start.unwrap_or_default();
         let mut items = Vec::new();
         for (key, value) in keys {
-            let (index, field) = parse_key(key).ok_or_else(|| format!("'{key}' is not print.path.<i>.<speed|extrusion|duration>"))?;
             let h = REL_STEP * value.abs().max(1e-3);
             let plan = |v: f64| -> Result<EmissionPlan, String> {
-                let tp = Toolpath::from_segments(start, &set(&cfg.path, index, field, v)?).map_err(|e| e.to_string())?;
+                let tp = set(cfg, key, v)?.toolpath(&sc.base_dir)?;
                 Ok(EmissionPlan { toolpath: Arc::new(tp), ..base.clone() })
             };
             items.push(Item { h, plus: plan(value + h)?, minus: plan(value - h)?, bar: 0.0 });

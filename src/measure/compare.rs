@@ -58,7 +58,8 @@ pub fn scenario_text(model: &Model, keys: &Keys, scenario: &Path) -> Result<Stri
         e.check_scenario(&doc).map_err(|m| format!("effect '{}' {m} in {}", e.name(), scenario.display()))?;
     }
     for (k, v) in keys {
-        set_path(&mut doc, k, *v).map_err(|e| format!("set.{k}: {e}"))?;
+        let at = super::effects::placed(k, &doc);
+        set_path(&mut doc, &at, *v).map_err(|e| format!("set.{k}: {e}"))?;
     }
     toml::to_string(&doc).map_err(|e| e.to_string())
 }
@@ -72,7 +73,7 @@ pub fn parse_scenario(text: &str, scenario: &Path) -> Result<Scenario, String> {
 
 /// When (time) and what (objective) a simulation observable is: those of the whole material
 /// (spread, front, vx_max, kinetic_energy, mean_z) may be taken during the run, `@T`; a section's
-/// (width, height, profile, layers), whose `@` is a station, at its end `end`.
+/// (width, height, area, profile, layers), whose `@` is a station, at its end `end`.
 pub fn observable_plan(o: &Observable, end: f64) -> Result<(f64, Objective), String> {
     let second = match o.name.as_str() {
         "profile" => Some("a station and a lateral position: profile@X:Y (metres)"),
@@ -101,6 +102,7 @@ pub fn observable_plan(o: &Observable, end: f64) -> Result<(f64, Objective), Str
         "front" => (o.at.unwrap_or(end), Objective::Front),
         "width" => (end, Objective::Width { stations: vec![station()?] }),
         "height" => (end, Objective::Height { stations: vec![station()?] }),
+        "area" => (end, Objective::Area { stations: vec![station()?] }),
         "profile" => {
             let (station, y) = both()?;
             (end, Objective::Profile { station, y })
@@ -142,8 +144,8 @@ fn simulate(model: &Model, keys: &Keys, scenario: &Path, wanted: &[Observable]) 
     Ok(values)
 }
 
-/// The material of a rheometer experiment (the model's, with its `material.*` keys; walls do not
-/// reach a rheometer) and its protocol.
+/// The material of a rheometer experiment (the model's, with its `material.*` keys; walls and the
+/// printing process do not reach a rheometer) and its protocol.
 pub fn rheometer_setup(model: &Model, keys: &Keys, base: &Path, protocol: &toml::Value) -> Result<(Box<dyn Material>, Protocol), String> {
     let mut mat = model.material_for(keys);
     for (k, v) in keys {
@@ -151,7 +153,7 @@ pub fn rheometer_setup(model: &Model, keys: &Keys, base: &Path, protocol: &toml:
             Some(key) => {
                 mat.insert(key.to_string(), toml::Value::Float(*v));
             }
-            None if k.starts_with("boundary.") => {}
+            None if k.starts_with("boundary.") || k.starts_with("print.") => {}
             None => return Err(format!("set.{k}: a rheometer test takes material keys only")),
         }
     }

@@ -9,7 +9,7 @@
 //! rheo240,stress,10.0,287.0,5.0
 //! ```
 //!
-//! `at` is the station x [m] of a printed-geometry observable, the time [s] of one observed during
+//! `at` is the station x [m] of a printed-geometry observable (`width`, `height`, `area`), the time [s] of one observed during
 //! a run (`spread`, `front`: a slump spread or a flow distance against time; empty for the end), or the shear rate [1/s] of a rheometer reading.
 //! Three printed-geometry observables take a second coordinate after a colon, `X:Y` in the `at`
 //! column as in `name@X:Y`: `profile` the lateral position y [m] of a point of the section's top
@@ -58,7 +58,7 @@ pub struct Observable {
 }
 
 /// Observables a simulation experiment can produce, and those of a rheometer experiment.
-pub const SIMULATION_OBSERVABLES: &[&str] = &["spread", "front", "width", "height", "profile", "layer_height", "layer_width", "vx_max", "kinetic_energy", "mean_z"];
+pub const SIMULATION_OBSERVABLES: &[&str] = &["spread", "front", "width", "height", "area", "profile", "layer_height", "layer_width", "vx_max", "kinetic_energy", "mean_z"];
 pub const RHEOMETER_OBSERVABLES: &[&str] = &["stress"];
 
 /// `X` or `X:Y`, finite numbers, as the `at` of an observable; the error says what is wrong.

@@ -7,9 +7,11 @@
 //!    J_e their Jacobians in the fitted and the effect's parameters, and R = (I - P_f) J_e the
 //!    effect's columns with what the fitted parameters already explain projected out, the score
 //!    is S = z^T R (R^T R)^+ R^T z, chi^2-distributed with rank(R) degrees of freedom when the
-//!    effect is absent. An effect's parameters start at their lower bound, so only those whose
-//!    projected gradient points into the allowed side count, and with one such parameter the
-//!    p-value is half chi^2(1)'s tail (S is 0 half the time under the null).
+//!    effect is absent. A material effect's parameters start at their lower bound, so only those
+//!    whose projected gradient points into the allowed side count, and with one such parameter
+//!    the p-value is half chi^2(1)'s tail (S is 0 half the time under the null); a process
+//!    effect's null (an extrusion factor of 1, a standoff offset of 0) lies inside its bounds, so
+//!    its parameters count whichever way the gradient points, with the full tail.
 //!    An effect whose null lies at infinity, where no finite parameter puts it and the loss has
 //!    no gradient (elasticity, compressibility: G or K = infinity, where the explicit step goes
 //!    to 0; wall friction: mu = infinity, a floor that sticks), is fitted with the base
@@ -195,8 +197,11 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
         let column = |c: usize| -> Vec<f64> { jz.iter().map(|r| r[c]).collect() };
         let influence = cols.iter().any(|&c| jz.iter().any(|r| r[c] != 0.0));
         // one-sided: a parameter counts when raising it from its null lowers the loss once the
-        // fitted parameters follow (the projected gradient)
-        let kept: Vec<usize> = cols.iter().copied().filter(|&c| project(&column(c)).iter().zip(&zp).map(|(a, b)| a * b).sum::<f64>() < 0.0).collect();
+        // fitted parameters follow (the projected gradient); one whose null lies inside its
+        // bounds (a process effect's factor or offset) and that reaches the data counts either
+        // way (the Maxwell time's null lies inside too, but its column is 0 at the branch's null)
+        let inside = |c: usize| aug.bounds(&names[c]).is_ok_and(|b| b.lower < aug.get(&names[c]).unwrap_or(b.lower)) && jz.iter().any(|r| r[c] != 0.0);
+        let kept: Vec<usize> = cols.iter().copied().filter(|&c| inside(c) || project(&column(c)).iter().zip(&zp).map(|(a, b)| a * b).sum::<f64>() < 0.0).collect();
         let r: Vec<Vec<f64>> = kept.iter().map(|&c| project(&column(c))).collect();
         let info: Vec<Vec<f64>> = r.iter().map(|a| r.iter().map(|b| a.iter().zip(b).map(|(x, y)| x * y).sum()).collect()).collect();
         let g: Vec<f64> = r.iter().map(|a| a.iter().zip(&zp).map(|(x, y)| x * y).sum()).collect();
@@ -205,7 +210,8 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
         let (inv, rank) = if kept.is_empty() { (vec![], 0) } else { pinv_sym(&info, 1e-10) };
         let left = info.iter().enumerate().map(|(i, row)| row[i]).fold(0.0, f64::max);
         let (score, dof) = if rank == 0 || left <= 1e-10 * raw { (0.0, 0) } else { (g.iter().enumerate().map(|(i, gi)| gi * inv[i].iter().zip(&g).map(|(a, b)| a * b).sum::<f64>()).sum(), rank) };
-        let p_value = p_value(score, dof);
+        // a null inside the bounds is a two-sided test: the full chi^2 tail
+        let p_value = if dof > 0 && kept.iter().any(|&c| inside(c)) { chi2_sf(score, dof) } else { p_value(score, dof) };
         let verdict = if !influence {
             "no influence on these experiments".to_string()
         } else if dof == 0 && !kept.is_empty() {

@@ -63,12 +63,15 @@ fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obser
             let text = scenario_text(model, &keys, &path)?;
             let whole = parse_scenario(&text, &path)?;
             let end = whole.simulation.end_time;
-            let wrt: Vec<String> = match names {
+            // each model key with the scenario key it landed on (the floor's friction on the
+            // platform or the z_min face)
+            let (wrt, placed): (Vec<String>, Vec<String>) = match names {
                 Some(_) => {
                     let known = params::known(&driver::prepare(&whole, threads)?);
-                    keys.keys().filter(|k| known.contains(k) && !x.set.contains_key(*k)).cloned().collect()
+                    let doc: toml::Table = text.parse().map_err(|e| format!("{e}"))?;
+                    keys.keys().filter(|k| !x.set.contains_key(*k)).map(|k| (k.clone(), super::effects::placed(k, &doc))).filter(|(_, p)| known.contains(p)).unzip()
                 }
-                None => Vec::new(),
+                None => (Vec::new(), Vec::new()),
             };
             wanted
                 .iter()
@@ -81,7 +84,7 @@ fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obser
                         return Ok((driver::forward_value(&sc, &obj, threads, steps)?, None));
                     }
                     let opts = GradOptions { ram_bytes: 2 << 30, disk_bytes: 0, disk_dir: std::env::temp_dir(), threads, schedule: None, until_rest: None };
-                    let r = driver::gradient(&sc, &obj, &wrt, &opts)?;
+                    let r = driver::gradient(&sc, &obj, &placed, &opts)?;
                     Ok((r.value, Some(chain(wrt.iter().cloned().zip(r.gradient).collect())?)))
                 })
                 .collect()

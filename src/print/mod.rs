@@ -58,6 +58,14 @@ pub struct PrintConfig {
     pub gcode: Option<PathBuf>,
     #[serde(default)]
     pub gcode_options: gcode::GcodeOptions,
+    /// Delivered over commanded flow: every print move's extrusion speed is this times the
+    /// toolpath's (a pump or a flow multiplier off by some percent); default 1.
+    #[serde(default = "one")]
+    pub extrusion_factor: f64,
+    /// Added to the nozzle's height all along the toolpath [m] (a Z offset: the standoff the
+    /// printer really holds against the one commanded); default 0.
+    #[serde(default)]
+    pub z_offset: f64,
     /// Slab buffers the emitter may prepare ahead of the stepper.
     #[serde(default = "default_queue")]
     pub queue: usize,
@@ -65,6 +73,9 @@ pub struct PrintConfig {
 
 fn default_ppc() -> u32 {
     2
+}
+fn one() -> f64 {
+    1.0
 }
 fn default_queue() -> usize {
     64
@@ -111,19 +122,41 @@ impl PrintConfig {
         if self.queue == 0 {
             return Err("print.queue must be >= 1".into());
         }
+        if !(self.extrusion_factor.is_finite() && self.extrusion_factor > 0.0) {
+            return Err(format!("print.extrusion_factor must be finite and > 0, got {}", self.extrusion_factor));
+        }
+        if !self.z_offset.is_finite() {
+            return Err(format!("print.z_offset must be finite, got {}", self.z_offset));
+        }
         Ok(())
     }
 
-    /// Build the toolpath (reading the G-code file relative to `base_dir`).
+    /// Build the toolpath (reading the G-code file relative to `base_dir`), with the extrusion
+    /// factor and the Z offset applied.
     pub fn toolpath(&self, base_dir: &Path) -> Result<Toolpath, String> {
-        match &self.gcode {
+        let commanded = match &self.gcode {
             Some(file) => {
                 let path = base_dir.join(file);
                 let text = std::fs::read_to_string(&path).map_err(|e| format!("print.gcode {}: {e}", path.display()))?;
-                gcode::parse_gcode(&text, &self.gcode_options).map_err(|e| format!("{}: {e}", path.display()))
+                gcode::parse_gcode(&text, &self.gcode_options).map_err(|e| format!("{}: {e}", path.display()))?
             }
-            None => Toolpath::from_segments(self.start.unwrap_or_default(), &self.path).map_err(|e| e.to_string()),
+            None => Toolpath::from_segments(self.start.unwrap_or_default(), &self.path).map_err(|e| e.to_string())?,
+        };
+        if self.extrusion_factor == 1.0 && self.z_offset == 0.0 {
+            return Ok(commanded);
         }
+        let delivered = commanded
+            .moves()
+            .iter()
+            .map(|m| {
+                let shift = |mut p: [f64; 3]| {
+                    p[2] += self.z_offset;
+                    p
+                };
+                toolpath::Move { from: shift(m.from), to: shift(m.to), extrusion_speed: self.extrusion_factor * m.extrusion_speed, ..m.clone() }
+            })
+            .collect();
+        Toolpath::from_moves(delivered).map_err(|e| e.to_string())
     }
 }
 

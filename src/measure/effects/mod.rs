@@ -13,6 +13,7 @@ use std::collections::BTreeMap;
 pub mod ageing;
 pub mod maxwell;
 pub mod modulus;
+pub mod process;
 pub mod thixotropy;
 pub mod viscosity_ageing;
 pub mod wall_friction;
@@ -86,6 +87,8 @@ pub const REGISTRY: &[&dyn Effect] = &[
     &maxwell::Maxwell,
     &modulus::Modulus::ELASTICITY,
     &modulus::Modulus::COMPRESSIBILITY,
+    &process::Process::EXTRUSION_FACTOR,
+    &process::Process::STANDOFF_OFFSET,
 ];
 
 pub fn find(name: &str) -> Result<&'static dyn Effect, String> {
@@ -114,6 +117,19 @@ pub const BULK_MODULUS: &str = "material.bulk_modulus";
 /// A key an effect may remove (the moduli, to set G and K apart): a material number whose key
 /// is absent is left out of the material the experiment runs with.
 pub const POISSON_RATIO: &str = "material.poisson_ratio";
+
+/// Where `key` lands in a scenario (its TOML document): the floor's friction
+/// ([`wall_friction::KEY`]) on the platform the material is printed on when the scenario has
+/// one, on the `z_min` face otherwise; every other key where it says.
+pub fn placed(key: &str, scenario: &toml::Table) -> String {
+    if key != wall_friction::KEY {
+        return key.to_string();
+    }
+    match wall_friction::on_platform(scenario) {
+        true => wall_friction::PLATFORM_KEY.to_string(),
+        false => wall_friction::Z_MIN_KEY.to_string(),
+    }
+}
 
 /// The adjoint of a key (0 when absent).
 pub fn bar(keys_bar: &Keys, key: &str) -> f64 {
