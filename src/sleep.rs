@@ -29,8 +29,8 @@
 //! Why on by default for multi-layer prints: under the speed rule alone, a layer asleep under a
 //! stack that grows slowly enough never sees fast material next to it, and stays frozen while the
 //! weight above passes its yield stress; the print would stand where it collapses awake. The load
-//! test wakes it when the added load passes its margin, so sleeping never hides a plastic
-//! collapse (tests/print.rs prints a wall to failure with and without sleeping; the cost against
+//! test wakes it when the added load approaches its margin (`load_fraction`, half by default),
+//! so sleeping does not hide a plastic collapse (tests/print.rs prints a wall to failure with and without sleeping; the cost against
 //! the speed rule is in BENCHMARKS.md "Printing to failure").
 //!
 //! Material arriving faster than `arrive_speed` still wakes the units under it, and keeps them
@@ -179,11 +179,16 @@ fn default_load_time() -> f64 {
     0.02
 }
 fn default_load_fraction() -> f64 {
-    // Half (0.5) was the default while the layer below was held still under the nozzle: waking
-    // it sooner then kept the new layer from spreading over it (+0.37 % width against +1.6 %,
-    // the dwell print at 2.5 mm). With `arrive_speed` that layer is awake under the nozzle and the
-    // whole margin is as close to the speed rule (-0.05 %; BENCHMARKS.md "Sleeping").
-    1.0
+    // Half: a unit wakes when the load added since it fell asleep approaches its margin to
+    // yield, so sleeping never holds up a collapse. Measured on the tiny wall of tests/print.rs
+    // (6 mm layers, tau0 = 100 Pa, 5 mm cells), failure layer and time: all awake 5 at 7.06 s;
+    // the speed rule alone 5 at 6.96 s; wake on load with the whole margin (1.0) 6 at 8.44 s, a
+    // layer late; with half of it 5 at 6.96 s, and the fewest awake particle-steps of the four
+    // (BENCHMARKS.md "Printing to failure"). Half was once the default while the layer below was
+    // held still under the nozzle, where waking it sooner kept the new layer from spreading over
+    // it (+0.37 % width against the speed rule on the dwell print at 2.5 mm); `arrive_speed` now
+    // keeps that layer awake under the nozzle.
+    0.5
 }
 fn default_arrive_speed() -> f64 {
     // Between the new layer's settling behind the nozzle (a few mm/s, falling) and material
@@ -1087,7 +1092,7 @@ mod tests {
     fn the_load_keys_parse_with_their_defaults_and_validate() {
         let cfg: SleepConfig = toml::from_str("").unwrap();
         assert_eq!(cfg.wake_by_load, None, "the scenario resolves it from its layers");
-        assert_eq!((cfg.load_time, cfg.load_floor, cfg.load_fraction, cfg.arrive_speed), (0.02, 20.0, 1.0, 0.01));
+        assert_eq!((cfg.load_time, cfg.load_floor, cfg.load_fraction, cfg.arrive_speed), (0.02, 20.0, 0.5, 0.01));
         assert!(cfg.validate().is_ok());
         assert!(cfg.tests_loads([0.0, 0.0, -9.81]), "unresolved, the safe side");
         let off: SleepConfig = toml::from_str("wake_by_load = false").unwrap();

@@ -293,7 +293,8 @@ fn interval_emission_and_the_hard_indicator_deliver_the_same_mass() {
 }
 
 /// The tiny print as a wall of `layers` 6 mm layers on half the domain, of a mortar too weak to
-/// stand more than a few (`yield_stress` Pa, no build-up), that ends 0.5 s after it fails;
+/// stand more than a few (`yield_stress` Pa, no build-up; 100 Pa fails in layer 5), that ends
+/// 0.5 s after it fails;
 /// outputs every 20 ms, so the failure time is resolved well within a tenth of a layer period
 /// (1.47 s). `sleep`: the `[sleep]` table's lines, or None for all awake.
 fn tiny_wall(layers: usize, yield_stress: f64, sleep: Option<&str>) -> String {
@@ -321,14 +322,15 @@ fn failure_of(text: &str) -> (strand::failure::Failure, u64) {
     (f, r.awake_particle_steps)
 }
 
-/// Sleeping never hides a collapse: a wall too weak to stand fails at the same layer, within a
-/// tenth of a layer period, all awake and sleeping with the default wake test (on load, for a
-/// multi-layer print). The speed rule alone (`wake_by_load = false`) is run too, for the record.
+/// Sleeping does not hide a collapse: a wall too weak to stand fails at the same layer, within a
+/// tenth of a layer period, all awake and sleeping with the default wake test (on load at half the
+/// margin, for a multi-layer print). With the whole margin it failed a layer late (BENCHMARKS.md
+/// "Printing to failure").
 #[test]
 fn a_failing_wall_fails_at_the_same_layer_asleep_and_awake() {
     let period = 0.05 / 0.04 + 0.1 + 0.12;
-    let awake = std::thread::spawn(|| failure_of(&tiny_wall(6, 120.0, None)));
-    let (asleep, steps_asleep) = failure_of(&tiny_wall(6, 120.0, Some("rest_time = 0.02\ncheck_interval = 16")));
+    let awake = std::thread::spawn(|| failure_of(&tiny_wall(5, 100.0, None)));
+    let (asleep, steps_asleep) = failure_of(&tiny_wall(5, 100.0, Some("rest_time = 0.02\ncheck_interval = 16")));
     let (awake, steps_awake) = awake.join().unwrap();
     eprintln!("all awake: {awake:?} ({steps_awake} awake particle-steps); sleeping: {asleep:?} ({steps_asleep})");
     assert!(awake.layer >= 2, "the wall should stand one layer at least: {awake:?}");
