@@ -2,7 +2,7 @@
 CARGO ?= cargo
 OUT ?= out
 
-.PHONY: run test verify verify-quick bench bench-peer bench-restart bench-kernels bench-case1 bench-layers bench-layers-dwell build fmt clippy clean
+.PHONY: run test verify verify-quick bench bench-peer bench-restart bench-kernels bench-case1 bench-layers bench-layers-dwell bench-failure build fmt clippy clean
 
 build:
 	$(CARGO) build --release
@@ -61,6 +61,13 @@ bench-layers: build
 bench-layers-dwell: build
 	./target/release/strand run fixtures/scenarios/print/ten_layers_dwell.toml --out $(OUT)/ten_layers_dwell --quiet
 	python3 bench/layer_cost.py --pause 20 $(OUT)/ten_layers_dwell
+
+# Printing to failure: the wall of fixtures/scenarios/print/wall_to_failure.toml at three build
+# rates, with its failure layers against the closed-form plastic-collapse criterion, and at the
+# fastest rate side by side with the old sleeping default (the speed rule) and all awake
+# (BENCHMARKS.md "Printing to failure"; five single-thread runs at once).
+bench-failure: build
+	python3 bench/failure_heights.py --strand ./target/release/strand --out $(OUT)/failure --side-by-side
 
 clippy:
 	$(CARGO) clippy --workspace --all-targets

@@ -15,6 +15,7 @@ pub mod bench;
 pub mod checkpoint;
 pub mod coarsen;
 pub mod disk;
+pub mod failure;
 pub mod grad;
 pub mod grid;
 pub mod materials;

@@ -327,6 +327,8 @@ fn main() -> ExitCode {
                     "last_checkpoint": r.last_checkpoint,
                     "phase_seconds": strand::solver::PHASES.iter().zip(r.phase_seconds).map(|(k, v)| (k.to_string(), v)).collect::<std::collections::BTreeMap<_, _>>(),
                     "last_observation": r.observations.last(),
+                    "failure": r.failure,
+                    "awake_particle_steps": r.awake_particle_steps,
                 });
                 println!("{summary:#}");
             }

@@ -27,6 +27,10 @@ pub struct ObserveConfig {
     /// wall): observables see the material together with its mirror image.
     #[serde(default)]
     pub mirror_y: Option<f64>,
+    /// Failure detection of a multi-layer print (`failure.rs`): on whenever a print of two or
+    /// more layers has stations; this table sets its threshold and can end the run after it.
+    #[serde(default)]
+    pub failure: FailureConfig,
 }
 
 impl ObserveConfig {
@@ -39,10 +43,11 @@ impl ObserveConfig {
                 return Err(format!("observe.slab must be > 0, got {s}"));
             }
         }
-        Ok(())
+        self.failure.validate()
     }
 }
 
+use crate::failure::{Detector, Failure, FailureConfig};
 use crate::observe::{self, Cloud, CrossSection, SECTION_CSV_HEADER};
 use crate::output::plot::plot_cross_section;
 use crate::scenario::Scenario;
@@ -78,6 +83,9 @@ pub struct Reporter {
     vol: Vec<f64>,
     /// Every observation so far (profiles are small: one point per particle column).
     pub history: Vec<Observation>,
+    detector: Option<Detector>,
+    /// The print's failure, once the history shows it.
+    pub failure: Option<Failure>,
 }
 
 impl Reporter {
@@ -100,6 +108,10 @@ impl Reporter {
             None => None,
         };
         let cap = sim.particles.capacity() * if cfg.mirror_y.is_some() { 2 } else { 1 };
+        let detector = match &sim.printer {
+            Some(p) if !cfg.stations.is_empty() => Detector::new(&cfg.failure, p.toolpath.clone(), p.shape.half_extent()[0]),
+            _ => None,
+        };
         Ok(Some(Reporter {
             slab: cfg.slab.unwrap_or(dx),
             cfg,
@@ -110,7 +122,23 @@ impl Reporter {
             pos: Vec::with_capacity(cap),
             vol: Vec::with_capacity(cap),
             history: Vec::new(),
+            detector,
+            failure: None,
         }))
+    }
+
+    /// Find the failure in the history (after a resume replaced it, or a new observation).
+    pub fn detect_failure(&mut self) {
+        if self.failure.is_none() {
+            if let Some(d) = &self.detector {
+                self.failure = d.detect(&self.history, |o| (o.time, &o.sections[..]));
+            }
+        }
+    }
+
+    /// Time at which the run should end after its failure (`[observe] failure.stop_after`).
+    pub fn stop_time(&self) -> Option<f64> {
+        Some(self.failure?.time + self.cfg.failure.stop_after?)
     }
 
     /// Observe the current state.
@@ -144,6 +172,7 @@ impl Reporter {
         let spread = self.cfg.spread.then(|| observe::slump_spread(&cloud, self.base_z, 2.0 * self.spacing));
         let total_height = observe::total_height(&cloud, self.base_z);
         self.history.push(Observation { time: sim.time, sections, layers, total_height, spread });
+        self.detect_failure();
         self.history.last().expect("just pushed")
     }
 
@@ -174,11 +203,17 @@ impl Reporter {
         }
         let path = dir.join("layers.csv");
         let mut f = std::io::BufWriter::new(std::fs::File::create(&path).map_err(io(&path))?);
-        writeln!(f, "time,station,layer,thickness,total_height").map_err(io(&path))?;
+        // failure_layer (1 = the first) and failure_time on the rows from the failure time on,
+        // empty before it and when the print stands
+        writeln!(f, "time,station,layer,thickness,total_height,failure_layer,failure_time").map_err(io(&path))?;
         for o in &self.history {
+            let failed = match self.failure {
+                Some(fl) if fl.time <= o.time => format!("{},{:.9e}", fl.layer, fl.time),
+                _ => ",".to_string(),
+            };
             for (k, st) in self.cfg.stations.iter().enumerate() {
                 for (l, th) in o.layers.get(k).map(|v| v.as_slice()).unwrap_or(&[]).iter().enumerate() {
-                    writeln!(f, "{:.9e},{st},{l},{th:.9e},{:.9e}", o.time, o.total_height).map_err(io(&path))?;
+                    writeln!(f, "{:.9e},{st},{l},{th:.9e},{:.9e},{failed}", o.time, o.total_height).map_err(io(&path))?;
                 }
             }
         }

@@ -230,6 +230,8 @@ pub struct RunSummary {
     pub resumed_from: Option<PathBuf>,
     /// The newest checkpoint written (the final one when `[checkpoint] at_end`).
     pub last_checkpoint: Option<PathBuf>,
+    /// The print's failure (`failure.rs`), when it failed.
+    pub failure: Option<crate::failure::Failure>,
 }
 
 /// The run's output files and what a resumed run needs to continue them.
@@ -561,6 +563,7 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
     let mut reporter = Reporter::new(&sc, &sim).map_err(RunError::Report)?;
     if let Some(r) = &mut reporter {
         r.history = std::mem::take(&mut progress.observations);
+        r.detect_failure();
     }
     let staging_bytes = sim.checkpoint_staging_bytes();
     let disk_guard = match &sc.output.disk_budget {
@@ -613,7 +616,7 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
     if resumed_from.is_none() {
         outputs.write(&sim)?;
     }
-    let end = sc.simulation.end_time;
+    let mut end = sc.simulation.end_time;
     let interval = sc.output.interval;
     let first_step = sim.step;
     let est_steps = ((end - sim.time) / dt0).ceil().max(1.0) as u64;
@@ -724,6 +727,14 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
             }
             return Err(stopped(e, &ckpts));
         }
+        // `[observe] failure.stop_after`: this output ends the run once that time after the
+        // print's failure has passed
+        if let Some(stop) = outputs.reporter.as_ref().and_then(|r| r.stop_time()) {
+            if sim.time >= stop * (1.0 - 1e-12) && sim.time < end {
+                say(format!("the print has failed; the run ends stop_after later, at t = {:.4} s", sim.time));
+                end = sim.time;
+            }
+        }
         let last = sim.time >= end * (1.0 - 1e-12);
         if let Some(ck) = &mut ckpts {
             if !(last && sc.checkpoint.at_end) {
@@ -743,6 +754,17 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
         }
     }
     let wall = start.elapsed().as_secs_f64();
+    let failure = outputs.reporter.as_ref().and_then(|r| r.failure);
+    if let Some(f) = failure {
+        say(format!(
+            "the print failed in layer {} at t = {:.3} s (nominal height {:.1} mm; top at x = {} m sinking faster than {:.2} mm/s)",
+            f.layer,
+            f.time,
+            f.height * 1e3,
+            f.station,
+            f.sink_rate * 1e3
+        ));
+    }
     say(format!(
         "done: {} steps to t = {:.4} s in {:.1} s ({:.0} steps/s), {} particles{}, peak memory {}; output in {}",
         sim.step,
@@ -765,6 +787,7 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
         state_hash: state::current_state_hash(&sim),
         resumed_from,
         last_checkpoint: ckpts.and_then(|c| c.last_good.map(|g| g.0)),
+        failure,
     })
 }
 

@@ -291,20 +291,40 @@ pub enum ScenarioError {
 impl Scenario {
     pub fn load(path: &Path) -> Result<Scenario, ScenarioError> {
         let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Io { path: path.into(), source })?;
-        let mut sc = Scenario::parse(&text).map_err(|e| match e {
+        let mut sc = Scenario::parse_as_written(&text).map_err(|e| match e {
             ScenarioError::Parse { message, .. } => ScenarioError::Parse { path: path.into(), message },
             other => other,
         })?;
         sc.base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        sc.resolve_defaults();
         Ok(sc)
     }
 
+    /// A scenario from its text; files it names (a G-code toolpath) are relative to the working
+    /// directory.
     pub fn parse(text: &str) -> Result<Scenario, ScenarioError> {
+        let mut sc = Scenario::parse_as_written(text)?;
+        sc.resolve_defaults();
+        Ok(sc)
+    }
+
+    fn parse_as_written(text: &str) -> Result<Scenario, ScenarioError> {
         let mut sc: Scenario =
             toml::from_str(text).map_err(|e| ScenarioError::Parse { path: PathBuf::from("<text>"), message: e.to_string() })?;
         sc.validate()?;
         sc.source = text.to_string();
         Ok(sc)
+    }
+
+    /// Defaults that depend on the rest of the scenario: `[sleep] wake_by_load` is on for prints
+    /// of two or more layers (a toolpath that does not load yet counts as two: the safe side),
+    /// off otherwise (`sleep.rs`).
+    fn resolve_defaults(&mut self) {
+        let Some(z) = &mut self.sleep else { return };
+        if z.wake_by_load.is_none() {
+            let layers = self.print.as_ref().map_or(0, |p| p.toolpath(&self.base_dir).map_or(2, |t| t.layers().len()));
+            z.wake_by_load = Some(layers >= 2);
+        }
     }
 
     /// Value checks serde cannot express; each message names the key.

@@ -12,7 +12,8 @@
 //! the nozzle; a still tube holds its nodes at rest, as a sleeping unit does). That speed rule is
 //! the default.
 //!
-//! The wake test on load (`wake_by_load`, off by default). Material arriving above a sleeping
+//! The wake test on load (`wake_by_load`; on by default for prints of two or more layers, off
+//! otherwise). Material arriving above a sleeping
 //! unit then wakes it by its load, not its speed, and moving material above a unit no longer
 //! keeps it from falling asleep; the speed of material beside or below a unit still wakes it (a
 //! load test cannot see material sliding past or giving way under it). Why: under the speed rule
@@ -23,6 +24,14 @@
 //! (real layer times, dwells): material that just stopped flowing rests at its yield stress and
 //! the next layer's weight makes it yield, so on a print with short layer times the load rule
 //! costs as much as the speed rule (measured on ten layers at 5 mm, BENCHMARKS.md).
+//!
+//!
+//! Why on by default for multi-layer prints: under the speed rule alone, a layer asleep under a
+//! stack that grows slowly enough never sees fast material next to it, and stays frozen while the
+//! weight above passes its yield stress; the print would stand where it collapses awake. The load
+//! test wakes it when the added load approaches its margin (`load_fraction`, half by default),
+//! so sleeping does not hide a plastic collapse (tests/print.rs prints a wall to failure with and without sleeping; the cost against
+//! the speed rule is in BENCHMARKS.md "Printing to failure").
 //!
 //! Material arriving faster than `arrive_speed` still wakes the units under it, and keeps them
 //! awake, by its speed. Why: the nozzle squeezes the material it lays down, and the layer below
@@ -96,12 +105,12 @@ pub struct SleepConfig {
     #[serde(default = "default_check")]
     pub check_interval: u64,
     /// Material above a sleeping unit wakes it by its load, not its speed: when the load can
-    /// make the unit yield (module notes). Use it for prints whose lower layers have built up
-    /// strength by the time the next layer arrives (real layer times, dwells between layers).
-    /// Off (the default), the speed rule alone decides. It needs gravity along an axis (the
-    /// test must know which way is down) and does nothing otherwise.
+    /// make the unit yield (module notes). Default: on for prints of two or more layers, where
+    /// a layer asleep under a growing stack must wake before it yields (`Scenario` resolves it
+    /// from the toolpath), off otherwise; off, the speed rule alone decides. It needs gravity
+    /// along an axis (the test must know which way is down) and does nothing otherwise.
     #[serde(default)]
-    pub wake_by_load: bool,
+    pub wake_by_load: Option<bool>,
     /// Time over which the load on a sleeping unit is averaged [s] (with `wake_by_load`).
     #[serde(default = "default_load_time")]
     pub load_time: f64,
@@ -170,11 +179,16 @@ fn default_load_time() -> f64 {
     0.02
 }
 fn default_load_fraction() -> f64 {
-    // Half (0.5) was the default while the layer below was held still under the nozzle: waking
-    // it sooner then kept the new layer from spreading over it (+0.37 % width against +1.6 %,
-    // the dwell print at 2.5 mm). With `arrive_speed` that layer is awake under the nozzle and the
-    // whole margin is as close to the speed rule (-0.05 %; BENCHMARKS.md "Sleeping").
-    1.0
+    // Half: a unit wakes when the load added since it fell asleep approaches its margin to
+    // yield, so sleeping never holds up a collapse. Measured on the tiny wall of tests/print.rs
+    // (6 mm layers, tau0 = 100 Pa, 5 mm cells), failure layer and time: all awake 5 at 7.06 s;
+    // the speed rule alone 5 at 6.96 s; wake on load with the whole margin (1.0) 6 at 8.44 s, a
+    // layer late; with half of it 5 at 6.96 s, and the fewest awake particle-steps of the four
+    // (BENCHMARKS.md "Printing to failure"). Half was once the default while the layer below was
+    // held still under the nozzle, where waking it sooner kept the new layer from spreading over
+    // it (+0.37 % width against the speed rule on the dwell print at 2.5 mm); `arrive_speed` now
+    // keeps that layer awake under the nozzle.
+    0.5
 }
 fn default_arrive_speed() -> f64 {
     // Between the new layer's settling behind the nozzle (a few mm/s, falling) and material
@@ -236,7 +250,7 @@ impl SleepConfig {
     fn down(&self, gravity: [f64; 3]) -> Option<(usize, i32)> {
         let mut axes = (0..3).filter(|&a| gravity[a] != 0.0);
         match (axes.next(), axes.next()) {
-            (Some(a), None) if self.wake_by_load => Some((a, gravity[a].signum() as i32)),
+            (Some(a), None) if self.wake_by_load.unwrap_or(true) => Some((a, gravity[a].signum() as i32)),
             _ => None,
         }
     }
@@ -1077,12 +1091,14 @@ mod tests {
     #[test]
     fn the_load_keys_parse_with_their_defaults_and_validate() {
         let cfg: SleepConfig = toml::from_str("").unwrap();
-        assert!(!cfg.wake_by_load, "the load test is opt-in");
-        assert_eq!((cfg.load_time, cfg.load_floor, cfg.load_fraction, cfg.arrive_speed), (0.02, 20.0, 1.0, 0.01));
+        assert_eq!(cfg.wake_by_load, None, "the scenario resolves it from its layers");
+        assert_eq!((cfg.load_time, cfg.load_floor, cfg.load_fraction, cfg.arrive_speed), (0.02, 20.0, 0.5, 0.01));
         assert!(cfg.validate().is_ok());
-        assert!(!cfg.tests_loads([0.0, 0.0, -9.81]));
+        assert!(cfg.tests_loads([0.0, 0.0, -9.81]), "unresolved, the safe side");
+        let off: SleepConfig = toml::from_str("wake_by_load = false").unwrap();
+        assert!(!off.tests_loads([0.0, 0.0, -9.81]));
         let on: SleepConfig = toml::from_str("wake_by_load = true\nload_floor = 5.0\nload_time = 0.01").unwrap();
-        assert!(on.wake_by_load && on.load_floor == 5.0 && on.load_time == 0.01);
+        assert!(on.wake_by_load == Some(true) && on.load_floor == 5.0 && on.load_time == 0.01);
         assert!(on.validate().is_ok());
         assert!(on.tests_loads([0.0, 0.0, -9.81]) && on.tests_loads([9.81, 0.0, 0.0]));
         assert!(!on.tests_loads([0.0, 1.0, -9.81]) && !on.tests_loads([0.0; 3]), "no axis is down");
