@@ -55,7 +55,7 @@ fn assert_found(v: &serde_json::Value, effect: &str) {
     let c = v["candidates"].as_array().unwrap();
     // every effect of the library that is not in the model is a candidate, with the test it
     // got, its statistic, the error when fitted (null when not) and a verdict
-    assert_eq!(c.len(), 8, "{v:#}");
+    assert_eq!(c.len(), 9, "{v:#}");
     for x in c {
         assert!(x["score"].is_number() && x.get("fitted_chi2").is_some() && x["verdict"].is_string(), "{x:#}");
         let test = if ["elasticity", "compressibility", "wall_friction"].iter().any(|e| x["effect"] == *e) { "likelihood-ratio" } else { "score" };

@@ -13,6 +13,7 @@ use std::collections::BTreeMap;
 pub mod ageing;
 pub mod maxwell;
 pub mod modulus;
+pub mod shear_thinning;
 pub mod thixotropy;
 pub mod viscosity_ageing;
 pub mod wall_friction;
@@ -84,6 +85,7 @@ pub const REGISTRY: &[&dyn Effect] = &[
     &viscosity_ageing::ViscosityAgeing,
     &wall_friction::WallFriction,
     &maxwell::Maxwell,
+    &shear_thinning::ShearThinning,
     &modulus::Modulus::ELASTICITY,
     &modulus::Modulus::COMPRESSIBILITY,
 ];
