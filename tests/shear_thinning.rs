@@ -75,3 +75,33 @@ fn a_bingham_truth_does_not_call_for_shear_thinning() {
     assert!(c["p_value"].as_f64().unwrap() > 0.01 && c["recommended"] == false, "{v:#}");
     assert_eq!(v["verdict"], "explained", "{v:#}");
 }
+
+#[test]
+fn the_slump_front_against_the_flow_index_agrees_with_central_differences() {
+    // fixtures/measure/slump (2 cm cells), cut to 0.1 s of flow, with the EVP material made
+    // Herschel-Bulkley, and at n = 1 (the effect's null, where the score test reads d/dn): the
+    // solver's adjoint in material.flow_index against central differences and the Taylor test
+    use strand::grad::check::{check, REL_STEPS};
+    use strand::grad::{gradient, GradOptions, Objective};
+    use strand::scenario::Scenario;
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/measure/slump/slump.toml");
+    let base = std::fs::read_to_string(path).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let opts = GradOptions { ram_bytes: 1 << 30, disk_bytes: 0, disk_dir: dir.path().to_path_buf(), threads: None, schedule: None, until_rest: None };
+    let obj: Objective = "front".parse().unwrap();
+    let wrt = ["material.flow_index".to_string()];
+    for n in [0.6, 1.0] {
+        let text = base.replace("end_time = 0.2\n", "end_time = 0.1\n").replace("yield_stress = 60.0\n", &format!("yield_stress = 60.0\nflow_index = {n:?}\n"));
+        let sc = Scenario::parse(&text).unwrap();
+        let r = gradient(&sc, &obj, &wrt, &opts).unwrap();
+        let c = check(&sc, &obj, &r, None, &REL_STEPS).unwrap();
+        for p in &c.params {
+            println!("n = {n}: d front / d {} = {:.6e}, central differences {:?}", p.param, p.adjoint, p.central);
+            let best = p.central.iter().map(|x| x.2).fold(f64::INFINITY, f64::min);
+            assert!(best <= 1e-6, "n = {n}: {p:?}");
+        }
+        println!("n = {n}: Taylor slope {:.3} {:?}", c.taylor_slope, c.taylor);
+        assert!((c.taylor_slope - 2.0).abs() <= 0.2, "n = {n}: Taylor slope {:.3}: {:?}", c.taylor_slope, c.taylor);
+        assert!(r.gradient[0] != 0.0, "the front moves with n");
+    }
+}
