@@ -607,6 +607,11 @@ mod tests {
     #[cfg(not(feature = "f32"))]
     const M: usize = 3;
 
+    /// (gamma_dot, J, unresolved) from the series branches of phi and phi' (m g = 5e-5, 0.01) to
+    /// exp(-m g) ~ 2e-22 (m g = 50), for m = 10 (see `adjoint_across_shear_rates`).
+    #[cfg(not(feature = "f32"))]
+    const RATE_POINTS: [(f64, f64, &[usize]); 4] = [(5e-6, 1.0 - 1e-8, &[ALPHA]), (1e-3, 1.0 - 1e-6, &[ALPHA]), (0.02, 0.999, &[]), (5.0, 0.98, &[M])];
+
     #[cfg(not(feature = "f32"))]
     impl Point {
         /// Not validated: a few points take A_thix > 0 without `lambda_max`, which validation
@@ -766,14 +771,8 @@ mod tests {
             lambda: 1.2,
             unresolved: &[],
         };
-        let points: [(f64, f64, &'static [usize]); 4] = [
-            (5e-6, 1.0 - 1e-8, &[ALPHA]),
-            (1e-3, 1.0 - 1e-6, &[ALPHA]),
-            (0.02, 0.999, &[]),
-            (5.0, 0.98, &[M]),
-        ];
         for (k, eos) in [TAIT, Eos::Linear].into_iter().enumerate() {
-            for (i, (gamma_dot, j, unresolved)) in points.into_iter().enumerate() {
+            for (i, (gamma_dot, j, unresolved)) in RATE_POINTS.into_iter().enumerate() {
                 let pt = Point {
                     eos,
                     gamma_dot,
@@ -837,14 +836,8 @@ mod tests {
             lambda: 1.2,
             unresolved: &[],
         };
-        let points: [(f64, f64, &'static [usize]); 4] = [
-            (5e-6, 1.0 - 1e-8, &[ALPHA]),
-            (1e-3, 1.0 - 1e-6, &[ALPHA]),
-            (0.02, 0.999, &[]),
-            (5.0, 0.98, &[M]),
-        ];
         for (k, n) in [0.5, 1.3].into_iter().enumerate() {
-            for (i, (gamma_dot, j, unresolved)) in points.into_iter().enumerate() {
+            for (i, (gamma_dot, j, unresolved)) in RATE_POINTS.into_iter().enumerate() {
                 let mut params = base.params;
                 params[7] = n;
                 let pt = Point { params, gamma_dot, j, unresolved, ..base };
