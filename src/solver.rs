@@ -338,8 +338,11 @@ impl Simulation {
                 let rho = st.density as f64;
                 let c = ((st.bulk_modulus as f64 + 4.0 / 3.0 * st.shear_modulus as f64) / rho).sqrt();
                 let dt_wave = s.cfl * s.dx / (c + self.vmax);
-                let dt_visc = if st.max_viscosity > 0.0 {
-                    s.cfl * rho * s.dx * s.dx / (2.0 * st.max_viscosity as f64)
+                // a shear-thickening material's viscosity grows with the rate: bound the rate
+                // by the particle speeds (see `max_shear_rate`)
+                let mu = st.viscosity_up_to(max_shear_rate(self.vmax, s.dx));
+                let dt_visc = if mu > 0.0 {
+                    s.cfl * rho * s.dx * s.dx / (2.0 * mu)
                 } else {
                     f64::INFINITY
                 };
@@ -1073,6 +1076,15 @@ pub(crate) fn keep_inside(geom: &GridGeom, platform: Option<(Real, [Real; 4], Wa
 }
 
 /// Lattice points of a body: `ppc^3` per cell, on cells aligned with the domain's lower corner.
+/// An upper bound on the shear rate gamma_dot = sqrt(2 D':D') MLS-MPM can give a particle when
+/// no grid node moves faster than `speed`: with quadratic B-splines, C = (4 / dx^2) sum_i w_i v_i
+/// (x_i - x_p)^T, sum_i w_i = 1 and sum_i w_i |x_i - x_p|^2 = 3 dx^2 / 4, so by Cauchy-Schwarz
+/// |C|_F <= 2 sqrt(3) speed / dx, and gamma_dot <= sqrt(2) |D|_F <= sqrt(2) |C|_F. The step
+/// control passes the particles' largest speed, as the wave bound does.
+pub fn max_shear_rate(speed: f64, dx: f64) -> f64 {
+    2.0 * 6f64.sqrt() * speed / dx
+}
+
 pub fn for_each_lattice_point(sc: &Scenario, body: &Body, mut f: impl FnMut([f64; 3])) {
     let dx = sc.simulation.dx;
     let ppc = body.particles_per_cell_axis() as usize;

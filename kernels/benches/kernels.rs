@@ -16,6 +16,8 @@ use criterion::{black_box, criterion_group, criterion_main, BatchSize, Benchmark
 use strand_kernels::material::eos::Eos;
 use strand_kernels::material::evp_bingham::EvpBingham;
 use strand_kernels::material::newtonian::Newtonian;
+use strand_kernels::material::bingham::Bingham;
+use strand_kernels::material::papanastasiou_roussel::PapanastasiouRoussel;
 use strand_kernels::material::{Material, UpdateAdjoint};
 use strand_kernels::real::{ddot, dev, r, sym, sym_to_array, Real, M3, NAME, V3};
 use strand_kernels::transfer::{g2p_block, p2g_block, G2pOutput, Node, P2gInput, TransferParams, BS, LNODES};
@@ -321,7 +323,7 @@ fn bench_g2p_adjoint(c: &mut Criterion) {
 
 /// The default scenario's material (paper 000 case 1): tau0 630 Pa, eta 7.5 Pa s, K 1 MPa,
 /// nu 0.3, no thixotropy, linear EOS.
-fn evp_bingham() -> EvpBingham {
+fn evp_bingham(n: f64) -> EvpBingham {
     EvpBingham {
         density: RHO,
         bulk_modulus: 1.0e6,
@@ -334,7 +336,21 @@ fn evp_bingham() -> EvpBingham {
         lambda0: 0.0,
         maxwell_modulus: None,
         maxwell_time: 1.0,
+        flow_index: n,
         eos: Eos::Linear,
+    }
+}
+
+/// 000's material as the bi-viscous Bingham fluid (gamma_c = 0.01 /s), and as the
+/// Papanastasiou-Roussel fluid (m = 10 s, no thixotropy), with flow index n.
+fn bingham(n: f64) -> Bingham {
+    Bingham { density: RHO, bulk_modulus: 1.0e6, viscosity: 7.5, yield_stress: 630.0, critical_shear_rate: 0.01, flow_index: n, eos: Eos::Linear }
+}
+
+fn papanastasiou_roussel(n: f64) -> PapanastasiouRoussel {
+    PapanastasiouRoussel {
+        density: RHO, bulk_modulus: 1.0e6, viscosity: 7.5, yield_stress: 630.0, papanastasiou_m: 10.0,
+        a_thix: 0.0, alpha: 0.0, lambda0: 0.0, lambda_max: None, flow_index: n, eos: Eos::Linear,
     }
 }
 
@@ -434,7 +450,13 @@ fn bench_material(c: &mut Criterion, label: &str, m: &dyn Material, seed: u64) {
 }
 
 fn bench_materials(c: &mut Criterion) {
-    bench_material(c, "evp_bingham", &evp_bingham(), 5);
+    bench_material(c, "evp_bingham", &evp_bingham(1.0), 5);
+    bench_material(c, "bingham", &bingham(1.0), 7);
+    bench_material(c, "papanastasiou_roussel", &papanastasiou_roussel(1.0), 8);
+    // Herschel-Bulkley, n = 0.6: a powf per update, and the EVP's Newton return map
+    bench_material(c, "evp_bingham_hb", &evp_bingham(0.6), 5);
+    bench_material(c, "bingham_hb", &bingham(0.6), 7);
+    bench_material(c, "papanastasiou_roussel_hb", &papanastasiou_roussel(0.6), 8);
     bench_material(c, "newtonian_jfluid", &j_fluid(), 6);
 }
 

@@ -196,12 +196,19 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
     for (e, cols) in absent.iter().zip(&cols_of) {
         let column = |c: usize| -> Vec<f64> { jz.iter().map(|r| r[c]).collect() };
         let influence = cols.iter().any(|&c| jz.iter().any(|r| r[c] != 0.0));
-        // one-sided: a parameter counts when raising it from its null lowers the loss once the
-        // fitted parameters follow (the projected gradient); one whose null lies inside its
-        // bounds (a process effect's factor or offset) and that reaches the data counts either
-        // way (the Maxwell time's null lies inside too, but its column is 0 at the branch's null)
-        let inside = |c: usize| aug.bounds(&names[c]).is_ok_and(|b| b.lower < aug.get(&names[c]).unwrap_or(b.lower)) && jz.iter().any(|r| r[c] != 0.0);
-        let kept: Vec<usize> = cols.iter().copied().filter(|&c| inside(c) || project(&column(c)).iter().zip(&zp).map(|(a, b)| a * b).sum::<f64>() < 0.0).collect();
+        // one-sided at a bound: a parameter whose null is its lower bound counts when raising it
+        // from its null lowers the loss once the fitted parameters follow (the projected
+        // gradient), one whose null is its upper bound when lowering it does; a null inside the
+        // bounds (a flow index n = 1, a process effect's factor or offset) counts either way, if
+        // its column reaches the data (the Maxwell time's null lies inside too, but its column is
+        // 0 at the branch's null)
+        let into_bounds = |i: usize, c: usize| {
+            let (s, slope) = (e.params()[i], project(&column(c)).iter().zip(&zp).map(|(a, b)| a * b).sum::<f64>());
+            if s.null <= s.lower { slope < 0.0 } else if s.null >= s.upper { slope > 0.0 } else { slope != 0.0 }
+        };
+        let kept_params: Vec<(usize, usize)> = cols.iter().copied().enumerate().filter(|&(i, c)| into_bounds(i, c)).collect();
+        let kept: Vec<usize> = kept_params.iter().map(|&(_, c)| c).collect();
+        let at_bound = kept_params.iter().all(|&(i, _)| e.params()[i].null <= e.params()[i].lower || e.params()[i].null >= e.params()[i].upper);
         let r: Vec<Vec<f64>> = kept.iter().map(|&c| project(&column(c))).collect();
         let info: Vec<Vec<f64>> = r.iter().map(|a| r.iter().map(|b| a.iter().zip(b).map(|(x, y)| x * y).sum()).collect()).collect();
         let g: Vec<f64> = r.iter().map(|a| a.iter().zip(&zp).map(|(x, y)| x * y).sum()).collect();
@@ -210,8 +217,13 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
         let (inv, rank) = if kept.is_empty() { (vec![], 0) } else { pinv_sym(&info, 1e-10) };
         let left = info.iter().enumerate().map(|(i, row)| row[i]).fold(0.0, f64::max);
         let (score, dof) = if rank == 0 || left <= 1e-10 * raw { (0.0, 0) } else { (g.iter().enumerate().map(|(i, gi)| gi * inv[i].iter().zip(&g).map(|(a, b)| a * b).sum::<f64>()).sum(), rank) };
-        // a null inside the bounds is a two-sided test: the full chi^2 tail
-        let p_value = if dof > 0 && kept.iter().any(|&c| inside(c)) { chi2_sf(score, dof) } else { p_value(score, dof) };
+        // a null inside the bounds is a two-sided test: the full chi^2 tail, without the
+        // bound's halving
+        let p_value = match (dof, at_bound) {
+            (0, _) => 1.0,
+            (_, true) => p_value(score, dof),
+            (_, false) => chi2_sf(score, dof),
+        };
         let verdict = if !influence {
             "no influence on these experiments".to_string()
         } else if dof == 0 && !kept.is_empty() {

@@ -304,6 +304,31 @@ mod tests {
     }
 
     #[test]
+    fn a_herschel_bulkley_flow_curve_is_tau0_plus_k_gamma_dot_n() {
+        // steady state in each hold: the EVP solid's start-up (k g^(n-1) / G <= 2e-3 s) and the
+        // regularisations (gamma_c = 0.01 /s; exp(-m g) with m g >= 20) are far below the
+        // readings' 1e-3
+        let cases = [
+            "kind = \"bingham\"\ndensity = 2300.0\nbulk_modulus = 1e6\n",
+            "kind = \"papanastasiou_roussel\"\ndensity = 2300.0\nbulk_modulus = 1e6\npapanastasiou_m = 200.0\n",
+            // G large enough that the Jaumann spin's share (tau / G)^2 of elastic rate stays below 1e-4
+            "kind = \"evp_bingham\"\ndensity = 2300.0\nbulk_modulus = 1e7\nshear_modulus = 1e6\n",
+        ];
+        let p = protocol("[[phase]]\nkind = \"sweep\"\nrates = [50.0, 20.0, 5.0, 1.0, 0.3, 0.1]\nhold = 0.5\n");
+        for base in cases {
+            for n in [0.6, 0.35, 1.3] {
+                let m = material(&format!("{base}viscosity = 25.0\nyield_stress = 80.0\nflow_index = {n}\n"));
+                let r = Rheometer::new(&*m, &p).unwrap().run();
+                assert_eq!(r.len(), 6);
+                for x in &r {
+                    let expect = 80.0 + 25.0 * x.rate.powf(n);
+                    assert!((x.stress / expect - 1.0).abs() < 1e-3, "{} n = {n}, rate {}: {} vs {expect}", m.name(), x.rate, x.stress);
+                }
+            }
+        }
+    }
+
+    #[test]
     fn thixotropic_build_up_raises_the_stress_after_rest() {
         let evp = "kind = \"evp_bingham\"\ndensity = 2400.0\nbulk_modulus = 1e6\nshear_modulus = 1e5\nviscosity = 19.5\nyield_stress = 92.0\na_thix = 0.39\nalpha = 0.15\n";
         let m = material(evp);
@@ -356,6 +381,10 @@ mod tests {
             "kind = \"evp_bingham\"\ndensity = 2400.0\nbulk_modulus = 1e6\nshear_modulus = 2e4\nviscosity = 19.5\nyield_stress = 92.0\na_thix = 0.39\nalpha = 0.15\nlambda0 = 0.2\n",
             BINGHAM,
             "kind = \"papanastasiou_roussel\"\ndensity = 2100.0\nbulk_modulus = 1e6\nviscosity = 7.5\nyield_stress = 630.0\n",
+            // Herschel-Bulkley, thinning and thickening
+            "kind = \"bingham\"\ndensity = 2100.0\nbulk_modulus = 1e6\nviscosity = 25.0\nyield_stress = 80.0\nflow_index = 0.6\n",
+            "kind = \"papanastasiou_roussel\"\ndensity = 2100.0\nbulk_modulus = 1e6\nviscosity = 25.0\nyield_stress = 80.0\nflow_index = 1.3\n",
+            "kind = \"evp_bingham\"\ndensity = 2400.0\nbulk_modulus = 1e6\nshear_modulus = 2e4\nviscosity = 19.5\nyield_stress = 92.0\na_thix = 0.39\nalpha = 0.15\nlambda0 = 0.2\nflow_index = 0.6\n",
             // with the Maxwell branch, and at its null (G_M = 0, where d/d t_M is 0)
             "kind = \"evp_bingham\"\ndensity = 2400.0\nbulk_modulus = 1e6\nshear_modulus = 2e4\nviscosity = 19.5\nyield_stress = 92.0\na_thix = 0.39\nalpha = 0.15\nlambda0 = 0.2\nmaxwell_modulus = 300.0\nmaxwell_time = 0.2\n",
             "kind = \"evp_bingham\"\ndensity = 2400.0\nbulk_modulus = 1e6\nshear_modulus = 2e4\nviscosity = 19.5\nyield_stress = 92.0\na_thix = 0.39\nalpha = 0.15\nlambda0 = 0.2\nmaxwell_modulus = 0.0\nmaxwell_time = 1.0\n",

@@ -493,6 +493,7 @@ impl Material for DruckerPrager {
             bulk_modulus: r(self.bulk_modulus),
             shear_modulus: r(self.shear_modulus()),
             max_viscosity: r(0.0),
+            thickening: None,
         }
     }
 }

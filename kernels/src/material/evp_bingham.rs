@@ -31,6 +31,23 @@
 //!    eq. 43 itself when xi <= 0 (only possible for alpha > 0, so zeta > 0). Then s' = (tau' /
 //!    tau_tr) s_tr (eq. 46).
 //!
+//! Herschel-Bulkley with `flow_index` n (default 1, the paper's Bingham law): the viscous part
+//! of the flow rule becomes k gamma_dot_p^n, `viscosity` playing k, so steady flow has
+//! tau = (1 + lambda) tau0 + k gamma_dot_p^n. The return map then solves
+//! R(gamma_p) = tau_tr - tau0 - G dt gamma_p - k gamma_p^n - tau0 lambda_tr / (1 + alpha dt gamma_p) = 0
+//! (eq. 42 divided by 1 + alpha dt gamma_p, with k gamma_p^n for eta gamma_p) by Newton's method
+//! safeguarded by bisection on [0, hi], where R(0) = f_tr > 0 and R(hi) <= 0 at
+//! hi = min((tau_tr - tau0) / (G dt), ((tau_tr - tau0) / k)^(1/n)). R decreases on that bracket,
+//! so its root is unique, whenever tau0 lambda_tr alpha <= G (always without thixotropy); else the
+//! root found is one where R crosses zero downwards. At n = 1 the closed form above is used, bit
+//! for bit as before. No regularisation is needed for n < 1: the rate the power law sees is the
+//! return map's gamma_p > 0, found implicitly, and below yield the material is elastic, so the
+//! apparent viscosity k gamma_p^(n-1) never enters a division; d gamma_p / d(theta) =
+//! -(dR/d theta) / (dR/d gamma_p) only goes to 0 where dR/d gamma_p = -n k gamma_p^(n-1) blows up.
+//! Its viscous tangent is at most G dt (the spring of the trial in series with the dashpot), so
+//! the step bound stays the elastic wave speed's; [`Material::stability`] reports `viscosity`
+//! (k) as its viscosity at every n, as at n = 1.
+//!
 //! G is constant. With `poisson_ratio`, eq. 18 is evaluated with the reference K rather than the
 //! EOS tangent at the current J (a few percent apart in the weakly compressible range), so the
 //! elastic shear response does not follow the density noise of the pressure field.
@@ -58,7 +75,7 @@
 use serde::Deserialize;
 
 use crate::material::eos::{resolve_shear_modulus, shear_modulus_of, shear_modulus_of_partials};
-use crate::material::{maxwell, non_negative, positive, Eos, Material, StabilityInfo, UpdateAdjoint};
+use crate::material::{default_flow_index, maxwell, non_negative, positive, Eos, Material, StabilityInfo, UpdateAdjoint};
 use crate::real::{
     ddot, dev, jaumann_rotation, jaumann_rotation_adjoint, r, skew, sym, sym_from_slice, sym_from_slice_adjoint,
     sym_to_array, sym_to_array_adjoint, Real, M3, V3,
@@ -78,7 +95,7 @@ pub struct EvpBingham {
     /// `shear_modulus`.
     #[serde(default)]
     pub poisson_ratio: Option<f64>,
-    /// Plastic viscosity eta [Pa s].
+    /// Plastic viscosity eta [Pa s]; with `flow_index` n != 1, the consistency k [Pa s^n].
     pub viscosity: f64,
     /// Reference yield stress tau0 [Pa], as sqrt(J2).
     pub yield_stress: f64,
@@ -99,6 +116,9 @@ pub struct EvpBingham {
     /// time scale of a rheometer's hold; only read with `maxwell_modulus`).
     #[serde(default = "default_maxwell_time")]
     pub maxwell_time: f64,
+    /// Flow index n [-] of the Herschel-Bulkley flow rule; 1 (Bingham) when absent.
+    #[serde(default = "default_flow_index")]
+    pub flow_index: f64,
     #[serde(default)]
     pub eos: Eos,
 }
@@ -132,6 +152,7 @@ impl EvpBingham {
             non_negative("material.maxwell_modulus", g_m)?;
         }
         positive("material.maxwell_time", self.maxwell_time)?;
+        positive("material.flow_index", self.flow_index)?;
         if self.a_thix > 0.0 && self.yield_stress == 0.0 {
             return Err(
                 "material.yield_stress must be > 0 when material.a_thix > 0 (eq. 22 divides by it)"
@@ -151,6 +172,29 @@ impl EvpBingham {
     #[inline]
     fn build_up_rate(&self) -> Real {
         crate::material::build_up_rate(self.a_thix, self.yield_stress)
+    }
+
+    /// The Herschel-Bulkley return map's residual at this step's trial state.
+    #[inline]
+    fn hb_return(&self, g: Real, dt: Real, tau_tr: Real, lambda_tr: Real) -> HbReturn {
+        let tau0 = r(self.yield_stress);
+        HbReturn {
+            excess: tau_tr - tau0,
+            g_dt: g * dt,
+            k: r(self.viscosity),
+            n: r(self.flow_index),
+            structure: tau0 * lambda_tr,
+            alpha_dt: r(self.alpha) * dt,
+        }
+    }
+
+    /// Index of `flow_index` in `param_names`: after the Maxwell branch's, when it is there.
+    fn flow_index_slot(&self) -> usize {
+        if self.maxwell_modulus.is_some() {
+            9
+        } else {
+            7
+        }
     }
 
     /// (G_M, t_M) of the Maxwell branch, when there is one.
@@ -179,6 +223,60 @@ fn plastic_shear_rate(f: Real, xi: Real, zeta: Real) -> Real {
         r(2.0) * f / (xi + root)
     } else {
         (root - xi) / zeta
+    }
+}
+
+/// R(gamma_p) = excess - g_dt gamma_p - k gamma_p^n - structure / (1 + alpha_dt gamma_p), the
+/// Herschel-Bulkley return map's residual (module docs), with excess = tau_tr - tau0 and
+/// structure = tau0 lambda_tr.
+struct HbReturn {
+    excess: Real,
+    g_dt: Real,
+    k: Real,
+    n: Real,
+    structure: Real,
+    alpha_dt: Real,
+}
+
+impl HbReturn {
+    /// (R, dR/d gamma_p, gamma_p^n) at gamma_p > 0.
+    #[inline]
+    fn residual(&self, gp: Real) -> (Real, Real, Real) {
+        let pow = gp.powf(self.n);
+        let den = r(1.0) + self.alpha_dt * gp;
+        let value = self.excess - self.g_dt * gp - self.k * pow - self.structure / den;
+        let slope = -self.g_dt - self.n * self.k * pow / gp + self.structure * self.alpha_dt / (den * den);
+        (value, slope, pow)
+    }
+
+    /// The root in (0, hi) for f_tr = R(0) > 0: Newton's method, bisecting whenever a step would
+    /// leave the bracket the residual's signs keep, to a relative step of a few round-offs.
+    fn root(&self) -> Real {
+        let mut hi = self.excess / self.g_dt;
+        if self.k > r(0.0) {
+            hi = hi.min((self.excess / self.k).powf(r(1.0) / self.n));
+        }
+        let mut lo = r(0.0);
+        let mut x = r(0.5) * hi;
+        for _ in 0..200 {
+            let (value, slope, _) = self.residual(x);
+            if value == r(0.0) {
+                break;
+            }
+            if value > r(0.0) {
+                lo = x;
+            } else {
+                hi = x;
+            }
+            let newton = x - value / slope;
+            let next = if slope < r(0.0) && newton > lo && newton < hi { newton } else { r(0.5) * (lo + hi) };
+            let done = (next - x).abs() <= r(4.0) * Real::EPSILON * next || hi - lo <= r(4.0) * Real::EPSILON * hi;
+            x = next;
+            if done {
+                break;
+            }
+        }
+        x
     }
 }
 
@@ -217,9 +315,13 @@ impl Material for EvpBingham {
         let f_tr = tau_tr - (r(1.0) + lambda_tr) * tau0;
 
         let (s, lambda) = if f_tr > r(0.0) {
-            let xi = eta + dt * (g + alpha * (tau0 - tau_tr));
-            let zeta = r(2.0) * alpha * dt * (dt * g + eta);
-            let gamma_p = plastic_shear_rate(f_tr, xi, zeta);
+            let gamma_p = if self.flow_index == 1.0 {
+                let xi = eta + dt * (g + alpha * (tau0 - tau_tr));
+                let zeta = r(2.0) * alpha * dt * (dt * g + eta);
+                plastic_shear_rate(f_tr, xi, zeta)
+            } else {
+                self.hb_return(g, dt, tau_tr, lambda_tr).root()
+            };
             let tau = tau_tr - dt * g * gamma_p;
             state[7] += gamma_p * dt;
             (
@@ -243,22 +345,25 @@ impl Material for EvpBingham {
         }
     }
 
-    /// With the Maxwell branch, `maxwell_modulus` and `maxwell_time` follow (indices 7, 8).
+    /// With the Maxwell branch, `maxwell_modulus` and `maxwell_time` follow (indices 7, 8);
+    /// `flow_index` is last.
     fn param_names(&self) -> &'static [&'static str] {
         match (self.shear_modulus.is_some(), self.maxwell_modulus.is_some()) {
-            (true, false) => &["bulk_modulus", "shear_modulus", "viscosity", "yield_stress", "a_thix", "alpha", "lambda0"],
-            (false, false) => &["bulk_modulus", "poisson_ratio", "viscosity", "yield_stress", "a_thix", "alpha", "lambda0"],
+            (true, false) => &["bulk_modulus", "shear_modulus", "viscosity", "yield_stress", "a_thix", "alpha", "lambda0", "flow_index"],
+            (false, false) => &["bulk_modulus", "poisson_ratio", "viscosity", "yield_stress", "a_thix", "alpha", "lambda0", "flow_index"],
             (true, true) => &[
-                "bulk_modulus", "shear_modulus", "viscosity", "yield_stress", "a_thix", "alpha", "lambda0", "maxwell_modulus", "maxwell_time",
+                "bulk_modulus", "shear_modulus", "viscosity", "yield_stress", "a_thix", "alpha", "lambda0", "maxwell_modulus", "maxwell_time", "flow_index",
             ],
             (false, true) => &[
-                "bulk_modulus", "poisson_ratio", "viscosity", "yield_stress", "a_thix", "alpha", "lambda0", "maxwell_modulus", "maxwell_time",
+                "bulk_modulus", "poisson_ratio", "viscosity", "yield_stress", "a_thix", "alpha", "lambda0", "maxwell_modulus", "maxwell_time", "flow_index",
             ],
         }
     }
 
-    /// The return map's root gamma_p is differentiated implicitly through its quadratic (eq. 42),
-    /// whichever form evaluated it; the yield test f_tr > 0 is the branch held fixed.
+    /// The return map's root gamma_p is differentiated implicitly: at n = 1 through its quadratic
+    /// (eq. 42), whichever form evaluated it, else through the residual R of the module docs;
+    /// d/dn at n = 1 (the shear-thinning effect's score) through R too, which has the same root.
+    /// The yield test f_tr > 0 is the branch held fixed.
     fn update_adjoint(
         &self,
         grad_v: &M3,
@@ -288,12 +393,14 @@ impl Material for EvpBingham {
         let s_bar = *stress_bar + sym_to_array_adjoint(&state_out_bar[..6]);
         let lambda_bar = state_out_bar[6];
         out.state_bar[7] += state_out_bar[7];
-        let (mut g_bar, mut eta_bar, mut tau0_bar, mut alpha_bar) = (r(0.0), r(0.0), r(0.0), r(0.0));
+        let (mut g_bar, mut eta_bar, mut tau0_bar, mut alpha_bar, mut n_bar) = (r(0.0), r(0.0), r(0.0), r(0.0), r(0.0));
 
         let (s_tr_bar, lambda_tr_bar) = if f_tr > r(0.0) {
+            let bingham = self.flow_index == 1.0;
             let xi = eta + dt * (g + alpha * (tau0 - tau_tr));
             let zeta = r(2.0) * alpha * dt * (dt * g + eta);
-            let gamma_p = plastic_shear_rate(f_tr, xi, zeta);
+            let hb = self.hb_return(g, dt, tau_tr, lambda_tr);
+            let gamma_p = if bingham { plastic_shear_rate(f_tr, xi, zeta) } else { hb.root() };
             let tau = tau_tr - dt * g * gamma_p;
             let den = r(1.0) + dt * alpha * gamma_p;
             let mut gamma_bar = state_out_bar[7] * dt;
@@ -311,23 +418,41 @@ impl Material for EvpBingham {
             tau_tr_bar += tau_bar;
             g_bar -= tau_bar * dt * gamma_p;
             gamma_bar -= tau_bar * dt * g;
-            // (zeta/2) gamma_p^2 + xi gamma_p - f_tr = 0, implicitly; zeta gamma_p + xi = root > 0
-            let slope = zeta * gamma_p + xi;
-            let f_bar = gamma_bar / slope;
-            let xi_bar = -gamma_bar * gamma_p / slope;
-            let zeta_bar = -gamma_bar * r(0.5) * gamma_p * gamma_p / slope;
-            alpha_bar += zeta_bar * r(2.0) * dt * (dt * g + eta);
-            g_bar += zeta_bar * r(2.0) * alpha * dt * dt;
-            eta_bar += zeta_bar * r(2.0) * alpha * dt;
-            eta_bar += xi_bar;
-            g_bar += xi_bar * dt;
-            alpha_bar += xi_bar * dt * (tau0 - tau_tr);
-            tau0_bar += xi_bar * dt * alpha;
-            tau_tr_bar -= xi_bar * dt * alpha;
-            // f_tr = tau_tr - (1 + lambda_tr) tau0
-            tau_tr_bar += f_bar;
-            lambda_tr_bar -= f_bar * tau0;
-            tau0_bar -= f_bar * (r(1.0) + lambda_tr);
+            if bingham {
+                // (zeta/2) gamma_p^2 + xi gamma_p - f_tr = 0, implicitly; zeta gamma_p + xi = root > 0
+                let slope = zeta * gamma_p + xi;
+                let f_bar = gamma_bar / slope;
+                let xi_bar = -gamma_bar * gamma_p / slope;
+                let zeta_bar = -gamma_bar * r(0.5) * gamma_p * gamma_p / slope;
+                alpha_bar += zeta_bar * r(2.0) * dt * (dt * g + eta);
+                g_bar += zeta_bar * r(2.0) * alpha * dt * dt;
+                eta_bar += zeta_bar * r(2.0) * alpha * dt;
+                eta_bar += xi_bar;
+                g_bar += xi_bar * dt;
+                alpha_bar += xi_bar * dt * (tau0 - tau_tr);
+                tau0_bar += xi_bar * dt * alpha;
+                tau_tr_bar -= xi_bar * dt * alpha;
+                // f_tr = tau_tr - (1 + lambda_tr) tau0
+                tau_tr_bar += f_bar;
+                lambda_tr_bar -= f_bar * tau0;
+                tau0_bar -= f_bar * (r(1.0) + lambda_tr);
+                // dR/dn = -k gamma_p ln gamma_p; at the root R = -(quadratic) / den, so
+                // dR/d gamma_p = -slope / den
+                if gamma_p > r(0.0) {
+                    n_bar += gamma_bar * den / slope * (-eta * gamma_p * gamma_p.ln());
+                }
+            } else if gamma_p > r(0.0) {
+                // R(gamma_p; theta) = 0: theta_bar += w dR/d theta with w = -gamma_bar / (dR/d gamma_p)
+                let (_, slope, pow) = hb.residual(gamma_p);
+                let w = -gamma_bar / slope;
+                tau_tr_bar += w;
+                tau0_bar -= w * (r(1.0) + lambda_tr / den);
+                g_bar -= w * dt * gamma_p;
+                eta_bar -= w * pow;
+                n_bar -= w * eta * pow * gamma_p.ln();
+                lambda_tr_bar -= w * tau0 / den;
+                alpha_bar += w * tau0 * lambda_tr * dt * gamma_p / (den * den);
+            }
             // tau_tr = sqrt(s_tr : s_tr / 2)
             s_tr_bar += s_tr * (r(0.5) * tau_tr_bar / tau_tr);
             (s_tr_bar, lambda_tr_bar)
@@ -378,6 +503,7 @@ impl Material for EvpBingham {
         p[3] += tau0_bar;
         p[4] += a_thix_bar;
         p[5] += alpha_bar;
+        p[self.flow_index_slot()] += n_bar;
     }
 
     fn init_state_adjoint(&self, state_bar: &[Real], params_bar: &mut [Real]) {
@@ -425,6 +551,7 @@ impl Material for EvpBingham {
             bulk_modulus: r(self.bulk_modulus),
             shear_modulus: r(self.shear_modulus() + self.maxwell_modulus.unwrap_or(0.0)),
             max_viscosity: r(self.viscosity),
+            thickening: None,
         }
     }
 }
@@ -451,6 +578,7 @@ mod tests {
             lambda0: 0.0,
             maxwell_modulus: None,
             maxwell_time: 1.0,
+            flow_index: 1.0,
             eos: Eos::Linear,
         }
     }
@@ -831,8 +959,9 @@ mod tests {
             a_thix: p[4],
             alpha: p[5],
             lambda0: p[6],
-            maxwell_modulus: p.get(7).copied(),
-            maxwell_time: p.get(8).copied().unwrap_or(1.0),
+            maxwell_modulus: (p.len() == 10).then(|| p[7]),
+            maxwell_time: if p.len() == 10 { p[8] } else { 1.0 },
+            flow_index: p[p.len() - 1],
             eos,
         }
     }
@@ -852,20 +981,27 @@ mod tests {
         let spin = [0.3, -2.0, 0.5, 3.0, -0.4, 1.2, -0.7, 0.9, 0.2];
         let tait = Eos::Tait { gamma: 7.0 };
         // (label, poisson, eos, params, L, J, dt, state)
-        type Case = (&'static str, bool, Eos, [f64; 7], [f64; 9], f64, f64, [f64; 8]);
+        type Case = (&'static str, bool, Eos, [f64; 8], [f64; 9], f64, f64, [f64; 8]);
         let cases: Vec<Case> = vec![
-            ("elastic", false, Eos::Linear, [1e6, 2e5, 7.5, 630.0, 3.0, 0.0, 0.0], spin, 0.98,
+            ("elastic", false, Eos::Linear, [1e6, 2e5, 7.5, 630.0, 3.0, 0.0, 0.0, 1.0], spin, 0.98,
              1e-3, [100.0, -40.0, -60.0, 80.0, -30.0, 20.0, 0.0, 0.01]),
-            ("plastic, alpha = 0", false, Eos::Linear, [1e6, 2e5, 7.5, 630.0, 3.0, 0.0, 0.0], spin.map(|x| 40.0 * x), 1.02,
+            ("plastic, alpha = 0", false, Eos::Linear, [1e6, 2e5, 7.5, 630.0, 3.0, 0.0, 0.0, 1.0], spin.map(|x| 40.0 * x), 1.02,
              1e-3, [500.0, -200.0, -300.0, 400.0, -150.0, 250.0, 0.0, 0.3]),
-            ("plastic, thixotropic, nu, Tait", true, tait, [1e6, 0.3, 7.5, 630.0, 50.0, 0.5, 0.2], spin.map(|x| 40.0 * x), 0.99,
+            ("plastic, thixotropic, nu, Tait", true, tait, [1e6, 0.3, 7.5, 630.0, 50.0, 0.5, 0.2, 1.0], spin.map(|x| 40.0 * x), 0.99,
              1e-3, [500.0, -200.0, -300.0, 400.0, -150.0, 250.0, 0.4, 0.3]),
-            ("plastic, xi <= 0", false, Eos::Linear, [1e6, 1e4, 10.0, 500.0, 20.0, 50.0, 0.1], spin.map(|x| 20.0 * x), 1.0,
+            ("plastic, xi <= 0", false, Eos::Linear, [1e6, 1e4, 10.0, 500.0, 20.0, 50.0, 0.1, 1.0], spin.map(|x| 20.0 * x), 1.0,
              1e-3, [2000.0, -900.0, -1100.0, 1500.0, -500.0, 700.0, 0.05, 0.1]),
-            ("elastic, thixotropic, nu", true, tait, [1e6, 0.25, 7.5, 630.0, 50.0, 0.5, 0.2], spin.map(|x| 0.05 * x), 1.01,
+            ("elastic, thixotropic, nu", true, tait, [1e6, 0.25, 7.5, 630.0, 50.0, 0.5, 0.2, 1.0], spin.map(|x| 0.05 * x), 1.01,
              1e-3, [100.0, -40.0, -60.0, 80.0, -30.0, 20.0, 0.4, 0.0]),
         ];
-        for (k, (label, poisson, eos, params, l, j, dt, state)) in cases.into_iter().enumerate() {
+        // flow index 1 (the closed-form root; d/dn is the shear-thinning effect's score), below
+        // and above 1 (the Newton root)
+        let cases: Vec<(String, Case)> = [1.0, 0.5, 1.4]
+            .into_iter()
+            .flat_map(|n| cases.iter().map(move |c| (format!("{}, n = {n}", c.0), { let mut c = *c; c.3[7] = n; c })))
+            .collect();
+        for (k, (label, (_, poisson, eos, params, l, j, dt, state))) in cases.into_iter().enumerate() {
+            let label = label.as_str();
             let mat = make(poisson, eos)(&params);
             // confirm the branch the case is meant to take
             let s_tr_tau = {
@@ -874,14 +1010,64 @@ mod tests {
                 st[7] > state[7]
             };
             assert_eq!(s_tr_tau, label.starts_with("plastic"), "{label}: branch");
-            if label.contains("xi <= 0") {
+            if label.contains("xi <= 0") && params[7] == 1.0 {
                 let tau_tr = 1.0e3; // order of magnitude of the trial tau of this state
                 assert!(params[2] + dt * (params[1] + params[5] * (params[3] - 2.0 * tau_tr)) < 0.0, "{label}: xi");
             }
             let state_scale: Vec<f64> = state.iter().map(|v| v.abs().max(1e-2)).collect();
-            // thixotropy moves the stress little: perturb it by amounts the stress resolves
-            let param_scale = [1e6, if poisson { 0.1 } else { params[1] }, 10.0, 500.0, 1e4, 1000.0, 1.0];
+            // thixotropy moves the stress little: perturb it by amounts the stress resolves (an
+            // A_thix perturbation below its value, so the rate A_thix / tau0 keeps its branch)
+            let param_scale = [1e6, if poisson { 0.1 } else { params[1] }, 10.0, 500.0, (2e3 * params[4]).max(1e4), 1000.0, 1.0, 0.1];
             check_update_adjoint(label, make(poisson, eos), &params, l_of(l), j, dt, &state, 1.0, &state_scale, &param_scale, 1e-6, 17 + k as u64);
+        }
+    }
+
+    #[cfg(not(feature = "f32"))]
+    #[test]
+    fn with_a_flow_index_steady_shear_flow_is_herschel_bulkley() {
+        // simple shear above yield: all the rate is plastic at steady state, tau = tau0 + k g^n
+        for n in [0.3, 0.6, 1.5] {
+            let m = EvpBingham { flow_index: n, ..solid() };
+            assert!(m.validate().is_ok());
+            for g in [0.05 as Real, 2.0, 30.0] {
+                let dt = 1e-6 / g.max(1.0);
+                let mut st = fresh(&m);
+                let mut s = M3::ZERO;
+                // the elastic loading to yield, tau0 / (G g), then twenty relaxation times
+                // k g^(n-1) / G of the spring and the power-law dashpot in series
+                let t_end = 20.0 * (100.0 / (1e6 * g) + 30.0 * g.powf(n - 1.0) / 1e6);
+                for _ in 0..(t_end / dt).ceil() as usize {
+                    s = m.update(&simple_shear(g), 1.0, dt, &mut st);
+                }
+                let hb = 100.0 + 30.0 * g.powf(n);
+                let gp = st[7];
+                m.update(&simple_shear(g), 1.0, dt, &mut st);
+                // the Jaumann spin keeps a share of order (tau / G)^2 of the rate elastic (2.5e-5
+                // at 5 kPa), on top of the integration's 1e-6
+                let tol = 1e-6 + 2.0 * (hb / 1e6) * (hb / 1e6);
+                assert!(rel(tau_of(&s), hb) < tol, "n={n} g={g}: {} vs {hb}", tau_of(&s));
+                assert!(rel((st[7] - gp) / dt, g) < tol, "n={n} g={g}: plastic rate {}", (st[7] - gp) / dt);
+            }
+        }
+        let bad = EvpBingham { flow_index: 0.0, ..solid() };
+        assert_eq!(bad.validate().unwrap_err(), "material.flow_index must be > 0, got 0");
+    }
+
+    #[cfg(not(feature = "f32"))]
+    #[test]
+    fn the_herschel_bulkley_root_solves_its_residual_just_above_yield_and_far_above() {
+        // from f_tr = 1e-9 Pa (gamma_p ~ (f_tr / k)^(1/n), 1e-24 /s at n = 0.3) to f_tr = 1e5 Pa
+        for n in [0.3, 0.7, 1.3, 2.0] {
+            for f_tr in [1e-9, 1e-3, 1.0, 1e3, 1e5] {
+                for (lambda_tr, alpha_dt) in [(0.0, 0.0), (0.5, 1e-3), (2.0, 0.5)] {
+                    let tau0 = 100.0;
+                    let h = HbReturn { excess: f_tr + tau0 * lambda_tr, g_dt: 1e6 * 1e-4, k: 30.0, n, structure: tau0 * lambda_tr, alpha_dt };
+                    let gp = h.root();
+                    let (value, slope, _) = h.residual(gp);
+                    assert!(gp > 0.0 && value.abs() <= 1e-9 * f_tr.max(1e-6) + 1e-12 * h.excess, "n={n} f={f_tr} lambda={lambda_tr}: gp {gp}, R {value}");
+                    assert!(slope < 0.0);
+                }
+            }
         }
     }
 
@@ -950,24 +1136,29 @@ mod tests {
         let evp_pl = [500.0, -200.0, -300.0, 400.0, -150.0, 250.0, 0.4, 0.3];
         let join = |a: [f64; 8], b: [f64; 6]| -> Vec<f64> { a.iter().chain(&b).copied().collect() };
         // (label, poisson, eos, params, L, J, dt, state)
-        type Case = (&'static str, bool, Eos, [f64; 9], [f64; 9], f64, f64, Vec<f64>);
+        type Case = (&'static str, bool, Eos, [f64; 10], [f64; 9], f64, f64, Vec<f64>);
         let cases: Vec<Case> = vec![
             // J = 1: the pressure's round-off in the differences would swamp the derivative in t_M,
             // which is O(dt / t_M) small here (the plastic cases take J != 1)
-            ("elastic, maxwell", false, Eos::Linear, [1e6, 2e5, 7.5, 630.0, 3.0, 0.0, 0.0, 400.0, 0.5], spin, 1.0, 1e-3, join(evp_el, s_m)),
-            ("plastic, maxwell, dt / t_M = 2", false, Eos::Linear, [1e6, 2e5, 7.5, 630.0, 3.0, 0.0, 0.0, 400.0, 5e-4], spin.map(|x| 40.0 * x), 1.02, 1e-3, join(evp_pl, s_m)),
-            ("plastic, thixotropic, nu, Tait, maxwell", true, tait, [1e6, 0.3, 7.5, 630.0, 50.0, 0.5, 0.2, 2e3, 0.1], spin.map(|x| 40.0 * x), 0.99, 1e-3, join(evp_pl, s_m)),
-            ("elastic, maxwell at its null G_M = 0", false, Eos::Linear, [1e6, 2e5, 7.5, 630.0, 3.0, 0.0, 0.0, 0.0, 1.0], spin, 1.0, 1e-3, join(evp_el, [0.0; 6])),
-            ("plastic, maxwell at its null G_M = 0", true, tait, [1e6, 0.3, 7.5, 630.0, 50.0, 0.5, 0.2, 0.0, 1.0], spin.map(|x| 40.0 * x), 1.01, 1e-3, join(evp_pl, [0.0; 6])),
+            ("elastic, maxwell", false, Eos::Linear, [1e6, 2e5, 7.5, 630.0, 3.0, 0.0, 0.0, 400.0, 0.5, 1.0], spin, 1.0, 1e-3, join(evp_el, s_m)),
+            ("plastic, maxwell, dt / t_M = 2", false, Eos::Linear, [1e6, 2e5, 7.5, 630.0, 3.0, 0.0, 0.0, 400.0, 5e-4, 1.0], spin.map(|x| 40.0 * x), 1.02, 1e-3, join(evp_pl, s_m)),
+            ("plastic, thixotropic, nu, Tait, maxwell", true, tait, [1e6, 0.3, 7.5, 630.0, 50.0, 0.5, 0.2, 2e3, 0.1, 1.0], spin.map(|x| 40.0 * x), 0.99, 1e-3, join(evp_pl, s_m)),
+            ("elastic, maxwell at its null G_M = 0", false, Eos::Linear, [1e6, 2e5, 7.5, 630.0, 3.0, 0.0, 0.0, 0.0, 1.0, 1.0], spin, 1.0, 1e-3, join(evp_el, [0.0; 6])),
+            ("plastic, maxwell at its null G_M = 0", true, tait, [1e6, 0.3, 7.5, 630.0, 50.0, 0.5, 0.2, 0.0, 1.0, 1.0], spin.map(|x| 40.0 * x), 1.01, 1e-3, join(evp_pl, [0.0; 6])),
         ];
-        for (k, (label, poisson, eos, params, l, j, dt, state)) in cases.into_iter().enumerate() {
+        let cases: Vec<(String, Case)> = [1.0, 0.6]
+            .into_iter()
+            .flat_map(|n| cases.iter().map(move |c| (format!("{}, n = {n}", c.0), { let mut c = c.clone(); c.3[9] = n; c })))
+            .collect();
+        for (k, (label, (_, poisson, eos, params, l, j, dt, state))) in cases.into_iter().enumerate() {
+            let label = label.as_str();
             let mat = make(poisson, eos)(&params);
-            assert_eq!((mat.state_names().len(), mat.param_names().len()), (14, 9));
+            assert_eq!((mat.state_names().len(), mat.param_names().len()), (14, 10));
             let mut st: Vec<Real> = state.clone();
             let _ = mat.update(&l_of(l), j, dt, &mut st);
             assert_eq!(st[7] > state[7], label.starts_with("plastic"), "{label}: branch");
             let state_scale: Vec<f64> = state.iter().map(|v| v.abs().max(1.0)).collect();
-            let param_scale = [1e6, if poisson { 0.1 } else { params[1] }, 10.0, 500.0, 1e4, 1000.0, 1.0, 1e3, params[8]];
+            let param_scale = [1e6, if poisson { 0.1 } else { params[1] }, 10.0, 500.0, 1e4, 1000.0, 1.0, 1e3, params[8], 0.1];
             check_update_adjoint(label, make(poisson, eos), &params, l_of(l), j, dt, &state, 1.0, &state_scale, &param_scale, 1e-6, 41 + k as u64);
         }
     }
@@ -1081,17 +1272,17 @@ mod tests {
         assert_eq!(bad.validate().unwrap_err(), "material.maxwell_modulus must be >= 0, got -1");
         let bad = EvpBingham { maxwell_time: 0.0, ..m.clone() };
         assert_eq!(bad.validate().unwrap_err(), "material.maxwell_time must be > 0, got 0");
-        assert_eq!(&m.param_names()[7..], ["maxwell_modulus", "maxwell_time"]);
+        assert_eq!(&m.param_names()[7..], ["maxwell_modulus", "maxwell_time", "flow_index"]);
         assert_eq!(&m.state_names()[8..], ["sM_xx", "sM_yy", "sM_zz", "sM_xy", "sM_yz", "sM_xz"]);
-        assert_eq!((solid().param_names().len(), solid().state_names().len()), (7, 8));
+        assert_eq!((solid().param_names().len(), solid().state_names().len()), (8, 8));
     }
 
     #[cfg(not(feature = "f32"))]
     #[test]
     fn the_initial_structuration_owes_its_adjoint_to_lambda0() {
-        let m = make(false, Eos::Linear)(&[1e6, 2e5, 7.5, 630.0, 1.0, 0.5, 0.3]);
-        let mut p = [0.0; 7];
+        let m = make(false, Eos::Linear)(&[1e6, 2e5, 7.5, 630.0, 1.0, 0.5, 0.3, 1.0]);
+        let mut p = [0.0; 8];
         m.init_state_adjoint(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 2.5, 1.0], &mut p);
-        assert_eq!(p, [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 2.5]);
+        assert_eq!(p, [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 2.5, 0.0]);
     }
 }

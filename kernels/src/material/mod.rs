@@ -75,8 +75,56 @@ pub struct StabilityInfo {
     pub bulk_modulus: Real,
     /// Elastic shear modulus [Pa]; 0 for fluids.
     pub shear_modulus: Real,
-    /// Largest dynamic viscosity an explicit step must resolve [Pa s]; 0 when none.
+    /// Largest dynamic viscosity an explicit step must resolve [Pa s]; 0 when none. With
+    /// `thickening`, the largest at shear rates up to its `floor_rate`.
     pub max_viscosity: Real,
+    /// A viscosity that grows without bound with the shear rate (a flow index n > 1); `None`
+    /// when `max_viscosity` bounds it at every rate.
+    pub thickening: Option<Thickening>,
+}
+
+/// Growth of the viscosity with the shear rate g beyond what `max_viscosity` covers:
+/// mu(g) <= max_viscosity + coefficient (max(g, floor_rate)^exponent - floor_rate^exponent), so
+/// the bound is continuous in the flow index at n = 1 (exponent n - 1 -> 0, growth -> 0).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Thickening {
+    /// [Pa s^n].
+    pub coefficient: Real,
+    /// n - 1 > 0.
+    pub exponent: Real,
+    /// [1/s].
+    pub floor_rate: Real,
+}
+
+impl StabilityInfo {
+    /// The largest viscosity at shear rates up to `max_rate` [Pa s].
+    pub fn viscosity_up_to(&self, max_rate: f64) -> f64 {
+        let base = self.max_viscosity as f64;
+        match self.thickening {
+            None => base,
+            Some(t) => {
+                let (c, e, f) = (t.coefficient as f64, t.exponent as f64, t.floor_rate as f64);
+                base + c * (max_rate.max(f).powf(e) - f.powf(e))
+            }
+        }
+    }
+}
+
+/// Flow index n of the Herschel-Bulkley materials (tau = tau0 + k gamma_dot^n, the `viscosity`
+/// key playing k): 1, Bingham, when the key is absent.
+pub(crate) fn default_flow_index() -> f64 {
+    1.0
+}
+
+/// x^(n - 1), the power law's factor on k, skipped at n = 1 so that a Bingham material costs no
+/// `powf` and gives the bits it gave before the flow index existed.
+#[inline]
+pub(crate) fn rate_power(x: Real, n: Real) -> Real {
+    if n == 1.0 {
+        1.0
+    } else {
+        x.powf(n - 1.0)
+    }
 }
 
 /// Where [`Material::update_adjoint`] accumulates (`+=`) the adjoints of what `update` read.

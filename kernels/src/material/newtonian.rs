@@ -79,6 +79,7 @@ impl Material for Newtonian {
             bulk_modulus: r(self.bulk_modulus),
             shear_modulus: r(0.0),
             max_viscosity: r(self.viscosity),
+            thickening: None,
         }
     }
 }

@@ -23,11 +23,20 @@
 //!   time step is chosen from parameters alone, so the build-up saturates at `lambda_max`, which
 //!   is required when `a_thix > 0`; with `a_thix = 0`, lambda can only decay and lambda0 bounds it.
 //!
+//! Herschel-Bulkley with `flow_index` n (default 1): the plastic viscosity eta becomes
+//! k q^(1-n) with q = m phi(m gamma_dot) = (1 - exp(-m gamma_dot)) / gamma_dot, `viscosity`
+//! playing k. The Papanastasiou factor q that regularises the yield term regularises the power
+//! law too: q -> 1 / gamma_dot once m gamma_dot >> 1, so tau -> tau0 (1 + lambda) +
+//! k gamma_dot^n there, while at rest q -> m and the apparent viscosity k q^(1-n) tends to
+//! k m^(1-n) instead of blowing up as k gamma_dot^(n-1) does for n < 1. As phi <= 1,
+//! k m^(1-n) is also its bound for n <= 1; for n > 1 it grows as k gamma_dot^(n-1) without
+//! bound ([`StabilityInfo::thickening`]; 1/q <= gamma_dot + 1/m <= 2 max(gamma_dot, 1/m)).
+//!
 //! Per-particle state: `[lambda]` (flocculation state, dimensionless), initialised to `lambda0`.
 
 use serde::Deserialize;
 
-use crate::material::{non_negative, positive, Eos, Material, StabilityInfo, UpdateAdjoint};
+use crate::material::{default_flow_index, non_negative, positive, rate_power, Eos, Material, StabilityInfo, Thickening, UpdateAdjoint};
 use crate::real::{ddot, dev, r, sym, trace, Real, M3, V3};
 
 #[derive(Clone, Debug, Deserialize)]
@@ -37,7 +46,7 @@ pub struct PapanastasiouRoussel {
     pub density: f64,
     /// Bulk modulus K of the equation of state [Pa].
     pub bulk_modulus: f64,
-    /// Plastic viscosity eta [Pa s].
+    /// Plastic viscosity eta [Pa s]; with `flow_index` n != 1, the consistency k [Pa s^n].
     pub viscosity: f64,
     /// Reference yield stress tau0 [Pa] (right after mixing, lambda = 0).
     pub yield_stress: f64,
@@ -56,6 +65,9 @@ pub struct PapanastasiouRoussel {
     /// Saturation of the structural build-up [-]; required when `a_thix > 0` (see module docs).
     #[serde(default)]
     pub lambda_max: Option<f64>,
+    /// Flow index n [-] of the Herschel-Bulkley law; 1 (Bingham) when absent.
+    #[serde(default = "default_flow_index")]
+    pub flow_index: f64,
     #[serde(default)]
     pub eos: Eos,
 }
@@ -74,6 +86,7 @@ impl PapanastasiouRoussel {
         non_negative("material.a_thix", self.a_thix)?;
         non_negative("material.alpha", self.alpha)?;
         non_negative("material.lambda0", self.lambda0)?;
+        positive("material.flow_index", self.flow_index)?;
         if self.a_thix > 0.0 && self.yield_stress == 0.0 {
             return Err(
                 "material.yield_stress must be > 0 when material.a_thix > 0 (eq. 12 divides by it)"
@@ -176,11 +189,10 @@ impl Material for PapanastasiouRoussel {
         state[0] = lambda;
 
         let m = r(self.papanastasiou_m);
-        let eta_a = r(self.viscosity)
-            + r(self.yield_stress)
-                * (r(1.0) + lambda)
-                * m
-                * one_minus_exp_neg_over_x(m * gamma_dot);
+        let phi = one_minus_exp_neg_over_x(m * gamma_dot);
+        // k q^(1-n) = k / q^(n-1), q = m phi
+        let eta = r(self.viscosity) / rate_power(m * phi, r(self.flow_index));
+        let eta_a = eta + r(self.yield_stress) * (r(1.0) + lambda) * m * phi;
         let p = self.eos.pressure(r(self.bulk_modulus), j);
         d_dev * (r(2.0) * eta_a) - M3::from_diagonal(V3::splat(p))
     }
@@ -197,6 +209,7 @@ impl Material for PapanastasiouRoussel {
                 "a_thix",
                 "alpha",
                 "lambda_max",
+                "flow_index",
             ]
         } else {
             &[
@@ -207,6 +220,7 @@ impl Material for PapanastasiouRoussel {
                 "a_thix",
                 "alpha",
                 "lambda0",
+                "flow_index",
             ]
         }
     }
@@ -219,7 +233,9 @@ impl Material for PapanastasiouRoussel {
     /// * at rest, gamma_dot = sqrt(2 D':D') is a cone, and its subgradient 0 is taken: the stress
     ///   is differentiable there, only the decay term of lambda is not;
     /// * A_thix / tau0 is differentiated as that quotient also at A_thix = 0 (see
-    ///   `build_up_rate_adjoint`).
+    ///   `build_up_rate_adjoint`);
+    /// * d/dn of k q^(1-n) is -k q^(1-n) ln q, taken at n = 1 too (the shear-thinning effect's
+    ///   score).
     fn update_adjoint(
         &self,
         grad_v: &M3,
@@ -253,7 +269,11 @@ impl Material for PapanastasiouRoussel {
         let x = m * gamma_dot;
         let phi = one_minus_exp_neg_over_x(x);
         let structure = r(1.0) + lambda;
-        let eta_a = r(self.viscosity) + tau0 * structure * m * phi;
+        let n = r(self.flow_index);
+        let q = m * phi;
+        let power = rate_power(q, n);
+        let eta = r(self.viscosity) / power;
+        let eta_a = eta + tau0 * structure * m * phi;
 
         // stress = 2 eta_a D' - p I
         let eta_a_bar = r(2.0) * ddot(&d_dev, stress_bar);
@@ -263,10 +283,14 @@ impl Material for PapanastasiouRoussel {
 
         let lambda_bar = state_out_bar[0] + eta_a_bar * tau0 * m * phi;
         let mut tau0_bar = eta_a_bar * structure * m * phi;
-        // d/dm [m phi(m g)] = d/dm [(1 - exp(-m g)) / g] = exp(-m g), free of cancellation.
-        let m_bar = eta_a_bar * tau0 * structure * (-x).exp();
-        let mut gamma_dot_bar =
-            eta_a_bar * tau0 * structure * m * m * one_minus_exp_neg_over_x_derivative(x);
+        // eta_a = k q^(1-n) + tau0 (1 + lambda) q: its derivative in q
+        let mut q_bar = eta_a_bar * tau0 * structure;
+        if n != r(1.0) {
+            q_bar += eta_a_bar * (r(1.0) - n) * eta / q;
+        }
+        // q = m phi(m g): d/dm [(1 - exp(-m g)) / g] = exp(-m g), free of cancellation.
+        let m_bar = q_bar * (-x).exp();
+        let mut gamma_dot_bar = q_bar * m * m * one_minus_exp_neg_over_x_derivative(x);
 
         let (trial_bar, cap_bar) = if at_cap {
             (r(0.0), lambda_bar)
@@ -290,12 +314,13 @@ impl Material for PapanastasiouRoussel {
 
         let p = &mut out.params_bar;
         p[0] += bulk_bar;
-        p[1] += eta_a_bar;
+        p[1] += eta_a_bar / power;
         p[2] += tau0_bar;
         p[3] += m_bar;
         p[4] += a_thix_bar;
         p[5] += alpha_bar;
         p[6] += cap_bar;
+        p[7] -= eta_a_bar * eta * q.ln();
     }
 
     /// lambda starts at lambda0; when lambda0 is a listed parameter (no `lambda_max`), the
@@ -316,14 +341,18 @@ impl Material for PapanastasiouRoussel {
         state[0] = (state[0] + self.build_up_rate() * duration).max(r(0.0)).min(r(self.lambda_cap()));
     }
 
+    /// phi <= 1, so with n <= 1 this bounds eta_a for every lambda the update lets through; for
+    /// n > 1 the power law's part is k q^(1-n) <= 2^(n-1) k max(g, 1/m)^(n-1) (module docs).
     fn stability(&self) -> StabilityInfo {
+        let (k, n, m) = (self.viscosity, self.flow_index, self.papanastasiou_m);
+        let k_bound = if n > 1.0 { k * 2f64.powf(n - 1.0) } else { k };
+        let power = if n == 1.0 { 1.0 } else { m.powf(1.0 - n) };
         StabilityInfo {
             density: r(self.density),
             bulk_modulus: r(self.bulk_modulus),
             shear_modulus: r(0.0),
-            // phi <= 1, so this bounds eta_a for every lambda the update lets through.
-            max_viscosity: r(self.viscosity
-                + self.yield_stress * (1.0 + self.lambda_cap()) * self.papanastasiou_m),
+            max_viscosity: r(k_bound * power + self.yield_stress * (1.0 + self.lambda_cap()) * m),
+            thickening: (n > 1.0).then(|| Thickening { coefficient: r(k_bound), exponent: r(n - 1.0), floor_rate: r(1.0 / m) }),
         }
     }
 }
@@ -344,6 +373,7 @@ mod tests {
             alpha: 0.0,
             lambda0: 0.0,
             lambda_max: None,
+            flow_index: 1.0,
             eos: Eos::Tait { gamma: 7.0 },
         }
     }
@@ -558,8 +588,8 @@ mod tests {
     #[cfg(not(feature = "f32"))]
     #[derive(Clone, Copy)]
     struct Point {
-        /// In `param_names` order: K, eta, tau0, m, A_thix, alpha, lambda_max | lambda0.
-        params: [f64; 7],
+        /// In `param_names` order: K, eta, tau0, m, A_thix, alpha, lambda_max | lambda0, n.
+        params: [f64; 8],
         /// Whether the last parameter is `lambda_max`; else it is lambda0, then the cap.
         by_lambda_max: bool,
         eos: Eos,
@@ -577,6 +607,11 @@ mod tests {
     #[cfg(not(feature = "f32"))]
     const M: usize = 3;
 
+    /// (gamma_dot, J, unresolved) from the series branches of phi and phi' (m g = 5e-5, 0.01) to
+    /// exp(-m g) ~ 2e-22 (m g = 50), for m = 10 (see `adjoint_across_shear_rates`).
+    #[cfg(not(feature = "f32"))]
+    const RATE_POINTS: [(f64, f64, &[usize]); 4] = [(5e-6, 1.0 - 1e-8, &[ALPHA]), (1e-3, 1.0 - 1e-6, &[ALPHA]), (0.02, 0.999, &[]), (5.0, 0.98, &[M])];
+
     #[cfg(not(feature = "f32"))]
     impl Point {
         /// Not validated: a few points take A_thix > 0 without `lambda_max`, which validation
@@ -592,6 +627,7 @@ mod tests {
                 alpha: p[5],
                 lambda0: if self.by_lambda_max { 0.0 } else { p[6] },
                 lambda_max: self.by_lambda_max.then_some(p[6]),
+                flow_index: p[7],
                 eos: self.eos,
             }
         }
@@ -607,7 +643,7 @@ mod tests {
                 .to_cols_array()
                 .iter()
                 .fold(0.0, |a: f64, v| a.max(v.abs()));
-            let param_scale: Vec<f64> = (0..7)
+            let param_scale: Vec<f64> = (0..8)
                 .map(|i| match self.unresolved.contains(&i) {
                     true => 0.0,
                     false => 0.1 * self.params[i],
@@ -640,7 +676,7 @@ mod tests {
         // pressure (~2e3) from swamping, in the differences' round-off, the small effect of A_thix
         // and alpha on the stress.
         let base = Point {
-            params: [3.3e5, 30.0, 100.0, 10.0, 5.0, 0.5, 3.0],
+            params: [3.3e5, 30.0, 100.0, 10.0, 5.0, 0.5, 3.0, 1.0],
             by_lambda_max: true,
             eos: TAIT,
             gamma_dot: 0.2,
@@ -678,7 +714,7 @@ mod tests {
         // end, where exp(-m g) underflows to 0.
         for (k, eos) in [TAIT, Eos::Linear].into_iter().enumerate() {
             let pt = Point {
-                params: [3.3e5, 30.0, 100.0, 10.0, 0.5, 1.0, 3.0],
+                params: [3.3e5, 30.0, 100.0, 10.0, 0.5, 1.0, 3.0, 1.0],
                 by_lambda_max: true,
                 eos,
                 gamma_dot: 100.0,
@@ -696,7 +732,7 @@ mod tests {
     fn adjoint_with_lambda_clamped_at_the_cap() {
         // Build-up 0.5/s over dt = 0.1 takes lambda = 2.99 to a trial 3.04 > lambda_max = 3.
         let base = Point {
-            params: [3.3e5, 30.0, 100.0, 10.0, 50.0, 0.05, 3.0],
+            params: [3.3e5, 30.0, 100.0, 10.0, 50.0, 0.05, 3.0, 1.0],
             by_lambda_max: true,
             eos: TAIT,
             gamma_dot: 0.03,
@@ -710,7 +746,7 @@ mod tests {
         }
         // Capped by lambda0 = 2 with lambda = 2.5 above it (a state only a perturbation reaches).
         let pt = Point {
-            params: [3.3e5, 30.0, 100.0, 10.0, 0.5, 0.05, 2.0],
+            params: [3.3e5, 30.0, 100.0, 10.0, 0.5, 0.05, 2.0, 1.0],
             by_lambda_max: false,
             lambda: 2.5,
             ..base
@@ -726,7 +762,7 @@ mod tests {
         // shear stress (~1e-3 at m g = 5e-5) in the differences' round-off. Unresolved: alpha
         // while alpha g dt <= 1e-4, and m where its derivative exp(-m g) ~ 2e-22.
         let base = Point {
-            params: [3.3e5, 30.0, 100.0, 10.0, 5.0, 1.0, 3.0],
+            params: [3.3e5, 30.0, 100.0, 10.0, 5.0, 1.0, 3.0, 1.0],
             by_lambda_max: true,
             eos: TAIT,
             gamma_dot: 0.0,
@@ -735,14 +771,8 @@ mod tests {
             lambda: 1.2,
             unresolved: &[],
         };
-        let points: [(f64, f64, &'static [usize]); 4] = [
-            (5e-6, 1.0 - 1e-8, &[ALPHA]),
-            (1e-3, 1.0 - 1e-6, &[ALPHA]),
-            (0.02, 0.999, &[]),
-            (5.0, 0.98, &[M]),
-        ];
         for (k, eos) in [TAIT, Eos::Linear].into_iter().enumerate() {
-            for (i, (gamma_dot, j, unresolved)) in points.into_iter().enumerate() {
+            for (i, (gamma_dot, j, unresolved)) in RATE_POINTS.into_iter().enumerate() {
                 let pt = Point {
                     eos,
                     gamma_dot,
@@ -765,7 +795,7 @@ mod tests {
         let mut m = mix();
         m.alpha = 0.3;
         let dt = 0.1;
-        let (mut gv, mut jb, mut sb, mut pb) = (M3::ZERO, 0.0, [0.0], [0.0; 7]);
+        let (mut gv, mut jb, mut sb, mut pb) = (M3::ZERO, 0.0, [0.0], [0.0; 8]);
         let mut out = UpdateAdjoint {
             grad_v_bar: &mut gv,
             j_bar: &mut jb,
@@ -775,10 +805,10 @@ mod tests {
         m.update_adjoint(&M3::ZERO, 1.0, dt, &[0.0], &M3::ZERO, &[1.0], &mut out);
         assert_eq!(gv, M3::ZERO);
         assert_eq!(sb[0], 1.0);
-        assert_eq!(pb, [0.0, 0.0, 0.0, 0.0, dt / 100.0, 0.0, 0.0]);
+        assert_eq!(pb, [0.0, 0.0, 0.0, 0.0, dt / 100.0, 0.0, 0.0, 0.0]);
         // At rest a stress cotangent sees the stress's tangent 2 (eta + tau0 m) dev(sym(.)).
         let s_bar = M3::from_cols_array(&[0.3, -0.2, 0.5, 0.1, 0.7, -0.4, 0.2, 0.6, -0.9]);
-        let (mut gv, mut pb) = (M3::ZERO, [0.0; 7]);
+        let (mut gv, mut pb) = (M3::ZERO, [0.0; 8]);
         let mut out = UpdateAdjoint {
             grad_v_bar: &mut gv,
             j_bar: &mut jb,
@@ -788,6 +818,68 @@ mod tests {
         m.update_adjoint(&M3::ZERO, 1.0, dt, &[0.0], &s_bar, &[0.0], &mut out);
         let expect = dev(&sym(&s_bar)) * (2.0 * (30.0 + 100.0 * 10.0));
         assert!(gv.abs_diff_eq(expect, 1e-9), "{gv} vs {expect}");
+    }
+
+    #[cfg(not(feature = "f32"))]
+    #[test]
+    fn adjoint_with_a_flow_index_across_shear_rates_and_lambda_branches() {
+        // the points of `adjoint_across_shear_rates` (series branches of phi and phi', the
+        // middle, exp(-m g) ~ 2e-22) and of the clamped cases, with n below and above 1, where the
+        // power law's q^(1-n) is regularised (m g << 1) or is HB (m g >> 1)
+        let base = Point {
+            params: [3.3e5, 30.0, 100.0, 10.0, 5.0, 1.0, 3.0, 1.0],
+            by_lambda_max: true,
+            eos: TAIT,
+            gamma_dot: 0.0,
+            j: 1.0,
+            dt: 0.1,
+            lambda: 1.2,
+            unresolved: &[],
+        };
+        for (k, n) in [0.5, 1.3].into_iter().enumerate() {
+            for (i, (gamma_dot, j, unresolved)) in RATE_POINTS.into_iter().enumerate() {
+                let mut params = base.params;
+                params[7] = n;
+                let pt = Point { params, gamma_dot, j, unresolved, ..base };
+                pt.check(&format!("n={n}, m g={}", 10.0 * gamma_dot), 141 + 10 * k as u64 + i as u64);
+            }
+            // lambda clamped at zero (large rate, where m's derivative exp(-m g) underflows to 0)
+            // and at the cap (small rate)
+            let pt = Point { params: [3.3e5, 30.0, 100.0, 10.0, 0.5, 1.0, 3.0, n], gamma_dot: 100.0, j: 0.97, lambda: 0.5, eos: Eos::Linear, unresolved: &[M], ..base };
+            pt.check(&format!("n={n}, at zero"), 161 + k as u64);
+            let pt = Point { params: [3.3e5, 30.0, 100.0, 10.0, 50.0, 0.05, 3.0, n], gamma_dot: 0.03, j: 0.99, lambda: 2.99, ..base };
+            pt.check(&format!("n={n}, at cap"), 171 + k as u64);
+        }
+    }
+
+    #[test]
+    fn with_a_flow_index_the_flow_curve_is_herschel_bulkley_and_finite_at_rest() {
+        for n in [0.4 as Real, 0.6, 1.5] {
+            let m = PapanastasiouRoussel { flow_index: n as f64, papanastasiou_m: 100.0, ..mix() };
+            assert!(m.validate().is_ok());
+            // m g >= 50: (1 - exp(-m g))^(1-n) is 1 to round-off, so tau = tau0 + k g^n
+            for g in [0.5 as Real, 1.0, 4.0, 30.0] {
+                let s = m.update(&simple_shear(g), 1.0, 1e-4, &mut [0.0]);
+                let hb = 100.0 + 30.0 * g.powf(n);
+                assert!(rel(s.y_axis.x, hb) < 10.0 * EPS, "n={n} g={g}: {} vs {hb}", s.y_axis.x);
+            }
+            // at vanishing rate the apparent viscosity tends to k m^(1-n) + tau0 m, not infinity
+            let g = 1e-9 as Real;
+            let s = m.update(&simple_shear(g), 1.0, 1e-4, &mut [0.0]);
+            let eta0 = 30.0 * (100.0 as Real).powf(1.0 - n) + 100.0 * 100.0;
+            assert!(rel(s.y_axis.x / g, eta0) < 1e-6, "n={n}: {} vs {eta0}", s.y_axis.x / g);
+            assert_eq!(m.update(&M3::ZERO, 1.0, 1e-4, &mut [0.0]).y_axis.x, 0.0);
+            // the step's viscosity bound holds at every rate
+            let st = m.stability();
+            assert!(rel(st.max_viscosity, if n <= 1.0 { eta0 } else { 30.0 * (2.0 as Real).powf(n - 1.0) * (100.0 as Real).powf(1.0 - n) + 1e4 }) < EPS);
+            assert_eq!(st.thickening.is_some(), n > 1.0);
+            for g in [1e-6, 1e-3, 0.01, 0.1, 1.0, 40.0, 1e3] {
+                let s = m.update(&simple_shear(g as Real), 1.0, 1e-4, &mut [0.0]);
+                assert!(s.y_axis.x as f64 / g <= st.viscosity_up_to(g) * (1.0 + if cfg!(feature = "f32") { 1e-5 } else { 1e-9 }), "n={n} g={g}");
+            }
+        }
+        let bad = PapanastasiouRoussel { flow_index: -0.5, ..mix() };
+        assert_eq!(bad.validate().unwrap_err(), "material.flow_index must be > 0, got -0.5");
     }
 
     #[cfg(not(feature = "f32"))]

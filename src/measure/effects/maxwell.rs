@@ -78,7 +78,7 @@ mod tests {
                 mat.insert(k.strip_prefix("material.").unwrap().to_string(), toml::Value::Float(*v));
             }
             let m = crate::materials::build_material(&mat).unwrap();
-            assert_eq!((m.state_names().len(), m.param_names().len()), (14, 9));
+            assert_eq!((m.state_names().len(), m.param_names().len()), (14, 10));
             assert_eq!(m.stability().shear_modulus, 1e5 + g_m as crate::kernels::Real);
         }
     }

@@ -14,6 +14,7 @@ pub mod ageing;
 pub mod maxwell;
 pub mod modulus;
 pub mod process;
+pub mod shear_thinning;
 pub mod thixotropy;
 pub mod viscosity_ageing;
 pub mod wall_friction;
@@ -85,6 +86,7 @@ pub const REGISTRY: &[&dyn Effect] = &[
     &viscosity_ageing::ViscosityAgeing,
     &wall_friction::WallFriction,
     &maxwell::Maxwell,
+    &shear_thinning::ShearThinning,
     &modulus::Modulus::ELASTICITY,
     &modulus::Modulus::COMPRESSIBILITY,
     &process::Process::EXTRUSION_FACTOR,
