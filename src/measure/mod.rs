@@ -10,6 +10,7 @@ pub mod compare;
 pub mod data;
 pub mod diagnose;
 pub mod effects;
+pub mod expression;
 pub mod linalg;
 pub mod model;
 pub mod plan;
