@@ -15,5 +15,7 @@ pub mod linalg;
 pub mod model;
 pub mod plan;
 pub mod report;
+pub mod residuals;
 pub mod rheometer;
+pub mod rounds;
 pub mod sensitivity;
