@@ -113,11 +113,12 @@ pub fn shapes(rows: &[Row], covariates: &[Covariate], alpha: f64) -> Vec<Shape> 
 }
 
 fn covariate_shapes(rows: &[Row], c: &Covariate) -> Vec<Tested> {
-    let (mut x, mut z, mut exp) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut x, mut z, mut w, mut exp) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for (r, v) in rows.iter().zip(&c.values) {
         if let Some(v) = v.filter(|v| v.is_finite()).filter(|_| r.z.is_finite()) {
             x.push(v);
             z.push(r.z);
+            w.push(1.0 / r.uncertainty);
             exp.push(r.experiment.clone());
         }
     }
@@ -129,7 +130,10 @@ fn covariate_shapes(rows: &[Row], c: &Covariate) -> Vec<Tested> {
     });
     // the points and the base model: experiments' means over a constant, or readings each over
     // its experiment's constant
-    let (x, z, base) = if per_experiment {
+    // Within experiments the shape is that of the residual model - measured, weighted by
+    // 1 / uncertainty (z = residual / uncertainty regressed on each column / uncertainty): an
+    // uncertainty relative to the value would otherwise bend a straight residual.
+    let (x, z, w, base) = if per_experiment {
         let mean = |v: &[f64], g: usize| -> f64 {
             let s: Vec<f64> = v.iter().zip(&exp).filter(|(_, e)| **e == g).map(|(v, _)| *v).collect();
             s.iter().sum::<f64>() / s.len() as f64
@@ -137,10 +141,11 @@ fn covariate_shapes(rows: &[Row], c: &Covariate) -> Vec<Tested> {
         let xs: Vec<f64> = (0..ids.len()).map(|g| mean(&x, g)).collect();
         let zs: Vec<f64> = (0..ids.len()).map(|g| mean(&z, g)).collect();
         let n = xs.len();
-        (xs, zs, vec![vec![1.0; n]])
+        (xs, zs, vec![1.0; n], vec![vec![1.0; n]])
     } else {
         let base = if ids.len() >= 2 { indicators(&exp) } else { vec![vec![1.0; x.len()]] };
-        (x, z, base)
+        let base = base.into_iter().map(|c| c.iter().zip(&w).map(|(c, w)| c * w).collect()).collect();
+        (x, z, w, base)
     };
     let (level_of, levels) = groups_of(&x.iter().map(|v| v.to_bits()).collect::<Vec<_>>());
     let k = levels.len();
@@ -151,8 +156,8 @@ fn covariate_shapes(rows: &[Row], c: &Covariate) -> Vec<Tested> {
     let mean = x.iter().sum::<f64>() / n;
     let sd = (x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt().max(1e-300);
     let u: Vec<f64> = x.iter().map(|v| (v - mean) / sd).collect();
-    let lin: Vec<Vec<f64>> = base.iter().cloned().chain([u.clone()]).collect();
-    let quad: Vec<Vec<f64>> = lin.iter().cloned().chain([u.iter().map(|v| v * v).collect()]).collect();
+    let lin: Vec<Vec<f64>> = base.iter().cloned().chain([u.iter().zip(&w).map(|(u, w)| u * w).collect()]).collect();
+    let quad: Vec<Vec<f64>> = lin.iter().cloned().chain([u.iter().zip(&w).map(|(u, w)| u * u * w).collect()]).collect();
     // the sign of the last column's coefficient: the slope, or the quadratic term
     let shape = |kind: &str, (f, p, coef): (f64, f64, Vec<f64>), signed: bool| {
         let sign = if signed { coef.last().copied().unwrap_or(0.0).signum() } else { 0.0 };
@@ -166,7 +171,7 @@ fn covariate_shapes(rows: &[Row], c: &Covariate) -> Vec<Tested> {
     out.extend(f_test(&z, &base, &lin).map(|t| shape("trend", t, true)));
     out.extend(f_test(&z, &lin, &quad).map(|t| shape("curvature", t, true)));
     if k >= 4 {
-        let groups: Vec<Vec<f64>> = quad.iter().cloned().chain(indicators(&level_of)).collect();
+        let groups: Vec<Vec<f64>> = quad.iter().cloned().chain(indicators(&level_of).into_iter().map(|c| c.iter().zip(&w).map(|(c, w)| c * w).collect())).collect();
         out.extend(f_test(&z, &quad, &groups).map(|t| shape("step", t, false)));
     }
     out
@@ -359,6 +364,25 @@ mod tests {
         let c = sh.iter().find(|s| s.covariate == "at(stress)" && s.kind == "curvature").unwrap_or_else(|| panic!("{sh:#?}"));
         assert!(c.text.starts_with("residuals bend with shear rate") && c.text.contains("the flow curve is not linear in the rate") && c.text.contains("shear-thinning"), "{}", c.text);
         assert!(sh.iter().all(|s| s.covariate != "age" && s.covariate != "rest_time"), "{sh:#?}");
+    }
+
+    #[test]
+    fn a_straight_residual_under_relative_uncertainties_does_not_bend() {
+        // a Bingham model with the viscosity off, against Bingham data with 1 % uncertainties:
+        // the residual is linear in the rate, z = residual / (0.01 measured) is not
+        let mut data = Vec::new();
+        let mut values = Vec::new();
+        for (e, tau0) in [100.0, 120.0, 140.0].iter().enumerate() {
+            for rate in [40.0, 20.0, 10.0, 5.0, 1.0] {
+                let measured = tau0 + 20.0 * rate;
+                data.push(Observation { experiment: format!("E{e}"), observable: Observable { name: "stress".into(), at: Some(rate), at2: None }, value: measured, uncertainty: 0.01 * measured });
+                values.push(tau0 + 30.0 * rate);
+            }
+        }
+        let rows = comparison(&data, &values).rows;
+        let covs = [Covariate { name: "at(stress)".into(), axis: String::new(), values: rows.iter().map(|r| r.at).collect() }];
+        let sh = shapes(&rows, &covs, 0.01);
+        assert!(sh.iter().any(|s| s.kind == "trend") && sh.iter().all(|s| s.kind != "curvature"), "{sh:#?}");
     }
 
     #[test]
