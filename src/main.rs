@@ -204,11 +204,16 @@ enum Cmd {
         /// (each check refits once per experiment); the rest are reported significant.
         #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..))]
         max_fitted: u64,
-        /// Write the model with the recommended effect, fitted, here.
+        /// Write the model with the recommended effect, fitted, here (with --rounds, the final
+        /// model with every effect added).
         #[arg(long)]
         out: Option<PathBuf>,
         #[arg(long, default_value_t = 30)]
         max_iterations: usize,
+        /// Run up to N rounds: diagnose, add the verdict's effect, refit, and diagnose again
+        /// until nothing is significant, printing the error after each round.
+        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
+        rounds: u64,
         #[command(flatten)]
         engine: EngineArgs,
     },
@@ -409,14 +414,16 @@ fn main() -> ExitCode {
             let trends = report.as_deref().map(|dir| folder::write(dir, &c, &e, &m)).transpose()?;
             if inputs.json {
                 let mut v = serde_json::to_value(&c).map_err(|e| e.to_string())?;
-                if let Some(t) = &trends {
+                if let Some((t, shapes)) = &trends {
                     v["trends"] = serde_json::to_value(t).map_err(|e| e.to_string())?;
+                    v["shapes"] = serde_json::to_value(shapes).map_err(|e| e.to_string())?;
                 }
                 println!("{v:#}");
             } else {
                 print!("{}", compare::report(&c));
-                if let Some(t) = &trends {
+                if let Some((t, shapes)) = &trends {
                     print!("{}", folder::trends_text(t));
+                    print!("{}", strand::measure::residuals::text(shapes));
                 }
             }
             if let Some(dir) = &report {
@@ -450,13 +457,27 @@ fn main() -> ExitCode {
             eprintln!("calibrated model written to {}, convergence plot to {}", out.display(), plot.display());
             Ok(true)
         })(),
-        Cmd::Diagnose { inputs, fit, alpha, no_loo, max_fitted, out, max_iterations, engine } => (|| {
+        Cmd::Diagnose { inputs, fit, alpha, no_loo, max_fitted, out, max_iterations, rounds, engine } => (|| {
             use strand::measure::{calibrate::FitOptions, diagnose};
             if !(alpha > 0.0 && alpha < 1.0) {
                 return Err(format!("--alpha must be in (0, 1), got {alpha}"));
             }
             let (m, d, e) = inputs.load()?;
             let opts = diagnose::DiagnoseOptions { fit: FitOptions { max_iterations, jobs: inputs.jobs, engine: engine.engine()?, ..Default::default() }, alpha, leave_one_out: !no_loo, max_fitted: max_fitted as usize };
+            if rounds > 1 {
+                use strand::measure::rounds;
+                let r = rounds::rounds(&m, &d, &e, &fit, &opts, rounds as usize)?;
+                if let (Some(out), false) = (&out, r.added.is_empty()) {
+                    std::fs::write(out, r.model.to_toml()).map_err(|e| format!("{}: {e}", out.display()))?;
+                    eprintln!("model with {} written to {}", r.added.join(", "), out.display());
+                }
+                if inputs.json {
+                    println!("{:#}", serde_json::to_value(&r).map_err(|e| e.to_string())?);
+                } else {
+                    print!("{}", rounds::report(&r));
+                }
+                return Ok(true);
+            }
             let r = diagnose::diagnose(&m, &d, &e, &fit, &opts)?;
             if let (Some(out), Some(best)) = (&out, &r.recommended_model) {
                 std::fs::write(out, best.to_toml()).map_err(|e| format!("{}: {e}", out.display()))?;

@@ -181,3 +181,76 @@ fn calibrate_writes_the_fitted_model_and_its_convergence_plot() {
     assert_ne!(code, 0);
     assert!(err.contains("effect 'ageing' is not in the model"), "{err}");
 }
+
+/// Synthesise the campaign's data from `truth` (1 % noise), then run `strand diagnose` on `base`
+/// with `extra` arguments; its JSON and the model it wrote.
+fn diagnose_campaign(truth: &str, base: &str, extra: &[&str]) -> (serde_json::Value, String, tempfile::TempDir) {
+    let d = fixtures("campaign");
+    let tmp = tempfile::tempdir().unwrap();
+    let data = tmp.path().join("data.csv");
+    let exps = d.join("experiments.toml");
+    let (code, _, err) = strand(&["synth", "--model", s(&d.join(truth)), "--experiments", s(&exps), "--noise", "0.01", "--seed", "7", "--out", s(&data)]);
+    assert_eq!(code, 0, "{err}");
+    let (out, base) = (tmp.path().join("best.toml"), d.join(base));
+    let args = ["diagnose", "--model", s(&base), "--data", s(&data), "--experiments", s(&exps), "--fit", "material.yield_stress,material.viscosity", "--json", "--out", s(&out)];
+    let (code, json, err) = strand(&[&args[..], extra].concat());
+    assert_eq!(code, 0, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    println!("{truth}: {v:#}");
+    (v, std::fs::read_to_string(&out).unwrap_or_default(), tmp)
+}
+
+#[test]
+fn an_effect_declared_in_the_model_file_lowers_the_error_to_the_noise() {
+    // the yield stress grows as the square root of age, an effect the library does not have;
+    // the base model declares the power law as a candidate (a and b free, b = 1 at its null)
+    let (v, written, tmp) = diagnose_campaign("truth_yield_growth.toml", "base_yield_growth.toml", &[]);
+    assert_eq!(v["verdict"], "add yield_growth", "{v:#}");
+    let c = v["candidates"].as_array().unwrap();
+    // beside the library's eight
+    assert_eq!(c.len(), 9, "{v:#}");
+    let chosen = c.iter().find(|x| x["effect"] == "yield_growth").unwrap();
+    let n = v["observations"].as_f64().unwrap();
+    let after = chosen["fitted_chi2"].as_f64().unwrap() / n;
+    assert!(v["base_chi2"].as_f64().unwrap() / n > 10.0 && after <= 1.5, "chi^2/n {after} with the declared effect: {v:#}");
+    // linear ageing, equal to it at first order at the null, also passes its checks: the fit
+    // decides, and its verdict says why it was not chosen
+    let ageing = c.iter().find(|x| x["effect"] == "ageing").unwrap();
+    assert!(ageing["verdict"].as_str().unwrap().contains("not chosen: left-out chi^2"), "{ageing:#}");
+    assert!(ageing["loo_chi2"].as_f64().unwrap() > chosen["loo_chi2"].as_f64().unwrap());
+    // the written model has it declared and on, and compares as the fit said
+    assert!(written.contains("[effects.yield_growth]") && written.contains("age^b") && !written.contains("candidate"), "{written}");
+    let model = tmp.path().join("best.toml");
+    let d = fixtures("campaign");
+    let (code, json, err) = strand(&["compare", "--model", s(&model), "--data", s(&tmp.path().join("data.csv")), "--experiments", s(&d.join("experiments.toml")), "--json"]);
+    assert_eq!(code, 0, "{err}");
+    let cmp: serde_json::Value = serde_json::from_str(&json).unwrap();
+    assert!((cmp["chi2"].as_f64().unwrap() / (after * n) - 1.0).abs() < 1e-6, "{cmp:#}");
+    // a typing error in the declaration names the symbol, the expression and its line
+    let bad = tmp.path().join("bad.toml");
+    std::fs::write(&bad, std::fs::read_to_string(d.join("base_yield_growth.toml")).unwrap().replace("age^b", "agee^b")).unwrap();
+    let (code, _, err) = strand(&["compare", "--model", s(&bad), "--data", s(&tmp.path().join("data.csv")), "--experiments", s(&d.join("experiments.toml"))]);
+    assert_ne!(code, 0);
+    assert!(err.contains("unknown symbol 'agee'") && err.contains("'yield_stress * (1 + a * agee^b)'") && err.contains("(line 12)"), "{err}");
+}
+
+#[test]
+fn two_hidden_effects_are_resolved_by_rounds() {
+    // thixotropy and ageing of the viscosity: one round finds one, the next the other
+    let (v, written, _tmp) = diagnose_campaign("truth_two_effects.toml", "base.toml", &["--rounds", "4"]);
+    let added: Vec<&str> = v["added"].as_array().unwrap().iter().map(|e| e.as_str().unwrap()).collect();
+    let mut sorted = added.clone();
+    sorted.sort();
+    assert_eq!(sorted, ["thixotropy", "viscosity_ageing"], "{v:#}");
+    assert_eq!(v["complete"], true, "{v:#}");
+    let fin = v["final_chi2_per_observation"].as_f64().unwrap();
+    assert!(fin <= 1.5, "final chi^2/n {fin}: {v:#}");
+    // the error falls round by round, and the last round finds nothing more
+    let rounds = v["rounds"].as_array().unwrap();
+    assert_eq!(rounds.len(), 3, "{v:#}");
+    for r in &rounds[..2] {
+        assert!(r["chi2_per_observation_after"].as_f64().unwrap() < 0.5 * r["chi2_per_observation_before"].as_f64().unwrap(), "{r:#}");
+    }
+    assert_ne!(rounds[2]["diagnosis"]["verdict"].as_str().unwrap().split(' ').next(), Some("add"), "{v:#}");
+    assert!(written.contains("[effects.thixotropy]") && written.contains("[effects.viscosity_ageing]"), "{written}");
+}

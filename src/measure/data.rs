@@ -204,11 +204,16 @@ pub struct Experiment {
     /// Material age at the test, since mixing [s] (what ageing acts on).
     #[serde(default)]
     pub age: f64,
+    /// Other covariates, by name (`covariates = { temperature = 31.0 }`): what an effect
+    /// declared in a model file may read, and what `compare --report` and diagnose look for
+    /// patterns in.
+    #[serde(default)]
+    pub covariates: std::collections::BTreeMap<String, f64>,
 }
 
 impl Experiment {
     pub fn covariates(&self) -> super::effects::Covariates {
-        super::effects::Covariates { rest_time: self.rest_time, age: self.age }
+        super::effects::Covariates { rest_time: self.rest_time, age: self.age, declared: self.covariates.clone() }
     }
 }
 
@@ -244,6 +249,14 @@ impl Experiments {
             for (what, v) in [("rest_time", x.rest_time), ("age", x.age)] {
                 if !(v.is_finite() && v >= 0.0) {
                     return Err(format!("experiment '{}': {what} must be >= 0 seconds, got {v}", x.id));
+                }
+            }
+            for (name, v) in &x.covariates {
+                if ["rest_time", "age"].contains(&name.as_str()) {
+                    return Err(format!("experiment '{}': covariates.{name}: give {name} as its own key ({name} = ...)", x.id));
+                }
+                if !v.is_finite() {
+                    return Err(format!("experiment '{}': covariates.{name} must be a finite number, got {v}", x.id));
                 }
             }
             for (k, v) in &x.set {

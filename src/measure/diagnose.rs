@@ -33,7 +33,7 @@
 
 use super::calibrate::{calibrate, chi2, standardised, Fit, FitOptions};
 use super::data::{Experiments, Observation};
-use super::effects::{self, Covariates, Effect};
+use super::effects::{Covariates, Effect};
 use super::linalg::{chi2_sf, normal_equations, pinv_sym};
 use super::model::Model;
 
@@ -91,10 +91,16 @@ pub struct Diagnosis {
     pub recommended: Option<String>,
     /// "add EFFECT", "unexplained" or "explained".
     pub verdict: String,
-    /// Where and how the residuals of an unexplained misfit lie.
+    /// Where the residuals of an unexplained misfit lie (largest residuals, worst observables),
+    /// then the base fit's residual shapes in words.
     pub pattern: Vec<String>,
+    /// The base fit's residual shapes (trend, curvature, step, together) against each covariate.
+    pub shapes: Vec<super::residuals::Shape>,
     #[serde(skip)]
     pub recommended_model: Option<Model>,
+    /// The base model refitted (`fit`).
+    #[serde(skip)]
+    pub base_model: Model,
 }
 
 fn rms(chi2: f64, n: usize) -> f64 {
@@ -158,7 +164,7 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
     let mut absent: Vec<&'static dyn Effect> = Vec::new();
     let mut unreachable: Vec<&'static dyn Effect> = Vec::new();
     let mut inapplicable: Vec<Candidate> = Vec::new();
-    for e in effects::REGISTRY.iter().copied().filter(|e| !base.model.has(e.name())) {
+    for e in base.model.available().into_iter().filter(|e| !base.model.has(e.name())) {
         match applicable(e, &base.model, data, exps) {
             Ok(()) if !e.null_at_infinity() => absent.push(e),
             Ok(()) => unreachable.push(e),
@@ -300,7 +306,7 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
             continue;
         }
         fitted += 1;
-        let effect = effects::find(&c.effect)?;
+        let effect = base.model.effect(&c.effect)?;
         let fnames = fit_names(fit, effect);
         let f = match prefit.remove(&c.effect) {
             Some(f) => f,
@@ -349,15 +355,16 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
     for (i, c) in cands.iter_mut().enumerate() {
         c.rank = i + 1;
     }
-    // the recommendation: the best-ranked recommended effect
-    let best = cands.iter().position(|c| c.recommended);
+    let best = choose(&mut cands);
     let recommended = best.map(|i| cands[i].effect.clone());
     let recommended_model = best.and_then(|i| models[i].clone());
-    let (verdict, pattern) = match (&recommended, base_p_value < opts.alpha) {
+    let shapes = residual_shapes(&base, data, exps, opts.alpha)?;
+    let (verdict, mut pattern) = match (&recommended, base_p_value < opts.alpha) {
         (Some(e), _) => (format!("add {e}"), vec![]),
-        (None, true) => ("unexplained".to_string(), residual_pattern(&base, data, exps)),
+        (None, true) => ("unexplained".to_string(), largest_residuals(&base, data)),
         (None, false) => ("explained".to_string(), vec![]),
     };
+    pattern.extend(shapes.iter().map(|s| s.text.clone()));
     Ok(Diagnosis {
         fit: fit.to_vec(),
         observations: m,
@@ -369,8 +376,36 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
         recommended,
         verdict,
         pattern,
+        shapes,
         recommended_model,
+        base_model: base.model.clone(),
     })
+}
+
+/// The shapes of the base fit's residuals against every covariate (`residuals.rs`).
+fn residual_shapes(base: &Fit, data: &[Observation], exps: &Experiments, alpha: f64) -> Result<Vec<super::residuals::Shape>, String> {
+    let c = super::compare::comparison(data, &base.model_values);
+    let covs = super::report::covariates(&c.rows, exps, &base.model)?;
+    Ok(super::residuals::shapes(&c.rows, &covs, alpha))
+}
+
+/// The verdict among the recommended candidates: the score ranks them, the fit decides. The one
+/// that predicts left-out experiments best (lowest left-out chi^2; the lowest fitted chi^2 when
+/// leave-one-out was not run) is chosen, and each other recommended one's verdict says why it was
+/// not.
+fn choose(cands: &mut [Candidate]) -> Option<usize> {
+    let recommended: Vec<usize> = (0..cands.len()).filter(|&i| cands[i].recommended).collect();
+    // leave-one-out is run for all or none of them; compare like with like
+    let all_loo = recommended.iter().all(|&i| cands[i].loo_chi2.is_some());
+    let key = |c: &Candidate| if all_loo { c.loo_chi2.unwrap_or(f64::INFINITY) } else { c.fitted_chi2.unwrap_or(f64::INFINITY) };
+    let best = recommended.iter().copied().min_by(|&a, &b| key(&cands[a]).total_cmp(&key(&cands[b])).then(a.cmp(&b)))?;
+    let (name, value) = (cands[best].effect.clone(), key(&cands[best]));
+    let what = if all_loo { "left-out chi^2" } else { "fitted chi^2" };
+    for &i in recommended.iter().filter(|&&i| i != best) {
+        let c = &mut cands[i];
+        c.verdict = format!("{}; not chosen: {what} {:.4e} against {name}'s {value:.4e}", c.verdict, key(c));
+    }
+    Some(best)
 }
 
 /// Whether `effect` can act on `model`'s keys and on every simulation experiment the data name,
@@ -403,9 +438,9 @@ fn leave_one_out(model: &Model, data: &[Observation], exps: &Experiments, names:
     Ok(total)
 }
 
-/// What an unexplained misfit looks like: the largest residuals, the observables worst fitted,
-/// and the covariates the residuals follow.
-fn residual_pattern(base: &Fit, data: &[Observation], exps: &Experiments) -> Vec<String> {
+/// Where an unexplained misfit lies: the largest residuals and the observables worst fitted
+/// (its shapes are [`Diagnosis::shapes`]).
+fn largest_residuals(base: &Fit, data: &[Observation]) -> Vec<String> {
     let c = super::compare::comparison(data, &base.model_values);
     let mut out = Vec::new();
     let mut worst: Vec<&super::compare::Row> = c.rows.iter().collect();
@@ -415,27 +450,6 @@ fn residual_pattern(base: &Fit, data: &[Observation], exps: &Experiments) -> Vec
     }
     for s in &c.by_observable {
         out.push(format!("observable {}: rms z = {:.2} over {}", s.name, s.rms_z, s.n));
-    }
-    // residuals that move together within each experiment point at a per-experiment cause
-    let groups = super::compare::group(data);
-    if groups.len() >= 2 && groups.iter().all(|(_, o)| o.len() >= 2) {
-        let per: Vec<Vec<f64>> = groups.iter().map(|(id, _)| c.rows.iter().filter(|r| r.experiment == *id).map(|r| r.z).collect()).collect();
-        let means: Vec<f64> = per.iter().map(|z| z.iter().sum::<f64>() / z.len() as f64).collect();
-        let within = (per.iter().zip(&means).map(|(z, m)| z.iter().map(|v| (v - m).powi(2)).sum::<f64>()).sum::<f64>() / data.len() as f64).sqrt();
-        let mm = means.iter().sum::<f64>() / means.len() as f64;
-        let between = (means.iter().map(|m| (m - mm).powi(2)).sum::<f64>() / means.len() as f64).sqrt();
-        if between > 2.0 * within {
-            let shifts: Vec<String> = groups.iter().zip(&means).map(|((id, _), m)| format!("{id} {m:+.1}")).collect();
-            out.push(format!("residuals move together within each experiment (spread between experiments {between:.2}, within {within:.2}): a per-experiment cause the covariates do not describe; mean z: {}", shifts.join(", ")));
-        }
-    }
-    // the same trends `strand compare --report` tabulates
-    if let Ok(covs) = super::report::covariates(&c.rows, exps, &base.model) {
-        let mut with_measured = covs;
-        with_measured.push(super::report::Covariate { name: "the measured value".into(), axis: String::new(), values: c.rows.iter().map(|r| Some(r.measured)).collect() });
-        for t in super::report::trends(&c.rows, &with_measured).into_iter().filter(|t| t.trend) {
-            out.push(format!("residuals {} with {} (correlation {:.2} over {})", if t.r > 0.0 { "rise" } else { "fall" }, t.covariate, t.r, t.n));
-        }
     }
     out
 }
@@ -479,6 +493,7 @@ pub fn report(d: &Diagnosis) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::measure::effects;
 
     #[test]
     fn an_effect_whose_null_the_solver_cannot_run_gets_the_likelihood_ratio_and_the_others_the_score() {

@@ -29,7 +29,6 @@
 
 use super::compare::{find, group};
 use super::data::{Experiment, Experiments, Observable, Observation};
-use super::effects;
 use super::model::Model;
 use super::provenance::{self, exact, plain, Exact, Provenance};
 use super::sensitivity::{self, Sensitivity, Valued};
@@ -325,17 +324,7 @@ fn read_result(path: &Path, job: &Job, id: &str) -> Result<Result<Vec<Valued>, S
 /// does locally, not here).
 fn job_model(text: &str) -> Result<Model, String> {
     let t: toml::Table = text.parse().map_err(|e| format!("the job's model: {e}"))?;
-    let material = t.get("material").and_then(|m| m.as_table()).cloned().ok_or("the job's model has no [material]")?;
-    let mut model = Model { material, effects: Vec::new(), path: PathBuf::new() };
-    for (name, v) in t.get("effects").and_then(|e| e.as_table()).into_iter().flatten() {
-        let effect = effects::find(name)?;
-        model = model.with_effect(effect);
-        for (k, x) in v.as_table().into_iter().flatten() {
-            let value = super::data::number(x).ok_or_else(|| format!("the job's model: effects.{name}.{k} is not a number"))?;
-            model.set(&format!("{name}.{k}"), value)?;
-        }
-    }
-    Ok(model)
+    Model::from_table_as_written(&t).map_err(|e| format!("the job's model: {e}"))
 }
 
 /// `strand evaluate JOB --out RESULT`: compute one planned job and save its result; the line

@@ -1,11 +1,11 @@
 //! The small dense algebra calibration and diagnosis need (a handful of parameters): the
-//! pseudo-inverse of a symmetric positive semi-definite matrix, normal equations, and the chi^2
-//! distribution's upper tail. The decomposition is nalgebra's symmetric eigen-solver and the
-//! tail statrs's chi^2 distribution; this file only adapts them to the row-major `Mat` the
+//! pseudo-inverse of a symmetric positive semi-definite matrix, normal equations, and the upper
+//! tails of the chi^2 and F distributions. The decomposition is nalgebra's symmetric eigen-solver
+//! and the tails statrs's distributions; this file only adapts them to the row-major `Mat` the
 //! fit code builds.
 
 use nalgebra::{DMatrix, SymmetricEigen};
-use statrs::distribution::{ChiSquared, ContinuousCDF};
+use statrs::distribution::{ChiSquared, ContinuousCDF, FisherSnedecor};
 
 /// A row-major square matrix.
 pub type Mat = Vec<Vec<f64>>;
@@ -63,6 +63,14 @@ pub fn chi2_sf(x: f64, k: usize) -> f64 {
     ChiSquared::new(k as f64).expect("k > 0 degrees of freedom").sf(x)
 }
 
+/// P(X > f) for X ~ F(d1, d2) (1 for a zero degree of freedom, f <= 0 or NaN).
+pub fn f_sf(f: f64, d1: usize, d2: usize) -> f64 {
+    if d1 == 0 || d2 == 0 || f.is_nan() || f <= 0.0 {
+        return 1.0;
+    }
+    FisherSnedecor::new(d1 as f64, d2 as f64).expect("d1, d2 > 0 degrees of freedom").sf(f)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -84,6 +92,17 @@ mod tests {
         let (p, rank) = pinv_sym(&a, 1e-10);
         assert_eq!(rank, 1);
         assert!((p[1][2] - 4.0 / 81.0).abs() < 1e-12, "{p:?}");
+    }
+
+    #[test]
+    fn f_tail_matches_tables() {
+        // F(1, d2) = t(d2)^2; tabulated 5 % and 1 % points
+        for (f, d1, d2, p) in [(4.964603, 1, 10, 0.05), (10.04429, 1, 10, 0.01), (3.708265, 3, 10, 0.05), (3.325835, 5, 10, 0.05), (2.866081, 4, 20, 0.05), (6.358873, 2, 15, 0.01)] {
+            assert!((f_sf(f, d1, d2) - p).abs() < 1e-6, "F({d1}, {d2}) at {f}: {}", f_sf(f, d1, d2));
+        }
+        // d1 = 2: (1 + 2 f / d2)^(-d2 / 2)
+        assert!((f_sf(1.7, 2, 9) - (1.0 + 2.0 * 1.7 / 9.0f64).powf(-4.5)).abs() < 1e-12);
+        assert_eq!(f_sf(0.0, 2, 9), 1.0);
     }
 
     #[test]

@@ -11,11 +11,17 @@
 //! a_thix = 0.4
 //! ```
 //!
+//! An `[effects.NAME]` table with `sets` declares an effect of the model's own (expressions over
+//! the keys, its parameters and the covariates; `effects/declared.rs`); with `candidate = true`
+//! it is declared only, for `strand diagnose` to test beside the library's.
+//!
 //! For one experiment the model gives scenario keys ([`Model::keys`]): the material's numbers as
 //! `material.KEY`, then each effect's keys from its parameters and the experiment's covariates,
-//! in registry order; the experiment's own `set` overrides come last. [`Model::keys_adjoint`]
+//! in registry order, the declared ones after, by name; the experiment's own `set` overrides come
+//! last. [`Model::keys_adjoint`]
 //! carries the keys' adjoints back to the parameters.
 
+use super::effects::declared::{self, Declared};
 use super::effects::{self, Covariates, Effect, Keys};
 use std::path::{Path, PathBuf};
 
@@ -24,6 +30,8 @@ pub struct Model {
     pub material: toml::Table,
     /// Effects switched on, in registry order, with their parameter values.
     pub effects: Vec<(&'static dyn Effect, Vec<f64>)>,
+    /// Effects the model file declares, switched on or candidates, by name.
+    pub declared: Vec<&'static Declared>,
     pub path: PathBuf,
 }
 
@@ -46,7 +54,7 @@ impl Model {
     pub fn load(path: &Path) -> Result<Model, String> {
         let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
         let t: toml::Table = text.parse().map_err(|e| format!("{}: {e}", path.display()))?;
-        Model::from_table(&t)
+        Model::from_source(&t, Some(&text))
             .map(|mut m| {
                 m.path = path.to_path_buf();
                 m
@@ -55,31 +63,14 @@ impl Model {
     }
 
     pub fn from_table(t: &toml::Table) -> Result<Model, String> {
-        // [rheometer] is `strand rheometer`'s protocol, which a model file may carry
-        if let Some(k) = t.keys().find(|k| !["material", "effects", "rheometer"].contains(&k.as_str())) {
-            return Err(format!("unknown table '{k}' (a model has [material] and [effects.NAME])"));
-        }
-        let material = match t.get("material") {
-            Some(toml::Value::Table(m)) => m.clone(),
-            _ => return Err("no [material] table".into()),
-        };
-        let mut model = Model { material, effects: Vec::new(), path: PathBuf::new() };
-        if let Some(e) = t.get("effects") {
-            let e = e.as_table().ok_or("effects must be a table of [effects.NAME] tables")?;
-            for (name, v) in e {
-                let effect = effects::find(name)?;
-                let v = v.as_table().ok_or_else(|| format!("effects.{name} must be a table"))?;
-                let mut p: Vec<f64> = effect.params().iter().map(|s| s.null).collect();
-                for (k, x) in v {
-                    let i = effect.params().iter().position(|s| s.name == k).ok_or_else(|| {
-                        format!("effects.{name}: unknown parameter '{k}'; it has {}", effect.params().iter().map(|s| s.name).collect::<Vec<_>>().join(", "))
-                    })?;
-                    p[i] = super::data::number(x).ok_or_else(|| format!("effects.{name}.{k} must be a number"))?;
-                }
-                model = model.with_effect(effect);
-                model.effects.iter_mut().find(|(e, _)| e.name() == name).expect("just added").1 = p;
-            }
-        }
+        Model::from_source(t, None)
+    }
+
+    /// The model of `t`, parsed from `text` when there is one (errors in a declared effect's
+    /// expression then give its line), its parameters within their bounds and its material one
+    /// that builds.
+    fn from_source(t: &toml::Table, text: Option<&str>) -> Result<Model, String> {
+        let model = Model::parse(t, text)?;
         for n in model.param_names() {
             let (v, b) = (model.get(&n)?, model.bounds(&n)?);
             // an infinite null (elasticity's rigid G) is where the effect is off, so it may be written
@@ -91,12 +82,59 @@ impl Model {
         Ok(model)
     }
 
+    /// The model of `t` exactly as written, without the checks of [`Model::from_table`]: a
+    /// trial model of a fit, saved as a job for an engine, must fail where its evaluation does,
+    /// as it does locally.
+    pub fn from_table_as_written(t: &toml::Table) -> Result<Model, String> {
+        Model::parse(t, None)
+    }
+
+    fn parse(t: &toml::Table, text: Option<&str>) -> Result<Model, String> {
+        // [rheometer] is `strand rheometer`'s protocol, which a model file may carry
+        if let Some(k) = t.keys().find(|k| !["material", "effects", "rheometer"].contains(&k.as_str())) {
+            return Err(format!("unknown table '{k}' (a model has [material] and [effects.NAME])"));
+        }
+        let material = match t.get("material") {
+            Some(toml::Value::Table(m)) => m.clone(),
+            _ => return Err("no [material] table".into()),
+        };
+        let mut model = Model { material, effects: Vec::new(), declared: Vec::new(), path: PathBuf::new() };
+        if let Some(e) = t.get("effects") {
+            let e = e.as_table().ok_or("effects must be a table of [effects.NAME] tables")?;
+            for (name, v) in e {
+                let v = v.as_table().ok_or_else(|| format!("effects.{name} must be a table"))?;
+                if declared::is_declaration(v) {
+                    let line_of = |key: &str| text.and_then(|text| expression_line(text, name, key));
+                    let d = declared::declare(name, v, &model.material, &line_of)?;
+                    model.declared.push(d.effect);
+                    if !d.candidate {
+                        model = model.with_effect(d.effect);
+                        model.effects.iter_mut().find(|(e, _)| e.name() == name).expect("just added").1 = d.values;
+                    }
+                    continue;
+                }
+                let effect = effects::find(name)?;
+                let mut p: Vec<f64> = effect.params().iter().map(|s| s.null).collect();
+                for (k, x) in v {
+                    let i = effect.params().iter().position(|s| s.name == k).ok_or_else(|| {
+                        format!("effects.{name}: unknown parameter '{k}'; it has {}", effect.params().iter().map(|s| s.name).collect::<Vec<_>>().join(", "))
+                    })?;
+                    p[i] = super::data::number(x).ok_or_else(|| format!("effects.{name}.{k} must be a number"))?;
+                }
+                model = model.with_effect(effect);
+                model.effects.iter_mut().find(|(e, _)| e.name() == name).expect("just added").1 = p;
+            }
+        }
+        Ok(model)
+    }
+
     /// The model with `effect` on at its null (unchanged if it is on already).
     pub fn with_effect(&self, effect: &'static dyn Effect) -> Model {
         let mut m = self.clone();
         if !m.has(effect.name()) {
             m.effects.push((effect, effect.params().iter().map(|s| s.null).collect()));
-            let rank = |e: &dyn Effect| effects::REGISTRY.iter().position(|r| r.name() == e.name());
+            // the library's in registry order, then the declared ones by name
+            let rank = |e: &dyn Effect| (effects::REGISTRY.iter().position(|r| r.name() == e.name()).unwrap_or(usize::MAX), e.name());
             m.effects.sort_by_key(|(e, _)| rank(*e));
         }
         m
@@ -112,6 +150,19 @@ impl Model {
 
     pub fn has(&self, effect: &str) -> bool {
         self.effects.iter().any(|(e, _)| e.name() == effect)
+    }
+
+    /// An effect of the library or one the model file declares.
+    pub fn effect(&self, name: &str) -> Result<&'static dyn Effect, String> {
+        match self.declared.iter().find(|d| d.name() == name) {
+            Some(d) => Ok(*d),
+            None => effects::find(name),
+        }
+    }
+
+    /// Every effect the model can take: the library's, then the declared ones.
+    pub fn available(&self) -> Vec<&'static dyn Effect> {
+        effects::REGISTRY.iter().copied().chain(self.declared.iter().map(|d| *d as &dyn Effect)).collect()
     }
 
     /// Every parameter: the material's numbers, then each effect's.
@@ -132,7 +183,8 @@ impl Model {
                 None => Err(unknown()),
             };
         }
-        let e = self.effects.iter().position(|(e, _)| e.name() == head).ok_or_else(|| match effects::find(head) {
+        let e = self.effects.iter().position(|(e, _)| e.name() == head).ok_or_else(|| match self.effect(head) {
+            Ok(_) if self.declared.iter().any(|d| d.name() == head) => format!("'{name}': effect '{head}' is declared as a candidate, not in the model (remove its candidate = true)"),
             Ok(_) => format!("'{name}': effect '{head}' is not in the model (add [effects.{head}])"),
             Err(_) => unknown(),
         })?;
@@ -220,11 +272,17 @@ impl Model {
     pub fn to_toml(&self) -> String {
         let mut t = toml::Table::new();
         t.insert("material".into(), toml::Value::Table(self.material.clone()));
-        if !self.effects.is_empty() {
+        if !self.effects.is_empty() || !self.declared.is_empty() {
             let mut e = toml::Table::new();
             for (eff, p) in &self.effects {
-                let tab: toml::Table = eff.params().iter().zip(p).map(|(s, v)| (s.name.to_string(), toml::Value::Float(*v))).collect();
+                let tab: toml::Table = match self.declared.iter().find(|d| d.name() == eff.name()) {
+                    Some(d) => d.to_table(Some(p)),
+                    None => eff.params().iter().zip(p).map(|(s, v)| (s.name.to_string(), toml::Value::Float(*v))).collect(),
+                };
                 e.insert(eff.name().into(), toml::Value::Table(tab));
+            }
+            for d in self.declared.iter().filter(|d| !self.has(d.name())) {
+                e.insert(d.name().into(), toml::Value::Table(d.to_table(None)));
             }
             t.insert("effects".into(), toml::Value::Table(e));
         }
@@ -235,6 +293,23 @@ impl Model {
 enum Slot {
     Material(String),
     Effect(usize, usize),
+}
+
+/// The line of `[effects.EFFECT] sets."KEY"` in a model file's text.
+fn expression_line(text: &str, effect: &str, key: &str) -> Option<usize> {
+    #[derive(serde::Deserialize)]
+    struct File {
+        #[serde(default)]
+        effects: std::collections::BTreeMap<String, Sets>,
+    }
+    #[derive(serde::Deserialize)]
+    struct Sets {
+        #[serde(default)]
+        sets: std::collections::BTreeMap<String, toml::Spanned<toml::Value>>,
+    }
+    let f: File = toml::from_str(text).ok()?;
+    let at = f.effects.get(effect)?.sets.get(key)?.span().start;
+    Some(text[..at].matches('\n').count() + 1)
 }
 
 /// Set `key` (dotted; numbers and x/y/z index arrays) in a TOML document to `v`, creating the
@@ -278,7 +353,7 @@ mod tests {
         let m = Model::from_table(&M.parse().unwrap()).unwrap();
         assert_eq!(m.get("thixotropy.a_thix").unwrap(), 0.5);
         assert_eq!(m.get("thixotropy.alpha").unwrap(), 0.0);
-        let keys = m.keys(&Covariates { rest_time: 100.0, age: 0.0 }).unwrap();
+        let keys = m.keys(&Covariates { rest_time: 100.0, ..Default::default() }).unwrap();
         assert_eq!(keys["material.lambda0"], 0.5 * 100.0 / 100.0);
         let back = Model::from_table(&m.to_toml().parse().unwrap()).unwrap();
         assert_eq!(back.param_names(), m.param_names());

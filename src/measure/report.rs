@@ -8,6 +8,7 @@
 
 use super::compare::{experiment_keys, find, Comparison, Model, Row};
 use super::data::Experiments;
+use super::residuals::Shape;
 use crate::output::plot::{plot_measured_model, plot_xy, MeasuredPoint};
 use std::collections::{BTreeSet, HashMap, HashSet};
 use std::fmt::Write as _;
@@ -23,7 +24,8 @@ const WORST: usize = 10;
 /// apply (the `at` of another observable, a key an experiment does not have).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Covariate {
-    /// `rest_time`, `age`, `at(OBSERVABLE)`, `at2(OBSERVABLE)` (a second coordinate) or `set.KEY`.
+    /// `rest_time`, `age`, a covariate experiments declare (by its name), `at(OBSERVABLE)`,
+    /// `at2(OBSERVABLE)` (a second coordinate) or `set.KEY`.
     pub name: String,
     /// The plot's axis title.
     pub axis: String,
@@ -64,6 +66,12 @@ pub fn covariates(rows: &[Row], exps: &Experiments, model: &Model) -> Result<Vec
         Covariate { name: "rest_time".into(), axis: "rest time [s]".into(), values: per_experiment(&|x| x.rest_time)? },
         Covariate { name: "age".into(), axis: "age [s]".into(), values: per_experiment(&|x| x.age)? },
     ];
+    // the covariates experiments declare, by name; None where one does not
+    let declared: BTreeSet<&String> = rows.iter().filter_map(|r| find(exps, &r.experiment).ok()).flat_map(|x| x.covariates.keys()).collect();
+    for name in declared {
+        let values = rows.iter().map(|r| find(exps, &r.experiment).map(|x| x.covariates.get(name).copied())).collect::<Result<_, _>>()?;
+        out.push(Covariate { name: name.clone(), axis: name.clone(), values });
+    }
     for observable in observables(rows) {
         let values = rows.iter().map(|r| if r.observable == observable { r.at } else { None }).collect();
         out.push(Covariate { name: format!("at({observable})"), axis: format!("{observable}: {}", at_meaning(observable)), values });
@@ -160,11 +168,17 @@ pub fn prepare_dir(dir: &Path) -> Result<(), String> {
     std::fs::create_dir_all(dir).map_err(|e| format!("--report {}: cannot create the directory: {e}", dir.display()))
 }
 
-/// Write the report into `dir` (plots, `trends.csv`, `index.html`); the trends it found.
-pub fn write(dir: &Path, c: &Comparison, exps: &Experiments, model: &Model) -> Result<Vec<Trend>, String> {
+/// Significance of the residual shapes the report names (`residuals.rs`), for all its tests
+/// together.
+pub const SHAPES_ALPHA: f64 = 0.01;
+
+/// Write the report into `dir` (plots, `trends.csv`, `index.html`); the trends and the residual
+/// shapes it found.
+pub fn write(dir: &Path, c: &Comparison, exps: &Experiments, model: &Model) -> Result<(Vec<Trend>, Vec<Shape>), String> {
     prepare_dir(dir)?;
     let covs = covariates(&c.rows, exps, model)?;
     let trends = trends(&c.rows, &covs);
+    let shapes = super::residuals::shapes(&c.rows, &covs, SHAPES_ALPHA);
     let mut names = HashSet::new();
     let mut fits = Vec::new();
     for observable in observables(&c.rows) {
@@ -181,8 +195,8 @@ pub fn write(dir: &Path, c: &Comparison, exps: &Experiments, model: &Model) -> R
     }
     write_trends_csv(&dir.join("trends.csv"), &trends)?;
     let index = dir.join("index.html");
-    std::fs::write(&index, html(c, &trends, &fits, &residuals, model)).map_err(|e| format!("{}: {e}", index.display()))?;
-    Ok(trends)
+    std::fs::write(&index, html(c, &trends, &shapes, &fits, &residuals, model)).map_err(|e| format!("{}: {e}", index.display()))?;
+    Ok((trends, shapes))
 }
 
 /// A plot the page shows.
@@ -314,7 +328,7 @@ fn figures(s: &mut String, figs: &[Figure]) {
 
 /// The page: summaries, the worst observations, the trends and every plot, with nothing fetched
 /// from elsewhere so the folder can be mailed or archived as it is.
-fn html(c: &Comparison, trends: &[Trend], fits: &[Figure], residuals: &[Figure], model: &Model) -> String {
+fn html(c: &Comparison, trends: &[Trend], shapes: &[Shape], fits: &[Figure], residuals: &[Figure], model: &Model) -> String {
     let mut s = String::new();
     let experiments = c.by_experiment.len();
     s.push_str("<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>strand compare: model against measurements</title>\n<style>\n");
@@ -352,6 +366,16 @@ fn html(c: &Comparison, trends: &[Trend], fits: &[Figure], residuals: &[Figure],
     } else {
         let rows = trends.iter().map(|t| (t.trend, vec![t.covariate.clone(), t.n.to_string(), format!("{:.3}", t.r), format!("{:.4e}", t.slope), if t.trend { "trend".into() } else { String::new() }]));
         table(&mut s, &["covariate", "n", "r", "slope", ""], rows);
+    }
+    let _ = writeln!(s, "<h2>Shape of the residuals</h2>\n<p>Trend, curvature, step between groups, or residuals moving together within an experiment, each an F-test significant at {SHAPES_ALPHA} for all the tests together.</p>");
+    if shapes.is_empty() {
+        s.push_str("<p>No trend, curvature, step or per-experiment shift is significant.</p>\n");
+    } else {
+        s.push_str("<ul>\n");
+        for sh in shapes {
+            let _ = writeln!(s, "<li>{}</li>", escape(&sh.text));
+        }
+        s.push_str("</ul>\n");
     }
     s.push_str("<h2>Model against data</h2>\n");
     figures(&mut s, fits);
@@ -479,7 +503,7 @@ set = { "material.density" = 2000.0 }
         exps.experiment[0].id = "a<&>\"".into();
         let dir = tempfile::tempdir().unwrap();
         let out = dir.path().join("report");
-        let t = write(&out, &c, &exps, &model).unwrap();
+        let (t, _) = write(&out, &c, &exps, &model).unwrap();
         assert_eq!(t.len(), 3);
         let page = std::fs::read_to_string(out.join("index.html")).unwrap();
         assert!(page.contains("a&lt;&amp;&gt;&quot;") && !page.contains("a<&>"), "{page}");

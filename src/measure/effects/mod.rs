@@ -11,6 +11,7 @@
 use std::collections::BTreeMap;
 
 pub mod ageing;
+pub mod declared;
 pub mod maxwell;
 pub mod modulus;
 pub mod process;
@@ -36,12 +37,15 @@ pub struct ParamSpec {
 }
 
 /// What an experiment is, beyond its scenario: the covariates effects read.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct Covariates {
     /// Rest before the test [s]: the structure built at rest (thixotropy).
     pub rest_time: f64,
     /// Material age at the test, since mixing [s] (ageing).
     pub age: f64,
+    /// Any other the experiment declares (`covariates = { temperature = 31.0 }`), by name: what
+    /// an effect declared in a model file may read.
+    pub declared: BTreeMap<String, f64>,
 }
 
 pub trait Effect: Sync {
@@ -78,7 +82,8 @@ pub trait Effect: Sync {
     }
 }
 
-/// Every effect, in the order they apply.
+/// Every effect of the library, in the order they apply; effects declared in a model file
+/// ([`declared`]) apply after them.
 pub const REGISTRY: &[&dyn Effect] = &[
     &ageing::Ageing::LINEAR,
     &ageing::Ageing::EXPONENTIAL,
@@ -165,14 +170,30 @@ mod tests {
             .map(|g| common.iter().chain([&g]).map(|(k, v)| (k.to_string(), *v)).collect())
     }
 
+    /// The library's effects and the declared examples.
+    fn every_effect() -> Vec<&'static dyn Effect> {
+        let material: toml::Table = "yield_stress = 120.0\nviscosity = 20.0\n".parse().unwrap();
+        let declared = declared::EXAMPLES.iter().map(|text| {
+            let t: toml::Table = text.parse().unwrap();
+            let (name, table) = t["effects"].as_table().unwrap().iter().next().unwrap();
+            declared::declare(name, table.as_table().unwrap(), &material, &|_| None).unwrap().effect as &dyn Effect
+        });
+        REGISTRY.iter().copied().chain(declared).collect()
+    }
+
+    /// The covariates the tests run at, with the one a declared example reads.
+    fn covariates() -> Covariates {
+        Covariates { rest_time: 240.0, age: 1800.0, declared: [("temperature".to_string(), 31.0)].into_iter().collect() }
+    }
+
     /// J = sum_k w_k keys_k after the effect, against central differences in every parameter
     /// and every key it reads, at a point away from the null. J is summed as differences from
     /// the unperturbed keys, so a large key (G ~ 1e5 Pa) does not drown the others' differences
     /// in round-off.
     #[test]
     fn every_effect_adjoint_agrees_with_central_differences() {
-        let x = Covariates { rest_time: 240.0, age: 1800.0 };
-        for (e, keys) in REGISTRY.iter().flat_map(|e| base_keys().map(|k| (e, k))) {
+        let x = covariates();
+        for (e, keys) in every_effect().into_iter().flat_map(|e| base_keys().map(|k| (e, k))) {
             // a null at infinity is left for a value the solver runs, as a fit would
             let p: Vec<f64> = e.params().iter().map(|s| if s.null.is_finite() { s.null } else { 0.0 } + 0.7 * s.scale).collect();
             let mut out = keys.clone();
@@ -207,8 +228,8 @@ mod tests {
 
     #[test]
     fn every_effect_vanishes_at_its_null() {
-        let x = Covariates { rest_time: 240.0, age: 1800.0 };
-        for (e, keys) in REGISTRY.iter().flat_map(|e| base_keys().map(|k| (e, k))) {
+        let x = covariates();
+        for (e, keys) in every_effect().into_iter().flat_map(|e| base_keys().map(|k| (e, k))) {
             let null: Vec<f64> = e.params().iter().map(|s| s.null).collect();
             let mut out = keys.clone();
             e.apply(&null, &x, &mut out).unwrap();
