@@ -141,7 +141,10 @@ fn free_text_command(raw: &str) -> Option<String> {
     let mut chars = first.chars();
     let macro_name = matches!((chars.next(), chars.next()), (Some(a), Some(b)) if a.is_ascii_alphabetic() && (b.is_ascii_alphabetic() || b == '_'))
         && first.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
-    let message = first == "M117" || first == "M118";
+    // a machine-state M-code's line is skipped whole: slicers give some words without numbers
+    // (Cura's `M84 X Y E`)
+    let machine_state = first.strip_prefix('M').and_then(|n| n.parse::<u32>().ok()).is_some_and(|n| MACHINE_STATE_M.contains(&n));
+    let message = first == "M117" || first == "M118" || machine_state;
     let model_check = first.strip_prefix("M862.").is_some_and(|r| !r.is_empty() && r.chars().all(|c| c.is_ascii_digit()));
     (macro_name || message || model_check).then_some(first)
 }
