@@ -301,7 +301,7 @@ fn main() -> ExitCode {
                     "wall_s": r.wall_s,
                     "particles": r.particles,
                     "peak_rss_bytes": strand::verify::peak_rss_bytes(),
-                    "state_hash": r.state_hash.map(|h| format!("{h:016x}")),
+                    "state_hash": format!("{:016x}", r.state_hash),
                     "resumed_from": r.resumed_from,
                     "last_checkpoint": r.last_checkpoint,
                     "phase_seconds": strand::solver::PHASES.iter().zip(r.phase_seconds).map(|(k, v)| (k.to_string(), v)).collect::<std::collections::BTreeMap<_, _>>(),

@@ -224,9 +224,8 @@ pub struct RunSummary {
     pub phase_seconds: [f64; 6],
     /// Awake particles summed over the steps of this run (see `Simulation`).
     pub awake_particle_steps: u64,
-    /// Hash of the final state (as `strand inspect` shows for a checkpoint of it); unknown when
-    /// a resume found the run finished and its newest checkpoint is not at its end.
-    pub state_hash: Option<u64>,
+    /// Hash of the final state (as `strand inspect` shows for a checkpoint of it).
+    pub state_hash: u64,
     /// The checkpoint the run resumed from.
     pub resumed_from: Option<PathBuf>,
     /// The newest checkpoint written (the final one when `[checkpoint] at_end`).
@@ -777,7 +776,7 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
         observations: outputs.reporter.map(|r| r.history).unwrap_or_default(),
         phase_seconds: sim.phase_seconds,
         awake_particle_steps: sim.awake_particle_steps,
-        state_hash: Some(state::current_state_hash(&sim)),
+        state_hash: state::current_state_hash(&sim),
         resumed_from,
         last_checkpoint: ckpts.and_then(|c| c.last_good.map(|g| g.0)),
     })
@@ -998,21 +997,20 @@ fn no_checkpoint(out: &Path, error: &str, opts: &RunOptions) -> String {
     format!("cannot resume: {error}\n  start over (deleting that run's files) with: {start_over}")
 }
 
-/// The time, step and particle count of the last row of `globals.csv`, if any.
-fn last_output(csv: &Path) -> Option<(f64, u64, usize)> {
+/// The time of the last row of `globals.csv`, if any.
+fn last_output_time(csv: &Path) -> Option<f64> {
     let text = std::fs::read_to_string(csv).ok()?;
-    let f: Vec<&str> = text.lines().skip(1).last()?.split(',').collect();
-    Some((f.first()?.parse().ok()?, f.get(1)?.parse().ok()?, f.get(4)?.parse().ok()?))
+    text.lines().skip(1).last()?.split(',').next()?.parse().ok()
 }
 
-/// On `--resume`: the summary of a run that already reached `end` (a resume must then change
-/// nothing), or an error when `end` lies before what the run has computed (resuming would
-/// delete those outputs); `None` when there is a run left to do. `sim` holds the checkpoint's
-/// state, in the middle of a step of length `dt`.
+/// On `--resume`: the summary of a run whose checkpoint is of its last step (a resume must then
+/// change nothing), or an error when `end` lies before what the run has computed (resuming
+/// would delete those outputs); `None` when there is a run left to do. A checkpoint before the
+/// last step resumes, rewriting the outputs after it bit-identically. `sim` holds the
+/// checkpoint's state, in the middle of a step of length `dt`.
 fn finished_run(sim: &mut Simulation, ck: &Checkpoint, dt: f64, csv: &Path, end: f64) -> Result<Option<RunSummary>, RunError> {
     let step_end = ck.header.time + dt;
-    let last = last_output(csv);
-    let computed = last.map_or(step_end, |(t, ..)| t.max(step_end));
+    let computed = last_output_time(csv).map_or(step_end, |t| t.max(step_end));
     if computed > end * (1.0 + 1e-9) + 1e-300 {
         return Err(RunError::Resume(format!(
             "cannot resume: simulation.end_time = {end} s lies before what the run has computed (t = {computed:.6} s, \
@@ -1020,18 +1018,19 @@ fn finished_run(sim: &mut Simulation, ck: &Checkpoint, dt: f64, csv: &Path, end:
             ck.path.display()
         )));
     }
-    let Some((time, steps, particles)) = last.filter(|(t, ..)| *t >= end * (1.0 - 1e-12)) else { return Ok(None) };
-    // the final state is known when the checkpoint is of the last step (`[checkpoint] at_end`)
-    let state_hash = if step_end >= end * (1.0 - 1e-12) && sim.finish_step(dt).is_ok() { Some(state::current_state_hash(sim)) } else { None };
+    if step_end < end * (1.0 - 1e-12) {
+        return Ok(None);
+    }
+    sim.finish_step(dt)?;
     Ok(Some(RunSummary {
-        steps,
-        time,
+        steps: sim.step,
+        time: sim.time,
         wall_s: 0.0,
-        particles,
+        particles: sim.particles.n,
         observations: Vec::new(),
         phase_seconds: [0.0; 6],
         awake_particle_steps: 0,
-        state_hash,
+        state_hash: state::current_state_hash(sim),
         resumed_from: Some(ck.path.clone()),
         last_checkpoint: Some(ck.path.clone()),
     }))
