@@ -294,6 +294,21 @@ impl MeasureInputs {
     }
 }
 
+/// Whether a file can be written at `path` (the option `what` names it), checked before a long
+/// computation whose result goes there. Leaves an existing file unchanged and no new one.
+fn check_writable(path: &std::path::Path, what: &str) -> Result<(), String> {
+    let existed = path.exists();
+    std::fs::OpenOptions::new()
+        .append(true)
+        .create(true)
+        .open(path)
+        .map_err(|e| format!("{what} {}: cannot be written: {e}", path.display()))?;
+    if !existed {
+        let _ = std::fs::remove_file(path);
+    }
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let mut exit_code = 2u8;
@@ -345,9 +360,14 @@ fn main() -> ExitCode {
         }),
         Cmd::Check { scenario } => (|| {
             let sc = Scenario::load(&scenario).map_err(|e| e.to_string())?;
+            strand::run::preflight(&sc)?;
             let sim = strand::solver::Simulation::new(&sc).map_err(|e| e.to_string())?;
+            for w in strand::run::scenario_warnings(&sc, &sim) {
+                eprintln!("{w}");
+            }
             let (dt, lim) = sim.choose_dt(f64::INFINITY);
-            println!("{}: {} particles\nmemory plan:\n{}\ntime step {dt:.3e} s ({lim:?})", sc.name, sim.particles.n, sim.memory);
+            let steps = strand::run::planned_steps(&sim, sc.simulation.end_time)?;
+            println!("{}: {} particles\nmemory plan:\n{}\ntime step {dt:.3e} s ({lim:?}), about {steps:.0} steps to end_time", sc.name, sim.particles.n, sim.memory);
             Ok(true)
         })(),
         Cmd::Verify { list: true, .. } => {
@@ -361,6 +381,12 @@ fn main() -> ExitCode {
         }
         Cmd::Verify { quick, json, case, threads, .. } => strand::verify::run_suite(quick, json, case.as_deref(), threads),
         Cmd::Grad { scenario, objective, wrt, check, check_steps, json, ram, disk, disk_dir, threads, until_rest, schedule } => (|| {
+            if let Some(h) = check_steps.iter().find(|h| !(h.is_finite() && **h > 0.0)) {
+                return Err(format!("--check-steps: each relative step must be finite and > 0, got {h}"));
+            }
+            if let Some(v) = until_rest.filter(|v| !(v.is_finite() && *v > 0.0)) {
+                return Err(format!("--until-rest: the speed must be finite and > 0 m/s (a speed the run can exceed and fall back below), got {v}"));
+            }
             let sc = Scenario::load(&scenario).map_err(|e| e.to_string())?;
             let obj: strand::grad::Objective = objective.parse()?;
             let size = |s: &str, what: &str| strand::memory::parse_size(s).map_err(|e| format!("--{what}: {e}"));
@@ -443,17 +469,20 @@ fn main() -> ExitCode {
         Cmd::Calibrate { inputs, fit, out, plot, max_iterations, engine } => (|| {
             use strand::measure::calibrate;
             let (m, d, e) = inputs.load()?;
+            let out = out.unwrap_or_else(|| inputs.model.with_extension("calibrated.toml"));
+            let plot = plot.unwrap_or_else(|| out.with_extension("png"));
+            check_writable(&out, "--out")?;
+            check_writable(&plot, "--plot")?;
             let opts = calibrate::FitOptions { max_iterations, jobs: inputs.jobs, engine: engine.engine()?, progress: true, ..Default::default() };
             let f = calibrate::calibrate(&m, &d, &e, &fit, &opts)?;
-            let out = out.unwrap_or_else(|| inputs.model.with_extension("calibrated.toml"));
-            std::fs::write(&out, f.model.to_toml()).map_err(|e| format!("{}: {e}", out.display()))?;
-            let plot = plot.unwrap_or_else(|| out.with_extension("png"));
-            calibrate::plot_convergence(&f, &plot)?;
+            // the fitted values first: a file that fails to write then loses nothing
             if inputs.json {
                 println!("{:#}", serde_json::to_value(&f).map_err(|e| e.to_string())?);
             } else {
                 print!("{}", calibrate::report(&f));
             }
+            std::fs::write(&out, f.model.to_toml()).map_err(|e| format!("--out {}: {e}", out.display()))?;
+            calibrate::plot_convergence(&f, &plot).map_err(|e| format!("--plot {}: {e}", plot.display()))?;
             eprintln!("calibrated model written to {}, convergence plot to {}", out.display(), plot.display());
             Ok(true)
         })(),
@@ -463,30 +492,35 @@ fn main() -> ExitCode {
                 return Err(format!("--alpha must be in (0, 1), got {alpha}"));
             }
             let (m, d, e) = inputs.load()?;
+            if let Some(out) = &out {
+                check_writable(out, "--out")?;
+            }
             let opts = diagnose::DiagnoseOptions { fit: FitOptions { max_iterations, jobs: inputs.jobs, engine: engine.engine()?, ..Default::default() }, alpha, leave_one_out: !no_loo, max_fitted: max_fitted as usize };
             if rounds > 1 {
                 use strand::measure::rounds;
                 let r = rounds::rounds(&m, &d, &e, &fit, &opts, rounds as usize)?;
-                if let (Some(out), false) = (&out, r.added.is_empty()) {
-                    std::fs::write(out, r.model.to_toml()).map_err(|e| format!("{}: {e}", out.display()))?;
-                    eprintln!("model with {} written to {}", r.added.join(", "), out.display());
-                }
+                // the report first: a file that fails to write then loses nothing
                 if inputs.json {
                     println!("{:#}", serde_json::to_value(&r).map_err(|e| e.to_string())?);
                 } else {
                     print!("{}", rounds::report(&r));
                 }
+                if let (Some(out), false) = (&out, r.added.is_empty()) {
+                    std::fs::write(out, r.model.to_toml()).map_err(|e| format!("--out {}: {e}", out.display()))?;
+                    eprintln!("model with {} written to {}", r.added.join(", "), out.display());
+                }
                 return Ok(true);
             }
             let r = diagnose::diagnose(&m, &d, &e, &fit, &opts)?;
-            if let (Some(out), Some(best)) = (&out, &r.recommended_model) {
-                std::fs::write(out, best.to_toml()).map_err(|e| format!("{}: {e}", out.display()))?;
-                eprintln!("model with {} written to {}", r.recommended.as_deref().unwrap_or(""), out.display());
-            }
+            // the report first: a file that fails to write then loses nothing
             if inputs.json {
                 println!("{:#}", serde_json::to_value(&r).map_err(|e| e.to_string())?);
             } else {
                 print!("{}", diagnose::report(&r));
+            }
+            if let (Some(out), Some(best)) = (&out, &r.recommended_model) {
+                std::fs::write(out, best.to_toml()).map_err(|e| format!("--out {}: {e}", out.display()))?;
+                eprintln!("model with {} written to {}", r.recommended.as_deref().unwrap_or(""), out.display());
             }
             Ok(true)
         })(),

@@ -491,8 +491,9 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
     };
     let resume_cmd = format!("{} --resume", opts.command);
     let ckpt_dir = checkpoint::dir_of(&opts.out);
+    let csv_path = opts.out.join("globals.csv");
     let resume_from = if opts.resume {
-        let (ck, notes) = checkpoint::newest_valid(&ckpt_dir).map_err(|e| RunError::Resume(format!("cannot resume: {e}")))?;
+        let (ck, notes) = checkpoint::newest_valid(&ckpt_dir).map_err(|e| RunError::Resume(no_checkpoint(&opts.out, &e, opts)))?;
         for n in notes {
             eprintln!("warning: {n}");
         }
@@ -511,11 +512,15 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
         }
         Some(ck)
     } else {
-        clear_old_checkpoints(&ckpt_dir, opts)?;
+        clear_previous_run(&opts.out, &sc, opts)?;
         None
     };
 
+    preflight(&sc).map_err(|e| RunError::Sim(SimError::Setup(e)))?;
     let mut sim = Simulation::new(&sc)?;
+    for w in scenario_warnings(&sc, &sim) {
+        eprintln!("{w}");
+    }
     // the step a checkpoint was taken in, to finish first: (dt, its bound)
     let mut resume_step = None;
     let mut k_out = 0;
@@ -528,6 +533,24 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
             )));
         }
         let pending = state::restore(&mut sim, ck).map_err(|e| RunError::Resume(format!("cannot resume from {}: {e}", ck.path.display())))?;
+        if let Some(mut done) = finished_run(&mut sim, ck, pending.0, &csv_path, sc.simulation.end_time)? {
+            // the finished run's observations and failure, as its own summary gave them
+            let progress: state::Progress = serde_json::from_str(&ck.header.progress_json)
+                .map_err(|e| RunError::Resume(format!("cannot read {}: run progress does not decode: {e}", ck.path.display())))?;
+            if let Some(mut r) = Reporter::new(&sc, &sim).map_err(RunError::Report)? {
+                r.history = progress.observations;
+                r.detect_failure();
+                done.failure = r.failure;
+                done.observations = r.history;
+            }
+            say(format!(
+                "the run in {} has finished (step {}, t = {:.6} s = simulation.end_time): nothing to resume, nothing changed",
+                opts.out.display(),
+                done.steps,
+                done.time
+            ));
+            return Ok(done);
+        }
         resume_step = Some(pending);
         k_out = ck.header.outputs;
         progress = serde_json::from_str(&ck.header.progress_json)
@@ -550,9 +573,9 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
         sim.memory
     ));
     let (dt0, lim0) = sim.choose_dt(f64::INFINITY);
-    say(format!("time step: {dt0:.3e} s, bound by {lim0:?}"));
+    let steps = planned_steps(&sim, sc.simulation.end_time).map_err(|e| RunError::Sim(SimError::Setup(e)))?;
+    say(format!("time step: {dt0:.3e} s, bound by {lim0:?} (about {steps:.0} steps to t = {} s at this step)", sc.simulation.end_time));
 
-    let csv_path = opts.out.join("globals.csv");
     if resume_from.is_some() {
         keep_first_rows(&csv_path, k_out + 1).map_err(io_err(&csv_path))?;
         remove_snapshots_after(&opts.out, k_out);
@@ -791,32 +814,259 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
     })
 }
 
-/// A fresh run replaces the folder's outputs, checkpoints included, but never silently the
-/// checkpoints of a run that has not reached its end: that could be days of work.
-fn clear_old_checkpoints(dir: &Path, opts: &RunOptions) -> Result<(), RunError> {
-    let old = checkpoint::writer::list(dir);
-    if !opts.overwrite {
-        let newest = old.iter().rev().find_map(|(_, p)| Checkpoint::open(p).ok());
-        if let Some(ck) = newest {
-            let end = Scenario::parse(&ck.header.scenario_text).map_or(f64::INFINITY, |s| s.simulation.end_time);
-            // the checkpoint is inside a step: the run had finished if that step reaches the end
-            if ck.header.time + ck.header.dt < end * (1.0 - 1e-12) {
-                return Err(RunError::Resume(format!(
-                    "{} holds an unfinished run (step {}, t = {:.6} s of {end} s); continue it with --resume, \
-                     start over with --overwrite (deletes its checkpoints), or choose another --out",
-                    dir.display(),
-                    ck.header.step,
-                    ck.header.time
-                )));
+/// Before anything is allocated or counted: refuse a scenario whose memory plan is over its
+/// budget even with the fewest particles its bodies can hold (a lower bound from each body's
+/// lattice, cheap at any resolution), so `check` and `run` answer at once where counting the
+/// particles one by one would take hours.
+pub fn preflight(sc: &Scenario) -> Result<(), String> {
+    use crate::memory::MemoryPlan;
+    let budget = parse_size(&sc.memory.budget).map_err(|e| format!("memory.budget: {e}"))?;
+    let state_len = crate::materials::build_material(&sc.material)?.state_names().len();
+    let fewest: f64 = sc.bodies.iter().map(|b| fewest_particles(sc, b)).sum();
+    let geom = crate::grid::GridGeom::new(sc);
+    let mut plan = MemoryPlan::default();
+    crate::particles::Particles::plan(&mut plan, fewest.min(1e15) as usize, state_len);
+    crate::grid::Grid::plan(&mut plan, &geom, sc.memory.max_blocks.unwrap_or(geom.table_len()).max(8));
+    if plan.total() > budget {
+        return Err(format!(
+            "memory plan: the grid and the at least {fewest:.4e} particles of the bodies at dx = {} m need at least {}, over the budget of {} \
+             (raise [memory] budget, or lower resolution / max_blocks):\n{plan}",
+            sc.simulation.dx,
+            fmt_bytes(plan.total()),
+            fmt_bytes(budget)
+        ));
+    }
+    Ok(())
+}
+
+/// The fewest particles `body` holds: its lattice over the largest box inside it and the
+/// domain.
+fn fewest_particles(sc: &Scenario, body: &crate::scenario::Body) -> f64 {
+    use crate::scenario::Body;
+    let h = sc.simulation.dx / body.particles_per_cell_axis() as f64;
+    let (lo, hi) = match body {
+        Body::Box { min, max, .. } => (*min, *max),
+        Body::Frustum { base_center: c, bottom_radius, top_radius, height, .. } => {
+            let r = bottom_radius.min(*top_radius) / std::f64::consts::SQRT_2;
+            ([c[0] - r, c[1] - r, c[2]], [c[0] + r, c[1] + r, c[2] + height])
+        }
+    };
+    let d = &sc.domain;
+    (0..3).map(|a| ((hi[a].min(d.max[a]) - lo[a].max(d.min[a])) / h - 1.0).floor().max(0.0)).product()
+}
+
+/// What a scenario does that its author may not expect, said before it runs, one line each
+/// (`warning: ...` or `note: ...`): a wall moved to the nearest cell face, nothing to simulate,
+/// a body cut by the domain, bodies overlapping, what the G-code import skipped.
+pub fn scenario_warnings(sc: &Scenario, sim: &Simulation) -> Vec<String> {
+    use crate::solver::for_each_lattice_point;
+    let mut w = Vec::new();
+    let (d, dx) = (&sc.domain, sc.simulation.dx);
+    for a in 0..3 {
+        let cells = (d.max[a] - d.min[a]) / dx;
+        let n = cells.round();
+        if !d.periodic[a] && (cells - n).abs() > 1e-6 * n.max(1.0) {
+            w.push(format!(
+                "domain.max[{a}] = {} is not a whole number of cells of dx = {dx} from domain.min[{a}] = {} ({cells:.4} cells): \
+                 the wall is at {} ({n} cells)",
+                d.max[a],
+                d.min[a],
+                d.min[a] + n * dx
+            ));
+        }
+    }
+    if sim.particles.n == 0 && sc.print.is_none() {
+        w.push(if sc.bodies.is_empty() {
+            "nothing to simulate: the scenario has no [[body]] and no [print]".to_string()
+        } else {
+            format!("nothing to simulate: the bodies hold no particle at dx = {dx} (each is smaller than a particle spacing, or dx exceeds the domain)")
+        });
+    }
+    if let Some(file) = sc.print.as_ref().and_then(|p| p.gcode.as_ref().map(|f| (f, &p.gcode_options))) {
+        let path = sc.base_dir.join(file.0);
+        let notes = std::fs::read_to_string(&path).ok().and_then(|t| crate::print::gcode::parse_gcode_with_notes(&t, file.1).ok().map(|(_, n)| n));
+        if let Some(n) = notes.filter(|n| !n.is_empty()) {
+            w.push(format!("note: {}: {n}", path.display()));
+        }
+    }
+    for (i, b) in sc.bodies.iter().enumerate() {
+        let (lo, hi) = b.bounds();
+        let cut: Vec<String> = (0..3)
+            .filter(|&a| lo[a] < d.min[a] - 1e-9 * dx || hi[a] > d.max[a] + 1e-9 * dx)
+            .map(|a| format!("axis {a}: [{}, {}] against the domain's [{}, {}]", lo[a], hi[a], d.min[a], d.max[a]))
+            .collect();
+        if !cut.is_empty() {
+            let mut n = 0usize;
+            for_each_lattice_point(sc, b, |_| n += 1);
+            w.push(format!("body[{i}] reaches outside the domain ({}): the part outside is cut off, {n} particles remain", cut.join("; ")));
+        }
+        for (j, other) in sc.bodies.iter().enumerate().take(i) {
+            let (olo, ohi) = other.bounds();
+            if (0..3).any(|a| hi[a] <= olo[a] || lo[a] >= ohi[a]) {
+                continue;
+            }
+            let mut n = 0usize;
+            for_each_lattice_point(sc, b, |p| n += other.contains(p) as usize);
+            if n > 0 {
+                w.push(format!("body[{i}] overlaps body[{j}]: {n} of its particles lie inside body[{j}], doubling the material there"));
             }
         }
     }
-    if let Ok(rd) = std::fs::read_dir(dir) {
-        for e in rd.flatten() {
-            let _ = std::fs::remove_file(e.path());
+    w.into_iter().map(|x| if x.starts_with("note: ") { x } else { format!("warning: {x}") }).collect()
+}
+
+/// The steps the run needs at its first time step, refused over `MAX_STEPS`.
+pub fn planned_steps(sim: &Simulation, end: f64) -> Result<f64, String> {
+    let (dt, limit) = sim.choose_dt(f64::INFINITY);
+    let steps = ((end - sim.time) / dt).max(0.0).ceil();
+    if steps > crate::scenario::MAX_STEPS {
+        return Err(format!(
+            "the first time step, {dt:.3e} s (bound by {limit:?}), takes {steps:.3e} steps to simulation.end_time = {end} s, \
+             more than the {:e} a run may plan",
+            crate::scenario::MAX_STEPS
+        ));
+    }
+    Ok(steps)
+}
+
+/// Whether `name` is a file a run writes into its output folder. Only these are ever deleted
+/// there: the folder may hold the user's own files too.
+fn is_output_file(name: &str) -> bool {
+    let numbered = |prefix: &str, suffix: &str| name.strip_prefix(prefix).and_then(|r| r.strip_suffix(suffix)).is_some();
+    matches!(
+        name,
+        "globals.csv" | "globals.csv.tmp" | "particles.pvd" | "failed_state.vtu" | "sections.csv" | "profiles.csv" | "layers.csv" | "spread.csv"
+    ) || numbered("particles_", ".vtu")
+        || numbered("section_x", "mm.png")
+}
+
+/// Whether `name` is a file the checkpoint writer leaves in `OUT/checkpoints`.
+fn is_checkpoint_file(name: &str) -> bool {
+    let step = |n: &str| n.strip_prefix("step_").is_some_and(|r| r.ends_with(".ckpt") || r.ends_with(".ckpt.corrupt"));
+    name == checkpoint::writer::LATEST || name == ".LATEST.tmp" || step(name) || name.strip_prefix('.').is_some_and(|n| step(n.trim_end_matches(".tmp")))
+}
+
+/// The files of an earlier run in `out`: its outputs and its checkpoints.
+fn previous_run_files(out: &Path) -> Vec<PathBuf> {
+    let mut files = Vec::new();
+    for (dir, keep) in [(out.to_path_buf(), is_output_file as fn(&str) -> bool), (checkpoint::dir_of(out), is_checkpoint_file)] {
+        if let Ok(rd) = std::fs::read_dir(&dir) {
+            files.extend(rd.flatten().filter(|e| e.file_type().is_ok_and(|t| t.is_file()) && keep(&e.file_name().to_string_lossy())).map(|e| e.path()));
         }
     }
+    files.sort();
+    files
+}
+
+/// Delete an earlier run's files (and its checkpoint folder once empty); nothing else.
+fn remove_previous_run(out: &Path) -> Result<(), RunError> {
+    for f in previous_run_files(out) {
+        std::fs::remove_file(&f).map_err(io_err(&f))?;
+    }
+    let _ = std::fs::remove_dir(checkpoint::dir_of(out)); // fails, harmlessly, if not empty
     Ok(())
+}
+
+/// A fresh run replaces an earlier run's files only when that run is known to be the same
+/// scenario, finished: otherwise they could be days of work, or another scenario's results that
+/// its new files would silently mix with. `--overwrite` deletes them first, whatever they are.
+fn clear_previous_run(out: &Path, sc: &Scenario, opts: &RunOptions) -> Result<(), RunError> {
+    if previous_run_files(out).is_empty() {
+        return Ok(());
+    }
+    if opts.overwrite {
+        return remove_previous_run(out);
+    }
+    let dir = checkpoint::dir_of(out);
+    let start_over = format!("{} --overwrite", opts.command);
+    let newest = checkpoint::writer::list(&dir).iter().rev().find_map(|(_, p)| Checkpoint::open(p).ok());
+    let Some(ck) = newest else {
+        return Err(RunError::Resume(format!(
+            "{} holds the outputs of a run that left no checkpoint: it was stopped before its first one \
+             ([checkpoint] wall_interval, 10 minutes by default) or ran with checkpoints disabled, so \
+             nothing there can be resumed\n  start over (deleting that run's files) with: {start_over}\n  \
+             or choose another --out",
+            out.display()
+        )));
+    };
+    let end = Scenario::parse(&ck.header.scenario_text).map_or(f64::INFINITY, |s| s.simulation.end_time);
+    // the checkpoint is inside a step: the run had finished if that step reaches the end
+    if ck.header.time + ck.header.dt < end * (1.0 - 1e-12) {
+        return Err(RunError::Resume(format!(
+            "{} holds an unfinished run (step {}, t = {:.6} s of {end} s); continue it with --resume, \
+             start over with --overwrite (deletes its files), or choose another --out",
+            dir.display(),
+            ck.header.step,
+            ck.header.time
+        )));
+    }
+    let diffs = checkpoint::scenario_differences(&ck.header.scenario_text, &sc.source).unwrap_or_else(|e| vec![e]);
+    if !diffs.is_empty() {
+        let list = diffs.iter().take(5).map(|d| format!("\n    {d}")).collect::<String>();
+        return Err(RunError::Resume(format!(
+            "{} holds a finished run of another scenario (t = {end} s), which this run would overwrite; it differs in:{list}\n  \
+             choose another --out, or start over (deleting that run's files) with: {start_over}",
+            out.display()
+        )));
+    }
+    remove_previous_run(out)
+}
+
+/// Why `--resume` found nothing to resume from, and the one command that goes on.
+fn no_checkpoint(out: &Path, error: &str, opts: &RunOptions) -> String {
+    let start_over = format!("{} --overwrite", opts.command);
+    let files = previous_run_files(out);
+    if files.is_empty() {
+        return format!("cannot resume: {} holds no run (no checkpoint, no outputs)\n  start it with: {}", out.display(), opts.command);
+    }
+    if checkpoint::writer::list(&checkpoint::dir_of(out)).is_empty() && !files.iter().any(|f| f.to_string_lossy().contains(".ckpt")) {
+        return format!(
+            "cannot resume: the run in {} was stopped before it wrote its first checkpoint ([checkpoint] wall_interval, \
+             10 minutes by default), so it cannot be continued\n  start over (deleting its files) with: {start_over}",
+            out.display()
+        );
+    }
+    format!("cannot resume: {error}\n  start over (deleting that run's files) with: {start_over}")
+}
+
+/// The time of the last row of `globals.csv`, if any.
+fn last_output_time(csv: &Path) -> Option<f64> {
+    let text = std::fs::read_to_string(csv).ok()?;
+    text.lines().skip(1).last()?.split(',').next()?.parse().ok()
+}
+
+/// On `--resume`: the summary of a run whose checkpoint is of its last step (a resume must then
+/// change nothing), or an error when `end` lies before what the run has computed (resuming
+/// would delete those outputs); `None` when there is a run left to do. A checkpoint before the
+/// last step resumes, rewriting the outputs after it bit-identically. `sim` holds the
+/// checkpoint's state, in the middle of a step of length `dt`.
+fn finished_run(sim: &mut Simulation, ck: &Checkpoint, dt: f64, csv: &Path, end: f64) -> Result<Option<RunSummary>, RunError> {
+    let step_end = ck.header.time + dt;
+    let computed = last_output_time(csv).map_or(step_end, |t| t.max(step_end));
+    if computed > end * (1.0 + 1e-9) + 1e-300 {
+        return Err(RunError::Resume(format!(
+            "cannot resume: simulation.end_time = {end} s lies before what the run has computed (t = {computed:.6} s, \
+             checkpoint {}); resuming would delete those outputs. Raise end_time, or start a shorter run in another --out",
+            ck.path.display()
+        )));
+    }
+    if step_end < end * (1.0 - 1e-12) {
+        return Ok(None);
+    }
+    sim.finish_step(dt)?;
+    Ok(Some(RunSummary {
+        steps: sim.step,
+        time: sim.time,
+        wall_s: 0.0,
+        particles: sim.particles.n,
+        observations: Vec::new(),
+        phase_seconds: [0.0; 6],
+        awake_particle_steps: 0,
+        state_hash: state::current_state_hash(sim),
+        resumed_from: Some(ck.path.clone()),
+        last_checkpoint: Some(ck.path.clone()),
+        failure: None,
+    }))
 }
 
 /// Keep the header and the first `rows` data rows of a CSV file (the outputs a checkpoint

@@ -160,6 +160,14 @@ pub struct Platform {
     pub kind: WallKind,
 }
 
+/// The most steps a run may plan: a fixed dt (or the first automatic one) that needs more to
+/// reach `end_time` is refused, since such a run would not end in any useful time.
+pub const MAX_STEPS: f64 = 1e9;
+
+/// The most grid cells along one axis: the grid's block table and its memory plan are indexed
+/// in machine integers, which this keeps far from overflow.
+pub const MAX_CELLS_PER_AXIS: f64 = 262_144.0;
+
 /// Initial material: a shape filled with particles on a regular lattice of
 /// `particles_per_cell_axis^3` particles per cell, moving at `velocity`.
 #[derive(Clone, Debug, Deserialize)]
@@ -334,12 +342,22 @@ impl Scenario {
         if !(s.dx > 0.0 && s.dx.is_finite()) {
             return bad(format!("simulation.dx must be a positive length, got {}", s.dx));
         }
-        if !(s.end_time >= 0.0 && s.end_time.is_finite()) {
+        if !s.end_time.is_finite() {
+            return bad(format!("simulation.end_time must be a finite time, got {}", s.end_time));
+        }
+        if !(s.end_time >= 0.0) {
             return bad(format!("simulation.end_time must be >= 0, got {}", s.end_time));
         }
         if let Some(dt) = s.dt {
             if !(dt > 0.0 && dt.is_finite()) {
                 return bad(format!("simulation.dt must be > 0, got {dt}"));
+            }
+            let steps = s.end_time / dt;
+            if steps > MAX_STEPS {
+                return bad(format!(
+                    "simulation.dt = {dt:e} s takes {steps:.3e} steps to end_time = {} s, more than the {MAX_STEPS:e} a run may plan",
+                    s.end_time
+                ));
             }
         }
         if let Some(m) = s.max_dt {
@@ -361,8 +379,25 @@ impl Scenario {
         }
         let d = &self.domain;
         for a in 0..3 {
+            if !(d.min[a].is_finite() && d.max[a].is_finite()) {
+                return bad(format!("domain.min[{a}] and domain.max[{a}] must be finite, got {} and {}", d.min[a], d.max[a]));
+            }
             if !(d.max[a] > d.min[a]) {
                 return bad(format!("domain.max[{a}] ({}) must exceed domain.min[{a}] ({})", d.max[a], d.min[a]));
+            }
+            let cells = (d.max[a] - d.min[a]) / s.dx;
+            if cells > MAX_CELLS_PER_AXIS {
+                return bad(format!(
+                    "domain: axis {a} spans {cells:.3e} cells of dx = {} m, more than the {MAX_CELLS_PER_AXIS:e} the grid can index; raise simulation.dx",
+                    s.dx
+                ));
+            }
+            if cells < 1.0 - 1e-6 {
+                return bad(format!(
+                    "domain: axis {a} spans {} m, less than one cell of simulation.dx = {} m",
+                    d.max[a] - d.min[a],
+                    s.dx
+                ));
             }
             if d.periodic[a] {
                 let cells = (d.max[a] - d.min[a]) / s.dx;
@@ -405,6 +440,10 @@ impl Scenario {
             if ppc == 0 || ppc > 4 {
                 return bad(format!("body[{i}].particles_per_cell_axis must be 1..=4, got {ppc}"));
             }
+            let (lo, hi) = b.bounds();
+            if lo.iter().chain(hi.iter()).chain(b.velocity().iter()).any(|v| !v.is_finite()) {
+                return bad(format!("body[{i}]: its position, size and velocity must be finite"));
+            }
             match b {
                 Body::Box { min, max, .. } => {
                     if (0..3).any(|a| !(max[a] > min[a])) {
@@ -418,7 +457,6 @@ impl Scenario {
                 }
             }
             // a body may be cut by the domain (symmetry planes), but must overlap it
-            let (lo, hi) = b.bounds();
             for a in 0..3 {
                 if hi[a] <= self.domain.min[a] || lo[a] >= self.domain.max[a] {
                     return bad(format!("body[{i}] lies entirely outside the domain on axis {a}"));

@@ -785,12 +785,13 @@ impl Simulation {
         if bad != u64::MAX {
             let i = bad as usize;
             let p = &self.particles;
+            let sci = scientific;
             let (field, value) = if !p.v.as_slice()[i].is_finite() {
-                ("velocity", format!("{:?}", p.v.as_slice()[i]))
+                ("velocity", format!("[{}]", sci(&p.v.as_slice()[i].to_array())))
             } else if !(p.j.as_slice()[i] > 0.0 && p.j.as_slice()[i].is_finite()) {
-                ("volume ratio J", format!("{}", p.j.as_slice()[i]))
+                ("volume ratio J", sci(&[p.j.as_slice()[i]]))
             } else {
-                ("stress", format!("{:?}", p.stress.as_slice()[i]))
+                ("stress", format!("[{}]", sci(&p.stress.as_slice()[i].to_cols_array())))
             };
             return Err(SimError::BlowUp { step: self.step, time: self.time, index: i, id: p.id.as_slice()[i], field, value });
         }
@@ -1118,4 +1119,19 @@ pub fn count_body_particles(sc: &Scenario) -> usize {
         for_each_lattice_point(sc, b, |_| n += 1);
     }
     n
+}
+
+/// Values for a message in scientific notation: plain formatting spells 1e-300 with 300 digits.
+fn scientific(values: &[Real]) -> String {
+    values.iter().map(|x| format!("{x:.6e}")).collect::<Vec<_>>().join(", ")
+}
+
+#[cfg(test)]
+mod tests {
+    /// Issue 27 finding 9: a blow-up message shows J and the other fields in a few digits.
+    #[test]
+    fn blow_up_values_are_short() {
+        let s = super::scientific(&[-1e-30, 1e30, -62.088_41]);
+        assert!(s.starts_with("-1.000000e-30, 1.000000e30, -6.20884") && s.len() < 50, "{s}");
+    }
 }

@@ -197,7 +197,7 @@ impl Checkpoint {
         let data_start = pad(PREAMBLE + hlen);
         let ck = Checkpoint { path: path.to_path_buf(), header, map, data_start };
         for s in &ck.header.sections {
-            let end = ck.data_start as u64 + s.offset + s.bytes;
+            let end = (ck.data_start as u64).checked_add(s.offset).and_then(|e| e.checked_add(s.bytes)).unwrap_or(u64::MAX);
             if end > ck.map.len() as u64 {
                 return Err(FormatError::Truncated {
                     path: path.to_path_buf(),
@@ -235,8 +235,12 @@ impl Checkpoint {
         }
         let hlen = u64::from_le_bytes(bytes[16..24].try_into().expect("8 bytes"));
         let hsum = u64::from_le_bytes(bytes[24..32].try_into().expect("8 bytes"));
-        if (PREAMBLE as u64).saturating_add(hlen) > len {
-            return Err(FormatError::Truncated { path: p(), len, need: PREAMBLE as u64 + hlen, what: "header".into() });
+        // a length no file can have is corruption, not truncation (the sum would wrap around)
+        let Some(need) = (PREAMBLE as u64).checked_add(hlen).filter(|n| *n <= isize::MAX as u64) else {
+            return Err(FormatError::HeaderDecode { path: p(), message: format!("header length {hlen} is impossible (corrupted)") });
+        };
+        if need > len {
+            return Err(FormatError::Truncated { path: p(), len, need, what: "header".into() });
         }
         let hb = &bytes[PREAMBLE..PREAMBLE + hlen as usize];
         if xxh3_64(hb) != hsum {
@@ -338,6 +342,29 @@ mod tests {
             bad[i] ^= 0x10;
             std::fs::write(&path, &bad).unwrap();
             assert!(Checkpoint::open(&path).is_err(), "flip at byte {i} of {n} not detected");
+        }
+    }
+
+    /// Issue 27 finding 10: a header length near 2^64 is named as such, not as a small
+    /// truncation (the sum with the preamble's length wrapped around).
+    #[test]
+    fn a_huge_header_length_is_not_a_small_truncation() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut bytes = MAGIC.to_vec();
+        bytes.extend_from_slice(&FORMAT.to_le_bytes());
+        bytes.extend_from_slice(&[0; 4]);
+        for (hlen, says) in [
+            (u64::MAX, format!("header length {} is impossible", u64::MAX)),
+            (u64::MAX - 10, format!("header length {} is impossible", u64::MAX - 10)),
+            (1 << 40, format!("truncated: 96 bytes, the header needs {}", (1u64 << 40) + 32)),
+        ] {
+            let mut b = bytes.clone();
+            b.extend_from_slice(&hlen.to_le_bytes());
+            b.extend_from_slice(&[0; 8 + 64]);
+            let path = dir.path().join("c.ckpt");
+            std::fs::write(&path, &b).unwrap();
+            let e = Checkpoint::open(&path).err().expect("accepted").to_string();
+            assert!(e.contains(&says), "{hlen}: {e}");
         }
     }
 

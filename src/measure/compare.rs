@@ -7,7 +7,7 @@
 //! experiments are independent jobs, run `jobs` at a time, and give the same numbers however
 //! many run together.
 
-use super::data::{at_text, Experiment, Experiments, Observable, Observation, SIMULATION_OBSERVABLES};
+use super::data::{at_text, Experiment, Experiments, Observable, Observation, RHEOMETER_OBSERVABLES, SIMULATION_OBSERVABLES};
 use super::effects::Keys;
 use super::model::set_path;
 use super::rheometer::{Protocol, Reading, Rheometer};
@@ -179,6 +179,9 @@ pub fn reading_index(o: &Observable, readings: &[Reading]) -> Result<usize, Stri
 
 /// The shear rate of a rheometer observable, `stress@RATE`.
 pub fn reading_rate(o: &Observable) -> Result<f64, String> {
+    if !RHEOMETER_OBSERVABLES.contains(&o.name.as_str()) {
+        return Err(format!("a rheometer test cannot observe '{}'; it can observe {}", o.name, RHEOMETER_OBSERVABLES.join(", ")));
+    }
     match (o.at, o.at2) {
         (Some(rate), None) => Ok(rate),
         (Some(_), Some(_)) => Err(format!("'{o}': stress takes one coordinate, the shear rate: stress@RATE")),
@@ -469,6 +472,17 @@ mod tests {
         assert_ne!(a, synth(&m, &e, 0.05, 8, 1).unwrap());
         let rel: Vec<f64> = a.iter().zip(synth(&m, &e, 0.0, 7, 1).unwrap()).map(|(n, c)| n.value / c.value - 1.0).collect();
         assert!(rel.iter().all(|r| r.abs() < 0.25) && rel.iter().any(|r| r.abs() > 1e-4), "{rel:?}");
+    }
+
+    /// Issue 27 finding 4: a rheometer reading is the stress; any other name is refused, as for
+    /// simulations, instead of being computed as the stress.
+    #[test]
+    fn a_rheometer_observes_only_the_stress() {
+        for name in ["banana@1", "strain@1", "spread@1", "spread"] {
+            let e = reading_rate(&Observable::parse(name).unwrap()).unwrap_err();
+            assert!(e.contains("rheometer test cannot observe") && e.contains("stress"), "{name}: {e}");
+        }
+        assert_eq!(reading_rate(&Observable::parse("stress@2.5").unwrap()), Ok(2.5));
     }
 
     #[test]

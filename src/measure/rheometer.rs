@@ -74,6 +74,10 @@ pub struct Reading {
     pub stress: f64,
 }
 
+/// The most constitutive steps a protocol may take: 1e8 run in tens of seconds, and the
+/// adjoint keeps the state of every step (a few hundred MB at 1e8 steps of two reals).
+pub const MAX_STEPS: usize = 100_000_000;
+
 /// One hold of constant rate, as steps.
 #[derive(Clone, Copy, Debug)]
 struct Hold {
@@ -107,7 +111,13 @@ impl<'a> Rheometer<'a> {
             let step = |dt: &Option<f64>| positive(key("dt"), dt.unwrap_or(protocol.dt));
             let steps = |duration: f64, dt: f64| -> Result<usize, String> {
                 positive(key("duration"), duration)?;
-                Ok(((duration / dt).round() as usize).max(1))
+                let n = (duration / dt).round().max(1.0);
+                if n > MAX_STEPS as f64 {
+                    return Err(format!(
+                        "rheometer.phase.{i}: {duration} s at dt = {dt} s is {n:.3e} steps, more than the {MAX_STEPS} a protocol may take; raise its dt"
+                    ));
+                }
+                Ok(n as usize)
             };
             match ph {
                 Phase::Rest { duration, dt } => {
@@ -135,6 +145,10 @@ impl<'a> Rheometer<'a> {
                     }
                 }
             }
+        }
+        let total: usize = holds.iter().map(|h| h.steps).sum();
+        if total > MAX_STEPS {
+            return Err(format!("rheometer: the protocol takes {total} steps, more than the {MAX_STEPS} it may take; raise dt"));
         }
         Ok(Rheometer { material, holds })
     }
@@ -365,6 +379,11 @@ mod tests {
         assert!(e("[[phase]]\nkind = \"rest\"\nduration = -1.0\n").contains("rheometer.phase.0.duration"));
         assert!(e("[[phase]]\nkind = \"rest\"\nduration = 1.0\n[[phase]]\nkind = \"sweep\"\nrates = []\nhold = 1.0\n").contains("rheometer.phase.1.rates"));
         assert!(e("dt = 0.0\n[[phase]]\nkind = \"rest\"\nduration = 1.0\n").contains("rheometer.dt"));
+        // issue 27 finding 7: a rest of 1e12 s is refused at once, not run for ever
+        let long = e("[[phase]]\nkind = \"rest\"\nduration = 1e12\n");
+        assert!(long.contains("rheometer.phase.0") && long.contains("more than the 100000000"), "{long}");
+        let many = e("dt = 1.0\n[[phase]]\nkind = \"sweep\"\nrates = [1.0, 2.0, 3.0]\nhold = 4e7\n");
+        assert!(many.contains("the protocol takes 120000000 steps"), "{many}");
         assert!(toml::from_str::<Protocol>("[[phase]]\nkind = \"spin\"\n").is_err());
     }
 

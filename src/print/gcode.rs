@@ -1,14 +1,26 @@
 //! G-code import into a toolpath.
 //!
 //! Accepts the subset a printer needs for straight moves: G0/G1 (X Y Z E F), G4 dwell, G90/G91,
-//! M82/M83, G92 and G21. Anything else is refused with its line number rather than skipped,
-//! because a silently ignored command (an arc, a homing move) would print a different part.
+//! M82/M83, G92, G21, and the flow and feed overrides M221/M220. Slicers also write commands
+//! that set the machine's state without moving the nozzle or changing the material laid down:
+//! temperatures, fans, messages, steppers, motion limits, firmware macros (`PRINT_START`) and
+//! homing or bed probing before the first move. These are skipped, and counted in a note
+//! ([`GcodeNotes`]) said once at start-up. Anything else is refused with its line number rather
+//! than skipped, because a silently ignored command (an arc, a homing move in mid-print) would
+//! print a different part.
+//!
+//! Moves of E alone (the nozzle standing still) deposit nothing: a retraction (E backwards,
+//! also firmware retraction G10) and the un-retraction that restores it (E forwards, G11) leave
+//! no net material, and an advance beyond the restored amount (a prime in place) is dropped, its
+//! length counted in the note: strand deposits material only while the nozzle moves. Such moves
+//! take no time. Only a net advance of E during a move deposits material.
+//!
 //! One command per line; a word is a letter followed directly by a number without exponent
 //! (`G1X10E.5` is fine, `X 10` is not).
 
 use super::toolpath::{Move, MoveKind, Toolpath, ToolpathError};
 
-/// How G-code numbers map to the world. In scenario TOML this is `[print.gcode]`.
+/// How G-code numbers map to the world. In scenario TOML this is `[print.gcode_options]`.
 #[derive(Clone, Debug, PartialEq, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct GcodeOptions {
@@ -41,7 +53,7 @@ pub enum GcodeError {
     /// A line that is not valid G-code; `line` is 1-based.
     #[error("gcode line {line}: {message} ({text:?})")]
     Malformed { line: usize, message: String, text: String },
-    #[error("print.gcode.{key}: {message}")]
+    #[error("print.gcode_options.{key}: {message}")]
     Option { key: &'static str, message: String },
     #[error("gcode: {0}")]
     Toolpath(#[from] ToolpathError),
@@ -59,6 +71,43 @@ fn reason_suffix(reason: &str) -> String {
 /// a G1 that advances E by dE over a length s at feed F lasts s / (F/60) and extrudes at
 /// U = dE · e_unit / duration. Moves with no net E advance are travels.
 pub fn parse_gcode(text: &str, opts: &GcodeOptions) -> Result<Toolpath, GcodeError> {
+    parse_gcode_with_notes(text, opts).map(|(p, _)| p)
+}
+
+/// What the import skipped or dropped, for one line at start-up.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct GcodeNotes {
+    /// Machine-state commands skipped, by command (upper-cased), with how often.
+    pub skipped: std::collections::BTreeMap<String, usize>,
+    /// Moves of E alone with the nozzle still (retractions, un-retractions, primes).
+    pub e_only: usize,
+    /// E advanced in place beyond the retracted amount, dropped [G-code E units].
+    pub primed: f64,
+}
+
+impl std::fmt::Display for GcodeNotes {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let list: Vec<String> = self.skipped.iter().map(|(k, n)| format!("{k} x{n}")).collect();
+        write!(f, "skipped {} machine-state command(s) (temperatures, fans, messages, steppers, limits, macros, homing before the first move): {}", self.skipped.values().sum::<usize>(), if list.is_empty() { "none".into() } else { list.join(", ") })?;
+        if self.e_only > 0 {
+            write!(f, "; {} move(s) of E alone (retract/un-retract) deposit nothing", self.e_only)?;
+        }
+        if self.primed > 0.0 {
+            write!(f, ", {:.6} E units primed in place dropped", self.primed)?;
+        }
+        Ok(())
+    }
+}
+
+impl GcodeNotes {
+    /// Whether anything was skipped or dropped.
+    pub fn is_empty(&self) -> bool {
+        self.skipped.is_empty() && self.e_only == 0
+    }
+}
+
+/// [`parse_gcode`], with what it skipped.
+pub fn parse_gcode_with_notes(text: &str, opts: &GcodeOptions) -> Result<(Toolpath, GcodeNotes), GcodeError> {
     opts.validate()?;
     let mut machine = Machine::new(opts);
     for (i, raw) in text.lines().enumerate() {
@@ -70,11 +119,55 @@ pub fn parse_gcode(text: &str, opts: &GcodeOptions) -> Result<Toolpath, GcodeErr
                 GcodeError::Malformed { line: i + 1, message, text: raw.trim().to_string() }
             }
         };
+        // homing before the first move may carry firmware-specific words (Prusa's `G28 W`)
+        let homing = first_word(raw).filter(|w| machine.moves.is_empty() && HOMING_G.iter().any(|g| *w == format!("G{g}")));
+        if let Some(name) = free_text_command(raw).or(homing) {
+            *machine.notes.skipped.entry(name).or_default() += 1;
+            continue;
+        }
         let words = tokenize(raw).map_err(|m| at_line(LineError::Malformed(m)))?;
         machine.execute(&words).map_err(at_line)?;
     }
-    Ok(Toolpath::from_moves(machine.moves)?)
+    let notes = std::mem::take(&mut machine.notes);
+    Ok((Toolpath::from_moves(machine.moves)?, notes))
 }
+
+/// A line that is not made of G-code words and only sets machine state, skipped whole: a
+/// firmware macro or extended command (`PRINT_START EXTRUDER=200`, `SET_VELOCITY_LIMIT ...`,
+/// named by a word of two or more letters), a message (M117/M118, whose text may hold any
+/// character) or a printer model check (M862.x). Its name, upper-cased, for the note.
+fn free_text_command(raw: &str) -> Option<String> {
+    let first = first_word(raw)?;
+    let mut chars = first.chars();
+    let macro_name = matches!((chars.next(), chars.next()), (Some(a), Some(b)) if a.is_ascii_alphabetic() && (b.is_ascii_alphabetic() || b == '_'))
+        && first.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
+    // a machine-state M-code's line is skipped whole: slicers give some words without numbers
+    // (Cura's `M84 X Y E`)
+    let machine_state = first.strip_prefix('M').and_then(|n| n.parse::<u32>().ok()).is_some_and(|n| MACHINE_STATE_M.contains(&n));
+    let message = first == "M117" || first == "M118" || machine_state;
+    let model_check = first.strip_prefix("M862.").is_some_and(|r| !r.is_empty() && r.chars().all(|c| c.is_ascii_digit()));
+    (macro_name || message || model_check).then_some(first)
+}
+
+/// The line's first word, upper-cased, before any `;` comment.
+fn first_word(raw: &str) -> Option<String> {
+    let code = raw.split(';').next().unwrap_or("").trim_start();
+    let first: String = code.chars().take_while(|c| !c.is_whitespace()).collect();
+    (!first.is_empty()).then(|| first.to_ascii_uppercase())
+}
+
+/// M-codes that set machine state only: temperatures (M104, M109, M140, M190, M141, M191,
+/// M116), fans (M106, M107), messages, sounds and progress (M73, M300), reports (M105, M114,
+/// M115, M31), steppers (M17, M18, M84), waiting for moves to finish (M400), motion limits and
+/// tuning (M201, M203, M204, M205, M900, M907), stored settings (M500-M503) and the bed mesh
+/// switch (M420).
+const MACHINE_STATE_M: &[u32] =
+    &[17, 18, 31, 73, 84, 104, 105, 106, 107, 109, 114, 115, 116, 140, 141, 190, 191, 201, 203, 204, 205, 300, 400, 420, 500, 501, 502, 503, 900, 907];
+
+/// G-codes that home or probe: skipped before the first move (the nozzle then starts at
+/// `start`, where homing leaves it), refused after it (the nozzle would go where strand does not
+/// know): G28 home, G29 probe the bed, G80 mesh bed levelling.
+const HOMING_G: &[u32] = &[28, 29, 80];
 
 impl GcodeOptions {
     /// Check every option is usable.
@@ -195,6 +288,12 @@ struct Machine<'a> {
     /// World position of the nozzle [m]; kept so each move starts exactly where the last ended.
     world: [f64; 3],
     moves: Vec<Move>,
+    notes: GcodeNotes,
+    /// E retracted with the nozzle still and not yet restored [E units].
+    retracted: f64,
+    /// M221 flow and M220 feed overrides, as factors.
+    flow: f64,
+    feed_factor: f64,
 }
 
 impl<'a> Machine<'a> {
@@ -210,12 +309,19 @@ impl<'a> Machine<'a> {
             t: 0.0,
             world: std::array::from_fn(|i| opts.origin[i] + opts.unit * opts.start[i]),
             moves: Vec::new(),
+            notes: GcodeNotes::default(),
+            retracted: 0.0,
+            flow: 1.0,
+            feed_factor: 1.0,
         }
     }
 
     fn execute(&mut self, words: &[Word]) -> Result<(), LineError> {
-        let mut commands = words.iter().filter(|w| matches!(w.letter, 'G' | 'M' | 'T'));
-        let params: Vec<&Word> = words.iter().filter(|w| !matches!(w.letter, 'G' | 'M' | 'T' | 'N')).collect();
+        // T is a command alone (a tool change) and the tool's index after an M-code (M104 S200 T0)
+        let t_is_command = !words.iter().any(|w| matches!(w.letter, 'G' | 'M'));
+        let is_command = |w: &Word| matches!(w.letter, 'G' | 'M') || (w.letter == 'T' && t_is_command);
+        let mut commands = words.iter().filter(|w| is_command(w));
+        let params: Vec<&Word> = words.iter().filter(|w| !is_command(w) && w.letter != 'N').collect();
         let Some(cmd) = commands.next() else {
             let Some(first) = params.first() else {
                 return Ok(()); // blank, comment or line number only
@@ -244,7 +350,7 @@ impl<'a> Machine<'a> {
                 check_params(&cmd.text, &params, "PS")?;
                 self.dwell(&params)
             }
-            ('G', 20) => unsupported("inch units; remove G20 and set print.gcode.unit = 0.0254"),
+            ('G', 20) => unsupported("inch units; remove G20 and set print.gcode_options.unit = 0.0254"),
             ('G', 21) => check_params(&cmd.text, &params, ""),
             ('G', 90 | 91) => {
                 check_params(&cmd.text, &params, "")?;
@@ -261,8 +367,38 @@ impl<'a> Machine<'a> {
                 self.set_position(&params);
                 Ok(())
             }
+            ('M', 220 | 221) => {
+                check_params(&cmd.text, &params, "S")?;
+                let Some(percent) = value_of(&params, 'S').filter(|p| *p > 0.0) else {
+                    return Err(LineError::Malformed(format!("{} needs S, a percentage > 0", cmd.text)));
+                };
+                match code {
+                    220 => self.feed_factor = percent / 100.0,
+                    _ => self.flow = percent / 100.0,
+                }
+                Ok(())
+            }
+            // firmware retraction: like a retraction and its un-retraction in E, it deposits nothing
+            ('G', 10 | 11) if params.is_empty() => {
+                self.notes.e_only += 1;
+                Ok(())
+            }
+            ('M', m) if MACHINE_STATE_M.contains(&m) => self.skip(&cmd.text),
+            ('T', 0) => self.skip(&cmd.text), // the one tool strand models
+            ('G', g) if HOMING_G.contains(&g) => {
+                if self.moves.is_empty() {
+                    self.skip(&cmd.text)
+                } else {
+                    unsupported("homing or probing after the first move would move the nozzle to a position strand does not know")
+                }
+            }
             _ => unsupported(""),
         }
+    }
+
+    fn skip(&mut self, command: &str) -> Result<(), LineError> {
+        *self.notes.skipped.entry(command.to_ascii_uppercase()).or_default() += 1;
+        Ok(())
     }
 
     /// G0/G1. `rapid` (G0) never extrudes.
@@ -292,16 +428,28 @@ impl<'a> Machine<'a> {
         }
         let dist = (0..3).map(|i| (target[i] - self.machine[i]).powi(2)).sum::<f64>().sqrt();
         if dist == 0.0 {
-            if de > 0.0 {
-                let reason =
-                    format!("extrusion without motion (E advances by {de} while X, Y and Z stay put) is not supported");
-                return Err(LineError::Unsupported { word: cmd.to_string(), reason });
+            if de != 0.0 {
+                // E alone (see the module doc): a retraction, the un-retraction restoring it, or
+                // a prime in place beyond it; none deposits material
+                self.notes.e_only += 1;
+                if de < 0.0 {
+                    self.retracted -= de;
+                } else {
+                    let restored = de.min(self.retracted);
+                    self.retracted -= restored;
+                    self.notes.primed += de - restored;
+                }
             }
-            return Ok(()); // a retraction in place or a move to where the nozzle is: nothing moves
+            return Ok(()); // a move to where the nozzle is: nothing moves
         }
-        let duration = dist / (self.feed / 60.0);
+        let duration = dist / (self.feed * self.feed_factor / 60.0);
         // Only a net advance of E deposits material; a retraction while moving is a travel.
-        let u = if de > 0.0 { de * self.opts.e_unit / duration } else { 0.0 };
+        let u = if de > 0.0 { de * self.flow * self.opts.e_unit / duration } else { 0.0 };
+        if de > 0.0 {
+            self.retracted = 0.0;
+        } else {
+            self.retracted -= de; // retracted while moving (a wipe), restored in place later
+        }
         let kind = if u > 0.0 { MoveKind::Print } else { MoveKind::Travel };
         let to = std::array::from_fn(|i| self.opts.origin[i] + self.opts.unit * target[i]);
         self.push(duration, to, u, kind)?;
@@ -487,13 +635,13 @@ G4 S0.25
     fn unsupported_commands_name_line_and_word() {
         let head = "G21\n; setup\n";
         for (line, word) in [
-            ("G28 X0", "G28"),
-            ("M104 S200", "M104"),
             ("G20", "G20"),
-            ("T0", "T0"),
+            ("T1", "T1"),
             ("G2 X10 Y0 I5 J0", "G2"),
             ("g92.1", "G92.1"),
-            ("M83\nG1 E5", "G1"),
+            ("G1 X5\nG28", "G28"),
+            ("M3 S1000", "M3"),
+            ("G10 P1 X5", "G10"),
             ("G0 X5 E1", "G0 E"),
         ] {
             match error(&format!("{head}{line}\n")) {
@@ -504,13 +652,35 @@ G4 S0.25
                 e => panic!("{line}: expected Unsupported, got {e}"),
             }
         }
-        assert_eq!(error("G21\n; setup\nG28 X0\n").to_string(), "gcode line 3: unsupported command G28 (\"G28 X0\")");
-        let msg = error("M83\nG1 X1\nG1 E5 ; prime\n").to_string();
-        assert!(
-            msg.starts_with("gcode line 3: unsupported command G1 (\"G1 E5 ; prime\"): extrusion without motion"),
-            "{msg}"
-        );
+        assert_eq!(error("G21\n; setup\nG0 X1\nM42 P4 S255\n").to_string(), "gcode line 4: unsupported command M42 (\"M42 P4 S255\")");
+        let msg = error("G1 X1\nG28 X0\n").to_string();
+        assert!(msg.starts_with("gcode line 2: unsupported command G28 (\"G28 X0\"): homing"), "{msg}");
         assert!(error("G20\n").to_string().contains("inch"));
+    }
+
+    /// Issue 27 finding 12: what slicers write around the moves is skipped and counted; E alone
+    /// deposits nothing; the flow and feed overrides scale the moves.
+    #[test]
+    fn machine_state_is_skipped_and_e_alone_deposits_nothing() {
+        let text = "PRINT_START BED=60 EXTRUDER=200\nM107\nM104 S200\nM109 S200 T0\nM140 S60\nM117 Flow test: 5 mm/s, 0.8 mm\n\
+                    M862.3 P \"MK3S\" ; printer model check\nG28 W\nT0\nG21\nG90\nM83\nG92 E0\nG4 S0\n\
+                    G1 X10 E5 F600\nG1 E-0.8 F2100\nG0 X20\nG1 E0.8\nG1 X30 E5 F600\nG1 E-0.8\nG1 E2.8 ; un-retract and prime\n\
+                    G10\nG11\nM84\nPRINT_END\n";
+        let (p, notes) = parse_gcode_with_notes(text, &GcodeOptions::default()).unwrap_or_else(|e| panic!("{e}"));
+        let m = p.moves();
+        assert_eq!(m.len(), 3, "{m:?}");
+        check(&m[0], MoveKind::Print, 0.0, 1.0, [0.01, 0.0, 0.0], 5e-3);
+        check(&m[1], MoveKind::Travel, 1.0, 1.0 + 10.0 / 35.0, [0.02, 0.0, 0.0], 0.0);
+        // the un-retraction restores the retraction: the next move deposits its own 5 E only
+        check(&m[2], MoveKind::Print, m[1].t1, m[1].t1 + 1.0, [0.03, 0.0, 0.0], 5e-3);
+        let n = |k: &str| notes.skipped.get(k).copied().unwrap_or(0);
+        assert_eq!((n("PRINT_START"), n("PRINT_END"), n("M107"), n("M104"), n("M109"), n("M117"), n("M862.3"), n("G28"), n("T0"), n("M84")), (1, 1, 1, 1, 1, 1, 1, 1, 1, 1));
+        assert!(notes.e_only == 6 && close(notes.primed, 2.0), "{notes:?}"); // 4 E moves + G10 + G11
+        let line = notes.to_string();
+        assert!(line.contains("skipped 11 machine-state") && line.contains("PRINT_START x1") && line.contains("2.000000 E units primed"), "{line}");
+        // M221 scales what a move deposits, M220 the feed
+        let m = parse("M83\nM221 S50\nM220 S200\nG1 X10 E5 F600\n").moves().to_vec();
+        check(&m[0], MoveKind::Print, 0.0, 0.5, [0.01, 0.0, 0.0], 5e-3);
     }
 
     #[test]
@@ -561,7 +731,7 @@ G4 S0.25
         }
         let msg =
             parse_gcode("G1 X1\n", &GcodeOptions { unit: 0.0, ..GcodeOptions::default() }).unwrap_err().to_string();
-        assert_eq!(msg, "print.gcode.unit: unit = 0 must be finite and > 0");
+        assert_eq!(msg, "print.gcode_options.unit: unit = 0 must be finite and > 0");
     }
 
     #[test]
