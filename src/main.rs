@@ -253,6 +253,13 @@ impl MeasureInputs {
     }
 }
 
+/// A printed section needs the nozzle resolved by enough cells (`NozzleShape::resolution_warning`).
+fn warn_resolution(sc: &Scenario) {
+    if let Some(w) = sc.print.as_ref().and_then(|p| p.nozzle.resolution_warning(sc.simulation.dx)) {
+        eprintln!("warning: {w}");
+    }
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let mut exit_code = 2u8;
@@ -262,6 +269,7 @@ fn main() -> ExitCode {
                 Some(p) => Scenario::load(p).map_err(|e| e.to_string())?,
                 None => Scenario::parse(DEFAULT_SCENARIO).map_err(|e| e.to_string())?,
             };
+            warn_resolution(&sc);
             let mut command = "strand run".to_string();
             if let Some(p) = &scenario {
                 command += &format!(" {}", p.display());
@@ -302,6 +310,7 @@ fn main() -> ExitCode {
         }),
         Cmd::Check { scenario } => (|| {
             let sc = Scenario::load(&scenario).map_err(|e| e.to_string())?;
+            warn_resolution(&sc);
             let sim = strand::solver::Simulation::new(&sc).map_err(|e| e.to_string())?;
             let (dt, lim) = sim.choose_dt(f64::INFINITY);
             println!("{}: {} particles\nmemory plan:\n{}\ntime step {dt:.3e} s ({lim:?})", sc.name, sim.particles.n, sim.memory);
@@ -345,7 +354,7 @@ fn main() -> ExitCode {
             })
         }
         Cmd::Compare { inputs, report, plan, collect, only, save } => (|| {
-            use strand::measure::{compare, plan as jobs, report as folder};
+            use strand::measure::{compare, plan as jobs, report as folder, resolution};
             if let Some(dir) = &report {
                 folder::prepare_dir(dir)?;
             }
@@ -367,15 +376,26 @@ fn main() -> ExitCode {
                 Some(dir) => jobs::collect(dir, &d)?,
                 None => compare::model_values(&m, &d, &e, inputs.jobs)?,
             };
-            let c = compare::comparison(&d, &values);
+            // [resolution]: the finer runs, here also after --collect (the jobs ran the model's)
+            let disc = resolution::estimate(&m, &d, &e, Some(&values), inputs.jobs)?;
+            let c = match &disc {
+                Some(est) => compare::comparison_with_discretisation(&d, &values, &resolution::errors(est)),
+                None => compare::comparison(&d, &values),
+            };
             let trends = report.as_deref().map(|dir| folder::write(dir, &c, &e, &m)).transpose()?;
             if inputs.json {
                 let mut v = serde_json::to_value(&c).map_err(|e| e.to_string())?;
                 if let Some(t) = &trends {
                     v["trends"] = serde_json::to_value(t).map_err(|e| e.to_string())?;
                 }
+                if let Some(est) = &disc {
+                    v["discretisation"] = serde_json::to_value(est).map_err(|e| e.to_string())?;
+                }
                 println!("{v:#}");
             } else {
+                if let Some(est) = &disc {
+                    print!("{}", resolution::report(&d, est, &values, "compared"));
+                }
                 print!("{}", compare::report(&c));
                 if let Some(t) = &trends {
                     print!("{}", folder::trends_text(t));
@@ -396,8 +416,9 @@ fn main() -> ExitCode {
             Ok(true)
         })(),
         Cmd::Calibrate { inputs, fit, out, plot, max_iterations } => (|| {
-            use strand::measure::calibrate;
-            let (m, d, e) = inputs.load()?;
+            use strand::measure::{calibrate, resolution};
+            let (m, d0, e) = inputs.load()?;
+            let (d, disc) = resolution::counted_data(&m, d0, &e, inputs.jobs)?;
             let opts = calibrate::FitOptions { max_iterations, jobs: inputs.jobs, progress: true, ..Default::default() };
             let f = calibrate::calibrate(&m, &d, &e, &fit, &opts)?;
             let out = out.unwrap_or_else(|| inputs.model.with_extension("calibrated.toml"));
@@ -405,19 +426,23 @@ fn main() -> ExitCode {
             let plot = plot.unwrap_or_else(|| out.with_extension("png"));
             calibrate::plot_convergence(&f, &plot)?;
             if inputs.json {
-                println!("{:#}", serde_json::to_value(&f).map_err(|e| e.to_string())?);
+                println!("{:#}", resolution::with_estimates(serde_json::to_value(&f).map_err(|e| e.to_string())?, &disc)?);
             } else {
+                if let Some(c) = &disc {
+                    print!("{}", resolution::report(&c.data, &c.estimates, &f.model_values, "fitted"));
+                }
                 print!("{}", calibrate::report(&f));
             }
             eprintln!("calibrated model written to {}, convergence plot to {}", out.display(), plot.display());
             Ok(true)
         })(),
         Cmd::Diagnose { inputs, fit, alpha, no_loo, max_fitted, out, max_iterations } => (|| {
-            use strand::measure::{calibrate::FitOptions, diagnose};
+            use strand::measure::{calibrate::FitOptions, diagnose, resolution};
             if !(alpha > 0.0 && alpha < 1.0) {
                 return Err(format!("--alpha must be in (0, 1), got {alpha}"));
             }
-            let (m, d, e) = inputs.load()?;
+            let (m, d0, e) = inputs.load()?;
+            let (d, disc) = resolution::counted_data(&m, d0, &e, inputs.jobs)?;
             let opts = diagnose::DiagnoseOptions { fit: FitOptions { max_iterations, jobs: inputs.jobs, ..Default::default() }, alpha, leave_one_out: !no_loo, max_fitted: max_fitted as usize };
             let r = diagnose::diagnose(&m, &d, &e, &fit, &opts)?;
             if let (Some(out), Some(best)) = (&out, &r.recommended_model) {
@@ -425,8 +450,11 @@ fn main() -> ExitCode {
                 eprintln!("model with {} written to {}", r.recommended.as_deref().unwrap_or(""), out.display());
             }
             if inputs.json {
-                println!("{:#}", serde_json::to_value(&r).map_err(|e| e.to_string())?);
+                println!("{:#}", resolution::with_estimates(serde_json::to_value(&r).map_err(|e| e.to_string())?, &disc)?);
             } else {
+                if let Some(c) = &disc {
+                    print!("{}", resolution::report(&c.data, &c.estimates, &c.start_values, "start"));
+                }
                 print!("{}", diagnose::report(&r));
             }
             Ok(true)
