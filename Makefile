@@ -64,7 +64,7 @@ bench-layers-dwell: build
 
 # Case 1's section at five cell sizes (5 to 2 mm, 5 to 12.5 cells per nozzle diameter), its
 # observed order of convergence and Richardson extrapolation (BENCHMARKS.md "Discretisation
-# error"; one thread per run; 5, 4 and 3.125 mm took 22, 41 and 109 CPU s, 2.5 mm about 190, 2 mm
+# error"; one thread per run; 5, 4 and 3.125 mm took 22, 41 and 110 CPU s, 2.5 mm about 190, 2 mm
 # estimated at 2.5x that). Add 1 to the sizes for the 1 mm row (about 2 CPU hours). A run already
 # in $(OUT)/convergence is not repeated.
 bench-convergence: build

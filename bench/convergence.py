@@ -17,7 +17,9 @@ an interrupted sweep resumes where it stopped.
 
 Usage: bench/convergence.py [--out DIR] [--station X] [--strand BIN] DX_MM [DX_MM ...]
 """
-import argparse, json, math, os, re, subprocess, sys, time
+import argparse, re, sys
+
+import section_run
 
 FIXTURE = "fixtures/scenarios/print/case1_reduced.toml"
 
@@ -33,29 +35,8 @@ def scenario(dx_mm):
 
 
 def run(args, dx_mm):
-    tag = f"dx{dx_mm:g}mm"
-    out = os.path.join(args.out, tag)
-    summary = os.path.join(out, "summary.json")
-    if not os.path.exists(summary):
-        os.makedirs(out, exist_ok=True)
-        path = os.path.join(args.out, tag + ".toml")
-        open(path, "w").write(scenario(dx_mm))
-        start = time.time()
-        cmd = [args.strand, "run", path, "--out", out, "--threads", "1", "--json", "--quiet", "--overwrite"]
-        result = subprocess.run(cmd, capture_output=True, text=True)
-        if result.returncode != 0:
-            sys.exit(f"{' '.join(cmd)} failed:\n{result.stderr}")
-        doc = json.loads(result.stdout)
-        doc["bench_wall_s"] = time.time() - start
-        open(summary + ".part", "w").write(json.dumps(doc))
-        os.replace(summary + ".part", summary)
-    doc = json.load(open(summary))
-    sections = [s for s in doc["last_observation"]["sections"] if abs(s["station"] - args.station) < 1e-9]
-    if not sections:
-        sys.exit(f"{summary}: no section at x = {args.station}")
-    s = sections[0]
-    return {"h": dx_mm, "width": 1e3 * s["width"], "height": 1e3 * s["height"], "area": 1e6 * s["area"],
-            "steps": doc.get("steps"), "wall": doc["bench_wall_s"]}
+    doc = section_run.run(args.strand, args.out, f"dx{dx_mm:g}mm", scenario(dx_mm))
+    return dict(section_run.section(doc, args.station), h=dx_mm, cpu=doc["bench_cpu_s"])
 
 
 def order(h, f):
@@ -107,10 +88,10 @@ def main():
     sizes = sorted(set(args.dx_mm), reverse=True)
     rows = [run(args, dx) for dx in sizes]
     print(f"case 1, section at x = {1e3 * args.station:g} mm; nozzle 25 mm; area by mass balance 549.8 mm^2")
-    print("| dx mm | cells per nozzle diameter | width mm | height mm | area mm^2 | steps | wall s |")
+    print("| dx mm | cells per nozzle diameter | width mm | height mm | area mm^2 | steps | CPU s |")
     print("|---|---|---|---|---|---|---|")
     for r in rows:
-        print(f"| {r['h']:g} | {25.0 / r['h']:.2f} | {r['width']:.2f} | {r['height']:.2f} | {r['area']:.1f} | {r['steps']} | {r['wall']:.0f} |")
+        print(f"| {r['h']:g} | {25.0 / r['h']:.2f} | {r['width']:.2f} | {r['height']:.2f} | {r['area']:.1f} | {r['steps']} | {r['cpu']:.0f} |")
     if len(rows) < 3:
         return
     h = [r["h"] for r in rows]

@@ -11,7 +11,9 @@ redo it).
 
 Usage: bench/nozzle_cells.py [--out DIR] [--strand BIN] [--as-fitted] CELLS [CELLS ...]
 """
-import argparse, json, math, os, re, subprocess, sys, time
+import argparse, math, re, sys
+
+import section_run
 
 FIXTURE = "fixtures/scenarios/print/line_16mm.toml"
 DIAMETER_MM = 16.0
@@ -31,26 +33,8 @@ def scenario(dx_mm, tau0, as_fitted):
 
 
 def run(args, cells, tau0):
-    dx_mm = DIAMETER_MM / cells
-    tag = f"cells{cells:g}_tau{tau0:g}"
-    out = os.path.join(args.out, tag)
-    summary = os.path.join(out, "summary.json")
-    if not os.path.exists(summary):
-        os.makedirs(out, exist_ok=True)
-        path = os.path.join(args.out, tag + ".toml")
-        open(path, "w").write(scenario(dx_mm, tau0, args.as_fitted))
-        start = time.time()
-        cmd = [args.strand, "run", path, "--out", out, "--threads", "1", "--json", "--quiet", "--overwrite"]
-        result = subprocess.run(cmd, capture_output=True, text=True)
-        if result.returncode != 0:
-            sys.exit(f"{' '.join(cmd)} failed:\n{result.stderr}")
-        doc = json.loads(result.stdout)
-        doc["bench_wall_s"] = time.time() - start
-        open(summary + ".part", "w").write(json.dumps(doc))
-        os.replace(summary + ".part", summary)
-    doc = json.load(open(summary))
-    s = [s for s in doc["last_observation"]["sections"] if abs(s["station"] - STATION) < 1e-9][0]
-    return {"width": 1e3 * s["width"], "height": 1e3 * s["height"], "area": 1e6 * s["area"], "steps": doc["steps"]}
+    text = scenario(DIAMETER_MM / cells, tau0, args.as_fitted)
+    return section_run.section(section_run.run(args.strand, args.out, f"cells{cells:g}_tau{tau0:g}", text), STATION)
 
 
 def main():
