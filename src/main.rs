@@ -255,7 +255,7 @@ impl MeasureInputs {
 
 /// A printed section needs the nozzle resolved by enough cells (`NozzleShape::resolution_warning`).
 fn warn_resolution(sc: &Scenario) {
-    if let Some(w) = sc.print.as_ref().and_then(|p| p.nozzle.resolution_warning(sc.simulation.dx)) {
+    if let Some(w) = sc.print.as_ref().and_then(|p| p.nozzle.resolution_warning(sc.simulation.dx, sc.simulation.j_bar)) {
         eprintln!("warning: {w}");
     }
 }
