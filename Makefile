@@ -5,7 +5,7 @@ OUT ?= out
 TARGET_DIR := $(if $(CARGO_TARGET_DIR),$(CARGO_TARGET_DIR),target)
 STRAND := $(TARGET_DIR)/release/strand
 
-.PHONY: run test fuzz verify verify-quick bench bench-peer bench-restart bench-kernels bench-case1 bench-layers bench-layers-dwell bench-failure build fmt clippy clean
+.PHONY: run test fuzz verify verify-quick bench bench-peer bench-restart bench-kernels bench-case1 bench-layers bench-layers-dwell bench-failure bench-convergence bench-nozzle-cells build fmt clippy clean
 
 build:
 	$(CARGO) build --release
@@ -76,6 +76,21 @@ bench-layers-dwell: build
 # (BENCHMARKS.md "Printing to failure"; five single-thread runs at once).
 bench-failure: build
 	python3 bench/failure_heights.py --strand $(STRAND) --out $(OUT)/failure --side-by-side
+
+# Case 1's section at five cell sizes (5 to 2 mm, 5 to 12.5 cells per nozzle diameter), its
+# observed order of convergence and Richardson extrapolation (BENCHMARKS.md "Discretisation
+# error"; one thread per run; 5, 4 and 3.125 mm took 22, 41 and 110 CPU s, 2.5 mm about 190, 2 mm
+# estimated at 2.5x that). Add 1 to the sizes for the 1 mm row (about 2 CPU hours). A run already
+# in $(OUT)/convergence is not repeated.
+bench-convergence: build
+	python3 bench/convergence.py --out $(OUT)/convergence 5 4 3.125 2.5 2
+
+# The cells a nozzle diameter needs: the 16 mm line at 3 (J-bar only), 4, 5, 6 and 8 cells per diameter, yield
+# stress 163 and 312 Pa, as printed (J-bar, sleeping) and as calibrate and diagnose run it
+# (J-bar off, no sleeping) (BENCHMARKS.md "Discretisation error"; about 15 CPU minutes).
+bench-nozzle-cells: build
+	python3 bench/nozzle_cells.py --out $(OUT)/nozzle_cells 3 4 5 6 8
+	python3 bench/nozzle_cells.py --as-fitted --out $(OUT)/nozzle_cells_fitted 4 5 6 8
 
 clippy:
 	$(CARGO) clippy --workspace --all-targets

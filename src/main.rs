@@ -414,7 +414,7 @@ fn main() -> ExitCode {
             })
         }
         Cmd::Compare { inputs, report, plan, collect, only, save } => (|| {
-            use strand::measure::{compare, plan as jobs, report as folder};
+            use strand::measure::{compare, plan as jobs, report as folder, resolution};
             if let Some(dir) = &report {
                 folder::prepare_dir(dir)?;
             }
@@ -436,7 +436,12 @@ fn main() -> ExitCode {
                 Some(dir) => jobs::collect(dir, &m, &e, &d)?,
                 None => compare::model_values(&m, &d, &e, inputs.jobs)?,
             };
-            let c = compare::comparison(&d, &values);
+            // [resolution]: the finer runs, here also after --collect (the jobs ran the model's)
+            let disc = resolution::estimate(&m, &d, &e, Some(&values), inputs.jobs)?;
+            let c = match &disc {
+                Some(est) => compare::comparison_with_discretisation(&d, &values, &resolution::errors(est)),
+                None => compare::comparison(&d, &values),
+            };
             let trends = report.as_deref().map(|dir| folder::write(dir, &c, &e, &m)).transpose()?;
             if inputs.json {
                 let mut v = serde_json::to_value(&c).map_err(|e| e.to_string())?;
@@ -444,8 +449,14 @@ fn main() -> ExitCode {
                     v["trends"] = serde_json::to_value(t).map_err(|e| e.to_string())?;
                     v["shapes"] = serde_json::to_value(shapes).map_err(|e| e.to_string())?;
                 }
+                if let Some(est) = &disc {
+                    v["discretisation"] = serde_json::to_value(est).map_err(|e| e.to_string())?;
+                }
                 println!("{v:#}");
             } else {
+                if let Some(est) = &disc {
+                    print!("{}", resolution::report(&d, est, &values, "compared"));
+                }
                 print!("{}", compare::report(&c));
                 if let Some((t, shapes)) = &trends {
                     print!("{}", folder::trends_text(t));
@@ -467,18 +478,22 @@ fn main() -> ExitCode {
             Ok(true)
         })(),
         Cmd::Calibrate { inputs, fit, out, plot, max_iterations, engine } => (|| {
-            use strand::measure::calibrate;
-            let (m, d, e) = inputs.load()?;
+            use strand::measure::{calibrate, resolution};
+            let (m, d0, e) = inputs.load()?;
             let out = out.unwrap_or_else(|| inputs.model.with_extension("calibrated.toml"));
             let plot = plot.unwrap_or_else(|| out.with_extension("png"));
             check_writable(&out, "--out")?;
             check_writable(&plot, "--plot")?;
+            let (d, disc) = resolution::counted_data(&m, d0, &e, inputs.jobs)?;
             let opts = calibrate::FitOptions { max_iterations, jobs: inputs.jobs, engine: engine.engine()?, progress: true, ..Default::default() };
             let f = calibrate::calibrate(&m, &d, &e, &fit, &opts)?;
             // the fitted values first: a file that fails to write then loses nothing
             if inputs.json {
-                println!("{:#}", serde_json::to_value(&f).map_err(|e| e.to_string())?);
+                println!("{:#}", resolution::with_estimates(serde_json::to_value(&f).map_err(|e| e.to_string())?, &disc)?);
             } else {
+                if let Some(c) = &disc {
+                    print!("{}", resolution::report(&c.data, &c.estimates, &f.model_values, "fitted"));
+                }
                 print!("{}", calibrate::report(&f));
             }
             std::fs::write(&out, f.model.to_toml()).map_err(|e| format!("--out {}: {e}", out.display()))?;
@@ -487,14 +502,15 @@ fn main() -> ExitCode {
             Ok(true)
         })(),
         Cmd::Diagnose { inputs, fit, alpha, no_loo, max_fitted, out, max_iterations, rounds, engine } => (|| {
-            use strand::measure::{calibrate::FitOptions, diagnose};
+            use strand::measure::{calibrate::FitOptions, diagnose, resolution};
             if !(alpha > 0.0 && alpha < 1.0) {
                 return Err(format!("--alpha must be in (0, 1), got {alpha}"));
             }
-            let (m, d, e) = inputs.load()?;
+            let (m, d0, e) = inputs.load()?;
             if let Some(out) = &out {
                 check_writable(out, "--out")?;
             }
+            let (d, disc) = resolution::counted_data(&m, d0, &e, inputs.jobs)?;
             let opts = diagnose::DiagnoseOptions { fit: FitOptions { max_iterations, jobs: inputs.jobs, engine: engine.engine()?, ..Default::default() }, alpha, leave_one_out: !no_loo, max_fitted: max_fitted as usize };
             if rounds > 1 {
                 use strand::measure::rounds;
@@ -514,8 +530,11 @@ fn main() -> ExitCode {
             let r = diagnose::diagnose(&m, &d, &e, &fit, &opts)?;
             // the report first: a file that fails to write then loses nothing
             if inputs.json {
-                println!("{:#}", serde_json::to_value(&r).map_err(|e| e.to_string())?);
+                println!("{:#}", resolution::with_estimates(serde_json::to_value(&r).map_err(|e| e.to_string())?, &disc)?);
             } else {
+                if let Some(c) = &disc {
+                    print!("{}", resolution::report(&c.data, &c.estimates, &c.start_values, "start"));
+                }
                 print!("{}", diagnose::report(&r));
             }
             if let (Some(out), Some(best)) = (&out, &r.recommended_model) {

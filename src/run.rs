@@ -875,6 +875,10 @@ pub fn scenario_warnings(sc: &Scenario, sim: &Simulation) -> Vec<String> {
             ));
         }
     }
+    // a printed section needs the nozzle resolved by enough cells
+    if let Some(r) = sc.print.as_ref().and_then(|p| p.nozzle.resolution_warning(dx, sc.simulation.j_bar)) {
+        w.push(r);
+    }
     if sim.particles.n == 0 && sc.print.is_none() {
         w.push(if sc.bodies.is_empty() {
             "nothing to simulate: the scenario has no [[body]] and no [print]".to_string()

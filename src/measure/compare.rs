@@ -267,8 +267,13 @@ pub struct Row {
     pub model: f64,
     /// model - measured.
     pub residual: f64,
-    /// residual / uncertainty.
+    /// residual / uncertainty, or with the discretisation error added in quadrature:
+    /// residual / sqrt(uncertainty^2 + discretisation^2).
     pub z: f64,
+    /// The model's estimated discretisation error (`resolution.rs`): its value at its cell size
+    /// minus the Richardson extrapolation; absent without `[resolution]` and for rheometer tests.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub discretisation: Option<f64>,
 }
 
 impl Row {
@@ -332,12 +337,20 @@ pub fn compare(model: &Model, data: &[Observation], exps: &Experiments, jobs: us
 
 /// The comparison of `data` with the model's values of it.
 pub fn comparison(data: &[Observation], values: &[f64]) -> Comparison {
+    comparison_with_discretisation(data, values, &vec![None; data.len()])
+}
+
+/// The comparison with each observation's discretisation error (if any) added in quadrature to
+/// its uncertainty in z.
+pub fn comparison_with_discretisation(data: &[Observation], values: &[f64], discretisation: &[Option<f64>]) -> Comparison {
     let rows: Vec<Row> = data
         .iter()
         .zip(values)
-        .map(|(o, &model)| {
+        .zip(discretisation)
+        .map(|((o, &model), &d)| {
             let residual = model - o.value;
-            Row { experiment: o.experiment.clone(), observable: o.observable.name.clone(), at: o.observable.at, at2: o.observable.at2, measured: o.value, uncertainty: o.uncertainty, model, residual, z: residual / o.uncertainty }
+            let sigma = o.uncertainty.hypot(d.unwrap_or(0.0));
+            Row { experiment: o.experiment.clone(), observable: o.observable.name.clone(), at: o.observable.at, at2: o.observable.at2, measured: o.value, uncertainty: o.uncertainty, model, residual, z: residual / sigma, discretisation: d }
         })
         .collect();
     let by_experiment = summarise(rows.iter(), |r| r.experiment.clone());
@@ -350,9 +363,20 @@ pub fn comparison(data: &[Observation], values: &[f64]) -> Comparison {
 pub fn report(c: &Comparison) -> String {
     use std::fmt::Write as _;
     let mut s = String::new();
-    let _ = writeln!(s, "{:<14} {:<16} {:>10} {:>13} {:>13} {:>13} {:>8}", "experiment", "observable", "at", "measured", "model", "residual", "z");
+    // the discretisation column only when the experiments declare [resolution]
+    let counted = c.rows.iter().any(|r| r.discretisation.is_some());
+    let cell = |r: &Row| match (counted, r.discretisation) {
+        (false, _) => String::new(),
+        (true, Some(d)) => format!(" {d:>13.4e}"),
+        (true, None) => format!(" {:>13}", "-"),
+    };
+    let head = if counted { format!(" {:>13}", "discretis.") } else { String::new() };
+    let _ = writeln!(s, "{:<14} {:<16} {:>10} {:>13} {:>13} {:>13}{head} {:>8}", "experiment", "observable", "at", "measured", "model", "residual", "z");
     for r in &c.rows {
-        let _ = writeln!(s, "{:<14} {:<16} {:>10} {:>13.6e} {:>13.6e} {:>13.4e} {:>8.2}", r.experiment, r.observable, r.at_cell(), r.measured, r.model, r.residual, r.z);
+        let _ = writeln!(s, "{:<14} {:<16} {:>10} {:>13.6e} {:>13.6e} {:>13.4e}{} {:>8.2}", r.experiment, r.observable, r.at_cell(), r.measured, r.model, r.residual, cell(r), r.z);
+    }
+    if counted {
+        let _ = writeln!(s, "(discretis.: the model's estimated discretisation error, added in quadrature to the uncertainty in z)");
     }
     for (title, list) in [("per experiment", &c.by_experiment), ("per observable", &c.by_observable)] {
         let _ = writeln!(s, "\n{title}:");

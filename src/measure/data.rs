@@ -176,6 +176,10 @@ pub fn number(v: &toml::Value) -> Option<f64> {
 #[serde(deny_unknown_fields)]
 pub struct Experiments {
     pub experiment: Vec<Experiment>,
+    /// A finer run of every simulation experiment, to estimate the discretisation error
+    /// (`resolution.rs`).
+    #[serde(default)]
+    pub resolution: Option<ResolutionTable>,
     /// Folder the file sits in: scenario and protocol paths are relative to it.
     #[serde(skip)]
     pub base_dir: PathBuf,
@@ -211,6 +215,46 @@ pub struct Experiment {
     pub covariates: std::collections::BTreeMap<String, f64>,
 }
 
+/// The experiments file's `[resolution]` table: the overrides of a finer run of every simulation
+/// experiment, and the order of convergence assumed in the Richardson estimate
+/// (`resolution.rs`).
+///
+/// ```toml
+/// [resolution]
+/// fine = { "simulation.dx" = 0.002 }   # any scenario keys; simulation.dx is required
+/// order = 1.0                          # optional; default resolution::DEFAULT_ORDER
+/// ```
+#[derive(Clone, Debug, Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ResolutionTable {
+    /// Scenario keys of the finer run, set after the experiment's own `set`.
+    pub fine: toml::Table,
+    /// The order of convergence p assumed in the estimate.
+    #[serde(default)]
+    pub order: Option<f64>,
+}
+
+impl ResolutionTable {
+    pub fn validate(&self) -> Result<(), String> {
+        for (k, v) in &self.fine {
+            if number(v).is_none() {
+                return Err(format!("fine.\"{k}\" must be a number"));
+            }
+        }
+        match self.fine.get("simulation.dx").and_then(number) {
+            Some(dx) if dx > 0.0 && dx.is_finite() => {}
+            Some(dx) => return Err(format!("fine.\"simulation.dx\" must be a cell size > 0, got {dx}")),
+            None => return Err("fine must set \"simulation.dx\", the finer run's cell size: fine = { \"simulation.dx\" = 0.002 }".into()),
+        }
+        if let Some(p) = self.order {
+            if !(p.is_finite() && p > 0.0 && p <= 8.0) {
+                return Err(format!("order must be an order of convergence in (0, 8], got {p}"));
+            }
+        }
+        Ok(())
+    }
+}
+
 impl Experiment {
     pub fn covariates(&self) -> super::effects::Covariates {
         super::effects::Covariates { rest_time: self.rest_time, age: self.age, declared: self.covariates.clone() }
@@ -227,6 +271,9 @@ impl Experiments {
     }
 
     pub fn validate(&self) -> Result<(), String> {
+        if let Some(r) = &self.resolution {
+            r.validate().map_err(|e| format!("[resolution]: {e}"))?;
+        }
         let mut seen = std::collections::HashSet::new();
         for (i, x) in self.experiment.iter().enumerate() {
             if !seen.insert(x.id.as_str()) {

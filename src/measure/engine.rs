@@ -334,7 +334,7 @@ pub fn evaluate(job_path: &Path, out: &Path) -> Result<String, String> {
     let job: Job = serde_json::from_str(&text).map_err(|e| format!("{}: not a job of this strand ({e})", job_path.display()))?;
     let x: Experiment = toml::from_str(&job.experiment).map_err(|e| format!("{}: the experiment: {}", job_path.display(), e.message()))?;
     let id = x.id.clone();
-    let exps = Experiments { experiment: vec![x], base_dir: job.base_dir.clone() };
+    let exps = Experiments { experiment: vec![x], base_dir: job.base_dir.clone(), resolution: None };
     let model = job_model(&job.model).map_err(|e| format!("{}: {e}", job_path.display()))?;
     // the files as they are now must be those the job was planned with
     Provenance::of(&model, &exps, &exps.experiment[0]).check(&job.provenance, &id, job_path).map_err(|e| format!("{e}: the job was planned with other files or another strand; run the campaign again to plan it anew"))?;

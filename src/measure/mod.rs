@@ -1,11 +1,11 @@
-//! The measurement loop (issue 6): measurements and the experiments that produced them
+//! The measurement loop: measurements and the experiments that produced them
 //! (`data.rs`), a model and its effects (`model.rs`, `effects/`), a virtual rheometer
 //! (`rheometer.rs`), running experiments under a model to compare with measurements or to
 //! synthesise them (`compare.rs`) and the comparison as a folder of plots and trends
-//! (`report.rs`), their gradients (`sensitivity.rs`), fitting a model
-//! (`calibrate.rs`) and finding the effect it lacks (`diagnose.rs`); where the experiments run
-//! (`engine.rs`: here, or as a scheduler's jobs) and what a saved result was computed from
-//! (`provenance.rs`).
+//! (`report.rs`), the discretisation error counted beside the measurement uncertainty
+//! (`resolution.rs`), their gradients (`sensitivity.rs`), fitting a model (`calibrate.rs`) and
+//! finding the effect it lacks (`diagnose.rs`); where the experiments run (`engine.rs`: here, or
+//! as a scheduler's jobs) and what a saved result was computed from (`provenance.rs`).
 
 pub mod calibrate;
 pub mod compare;
@@ -20,6 +20,7 @@ pub mod plan;
 pub mod provenance;
 pub mod report;
 pub mod residuals;
+pub mod resolution;
 pub mod rheometer;
 pub mod rounds;
 pub mod sensitivity;

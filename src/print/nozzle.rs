@@ -12,7 +12,47 @@ pub enum NozzleShape {
     Rectangle { size: [f64; 2] },
 }
 
+/// The fewest cells across the outlet that give a printed section right in kind, with J-bar on
+/// and with it off (as gradient runs, calibrate and diagnose need). Measured on a 16 mm nozzle
+/// 8 mm above the bed at yield stresses 163 and 312 Pa (BENCHMARKS.md, "Discretisation error";
+/// `make bench-nozzle-cells`): with J-bar, 3 to 6 cells all order the two strands rightly (the
+/// softer one wider and lower) with the area within 0.9 % of the mass balance; without it,
+/// 4 cells make the strand more than twice the standoff high with 26-34 % too much area, and
+/// 5 cells order the heights wrongly with 8-10 % too much, 6 cells order them rightly (by
+/// 0.03 mm) with 2.5-4.1 % too much.
+pub const MIN_CELLS_ACROSS: f64 = 3.0;
+pub const MIN_CELLS_ACROSS_WITHOUT_J_BAR: f64 = 6.0;
+
+/// The evidence the warning cites, J-bar on and off.
+const EVIDENCE: &str = "with J-bar, 3 to 6 cells give a 16 mm line's section right in kind (area within 0.9 % of the mass balance)";
+const EVIDENCE_WITHOUT_J_BAR: &str = "without J-bar, 4 cells make a 16 mm line twice the standoff high with 26-34 % too much area, 5 cells order a soft and a stiff material's heights wrongly";
+
 impl NozzleShape {
+    /// The outlet's narrowest width: a circle's diameter, a rectangle's shorter side.
+    pub fn narrowest(&self) -> f64 {
+        match *self {
+            NozzleShape::Circle { diameter } => diameter,
+            NozzleShape::Rectangle { size } => size[0].min(size[1]),
+        }
+    }
+
+    /// What `strand check` and `strand run` warn when cells of size `dx` span the outlet fewer
+    /// times than a section needs ([`MIN_CELLS_ACROSS`], or without J-bar
+    /// [`MIN_CELLS_ACROSS_WITHOUT_J_BAR`]); None when they span it enough.
+    pub fn resolution_warning(&self, dx: f64, j_bar: bool) -> Option<String> {
+        let (need, evidence) = if j_bar { (MIN_CELLS_ACROSS, EVIDENCE) } else { (MIN_CELLS_ACROSS_WITHOUT_J_BAR, EVIDENCE_WITHOUT_J_BAR) };
+        let cells = self.narrowest() / dx;
+        (cells < need).then(|| {
+            format!(
+                "the nozzle spans {cells:.1} cells ({:.1} mm outlet, {:.2} mm cells); a printed section {} needs {need} or more: {evidence} (BENCHMARKS.md \"Discretisation error\"). Use dx <= {:.4} m",
+                1e3 * self.narrowest(),
+                1e3 * dx,
+                if j_bar { "with J-bar" } else { "without J-bar" },
+                self.narrowest() / need
+            )
+        })
+    }
+
     pub fn validate(&self) -> Result<(), String> {
         match *self {
             NozzleShape::Circle { diameter } if !(diameter > 0.0 && diameter.is_finite()) => {
@@ -106,6 +146,22 @@ mod tests {
         assert!((n * h * h / c.area() - 1.0).abs() < 0.01, "{}", n * h * h / c.area());
         let r = NozzleShape::Rectangle { size: [0.02, 0.01] };
         assert_eq!(r.lattice(0.001).len(), 200);
+    }
+
+    #[test]
+    fn too_few_cells_across_the_outlet_are_warned_of() {
+        let c = NozzleShape::Circle { diameter: 0.016 };
+        let w = c.resolution_warning(0.004, false).expect("4 cells across without J-bar");
+        assert!(w.contains("spans 4.0 cells") && w.contains("16.0 mm outlet") && w.contains("without J-bar"), "{w}");
+        assert!(c.resolution_warning(0.004, true).is_none(), "4 cells with J-bar are enough");
+        for (j_bar, need) in [(true, MIN_CELLS_ACROSS), (false, MIN_CELLS_ACROSS_WITHOUT_J_BAR)] {
+            assert!(c.resolution_warning(0.016 / need, j_bar).is_none());
+            assert!(c.resolution_warning(0.016 / (need - 0.5), j_bar).is_some());
+        }
+        // a rectangle is as fine as its shorter side
+        let r = NozzleShape::Rectangle { size: [0.04, 0.01] };
+        assert!(r.resolution_warning(0.01 / MIN_CELLS_ACROSS, true).is_none());
+        assert!(r.resolution_warning(0.04 / MIN_CELLS_ACROSS, true).is_some());
     }
 
     #[test]
