@@ -71,9 +71,10 @@ enum Cmd {
         scenario: PathBuf,
         /// What to differentiate: spread, width@X, height@X, area@X, profile@X:Y (the section's
         /// top at x = X, y = Y), layer_height@X:K, layer_width@X:K (layer K = 1, 2, ... at x = X),
-        /// total_height, front, vx_max, kinetic_energy, mean_z.
-        #[arg(long)]
-        objective: String,
+        /// total_height, front, vx_max, kinetic_energy, mean_z. Given several times, the
+        /// objectives share one forward and one reverse sweep (an adjoint for each).
+        #[arg(long, required = true)]
+        objective: Vec<String>,
         /// Parameters, comma-separated scenario keys (material.yield_stress,
         /// simulation.body_force.x, body.0.velocity.z, boundary.z_min.friction.mu, ...).
         #[arg(long, value_delimiter = ',', required = true)]
@@ -319,7 +320,7 @@ fn main() -> ExitCode {
         Cmd::Verify { quick, json, case, threads, .. } => strand::verify::run_suite(quick, json, case.as_deref(), threads),
         Cmd::Grad { scenario, objective, wrt, check, check_steps, json, ram, disk, disk_dir, threads, until_rest, schedule } => (|| {
             let sc = Scenario::load(&scenario).map_err(|e| e.to_string())?;
-            let obj: strand::grad::Objective = objective.parse()?;
+            let objs: Vec<strand::grad::Objective> = objective.iter().map(|o| o.parse()).collect::<Result<_, _>>()?;
             let size = |s: &str, what: &str| strand::memory::parse_size(s).map_err(|e| format!("--{what}: {e}"));
             let opts = strand::grad::GradOptions {
                 ram_bytes: size(&ram, "ram")?,
@@ -329,12 +330,20 @@ fn main() -> ExitCode {
                 schedule: schedule.as_deref().map(strand::grad::schedule::Kind::parse).transpose()?,
                 until_rest,
             };
-            let r = strand::grad::gradient(&sc, &obj, &wrt, &opts)?;
-            let chk = if check { Some(strand::grad::check::check(&sc, &obj, &r, threads, &check_steps)?) } else { None };
-            if json {
-                println!("{:#}", serde_json::json!({ "result": r, "check": chk, "peak_rss_bytes": strand::verify::peak_rss_bytes() }));
+            let seeds: Vec<strand::grad::driver::Seeded> = objs.into_iter().map(|objective| strand::grad::driver::Seeded { objective, step: None }).collect();
+            let rs = strand::grad::driver::gradients(&sc, &seeds, &wrt, &opts)?;
+            let mut chks = Vec::new();
+            for (s, r) in seeds.iter().zip(&rs) {
+                chks.push(if check { Some(strand::grad::check::check(&sc, &s.objective, r, threads, &check_steps)?) } else { None });
+            }
+            if json && rs.len() == 1 {
+                println!("{:#}", serde_json::json!({ "result": rs[0], "check": chks[0], "peak_rss_bytes": strand::verify::peak_rss_bytes() }));
+            } else if json {
+                println!("{:#}", serde_json::json!({ "results": rs, "checks": chks, "peak_rss_bytes": strand::verify::peak_rss_bytes() }));
             } else {
-                print!("{}", strand::grad::driver::report(&r, chk.as_ref()));
+                for (r, c) in rs.iter().zip(&chks) {
+                    print!("{}", strand::grad::driver::report(r, c.as_ref()));
+                }
             }
             Ok(true)
         })(),
