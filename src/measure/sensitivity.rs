@@ -10,7 +10,7 @@
 //! after the step of the whole run that reaches it (to the step control's rounding of 1e-9 dt),
 //! not from a run that ends there: the two differ by that rounding of the last step's length.
 
-use super::compare::{experiment_keys, find, group, observable_plan, par_map, parse_scenario, reading_index, rheometer_setup, scenario_text, ungroup};
+use super::compare::{experiment_keys, find, group, job_threads, observable_plan, par_map, parse_scenario, reading_index, rheometer_setup, scenario_text, ungroup};
 use super::data::{Experiment, Experiments, Observable, Observation};
 use super::effects::Keys;
 use super::model::Model;
@@ -28,7 +28,7 @@ pub struct Sensitivity {
 /// experiments run `jobs` at a time.
 pub fn sensitivity(model: &Model, data: &[Observation], exps: &Experiments, names: Option<&[String]>, jobs: usize) -> Result<Sensitivity, String> {
     let wanted = group(data);
-    let threads = if jobs > 1 { Some(1) } else { None };
+    let threads = job_threads(jobs);
     let per = par_map(wanted.len(), jobs, |k| {
         let (id, obs) = &wanted[k];
         let x = find(exps, id)?;
