@@ -199,6 +199,11 @@ enum Cmd {
         /// Skip the leave-one-experiment-out check.
         #[arg(long)]
         no_loo: bool,
+        /// Leave each experiment out of a full refit, instead of one Gauss-Newton step from the
+        /// full fit (a calibration per experiment and candidate; for when leaving one out moves
+        /// the fit far, see docs/gradient_cost.md).
+        #[arg(long)]
+        loo_exact: bool,
         /// How many significant effects, best first, are fitted and checked by leave-one-out
         /// (each check refits once per experiment); the rest are reported significant.
         #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..))]
@@ -421,13 +426,13 @@ fn main() -> ExitCode {
             eprintln!("calibrated model written to {}, convergence plot to {}", out.display(), plot.display());
             Ok(true)
         })(),
-        Cmd::Diagnose { inputs, fit, alpha, no_loo, max_fitted, out, max_iterations } => (|| {
+        Cmd::Diagnose { inputs, fit, alpha, no_loo, loo_exact, max_fitted, out, max_iterations } => (|| {
             use strand::measure::{calibrate::FitOptions, diagnose};
             if !(alpha > 0.0 && alpha < 1.0) {
                 return Err(format!("--alpha must be in (0, 1), got {alpha}"));
             }
             let (m, d, e) = inputs.load()?;
-            let opts = diagnose::DiagnoseOptions { fit: FitOptions { max_iterations, jobs: inputs.jobs, ..Default::default() }, alpha, leave_one_out: !no_loo, max_fitted: max_fitted as usize };
+            let opts = diagnose::DiagnoseOptions { fit: FitOptions { max_iterations, jobs: inputs.jobs, ..Default::default() }, alpha, leave_one_out: !no_loo, exact_refits: loo_exact, max_fitted: max_fitted as usize };
             let r = diagnose::diagnose(&m, &d, &e, &fit, &opts)?;
             if let (Some(out), Some(best)) = (&out, &r.recommended_model) {
                 std::fs::write(out, best.to_toml()).map_err(|e| format!("{}: {e}", out.display()))?;
