@@ -71,9 +71,10 @@ enum Cmd {
         scenario: PathBuf,
         /// What to differentiate: spread, width@X, height@X, area@X, profile@X:Y (the section's
         /// top at x = X, y = Y), layer_height@X:K, layer_width@X:K (layer K = 1, 2, ... at x = X),
-        /// total_height, front, vx_max, kinetic_energy, mean_z.
-        #[arg(long)]
-        objective: String,
+        /// total_height, front, vx_max, kinetic_energy, mean_z. Given several times, the
+        /// objectives share one forward and one reverse sweep (an adjoint for each).
+        #[arg(long, required = true)]
+        objective: Vec<String>,
         /// Parameters, comma-separated scenario keys (material.yield_stress,
         /// simulation.body_force.x, body.0.velocity.z, boundary.z_min.friction.mu, ...).
         #[arg(long, value_delimiter = ',', required = true)]
@@ -200,6 +201,11 @@ enum Cmd {
         /// Skip the leave-one-experiment-out check.
         #[arg(long)]
         no_loo: bool,
+        /// Leave each experiment out of a full refit, instead of one Gauss-Newton step from the
+        /// full fit (a calibration per experiment and candidate; for when leaving one out moves
+        /// the fit far, see docs/gradient_cost.md).
+        #[arg(long)]
+        loo_exact: bool,
         /// How many significant effects, best first, are fitted and checked by leave-one-out
         /// (each check refits once per experiment); the rest are reported significant.
         #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..))]
@@ -388,7 +394,7 @@ fn main() -> ExitCode {
                 return Err(format!("--until-rest: the speed must be finite and > 0 m/s (a speed the run can exceed and fall back below), got {v}"));
             }
             let sc = Scenario::load(&scenario).map_err(|e| e.to_string())?;
-            let obj: strand::grad::Objective = objective.parse()?;
+            let objs: Vec<strand::grad::Objective> = objective.iter().map(|o| o.parse()).collect::<Result<_, _>>()?;
             let size = |s: &str, what: &str| strand::memory::parse_size(s).map_err(|e| format!("--{what}: {e}"));
             let opts = strand::grad::GradOptions {
                 ram_bytes: size(&ram, "ram")?,
@@ -398,12 +404,20 @@ fn main() -> ExitCode {
                 schedule: schedule.as_deref().map(strand::grad::schedule::Kind::parse).transpose()?,
                 until_rest,
             };
-            let r = strand::grad::gradient(&sc, &obj, &wrt, &opts)?;
-            let chk = if check { Some(strand::grad::check::check(&sc, &obj, &r, threads, &check_steps)?) } else { None };
-            if json {
-                println!("{:#}", serde_json::json!({ "result": r, "check": chk, "peak_rss_bytes": strand::verify::peak_rss_bytes() }));
+            let seeds: Vec<strand::grad::driver::Seeded> = objs.into_iter().map(|objective| strand::grad::driver::Seeded { objective, step: None }).collect();
+            let rs = strand::grad::driver::gradients(&sc, &seeds, &wrt, &opts)?;
+            let mut chks = Vec::new();
+            for (s, r) in seeds.iter().zip(&rs) {
+                chks.push(if check { Some(strand::grad::check::check(&sc, &s.objective, r, threads, &check_steps)?) } else { None });
+            }
+            if json && rs.len() == 1 {
+                println!("{:#}", serde_json::json!({ "result": rs[0], "check": chks[0], "peak_rss_bytes": strand::verify::peak_rss_bytes() }));
+            } else if json {
+                println!("{:#}", serde_json::json!({ "results": rs, "checks": chks, "peak_rss_bytes": strand::verify::peak_rss_bytes() }));
             } else {
-                print!("{}", strand::grad::driver::report(&r, chk.as_ref()));
+                for (r, c) in rs.iter().zip(&chks) {
+                    print!("{}", strand::grad::driver::report(r, c.as_ref()));
+                }
             }
             Ok(true)
         })(),
@@ -501,7 +515,7 @@ fn main() -> ExitCode {
             eprintln!("calibrated model written to {}, convergence plot to {}", out.display(), plot.display());
             Ok(true)
         })(),
-        Cmd::Diagnose { inputs, fit, alpha, no_loo, max_fitted, out, max_iterations, rounds, engine } => (|| {
+        Cmd::Diagnose { inputs, fit, alpha, no_loo, loo_exact, max_fitted, out, max_iterations, rounds, engine } => (|| {
             use strand::measure::{calibrate::FitOptions, diagnose, resolution};
             if !(alpha > 0.0 && alpha < 1.0) {
                 return Err(format!("--alpha must be in (0, 1), got {alpha}"));
@@ -511,7 +525,7 @@ fn main() -> ExitCode {
                 check_writable(out, "--out")?;
             }
             let (d, disc) = resolution::counted_data(&m, d0, &e, inputs.jobs)?;
-            let opts = diagnose::DiagnoseOptions { fit: FitOptions { max_iterations, jobs: inputs.jobs, engine: engine.engine()?, ..Default::default() }, alpha, leave_one_out: !no_loo, max_fitted: max_fitted as usize };
+            let opts = diagnose::DiagnoseOptions { fit: FitOptions { max_iterations, jobs: inputs.jobs, engine: engine.engine()?, ..Default::default() }, alpha, leave_one_out: !no_loo, exact_refits: loo_exact, max_fitted: max_fitted as usize };
             if rounds > 1 {
                 use strand::measure::rounds;
                 let r = rounds::rounds(&m, &d, &e, &fit, &opts, rounds as usize)?;

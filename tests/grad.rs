@@ -496,3 +496,51 @@ fn printed_profile_points_and_layer_heights_and_widths_agree_with_central_differ
         }
     }
 }
+
+#[test]
+fn objectives_sharing_one_run_get_the_gradients_of_separate_runs() {
+    // One forward and one reverse sweep with an adjoint per objective (`gradients`): the
+    // objectives at the end time get the bits of a run of their own, and one taken at an earlier
+    // step (as `spread@T` is) agrees with central differences of the forward run to that step.
+    use strand::grad::driver::{gradients, Seeded};
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/measure/slump/slump.toml");
+    let sc = Scenario::parse(&std::fs::read_to_string(path).unwrap()).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let wrt = keys(&["material.yield_stress", "material.viscosity"]);
+    let seed = |name: &str, step: Option<u64>| Seeded { objective: name.parse().unwrap(), step };
+    let seeds = [seed("spread", None), seed("spread", Some(500)), seed("front", None)];
+    let rs = gradients(&sc, &seeds, &wrt, &opts(None, dir.path())).unwrap();
+    assert_eq!(rs.len(), 3);
+    for k in [0, 2] {
+        let alone = gradient(&sc, &seeds[k].objective, &wrt, &opts(None, dir.path())).unwrap();
+        assert_eq!((rs[k].value.to_bits(), rs[k].steps), (alone.value.to_bits(), alone.steps), "{}", alone.objective);
+        assert_eq!(rs[k].gradient.iter().map(|g| g.to_bits()).collect::<Vec<_>>(), alone.gradient.iter().map(|g| g.to_bits()).collect::<Vec<_>>(), "{}", alone.objective);
+    }
+    let early = &rs[1];
+    assert_eq!(early.steps, 500);
+    assert!(early.value < rs[0].value, "the slump spreads: {} then {}", early.value, rs[0].value);
+    let c = check(&sc, &seeds[1].objective, early, None, &REL_STEPS).unwrap();
+    for p in &c.params {
+        println!("d spread(step 500) / d {} = {:.6e}, central differences {:?}", p.param, p.adjoint, p.central);
+        assert!(best_agreement(p) <= 1e-5, "{p:?}");
+    }
+    println!("Taylor slope {:.3}: {:?}", c.taylor_slope, c.taylor);
+    assert!((c.taylor_slope - 2.0).abs() <= 0.2, "Taylor slope {:.3}: {:?}", c.taylor_slope, c.taylor);
+}
+
+#[test]
+fn print_objectives_sharing_one_run_get_the_bits_of_separate_runs() {
+    // The toolpath's and the emission's adjoints are carried per objective too.
+    use strand::grad::driver::{gradients, Seeded};
+    let sc = Scenario::parse(&tiny_print("")).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let wrt = keys(&["print.path.0.speed", "print.path.0.extrusion", "material.viscosity", "material.density"]);
+    let seeds: Vec<Seeded> = ["width@0.01", "area@0.01", "mean_z"].iter().map(|n| Seeded { objective: n.parse().unwrap(), step: None }).collect();
+    let rs = gradients(&sc, &seeds, &wrt, &opts(None, dir.path())).unwrap();
+    for (s, r) in seeds.iter().zip(&rs) {
+        let alone = gradient(&sc, &s.objective, &wrt, &opts(None, dir.path())).unwrap();
+        let bits = |g: &[f64]| g.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!((r.value.to_bits(), bits(&r.gradient)), (alone.value.to_bits(), bits(&alone.gradient)), "{}: {:?} against {:?}", alone.objective, r.gradient, alone.gradient);
+        assert!(r.gradient.iter().all(|g| g.abs() > 0.0), "{}: {:?}", r.objective, r.gradient);
+    }
+}

@@ -12,7 +12,7 @@ use super::fields::state_bytes;
 use super::objective::{Frame, Objective};
 use super::params::{resolve, Param};
 use super::schedule::{choose, Action, Budget, Kind, OnlineSchedule, Plan};
-use super::step_adjoint::StepAdjoint;
+use super::step_adjoint::{Adjoint, StepAdjoint, PHASES};
 use super::store::{DiskSlots, RamSlots, Store};
 use crate::memory::{fmt_bytes, Backing, MemoryPlan};
 use crate::scenario::Scenario;
@@ -56,6 +56,10 @@ pub struct GradResult {
     pub disk_written_bytes: u64,
     pub forward_s: f64,
     pub reverse_s: f64,
+    /// The reverse sweep's wall time by phase (`step_adjoint::PHASES`).
+    pub reverse_phases_s: Vec<(String, f64)>,
+    /// Objectives carried together by the run's reverse sweep (its costs are theirs together).
+    pub seeds: usize,
     pub wall_s: f64,
 }
 
@@ -116,6 +120,50 @@ pub fn forward_value(sc: &Scenario, objective: &Objective, threads: Option<usize
     objective.evaluate(&sim, &Frame::of(&sim), None)
 }
 
+/// The step of `sim`'s run (to its end time) after which the time is `t`, to the rounding the
+/// time-step control allows (a step within 1e-9 of dt of the end is taken as the rest): the
+/// objectives at earlier times share the whole run's forward and reverse sweeps. `None` when
+/// the run's steps pass `t` between two of them, or at `t` = 0 (a run of its own then).
+pub fn step_at(sim: &Simulation, t: f64) -> Option<u64> {
+    let end = sim.scenario.simulation.end_time;
+    let dt = sim.scenario.simulation.dt?;
+    if t >= end {
+        return Some(count_steps(sim)).filter(|&n| n > 0);
+    }
+    let (mut time, mut n) = (0.0f64, 0u64);
+    while time < end * (1.0 - 1e-12) {
+        let left = end - time;
+        time += if left <= dt * (1.0 + 1e-9) { left } else { dt };
+        n += 1;
+        if (time - t).abs() <= dt * 1e-9 {
+            return Some(n);
+        }
+        if time > t {
+            return None;
+        }
+    }
+    None
+}
+
+/// The objectives after a forward run of `sc`, each taken after its step (`None`: the last).
+pub fn forward_values(sc: &Scenario, seeds: &[Seeded], threads: Option<usize>) -> Result<Vec<f64>, String> {
+    let mut sim = prepare(sc, threads)?;
+    let end = sim.scenario.simulation.end_time;
+    let n = count_steps(&sim);
+    let frame = Frame::of(&sim);
+    let stops: Vec<u64> = seeds.iter().map(|s| s.step.unwrap_or(n)).collect();
+    let mut values = vec![f64::NAN; seeds.len()];
+    for step in 0..=n {
+        if step > 0 {
+            sim.step_until(end).map_err(|e| e.to_string())?;
+        }
+        for (k, s) in seeds.iter().enumerate().filter(|(k, _)| stops[*k] == step) {
+            values[k] = s.objective.evaluate(&sim, &frame, None)?;
+        }
+    }
+    Ok(values)
+}
+
 /// Ranges of particle ids per body (bodies are filled in order, ids are creation order).
 fn body_ids(sc: &Scenario) -> Vec<std::ops::Range<u32>> {
     let mut start = 0u32;
@@ -132,6 +180,45 @@ fn body_ids(sc: &Scenario) -> Vec<std::ops::Range<u32>> {
 }
 
 pub fn gradient(sc: &Scenario, objective: &Objective, wrt: &[String], opts: &GradOptions) -> Result<GradResult, String> {
+    let mut r = gradients(sc, &[Seeded { objective: objective.clone(), step: None }], wrt, opts)?;
+    Ok(r.remove(0))
+}
+
+/// An objective of a gradient run and the step after which it is taken (`None`: the run's last).
+#[derive(Clone, Debug)]
+pub struct Seeded {
+    pub objective: Objective,
+    pub step: Option<u64>,
+}
+
+/// The gradients of several objectives of one run: one forward sweep (with its recomputations)
+/// and one reverse sweep carrying an adjoint per objective (a vector adjoint), each seeded at its
+/// objective's step. The step's recomputation, the checkpoint schedule and its forward runs are
+/// shared; only the adjoint phases are done once per objective. When the adjoint arrays of all
+/// objectives would take more than half of `opts.ram_bytes` (leaving too little for the
+/// checkpoints), the objectives are split into batches, one run each. Each result carries its
+/// run's costs.
+pub fn gradients(sc: &Scenario, seeds: &[Seeded], wrt: &[String], opts: &GradOptions) -> Result<Vec<GradResult>, String> {
+    if seeds.is_empty() {
+        return Ok(Vec::new());
+    }
+    let sim = prepare(sc, opts.threads)?;
+    let (cap, sl, nodes) = (sim.particles.capacity(), sim.particles.state_len, sim.grid.nodes.len());
+    let bytes = |k: usize| {
+        let mut plan = MemoryPlan::default();
+        StepAdjoint::plan(&mut plan, cap, sl, nodes, k);
+        plan.total()
+    };
+    let per_seed = bytes(2) - bytes(1);
+    let fit = ((opts.ram_bytes / 2).saturating_sub(bytes(0)) / per_seed.max(1)).max(1) as usize;
+    let mut out = Vec::with_capacity(seeds.len());
+    for batch in seeds.chunks(fit) {
+        out.extend(gradient_run(sc, batch, wrt, opts)?);
+    }
+    Ok(out)
+}
+
+fn gradient_run(sc: &Scenario, seeds: &[Seeded], wrt: &[String], opts: &GradOptions) -> Result<Vec<GradResult>, String> {
     let wall = Instant::now();
     let sim = prepare(sc, opts.threads)?;
     let params: Vec<Param> = wrt.iter().map(|k| resolve(&sim, k)).collect::<Result<_, _>>()?;
@@ -140,14 +227,17 @@ pub fn gradient(sc: &Scenario, objective: &Objective, wrt: &[String], opts: &Gra
     let (n0, cap, sl) = (sim.particles.n, sim.particles.capacity(), sim.particles.state_len);
     let print_keys: Vec<(String, f64)> =
         wrt.iter().zip(&values).filter(|(k, _)| k.starts_with("print.")).map(|(k, v)| (k.clone(), *v)).collect();
-    let print = match &sim.printer {
-        Some(p) => Some(PrintParams::new(sc, &p.plan, &print_keys)?),
-        None if print_keys.is_empty() => None,
+    let prints = match &sim.printer {
+        Some(p) => seeds.iter().map(|_| PrintParams::new(sc, &p.plan, &print_keys).map(Some)).collect::<Result<Vec<_>, _>>()?,
+        None if print_keys.is_empty() => seeds.iter().map(|_| None).collect(),
         None => return Err(format!("'{}': the scenario does not print", print_keys[0].0)),
     };
+    if opts.until_rest.is_some() && seeds.iter().any(|s| s.step.is_some()) {
+        return Err("a run stopped at rest takes its objectives at its last step".into());
+    }
 
     let mut grad_plan = MemoryPlan::default();
-    StepAdjoint::plan(&mut grad_plan, cap, sl, sim.grid.nodes.len());
+    StepAdjoint::plan(&mut grad_plan, cap, sl, sim.grid.nodes.len(), seeds.len());
     let adjoint_bytes = grad_plan.total();
     // a print grows: every slot is sized for the full pool
     let sbytes = state_bytes(cap, sl) as u64;
@@ -161,13 +251,30 @@ pub fn gradient(sc: &Scenario, objective: &Objective, wrt: &[String], opts: &Gra
     }
     let budget = Budget { state_bytes: sbytes, ram_bytes: opts.ram_bytes - adjoint_bytes, disk_bytes: opts.disk_bytes };
     let backing = Backing { dir: sc.memory.dir.clone() };
-    let adj = StepAdjoint::new(&sim, &backing)?;
+    let adj = StepAdjoint::new(&sim, &backing, seeds.len())?;
     let end = sc.simulation.end_time;
-    let mut ex = Executor { sim, adj, store: None, objective, frame, print, end, n_steps: 0, value: None, forward_steps: 0, forward_s: 0.0, reverse_s: 0.0 };
+    let k = seeds.len();
+    let mut ex = Executor {
+        sim,
+        adj,
+        store: None,
+        seeds,
+        frame,
+        prints,
+        end,
+        stops: Vec::new(),
+        active: vec![false; k],
+        due: Vec::with_capacity(k),
+        values: vec![None; k],
+        forward_steps: 0,
+        forward_s: 0.0,
+        reverse_s: 0.0,
+    };
 
-    let (schedule, peak) = match opts.until_rest {
+    let (schedule, peak, n_steps) = match opts.until_rest {
         None => {
             let n_steps = count_steps(&ex.sim);
+            ex.set_stops(n_steps)?;
             let plan = match opts.schedule {
                 Some(Kind::TwoLevel { segment: 0 }) => Plan::two_level(n_steps),
                 Some(kind) => Plan::new(kind, n_steps).map_err(|e| e.to_string())?,
@@ -178,14 +285,13 @@ pub fn gradient(sc: &Scenario, objective: &Objective, wrt: &[String], opts: &Gra
                 ram: RamSlots::new(ram_slots, sbytes as usize, &backing).map_err(|e| e.to_string())?,
                 disk: if disk_slots > 0 { Some(DiskSlots::new(&opts.disk_dir, sbytes as usize)?) } else { None },
             });
-            ex.n_steps = n_steps;
             if n_steps == 0 {
                 ex.seed_initial(n0)?;
             }
             for action in plan.actions() {
                 ex.run(action)?;
             }
-            (format!("{:?}", plan.kind()), (ram_slots, disk_slots))
+            (format!("{:?}", plan.kind()), (ram_slots, disk_slots), n_steps)
         }
         Some(v_rest) => {
             // the run's length is known only when it stops: the online schedule, RAM only
@@ -206,48 +312,61 @@ pub fn gradient(sc: &Scenario, objective: &Objective, wrt: &[String], opts: &Gra
                 let s = ex.sim.step;
                 ex.run(Action::Advance { from: s, to: s + 1 })?;
             }
-            ex.n_steps = online.steps();
-            if ex.n_steps == 0 {
+            let n_steps = online.steps();
+            ex.set_stops(n_steps)?;
+            if n_steps == 0 {
                 ex.seed_initial(n0)?;
             }
             for action in online.finish() {
                 ex.run(action)?;
             }
-            (format!("Online {{ slots: {slots}, stopped at rest (max speed < {v_rest} m/s) or at the end time }}"), (slots, 0))
+            (format!("Online {{ slots: {slots}, stopped at rest (max speed < {v_rest} m/s) or at the end time }}"), (slots, 0), n_steps)
         }
     };
-    let Executor { sim, adj, store, mut print, value, n_steps, forward_steps, forward_s, reverse_s, .. } = ex;
-    let value = value.ok_or("the schedule never reached the last step")?;
-    let mut gradient = assemble(&sim, n0, &adj, &params);
-    if let Some(pp) = print.as_mut() {
-        let g = pp.gradient();
-        let mut k = 0;
-        for (i, key) in wrt.iter().enumerate() {
-            if key.starts_with("print.") {
-                gradient[i] = g[k];
-                k += 1;
-            }
-        }
-    }
+    let Executor { sim, adj, store, prints, values: seeded, forward_steps, forward_s, reverse_s, .. } = ex;
     let disk_written_bytes = store.as_ref().and_then(|s| s.disk.as_ref()).map_or(0, |d| d.written);
-    Ok(GradResult {
-        objective: objective.name(),
-        value,
-        params: wrt.to_vec(),
-        values,
-        gradient,
-        steps: n_steps,
-        schedule,
-        forward_steps,
-        peak_ram_slots: peak.0,
-        peak_disk_slots: peak.1,
-        state_bytes: sbytes,
-        adjoint_bytes,
-        disk_written_bytes,
-        forward_s,
-        reverse_s,
-        wall_s: wall.elapsed().as_secs_f64(),
-    })
+    let reverse_phases_s: Vec<(String, f64)> = PHASES.iter().zip(adj.phase_s).map(|(p, s)| (p.to_string(), s)).collect();
+    let wall_s = wall.elapsed().as_secs_f64();
+    seeds
+        .iter()
+        .zip(&adj.seeds)
+        .zip(prints)
+        .zip(seeded)
+        .map(|(((seed, a), print), value)| {
+            let value = value.ok_or("the schedule never reached the objective's step")?;
+            let mut gradient = assemble(&sim, n0, a, &params);
+            if let Some(pp) = print {
+                let g = pp.gradient();
+                let mut k = 0;
+                for (i, key) in wrt.iter().enumerate() {
+                    if key.starts_with("print.") {
+                        gradient[i] = g[k];
+                        k += 1;
+                    }
+                }
+            }
+            Ok(GradResult {
+                objective: seed.objective.name(),
+                value,
+                params: wrt.to_vec(),
+                values: values.clone(),
+                gradient,
+                steps: seed.step.unwrap_or(n_steps),
+                schedule: schedule.clone(),
+                forward_steps,
+                peak_ram_slots: peak.0,
+                peak_disk_slots: peak.1,
+                state_bytes: sbytes,
+                adjoint_bytes,
+                disk_written_bytes,
+                forward_s,
+                reverse_s,
+                reverse_phases_s: reverse_phases_s.clone(),
+                seeds: seeds.len(),
+                wall_s,
+            })
+        })
+        .collect()
 }
 
 /// Carries out schedule actions on the simulation, the step adjoint and the checkpoint store.
@@ -255,19 +374,34 @@ struct Executor<'a> {
     sim: Simulation,
     adj: StepAdjoint,
     store: Option<Store>,
-    objective: &'a Objective,
+    seeds: &'a [Seeded],
     frame: Frame,
-    print: Option<PrintParams>,
+    prints: Vec<Option<PrintParams>>,
     end: f64,
-    /// Steps of the run being reversed (its last one evaluates the objective).
-    n_steps: u64,
-    value: Option<f64>,
+    /// The step after which each seed's objective is taken (the run's last by default).
+    stops: Vec<u64>,
+    /// Which seeds the step being reversed carries (those whose objective comes after it).
+    active: Vec<bool>,
+    /// The seeds whose objective the step being reversed evaluates.
+    due: Vec<(usize, &'a Objective)>,
+    values: Vec<Option<f64>>,
     forward_steps: u64,
     forward_s: f64,
     reverse_s: f64,
 }
 
 impl Executor<'_> {
+    /// The run has `n_steps` steps: resolve and check each seed's step.
+    fn set_stops(&mut self, n_steps: u64) -> Result<(), String> {
+        self.stops = self.seeds.iter().map(|s| s.step.unwrap_or(n_steps)).collect();
+        for (s, &k) in self.seeds.iter().zip(&self.stops) {
+            if k > n_steps || (k == 0 && n_steps > 0) {
+                return Err(format!("objective {} at step {k} of a run of {n_steps} steps: it takes steps 1..={n_steps}", s.objective.name()));
+            }
+        }
+        Ok(())
+    }
+
     fn run(&mut self, action: Action) -> Result<(), String> {
         let store = self.store.as_mut().ok_or("no checkpoint store")?;
         match action {
@@ -289,9 +423,15 @@ impl Executor<'_> {
             Action::Reverse { step } => {
                 debug_assert_eq!(self.sim.step, step);
                 let t = Instant::now();
-                let last = (step + 1 == self.n_steps).then_some((self.objective, &self.frame));
-                if let Some(v) = self.adj.reverse(&mut self.sim, self.end, last, self.print.as_mut())? {
-                    self.value = Some(v);
+                let seeds = self.seeds;
+                self.due.clear();
+                self.due.extend(seeds.iter().enumerate().filter(|(k, _)| self.stops[*k] == step + 1).map(|(k, s)| (k, &s.objective)));
+                for (a, &stop) in self.active.iter_mut().zip(&self.stops) {
+                    *a = step < stop;
+                }
+                let got = self.adj.reverse(&mut self.sim, self.end, &self.due, &self.frame, &self.active, &mut self.prints)?;
+                for ((k, _), v) in self.due.iter().zip(got) {
+                    self.values[*k] = Some(v);
                 }
                 self.reverse_s += t.elapsed().as_secs_f64();
             }
@@ -299,17 +439,20 @@ impl Executor<'_> {
         Ok(())
     }
 
-    /// A run of no steps: the objective of the initial state seeds its adjoint directly.
+    /// A run of no steps: the objectives of the initial state seed their adjoints directly.
     fn seed_initial(&mut self, n0: usize) -> Result<(), String> {
-        let p = &mut self.adj.next;
-        let seed = super::objective::Seed {
-            xg: &mut p.xg.as_mut_slice()[..n0],
-            v: &mut p.v.as_mut_slice()[..n0],
-            j: &mut p.j.as_mut_slice()[..n0],
-            mass: &mut self.adj.mass_bar.as_mut_slice()[..n0],
-            vol0: &mut self.adj.vol0_bar.as_mut_slice()[..n0],
-        };
-        self.value = Some(self.objective.evaluate(&self.sim, &self.frame, Some(seed))?);
+        for (k, s) in self.seeds.iter().enumerate() {
+            let a = &mut self.adj.seeds[k];
+            let p = &mut a.next;
+            let seed = super::objective::Seed {
+                xg: &mut p.xg.as_mut_slice()[..n0],
+                v: &mut p.v.as_mut_slice()[..n0],
+                j: &mut p.j.as_mut_slice()[..n0],
+                mass: &mut a.mass_bar.as_mut_slice()[..n0],
+                vol0: &mut a.vol0_bar.as_mut_slice()[..n0],
+            };
+            self.values[k] = Some(s.objective.evaluate(&self.sim, &self.frame, Some(seed))?);
+        }
         Ok(())
     }
 }
@@ -318,7 +461,7 @@ impl Executor<'_> {
 /// step) and the parameter adjoints accumulated over the steps.
 /// `n0` particles existed at the start (the bodies); the toolpath parameters are filled in by
 /// the caller.
-fn assemble(sim: &Simulation, n0: usize, adj: &StepAdjoint, params: &[Param]) -> Vec<f64> {
+fn assemble(sim: &Simulation, n0: usize, adj: &Adjoint, params: &[Param]) -> Vec<f64> {
     let p = &sim.particles;
     let n = n0;
     let sc = &sim.scenario;
@@ -372,6 +515,8 @@ pub fn report(r: &GradResult, check: Option<&super::check::Check>) -> String {
         fmt_bytes(r.disk_written_bytes)
     );
     let _ = writeln!(s, "time: forward {:.2} s, reverse {:.2} s, total {:.2} s", r.forward_s, r.reverse_s, r.wall_s);
+    let phases: Vec<String> = r.reverse_phases_s.iter().map(|(p, t)| format!("{p} {t:.2} s")).collect();
+    let _ = writeln!(s, "reverse by phase: {}", phases.join(", "));
     for (k, p) in r.params.iter().enumerate() {
         let _ = writeln!(s, "dJ/d {p} = {:.9e}   (at {p} = {})", r.gradient[k], r.values[k]);
     }

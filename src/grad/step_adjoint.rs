@@ -24,6 +24,7 @@ use crate::kernels::{Real, V3};
 use crate::memory::{Backing, MemoryError, MemoryPlan, Pool};
 use crate::solver::{balanced, flush_local, gather_local, Simulation};
 use crate::threads::SharedSlice;
+use std::time::Instant;
 
 /// Most internal state reals any material keeps per particle.
 const MAX_STATE: usize = 16;
@@ -33,11 +34,26 @@ const MAX_PARAMS: usize = 16;
 /// depend on the thread count.
 const CHUNK: usize = 256;
 
+/// Phases of a reversed step, as `StepAdjoint::phase_s` times them.
+pub const PHASES: [&str; 6] = ["recompute", "materials", "g2p", "grid_update", "p2g", "emission"];
+
+/// The adjoint of one MLS-MPM step for several seeds at once (a vector adjoint: several
+/// objectives of one forward run, each with its own adjoint arrays); the step is recomputed once
+/// and its tape shared.
 pub struct StepAdjoint {
     /// The particle state at the start of the step being reversed.
     tape: Fields,
     /// Grid nodes after P2G, before the grid update.
     grid_tape: Pool<Node>,
+    chunk_params: Vec<[f64; MAX_PARAMS]>,
+    /// One adjoint per objective.
+    pub seeds: Vec<Adjoint>,
+    /// Wall seconds spent in each of `PHASES`, over all reversed steps.
+    pub phase_s: [f64; PHASES.len()],
+}
+
+/// The adjoint arrays of one objective.
+pub struct Adjoint {
     pub cur: Fields,
     pub next: Fields,
     pub mass_bar: Pool<Real>,
@@ -48,57 +64,79 @@ pub struct StepAdjoint {
     /// Density's adjoint through the masses emission set, settled step by step (the masses that
     /// never change are settled once at the end, from `mass_bar`).
     pub density_bar: f64,
-    chunk_params: Vec<[f64; MAX_PARAMS]>,
     pub grid_params_bar: GridParamsBar,
 }
 
+/// A pool name for seed `k` (seed 0 keeps the plain names; mapped pools need distinct names).
+fn named(name: &str, k: usize) -> String {
+    if k == 0 {
+        name.to_string()
+    } else {
+        format!("{name}.{k}")
+    }
+}
+
 impl StepAdjoint {
-    pub fn plan(plan: &mut MemoryPlan, n: usize, state_len: usize, grid_nodes: usize) {
+    /// Bytes shared by all seeds (the tape) into `plan`, and those of `seeds` seeds' adjoints.
+    pub fn plan(plan: &mut MemoryPlan, n: usize, state_len: usize, grid_nodes: usize, seeds: usize) {
         Fields::plan(plan, "grad.tape", n, state_len);
-        Fields::plan(plan, "grad.adjoint_a", n, state_len);
-        Fields::plan(plan, "grad.adjoint_b", n, state_len);
-        plan.add::<Real>("grad.mass_bar", n);
-        plan.add::<Real>("grad.vol0_bar", n);
         plan.add::<Node>("grad.grid_tape", grid_nodes);
-        plan.add::<Node>("grad.grid_bar", grid_nodes);
+        for k in 0..seeds {
+            Fields::plan(plan, &named("grad.adjoint_a", k), n, state_len);
+            Fields::plan(plan, &named("grad.adjoint_b", k), n, state_len);
+            plan.add::<Real>(&named("grad.mass_bar", k), n);
+            plan.add::<Real>(&named("grad.vol0_bar", k), n);
+            plan.add::<Node>(&named("grad.grid_bar", k), grid_nodes);
+        }
     }
 
-    pub fn new(sim: &Simulation, b: &Backing) -> Result<StepAdjoint, String> {
+    pub fn new(sim: &Simulation, b: &Backing, seeds: usize) -> Result<StepAdjoint, String> {
         let n = sim.particles.capacity();
         if sim.material.param_names().len() > MAX_PARAMS || sim.particles.state_len > MAX_STATE {
             return Err(format!("material {}: the gradient driver takes at most {MAX_PARAMS} parameters and {MAX_STATE} state values", sim.material.name()));
         }
-        Self::pools(sim, n, b).map_err(|e| e.to_string())
+        Self::pools(sim, n, b, seeds).map_err(|e| e.to_string())
     }
 
-    fn pools(sim: &Simulation, n: usize, b: &Backing) -> Result<StepAdjoint, MemoryError> {
+    fn pools(sim: &Simulation, n: usize, b: &Backing, seeds: usize) -> Result<StepAdjoint, MemoryError> {
         let sl = sim.particles.state_len;
         let nodes = sim.grid.nodes.len();
+        let adjoint = |k: usize| -> Result<Adjoint, MemoryError> {
+            Ok(Adjoint {
+                cur: Fields::new(&named("grad.adjoint_a", k), n, sl, b)?,
+                next: Fields::new(&named("grad.adjoint_b", k), n, sl, b)?,
+                mass_bar: Pool::new(&named("grad.mass_bar", k), n, b)?,
+                vol0_bar: Pool::new(&named("grad.vol0_bar", k), n, b)?,
+                grid_bar: Pool::new(&named("grad.grid_bar", k), nodes, b)?,
+                material_bar: vec![0.0; sim.material.param_names().len()],
+                density_bar: 0.0,
+                grid_params_bar: GridParamsBar::default(),
+            })
+        };
         Ok(StepAdjoint {
             tape: Fields::new("grad.tape", n, sl, b)?,
             grid_tape: Pool::new("grad.grid_tape", nodes, b)?,
-            cur: Fields::new("grad.adjoint_a", n, sl, b)?,
-            next: Fields::new("grad.adjoint_b", n, sl, b)?,
-            mass_bar: Pool::new("grad.mass_bar", n, b)?,
-            vol0_bar: Pool::new("grad.vol0_bar", n, b)?,
-            grid_bar: Pool::new("grad.grid_bar", nodes, b)?,
-            material_bar: vec![0.0; sim.material.param_names().len()],
-            density_bar: 0.0,
             chunk_params: vec![[0.0; MAX_PARAMS]; n.div_ceil(CHUNK)],
-            grid_params_bar: GridParamsBar::default(),
+            seeds: (0..seeds).map(adjoint).collect::<Result<_, _>>()?,
+            phase_s: [0.0; PHASES.len()],
         })
     }
 
-    /// Reverse the step the live state of `sim` starts (the last one when `objective` is given:
-    /// the objective is then evaluated on the state after it and seeds the adjoint). The live
-    /// state is consumed. Returns the objective's value when it was evaluated.
+    /// Reverse the step the live state of `sim` starts, for the seeds `active` marks (the others
+    /// start later in the reverse sweep: their objectives come at earlier steps, their adjoints
+    /// are still zero). `objectives` (seed, objective) are evaluated on the state after the step
+    /// and seed those adjoints. The live state is consumed. Returns the objectives' values, in
+    /// `objectives`' order.
     pub fn reverse(
         &mut self,
         sim: &mut Simulation,
         until: f64,
-        objective: Option<(&Objective, &Frame)>,
-        print: Option<&mut PrintParams>,
-    ) -> Result<Option<f64>, String> {
+        objectives: &[(usize, &Objective)],
+        frame: &Frame,
+        active: &[bool],
+        prints: &mut [Option<PrintParams>],
+    ) -> Result<Vec<f64>, String> {
+        let mut clock = Instant::now();
         let (dt, _) = sim.choose_dt(until);
         let dtr = dt as Real;
         let t = sim.time;
@@ -118,50 +156,79 @@ impl StepAdjoint {
         sim.grid_update(dtr, drive.as_ref());
         sim.g2p(dtr);
         sim.follow_feed(dtr, drive.as_ref());
-        let mut value = None;
-        if let Some((obj, frame)) = objective {
+        let mut values = Vec::with_capacity(objectives.len());
+        if !objectives.is_empty() {
             sim.update_materials(dtr).map_err(|e| e.to_string())?;
+        }
+        for &(k, obj) in objectives {
+            let a = &mut self.seeds[k];
             let seed = Seed {
-                xg: &mut self.next.xg.as_mut_slice()[..n],
-                v: &mut self.next.v.as_mut_slice()[..n],
-                j: &mut self.next.j.as_mut_slice()[..n],
-                mass: &mut self.mass_bar.as_mut_slice()[..n],
-                vol0: &mut self.vol0_bar.as_mut_slice()[..n],
+                xg: &mut a.next.xg.as_mut_slice()[..n],
+                v: &mut a.next.v.as_mut_slice()[..n],
+                j: &mut a.next.j.as_mut_slice()[..n],
+                mass: &mut a.mass_bar.as_mut_slice()[..n],
+                vol0: &mut a.vol0_bar.as_mut_slice()[..n],
             };
-            value = Some(obj.evaluate(sim, frame, Some(seed))?);
+            values.push(obj.evaluate(sim, frame, Some(seed))?);
         }
+        lap(&mut clock, &mut self.phase_s[0]);
 
-        self.materials_adjoint(sim, dtr);
-        let (feed_fraction_bar, v_feed_bar) = self.follow_feed_adjoint(sim, dtr);
-        self.clamp_adjoint(sim);
+        // every seed's materials adjoint reads the blended pool before the first follow-feed
+        // adjoint hands the pool G2P's outputs back
+        for (a, _) in self.seeds.iter_mut().zip(active).filter(|(_, on)| **on) {
+            a.materials_adjoint(&self.tape, &mut self.chunk_params, sim, dtr);
+        }
+        lap(&mut clock, &mut self.phase_s[1]);
         let tp = TransferParams { dx: sim.scenario.simulation.dx as Real, dt: dtr };
-        self.grid_bar.as_mut_slice()[..used].fill([0.0; 7]);
-        self.g2p_adjoint(sim, &tp);
-        let g = &mut self.grid_params_bar;
-        grid_update_adjoint(sim, drive.as_ref(), &self.grid_tape.as_slice()[..used], &mut self.grid_bar.as_mut_slice()[..used], dtr, g);
-        let (outlet_bar, velocity_bar) = (std::mem::take(&mut g.drive_outlet), std::mem::take(&mut g.drive_velocity));
-        self.p2g_adjoint(sim, &tp);
-        let mass_fraction_bar = self.settle_set_masses(sim);
-        if let Some(pp) = print {
-            let k = sim.printer.as_ref().map_or(0, |p| p.toolpath.state_at(t).interval);
-            if drive.is_some() {
-                let v = [velocity_bar[0] + v_feed_bar[0], velocity_bar[1] + v_feed_bar[1], velocity_bar[2] + v_feed_bar[2]];
-                pp.drive(k, t, outlet_bar, v);
+        for ((a, pp), _) in self.seeds.iter_mut().zip(prints.iter_mut()).zip(active).filter(|(_, on)| **on) {
+            let (feed_fraction_bar, v_feed_bar) = a.follow_feed_adjoint(sim, dtr);
+            a.clamp_adjoint(sim);
+            lap(&mut clock, &mut self.phase_s[1]);
+            a.grid_bar.as_mut_slice()[..used].fill([0.0; 7]);
+            a.g2p_adjoint(&self.tape, sim, &tp);
+            lap(&mut clock, &mut self.phase_s[2]);
+            let g = &mut a.grid_params_bar;
+            grid_update_adjoint(sim, drive.as_ref(), &self.grid_tape.as_slice()[..used], &mut a.grid_bar.as_mut_slice()[..used], dtr, g);
+            let (outlet_bar, velocity_bar) = (std::mem::take(&mut g.drive_outlet), std::mem::take(&mut g.drive_velocity));
+            lap(&mut clock, &mut self.phase_s[3]);
+            a.p2g_adjoint(&self.tape, sim, &tp);
+            lap(&mut clock, &mut self.phase_s[4]);
+            let mass_fraction_bar = a.settle_set_masses(sim);
+            if let Some(pp) = pp.as_mut() {
+                let k = sim.printer.as_ref().map_or(0, |p| p.toolpath.state_at(t).interval);
+                if drive.is_some() {
+                    let v = [velocity_bar[0] + v_feed_bar[0], velocity_bar[1] + v_feed_bar[1], velocity_bar[2] + v_feed_bar[2]];
+                    pp.drive(k, t, outlet_bar, v);
+                }
+                if let Some(pr) = sim.printer.as_ref().filter(|p| p.newest.moving) {
+                    pp.extruded(k, t, (mass_fraction_bar + feed_fraction_bar) / pr.plan.slab_thickness());
+                }
+                if n > n_before {
+                    a.emission_adjoint(sim, pp, n_before, first_slab, t)?;
+                }
             }
-            if let Some(pr) = sim.printer.as_ref().filter(|p| p.newest.moving) {
-                pp.extruded(k, t, (mass_fraction_bar + feed_fraction_bar) / pr.plan.slab_thickness());
-            }
-            if n > n_before {
-                self.emission_adjoint(sim, pp, n_before, first_slab, t)?;
-            }
+            std::mem::swap(&mut a.cur, &mut a.next);
+            // particles beyond n were never touched by this step's adjoint
+            a.cur.zero_range(0..n, sim.particles.state_len);
+            lap(&mut clock, &mut self.phase_s[5]);
         }
-
-        std::mem::swap(&mut self.cur, &mut self.next);
-        // particles beyond n were never touched by this step's adjoint
-        self.cur.zero_range(0..n, sim.particles.state_len);
-        Ok(value)
+        Ok(values)
     }
+}
 
+/// Add the time since `clock` to `acc` and restart the clock.
+fn lap(clock: &mut Instant, acc: &mut f64) {
+    let now = Instant::now();
+    *acc += (now - *clock).as_secs_f64();
+    *clock = now;
+}
+
+fn block_origin(sim: &Simulation, s: usize) -> [i32; 3] {
+    let b = sim.grid.geom.block_coords(sim.grid.slot_block.as_slice()[s]);
+    [b[0] * BS as i32, b[1] * BS as i32, b[2] * BS as i32]
+}
+
+impl Adjoint {
     /// Adjoint of the newest slab's blend with the feed (`print/newest.rs`): `next`'s adjoints
     /// of the blended outputs become those of G2P's, and the pool gets G2P's outputs back for
     /// the clamp's and G2P's adjoints. Returns the adjoints of the fraction and of the feed velocity.
@@ -247,11 +314,11 @@ impl StepAdjoint {
     /// Materials: `next.stress` and `next.state` (the adjoints of their outputs) go to the
     /// velocity gradient and volume ratio G2P produced (`next.c`, `next.j`), the state before the
     /// step (`cur.state`) and the parameters.
-    fn materials_adjoint(&mut self, sim: &Simulation, dt: Real) {
+    fn materials_adjoint(&mut self, tape: &Fields, chunk_params: &mut [[f64; MAX_PARAMS]], sim: &Simulation, dt: Real) {
         let p = &sim.particles;
         let (n, sl) = (p.n, p.state_len);
         let (c1, j1) = (&p.c.as_slice()[..n], &p.j.as_slice()[..n]);
-        let state0 = self.tape.state.as_slice();
+        let state0 = tape.state.as_slice();
         let mat = &*sim.material;
         let np = self.material_bar.len();
         let next_stress = self.next.stress.as_slice();
@@ -260,7 +327,7 @@ impl StepAdjoint {
         let next_j = SharedSlice::new(&mut self.next.j.as_mut_slice()[..n]);
         let cur_state = SharedSlice::new(&mut self.cur.state.as_mut_slice()[..n * sl]);
         let chunks = n.div_ceil(CHUNK);
-        let partial = SharedSlice::new(&mut self.chunk_params[..chunks]);
+        let partial = SharedSlice::new(&mut chunk_params[..chunks]);
         let threads = sim.team.threads();
         sim.team.run(|tid| {
             for k in crate::threads::ThreadTeam::share(chunks, tid, threads) {
@@ -287,7 +354,7 @@ impl StepAdjoint {
             }
         });
         // chunk sums in chunk order: the same bits for any thread count
-        for acc in &self.chunk_params[..chunks] {
+        for acc in &chunk_params[..chunks] {
             for (m, a) in self.material_bar.iter_mut().zip(acc) {
                 *m += a;
             }
@@ -316,14 +383,9 @@ impl StepAdjoint {
         }
     }
 
-    fn block_origin(sim: &Simulation, s: usize) -> [i32; 3] {
-        let b = sim.grid.geom.block_coords(sim.grid.slot_block.as_slice()[s]);
-        [b[0] * BS as i32, b[1] * BS as i32, b[2] * BS as i32]
-    }
-
     /// G2P's adjoint scatters into the grid adjoint as P2G scatters into the grid: by colour,
     /// so threads never add to the same node and every node sums in the same order.
-    fn g2p_adjoint(&mut self, sim: &Simulation, tp: &TransferParams) {
+    fn g2p_adjoint(&mut self, tape: &Fields, sim: &Simulation, tp: &TransferParams) {
         let n = sim.particles.n;
         let sc = &sim.scratch;
         let starts = sc.slot_start.as_slice();
@@ -334,7 +396,7 @@ impl StepAdjoint {
         let vol0 = &sim.particles.vol0.as_slice()[..n];
         let j_bar_avg = sim.scenario.simulation.j_bar.then_some(vol0);
         let grid_bar = SharedSlice::new(self.grid_bar.as_mut_slice());
-        let (x0, v0, j0) = (&self.tape.xg.as_slice()[..n], &self.tape.v.as_slice()[..n], &self.tape.j.as_slice()[..n]);
+        let (x0, v0, j0) = (&tape.xg.as_slice()[..n], &tape.v.as_slice()[..n], &tape.j.as_slice()[..n]);
         // the recomputed G2P's v and C are still in the pool (the blend with the feed undone)
         let forward = (flip == 0.0).then(|| (&sim.particles.v.as_slice()[..n], &sim.particles.c.as_slice()[..n]));
         let next = (&self.next.xg.as_slice()[..n], &self.next.v.as_slice()[..n], &self.next.c.as_slice()[..n], &self.next.j.as_slice()[..n]);
@@ -376,7 +438,7 @@ impl StepAdjoint {
                             dx_bar: &mut dx_bar,
                         }
                     };
-                    g2p_block_adjoint(Self::block_origin(sim, s), ord, flip, j_bar_avg, tp, &inp, &mut out);
+                    g2p_block_adjoint(block_origin(sim, s), ord, flip, j_bar_avg, tp, &inp, &mut out);
                     unsafe { flush_local(&local_bar, &nbr[s], &grid_bar) };
                 }
             });
@@ -385,7 +447,7 @@ impl StepAdjoint {
 
     /// P2G's adjoint gathers from the grid adjoint as G2P gathers from the grid: particle
     /// blocks split across threads by particle count.
-    fn p2g_adjoint(&mut self, sim: &Simulation, tp: &TransferParams) {
+    fn p2g_adjoint(&mut self, tape: &Fields, sim: &Simulation, tp: &TransferParams) {
         let n = sim.particles.n;
         let sc = &sim.scratch;
         let npb = sim.grid.n_particle_blocks;
@@ -394,13 +456,13 @@ impl StepAdjoint {
         let nbr = sc.nbr.as_slice();
         let p = &sim.particles;
         let input = P2gInput {
-            xg: &self.tape.xg.as_slice()[..n],
-            v: &self.tape.v.as_slice()[..n],
-            c: &self.tape.c.as_slice()[..n],
-            stress: &self.tape.stress.as_slice()[..n],
+            xg: &tape.xg.as_slice()[..n],
+            v: &tape.v.as_slice()[..n],
+            c: &tape.c.as_slice()[..n],
+            stress: &tape.stress.as_slice()[..n],
             mass: &p.mass.as_slice()[..n],
             vol0: &p.vol0.as_slice()[..n],
-            j: &self.tape.j.as_slice()[..n],
+            j: &tape.j.as_slice()[..n],
         };
         let split = sim.scenario.simulation.flip > 0.0;
         let grid_bar = self.grid_bar.as_slice();
@@ -435,7 +497,7 @@ impl StepAdjoint {
                         dx_bar: &mut dx_bar,
                     }
                 };
-                let origin = Self::block_origin(sim, s);
+                let origin = block_origin(sim, s);
                 if split {
                     p2g_block_adjoint::<true>(origin, ord, &input, tp, &local_bar, &mut out);
                 } else {

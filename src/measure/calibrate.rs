@@ -54,6 +54,10 @@ pub struct Fit {
     pub observations: usize,
     /// The model's value of every observation at the optimum.
     pub model_values: Vec<f64>,
+    /// d model value / d parameter at the optimum (a row per observation; empty when nothing
+    /// was fitted): the curvature a one-step leave-one-out refit takes.
+    #[serde(skip)]
+    pub jacobian: Vec<Vec<f64>>,
     #[serde(skip)]
     pub model: Model,
 }
@@ -196,6 +200,7 @@ pub fn calibrate(model: &Model, data: &[Observation], exps: &Experiments, names:
         converged,
         observations: m,
         model_values: s.values.clone(),
+        jacobian: s.jacobian.expect("asked"),
         model,
     })
 }

@@ -34,10 +34,11 @@ fn number(v: &toml::Value) -> f64 {
     super::data::number(v).unwrap_or(f64::NAN)
 }
 
-/// The model's values of `wanted` for experiment `x`.
-pub fn evaluate(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable]) -> Result<Vec<f64>, String> {
+/// The model's values of `wanted` for experiment `x`; a simulation with `threads` threads (its
+/// scenario's when `None`).
+pub fn evaluate(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], threads: Option<usize>) -> Result<Vec<f64>, String> {
     let r = experiment_keys(model, x).and_then(|keys| match (&x.scenario, &x.protocol) {
-        (Some(s), _) => simulate(model, &keys, &exps.base_dir.join(s), wanted),
+        (Some(s), _) => simulate(model, &keys, &exps.base_dir.join(s), wanted, threads),
         (None, Some(p)) => {
             let (material, proto) = rheometer_setup(model, &keys, &exps.base_dir, p)?;
             let readings = Rheometer::new(&*material, &proto)?.run();
@@ -126,8 +127,11 @@ pub fn observable_plan(o: &Observable, end: f64) -> Result<(f64, Objective), Str
     Ok((t, obj))
 }
 
-fn simulate(model: &Model, keys: &Keys, scenario: &Path, wanted: &[Observable]) -> Result<Vec<f64>, String> {
-    let sc = parse_scenario(&scenario_text(model, keys, scenario)?, scenario)?;
+fn simulate(model: &Model, keys: &Keys, scenario: &Path, wanted: &[Observable], threads: Option<usize>) -> Result<Vec<f64>, String> {
+    let mut sc = parse_scenario(&scenario_text(model, keys, scenario)?, scenario)?;
+    if let Some(t) = threads {
+        sc.simulation.threads = t;
+    }
     let end = sc.simulation.end_time;
     let plan: Vec<(f64, Objective)> = wanted.iter().map(|o| observable_plan(o, end)).collect::<Result<_, _>>()?;
     let mut order: Vec<usize> = (0..plan.len()).collect();
@@ -222,10 +226,19 @@ pub fn ungroup<T: Clone>(data: &[Observation], wanted: &[(String, Vec<Observable
 
 /// Evaluate each experiment's `wanted` observables, `jobs` experiments at a time.
 pub fn evaluate_all(model: &Model, exps: &Experiments, wanted: &[(String, Vec<Observable>)], jobs: usize) -> Result<Vec<Vec<f64>>, String> {
+    let threads = job_threads(jobs);
     par_map(wanted.len(), jobs, |k| {
         let (id, obs) = &wanted[k];
-        evaluate(model, exps, find(exps, id)?, obs)
+        evaluate(model, exps, find(exps, id)?, obs, threads)
     })
+}
+
+/// Threads of each simulation when `jobs` run side by side: the cores shared out (at least one
+/// each), so the jobs' thread teams together do not outnumber the cores (teams beyond the cores
+/// wait on each other: system time, not work). `None` (the scenario's own) for one job.
+pub fn job_threads(jobs: usize) -> Option<usize> {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    (jobs > 1).then(|| (cores / jobs).max(1))
 }
 
 /// Experiment `id`, or an error listing the ids there are.

@@ -31,7 +31,7 @@
 //! The default order, [`DEFAULT_ORDER`], is measured on case 1 (BENCHMARKS.md,
 //! "Discretisation error").
 
-use super::compare::{evaluate, experiment_keys, find, group, par_map, parse_scenario, scenario_text, ungroup};
+use super::compare::{evaluate, experiment_keys, find, group, job_threads, par_map, parse_scenario, scenario_text, ungroup};
 use super::data::{Experiment, Experiments, Observable, Observation, ResolutionTable};
 use super::model::Model;
 
@@ -106,6 +106,7 @@ pub fn estimate(model: &Model, data: &[Observation], exps: &Experiments, values:
     let p = order(table);
     let wanted = group(data);
     let given: Option<Vec<Vec<f64>>> = values.map(|v| per_experiment(data, &wanted, v));
+    let threads = job_threads(jobs);
     let per = par_map(wanted.len(), jobs, |k| -> Result<Vec<Option<Estimate>>, String> {
         let (id, obs) = &wanted[k];
         let x = find(exps, id)?;
@@ -119,9 +120,9 @@ pub fn estimate(model: &Model, data: &[Observation], exps: &Experiments, values:
         }
         let coarse = match &given {
             Some(v) => v[k].clone(),
-            None => evaluate(model, exps, x, obs)?,
+            None => evaluate(model, exps, x, obs, threads)?,
         };
-        let fine = evaluate(model, exps, &fine_x, obs).map_err(|e| format!("{e} (the finer run of [resolution])"))?;
+        let fine = evaluate(model, exps, &fine_x, obs, threads).map_err(|e| format!("{e} (the finer run of [resolution])"))?;
         obs.iter()
             .zip(coarse.iter().zip(&fine))
             .map(|(o, (&c, &f))| {

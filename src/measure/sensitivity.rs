@@ -1,18 +1,22 @@
 //! The model's value of every observation and, on request, its gradient with respect to named
-//! model parameters — by the adjoints: the solver's reverse pass for a simulation (one per
-//! observation, `strand grad`'s driver), the rheometer's for a rheometer test, then the model's
+//! model parameters — by the adjoints: the solver's reverse pass for a simulation (one forward
+//! and one reverse sweep for all the observations of an experiment that its run passes, an
+//! adjoint each: `strand grad`'s driver), the rheometer's for a rheometer test, then the model's
 //! effects backwards ([`Model::keys_adjoint`]).
 //!
 //! Simulations here run the way a gradient run does (fixed step, every particle awake, one sort
 //! by block up front), values and gradients alike, so a fit compares like with like; their values
-//! can differ from `strand compare`'s in the last bits.
+//! can differ from `strand compare`'s in the last bits. An observation at an earlier time is taken
+//! after the step of the whole run that reaches it (to the step control's rounding of 1e-9 dt),
+//! not from a run that ends there: the two differ by that rounding of the last step's length.
 
-use super::compare::{experiment_keys, find, group, observable_plan, par_map, parse_scenario, reading_index, rheometer_setup, scenario_text, ungroup};
+use super::compare::{experiment_keys, find, group, job_threads, observable_plan, par_map, parse_scenario, reading_index, rheometer_setup, scenario_text, ungroup};
 use super::data::{Experiment, Experiments, Observable, Observation};
 use super::effects::Keys;
 use super::model::Model;
 use super::rheometer::Rheometer;
-use crate::grad::{driver, params, GradOptions};
+use crate::grad::driver::Seeded;
+use crate::grad::{driver, params, GradOptions, Objective};
 
 /// Values (one per observation) and, when asked, d value / d parameter (a row per observation).
 pub struct Sensitivity {
@@ -24,7 +28,7 @@ pub struct Sensitivity {
 /// experiments run `jobs` at a time.
 pub fn sensitivity(model: &Model, data: &[Observation], exps: &Experiments, names: Option<&[String]>, jobs: usize) -> Result<Sensitivity, String> {
     let wanted = group(data);
-    let threads = if jobs > 1 { Some(1) } else { None };
+    let threads = job_threads(jobs);
     let per = par_map(wanted.len(), jobs, |k| one(model, exps, &wanted[k].0, &wanted[k].1, names, threads))?;
     Ok(assemble(data, &wanted, &per, names))
 }
@@ -73,21 +77,36 @@ fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obser
                 }
                 None => (Vec::new(), Vec::new()),
             };
-            wanted
-                .iter()
-                .map(|o| {
-                    let (t, obj) = observable_plan(o, end)?;
-                    let text = if t < end { params::with_value(&text, "simulation.end_time", t)? } else { text.clone() };
-                    let sc = parse_scenario(&text, &path)?;
-                    if names.is_none() {
-                        let steps = driver::count_steps(&driver::prepare(&sc, threads)?);
-                        return Ok((driver::forward_value(&sc, &obj, threads, steps)?, None));
-                    }
-                    let opts = GradOptions { ram_bytes: 2 << 30, disk_bytes: 0, disk_dir: std::env::temp_dir(), threads, schedule: None, until_rest: None };
-                    let r = driver::gradient(&sc, &obj, &placed, &opts)?;
-                    Ok((r.value, Some(chain(wrt.iter().cloned().zip(r.gradient).collect())?)))
-                })
-                .collect()
+            // the observations the whole run passes share its forward and reverse sweeps (an
+            // adjoint each); the others (between two of its steps, or at t = 0) run to their time
+            let plans: Vec<(f64, Objective)> = wanted.iter().map(|o| observable_plan(o, end)).collect::<Result<_, _>>()?;
+            let sim = driver::prepare(&whole, threads)?;
+            let steps: Vec<Option<u64>> = plans.iter().map(|(t, _)| driver::step_at(&sim, *t)).collect();
+            drop(sim);
+            let shared: Vec<usize> = (0..plans.len()).filter(|&k| steps[k].is_some()).collect();
+            let seeds: Vec<Seeded> = shared.iter().map(|&k| Seeded { objective: plans[k].1.clone(), step: steps[k] }).collect();
+            let opts = GradOptions { ram_bytes: 2 << 30, disk_bytes: 0, disk_dir: std::env::temp_dir(), threads, schedule: None, until_rest: None };
+            let mut out: Vec<Option<Valued>> = vec![None; plans.len()];
+            if names.is_none() {
+                for (&k, v) in shared.iter().zip(driver::forward_values(&whole, &seeds, threads)?) {
+                    out[k] = Some((v, None));
+                }
+            } else {
+                for (&k, r) in shared.iter().zip(driver::gradients(&whole, &seeds, &placed, &opts)?) {
+                    out[k] = Some((r.value, Some(chain(wrt.iter().cloned().zip(r.gradient).collect())?)));
+                }
+            }
+            for (k, (t, obj)) in plans.iter().enumerate().filter(|(k, _)| steps[*k].is_none()) {
+                let sc = parse_scenario(&params::with_value(&text, "simulation.end_time", *t)?, &path)?;
+                out[k] = Some(if names.is_none() {
+                    let steps = driver::count_steps(&driver::prepare(&sc, threads)?);
+                    (driver::forward_value(&sc, obj, threads, steps)?, None)
+                } else {
+                    let r = driver::gradient(&sc, obj, &placed, &opts)?;
+                    (r.value, Some(chain(wrt.iter().cloned().zip(r.gradient).collect())?))
+                });
+            }
+            Ok(out.into_iter().map(|v| v.expect("every observation valued")).collect())
         }
         (None, Some(p)) => {
             let (material, proto) = rheometer_setup(model, &keys, &exps.base_dir, p)?;
