@@ -1145,9 +1145,9 @@ mod tests {
         grid
     }
 
-    /// The speed rule is the default: fast material above a sleeping unit wakes it. With the
-    /// load test it does not (its load does, if it can make the unit yield), unless it is faster
-    /// than `arrive_speed`.
+    /// Under the speed rule fast material above a sleeping unit wakes it. With the load test it
+    /// does not (its load does, if it can make the unit yield), unless it is faster than
+    /// `arrive_speed`.
     #[test]
     fn fast_material_above_wakes_a_sleeping_unit_only_under_the_speed_rule() {
         let g = geom([false; 3]);
@@ -1156,14 +1156,14 @@ mod tests {
         let block = above.map(|c| c.div_euclid(BS as i32 / US));
         let k = unit_index(&g, above) as usize % UNITS;
         let configs = [
-            ("", true),
+            ("wake_by_load = false", true),
             ("wake_by_load = true\narrive_speed = inf", false),
             ("wake_by_load = true\narrive_speed = 0.004", true),
             ("wake_by_load = true\narrive_speed = 0.02", false),
         ];
         for (config, wakes) in configs {
             let mut s = sleep_with(&g, config, &[below]);
-            assert_eq!(s.tests_loads(), !config.is_empty());
+            assert_eq!(s.tests_loads(), config.starts_with("wake_by_load = true"));
             let grid = grid_with(&g, &[block], 1);
             let mut act = [EMPTY_UNIT; UNITS];
             act[k] = [5.0 * s.cfg.wake_speed as Real, 1.0];
@@ -1184,7 +1184,7 @@ mod tests {
         let (below, above): ([i32; 3], [i32; 3]) = ([2, 1, 4], [2, 1, 5]);
         let block = above.map(|c| c.div_euclid(BS as i32 / US));
         let configs = [
-            ("", false),
+            ("wake_by_load = false", false),
             ("wake_by_load = true\narrive_speed = inf", true),
             ("wake_by_load = true\narrive_speed = 0.004", false),
             ("wake_by_load = true\narrive_speed = 0.02", true),
@@ -1275,13 +1275,13 @@ mod tests {
         assert_eq!((s.sleeping_units, s.n_loaded), (1, 0));
     }
 
-    /// `load_fraction` (1 by default): a unit wakes once the load passes that share of its
+    /// `load_fraction` (0.5 by default): a unit wakes once the load passes that share of its
     /// margin. 100 Pa passes half the bottom unit's 150 Pa (plus the floor) but not all of it.
     #[test]
     fn a_load_wakes_at_its_fraction_of_the_margin() {
-        let (whole, ..) = loaded_column("wake_by_load = true", 100.0);
+        let (whole, ..) = loaded_column("wake_by_load = true\nload_fraction = 1.0", 100.0);
         assert_eq!(whole, [LOADED, LOADED, LOADED, ASLEEP]);
-        let (half, ..) = loaded_column("wake_by_load = true\nload_fraction = 0.5", 100.0);
+        let (half, ..) = loaded_column("wake_by_load = true", 100.0);
         assert_eq!(half, [LOADED; 4]);
     }
 }
