@@ -25,8 +25,8 @@
 //!    one scale, where p-values would underflow to 0 and tie for every strong effect. Those
 //!    significant at `alpha` (the top `max_fitted`) are fitted with the base parameters (the
 //!    likelihood ratio's fit is that fit), and each is checked by leave-one-experiment-out:
-//!    refitted without each experiment in turn (one Gauss-Newton step from the full fit, or a
-//!    full refit with `exact_refits`; [`leave_one_out`]), it must predict the left-out
+//!    refitted without each experiment in turn (a full refit, or with `exact_refits` off one
+//!    Gauss-Newton step from the full fit; [`leave_one_out`]), it must predict the left-out
 //!    experiments better than the base model refitted the same way, or it only overfits and is
 //!    not recommended.
 //! 4. When no effect is recommended and the base model does not fit (chi^2 beyond its `alpha`
@@ -54,7 +54,7 @@ pub struct DiagnoseOptions {
 
 impl Default for DiagnoseOptions {
     fn default() -> DiagnoseOptions {
-        DiagnoseOptions { fit: FitOptions::default(), alpha: 0.01, max_fitted: 3, leave_one_out: true, exact_refits: false }
+        DiagnoseOptions { fit: FitOptions::default(), alpha: 0.01, max_fitted: 3, leave_one_out: true, exact_refits: true }
     }
 }
 
