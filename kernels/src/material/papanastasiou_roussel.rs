@@ -754,14 +754,10 @@ mod tests {
         pt.check("at cap lambda0", 33);
     }
 
+    /// The mix of the shear-rate sweeps at rest, J = 1 and lambda = 1.2, on the lambda_max branch.
     #[cfg(not(feature = "f32"))]
-    #[test]
-    fn adjoint_across_shear_rates() {
-        // m g from the series branches of phi and phi' (5e-5, 0.01) to exp(-m g) ~ 2e-22 (50).
-        // At small rates J = 1 - 1e-8 keeps the pressure (K (1/J - 1) ~ 3e-3) from swamping the
-        // shear stress (~1e-3 at m g = 5e-5) in the differences' round-off. Unresolved: alpha
-        // while alpha g dt <= 1e-4, and m where its derivative exp(-m g) ~ 2e-22.
-        let base = Point {
+    fn rate_point() -> Point {
+        Point {
             params: [3.3e5, 30.0, 100.0, 10.0, 5.0, 1.0, 3.0, 1.0],
             by_lambda_max: true,
             eos: TAIT,
@@ -770,7 +766,17 @@ mod tests {
             dt: 0.1,
             lambda: 1.2,
             unresolved: &[],
-        };
+        }
+    }
+
+    #[cfg(not(feature = "f32"))]
+    #[test]
+    fn adjoint_across_shear_rates() {
+        // m g from the series branches of phi and phi' (5e-5, 0.01) to exp(-m g) ~ 2e-22 (50).
+        // At small rates J = 1 - 1e-8 keeps the pressure (K (1/J - 1) ~ 3e-3) from swamping the
+        // shear stress (~1e-3 at m g = 5e-5) in the differences' round-off. Unresolved: alpha
+        // while alpha g dt <= 1e-4, and m where its derivative exp(-m g) ~ 2e-22.
+        let base = rate_point();
         for (k, eos) in [TAIT, Eos::Linear].into_iter().enumerate() {
             for (i, (gamma_dot, j, unresolved)) in RATE_POINTS.into_iter().enumerate() {
                 let pt = Point {
@@ -826,16 +832,7 @@ mod tests {
         // the points of `adjoint_across_shear_rates` (series branches of phi and phi', the
         // middle, exp(-m g) ~ 2e-22) and of the clamped cases, with n below and above 1, where the
         // power law's q^(1-n) is regularised (m g << 1) or is HB (m g >> 1)
-        let base = Point {
-            params: [3.3e5, 30.0, 100.0, 10.0, 5.0, 1.0, 3.0, 1.0],
-            by_lambda_max: true,
-            eos: TAIT,
-            gamma_dot: 0.0,
-            j: 1.0,
-            dt: 0.1,
-            lambda: 1.2,
-            unresolved: &[],
-        };
+        let base = rate_point();
         for (k, n) in [0.5, 1.3].into_iter().enumerate() {
             for (i, (gamma_dot, j, unresolved)) in RATE_POINTS.into_iter().enumerate() {
                 let mut params = base.params;
