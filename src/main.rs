@@ -201,11 +201,11 @@ enum Cmd {
         /// Skip the leave-one-experiment-out check.
         #[arg(long)]
         no_loo: bool,
-        /// Leave each experiment out by one Gauss-Newton step from the full fit instead of a full
-        /// refit (much cheaper; it misleads when leaving one out moves the fit far, as a
-        /// nonlinear effect's correlated parameters can: see docs/gradient_cost.md).
+        /// Leave each experiment out by a full refit, instead of one Gauss-Newton step from the
+        /// full fit checked against a run at it (and replaced by a refit where the check refuses
+        /// it): see docs/gradient_cost.md.
         #[arg(long, conflicts_with = "no_loo")]
-        loo_one_step: bool,
+        loo_refits: bool,
         /// How many significant effects, best first, are fitted and checked by leave-one-out
         /// (each check refits once per experiment); the rest are reported significant.
         #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..))]
@@ -515,7 +515,7 @@ fn main() -> ExitCode {
             eprintln!("calibrated model written to {}, convergence plot to {}", out.display(), plot.display());
             Ok(true)
         })(),
-        Cmd::Diagnose { inputs, fit, alpha, no_loo, loo_one_step, max_fitted, out, max_iterations, rounds, engine } => (|| {
+        Cmd::Diagnose { inputs, fit, alpha, no_loo, loo_refits, max_fitted, out, max_iterations, rounds, engine } => (|| {
             use strand::measure::{calibrate::FitOptions, diagnose, resolution};
             if !(alpha > 0.0 && alpha < 1.0) {
                 return Err(format!("--alpha must be in (0, 1), got {alpha}"));
@@ -525,7 +525,7 @@ fn main() -> ExitCode {
                 check_writable(out, "--out")?;
             }
             let (d, disc) = resolution::counted_data(&m, d0, &e, inputs.jobs)?;
-            let opts = diagnose::DiagnoseOptions { fit: FitOptions { max_iterations, jobs: inputs.jobs, engine: engine.engine()?, ..Default::default() }, alpha, leave_one_out: !no_loo, exact_refits: !loo_one_step, max_fitted: max_fitted as usize };
+            let opts = diagnose::DiagnoseOptions { fit: FitOptions { max_iterations, jobs: inputs.jobs, engine: engine.engine()?, ..Default::default() }, alpha, leave_one_out: !no_loo, exact_refits: loo_refits, max_fitted: max_fitted as usize };
             if rounds > 1 {
                 use strand::measure::rounds;
                 let r = rounds::rounds(&m, &d, &e, &fit, &opts, rounds as usize)?;

@@ -25,8 +25,9 @@
 //!    one scale, where p-values would underflow to 0 and tie for every strong effect. Those
 //!    significant at `alpha` (the top `max_fitted`) are fitted with the base parameters (the
 //!    likelihood ratio's fit is that fit), and each is checked by leave-one-experiment-out:
-//!    refitted without each experiment in turn (a full refit, or with `exact_refits` off one
-//!    Gauss-Newton step from the full fit; [`leave_one_out`]), it must predict the left-out
+//!    refitted without each experiment in turn (one Gauss-Newton step from the full fit, checked
+//!    and replaced by a full refit where the check refuses it, or with `exact_refits` always a
+//!    full refit; [`leave_one_out`]), it must predict the left-out
 //!    experiments better than the base model refitted the same way, or it only overfits and is
 //!    not recommended.
 //! 4. When no effect is recommended and the base model does not fit (chi^2 beyond its `alpha`
@@ -47,14 +48,14 @@ pub struct DiagnoseOptions {
     /// How many significant effects are fitted.
     pub max_fitted: usize,
     pub leave_one_out: bool,
-    /// Leave-one-out by a full refit without each experiment, instead of one Gauss-Newton step
-    /// from the full fit (see [`leave_one_out`]).
+    /// Leave-one-out by a full refit without each experiment, instead of one checked
+    /// Gauss-Newton step from the full fit (see [`leave_one_out`]).
     pub exact_refits: bool,
 }
 
 impl Default for DiagnoseOptions {
     fn default() -> DiagnoseOptions {
-        DiagnoseOptions { fit: FitOptions::default(), alpha: 0.01, max_fitted: 3, leave_one_out: true, exact_refits: true }
+        DiagnoseOptions { fit: FitOptions::default(), alpha: 0.01, max_fitted: 3, leave_one_out: true, exact_refits: false }
     }
 }
 
@@ -432,34 +433,68 @@ fn applicable(effect: &'static dyn Effect, model: &Model, data: &[Observation], 
 ///
 /// By default the refit is one Gauss-Newton step from the full fit, on its own Jacobian with the
 /// left-out experiment's rows taken out (bounds held as the fit held them, the step clamped to
-/// them), and the left-out experiment is then run at the stepped parameters: the prediction keeps
-/// the model's nonlinearity, only the refit is linearised. That is the refit itself when the
-/// residuals are linear in the parameters over the step, and close to it when the step is small
-/// against the scale on which the Jacobian changes; it can mislead when leaving an experiment
-/// out moves the fit far (an experiment that alone pins a parameter: its removal leaves a
-/// near-singular curvature and a long step) or onto a bound the full fit did not touch. With
-/// `exact_refits` each experiment is left out of a full refit instead (a calibration each).
+/// them), checked as a trust region checks a step: every experiment is run at the stepped
+/// parameters, and the step stands when the chi^2 of the experiments kept falls by what its
+/// linearisation predicts (within [`STEP_TRUST`] of the predicted fall, or by less than
+/// [`STEP_NEGLIGIBLE`] either way). Then the left-out experiment's chi^2 is taken from that same
+/// run, which keeps the model's nonlinearity. A step the check refuses (leaving one experiment out
+/// moves the fit far: an experiment that alone pins a parameter, correlated parameters of a
+/// nonlinear effect, a bound the full fit did not touch) is replaced by a full refit started from
+/// the full fit. The check costs a forward run of each experiment per experiment left out, against
+/// a calibration each for a refit. With `exact_refits` every experiment is left out of a full
+/// refit.
 fn leave_one_out(f: &Fit, data: &[Observation], exps: &Experiments, ids: &[String], opts: &DiagnoseOptions) -> Result<f64, String> {
     let mut total = 0.0;
     for id in ids {
-        let train: Vec<Observation> = data.iter().filter(|o| o.experiment != *id).cloned().collect();
-        let test: Vec<Observation> = data.iter().filter(|o| o.experiment == *id).cloned().collect();
-        let fitted = if f.names.is_empty() {
-            f.model.clone()
+        let (train, test): (Vec<Observation>, Vec<Observation>) = data.iter().cloned().partition(|o| o.experiment != *id);
+        let predict = |model: &Model| -> Result<f64, String> { Ok(chi2(&opts.fit.engine.sensitivity(opts.fit.jobs, model, &test, exps, None)??.values, &test)) };
+        total += if f.names.is_empty() {
+            predict(&f.model)?
         } else if opts.exact_refits {
-            calibrate(&f.model, &train, exps, &f.names, &opts.fit)?.model
+            predict(&calibrate(&f.model, &train, exps, &f.names, &opts.fit)?.model)?
         } else {
-            one_step_without(f, data, id)?
+            let step = one_step_without(f, data, id)?;
+            let values = opts.fit.engine.sensitivity(opts.fit.jobs, &step.model, data, exps, None)??.values;
+            let kept: Vec<usize> = (0..data.len()).filter(|&i| data[i].experiment != *id).collect();
+            let left: Vec<usize> = (0..data.len()).filter(|&i| data[i].experiment == *id).collect();
+            let pick = |rows: &[usize]| rows.iter().map(|&i| values[i]).collect::<Vec<f64>>();
+            if step.trusted(chi2(&pick(&kept), &train)) {
+                chi2(&pick(&left), &test)
+            } else {
+                predict(&calibrate(&f.model, &train, exps, &f.names, &opts.fit)?.model)?
+            }
         };
-        let v = opts.fit.engine.sensitivity(opts.fit.jobs, &fitted, &test, exps, None)??.values;
-        total += chi2(&v, &test);
     }
     Ok(total)
 }
 
+/// A step stands when the chi^2 of the experiments kept falls by its predicted fall within this
+/// fraction of it: the trust-region ratio within 1 -/+ 0.25.
+const STEP_TRUST: f64 = 0.25;
+/// A change of chi^2 smaller than this is no change: a step that moves the kept experiments' chi^2
+/// by less, actual or predicted, stands.
+const STEP_NEGLIGIBLE: f64 = 0.1;
+
+/// One Gauss-Newton step without an experiment, and the chi^2 of the experiments kept at the full
+/// fit and as the step's linearisation predicts it.
+struct Step {
+    model: Model,
+    chi2_kept: f64,
+    chi2_predicted: f64,
+}
+
+impl Step {
+    /// Whether the step stands, given the kept experiments' chi^2 run at it.
+    fn trusted(&self, chi2_actual: f64) -> bool {
+        let predicted = self.chi2_kept - self.chi2_predicted;
+        let actual = self.chi2_kept - chi2_actual;
+        (actual - predicted).abs() <= STEP_TRUST * predicted.abs() + STEP_NEGLIGIBLE
+    }
+}
+
 /// The fit `f` moved by one Gauss-Newton step on the chi^2 of the observations outside
 /// experiment `id`, from `f`'s own values and Jacobian.
-fn one_step_without(f: &Fit, data: &[Observation], id: &str) -> Result<Model, String> {
+fn one_step_without(f: &Fit, data: &[Observation], id: &str) -> Result<Step, String> {
     let bounds: Vec<_> = f.names.iter().map(|n| f.model.bounds(n)).collect::<Result<_, _>>()?;
     let scale: Vec<f64> = bounds.iter().map(|b| b.scale).collect();
     let rows: Vec<usize> = (0..data.len()).filter(|&i| data[i].experiment != id).collect();
@@ -471,11 +506,16 @@ fn one_step_without(f: &Fit, data: &[Observation], id: &str) -> Result<Model, St
     let (a, g) = normal_equations(&jz, &z, &cols);
     let (inv, _) = pinv_sym(&a, 1e-12);
     let mut model = f.model.clone();
+    // the step taken in scaled parameters, after the clamp to the bounds
+    let mut taken = vec![0.0; f.names.len()];
     for (k, &i) in cols.iter().enumerate() {
         let step: f64 = -inv[k].iter().zip(&g).map(|(a, b)| a * b).sum::<f64>();
-        model.set(&f.names[i], (f.values[i] + step * scale[i]).clamp(bounds[i].lower, bounds[i].upper))?;
+        let value = (f.values[i] + step * scale[i]).clamp(bounds[i].lower, bounds[i].upper);
+        taken[i] = (value - f.values[i]) / scale[i];
+        model.set(&f.names[i], value)?;
     }
-    Ok(model)
+    let linear: f64 = z.iter().zip(&jz).map(|(zi, row)| (zi + row.iter().zip(&taken).map(|(j, t)| j * t).sum::<f64>()).powi(2)).sum();
+    Ok(Step { model, chi2_kept: z.iter().map(|zi| zi * zi).sum(), chi2_predicted: linear })
 }
 
 /// Where an unexplained misfit lies: the largest residuals and the observables worst fitted
