@@ -16,7 +16,8 @@ use super::engine::Engine;
 #[derive(Clone, Debug)]
 pub struct FitOptions {
     pub max_iterations: usize,
-    /// Stop when an accepted step lowers chi^2 by less than this fraction.
+    /// Stop when an accepted step lowers chi^2 by less than this fraction (or by less than
+    /// [`CHI2_NEGLIGIBLE`]).
     pub tolerance: f64,
     pub jobs: usize,
     /// Where each evaluation's experiments run (`engine.rs`): here, `jobs` at a time, or as a
@@ -61,6 +62,12 @@ pub struct Fit {
     #[serde(skip)]
     pub model: Model,
 }
+
+/// An accepted step that lowers chi^2 by less than this ends the fit: a parameter one standard
+/// deviation from the optimum raises chi^2 by 1, so such a step moves the parameters by less than
+/// a tenth of their uncertainty, and further iterations (a Jacobian each) change nothing a
+/// user reads.
+pub const CHI2_NEGLIGIBLE: f64 = 0.01;
 
 /// Sum of the squared standardised residuals of `values` against `data`.
 pub fn chi2(values: &[f64], data: &[Observation]) -> f64 {
@@ -150,6 +157,7 @@ pub fn calibrate(model: &Model, data: &[Observation], exps: &Experiments, names:
             let tc2 = chi2(&tv, data);
             if tc2.is_finite() && tc2 < c2 {
                 let gain = (c2 - tc2) / c2.max(1e-300);
+                let prev = c2;
                 theta = trial;
                 model = tm;
                 lambda = (lambda / 3.0).max(1e-9);
@@ -160,7 +168,7 @@ pub fn calibrate(model: &Model, data: &[Observation], exps: &Experiments, names:
                     eprintln!("step {}: chi^2 = {c2:.6e} (damping {lambda:.1e})", history.len() - 1);
                 }
                 accepted = true;
-                if gain < opts.tolerance {
+                if gain < opts.tolerance || prev - c2 < CHI2_NEGLIGIBLE {
                     converged = true;
                 }
                 break;
