@@ -101,11 +101,25 @@ pub struct Diagnosis {
     pub pattern: Vec<String>,
     /// The base fit's residual shapes (trend, curvature, step, together) against each covariate.
     pub shapes: Vec<super::residuals::Shape>,
+    /// Wall-clock seconds of each stage.
+    pub timing: Timing,
     #[serde(skip)]
     pub recommended_model: Option<Model>,
     /// The base model refitted (`fit`).
     #[serde(skip)]
     pub base_model: Model,
+}
+
+/// Where a diagnosis spends its time, in wall-clock seconds: the base fit, the score tests (one
+/// Jacobian in every absent effect's parameters), the likelihood-ratio fits, the candidates' fits
+/// and leave-one-out.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct Timing {
+    pub base_fit: f64,
+    pub score_tests: f64,
+    pub likelihood_ratio_fits: f64,
+    pub candidate_fits: f64,
+    pub leave_one_out: f64,
 }
 
 fn rms(chi2: f64, n: usize) -> f64 {
@@ -156,6 +170,14 @@ fn candidate(e: &dyn Effect, score: f64, dof: usize, p_value: f64, verdict: Stri
 
 pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[String], opts: &DiagnoseOptions) -> Result<Diagnosis, String> {
     let m = data.len();
+    let mut timing = Timing::default();
+    let clock = std::time::Instant::now();
+    let lap = |since: &mut std::time::Instant| {
+        let t = since.elapsed().as_secs_f64();
+        *since = std::time::Instant::now();
+        t
+    };
+    let mut since = clock;
     let base: Fit = if fit.is_empty() {
         let v = opts.fit.engine.sensitivity(opts.fit.jobs, model, data, exps, None)??.values;
         let c2 = chi2(&v, data);
@@ -164,6 +186,7 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
         calibrate(model, data, exps, fit, &opts.fit)?
     };
     let base_p_value = chi2_sf(base.chi2, m.saturating_sub(fit.len()).max(1));
+    timing.base_fit = lap(&mut since);
 
     // every absent effect that can act on these experiments at its null, differentiated at once
     let mut absent: Vec<&'static dyn Effect> = Vec::new();
@@ -251,9 +274,10 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
     // the likelihood ratio: the effect fitted from its start (a modulus: the base model's
     // stand-in for the null, where the model is the base model), with the fitted parameters from
     // the base fit's values (so a modulus's chi^2 starts at chi^2_base and the fit only lowers
-    // it) and from the model's own: the base fit may have gone where the effect has no gradient
-    // (a yield stress fitted so low that every reading is past yield, where G drops out), and
-    // the better of the two fits counts
+    // it), and, when that finds no significant drop, from the model's own: the base fit may have
+    // gone where the effect has no gradient (a yield stress fitted so low that every reading is
+    // past yield, where G drops out); the better of the two fits counts
+    timing.score_tests = lap(&mut since);
     let mut prefit: std::collections::BTreeMap<String, Fit> = Default::default();
     let base_keys = base.model.keys(&Covariates::default())?;
     for e in &unreachable {
@@ -261,6 +285,9 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
         let fnames = fit_names(fit, *e);
         let mut best: Option<Fit> = None;
         for from in if fit.is_empty() { vec![&base.model] } else { vec![&base.model, model] } {
+            if best.as_ref().is_some_and(|b| p_value(base.chi2 - b.chi2, e.params().len()) < opts.alpha) {
+                break;
+            }
             let mut with = from.with_effect(*e);
             for (n, v) in fnames[fit.len()..].iter().zip(&start) {
                 with.set(n, *v)?;
@@ -290,6 +317,7 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
         cands.push(c);
         prefit.insert(e.name().to_string(), f);
     }
+    timing.likelihood_ratio_fits = lap(&mut since);
     cands.sort_by(|a, b| b.score.total_cmp(&a.score).then(a.effect.cmp(&b.effect)));
     cands.extend(inapplicable);
     for (i, c) in cands.iter_mut().enumerate() {
@@ -313,10 +341,12 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
         fitted += 1;
         let effect = base.model.effect(&c.effect)?;
         let fnames = fit_names(fit, effect);
+        let _ = lap(&mut since);
         let f = match prefit.remove(&c.effect) {
             Some(f) => f,
             None => calibrate(&base.model.with_effect(effect), data, exps, &fnames, &opts.fit)?,
         };
+        timing.candidate_fits += lap(&mut since);
         c.record(&f, base.chi2, m);
         // a fit that moves the error by less than 1 % has not found anything
         let better = f.chi2 < 0.99 * base.chi2;
@@ -325,6 +355,7 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
                 base_loo = Some(leave_one_out(&base, data, exps, &ids, opts)?);
             }
             let loo = leave_one_out(&f, data, exps, &ids, opts)?;
+            timing.leave_one_out += lap(&mut since);
             c.loo_chi2_base = base_loo;
             c.loo_chi2 = Some(loo);
             c.recommended = better && loo < 0.9 * base_loo.expect("set");
@@ -377,6 +408,7 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
         base_rms_z: rms(base.chi2, m),
         base_p_value,
         base_values: base.names.iter().cloned().zip(base.values.iter().copied()).collect(),
+        timing,
         candidates: cands,
         recommended,
         verdict,
@@ -567,6 +599,8 @@ pub fn report(d: &Diagnosis) -> String {
     for p in &d.pattern {
         let _ = writeln!(s, "  {p}");
     }
+    let t = &d.timing;
+    let _ = writeln!(s, "\ntime: base fit {:.1} s, score tests {:.1} s, likelihood-ratio fits {:.1} s, candidates' fits {:.1} s, leave-one-out {:.1} s", t.base_fit, t.score_tests, t.likelihood_ratio_fits, t.candidate_fits, t.leave_one_out);
     s
 }
 
