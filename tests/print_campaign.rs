@@ -47,13 +47,14 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
-/// Synthesise data from `truth` with `truth_exps` (2 mm cells: finer than the model's 2.5 mm),
-/// keep the experiments whose id starts with one of `only`, then diagnose the base model against
-/// them with `exps` (and `extra` arguments); the diagnosis as JSON.
+/// Synthesise data from `truth` with `truth_exps` (2 mm cells: finer than the model's 3 mm), keep
+/// the experiments whose id starts with one of `only`, then diagnose the base model against them
+/// with `exps` (and `extra` arguments); the diagnosis as JSON.
 fn diagnose(truth: &str, truth_exps: &str, only: &[&str], exps: &str, extra: &[&str]) -> serde_json::Value {
     let d = campaign();
     let tmp = tempfile::tempdir().unwrap();
     let all = tmp.path().join("all.csv");
+    let t = std::time::Instant::now();
     let (code, _, err) = strand(&["synth", "--model", s(&d.join(truth)), "--experiments", s(&d.join(truth_exps)), "--noise", "0.01", "--seed", "7", "--out", s(&all), "--jobs", "2"]);
     assert_eq!(code, 0, "{err}");
     let text = std::fs::read_to_string(&all).unwrap();
@@ -66,7 +67,6 @@ fn diagnose(truth: &str, truth_exps: &str, only: &[&str], exps: &str, extra: &[&
         "diagnose", "--model", s(&base), "--data", s(&data), "--experiments", s(&exps),
         "--fit", "material.yield_stress,material.viscosity", "--json", "--jobs", "2", "--out", s(&out),
     ];
-    let t = std::time::Instant::now();
     let (code, json, err) = strand(&[&args[..], extra].concat());
     assert_eq!(code, 0, "{err}");
     let v: serde_json::Value = serde_json::from_str(&json).unwrap();
@@ -84,30 +84,15 @@ fn assert_found(v: &serde_json::Value, effect: &str) {
     assert!(ratio <= 0.3, "recalibrated error {ratio} of the base model's: {v:#}");
 }
 
-// The four hidden-effect tests below do not run in `make test`: measured on this campaign (2-core
-// machine, CPU seconds), each diagnosis needs hours where CI gives minutes, and at the resolution
-// such a campaign affords the discretisation error is as large as the effects:
-//
-// - cost: one gradient of one observable of a 2.5 mm line is 4.8 s of CPU (`strand grad
-//   line.toml --objective height@0.015`), 22 of them per Jacobian, some five Jacobians per
-//   calibration, and a diagnosis calibrates some twenty times (base fit, two likelihood-ratio
-//   starts for wall_friction, the candidate's fit, and a leave-one-out refit of the base and of
-//   the candidate per experiment): ~3 CPU-hours. The friction diagnosis had used 503 CPU-s
-//   (24 min on the shared machine) without finishing. Issue 26 item 4 (one reverse pass per
-//   experiment, Gauss-Newton leave-one-out) is what brings it within reach.
-// - discretisation: the null truth's own model at 2.5 mm against its 2 mm data (`strand compare
-//   --model truth_null.toml --data ... --experiments experiments.toml`): chi^2 = 3070 over 22
-//   observations, three of the four lines' area 12-15 % low (the fourth 4 % high)
-//   and every profile point 18-26 % low, much as a pump short of its flow would make them: without the discretisation error counted, the null truth would be
-//   blamed on extrusion_factor. With it (`experiments_resolved.toml`, which needs the
-//   `[resolution]` table of issue 26 item 3), the base model compares at chi^2 = 1.27 (null),
-//   1.49 (pump 7 % short) and 3.64 (build-up 400 Pa/s) over 22 observations: the null comes out
-//   explained, but the build-up and the pump lie within the first-order Richardson error of
-//   2.5 mm cells against 2 mm (five times their difference), so neither can be found or flagged;
-//   the friction truth (mu = 0.3) compares at chi^2 = 29.3 over 16.
+// The hidden-effect tests diagnose single lines (`line_*` of the campaign): 3 mm cells with J-bar
+// (4 per nozzle diameter) against data synthesised at 2 mm, with the discretisation error
+// counted (`experiments_resolved.toml`'s [resolution]). Measured with `strand compare --model
+// truth_null.toml --data (the null's data) --experiments experiments_resolved.toml`: the truth's
+// own material at 3 mm misses its 2 mm data by 12.7 % in width, 2.5 % in height, 0.85 % in area
+// and 9.3 % in the profile point, chi^2 = 1.53 over 22 with the error counted.
 
 #[test]
-#[ignore = "~3 CPU-hours a diagnosis (see above); needs issue 26 item 4"]
+#[ignore = "unfinished after 29 CPU-minutes a diagnosis on 2 cores, where CI holds a couple (docs/print_campaign.md)"]
 fn hidden_platform_friction_under_single_lines_is_found() {
     let v = diagnose("truth_friction.toml", "experiments_fine.toml", &["line_"], "experiments_resolved.toml", &["--max-fitted", "1"]);
     assert_found(&v, "wall_friction");
@@ -115,29 +100,37 @@ fn hidden_platform_friction_under_single_lines_is_found() {
 }
 
 #[test]
-#[ignore = "~3 CPU-hours a diagnosis; and the build-up lies within the discretisation error of 2.5 mm cells (chi^2 3.64 over 22 with it counted, before any fit): expected to fail, not run to its end"]
-fn hidden_build_up_is_found_from_how_the_first_layer_settles() {
-    let v = diagnose("truth_thixotropy.toml", "experiments_fine.toml", &["wall_", "line_"], "experiments_resolved.toml", &["--max-fitted", "1"]);
-    assert_found(&v, "thixotropy");
-}
-
-#[test]
-#[ignore = "~3 CPU-hours a diagnosis; needs [resolution] (issue 26 item 3): without it the discretisation error is pinned on an effect"]
+#[ignore = "unfinished after 29 CPU-minutes a diagnosis on 2 cores, where CI holds a couple (docs/print_campaign.md)"]
 fn a_truth_without_effects_flags_nothing() {
-    let v = diagnose("truth_null.toml", "experiments_fine.toml", &["wall_", "line_"], "experiments_resolved.toml", &["--max-fitted", "1"]);
+    let v = diagnose("truth_null.toml", "experiments_fine.toml", &["line_"], "experiments_resolved.toml", &["--max-fitted", "1"]);
     assert_eq!(v["verdict"], "explained", "{v:#}");
     assert!(v["candidates"].as_array().unwrap().iter().all(|c| c["recommended"] == false), "{v:#}");
 }
 
 #[test]
-#[ignore = "~3 CPU-hours a diagnosis; and the 7 % pump lies within the discretisation error of 2.5 mm cells (chi^2 1.49 over 22 with it counted, before any fit): expected 'explained', which this test refuses; not run to its end"]
+#[ignore = "unfinished after 29 CPU-minutes a diagnosis on 2 cores, where CI holds a couple (docs/print_campaign.md)"]
 fn a_pump_short_of_its_flow_is_not_pinned_on_a_material_effect() {
-    let v = diagnose("truth_null.toml", "experiments_fine_pump.toml", &["wall_", "line_"], "experiments_resolved.toml", &["--max-fitted", "1"]);
+    // the pump's 7 % shows in the area, which no material parameter moves (mass balance)
+    let v = diagnose("truth_null.toml", "experiments_fine_pump.toml", &["line_"], "experiments_resolved.toml", &["--max-fitted", "1"]);
     let verdict = v["verdict"].as_str().unwrap();
     assert!(verdict == "unexplained" || verdict == "add extrusion_factor", "{v:#}");
     if verdict == "add extrusion_factor" {
-        assert_found(&v, "extrusion_factor");
+        assert_eq!(v["candidates"][0]["effect"], "extrusion_factor", "{v:#}");
         let f = v["candidates"][0]["fitted"].as_array().unwrap().iter().find(|p| p[0] == "extrusion_factor.factor").unwrap()[1].as_f64().unwrap();
         assert!((f / 0.93 - 1.0).abs() < 0.03, "factor {f} against the truth's 0.93");
     }
+}
+
+#[test]
+#[ignore = "not finished in 29 CPU-minutes a diagnosis (docs/print_campaign.md); not run to its end"]
+fn hidden_build_up_is_found_from_lines_and_walls() {
+    // In two-layer walls of this geometry the first layer does not settle under the second: at 3
+    // mm cells, 60 Pa and no build-up, its height is 6.51 mm at layer times 0.1, 0.6 and 1.5 s
+    // (a flat layer holds with a small yield stress). So the build-up shows in how stiff the
+    // material has grown during the print (the base model against the truth's data: chi^2 96.9
+    // over 22, against 9.5 for the null truth), not in settlement between layer times; a
+    // settlement campaign needs walls tall enough to load the bottom near its yield stress,
+    // which is the failure campaign of issue 31.
+    let v = diagnose("truth_thixotropy.toml", "experiments_fine.toml", &["wall_", "line_"], "experiments_resolved.toml", &["--max-fitted", "1"]);
+    assert_found(&v, "thixotropy");
 }
