@@ -63,7 +63,8 @@ pub fn has_adjoint(o: &Observable) -> bool {
 
 /// The relative step of [`differenced`]: a tenth of the parameter. A failure layer moves by
 /// whole layers, so the step must move the failure by a good part of a layer to be seen at all:
-/// a tenth of the yield stress moves a failure at layer 5 by about half a layer.
+/// a tenth of the yield stress moves a failure at layer 5 by about half a layer. A parameter at
+/// 0 (an effect at its null) steps by its scale, the typical magnitude a fit moves it by.
 pub const DIFFERENCE_STEP: f64 = 0.1;
 
 fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>) -> Result<Vec<Valued>, String> {
@@ -86,7 +87,7 @@ fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obser
 
 /// Values of `wanted` from a forward run ([`compare::evaluate`](super::compare::evaluate)) and,
 /// with `names`, their gradients by central differences of forward runs: parameter p moved to
-/// p +- h, h = [`DIFFERENCE_STEP`] |p| (its scale, a typical magnitude, where p = 0), the
+/// p +- h, h = [`DIFFERENCE_STEP`] |p| (its scale where p = 0), the
 /// difference one-sided where p - h or p + h leaves the parameter's bounds (an effect at its
 /// null on its lower bound). A parameter that leaves this experiment's scenario keys as they are
 /// has a zero column without a run.
@@ -98,7 +99,7 @@ fn differenced(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obse
     let mut rows = vec![vec![0.0; names.len()]; wanted.len()];
     for (j, name) in names.iter().enumerate() {
         let (p, b) = (model.get(name)?, model.bounds(name)?);
-        let h = DIFFERENCE_STEP * if p != 0.0 { p.abs() } else { b.scale };
+        let h = if p != 0.0 { DIFFERENCE_STEP * p.abs() } else { b.scale };
         let (lo, hi) = ((p - h).max(b.lower), (p + h).min(b.upper));
         let moved = |v: f64| -> Result<Option<Model>, String> {
             let mut m = model.clone();
