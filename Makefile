@@ -71,11 +71,11 @@ bench-layers-dwell: build
 	python3 bench/layer_cost.py --pause 20 $(OUT)/ten_layers_dwell
 
 # Printing to failure: the wall of fixtures/scenarios/print/wall_to_failure.toml at three build
-# rates, with its failure layers against the closed-form plastic-collapse criterion, and at the
-# fastest rate side by side with the old sleeping default (the speed rule) and all awake
-# (BENCHMARKS.md "Printing to failure"; five single-thread runs at once).
+# rates, its failure and yield-onset layers against the closed-form plastic-collapse criterion
+# (BENCHMARKS.md "Printing to failure"; three single-thread runs at once, about 25 CPU minutes;
+# add --side-by-side for the fastest rate with the speed rule and all awake too).
 bench-failure: build
-	python3 bench/failure_heights.py --strand $(STRAND) --out $(OUT)/failure --side-by-side
+	python3 bench/failure_heights.py --strand $(STRAND) --out $(OUT)/failure --layers 14
 
 # Case 1's section at five cell sizes (5 to 2 mm, 5 to 12.5 cells per nozzle diameter), its
 # observed order of convergence and Richardson extrapolation (BENCHMARKS.md "Discretisation

@@ -9,12 +9,14 @@ rests `--pause` seconds after each 100 mm layer (the build rate is one 12.5 mm l
         [--stop-after S] > scenario.toml
 """
 import argparse
+import math
 import sys
 
 LENGTH, SPEED, LAYER, RISE = 0.1, 0.030, 0.0125, 0.05
-# The fresh mortar's yield stress [Pa] (paper 000's case-1 material has 630 Pa; 400 Pa lets the
-# wall fail within about ten layers at the rates of `make bench-failure`).
-TAU0 = 400.0
+# The fresh mortar's yield stress [Pa]: paper 000's case-1 material (the wall fails in its 7th to
+# 12th layer at the rates of `make bench-failure`, so one layer is under 15 % of the height).
+TAU0 = 630.0
+DX = 0.005
 
 
 def layer_time(pause):
@@ -32,7 +34,7 @@ def scenario(pause, layers, a_thix, sleep="default", stop_after=None, tau0=TAU0)
         if k + 1 < layers:
             path.append(f'  {{ kind = "layer", dz = {LAYER}, speed = {RISE} }},')
     end = layers * layer_time(pause) - LAYER / RISE
-    top = LAYER * (layers + 3)
+    top = math.ceil(LAYER * (layers + 3) / DX - 1e-9) * DX
     out = f"""# A straight wall of a mortar that structures at rest (Roussel/Perrot linear build-up:
 # tau0(t) = tau0,0 + A_thix t), printed layer after layer until it fails by plastic collapse.
 # Paper 000's case-1 process (25 mm nozzle, 12.5 mm layers, 30 mm/s) at 5 mm cells on half the
@@ -42,7 +44,7 @@ def scenario(pause, layers, a_thix, sleep="default", stop_after=None, tau0=TAU0)
 name = "print-wall-to-failure"
 
 [simulation]
-dx = 0.005
+dx = {DX}
 end_time = {end:.3f}
 cfl = 0.3
 gravity = [0.0, 0.0, -9.81]

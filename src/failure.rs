@@ -210,6 +210,36 @@ impl Detector {
     }
 }
 
+/// The measurement loop's observables of a print's failure (`experiment,observable,at,value`
+/// rows `P1,failure_layer,,7` and `P1,failure_time,,25.3`), taken from a forward run of the
+/// experiment's scenario as `strand run` observes it (`report::failure_of`). They are piecewise
+/// constant in the parameters (the layer a whole number, the time mostly a layer's deposit plus
+/// a delay resolved to the output interval), so no adjoint gives their gradients: the
+/// measurement loop differences forward runs (`measure/sensitivity.rs`).
+pub const OBSERVABLES: &[&str] = &["failure_layer", "failure_time"];
+
+/// Whether `name@at` is a failure observable written as one: none takes a coordinate.
+pub fn check_observable(name: &str, at: Option<f64>) -> Result<(), String> {
+    match at {
+        Some(_) => Err(format!("'{name}' takes no '@' (the print's failure is the first at any station)")),
+        None => Ok(()),
+    }
+}
+
+/// The value of failure observable `name` for a run that failed with `failure`, or stood: a
+/// print of `layers` layers that stands to its end `end` counts as failing after its last layer
+/// (`failure_layer` = layers + 1, `failure_time` = end), so a model under which it stands is
+/// still compared, with the smallest miss it can have.
+pub fn observable(name: &str, failure: Option<&Failure>, layers: usize, end: f64) -> Result<f64, String> {
+    match (name, failure) {
+        ("failure_layer", Some(f)) => Ok(f.layer as f64),
+        ("failure_layer", None) => Ok(layers as f64 + 1.0),
+        ("failure_time", Some(f)) => Ok(f.time),
+        ("failure_time", None) => Ok(end),
+        (other, _) => Err(format!("'{other}' is not a failure observable ({})", OBSERVABLES.join(", "))),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -88,6 +88,31 @@ pub struct Reporter {
     pub failure: Option<Failure>,
 }
 
+/// The failure of the print `sc`, as `strand run` finds it, without writing anything: the run
+/// observed at every output (`[output] interval`) until the failure shows or the run ends. With
+/// the number of layers printed. The measurement loop's failure observables
+/// (`failure::observable`).
+pub fn failure_of(sc: &Scenario) -> Result<(Option<Failure>, usize), String> {
+    let mut sim = Simulation::new(sc).map_err(|e| e.to_string())?;
+    let layers = sim.printer.as_ref().map_or(0, |p| p.toolpath.layers().len());
+    let mut r = match Reporter::new(sc, &sim)? {
+        Some(r) if r.detector.is_some() => r,
+        _ => return Err(format!("a failure needs a print of two or more layers and [observe] stations (this one has {layers} layers)")),
+    };
+    let (end, interval) = (sc.simulation.end_time, sc.output.interval);
+    r.observe(&sim);
+    let mut k = 0u64;
+    while r.failure.is_none() && sim.time < end * (1.0 - 1e-12) {
+        k += 1;
+        let next = (k as f64 * interval).min(end);
+        while sim.time < next * (1.0 - 1e-12) {
+            sim.step_until(next).map_err(|e| e.to_string())?;
+        }
+        r.observe(&sim);
+    }
+    Ok((r.failure, layers))
+}
+
 impl Reporter {
     /// None when the scenario observes nothing.
     pub fn new(sc: &Scenario, sim: &Simulation) -> Result<Option<Reporter>, String> {

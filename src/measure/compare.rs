@@ -133,15 +133,25 @@ fn simulate(model: &Model, keys: &Keys, scenario: &Path, wanted: &[Observable], 
         sc.simulation.threads = t;
     }
     let end = sc.simulation.end_time;
-    let plan: Vec<(f64, Objective)> = wanted.iter().map(|o| observable_plan(o, end)).collect::<Result<_, _>>()?;
-    let mut order: Vec<usize> = (0..plan.len()).collect();
-    order.sort_by(|&a, &b| plan[a].0.total_cmp(&plan[b].0));
+    let mut values = vec![0.0; wanted.len()];
+    // a print's failure layer and time: one run to the failure, observed as `strand run` does
+    let failing: Vec<usize> = (0..wanted.len()).filter(|&k| crate::failure::OBSERVABLES.contains(&wanted[k].name.as_str())).collect();
+    if !failing.is_empty() {
+        let (failure, layers) = crate::report::failure_of(&sc)?;
+        for &k in &failing {
+            values[k] = crate::failure::observable(&wanted[k].name, failure.as_ref(), layers, end)?;
+        }
+    }
+    let rest: Vec<usize> = (0..wanted.len()).filter(|k| !failing.contains(k)).collect();
+    if rest.is_empty() {
+        return Ok(values);
+    }
+    let mut plan: Vec<(usize, f64, Objective)> = rest.iter().map(|&k| observable_plan(&wanted[k], end).map(|(t, o)| (k, t, o))).collect::<Result<_, _>>()?;
+    plan.sort_by(|a, b| a.1.total_cmp(&b.1));
     let mut sim = Simulation::new(&sc).map_err(|e| e.to_string())?;
-    let mut values = vec![0.0; plan.len()];
-    for k in order {
-        let (t, obj) = &plan[k];
-        while sim.time < *t * (1.0 - 1e-12) {
-            sim.step_until(*t).map_err(|e| e.to_string())?;
+    for (k, t, obj) in plan {
+        while sim.time < t * (1.0 - 1e-12) {
+            sim.step_until(t).map_err(|e| e.to_string())?;
         }
         values[k] = obj.evaluate(&sim, &Frame::of(&sim), None)?;
     }

@@ -14,7 +14,8 @@
 //! Three printed-geometry observables take a second coordinate after a colon, `X:Y` in the `at`
 //! column as in `name@X:Y`: `profile` the lateral position y [m] of a point of the section's top
 //! outline (`profile@0.075:0.01`), `layer_height` and `layer_width` the layer, 1 = the bottom one
-//! (`layer_height@0.075:2`). The experiments file
+//! (`layer_height@0.075:2`). `failure_layer` and `failure_time` take no `at`: the layer and time
+//! at which a print fails (`failure.rs`). The experiments file
 //! (TOML) maps each id to what produced it: a scenario with per-experiment overrides (rest time,
 //! speeds, geometry: any scenario key), or a virtual-rheometer protocol, and lists what it observes
 //! (what `strand synth` produces):
@@ -58,7 +59,7 @@ pub struct Observable {
 }
 
 /// Observables a simulation experiment can produce, and those of a rheometer experiment.
-pub const SIMULATION_OBSERVABLES: &[&str] = &["spread", "front", "width", "height", "area", "profile", "layer_height", "layer_width", "vx_max", "kinetic_energy", "mean_z"];
+pub const SIMULATION_OBSERVABLES: &[&str] = &["spread", "front", "width", "height", "area", "profile", "layer_height", "layer_width", "vx_max", "kinetic_energy", "mean_z", "failure_layer", "failure_time"];
 pub const RHEOMETER_OBSERVABLES: &[&str] = &["stress"];
 
 /// `X` or `X:Y`, finite numbers, as the `at` of an observable; the error says what is wrong.
@@ -290,7 +291,13 @@ impl Experiments {
                     return Err(format!("experiment '{}': cannot observe '{}'; it can observe {}", x.id, ob.name, names.join(", ")));
                 }
                 // the coordinates each takes (the time of one taken during the run is checked when it runs)
-                let checked = if x.scenario.is_some() { super::compare::observable_plan(&ob, f64::INFINITY).map(|_| ()) } else { super::compare::reading_rate(&ob).map(|_| ()) };
+                let checked = if crate::failure::OBSERVABLES.contains(&ob.name.as_str()) {
+                    crate::failure::check_observable(&ob.name, ob.at)
+                } else if x.scenario.is_some() {
+                    super::compare::observable_plan(&ob, f64::INFINITY).map(|_| ())
+                } else {
+                    super::compare::reading_rate(&ob).map(|_| ())
+                };
                 checked.map_err(|e| format!("experiment '{}': observe {e}", x.id))?;
             }
             for (what, v) in [("rest_time", x.rest_time), ("age", x.age)] {

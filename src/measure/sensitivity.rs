@@ -4,6 +4,10 @@
 //! adjoint each: `strand grad`'s driver), the rheometer's for a rheometer test, then the model's
 //! effects backwards ([`Model::keys_adjoint`]).
 //!
+//! An observable without an adjoint (a print's failure layer and time: piecewise constant in the
+//! parameters, see `failure.rs`) gets its values from forward runs as `strand compare` runs them,
+//! and its Jacobian columns by central differences of forward runs ([`differenced`]).
+//!
 //! Simulations here run the way a gradient run does (fixed step, every particle awake, one sort
 //! by block up front), values and gradients alike, so a fit compares like with like; their values
 //! can differ from `strand compare`'s in the last bits. An observation at an earlier time is taken
@@ -52,7 +56,70 @@ pub fn assemble(data: &[Observation], wanted: &[(String, Vec<Observable>)], per:
 /// An observation's value and, when asked, its gradient.
 pub type Valued = (f64, Option<Vec<f64>>);
 
+/// Whether an observable's gradient comes from an adjoint; the others are differenced.
+pub fn has_adjoint(o: &Observable) -> bool {
+    !crate::failure::OBSERVABLES.contains(&o.name.as_str())
+}
+
+/// The relative step of [`differenced`]: a tenth of the parameter. A failure layer moves by
+/// whole layers, so the step must move the failure by a good part of a layer to be seen at all:
+/// a tenth of the yield stress moves a failure at layer 5 by about half a layer. A parameter at
+/// 0 (an effect at its null) steps by its scale, the typical magnitude a fit moves it by.
+pub const DIFFERENCE_STEP: f64 = 0.1;
+
 fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>) -> Result<Vec<Valued>, String> {
+    let (adjoint, other): (Vec<usize>, Vec<usize>) = (0..wanted.len()).partition(|&k| has_adjoint(&wanted[k]));
+    if other.is_empty() {
+        return by_adjoint(model, exps, x, wanted, names, threads);
+    }
+    let pick = |ks: &[usize]| ks.iter().map(|&k| wanted[k].clone()).collect::<Vec<_>>();
+    let mut out: Vec<Option<Valued>> = vec![None; wanted.len()];
+    for (&k, v) in other.iter().zip(differenced(model, exps, x, &pick(&other), names, threads)?) {
+        out[k] = Some(v);
+    }
+    if !adjoint.is_empty() {
+        for (&k, v) in adjoint.iter().zip(by_adjoint(model, exps, x, &pick(&adjoint), names, threads)?) {
+            out[k] = Some(v);
+        }
+    }
+    Ok(out.into_iter().map(|v| v.expect("every observation valued")).collect())
+}
+
+/// Values of `wanted` from a forward run ([`compare::evaluate`](super::compare::evaluate)) and,
+/// with `names`, their gradients by central differences of forward runs: parameter p moved to
+/// p +- h, h = [`DIFFERENCE_STEP`] |p| (its scale where p = 0), the
+/// difference one-sided where p - h or p + h leaves the parameter's bounds (an effect at its
+/// null on its lower bound). A parameter that leaves this experiment's scenario keys as they are
+/// has a zero column without a run.
+fn differenced(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>) -> Result<Vec<Valued>, String> {
+    let run = |m: &Model| super::compare::evaluate(m, exps, x, wanted, threads);
+    let values = run(model)?;
+    let Some(names) = names else { return Ok(values.into_iter().map(|v| (v, None)).collect()) };
+    let keys = experiment_keys(model, x)?;
+    let mut rows = vec![vec![0.0; names.len()]; wanted.len()];
+    for (j, name) in names.iter().enumerate() {
+        let (p, b) = (model.get(name)?, model.bounds(name)?);
+        let h = if p != 0.0 { DIFFERENCE_STEP * p.abs() } else { b.scale };
+        let (lo, hi) = ((p - h).max(b.lower), (p + h).min(b.upper));
+        let moved = |v: f64| -> Result<Option<Model>, String> {
+            let mut m = model.clone();
+            m.set(name, v)?;
+            Ok((v != p && experiment_keys(&m, x)? != keys).then_some(m))
+        };
+        let (m_lo, m_hi) = (moved(lo)?, moved(hi)?);
+        if m_lo.is_none() && m_hi.is_none() {
+            continue;
+        }
+        let side = |m: Option<Model>| m.map_or(Ok(values.clone()), |m| run(&m));
+        let (v_lo, v_hi) = (side(m_lo)?, side(m_hi)?);
+        for (row, (a, b)) in rows.iter_mut().zip(v_lo.iter().zip(&v_hi)) {
+            row[j] = (b - a) / (hi - lo);
+        }
+    }
+    Ok(values.into_iter().zip(rows).map(|(v, g)| (v, Some(g))).collect())
+}
+
+fn by_adjoint(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>) -> Result<Vec<Valued>, String> {
     let keys = experiment_keys(model, x)?;
     // an override cuts the key from the model
     let chain = |mut keys_bar: Keys| -> Result<Vec<f64>, String> {
@@ -128,5 +195,46 @@ fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obser
                 .collect()
         }
         (None, None) => Err("neither scenario nor protocol".into()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const MODEL: &str = "[material]\nkind = \"bingham\"\ndensity = 2100.0\nbulk_modulus = 1e6\nviscosity = 7.5\nyield_stress = 630.0\n[effects.ageing]\nrate = 0.0\n";
+    const EXPS: &str = "[[experiment]]\nid = \"flow\"\nobserve = [\"stress@20\", \"stress@5\"]\n[experiment.protocol]\n[[experiment.protocol.phase]]\nkind = \"sweep\"\nrates = [20.0, 5.0]\nhold = 0.5\n";
+
+    /// The differenced Jacobian is the adjoint's where the observable is linear in the
+    /// parameters (a Bingham flow curve: tau0 + eta rate); a parameter that leaves the
+    /// experiment's keys unchanged (ageing at age 0) has a zero column; an effect at its null on
+    /// its lower bound is differenced one-sided.
+    #[test]
+    fn differences_agree_with_the_adjoint_on_a_linear_observable() {
+        let m = Model::from_table(&MODEL.parse().unwrap()).unwrap();
+        let e: Experiments = toml::from_str(EXPS).unwrap();
+        e.validate().unwrap();
+        let x = find(&e, "flow").unwrap();
+        let wanted = [Observable::parse("stress@20").unwrap(), Observable::parse("stress@5").unwrap()];
+        let names: Vec<String> = ["material.yield_stress", "material.viscosity", "ageing.rate"].map(String::from).to_vec();
+        let fd = differenced(&m, &e, x, &wanted, Some(&names), None).unwrap();
+        let adj = by_adjoint(&m, &e, x, &wanted, Some(&names), None).unwrap();
+        for ((v, g), (va, ga)) in fd.iter().zip(&adj) {
+            assert!((v - va).abs() <= 1e-9 * va.abs(), "{v} against {va}");
+            let (g, ga) = (g.as_ref().unwrap(), ga.as_ref().unwrap());
+            for (a, b) in g.iter().zip(ga) {
+                assert!((a - b).abs() <= 1e-6 * b.abs().max(1.0), "{g:?} against the adjoint's {ga:?}");
+            }
+            assert_eq!(g[2], 0.0);
+        }
+        // at age 100 s ageing moves the yield stress: d stress / d rate = tau0 age, one-sided
+        let aged: Experiments = toml::from_str(&EXPS.replace("observe = ", "age = 100.0\nobserve = ")).unwrap();
+        let x = find(&aged, "flow").unwrap();
+        let fd = differenced(&m, &aged, x, &wanted, Some(&names), None).unwrap();
+        let adj = by_adjoint(&m, &aged, x, &wanted, Some(&names), None).unwrap();
+        for ((_, g), (_, ga)) in fd.iter().zip(&adj) {
+            let (g, ga) = (g.as_ref().unwrap(), ga.as_ref().unwrap());
+            assert!((g[2] / (630.0 * 100.0) - 1.0).abs() < 1e-6 && (g[2] / ga[2] - 1.0).abs() < 1e-6, "{g:?} against the adjoint's {ga:?}");
+        }
     }
 }
