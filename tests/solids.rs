@@ -2,6 +2,8 @@
 //! load, a block slides down an inclined wall at the Coulomb acceleration, a gate holds material
 //! until it opens, and bad input names its key.
 
+mod common;
+
 use strand::scenario::Scenario;
 use strand::solver::Simulation;
 
@@ -204,39 +206,11 @@ max_particles = 4000
 /// A gate holds a dam until it opens; then the dam breaks through.
 #[test]
 fn a_gate_holds_material_until_it_opens() {
-    let text = |open: &str| {
-        format!(
-            r#"
-[simulation]
-dx = 0.02
-end_time = 0.4
-threads = 2
-[domain]
-min = [0.0, 0.0, 0.0]
-max = [0.6, 0.16, 0.4]
-periodic = [false, true, false]
-[material]
-kind = "newtonian"
-density = 1000.0
-bulk_modulus = 2.0e5
-viscosity = 1.0
-[[body]]
-shape = "box"
-min = [0.0, 0.0, 0.0]
-max = [0.2, 0.16, 0.3]
-[[solid]]
-name = "gate"
-shape = "box"
-min = [0.2, -1.0, -1.0]
-max = [0.24, 1.0, 1.0]
-{open}
-[memory]
-budget = "64 MiB"
-"#
-        )
-    };
+    // the dam break of the other tests, its dam (x < 0.2 m) held by a gate
+    let gate = "[[solid]]\nname = \"gate\"\nshape = \"box\"\nmin = [0.2, -1.0, -1.0]\nmax = [0.24, 1.0, 1.0]\nopen_at = 0.2\n[memory]";
+    let text = common::dam_break(2, "64 MiB", "").replace("[memory]", gate);
     let front = |sim: &Simulation| (0..sim.particles.n).map(|i| sim.position(i)[0]).fold(0.0, f64::max);
-    let mut sim = Simulation::new(&Scenario::parse(&text("open_at = 0.2")).unwrap()).unwrap();
+    let mut sim = Simulation::new(&Scenario::parse(&text).unwrap()).unwrap();
     run_to(&mut sim, 0.19);
     let held = front(&sim);
     assert!(held < 0.2 + 0.01, "the closed gate let material through: front at {held} m");
@@ -251,31 +225,7 @@ budget = "64 MiB"
 /// Bad `[[solid]]` input is an error naming the key.
 #[test]
 fn bad_solids_name_the_key() {
-    let base = |solid: &str| {
-        format!(
-            r#"
-[simulation]
-dx = 0.02
-end_time = 0.1
-[domain]
-min = [0.0, 0.0, 0.0]
-max = [0.2, 0.2, 0.2]
-[material]
-kind = "newtonian"
-density = 1000.0
-bulk_modulus = 2.0e5
-viscosity = 1.0
-[[body]]
-shape = "box"
-min = [0.0, 0.0, 0.0]
-max = [0.1, 0.1, 0.1]
-[[solid]]
-{solid}
-[memory]
-budget = "64 MiB"
-"#
-        )
-    };
+    let base = |solid: &str| common::dam_break(1, "64 MiB", "").replace("[memory]", &format!("[[solid]]\n{solid}\n[memory]"));
     for (solid, key) in [
         ("shape = \"cylinder\"\nfrom = [0.0, 0.0, 0.0]\nto = [0.1, 0.0, 0.0]\nradius = -0.01", "solid[0].radius"),
         ("shape = \"cylinder\"\nfrom = [0.0, 0.0, 0.0]\nto = [0.1, 0.0, 0.0]\nraduis = 0.01", "raduis"),
