@@ -5,7 +5,7 @@ OUT ?= out
 TARGET_DIR := $(if $(CARGO_TARGET_DIR),$(CARGO_TARGET_DIR),target)
 STRAND := $(TARGET_DIR)/release/strand
 
-.PHONY: run test fuzz verify verify-quick bench bench-peer bench-restart bench-kernels bench-case1 bench-layers bench-layers-dwell bench-failure bench-convergence bench-nozzle-cells build fmt clippy clean
+.PHONY: run test fuzz verify verify-quick bench bench-peer bench-restart bench-kernels bench-case1 bench-layers bench-layers-dwell bench-failure bench-convergence bench-nozzle-cells bench-nozzle-body lbox build fmt clippy clean
 
 build:
 	$(CARGO) build --release
@@ -91,6 +91,19 @@ bench-convergence: build
 bench-nozzle-cells: build
 	python3 bench/nozzle_cells.py --out $(OUT)/nozzle_cells 3 4 5 6 8
 	python3 bench/nozzle_cells.py --as-fitted --out $(OUT)/nozzle_cells_fitted 4 5 6 8
+
+# Paper 000's cases 1-5 at 5 and 2.5 mm cells, each without and with the nozzle's body (a 35 mm
+# outer diameter, flat end at the outlet; docs/solids.md): width, height and area at x = 100 mm
+# (one thread per run; estimated at about 40 CPU minutes from the cases' single runs). A run
+# already in $(OUT)/nozzle_body is not repeated.
+bench-nozzle-body: build
+	python3 bench/nozzle_body.py --out $(OUT)/nozzle_body 5 2.5
+
+# Paper 001's L-box (Sec. 4.2), Mix-A and Mix-B after no rest, at 10 mm cells (96,000 particles;
+# about 46,000 and 132,000 steps).
+lbox: build
+	$(STRAND) run fixtures/scenarios/lbox/lbox_mix_a.toml --out $(OUT)/lbox_mix_a
+	$(STRAND) run fixtures/scenarios/lbox/lbox_mix_b.toml --out $(OUT)/lbox_mix_b
 
 clippy:
 	$(CARGO) clippy --workspace --all-targets

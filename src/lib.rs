@@ -28,6 +28,8 @@ pub mod print;
 pub mod run;
 pub mod scenario;
 pub mod solver;
+// solid bodies (issue 30)
+pub mod solid;
 pub mod threads;
 pub mod verify;
 pub mod sleep;

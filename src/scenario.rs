@@ -19,6 +19,9 @@ pub struct Scenario {
     pub material: toml::Table,
     #[serde(default, rename = "body")]
     pub bodies: Vec<Body>,
+    /// Solid bodies inside the domain (`[[solid]]`, `src/solid/`; issue 30 hook).
+    #[serde(default, rename = "solid")]
+    pub solids: Vec<crate::solid::SolidConfig>,
     #[serde(default)]
     pub output: Output,
     pub memory: Memory,
@@ -474,6 +477,8 @@ impl Scenario {
         if let Some(p) = &self.print {
             p.validate().map_err(ScenarioError::Invalid)?;
         }
+        // solids hook (issue 30)
+        crate::solid::validate(&self.solids, self.print.is_some()).map_err(ScenarioError::Invalid)?;
         if let Some(z) = &self.sleep {
             z.validate().map_err(ScenarioError::Invalid)?;
         }

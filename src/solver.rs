@@ -151,6 +151,8 @@ pub struct Simulation {
     /// Keep the pool order fixed (no reordering by block): the gradient driver indexes its
     /// adjoint arrays by pool position, which must then mean the same particle in every step.
     pub frozen_order: bool,
+    /// Solid bodies inside the domain (`src/solid/`; issue 30 hook), None without `[[solid]]`.
+    pub solids: Option<crate::solid::Solids>,
 }
 
 fn checkpoint_staging_bytes(sc: &Scenario, cap: usize, state_len: usize, max_blocks: usize, table_len: usize) -> usize {
@@ -209,6 +211,7 @@ impl Simulation {
         Particles::plan(&mut memory, cap, state_len);
         Grid::plan(&mut memory, &geom, max_blocks);
         Scratch::plan(&mut memory, cap, max_blocks, state_len);
+        crate::solid::Solids::plan(&mut memory, scenario.solids.len(), max_blocks); // solids hook (issue 30)
         if let Some(cfg) = &scenario.sleep {
             Sleep::plan(&mut memory, cfg, &geom, max_blocks, cap, scenario.simulation.gravity);
         }
@@ -234,6 +237,13 @@ impl Simulation {
             Some(cfg) => Some(Sleep::new(cfg.clone(), &grid.geom, max_blocks, cap, scenario.simulation.gravity, &backing)?),
             None => None,
         };
+
+        // solids hook (issue 30)
+        let nozzle = printer.as_ref().and_then(|p| match p.shape {
+            crate::print::nozzle::NozzleShape::Circle { diameter } => Some((diameter, p.tube_height)),
+            _ => None,
+        });
+        let solids = crate::solid::Solids::new(&scenario.solids, scenario.simulation.dx, nozzle, max_blocks, &backing).map_err(SimError::Setup)?;
 
         let threads = match scenario.simulation.threads {
             0 => std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1),
@@ -281,6 +291,7 @@ impl Simulation {
             sleep,
             awake_particle_steps: 0,
             frozen_order: false,
+            solids,
         };
         if let Some(p) = &mut sim.printer {
             p.start(scenario.print.as_ref().map_or(64, |c| c.queue), 0);
@@ -633,6 +644,15 @@ impl Simulation {
         let table = self.grid.table.as_slice();
         let threads = self.team.threads();
         let drive_box = drive.map(|d| d.bounds());
+        // solids hook (issue 30): placements now, and a reaction slot per block and solid
+        let toolpath = self.printer.as_ref().map(|p| &*p.toolpath);
+        let (solids, solid_reactions) = match self.solids.as_mut() {
+            Some(z) => {
+                let (at, r) = z.for_grid_update(self.time, toolpath);
+                (Some(at), Some(SharedSlice::new(r)))
+            }
+            None => (None, None),
+        };
         // reactions only for the load test: the speed rule needs just the holds
         let (holds, reactions) = match self.sleep.as_mut() {
             Some(z) => {
@@ -655,6 +675,14 @@ impl Simulation {
                     (Some(r), Some(_)) => Some(unsafe { r.slice_mut(s * NODES_PER_BLOCK..(s + 1) * NODES_PER_BLOCK) }),
                     _ => None,
                 };
+                // solids hook (issue 30)
+                let solid_mask = solids.as_ref().map_or(0, |z| z.block_mask(geom, b));
+                let n_solids = solids.as_ref().map_or(0, |z| z.len());
+                // SAFETY: as for the nodes
+                let mut solid_react = solid_reactions.as_ref().map(|r| unsafe { r.slice_mut(s * n_solids..(s + 1) * n_solids) });
+                if let Some(r) = solid_react.as_deref_mut() {
+                    r.fill([0.0; 3]);
+                }
                 for (li, node) in blk.iter_mut().enumerate() {
                     if let Some(h) = held.as_mut() {
                         h[li] = [0.0; 3];
@@ -678,6 +706,9 @@ impl Simulation {
                         v = apply_drive(geom, drive, g, v);
                     }
                     v = apply_walls(geom, walls, g, v);
+                    if let (Some(z), Some(r)) = (solids.as_ref().filter(|_| solid_mask != 0), solid_react.as_deref_mut()) {
+                        v = z.apply(solid_mask, geom.node_position(g), m, v, r); // solids hook (issue 30)
+                    }
                     *node = [m, v.x, v.y, v.z, old.x, old.y, old.z];
                 }
             }
@@ -701,6 +732,9 @@ impl Simulation {
                 }
             }
         });
+        if let Some(z) = self.solids.as_mut() {
+            z.total_forces(na, dt as f64); // solids hook (issue 30)
+        }
     }
 
     pub(crate) fn g2p(&mut self, dt: Real) {

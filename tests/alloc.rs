@@ -44,10 +44,16 @@ fn a_step_allocates_nothing() {
     COUNTING.store(false, Ordering::SeqCst);
     assert!(ALLOCS.load(Ordering::SeqCst) >= 1 && v.len() == 3);
 
-    for (threads, kind) in [(1, "newtonian"), (2, "newtonian"), (2, "evp")] {
+    for (threads, kind) in [(1, "newtonian"), (2, "newtonian"), (2, "evp"), (2, "solids")] {
         let mut text = common::dam_break(threads, "256 MiB", "");
         if kind == "evp" {
             text = text.replace("kind = \"newtonian\"", "kind = \"evp_bingham\"\nyield_stress = 10.0\npoisson_ratio = 0.3");
+        }
+        if kind == "solids" {
+            // issue 30: a rebar, a sloped wall and a gate that opens during the counted steps
+            text = text.replace("[memory]", "[[solid]]\nshape = \"cylinder\"\nfrom = [0.3, -1.0, 0.05]\nto = [0.3, 1.0, 0.05]\nradius = 0.01\ncontact = { friction = { mu = 0.4 } }\n\
+                [[solid]]\nshape = \"union\"\nparts = [{ shape = \"half_space\", point = [0.0, 0.0, 0.01], normal = [-0.1, 0.0, 1.0] }]\ncontact = \"free_slip\"\n\
+                [[solid]]\nshape = \"box\"\nmin = [0.2, -1.0, -1.0]\nmax = [0.22, 1.0, 1.0]\nopen_at = 0.005\n[memory]");
         }
         let mut s = Simulation::new(&Scenario::parse(&text).unwrap()).unwrap();
         s.step_until(1.0).unwrap(); // first step outside the count: lazily initialised statics

@@ -15,5 +15,6 @@ pub mod boundary;
 
 pub use real::{Real, M3, V3};
 pub mod nozzle;
+pub mod solid;
 #[cfg(all(test, not(feature = "f32")))]
 pub(crate) mod adjoint_check;

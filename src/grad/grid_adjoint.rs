@@ -118,9 +118,13 @@ pub fn grid_update_adjoint(sim: &Simulation, drive: Option<&NozzleDrive>, before
     let accel = sim.accel;
     let mut accel_bar = [0.0f64; 3];
     let drive_box = drive.map(|d| d.bounds());
+    // solids hook (issue 30): the solids where the forward placed them (sim.time is the step's)
+    let solids = sim.solids.as_ref().map(|z| z.at(sim.time, sim.printer.as_ref().map(|p| &*p.toolpath)));
+    let mut solids_bar = crate::solid::SolidsBar::default();
     for s in 0..na {
         let b = geom.block_coords(slot_block[s]);
         let driven = drive.filter(|_| drive_box.is_some_and(|bx| geom.block_overlaps(b, bx)));
+        let solid_mask = solids.as_ref().map_or(0, |z| z.block_mask(geom, b));
         for li in 0..NODES_PER_BLOCK {
             let at = s * NODES_PER_BLOCK + li;
             let n0 = &before[at];
@@ -136,7 +140,13 @@ pub fn grid_update_adjoint(sim: &Simulation, drive: Option<&NozzleDrive>, before
             let g = geom.node_of(b, li);
             let v = old + f / m + accel * dt;
             let driven_v = driven.map_or(v, |d| apply_drive(geom, Some(d), g, v));
-            let mut v_bar = apply_walls_adjoint(geom, walls, g, driven_v, V3::new(nb[1], nb[2], nb[3]), bar);
+            let mut v_bar = V3::new(nb[1], nb[2], nb[3]);
+            if let Some(z) = solids.as_ref().filter(|_| solid_mask != 0) {
+                // solids hook (issue 30): they act after the walls
+                let walled = crate::solver::apply_walls(geom, walls, g, driven_v);
+                v_bar = z.apply_adjoint(solid_mask, geom.node_position(g), walled, v_bar, &mut solids_bar);
+            }
+            let mut v_bar = apply_walls_adjoint(geom, walls, g, driven_v, v_bar, bar);
             if let Some(d) = driven {
                 v_bar = drive_adjoint(geom, d, g, v, v_bar, bar);
             }
@@ -152,6 +162,8 @@ pub fn grid_update_adjoint(sim: &Simulation, drive: Option<&NozzleDrive>, before
     }
     for c in 0..3 {
         bar.accel[c] += accel_bar[c];
+        bar.drive_outlet[c] += solids_bar.outlet[c];
+        bar.drive_velocity[c] += solids_bar.nozzle_velocity[c];
     }
 }
 

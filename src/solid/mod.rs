@@ -1,0 +1,440 @@
+//! Solid bodies inside the domain (`[[solid]]`): formwork, rebars, an L-box's gate, the
+//! nozzle's body.
+//!
+//! Each solid is a signed distance function ([`shape::Sdf`], one file per shape), a contact kind
+//! (no-slip, free-slip or Coulomb friction, `kernels::boundary::WallKind`), a motion (static, or
+//! carried by the nozzle's outlet) and, for a gate, the time it opens (is removed). The grid
+//! update applies every solid to the nodes of the blocks it reaches, after the domain walls,
+//! through the smoothed indicator of `kernels/src/solid.rs`; the momentum each solid removes is
+//! summed per block slot and reduced in slot order into the force the material exerts on it.
+//!
+//! Start-up builds everything (the shapes, a reaction pool of `max_blocks` slots per solid in the
+//! memory plan); the step allocates nothing. A scenario without solids builds nothing, maps no
+//! pool and runs exactly as before.
+
+pub mod cuboid;
+pub mod cylinder;
+pub mod half_space;
+pub mod nozzle_body;
+pub mod revolved;
+pub mod shape;
+pub mod union;
+
+use crate::grid::GridGeom;
+use crate::kernels::boundary::WallKind;
+use crate::kernels::solid::{contact, contact_adjoint};
+use crate::kernels::{Real, V3};
+use crate::memory::{Backing, MemoryError, MemoryPlan, Pool};
+use crate::print::toolpath::Toolpath;
+use glam::DVec3;
+use serde::Deserialize;
+use shape::{Sdf, ShapeConfig, ShapeContext};
+
+/// The most solids a scenario may declare (a block's solids are a bit mask); more bodies fit
+/// as parts of a union.
+pub const MAX_SOLIDS: usize = 32;
+
+/// How a solid moves.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum Motion {
+    #[default]
+    Static,
+    /// Carried by the nozzle: the shape's coordinates are relative to the outlet centre, and it
+    /// moves at the nozzle's velocity (without the extrusion speed).
+    Nozzle,
+}
+
+/// One `[[solid]]` table: `shape = "..."` with that shape's keys, and the keys below.
+///
+/// ```toml
+/// [[solid]]
+/// shape = "cylinder"          # box, cylinder, half_space, union, intersection, nozzle
+/// from = [0.2, 0.0, 0.05]
+/// to = [0.2, 0.2, 0.05]
+/// radius = 0.006
+/// contact = { friction = { mu = 0.5 } }   # "no_slip" (default), "free_slip"
+/// ```
+#[derive(Clone, Debug, Deserialize)]
+#[serde(try_from = "toml::Table")]
+pub struct SolidConfig {
+    pub shape: ShapeConfig,
+    /// Label in messages and outputs (default `solid[i]`).
+    pub name: Option<String>,
+    /// Contact condition; default no-slip, free-slip for the nozzle body.
+    pub contact: WallKind,
+    pub motion: Motion,
+    /// The time the solid is removed (a gate opening) [s]; never when absent.
+    pub open_at: Option<f64>,
+    /// Width of the indicator's band outside the surface [m]; default one cell, 0 for the hard
+    /// indicator (the node on or inside the solid only).
+    pub transition: Option<f64>,
+}
+
+/// The keys every solid takes besides its shape's.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Common {
+    name: Option<String>,
+    contact: Option<WallKind>,
+    motion: Option<Motion>,
+    open_at: Option<f64>,
+    transition: Option<f64>,
+}
+
+const COMMON_KEYS: [&str; 5] = ["name", "contact", "motion", "open_at", "transition"];
+
+impl TryFrom<toml::Table> for SolidConfig {
+    type Error = String;
+    fn try_from(mut t: toml::Table) -> Result<Self, String> {
+        let mut common = toml::Table::new();
+        for k in COMMON_KEYS {
+            if let Some(v) = t.remove(k) {
+                common.insert(k.to_string(), v);
+            }
+        }
+        let c: Common = common.try_into().map_err(|e: toml::de::Error| format!("solid: {}", e.message()))?;
+        if !t.contains_key("shape") {
+            return Err("solid: `shape` is missing (one of: box, cylinder, half_space, union, intersection, nozzle)".into());
+        }
+        let shape: ShapeConfig = t.try_into().map_err(|e: toml::de::Error| format!("solid: {}", e.message()))?;
+        let nozzle = matches!(shape, ShapeConfig::Nozzle { .. });
+        Ok(SolidConfig {
+            contact: c.contact.unwrap_or(if nozzle { WallKind::FreeSlip } else { WallKind::NoSlip }),
+            motion: c.motion.unwrap_or(if nozzle { Motion::Nozzle } else { Motion::Static }),
+            shape,
+            name: c.name,
+            open_at: c.open_at,
+            transition: c.transition,
+        })
+    }
+}
+
+/// Check the `[[solid]]` tables, naming the key (`solid[i].radius`, ...). `nozzle` is the
+/// print's (inner diameter, tube height) when it prints through a circular nozzle, and
+/// `printing` whether there is a `[print]` table at all.
+pub fn validate(solids: &[SolidConfig], printing: bool) -> Result<(), String> {
+    if solids.len() > MAX_SOLIDS {
+        return Err(format!("solid: {} solids, more than the {MAX_SOLIDS} a scenario may declare; join some in a shape = \"union\"", solids.len()));
+    }
+    for (i, s) in solids.iter().enumerate() {
+        let key = format!("solid[{i}]");
+        s.shape.validate(&key)?;
+        if s.contact == WallKind::Symmetry {
+            return Err(format!("{key}.contact: a solid takes no_slip, free_slip or friction, not symmetry"));
+        }
+        if let WallKind::Friction { mu } = s.contact {
+            if !(mu >= 0.0 && mu.is_finite()) {
+                return Err(format!("{key}.contact.friction.mu must be >= 0, got {mu}"));
+            }
+        }
+        if let Some(t) = s.open_at {
+            if !t.is_finite() {
+                return Err(format!("{key}.open_at must be a finite time, got {t}"));
+            }
+        }
+        if let Some(d) = s.transition {
+            if !(d >= 0.0 && d.is_finite()) {
+                return Err(format!("{key}.transition must be >= 0, got {d}"));
+            }
+        }
+        if matches!(s.shape, ShapeConfig::Nozzle { .. }) && s.motion != Motion::Nozzle {
+            return Err(format!("{key}: shape = \"nozzle\" moves with the nozzle; motion must be \"nozzle\""));
+        }
+        if s.motion == Motion::Nozzle && !printing {
+            return Err(format!("{key}.motion = \"nozzle\" needs a [print] table"));
+        }
+    }
+    Ok(())
+}
+
+/// A solid ready for the step.
+#[derive(Debug)]
+pub struct Solid {
+    pub name: String,
+    sdf: Box<dyn Sdf>,
+    contact: WallKind,
+    motion: Motion,
+    open_at: Option<f64>,
+    /// Band width [m].
+    delta: f64,
+    /// The shape's bounds padded by the band, in its own frame (None: unbounded).
+    reach: Option<(DVec3, DVec3)>,
+}
+
+/// Where a solid is at one time.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Placement {
+    /// Translation from the shape's frame to the world.
+    pub offset: DVec3,
+    pub velocity: DVec3,
+    pub present: bool,
+}
+
+/// Every solid of a scenario, and the forces on them.
+pub struct Solids {
+    pub list: Vec<Solid>,
+    /// Momentum each solid removed in each block slot during the last grid update:
+    /// `[slot * n + solid]`.
+    reactions: Pool<[f64; 3]>,
+    /// Force the material exerted on each solid in the last step [N].
+    force: Vec<[f64; 3]>,
+}
+
+impl Solids {
+    pub fn plan(plan: &mut MemoryPlan, n: usize, max_blocks: usize) {
+        if n > 0 {
+            plan.add::<[f64; 3]>("solid.reactions", n * max_blocks);
+        }
+    }
+
+    /// Build the solids of a scenario (None when it has none). `nozzle` is the printer's
+    /// (inner diameter, tube height) for a circular nozzle.
+    pub fn new(cfgs: &[SolidConfig], dx: f64, nozzle: Option<(f64, f64)>, max_blocks: usize, backing: &Backing) -> Result<Option<Solids>, String> {
+        if cfgs.is_empty() {
+            return Ok(None);
+        }
+        let cx = ShapeContext { nozzle };
+        let mut list = Vec::with_capacity(cfgs.len());
+        for (i, c) in cfgs.iter().enumerate() {
+            let key = format!("solid[{i}]");
+            let sdf = c.shape.build(&key, &cx)?;
+            let delta = c.transition.unwrap_or(dx);
+            let reach = sdf.bounds().map(|(lo, hi)| (lo - DVec3::splat(delta), hi + DVec3::splat(delta)));
+            list.push(Solid { name: c.name.clone().unwrap_or(key), sdf, contact: c.contact, motion: c.motion, open_at: c.open_at, delta, reach });
+        }
+        let reactions = Pool::new("solid.reactions", cfgs.len() * max_blocks, backing).map_err(|e: MemoryError| e.to_string())?;
+        Ok(Some(Solids { force: vec![[0.0; 3]; list.len()], list, reactions }))
+    }
+
+    /// The solids' placements at time `t` (`toolpath`: the print's, for solids carried by the
+    /// nozzle; from its end on the nozzle rests at its last position).
+    pub fn at(&self, t: f64, toolpath: Option<&Toolpath>) -> SolidsAt<'_> {
+        SolidsAt { list: &self.list, place: placements(&self.list, t, toolpath) }
+    }
+
+    /// The placements at time `t` and the reaction pool, apart, for the grid update.
+    pub fn for_grid_update(&mut self, t: f64, toolpath: Option<&Toolpath>) -> (SolidsAt<'_>, &mut [[f64; 3]]) {
+        let Solids { list, reactions, .. } = self;
+        (SolidsAt { list, place: placements(list, t, toolpath) }, reactions.as_mut_slice())
+    }
+
+    /// Sum the reactions of slots `0..n_active` in slot order into each solid's force, for a step
+    /// of length `dt`.
+    pub fn total_forces(&mut self, n_active: usize, dt: f64) {
+        let n = self.list.len();
+        let r = self.reactions.as_slice();
+        for (k, f) in self.force.iter_mut().enumerate() {
+            let mut sum = [0.0; 3];
+            for s in 0..n_active {
+                for c in 0..3 {
+                    sum[c] += r[s * n + k][c];
+                }
+            }
+            *f = sum.map(|x| x / dt);
+        }
+    }
+
+    /// Force the material exerted on solid `k` during the last step [N] (momentum it removed
+    /// from the grid over dt).
+    pub fn force(&self, k: usize) -> [f64; 3] {
+        self.force[k]
+    }
+
+    pub fn len(&self) -> usize {
+        self.list.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.list.is_empty()
+    }
+}
+
+fn placements(list: &[Solid], t: f64, toolpath: Option<&Toolpath>) -> [Placement; MAX_SOLIDS] {
+    let mut place = [Placement::default(); MAX_SOLIDS];
+    let nozzle = toolpath.map(|tp| tp.state_at(t));
+    for (p, s) in place.iter_mut().zip(list) {
+        p.present = s.open_at.is_none_or(|o| t < o);
+        if let (Motion::Nozzle, Some(n)) = (s.motion, &nozzle) {
+            p.offset = DVec3::from(n.position);
+            p.velocity = DVec3::from(n.velocity);
+        }
+    }
+    place
+}
+
+/// The solids at one time: what the grid update and its adjoint read.
+pub struct SolidsAt<'a> {
+    list: &'a [Solid],
+    place: [Placement; MAX_SOLIDS],
+}
+
+/// Adjoints the grid update's adjoint takes from the solids at one node.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct SolidsBar {
+    /// Of the nozzle's outlet position, through the solids it carries.
+    pub outlet: [f64; 3],
+    /// Of the nozzle's velocity, through the solids it carries.
+    pub nozzle_velocity: [f64; 3],
+}
+
+impl SolidsAt<'_> {
+    pub fn len(&self) -> usize {
+        self.list.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.list.is_empty()
+    }
+
+    /// The solids (as bits) present now whose band reaches a node of block `b`.
+    pub fn block_mask(&self, geom: &GridGeom, b: [i32; 3]) -> u32 {
+        let mut mask = 0;
+        for (k, (s, p)) in self.list.iter().zip(&self.place).enumerate() {
+            let reaches = match s.reach {
+                None => true,
+                Some((lo, hi)) => geom.block_overlaps(b, ((lo + p.offset).to_array(), (hi + p.offset).to_array())),
+            };
+            if p.present && reaches {
+                mask |= 1 << k;
+            }
+        }
+        mask
+    }
+
+    /// The signed distance, the normal into the solid and the solid's velocity at world point
+    /// `x` for solid `k`, or None beyond its band.
+    #[inline]
+    fn near(&self, k: usize, x: DVec3) -> Option<(Real, V3, V3)> {
+        let (s, p) = (&self.list[k], &self.place[k]);
+        let q = x - p.offset;
+        let phi = s.sdf.distance(q);
+        if phi >= s.delta && s.delta > 0.0 || phi > 0.0 && s.delta == 0.0 {
+            return None;
+        }
+        let n = -s.sdf.gradient(q);
+        Some((phi as Real, V3::new(n.x as Real, n.y as Real, n.z as Real), V3::new(p.velocity.x as Real, p.velocity.y as Real, p.velocity.z as Real)))
+    }
+
+    /// Apply the solids of `mask` to node velocity `v` of mass `m` at world position `x`, in
+    /// declaration order; the momentum each removes is added to `reactions[k]`.
+    #[inline]
+    pub fn apply(&self, mask: u32, x: [f64; 3], m: Real, mut v: V3, reactions: &mut [[f64; 3]]) -> V3 {
+        let x = DVec3::from(x);
+        let mut bits = mask;
+        while bits != 0 {
+            let k = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            let Some((phi, n, vs)) = self.near(k, x) else { continue };
+            let out = contact(self.list[k].contact, phi, self.list[k].delta as Real, n, vs, v);
+            let dp = (v - out) * m;
+            for c in 0..3 {
+                reactions[k][c] += dp[c] as f64;
+            }
+            v = out;
+        }
+        v
+    }
+
+    /// Adjoint of [`SolidsAt::apply`] at a node: for the velocity `v` before the solids and the
+    /// adjoint `v_bar` of the result, the adjoint of `v`; the adjoints of the nozzle's position
+    /// and velocity through the solids it carries go to `bar`. The vertical component of the
+    /// carried solids' velocity has no adjoint here (it is the nozzle's vertical speed without
+    /// the extrusion speed, which the drive's adjoint does not separate).
+    pub fn apply_adjoint(&self, mask: u32, x: [f64; 3], v: V3, v_bar: V3, bar: &mut SolidsBar) -> V3 {
+        let x = DVec3::from(x);
+        // inputs of each application, recomputed forward
+        let mut inputs = [(0usize, V3::ZERO); MAX_SOLIDS];
+        let mut count = 0;
+        let mut at = v;
+        let mut bits = mask;
+        while bits != 0 {
+            let k = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            let Some((phi, n, vs)) = self.near(k, x) else { continue };
+            inputs[count] = (k, at);
+            count += 1;
+            at = contact(self.list[k].contact, phi, self.list[k].delta as Real, n, vs, at);
+        }
+        let mut b = v_bar;
+        for &(k, vin) in inputs[..count].iter().rev() {
+            let (phi, n, vs) = self.near(k, x).expect("the forward applied it");
+            let s = &self.list[k];
+            let cb = contact_adjoint(s.contact, phi, s.delta as Real, n, vs, vin, b);
+            b = cb.v;
+            if s.motion == Motion::Nozzle {
+                // phi(x - o) and n = -grad phi(x - o): d/do = -grad phi phi_bar + H n_bar
+                let q = x - self.place[k].offset;
+                let g = s.sdf.gradient(q);
+                let nb = DVec3::new(cb.normal.x as f64, cb.normal.y as f64, cb.normal.z as f64);
+                let o_bar = -g * cb.phi as f64 + s.sdf.hessian_times(q, nb);
+                for c in 0..2 {
+                    bar.nozzle_velocity[c] += cb.v_solid[c] as f64;
+                }
+                for c in 0..3 {
+                    bar.outlet[c] += o_bar[c];
+                }
+            }
+        }
+        b
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The adjoint of the solids at a node, through the nozzle body's position and velocity
+    /// (its distance, and its normal through the Hessian), against central differences; at
+    /// nodes under the flat end, beside the outer wall, in the bore and near the edges, moving
+    /// into the body and away from it.
+    #[test]
+    fn the_nozzle_body_adjoint_matches_central_differences() {
+        let cfg: SolidConfig = toml::from_str::<toml::Table>("shape = \"nozzle\"\nouter_diameter = 0.03\ncontact = { friction = { mu = 0.4 } }")
+            .unwrap()
+            .try_into()
+            .unwrap();
+        let (dx, backing) = (0.005, Backing { dir: None });
+        let solids = Solids::new(&[cfg], dx, Some((0.012, 0.01)), 1, &backing).unwrap().unwrap();
+        let outlet = DVec3::new(0.1, 0.05, 0.02);
+        let vel = DVec3::new(0.08, -0.02, 0.0);
+        let at = |o: DVec3, vs: DVec3| {
+            let mut place = [Placement::default(); MAX_SOLIDS];
+            place[0] = Placement { offset: o, velocity: vs, present: true };
+            SolidsAt { list: &solids.list, place }
+        };
+        let h = 1e-7;
+        let mut exercised = 0;
+        for (dxyz, v) in [
+            ([0.009, 0.002, -0.003], [0.1, 0.0, 0.2]),
+            ([0.018, 0.004, 0.004], [-0.3, 0.1, 0.05]),
+            ([0.0035, 0.001, 0.004], [0.0, 0.3, -0.1]),
+            ([0.0165, 0.0045, -0.002], [-0.2, -0.1, 0.1]),
+            ([0.004, -0.003, -0.002], [0.1, 0.1, 0.3]),
+            ([0.012, 0.0, -0.001], [0.05, 0.0, -0.2]),
+        ] {
+            let x = (outlet + DVec3::from(dxyz)).to_array();
+            let v = V3::new(v[0], v[1], v[2]);
+            let v_bar = V3::new(0.7, -0.4, 1.1);
+            let mut bar = SolidsBar::default();
+            let b = at(outlet, vel).apply_adjoint(1, x, v, v_bar, &mut bar);
+            let loss = |o: DVec3, vs: DVec3, v: V3| at(o, vs).apply(1, x, 1.0, v, &mut [[0.0; 3]]).dot(v_bar);
+            for c in 0..3 {
+                let mut e = DVec3::ZERO;
+                e[c] = h;
+                let fd_o = (loss(outlet + e, vel, v) - loss(outlet - e, vel, v)) / (2.0 * h);
+                assert!((fd_o - bar.outlet[c]).abs() < 1e-5 * (1.0 + fd_o.abs()), "at {dxyz:?}: d/d outlet[{c}] {} against {fd_o}", bar.outlet[c]);
+                let mut ev = V3::ZERO;
+                ev[c] = h;
+                let fd_v = (loss(outlet, vel, v + ev) - loss(outlet, vel, v - ev)) / (2.0 * h);
+                assert!((fd_v - b[c]).abs() < 1e-6 * (1.0 + fd_v.abs()), "at {dxyz:?}: d/dv[{c}] {} against {fd_v}", b[c]);
+                if c < 2 {
+                    let fd_s = (loss(outlet, vel + e, v) - loss(outlet, vel - e, v)) / (2.0 * h);
+                    assert!((fd_s - bar.nozzle_velocity[c]).abs() < 1e-6 * (1.0 + fd_s.abs()), "at {dxyz:?}: d/d velocity[{c}]");
+                }
+                exercised += (bar.outlet[c].abs() > 1.0) as usize;
+            }
+        }
+        assert!(exercised > 3, "the position derivative was hardly exercised");
+    }
+}

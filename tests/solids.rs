@@ -1,0 +1,305 @@
+//! Solid bodies (`[[solid]]`, issue 30): a column resting on a box carries its hydrostatic
+//! load, a block slides down an inclined wall at the Coulomb acceleration, a gate holds material
+//! until it opens, and bad input names its key.
+
+mod common;
+
+use strand::scenario::Scenario;
+use strand::solver::Simulation;
+
+const G: f64 = 9.81;
+
+fn run_to(sim: &mut Simulation, t: f64) {
+    while sim.time < t * (1.0 - 1e-12) {
+        sim.step_until(t).unwrap();
+    }
+}
+
+/// A periodic column of water-like fluid, 4 cells square, `cells` cells high, standing on the
+/// domain floor or (with `on_box`) on a solid box whose top is 4 cells above the floor.
+fn column(cells: usize, on_box: bool) -> (Simulation, f64, f64) {
+    let h = 0.5;
+    let dx = h / cells as f64;
+    let w = 4.0 * dx;
+    let base = if on_box { 4.0 * dx } else { 0.0 };
+    let solid = if on_box {
+        format!("[[solid]]\nshape = \"box\"\nmin = [-1.0, -1.0, -1.0]\nmax = [1.0, 1.0, {base}]\n")
+    } else {
+        String::new()
+    };
+    let text = format!(
+        r#"
+[simulation]
+dx = {dx}
+end_time = 1.0
+gravity = [0.0, 0.0, -{G}]
+threads = 2
+[domain]
+min = [0.0, 0.0, 0.0]
+max = [{w}, {w}, {top}]
+periodic = [true, true, false]
+[material]
+kind = "newtonian"
+density = 1000.0
+bulk_modulus = 4.0e5
+viscosity = 50.0
+[[body]]
+shape = "box"
+min = [0.0, 0.0, {base}]
+max = [{w}, {w}, {top_col}]
+{solid}
+[memory]
+budget = "64 MiB"
+"#,
+        top = base + h + 10.0 * dx,
+        top_col = base + h
+    );
+    (Simulation::new(&Scenario::parse(&text).unwrap()).unwrap(), base, w)
+}
+
+/// Time-averaged force on the box over the last half second; the rms error of the particles'
+/// pressure against rho g (H - z) over the particles above the first cell, and the largest error
+/// of a layer's mean there (relative to rho g H).
+fn settle(sim: &mut Simulation, base: f64, h: f64) -> (Option<f64>, f64, f64) {
+    let n = sim.particles.n;
+    let dx = sim.scenario.simulation.dx;
+    let z0: Vec<f64> = (0..n).map(|i| sim.position(i)[2] - base).collect();
+    run_to(sim, 0.5);
+    let (mut force, mut steps) = (0.0, 0usize);
+    let mut p = vec![0.0; n];
+    let mut samples = 0;
+    while sim.time < 1.0 - 1e-12 {
+        sim.step_until(1.0).unwrap();
+        if let Some(s) = &sim.solids {
+            force += s.force(0)[2];
+            steps += 1;
+        }
+        if sim.step.is_multiple_of(5) {
+            for i in 0..n {
+                p[sim.particles.id.as_slice()[i] as usize] += sim.pressure(i);
+            }
+            samples += 1;
+        }
+    }
+    let pmax = 1000.0 * G * h;
+    let (mut se, mut m) = (0.0, 0);
+    let mut layers = vec![(0.0, 0); (h / dx).round() as usize];
+    for id in (0..n).filter(|&id| z0[id] >= dx) {
+        let e = (p[id] / samples as f64 - 1000.0 * G * (h - z0[id])) / pmax;
+        se += e * e;
+        m += 1;
+        let k = ((z0[id] / dx) as usize).min(layers.len() - 1);
+        layers[k].0 += e;
+        layers[k].1 += 1;
+    }
+    let worst_layer = layers.iter().filter(|l| l.1 > 0).map(|l| (l.0 / l.1 as f64).abs()).fold(0.0, f64::max);
+    ((steps > 0).then(|| force / steps as f64), (se / m as f64).sqrt(), worst_layer)
+}
+
+/// The box carries the column: the force on it over its area is rho g H within 1 %, and the
+/// pressure in the column is hydrostatic (the same column on the domain floor is run beside it
+/// for comparison).
+#[test]
+fn a_column_resting_on_a_box_presses_on_it_with_rho_g_h() {
+    let h = 0.5;
+    let (mut on_box, base, w) = column(20, true);
+    let (force, rms_box, layer_box) = settle(&mut on_box, base, h);
+    let (mut on_floor, _, _) = column(20, false);
+    let (_, rms_floor, layer_floor) = settle(&mut on_floor, 0.0, h);
+    let pressure = -force.unwrap() / (w * w);
+    let expect = 1000.0 * G * h;
+    eprintln!("pressure on the box {pressure:.2} Pa against rho g H = {expect:.2} Pa ({:+.3} %); column rms error {:.3} % on the box, {:.3} % on the floor; worst layer mean {:.3} % on the box, {:.3} % on the floor",
+        100.0 * (pressure / expect - 1.0), 100.0 * rms_box, 100.0 * rms_floor, 100.0 * layer_box, 100.0 * layer_floor);
+    assert!((pressure / expect - 1.0).abs() < 0.01, "pressure on the box {pressure} Pa, rho g H = {expect} Pa");
+    // per particle as `strand verify --quick` allows at 20 cells; per layer as close as on the floor
+    assert!(rms_box < 0.03, "column pressure rms error {rms_box} on the box ({rms_floor} on the floor)");
+    assert!(layer_box < 0.01, "a layer's mean pressure is {layer_box} of rho g H off on the box ({layer_floor} on the floor)");
+}
+
+/// An elastic block on a 30-degree wall (a half-space): its acceleration down the slope is
+/// g (sin 30 - mu cos 30) within 2 % for Coulomb friction, g sin 30 for free slip, and it sticks
+/// when mu exceeds tan 30.
+#[test]
+fn a_block_slides_down_an_inclined_wall_at_the_coulomb_acceleration() {
+    let theta = 30f64.to_radians();
+    for (contact, mu) in [("{ friction = { mu = 0.3 } }", 0.3), ("\"free_slip\"", 0.0), ("{ friction = { mu = 0.8 } }", 0.8)] {
+        let a = slide(theta, contact);
+        let expect = (G * (theta.sin() - mu * theta.cos())).max(0.0);
+        eprintln!("{contact}: acceleration {a:.4} m/s2, analytic {expect:.4} ({:+.2} %)", 100.0 * (a / expect - 1.0));
+        if expect > 0.0 {
+            assert!((a / expect - 1.0).abs() < 0.02, "{contact}: acceleration {a} m/s2, analytic {expect}");
+        } else {
+            assert!(a.abs() < 0.02 * G * theta.sin(), "{contact}: the block should stick, accelerates at {a} m/s2");
+        }
+    }
+}
+
+/// Acceleration along the slope of a block released on a wall inclined at `theta`, fitted to
+/// its mean velocity over 0.1-0.3 s.
+fn slide(theta: f64, contact: &str) -> f64 {
+    let dx = 0.01;
+    let (s, c) = (theta.sin(), theta.cos());
+    let text = format!(
+        r#"
+[simulation]
+dx = {dx}
+end_time = 0.3
+gravity = [0.0, 0.0, -{G}]
+threads = 2
+[domain]
+min = [0.0, 0.0, 0.0]
+max = [0.6, 0.04, 0.45]
+periodic = [false, true, false]
+[material]
+kind = "evp_bingham"
+density = 2000.0
+bulk_modulus = 1.0e6
+poisson_ratio = 0.3
+viscosity = 10.0
+yield_stress = 1.0e5
+[[solid]]
+shape = "half_space"
+point = [0.0, 0.0, 0.05]
+normal = [{nx}, 0.0, {c}]
+contact = {contact}
+[memory]
+budget = "64 MiB"
+max_particles = 4000
+"#,
+        nx = -s
+    );
+    let mut sim = Simulation::new(&Scenario::parse(&text).unwrap()).unwrap();
+    // the block, 80 x 40 mm in the slope's frame, its base on the wall 0.4 m up the slope
+    let hh = dx / 2.0;
+    let (tangent, normal) = ([c, 0.0, s], [-s, 0.0, c]);
+    let origin = [0.4 * c, 0.0, 0.05 + 0.4 * s];
+    for i in 0..16 {
+        for k in 0..8 {
+            for j in 0..8 {
+                let (u, w) = (-0.04 + (i as f64 + 0.5) * hh, (k as f64 + 0.5) * hh);
+                let x = [origin[0] + u * tangent[0] + w * normal[0], (j as f64 + 0.5) * hh, origin[2] + u * tangent[2] + w * normal[2]];
+                sim.add_particle(x, [0.0; 3], hh * hh * hh).unwrap();
+            }
+        }
+    }
+    let speed = |sim: &Simulation| {
+        let n = sim.particles.n;
+        let v = sim.particles.v.as_slice();
+        (0..n).map(|i| v[i].x * tangent[0] + v[i].z * tangent[2]).sum::<f64>() / n as f64
+    };
+    // least-squares slope of the (downhill) speed against time
+    let (mut st, mut sv, mut stt, mut stv, mut m) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    while sim.time < 0.3 - 1e-12 {
+        sim.step_until(0.3).unwrap();
+        if sim.time >= 0.1 {
+            let (t, v) = (sim.time, -speed(&sim));
+            st += t;
+            sv += v;
+            stt += t * t;
+            stv += t * v;
+            m += 1.0;
+        }
+    }
+    (m * stv - st * sv) / (m * stt - st * st)
+}
+
+/// A gate holds a dam until it opens; then the dam breaks through.
+#[test]
+fn a_gate_holds_material_until_it_opens() {
+    // the dam break of the other tests, its dam (x < 0.2 m) held by a gate
+    let gate = "[[solid]]\nname = \"gate\"\nshape = \"box\"\nmin = [0.2, -1.0, -1.0]\nmax = [0.24, 1.0, 1.0]\nopen_at = 0.2\n[memory]";
+    let text = common::dam_break(2, "64 MiB", "").replace("[memory]", gate);
+    let front = |sim: &Simulation| (0..sim.particles.n).map(|i| sim.position(i)[0]).fold(0.0, f64::max);
+    let mut sim = Simulation::new(&Scenario::parse(&text).unwrap()).unwrap();
+    run_to(&mut sim, 0.19);
+    let held = front(&sim);
+    assert!(held < 0.2 + 0.01, "the closed gate let material through: front at {held} m");
+    // the gate pushes back: a horizontal force on it
+    assert!(sim.solids.as_ref().unwrap().force(0)[0] > 0.0);
+    run_to(&mut sim, 0.4);
+    let released = front(&sim);
+    assert!(released > 0.3, "after the gate opened the front is only at {released} m");
+    eprintln!("front {held:.4} m with the gate closed (t = 0.19 s), {released:.4} m at t = 0.4 s");
+}
+
+/// Bad `[[solid]]` input is an error naming the key.
+#[test]
+fn bad_solids_name_the_key() {
+    let base = |solid: &str| common::dam_break(1, "64 MiB", "").replace("[memory]", &format!("[[solid]]\n{solid}\n[memory]"));
+    for (solid, key) in [
+        ("shape = \"cylinder\"\nfrom = [0.0, 0.0, 0.0]\nto = [0.1, 0.0, 0.0]\nradius = -0.01", "solid[0].radius"),
+        ("shape = \"cylinder\"\nfrom = [0.0, 0.0, 0.0]\nto = [0.1, 0.0, 0.0]\nraduis = 0.01", "raduis"),
+        ("shape = \"box\"\nmin = [0.0, 0.0, 0.0]\nmax = [0.1, 0.1, 0.1]\nopen_at = 1\ncontact = \"symmetry\"", "solid[0].contact"),
+        ("shape = \"box\"\nmin = [0.0, 0.0, 0.0]\nmax = [0.1, 0.1, 0.0]", "solid[0]: box max"),
+        ("shape = \"sphere\"\nradius = 0.1", "sphere"),
+        ("min = [0.0, 0.0, 0.0]\nmax = [0.1, 0.1, 0.1]", "`shape` is missing"),
+        ("shape = \"nozzle\"\nouter_diameter = 0.05", "needs a [print] table"),
+        ("shape = \"box\"\nmin = [0.0, 0.0, 0.0]\nmax = [0.1, 0.1, 0.1]\ntransition = -1.0", "solid[0].transition"),
+        ("shape = \"box\"\nmin = [0.0, 0.0, 0.0]\nmax = [0.1, 0.1, 0.1]\ncontact = { friction = { mu = -0.2 } }", "solid[0].contact.friction.mu"),
+        ("shape = \"union\"\nparts = []", "solid[0].parts is empty"),
+        ("shape = \"half_space\"\npoint = [0.0, 0.0, 0.0]\nnormal = [0.0, 0.0, 0.0]", "solid[0].normal"),
+    ] {
+        let err = Scenario::parse(&base(solid)).err().unwrap_or_else(|| panic!("accepted: {solid}")).to_string();
+        assert!(err.contains(key), "{solid}: error `{err}` does not name `{key}`");
+    }
+}
+
+fn grad_opts(dir: &std::path::Path) -> strand::grad::GradOptions {
+    strand::grad::GradOptions { ram_bytes: 1 << 30, disk_bytes: 1 << 30, disk_dir: dir.to_path_buf(), threads: None, schedule: None, until_rest: None }
+}
+
+/// Gradients through the grid update's adjoint with solids in the way: a Newtonian block thrown
+/// into a rebar (Coulomb friction) and against a sloped wall (free slip, in the band of its
+/// smoothed indicator) agrees with central differences.
+#[test]
+fn gradients_through_solids_match_central_differences() {
+    use strand::grad::check::{check, REL_STEPS};
+    let text = r#"
+[simulation]
+dx = 0.02
+end_time = 0.05
+dt = 5e-4
+gravity = [0.0, 0.0, -9.81]
+threads = 2
+j_bar = false
+[domain]
+min = [0.0, 0.0, 0.0]
+max = [0.2, 0.16, 0.16]
+[material]
+kind = "newtonian"
+density = 2000.0
+bulk_modulus = 1e5
+viscosity = 5.0
+[[body]]
+shape = "box"
+min = [0.04, 0.04, 0.02]
+max = [0.10, 0.10, 0.08]
+velocity = [0.6, 0.1, -0.05]
+[[solid]]
+shape = "cylinder"
+from = [0.125, -0.1, 0.05]
+to = [0.125, 0.3, 0.05]
+radius = 0.011
+contact = { friction = { mu = 0.3 } }
+[[solid]]
+shape = "half_space"
+point = [0.0, 0.0, 0.013]
+normal = [0.1, 0.05, 1.0]
+contact = "free_slip"
+[memory]
+budget = "64 MiB"
+"#;
+    let sc = Scenario::parse(text).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let wrt: Vec<String> = ["material.viscosity", "body.0.velocity.x", "simulation.gravity.z"].iter().map(|s| s.to_string()).collect();
+    for objective in ["mean_z", "kinetic_energy"] {
+        let obj: strand::grad::Objective = objective.parse().unwrap();
+        let r = strand::grad::gradient(&sc, &obj, &wrt, &grad_opts(dir.path())).unwrap();
+        let c = check(&sc, &obj, &r, None, &REL_STEPS).unwrap();
+        for p in &c.params {
+            let best = p.central.iter().map(|x| x.2).fold(f64::INFINITY, f64::min);
+            eprintln!("{objective}: d/d {} = {:.6e}, central differences {:?}", p.param, p.adjoint, p.central);
+            assert!(best <= 1e-5, "{objective}: d/d {}: adjoint {:.9e}, central differences {:?}", p.param, p.adjoint, p.central);
+        }
+    }
+}
