@@ -153,12 +153,6 @@ pub struct Simulation {
     pub frozen_order: bool,
 }
 
-fn checkpoint_staging_bytes(sc: &Scenario, cap: usize, state_len: usize, max_blocks: usize, table_len: usize) -> usize {
-    let loads = sc.sleep.as_ref().is_some_and(|c| c.tests_loads(sc.simulation.gravity));
-    let coarsen = sc.sleep.as_ref().is_some_and(|c| c.coarsen);
-    crate::checkpoint::state::max_staging_bytes(cap, state_len, max_blocks, table_len, sc.sleep.is_some(), loads, coarsen, sc.simulation.flip > 0.0)
-}
-
 /// Names of the step's phases, as accumulated in `Simulation::phase_seconds`.
 pub const PHASES: [&str; 6] = ["emit+sleep+bin+reorder", "clear grid", "P2G", "grid update", "G2P", "materials"];
 
@@ -211,10 +205,6 @@ impl Simulation {
         Scratch::plan(&mut memory, cap, max_blocks, state_len);
         if let Some(cfg) = &scenario.sleep {
             Sleep::plan(&mut memory, cfg, &geom, max_blocks, cap, scenario.simulation.gravity);
-        }
-        if scenario.checkpoint.enabled {
-            let bytes = checkpoint_staging_bytes(scenario, cap, state_len, max_blocks, geom.table_len());
-            memory.add::<u8>("checkpoint.staging", bytes);
         }
         if let Some(p) = &printer {
             let q = scenario.print.as_ref().map_or(0, |c| c.queue);
@@ -290,12 +280,6 @@ impl Simulation {
         }
         sim.vmax = sim.particles.v.as_slice()[..sim.particles.n].iter().map(|v| v.length() as f64).fold(0.0, f64::max);
         Ok(sim)
-    }
-
-    /// Bytes of the checkpoint staging buffer `strand run` maps (in the memory plan).
-    pub fn checkpoint_staging_bytes(&self) -> usize {
-        let sc = &self.scenario;
-        checkpoint_staging_bytes(sc, self.particles.capacity(), self.particles.state_len, self.grid.max_blocks(), self.grid.geom.table_len())
     }
 
     pub fn threads(&self) -> usize {

@@ -181,6 +181,16 @@ pub fn restart_bytes_per_particle(sim: &Simulation) -> f64 {
     restart_bytes_per_particle_with(sim, size_of::<Real>())
 }
 
+/// Bytes of the staging buffer `strand run` maps for `sim`'s checkpoints:
+/// [`max_staging_bytes`] at its pools' capacity.
+pub fn staging_bytes(sim: &Simulation) -> usize {
+    let sc = &sim.scenario;
+    let loads = sim.sleep.as_ref().is_some_and(|s| s.tests_loads());
+    let coarsen = sc.sleep.as_ref().is_some_and(|c| c.coarsen);
+    let (cap, sl, blocks, table) = (sim.particles.capacity(), sim.particles.state_len, sim.grid.max_blocks(), sim.grid.geom.table_len());
+    max_staging_bytes(cap, sl, blocks, table, sc.sleep.is_some(), loads, coarsen, sc.simulation.flip > 0.0)
+}
+
 /// Bytes of staging a checkpoint can need at the pools' full capacity: `cap` particles with
 /// `state_len` state values, `max_blocks` grid slots, and with sleeping a `table_len` table
 /// (and its load tables with `loads`).
