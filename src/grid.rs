@@ -3,13 +3,13 @@
 //! of their stencil base ("particle blocks"), and every particle block's 2x2x2 neighbourhood of
 //! blocks is activated, so P2G and G2P only ever touch active slots.
 
-use crate::kernels::transfer::{Node, BS};
+use crate::kernels::transfer::{Node, BLOCK_EDGE};
 use crate::kernels::{Real, V3};
 use crate::memory::{Backing, MemoryError, MemoryPlan, Pool};
 use crate::scenario::Scenario;
 
 pub const EMPTY: u32 = u32::MAX;
-pub const NODES_PER_BLOCK: usize = BS * BS * BS;
+pub const NODES_PER_BLOCK: usize = BLOCK_EDGE * BLOCK_EDGE * BLOCK_EDGE;
 
 /// Grid geometry: where node 0 sits, how many cells each axis has, which axes wrap.
 #[derive(Clone, Debug)]
@@ -40,14 +40,14 @@ impl GridGeom {
             if d.periodic[a] {
                 g.origin[a] = d.min[a] - 0.5 * dx;
                 g.cells[a] = n;
-                g.nb[a] = n / BS as i32;
+                g.nb[a] = n / BLOCK_EDGE as i32;
                 // stored positions wrap into [0.5, n + 0.5): the stencil base is then in 0..n
                 g.lo[a] = 0.5;
                 g.hi[a] = n as f64 + 0.5;
             } else {
                 g.origin[a] = d.min[a] - PAD as f64 * dx;
                 g.cells[a] = n + 2 * PAD;
-                g.nb[a] = g.cells[a] / BS as i32 + 2;
+                g.nb[a] = g.cells[a] / BLOCK_EDGE as i32 + 2;
                 g.lo[a] = PAD as f64;
                 g.hi[a] = (n + PAD) as f64;
             }
@@ -102,13 +102,13 @@ impl GridGeom {
         b
     }
 
-    /// Grid index of node `li` (0..BS^3, z fastest) of block `b`.
+    /// Grid index of node `li` (0..BLOCK_EDGE^3, z fastest) of block `b`.
     #[inline(always)]
     pub fn node_of(&self, b: [i32; 3], li: usize) -> [i32; 3] {
         [
-            b[0] * BS as i32 + (li / (BS * BS)) as i32,
-            b[1] * BS as i32 + ((li / BS) % BS) as i32,
-            b[2] * BS as i32 + (li % BS) as i32,
+            b[0] * BLOCK_EDGE as i32 + (li / (BLOCK_EDGE * BLOCK_EDGE)) as i32,
+            b[1] * BLOCK_EDGE as i32 + ((li / BLOCK_EDGE) % BLOCK_EDGE) as i32,
+            b[2] * BLOCK_EDGE as i32 + (li % BLOCK_EDGE) as i32,
         ]
     }
 
@@ -120,7 +120,7 @@ impl GridGeom {
 
     /// Whether block `b` holds any node beyond a wall.
     pub fn block_reaches_beyond_walls(&self, b: [i32; 3]) -> bool {
-        (0..3).any(|a| self.beyond_wall(a, b[a] * BS as i32) || self.beyond_wall(a, b[a] * BS as i32 + BS as i32 - 1))
+        (0..3).any(|a| self.beyond_wall(a, b[a] * BLOCK_EDGE as i32) || self.beyond_wall(a, b[a] * BLOCK_EDGE as i32 + BLOCK_EDGE as i32 - 1))
     }
 
     /// Physical position of node `g`.
@@ -135,8 +135,8 @@ impl GridGeom {
 
     /// Whether block `b`'s nodes reach into the world box `bx` (no wrap: boxes are local).
     pub fn block_overlaps(&self, b: [i32; 3], bx: ([f64; 3], [f64; 3])) -> bool {
-        let lo = self.node_position([b[0] * BS as i32, b[1] * BS as i32, b[2] * BS as i32]);
-        let span = (BS - 1) as f64 * self.dx;
+        let lo = self.node_position([b[0] * BLOCK_EDGE as i32, b[1] * BLOCK_EDGE as i32, b[2] * BLOCK_EDGE as i32]);
+        let span = (BLOCK_EDGE - 1) as f64 * self.dx;
         (0..3).all(|a| lo[a] <= bx.1[a] && lo[a] + span >= bx.0[a])
     }
 
@@ -144,7 +144,7 @@ impl GridGeom {
     #[inline(always)]
     pub fn particle_block(&self, xg: V3) -> [i32; 3] {
         let (base, _) = crate::kernels::bspline::base_and_fx(xg);
-        base.map(|b| b.div_euclid(BS as i32))
+        base.map(|b| b.div_euclid(BLOCK_EDGE as i32))
     }
 }
 

@@ -13,7 +13,7 @@ pub use strand_kernels::{Real, M3, V3};
 
 pub mod bench;
 pub mod checkpoint;
-pub mod coarsen;
+pub mod config;
 pub mod disk;
 pub mod failure;
 pub mod grad;

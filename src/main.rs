@@ -367,7 +367,8 @@ fn main() -> ExitCode {
         Cmd::Check { scenario } => (|| {
             let sc = Scenario::load(&scenario).map_err(|e| e.to_string())?;
             strand::run::preflight(&sc)?;
-            let sim = strand::solver::Simulation::new(&sc).map_err(|e| e.to_string())?;
+            let mut sim = strand::solver::Simulation::new(&sc).map_err(|e| e.to_string())?;
+            strand::run::plan_checkpoint_staging(&mut sim).map_err(|e| e.to_string())?;
             for w in strand::run::scenario_warnings(&sc, &sim) {
                 eprintln!("{w}");
             }

@@ -1,53 +1,8 @@
 //! What a run reports besides snapshots: printed-geometry and slump observables at each output
 //! (CSV), and cross-section plots (PNG).
 
-use serde::Deserialize;
-use std::path::PathBuf;
-
-/// The `[observe]` table.
-#[derive(Clone, Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ObserveConfig {
-    /// x positions of the cross-sections to record [m].
-    #[serde(default)]
-    pub stations: Vec<f64>,
-    /// Thickness of the slab of particles each cross-section takes [m]; default one cell.
-    #[serde(default)]
-    pub slab: Option<f64>,
-    /// Height the heights are measured from [m]; default the platform top, else domain.min z.
-    #[serde(default)]
-    pub base_z: Option<f64>,
-    /// Measured cross-section points (CSV with header `y,z`, metres) drawn over the plots.
-    #[serde(default)]
-    pub measured: Option<PathBuf>,
-    /// Record the slump-flow spread (mean diameter of the material near the base).
-    #[serde(default)]
-    pub spread: bool,
-    /// The domain is half of a symmetric problem, cut at the plane y = this value (a free-slip
-    /// wall): observables see the material together with its mirror image.
-    #[serde(default)]
-    pub mirror_y: Option<f64>,
-    /// Failure detection of a multi-layer print (`failure.rs`): on whenever a print of two or
-    /// more layers has stations; this table sets its threshold and can end the run after it.
-    #[serde(default)]
-    pub failure: FailureConfig,
-}
-
-impl ObserveConfig {
-    pub fn validate(&self) -> Result<(), String> {
-        if self.stations.iter().any(|x| !x.is_finite()) {
-            return Err("observe.stations must be finite x positions".into());
-        }
-        if let Some(s) = self.slab {
-            if !(s > 0.0 && s.is_finite()) {
-                return Err(format!("observe.slab must be > 0, got {s}"));
-            }
-        }
-        self.failure.validate()
-    }
-}
-
-use crate::failure::{Detector, Failure, FailureConfig};
+pub use crate::config::ObserveConfig;
+use crate::failure::{Detector, Failure};
 use crate::observe::{self, Cloud, CrossSection, SECTION_CSV_HEADER};
 use crate::output::plot::plot_cross_section;
 use crate::scenario::Scenario;

@@ -518,6 +518,7 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
 
     preflight(&sc).map_err(|e| RunError::Sim(SimError::Setup(e)))?;
     let mut sim = Simulation::new(&sc)?;
+    plan_checkpoint_staging(&mut sim)?;
     for w in scenario_warnings(&sc, &sim) {
         eprintln!("{w}");
     }
@@ -588,7 +589,7 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
         r.history = std::mem::take(&mut progress.observations);
         r.detect_failure();
     }
-    let staging_bytes = sim.checkpoint_staging_bytes();
+    let staging_bytes = state::staging_bytes(&sim);
     let disk_guard = match &sc.output.disk_budget {
         Some(b) => Some(DiskGuard {
             limit: parse_size(b).map_err(|e| RunError::DiskBudget(format!("output.disk_budget: {e}")))?,
@@ -812,6 +813,16 @@ pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary
         last_checkpoint: ckpts.and_then(|c| c.last_good.map(|g| g.0)),
         failure,
     })
+}
+
+/// Add the checkpoint staging buffer a run maps (when its scenario writes checkpoints) to
+/// `sim`'s memory plan, and check the plan against the budget again.
+pub fn plan_checkpoint_staging(sim: &mut Simulation) -> Result<(), SimError> {
+    if sim.scenario.checkpoint.enabled {
+        sim.memory.add::<u8>("checkpoint.staging", state::staging_bytes(sim));
+        sim.memory.check(sim.budget)?;
+    }
+    Ok(())
 }
 
 /// Before anything is allocated or counted: refuse a scenario whose memory plan is over its

@@ -1,6 +1,7 @@
 //! Scenario files (TOML). Every table rejects unknown keys, and `validate` checks values, so a
 //! typo or a bad number is an error that names the key before anything runs.
 
+use crate::config::{CheckpointConfig, DiskFullPolicy, ObserveConfig, PrintConfig, SleepConfig};
 use crate::kernels::boundary::WallKind;
 use crate::memory::parse_size;
 use serde::Deserialize;
@@ -27,16 +28,16 @@ pub struct Scenario {
     pub memory: Memory,
     /// Printing: nozzle, toolpath, emission.
     #[serde(default)]
-    pub print: Option<crate::print::PrintConfig>,
+    pub print: Option<PrintConfig>,
     /// Sleeping blocks of material at rest.
     #[serde(default)]
-    pub sleep: Option<crate::sleep::SleepConfig>,
+    pub sleep: Option<SleepConfig>,
     /// Observables written at each output.
     #[serde(default)]
-    pub observe: Option<crate::report::ObserveConfig>,
+    pub observe: Option<ObserveConfig>,
     /// Restart checkpoints.
     #[serde(default)]
-    pub checkpoint: crate::checkpoint::CheckpointConfig,
+    pub checkpoint: CheckpointConfig,
     /// Folder that relative paths in the scenario (G-code, measurements) start from.
     #[serde(skip)]
     pub base_dir: PathBuf,
@@ -257,7 +258,7 @@ pub struct Output {
     pub disk_budget: Option<String>,
     /// What to do when the next snapshot would not fit the disk budget.
     #[serde(default)]
-    pub on_disk_full: crate::disk::DiskFullPolicy,
+    pub on_disk_full: DiskFullPolicy,
 }
 
 fn default_interval() -> f64 {

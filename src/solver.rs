@@ -12,7 +12,7 @@
 use crate::grid::{Grid, GridGeom, NODES_PER_BLOCK, PAD};
 use crate::kernels::boundary::{apply_wall, WallKind};
 use crate::kernels::material::Material;
-use crate::kernels::transfer::{g2p_block, local_index, p2g_block, G2pOutput, Node, P2gInput, TransferParams, BS, LN, LNODES};
+use crate::kernels::transfer::{g2p_block, local_index, p2g_block, G2pOutput, Node, P2gInput, TransferParams, BLOCK_EDGE, NEIGHBOURHOOD_EDGE, NEIGHBOURHOOD_NODES};
 use crate::kernels::{Real, M3, V3};
 use crate::materials::build_material;
 use crate::memory::{parse_size, Backing, MemoryError, MemoryPlan, Pool};
@@ -155,12 +155,6 @@ pub struct Simulation {
     pub solids: Option<crate::solid::Solids>,
 }
 
-fn checkpoint_staging_bytes(sc: &Scenario, cap: usize, state_len: usize, max_blocks: usize, table_len: usize) -> usize {
-    let loads = sc.sleep.as_ref().is_some_and(|c| c.tests_loads(sc.simulation.gravity));
-    let coarsen = sc.sleep.as_ref().is_some_and(|c| c.coarsen);
-    crate::checkpoint::state::max_staging_bytes(cap, state_len, max_blocks, table_len, sc.sleep.is_some(), loads, coarsen, sc.simulation.flip > 0.0)
-}
-
 /// Names of the step's phases, as accumulated in `Simulation::phase_seconds`.
 pub const PHASES: [&str; 6] = ["emit+sleep+bin+reorder", "clear grid", "P2G", "grid update", "G2P", "materials"];
 
@@ -214,10 +208,6 @@ impl Simulation {
         crate::solid::Solids::plan(&mut memory, scenario.solids.len(), max_blocks); // solids hook (issue 30)
         if let Some(cfg) = &scenario.sleep {
             Sleep::plan(&mut memory, cfg, &geom, max_blocks, cap, scenario.simulation.gravity);
-        }
-        if scenario.checkpoint.enabled {
-            let bytes = checkpoint_staging_bytes(scenario, cap, state_len, max_blocks, geom.table_len());
-            memory.add::<u8>("checkpoint.staging", bytes);
         }
         if let Some(p) = &printer {
             let q = scenario.print.as_ref().map_or(0, |c| c.queue);
@@ -301,12 +291,6 @@ impl Simulation {
         }
         sim.vmax = sim.particles.v.as_slice()[..sim.particles.n].iter().map(|v| v.length() as f64).fold(0.0, f64::max);
         Ok(sim)
-    }
-
-    /// Bytes of the checkpoint staging buffer `strand run` maps (in the memory plan).
-    pub fn checkpoint_staging_bytes(&self) -> usize {
-        let sc = &self.scenario;
-        checkpoint_staging_bytes(sc, self.particles.capacity(), self.particles.state_len, self.grid.max_blocks(), self.grid.geom.table_len())
     }
 
     pub fn threads(&self) -> usize {
@@ -614,11 +598,11 @@ impl Simulation {
             let nbr = sc.nbr.as_slice();
             self.team.run(|tid| {
                 let (lo, hi) = balanced(cum, total, tid, threads);
-                let mut local = [[0.0 as Real; 7]; LNODES];
+                let mut local = [[0.0 as Real; 7]; NEIGHBOURHOOD_NODES];
                 for &s in &blocks[lo..hi] {
                     let s = s as usize;
                     let b = geom.block_coords(slot_block[s]);
-                    let origin = [b[0] * BS as i32, b[1] * BS as i32, b[2] * BS as i32];
+                    let origin = [b[0] * BLOCK_EDGE as i32, b[1] * BLOCK_EDGE as i32, b[2] * BLOCK_EDGE as i32];
                     local.iter_mut().for_each(|n| *n = [0.0; 7]);
                     let ord = &order[starts[s] as usize..starts[s + 1] as usize];
                     if split {
@@ -761,11 +745,11 @@ impl Simulation {
         let activity = self.sleep.as_mut().map(|z| SharedSlice::new(&mut z.activity.as_mut_slice()[..npb]));
         self.team.run(|tid| {
             let (lo, hi) = balanced(&starts[..npb], starts[npb], tid, threads);
-            let mut local = [[0.0 as Real; 7]; LNODES];
+            let mut local = [[0.0 as Real; 7]; NEIGHBOURHOOD_NODES];
             let mut vmax: Real = 0.0;
             for s in lo..hi {
                 let b = geom.block_coords(slot_block[s]);
-                let origin = [b[0] * BS as i32, b[1] * BS as i32, b[2] * BS as i32];
+                let origin = [b[0] * BLOCK_EDGE as i32, b[1] * BLOCK_EDGE as i32, b[2] * BLOCK_EDGE as i32];
                 gather_local(&mut local, &nbr[s], nodes);
                 let ord = &order[starts[s] as usize..starts[s + 1] as usize];
                 // SAFETY: every particle belongs to exactly one particle block, and each block to
@@ -905,11 +889,11 @@ fn for_each_neighbourhood_node(nbr: &[u32; 8], mut f: impl FnMut(usize, usize)) 
     for (d, &slot) in nbr.iter().enumerate() {
         let o = [(d >> 2) & 1, (d >> 1) & 1, d & 1];
         let base = slot as usize * NODES_PER_BLOCK;
-        let ext = |k: usize| if o[k] == 0 { BS } else { LN - BS };
+        let ext = |k: usize| if o[k] == 0 { BLOCK_EDGE } else { NEIGHBOURHOOD_EDGE - BLOCK_EDGE };
         for i in 0..ext(0) {
             for jj in 0..ext(1) {
                 for k in 0..ext(2) {
-                    f(local_index(o[0] * BS + i, o[1] * BS + jj, o[2] * BS + k), base + (i * BS + jj) * BS + k);
+                    f(local_index(o[0] * BLOCK_EDGE + i, o[1] * BLOCK_EDGE + jj, o[2] * BLOCK_EDGE + k), base + (i * BLOCK_EDGE + jj) * BLOCK_EDGE + k);
                 }
             }
         }
@@ -920,7 +904,7 @@ fn for_each_neighbourhood_node(nbr: &[u32; 8], mut f: impl FnMut(usize, usize)) 
 ///
 /// # Safety
 /// No other thread may touch the blocks in `nbr` meanwhile.
-pub(crate) unsafe fn flush_local(local: &[Node; LNODES], nbr: &[u32; 8], nodes: &SharedSlice<Node>) {
+pub(crate) unsafe fn flush_local(local: &[Node; NEIGHBOURHOOD_NODES], nbr: &[u32; 8], nodes: &SharedSlice<Node>) {
     for_each_neighbourhood_node(nbr, |l, g| {
         let dst = nodes.get_mut(g);
         for (d, s) in dst.iter_mut().zip(local[l].iter()) {
@@ -930,7 +914,7 @@ pub(crate) unsafe fn flush_local(local: &[Node; LNODES], nbr: &[u32; 8], nodes: 
 }
 
 /// Gather the nodes of a particle block's neighbourhood.
-pub(crate) fn gather_local(local: &mut [Node; LNODES], nbr: &[u32; 8], nodes: &[Node]) {
+pub(crate) fn gather_local(local: &mut [Node; NEIGHBOURHOOD_NODES], nbr: &[u32; 8], nodes: &[Node]) {
     for_each_neighbourhood_node(nbr, |l, g| local[l] = nodes[g]);
 }
 
@@ -1057,11 +1041,11 @@ pub(crate) fn ghost_source(geom: &GridGeom, walls: &Walls, g: [i32; 3], table: &
     if !ghost {
         return None;
     }
-    let blk = [mirror[0].div_euclid(BS as i32), mirror[1].div_euclid(BS as i32), mirror[2].div_euclid(BS as i32)];
+    let blk = [mirror[0].div_euclid(BLOCK_EDGE as i32), mirror[1].div_euclid(BLOCK_EDGE as i32), mirror[2].div_euclid(BLOCK_EDGE as i32)];
     let slot = table[geom.block_index(blk) as usize];
     let src = (slot != crate::grid::EMPTY).then(|| {
-        let l = (mirror[0].rem_euclid(BS as i32) as usize * BS + mirror[1].rem_euclid(BS as i32) as usize) * BS
-            + mirror[2].rem_euclid(BS as i32) as usize;
+        let l = (mirror[0].rem_euclid(BLOCK_EDGE as i32) as usize * BLOCK_EDGE + mirror[1].rem_euclid(BLOCK_EDGE as i32) as usize) * BLOCK_EDGE
+            + mirror[2].rem_euclid(BLOCK_EDGE as i32) as usize;
         slot as usize * NODES_PER_BLOCK + l
     });
     Some((src, sign))

@@ -20,7 +20,7 @@ use strand_kernels::material::bingham::Bingham;
 use strand_kernels::material::papanastasiou_roussel::PapanastasiouRoussel;
 use strand_kernels::material::{Material, UpdateAdjoint};
 use strand_kernels::real::{ddot, dev, r, sym, sym_to_array, Real, M3, NAME, V3};
-use strand_kernels::transfer::{g2p_block, p2g_block, G2pOutput, Node, P2gInput, TransferParams, BS, LNODES};
+use strand_kernels::transfer::{g2p_block, p2g_block, G2pOutput, Node, P2gInput, TransferParams, BLOCK_EDGE, NEIGHBOURHOOD_NODES};
 use strand_kernels::transfer_adjoint::{g2p_block_adjoint, p2g_block_adjoint, G2pAdjointIn, G2pAdjointOut, P2gAdjoint};
 
 /// First node of the block (any interior block; the kernels only see local offsets).
@@ -28,7 +28,7 @@ const ORIGIN: [i32; 3] = [8, 4, 12];
 /// Particles per cell, as the solver seeds them.
 const PPC: usize = 8;
 /// Particles in the block.
-const N: usize = BS * BS * BS * PPC;
+const N: usize = BLOCK_EDGE * BLOCK_EDGE * BLOCK_EDGE * PPC;
 /// Grid spacing [m] and step [s] of the default scenario (its CFL step is about 2.7e-5 s).
 const DX: f64 = 0.0025;
 const DT: f64 = 2.5e-5;
@@ -80,8 +80,8 @@ impl Block {
     fn new(rng: &mut Lcg) -> Self {
         let vol = DX * DX * DX / PPC as f64;
         let mut b = Block { xg: vec![], v: vec![], c: vec![], stress: vec![], mass: vec![], vol0: vec![], j: vec![], order: vec![] };
-        for cell in 0..BS * BS * BS {
-            let (ci, cj, ck) = (cell / (BS * BS), cell / BS % BS, cell % BS);
+        for cell in 0..BLOCK_EDGE * BLOCK_EDGE * BLOCK_EDGE {
+            let (ci, cj, ck) = (cell / (BLOCK_EDGE * BLOCK_EDGE), cell / BLOCK_EDGE % BLOCK_EDGE, cell % BLOCK_EDGE);
             let corner = V3::new(
                 r((ORIGIN[0] + ci as i32) as f64 + 0.5),
                 r((ORIGIN[1] + cj as i32) as f64 + 0.5),
@@ -112,8 +112,8 @@ impl Block {
 
 /// The block neighbourhood after the grid update, as G2P reads it: split P2G of the block, then
 /// the solver's node update `[m, old + impulse / m + g dt, old]` with `old` = momentum / m.
-fn updated_grid(b: &Block) -> [Node; LNODES] {
-    let mut local = [[r(0.0); 7]; LNODES];
+fn updated_grid(b: &Block) -> [Node; NEIGHBOURHOOD_NODES] {
+    let mut local = [[r(0.0); 7]; NEIGHBOURHOOD_NODES];
     p2g_block::<true>(ORIGIN, &b.order, &b.p2g_input(), &tp(), &mut local);
     let gravity = V3::new(r(0.0), r(0.0), r(-9.81));
     for node in local.iter_mut() {
@@ -143,7 +143,7 @@ impl G2pState {
         G2pState { xg: b.xg.clone(), v: b.v.clone(), c: b.c.clone(), j: b.j.clone() }
     }
 
-    fn run(&mut self, b: &Block, local: &[Node; LNODES], flip: Real, j_bar: bool) -> Real {
+    fn run(&mut self, b: &Block, local: &[Node; NEIGHBOURHOOD_NODES], flip: Real, j_bar: bool) -> Real {
         let mut out = G2pOutput { xg: &mut self.xg, v: &mut self.v, c: &mut self.c, j: &mut self.j };
         g2p_block(ORIGIN, &b.order, local, flip, j_bar.then_some(&b.vol0[..]), &tp(), &mut out)
     }
@@ -164,7 +164,7 @@ fn bench_p2g(c: &mut Criterion) {
     let b = Block::new(&mut Lcg(1));
     let input = b.p2g_input();
     let mut g = group(c, "p2g");
-    let mut local = [[r(0.0); 7]; LNODES];
+    let mut local = [[r(0.0); 7]; NEIGHBOURHOOD_NODES];
     // the solver clears the neighbourhood buffer before each block; so does the benchmark
     g.bench_function("folded", |bench| {
         bench.iter(|| {
@@ -248,7 +248,7 @@ fn bench_p2g_adjoint(c: &mut Criterion) {
     let mut rng = Lcg(3);
     let b = Block::new(&mut rng);
     let input = b.p2g_input();
-    let mut local_bar = [[r(0.0); 7]; LNODES];
+    let mut local_bar = [[r(0.0); 7]; NEIGHBOURHOOD_NODES];
     for node in local_bar.iter_mut() {
         node.iter_mut().for_each(|x| *x = rng.uniform(-1.0, 1.0));
     }
@@ -297,7 +297,7 @@ fn bench_g2p_adjoint(c: &mut Criterion) {
             c_bar: &c_bar,
             jac_bar: &jac_bar,
         };
-        let mut local_out = [[r(0.0); 7]; LNODES];
+        let mut local_out = [[r(0.0); 7]; NEIGHBOURHOOD_NODES];
         let (mut xg_out, mut v_out) = (vec![V3::ZERO; N], vec![V3::ZERO; N]);
         let (mut jac_out, mut vol0_out) = (vec![r(0.0); N], vec![r(0.0); N]);
         let (mut dt_out, mut dx_out) = (r(0.0), r(0.0));

@@ -1,9 +1,9 @@
 //! The two particle-grid transfers of MLS-MPM (paper 000 eqs. 9-15), as pure kernels over one
 //! particle block.
 //!
-//! The grid is cut into blocks of `BS^3` nodes. All particles whose stencil base node lies in the
-//! same block (the "particle block") touch only nodes `origin + 0..BS+2` along each axis, a
-//! `LN^3` neighbourhood. P2G scatters into a private neighbourhood buffer that the caller later
+//! The grid is cut into blocks of `BLOCK_EDGE^3` nodes. All particles whose stencil base node lies in the
+//! same block (the "particle block") touch only nodes `origin + 0..BLOCK_EDGE+2` along each axis, a
+//! `NEIGHBOURHOOD_EDGE^3` neighbourhood. P2G scatters into a private neighbourhood buffer that the caller later
 //! adds to the grid, and G2P gathers from one, so the kernels never see the sparse grid, never
 //! race, and run unchanged on any thread.
 
@@ -11,16 +11,16 @@ use crate::bspline::{base_and_fx, weights};
 use crate::real::{r, Real, M3, V3, V3A};
 
 /// Nodes per block edge.
-pub const BS: usize = 4;
+pub const BLOCK_EDGE: usize = 4;
 /// Neighbourhood edge: a block plus the two extra nodes a quadratic stencil reaches.
-pub const LN: usize = BS + 2;
+pub const NEIGHBOURHOOD_EDGE: usize = BLOCK_EDGE + 2;
 /// Nodes in a neighbourhood.
-pub const LNODES: usize = LN * LN * LN;
+pub const NEIGHBOURHOOD_NODES: usize = NEIGHBOURHOOD_EDGE * NEIGHBOURHOOD_EDGE * NEIGHBOURHOOD_EDGE;
 
 /// Index of local node (i, j, k) in a neighbourhood buffer.
 #[inline(always)]
 pub fn local_index(i: usize, j: usize, k: usize) -> usize {
-    (i * LN + j) * LN + k
+    (i * NEIGHBOURHOOD_EDGE + j) * NEIGHBOURHOOD_EDGE + k
 }
 
 /// Grid node accumulator: `[mass, momentum x, y, z, stress impulse x, y, z]`; after the grid
@@ -60,7 +60,7 @@ pub fn p2g_block<const SPLIT: bool>(
     order: &[u32],
     p: &P2gInput,
     tp: &TransferParams,
-    local: &mut [Node; LNODES],
+    local: &mut [Node; NEIGHBOURHOOD_NODES],
 ) {
     let dx = tp.dx;
     let stress_scale = -tp.dt * r(4.0) / (dx * dx);
@@ -122,7 +122,7 @@ pub fn p2g_block<const SPLIT: bool>(
 /// multiply-adds per node instead of twelve). Centred offsets keep the cancellation against
 /// `v (fx_k - 1)` small. The adjoint recomputes through this same function, bit for bit.
 #[inline(always)]
-pub fn gather_velocity<const CH: usize>(local: &[Node; LNODES], o: [usize; 3], fx: V3, w: &[V3; 3], dx: Real) -> (V3, M3) {
+pub fn gather_velocity<const CH: usize>(local: &[Node; NEIGHBOURHOOD_NODES], o: [usize; 3], fx: V3, w: &[V3; 3], dx: Real) -> (V3, M3) {
     let mut v = V3A::ZERO;
     let mut mx = V3A::ZERO;
     let mut my = V3A::ZERO;
@@ -189,7 +189,7 @@ pub struct G2pOutput<'a> {
 pub fn g2p_block(
     origin: [i32; 3],
     order: &[u32],
-    local: &[Node; LNODES],
+    local: &[Node; NEIGHBOURHOOD_NODES],
     flip: Real,
     j_bar: Option<&[Real]>,
     tp: &TransferParams,
@@ -200,13 +200,13 @@ pub fn g2p_block(
     let c_scale = r(4.0) * inv_dx * inv_dx;
     let mut vmax2: Real = r(0.0);
     // J-bar: sums of V0 J and V0 per cell of this block, by the particles' new stencil base
-    let mut cell_vj = [r(0.0); BS * BS * BS];
-    let mut cell_v = [r(0.0); BS * BS * BS];
+    let mut cell_vj = [r(0.0); BLOCK_EDGE * BLOCK_EDGE * BLOCK_EDGE];
+    let mut cell_v = [r(0.0); BLOCK_EDGE * BLOCK_EDGE * BLOCK_EDGE];
     let cell_of = |xg: V3| -> Option<usize> {
         let (b, _) = base_and_fx(xg);
         let l = [b[0] - origin[0], b[1] - origin[1], b[2] - origin[2]];
-        let inside = l.iter().all(|&k| (0..BS as i32).contains(&k));
-        inside.then(|| (l[0] as usize * BS + l[1] as usize) * BS + l[2] as usize)
+        let inside = l.iter().all(|&k| (0..BLOCK_EDGE as i32).contains(&k));
+        inside.then(|| (l[0] as usize * BLOCK_EDGE + l[1] as usize) * BLOCK_EDGE + l[2] as usize)
     };
     for &pi in order {
         let pi = pi as usize;
@@ -247,10 +247,10 @@ pub fn g2p_block(
 mod tests {
     use super::*;
 
-    fn one_particle(xg: V3, v: V3, c: M3) -> ([Node; LNODES], [i32; 3]) {
+    fn one_particle(xg: V3, v: V3, c: M3) -> ([Node; NEIGHBOURHOOD_NODES], [i32; 3]) {
         let (base, _) = base_and_fx(xg);
         let origin = [base[0] - 1, base[1] - 2, base[2]];
-        let mut local = [[0.0 as Real; 7]; LNODES];
+        let mut local = [[0.0 as Real; 7]; NEIGHBOURHOOD_NODES];
         let zero = [M3::ZERO];
         let input = P2gInput { xg: &[xg], v: &[v], c: &[c], stress: &zero, mass: &[2.0], vol0: &[0.1], j: &[0.9] };
         p2g_block::<false>(origin, &[0], &input, &TransferParams { dx: 0.5, dt: 1e-3 }, &mut local);
@@ -276,7 +276,7 @@ mod tests {
         let v = V3::new(0.3, -1.0, 2.0);
         let c = M3::from_cols_array(&[0.1, 0.2, 0.3, -0.4, 0.5, 0.6, 0.7, 0.8, -0.9]);
         let (local, origin) = one_particle(xg, v, c);
-        let mut grid = [[0.0 as Real; 7]; LNODES];
+        let mut grid = [[0.0 as Real; 7]; NEIGHBOURHOOD_NODES];
         for (g, n) in grid.iter_mut().zip(local.iter()) {
             if n[0] > 0.0 {
                 *g = [n[0], n[1] / n[0], n[2] / n[0], n[3] / n[0], 0.0, 0.0, 0.0];

@@ -34,7 +34,7 @@
 
 use crate::bspline::{base_and_fx, weights, weights_adjoint};
 use crate::real::{ddot, r, trace, Real, M3, V3};
-use crate::transfer::{gather_velocity, local_index, Node, P2gInput, TransferParams, BS, LNODES};
+use crate::transfer::{gather_velocity, local_index, Node, P2gInput, TransferParams, BLOCK_EDGE, NEIGHBOURHOOD_NODES};
 
 /// Adjoints of the particle data and parameters P2G reads, indexed like [`P2gInput`]; all
 /// accumulated.
@@ -55,7 +55,7 @@ pub struct P2gAdjoint<'a> {
 /// its outputs.
 pub struct G2pAdjointIn<'a> {
     /// The block neighbourhood the forward gathered from (after the grid update).
-    pub local: &'a [Node; LNODES],
+    pub local: &'a [Node; NEIGHBOURHOOD_NODES],
     /// Particle state before the G2P, which the forward then overwrote in place.
     pub xg: &'a [V3],
     pub v: &'a [V3],
@@ -73,7 +73,7 @@ pub struct G2pAdjointIn<'a> {
 
 /// Adjoints of what G2P reads; all accumulated.
 pub struct G2pAdjointOut<'a> {
-    pub local_bar: &'a mut [Node; LNODES],
+    pub local_bar: &'a mut [Node; NEIGHBOURHOOD_NODES],
     /// Adjoints of the pre-G2P particle state.
     pub xg_bar: &'a mut [V3],
     pub v_bar: &'a mut [V3],
@@ -151,7 +151,7 @@ pub fn p2g_block_adjoint<const SPLIT: bool>(
     order: &[u32],
     p: &P2gInput,
     tp: &TransferParams,
-    local_bar: &[Node; LNODES],
+    local_bar: &[Node; NEIGHBOURHOOD_NODES],
     out: &mut P2gAdjoint,
 ) {
     let dx = tp.dx;
@@ -235,7 +235,7 @@ struct G2pParticle {
 }
 
 #[inline(always)]
-fn g2p_particle(origin: [i32; 3], local: &[Node; LNODES], tp: &TransferParams, xg: V3) -> G2pParticle {
+fn g2p_particle(origin: [i32; 3], local: &[Node; NEIGHBOURHOOD_NODES], tp: &TransferParams, xg: V3) -> G2pParticle {
     let dx = tp.dx;
     let inv_dx = r(1.0) / dx;
     let c_scale = r(4.0) * inv_dx * inv_dx;
@@ -260,8 +260,8 @@ fn g2p_particle_from(origin: [i32; 3], tp: &TransferParams, xg: V3, v: V3, c: &M
 fn cell_of(origin: [i32; 3], xg: V3) -> Option<usize> {
     let (b, _) = base_and_fx(xg);
     let l = [b[0] - origin[0], b[1] - origin[1], b[2] - origin[2]];
-    let inside = l.iter().all(|&k| (0..BS as i32).contains(&k));
-    inside.then(|| (l[0] as usize * BS + l[1] as usize) * BS + l[2] as usize)
+    let inside = l.iter().all(|&k| (0..BLOCK_EDGE as i32).contains(&k));
+    inside.then(|| (l[0] as usize * BLOCK_EDGE + l[1] as usize) * BLOCK_EDGE + l[2] as usize)
 }
 
 /// Adjoint of [`crate::transfer::g2p_block`]: given the adjoints of its outputs (`inp.xg_bar`,
@@ -292,9 +292,9 @@ pub fn g2p_block_adjoint(
         Some((v, c)) if flip == r(0.0) => g2p_particle_from(origin, tp, inp.xg[pi], v[pi], &c[pi]),
         _ => g2p_particle(origin, inp.local, tp, inp.xg[pi]),
     };
-    let mut cell_vj = [r(0.0); BS * BS * BS];
-    let mut cell_v = [r(0.0); BS * BS * BS];
-    let mut cell_j_bar_sum = [r(0.0); BS * BS * BS];
+    let mut cell_vj = [r(0.0); BLOCK_EDGE * BLOCK_EDGE * BLOCK_EDGE];
+    let mut cell_v = [r(0.0); BLOCK_EDGE * BLOCK_EDGE * BLOCK_EDGE];
+    let mut cell_j_bar_sum = [r(0.0); BLOCK_EDGE * BLOCK_EDGE * BLOCK_EDGE];
     if let Some(vol0) = j_bar {
         for &pi in order {
             let pi = pi as usize;
@@ -440,7 +440,7 @@ mod tests {
         }
 
         fn cell(&mut self) -> [i32; 3] {
-            [self.below(BS), self.below(BS), self.below(BS)]
+            [self.below(BLOCK_EDGE), self.below(BLOCK_EDGE), self.below(BLOCK_EDGE)]
         }
     }
 
@@ -478,8 +478,8 @@ mod tests {
         m.iter().flat_map(|a| a.to_cols_array())
     }
 
-    fn nodes(x: &[Real]) -> [Node; LNODES] {
-        let mut local = [[0.0; 7]; LNODES];
+    fn nodes(x: &[Real]) -> [Node; NEIGHBOURHOOD_NODES] {
+        let mut local = [[0.0; 7]; NEIGHBOURHOOD_NODES];
         for (node, values) in local.iter_mut().zip(x.chunks(7)) {
             node.copy_from_slice(values);
         }
@@ -524,7 +524,7 @@ mod tests {
             let s = |k: usize| &x[g[k].range.clone()];
             let (xg, v, c, stress) = (v3s(s(0)), v3s(s(1)), m3s(s(2)), m3s(s(3)));
             let p = P2gInput { xg: &xg, v: &v, c: &c, stress: &stress, mass: s(4), vol0: s(5), j: s(6) };
-            let mut local = [[0.0; 7]; LNODES];
+            let mut local = [[0.0; 7]; NEIGHBOURHOOD_NODES];
             p2g_block::<SPLIT>(ORIGIN, &ORDER, &p, &TransferParams { dt: s(7)[0], dx: s(8)[0] }, &mut local);
             local.concat()
         }
@@ -582,7 +582,7 @@ mod tests {
                 ("v", 3 * N, 1.0),
                 ("j", N, 1.0),
                 ("vol0", N, 1.0),
-                ("grid", 7 * LNODES, 1.0),
+                ("grid", 7 * NEIGHBOURHOOD_NODES, 1.0),
                 ("dt", 1, DT),
                 ("dx", 1, DX),
             ])
@@ -678,17 +678,17 @@ mod tests {
     /// under J-bar it keeps its own J), and every particle stays clear of the faces, before and
     /// after the move.
     fn g2p_point(rng: &mut Rng) -> Vec<Real> {
-        let block_end = ORIGIN[0] + BS as i32;
+        let block_end = ORIGIN[0] + BLOCK_EDGE as i32;
         for _ in 0..1000 {
-            let shared = [rng.below(BS - 1), rng.below(BS), rng.below(BS)];
-            let edge = [BS as i32 - 1, rng.below(BS), rng.below(BS)];
+            let shared = [rng.below(BLOCK_EDGE - 1), rng.below(BLOCK_EDGE), rng.below(BLOCK_EDGE)];
+            let edge = [BLOCK_EDGE as i32 - 1, rng.below(BLOCK_EDGE), rng.below(BLOCK_EDGE)];
             let cells = [shared, shared, edge, rng.cell()];
             let mut x: Vec<Real> = cells.iter().flat_map(|&c| position(rng, c, 2.0 * MARGIN)).collect();
             x[6] = (block_end - 1) as Real + 0.5 + rng.uniform(0.8, 0.9);
             x.extend(rng.vec(3 * N, -1.0, 1.0));
             x.extend(rng.vec(N, 0.8, 1.2));
             x.extend(rng.vec(N, 0.5, 1.5));
-            for _ in 0..LNODES {
+            for _ in 0..NEIGHBOURHOOD_NODES {
                 x.push(rng.uniform(0.5, 1.5));
                 // new and old velocity, drifting along +x by about a quarter cell per step so that
                 // particle 2 leaves the block (the stencil average of the noise is small)

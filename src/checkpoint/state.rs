@@ -11,8 +11,8 @@
 //!   header prove the rebuilt arrays equal the run's (a run merging sleeping particles,
 //!   `[sleep] coarsen`, stores mass, vol0 and the next id instead: merged particles are no
 //!   longer what their ids say);
-//! - sleeping particles' v, C and stress from (state, J): a particle falling asleep is settled
-//!   to exactly that (`sleep::settle`);
+//! - sleeping particles' v, C and stress from (state, J): a particle falling asleep is put
+//!   at rest, which is exactly that (`sleep::put_at_rest`);
 //! - the step's binning and block slots by binning the restored positions again (the saved
 //!   `grid.slot_block` proves it gave the same slots); the per-block activity by G2P.
 
@@ -156,14 +156,8 @@ pub fn sections(sim: &Simulation) -> Vec<Part<'_>> {
     if let Some(sl) = &sim.sleep {
         // per unit of the whole domain, but zero away from material (and the load tables
         // away from sleeping units; without the load test they hold nothing and are left out)
-        let t = sl.tables();
-        v.extend(sparse("sleep.state_at", "sleep.state", t.state, 1, false));
-        v.extend(sparse("sleep.rest_at", "sleep.rest", bytes(t.rest), 4, false));
-        if sl.tests_loads() {
-            v.extend(sparse("sleep.load_at", "sleep.load", bytes(t.load), 12, false));
-            v.extend(sparse("sleep.load_step_at", "sleep.load_step", bytes(t.load_step), 4, false));
-            v.extend(sparse("sleep.margin_at", "sleep.margin", bytes(t.margin), 4, false));
-            v.extend(sparse("sleep.base_at", "sleep.base", bytes(t.base), 4, false));
+        for t in sl.stored_tables() {
+            v.extend(sparse(t.name_at, t.name, t.bytes, t.size, false));
         }
     }
     v
@@ -187,6 +181,16 @@ pub fn restart_bytes_per_particle(sim: &Simulation) -> f64 {
     restart_bytes_per_particle_with(sim, size_of::<Real>())
 }
 
+/// Bytes of the staging buffer `strand run` maps for `sim`'s checkpoints:
+/// [`max_staging_bytes`] at its pools' capacity.
+pub fn staging_bytes(sim: &Simulation) -> usize {
+    let sc = &sim.scenario;
+    let loads = sim.sleep.as_ref().is_some_and(|s| s.tests_loads());
+    let coarsen = sc.sleep.as_ref().is_some_and(|c| c.coarsen);
+    let (cap, sl, blocks, table) = (sim.particles.capacity(), sim.particles.state_len, sim.grid.max_blocks(), sim.grid.geom.table_len());
+    max_staging_bytes(cap, sl, blocks, table, sc.sleep.is_some(), loads, coarsen, sc.simulation.flip > 0.0)
+}
+
 /// Bytes of staging a checkpoint can need at the pools' full capacity: `cap` particles with
 /// `state_len` state values, `max_blocks` grid slots, and with sleeping a `table_len` table
 /// (and its load tables with `loads`).
@@ -200,12 +204,7 @@ pub fn max_staging_bytes(cap: usize, state_len: usize, max_blocks: usize, table_
     let align = super::format::ALIGN;
     let mut total = cap * per_particle + max_blocks * (4 + 8) + nodes * channels * real + 15 * align + 4;
     if sleep {
-        // sparse tables: at worst every unit, with its u32 index (state, rest)
-        total += table_len * crate::sleep::UNITS * ((4 + 1) + (4 + 4));
-    }
-    if sleep && loads {
-        // load, load step, margin, base
-        total += table_len * crate::sleep::UNITS * ((4 + 12) + (4 + 4) + (4 + 4) + (4 + 4));
+        total += crate::sleep::Sleep::max_stored_bytes(table_len, loads);
     }
     total
 }
@@ -227,16 +226,8 @@ fn full_state(sim: &Simulation) -> Vec<(&'static str, &[u8])> {
         ("particles.state", bytes(&p.state.as_slice()[..n * p.state_len])),
     ];
     if let Some(sl) = &sim.sleep {
-        let t = sl.tables();
         v.push(("grid.slot_block", bytes(&sim.grid.slot_block.as_slice()[..sim.grid.n_active])));
-        v.push(("sleep.state", bytes(t.state)));
-        v.push(("sleep.rest", bytes(t.rest)));
-        if sl.tests_loads() {
-            v.push(("sleep.load", bytes(t.load)));
-            v.push(("sleep.load_step", bytes(t.load_step)));
-            v.push(("sleep.margin", bytes(t.margin)));
-            v.push(("sleep.base", bytes(t.base)));
-        }
+        v.extend(sl.stored_tables().into_iter().map(|t| (t.name, t.bytes)));
         v.push(("sleep.activity", bytes(&sl.activity.as_slice()[..sim.grid.n_particle_blocks])));
     }
     v
@@ -414,7 +405,7 @@ pub fn restore(sim: &mut Simulation, ck: &Checkpoint) -> Result<(f64, DtLimit), 
     p.c.as_mut_slice()[..n].fill(M3::ZERO);
     p.stress.as_mut_slice()[..n].fill(M3::ZERO);
     for i in 0..asleep {
-        crate::sleep::settle(p, i, &*sim.material);
+        crate::sleep::put_at_rest(p, i, &*sim.material);
     }
     sim.step = h.step;
     sim.time = h.time;
@@ -445,16 +436,10 @@ pub fn restore(sim: &mut Simulation, ck: &Checkpoint) -> Result<(f64, DtLimit), 
             // margins to test loads against
             return Err("the checkpoint holds no sleep load tables (written without sleep.wake_by_load)".into());
         }
-        let t = sleep.tables_mut();
-        scatter(t.state, ck, "sleep.state_at", "sleep.state")?;
-        scatter(t.rest, ck, "sleep.rest_at", "sleep.rest")?;
-        if loads {
-            scatter(t.load, ck, "sleep.load_at", "sleep.load")?;
-            scatter(t.load_step, ck, "sleep.load_step_at", "sleep.load_step")?;
-            scatter(t.margin, ck, "sleep.margin_at", "sleep.margin")?;
-            scatter(t.base, ck, "sleep.base_at", "sleep.base")?;
+        for t in sleep.stored_tables_mut() {
+            scatter(t.bytes, t.size, ck, t.name_at, t.name)?;
         }
-        sleep.recount();
+        sleep.restored()?;
         if sleep.sleeping_units != h.sleeping_units as usize {
             return Err(format!("the sleep table holds {} sleeping units, the header {}", sleep.sleeping_units, h.sleeping_units));
         }
@@ -492,15 +477,14 @@ pub fn restore(sim: &mut Simulation, ck: &Checkpoint) -> Result<(f64, DtLimit), 
 }
 
 /// Put a table saved by [`sparse`] back: zero, then its nonzero elements at their indices.
-fn scatter<T: bytemuck::Pod>(table: &mut [T], ck: &Checkpoint, name_at: &str, name: &str) -> Result<(), String> {
-    let size = size_of::<T>();
+fn scatter(table: &mut [u8], size: usize, ck: &Checkpoint, name_at: &str, name: &str) -> Result<(), String> {
     let at = ck.section(name_at).ok_or_else(|| format!("section '{name_at}' is missing"))?;
     let values = ck.section(name).ok_or_else(|| format!("section '{name}' is missing"))?;
     if at.len() % 4 != 0 || values.len() != at.len() / 4 * size {
         return Err(format!("sections '{name_at}' and '{name}' do not match ({} and {} bytes)", at.len(), values.len()));
     }
-    table.fill(T::zeroed());
-    let bytes: &mut [u8] = bytemuck::cast_slice_mut(table);
+    table.fill(0);
+    let bytes = table;
     for (i, v) in at.chunks_exact(4).zip(values.chunks_exact(size)) {
         let i = u32::from_le_bytes(i.try_into().expect("4 bytes")) as usize;
         let dst = bytes.get_mut(i * size..(i + 1) * size).ok_or_else(|| format!("section '{name_at}': index {i} outside the table"))?;

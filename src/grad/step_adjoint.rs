@@ -18,7 +18,7 @@ use super::print_adjoint::PrintParams;
 use crate::print::newest::{follow_feed_adjoint, FollowFeedBar};
 use crate::grid::NODES_PER_BLOCK;
 use crate::kernels::material::UpdateAdjoint;
-use crate::kernels::transfer::{Node, P2gInput, TransferParams, BS, LNODES};
+use crate::kernels::transfer::{Node, P2gInput, TransferParams, BLOCK_EDGE, NEIGHBOURHOOD_NODES};
 use crate::kernels::transfer_adjoint::{g2p_block_adjoint, p2g_block_adjoint, G2pAdjointIn, G2pAdjointOut, P2gAdjoint};
 use crate::kernels::{Real, V3};
 use crate::memory::{Backing, MemoryError, MemoryPlan, Pool};
@@ -225,7 +225,7 @@ fn lap(clock: &mut Instant, acc: &mut f64) {
 
 fn block_origin(sim: &Simulation, s: usize) -> [i32; 3] {
     let b = sim.grid.geom.block_coords(sim.grid.slot_block.as_slice()[s]);
-    [b[0] * BS as i32, b[1] * BS as i32, b[2] * BS as i32]
+    [b[0] * BLOCK_EDGE as i32, b[1] * BLOCK_EDGE as i32, b[2] * BLOCK_EDGE as i32]
 }
 
 impl Adjoint {
@@ -416,8 +416,8 @@ impl Adjoint {
             let total = cum[cum.len() - 1] + (starts[last + 1] - starts[last]);
             sim.team.run(|tid| {
                 let (lo, hi) = balanced(cum, total, tid, threads);
-                let mut local = [[0.0 as Real; 7]; LNODES];
-                let mut local_bar = [[0.0 as Real; 7]; LNODES];
+                let mut local = [[0.0 as Real; 7]; NEIGHBOURHOOD_NODES];
+                let mut local_bar = [[0.0 as Real; 7]; NEIGHBOURHOOD_NODES];
                 let (mut dt_bar, mut dx_bar) = (0.0, 0.0);
                 for &s in &blocks[lo..hi] {
                     let s = s as usize;
@@ -478,7 +478,7 @@ impl Adjoint {
         let threads = sim.team.threads();
         sim.team.run(|tid| {
             let (lo, hi) = balanced(&starts[..npb], starts[npb], tid, threads);
-            let mut local_bar = [[0.0 as Real; 7]; LNODES];
+            let mut local_bar = [[0.0 as Real; 7]; NEIGHBOURHOOD_NODES];
             let (mut dt_bar, mut dx_bar) = (0.0, 0.0);
             for s in lo..hi {
                 gather_local(&mut local_bar, &nbr[s], grid_bar);

@@ -19,8 +19,8 @@
 //! The merged particle keeps the mass, the initial volume and the current volume (so J) of its
 //! cell's particles; it sits at their centre of mass; its internal state is their
 //! volume-weighted mean (every material's state here is stresses, structure and accumulated
-//! strains, which average to the homogenised value); it is settled like any sleeping particle
-//! (`sleep::settle`), and keeps the smallest id of the group. Merging is not differentiable, as
+//! strains, which average to the homogenised value); it is put at rest like any sleeping particle
+//! (`sleep::put_at_rest`), and keeps the smallest id of the group. Merging is not differentiable, as
 //! sleeping is not (`strand grad` refuses `[sleep]`).
 
 use crate::grid::GridGeom;
@@ -28,7 +28,7 @@ use crate::kernels::material::Material;
 use crate::kernels::{Real, V3};
 use crate::memory::{Backing, MemoryError, MemoryPlan, Pool};
 use crate::particles::Particles;
-use crate::sleep::{offsets_26, unit_in_table, unit_index, wrap_unit, UNITS, US};
+use super::units::{offsets_26, unit_coords, unit_in_table, unit_index, wrap_unit, UNITS, UNIT_CELLS};
 
 /// Scratch for merging, preallocated.
 pub struct Coarsen {
@@ -103,19 +103,19 @@ fn stencil_base(x: V3) -> [i32; 3] {
 /// Unit table index and bit (0..8) of cell `c`, if it lies in the table.
 #[inline]
 fn cell_of(geom: &GridGeom, c: [i32; 3]) -> Option<(u32, u32)> {
-    let u = wrap_unit(geom, c.map(|x| x.div_euclid(US)));
+    let u = wrap_unit(geom, c.map(|x| x.div_euclid(UNIT_CELLS)));
     if !unit_in_table(geom, u) {
         return None;
     }
-    let l = c.map(|x| x.rem_euclid(US) as u32);
+    let l = c.map(|x| x.rem_euclid(UNIT_CELLS) as u32);
     Some((unit_index(geom, u), (l[0] * 2 + l[1]) * 2 + l[2]))
 }
 
 /// Whether all 26 neighbours of cell `key` (unit index * 8 + bit) hold material.
 fn interior(geom: &GridGeom, occupied: &[u8], key: u32) -> bool {
     let (u, bit) = (key / 8, key % 8);
-    let uc = crate::sleep::unit_coords(geom, u);
-    let c = [uc[0] * US + (bit >> 2) as i32, uc[1] * US + (bit >> 1 & 1) as i32, uc[2] * US + (bit & 1) as i32];
+    let uc = unit_coords(geom, u);
+    let c = [uc[0] * UNIT_CELLS + (bit >> 2) as i32, uc[1] * UNIT_CELLS + (bit >> 1 & 1) as i32, uc[2] * UNIT_CELLS + (bit & 1) as i32];
     offsets_26().all(|off| {
         let n = [c[0] + off[0], c[1] + off[1], c[2] + off[2]];
         cell_of(geom, n).is_some_and(|(nu, nb)| occupied[nu as usize] >> nb & 1 == 1)
@@ -157,7 +157,7 @@ fn merge(p: &mut Particles, group: impl Iterator<Item = usize> + Clone, material
         *dst = (s / vol) as Real;
     }
     p.id.as_mut_slice()[first] = id;
-    crate::sleep::settle(p, first, material);
+    super::put_at_rest(p, first, material);
 }
 
 /// Squeeze the `removed` particles marked [`GONE`] out of `from..p.n_sleep` (keeping the order

@@ -1,0 +1,327 @@
+//! Sleeping blocks: deposited material at rest stops costing anything.
+//!
+//! Material sleeps by *units* of 2 x 2 x 2 cells (8 to a grid block; a particle belongs to the
+//! unit of its stencil base). A unit sleeps when its particles have moved slower than `speed`
+//! and strained slower than `strain_rate` for `rest_time`, and no neighbour unit holds material
+//! faster than `wake_speed`. Its particles move into the sleeping prefix `0..n_sleep` of the
+//! pool, out of every per-step loop. Active material that reaches them sees a still, no-slip
+//! body: grid nodes inside a sleeping unit's stencil reach are held at rest. A sleeping unit
+//! wakes as soon as material faster than `wake_speed` is binned next to it (new material
+//! arriving, or a load making its neighbour move), when an awake particle enters it, or when the
+//! nozzle tube reaches it while the nozzle moves or extrudes (material in the tube must follow
+//! the nozzle; a still tube holds its nodes at rest, as a sleeping unit does). That speed rule is
+//! the default.
+//!
+//! The wake test on load (`wake_by_load`; on by default for prints of two or more layers, off
+//! otherwise). Material arriving above a sleeping
+//! unit then wakes it by its load, not its speed, and moving material above a unit no longer
+//! keeps it from falling asleep; the speed of material beside or below a unit still wakes it (a
+//! load test cannot see material sliding past or giving way under it). Why: under the speed rule
+//! the new layer's arrival wakes the layer below over the nozzle's whole zone, and it sleeps
+//! again only once the new layer has settled above it, ~30 mm behind the nozzle; that layer is
+//! what every layer after the first costs above the first (BENCHMARKS.md "Sleeping"). The load
+//! rule pays only when the layer below has built up strength by the time the next one arrives
+//! (real layer times, dwells): material that just stopped flowing rests at its yield stress and
+//! the next layer's weight makes it yield, so on a print with short layer times the load rule
+//! costs as much as the speed rule (measured on ten layers at 5 mm, BENCHMARKS.md).
+//!
+//!
+//! Why on by default for multi-layer prints: under the speed rule alone, a layer asleep under a
+//! stack that grows slowly enough never sees fast material next to it, and stays frozen while the
+//! weight above passes its yield stress; the print would stand where it collapses awake. The load
+//! test wakes it when the added load approaches its margin (`load_fraction`, half by default),
+//! so sleeping does not hide a plastic collapse (tests/print.rs prints a wall to failure with and without sleeping; the cost against
+//! the speed rule is in BENCHMARKS.md "Printing to failure").
+//!
+//! Material arriving faster than `arrive_speed` still wakes the units under it, and keeps them
+//! awake, by its speed. Why: the nozzle squeezes the material it lays down, and the layer below
+//! gives way a little under the squeeze; held still there, it made the new layer spread further
+//! (the dwell print at 2.5 mm, two layers: +1.6 % width against the speed rule without
+//! `arrive_speed`, -0.05 % with 1 cm/s). Behind the nozzle the new layer only settles, slower
+//! than that, and the layer below may sleep under it.
+//!
+//! How loads are tested. Material printed onto a sleeping layer rests on the layer's held nodes;
+//! what those nodes take from it each step (the momentum they remove, over dt) is the load on the
+//! sleeping units holding them. Averaged over `load_time`, that force over a unit's face is a
+//! traction t, and a traction adds at most |t| / sqrt(3) to tau = sqrt(J2) under a column (it is
+//! that for a vertical load on a free-standing column; the triangle inequality bounds the sum
+//! with the stress already there). Only the load added since the unit fell asleep counts: what
+//! lay on it then is in its frozen stress. A unit sleeps with the mean margin to yield of its
+//! particles ([`Material::yield_margin`]), which grows while it sleeps as its material builds up
+//! structure ([`Material::strength_gain`]), and a load must pass `load_fraction` of that
+//! margin by `load_floor` (a load the unit takes at once overshoots to twice its static effect).
+//! The load reaches through the sleeping material below the unit, so it wakes the contiguous
+//! sleeping units under it in its column down to the deepest whose margin it passes: a layer at
+//! its yield stress at the bottom wakes under the next layer's weight, one that has built up
+//! enough strength stays asleep.
+//!
+//! Why units and not the grid's 4-cell blocks: the awake region is what moves plus a one-unit
+//! halo around it (the calm and wake tests look at the 26 neighbours), and a printed layer is
+//! only a few cells thick. With 4-cell blocks the halo under a fresh layer was as thick as a
+//! layer, and blocks straddling two layers kept both awake (BENCHMARKS.md, "Sleeping").
+//!
+//! Sleeping freezes the stress. The internal state is not stepped either, but material at rest
+//! still builds up structure (thixotropy): a unit remembers when it fell asleep, and on waking
+//! its particles get the whole rest interval at once ([`Material::rest_for`]), so a deposited
+//! layer gains the strength it would have had awake. A particle falling asleep is put at rest: its
+//! velocity and velocity gradient (below the rest thresholds anyway) become zero and its stress
+//! the material's stress at rest for its state and J, so a restart checkpoint rebuilds all three
+//! from (state, J) instead of storing 84 bytes per sleeping particle in f32. Going to sleep is
+//! checked every `check_interval` steps (it moves particles, O(awake particles)); waking is
+//! checked every step and moves particles only when a unit actually wakes (O(sleeping
+//! particles), rare).
+//!
+//! With `coarsen`, the interior of material falling asleep merges to one particle per cell
+//! (`coarsen.rs`), so what the next layer wakes costs less.
+//!
+//! Files: `units.rs` (the unit lattice and a unit's state), `holds.rs` (the nodes sleeping units
+//! hold), `passes.rs` (the wake and sleep passes of each step), `loads.rs` (the wake test on
+//! load), `coarsen.rs` (merging), this file (the tables, their memory plan, and what a
+//! checkpoint stores of them).
+
+mod coarsen;
+mod holds;
+mod loads;
+mod passes;
+mod units;
+#[cfg(test)]
+mod tests;
+
+pub use crate::config::SleepConfig;
+pub use coarsen::Coarsen;
+pub use holds::{BlockHolds, Holds};
+pub use units::{unit_in_block, UnitActivity, UnitState, EMPTY_UNIT, UNITS, UNIT_CELLS};
+
+use crate::grid::{GridGeom, NODES_PER_BLOCK};
+use crate::kernels::material::Material;
+use crate::kernels::{M3, V3};
+use crate::memory::{Backing, MemoryError, MemoryPlan, Pool};
+use crate::particles::Particles;
+use units::{states, states_mut, valid_states};
+
+/// The per-unit tables a checkpoint stores: section name, name of the section of their indices,
+/// bytes per unit. The first two always, the rest with the load test.
+const STORED: [(&str, &str, usize); 6] = [
+    ("sleep.state", "sleep.state_at", 1),
+    ("sleep.rest", "sleep.rest_at", 4),
+    ("sleep.load", "sleep.load_at", 12),
+    ("sleep.load_step", "sleep.load_step_at", 4),
+    ("sleep.margin", "sleep.margin_at", 4),
+    ("sleep.base", "sleep.base_at", 4),
+];
+
+/// One per-unit table as a checkpoint stores it ([`Sleep::stored_tables`]).
+pub struct StoredTable<B> {
+    pub name: &'static str,
+    /// The section of the indices of its nonzero entries.
+    pub name_at: &'static str,
+    /// Bytes per unit.
+    pub size: usize,
+    pub bytes: B,
+}
+
+/// Per-unit sleep bookkeeping, over the dense block table refined to units.
+pub struct Sleep {
+    pub cfg: SleepConfig,
+    /// A [`UnitState`] per unit, `Asleep` or `Awake` (`Woken` only inside `update`, `Loaded`
+    /// between a step and the next update), indexed by [`units::unit_index`]; stored as bytes
+    /// (`units::states` views them).
+    state: Pool<u8>,
+    /// Awake unit: time its material has been at rest [s], or, negative, minus the settling
+    /// time left since it woke (`wake_grace`). Sleeping unit: the simulation time at which it
+    /// fell asleep [s] (for the build-up owed on waking).
+    rest: Pool<f32>,
+    /// Units woken by the current update (scratch; never more than the table holds).
+    woken: Pool<u32>,
+    /// Sleeping units per grid block, for the cheap pre-test of [`Holds::block`].
+    asleep_in_block: Pool<u8>,
+    /// (max speed, max strain rate) of each unit of each particle block of the last step, by
+    /// slot; [`EMPTY_UNIT`] where the unit held no particle.
+    pub activity: Pool<UnitActivity>,
+    /// Units asleep now.
+    pub sleeping_units: usize,
+    /// The load tables, `load` to `reactions`, are empty unless loads are tested. Sleeping
+    /// unit: the load on it [N], averaged over `load_time` (an exponential average, brought up
+    /// to date whenever a step loads it).
+    load: Pool<[f32; 3]>,
+    /// Sleeping unit: the step whose load `load` last took in.
+    load_step: Pool<u32>,
+    /// Sleeping unit: the mean margin to yield of its particles when it fell asleep [Pa] (the
+    /// least is near zero in material that just stopped flowing; see `load_floor`).
+    margin: Pool<f32>,
+    /// Sleeping unit: |load| [N] once its average had run long enough to be unbiased (NaN
+    /// before): the load its frozen stress already carries, from the material that lay on it
+    /// when it fell asleep.
+    base: Pool<f32>,
+    /// Units the last step loaded past their margin (state `Loaded`), for the next update.
+    loaded: Pool<u32>,
+    n_loaded: usize,
+    /// Per grid node of the last grid update: the reaction of a held node [N] (zero elsewhere;
+    /// written only in blocks near a sleeping unit).
+    reactions: Pool<[f32; 3]>,
+    /// Axis and sign of gravity (down), when gravity lies along an axis and loads are tested.
+    down: Option<(usize, i32)>,
+    /// 1 / (a unit's face area) [1/m^2].
+    per_area: f32,
+    /// Merging scratch, with `coarsen`.
+    coarsen: Option<Coarsen>,
+}
+
+impl Sleep {
+    pub fn plan(plan: &mut MemoryPlan, cfg: &SleepConfig, geom: &GridGeom, max_blocks: usize, capacity: usize, gravity: [f64; 3]) {
+        let units = geom.table_len() * UNITS;
+        plan.add::<u8>("sleep.state", units);
+        plan.add::<f32>("sleep.rest", units);
+        plan.add::<u32>("sleep.woken", units);
+        plan.add::<u8>("sleep.asleep_in_block", geom.table_len());
+        plan.add::<UnitActivity>("sleep.activity", max_blocks);
+        if cfg.tests_loads(gravity) {
+            plan.add::<[f32; 3]>("sleep.load", units);
+            plan.add::<u32>("sleep.load_step", units);
+            plan.add::<f32>("sleep.margin", units);
+            plan.add::<f32>("sleep.base", units);
+            plan.add::<u32>("sleep.loaded", units);
+            plan.add::<[f32; 3]>("sleep.reactions", max_blocks * NODES_PER_BLOCK);
+        }
+        if cfg.coarsen {
+            Coarsen::plan(plan, geom, capacity);
+        }
+    }
+
+    /// Tables for `geom`'s domain with `max_blocks` grid slots and room for `capacity`
+    /// particles, under `gravity` (the load tables empty unless loads are tested).
+    pub fn new(cfg: SleepConfig, geom: &GridGeom, max_blocks: usize, capacity: usize, gravity: [f64; 3], b: &Backing) -> Result<Self, MemoryError> {
+        let units = geom.table_len() * UNITS;
+        let down = cfg.down(gravity);
+        let per_unit = if down.is_some() { units } else { 0 };
+        let per_node = if down.is_some() { max_blocks * NODES_PER_BLOCK } else { 0 };
+        let face = UNIT_CELLS as f64 * geom.dx;
+        let coarsen = if cfg.coarsen { Some(Coarsen::new(geom, capacity, b)?) } else { None };
+        Ok(Sleep {
+            cfg,
+            coarsen,
+            state: Pool::new("sleep.state", units, b)?,
+            rest: Pool::new("sleep.rest", units, b)?,
+            woken: Pool::new("sleep.woken", units, b)?,
+            asleep_in_block: Pool::new("sleep.asleep_in_block", geom.table_len(), b)?,
+            activity: Pool::new("sleep.activity", max_blocks, b)?,
+            sleeping_units: 0,
+            load: Pool::new("sleep.load", per_unit, b)?,
+            load_step: Pool::new("sleep.load_step", per_unit, b)?,
+            margin: Pool::new("sleep.margin", per_unit, b)?,
+            base: Pool::new("sleep.base", per_unit, b)?,
+            loaded: Pool::new("sleep.loaded", per_unit, b)?,
+            n_loaded: 0,
+            reactions: Pool::new("sleep.reactions", per_node, b)?,
+            down,
+            per_area: (1.0 / (face * face)) as f32,
+        })
+    }
+
+    /// The per-unit tables a checkpoint stores, in this order, each as a [`StoredTable`]: the
+    /// state and the rest clock, and with the load test the load tables. Stored sparse: only the
+    /// nonzero entries, with their indices (a unit's entries are zero away from material, and
+    /// the load tables away from sleeping units).
+    pub fn stored_tables(&self) -> Vec<StoredTable<&[u8]>> {
+        let all = [
+            self.state.as_slice(),
+            bytemuck::cast_slice(self.rest.as_slice()),
+            bytemuck::cast_slice(self.load.as_slice()),
+            bytemuck::cast_slice(self.load_step.as_slice()),
+            bytemuck::cast_slice(self.margin.as_slice()),
+            bytemuck::cast_slice(self.base.as_slice()),
+        ];
+        STORED.iter().zip(all).take(self.stored_count()).map(|(&(name, name_at, size), bytes)| StoredTable { name, name_at, size, bytes }).collect()
+    }
+
+    /// [`Sleep::stored_tables`], to restore into; [`Sleep::restored`] must follow.
+    pub fn stored_tables_mut(&mut self) -> Vec<StoredTable<&mut [u8]>> {
+        let n = self.stored_count();
+        let all = [
+            self.state.as_mut_slice(),
+            bytemuck::cast_slice_mut(self.rest.as_mut_slice()),
+            bytemuck::cast_slice_mut(self.load.as_mut_slice()),
+            bytemuck::cast_slice_mut(self.load_step.as_mut_slice()),
+            bytemuck::cast_slice_mut(self.margin.as_mut_slice()),
+            bytemuck::cast_slice_mut(self.base.as_mut_slice()),
+        ];
+        STORED.iter().zip(all).take(n).map(|(&(name, name_at, size), bytes)| StoredTable { name, name_at, size, bytes }).collect()
+    }
+
+    /// How many of [`STORED`] a checkpoint holds: the load tables only with the load test.
+    fn stored_count(&self) -> usize {
+        if self.tests_loads() {
+            STORED.len()
+        } else {
+            2
+        }
+    }
+
+    /// Bytes the stored tables can take in a checkpoint, every unit of a `table_len`-block table
+    /// stored with its u32 index (with the load tables when `loads`).
+    pub fn max_stored_bytes(table_len: usize, loads: bool) -> usize {
+        let tables = if loads { STORED.len() } else { 2 };
+        table_len * UNITS * STORED[..tables].iter().map(|&(_, _, size)| 4 + size).sum::<usize>()
+    }
+
+    /// Check and take in the tables a checkpoint restored ([`Sleep::stored_tables_mut`]) and
+    /// rebuild what follows from them.
+    pub fn restored(&mut self) -> Result<(), String> {
+        if !valid_states(self.state.as_slice()) {
+            return Err("section 'sleep.state' holds a value that is no unit state".into());
+        }
+        self.recount();
+        Ok(())
+    }
+
+    /// Rebuild what follows from the state table.
+    fn recount(&mut self) {
+        if !self.tests_loads() {
+            // a checkpoint of a run with the load test, resumed without it: a unit its last step
+            // loaded past its margin just sleeps on
+            states_mut(self.state.as_mut_slice()).iter_mut().filter(|s| **s == UnitState::Loaded).for_each(|s| *s = UnitState::Asleep);
+        }
+        let state = states(self.state.as_slice());
+        let per_block = self.asleep_in_block.as_mut_slice();
+        self.sleeping_units = 0;
+        for (b, n) in per_block.iter_mut().enumerate() {
+            *n = state[b * UNITS..(b + 1) * UNITS].iter().filter(|s| s.is_asleep()).count() as u8;
+            self.sleeping_units += *n as usize;
+        }
+        let loaded = self.loaded.as_mut_slice();
+        self.n_loaded = 0;
+        for (u, _) in state.iter().enumerate().filter(|(_, &s)| s == UnitState::Loaded) {
+            loaded[self.n_loaded] = u as u32;
+            self.n_loaded += 1;
+        }
+    }
+
+    /// Which nodes the sleeping units hold.
+    pub fn holds(&self) -> Holds<'_> {
+        Holds { state: states(self.state.as_slice()), asleep_in_block: self.asleep_in_block.as_slice(), sleeping_units: self.sleeping_units }
+    }
+
+    /// Whether loads wake sleeping units (`wake_by_load`, under gravity along an axis): only
+    /// then does the grid update need to leave held nodes' reactions for [`Sleep::take_loads`].
+    pub fn tests_loads(&self) -> bool {
+        self.down.is_some()
+    }
+
+    /// [`Sleep::holds`], and the per-node buffer the grid update leaves held nodes' reactions in.
+    pub fn holds_and_reactions(&mut self) -> (Holds<'_>, &mut [[f32; 3]]) {
+        let holds = Holds { state: states(self.state.as_slice()), asleep_in_block: self.asleep_in_block.as_slice(), sleeping_units: self.sleeping_units };
+        (holds, self.reactions.as_mut_slice())
+    }
+
+}
+
+/// Put particle `i` at rest: zero velocity and velocity gradient, and the stress its material
+/// has at rest with its state and J (see the module notes: what a sleeping particle holds
+/// besides its state and J is rebuilt, not stored).
+pub fn put_at_rest(p: &mut Particles, i: usize, material: &dyn Material) {
+    let sl = p.state_len;
+    p.v.as_mut_slice()[i] = V3::ZERO;
+    p.c.as_mut_slice()[i] = M3::ZERO;
+    let state = &p.state.as_slice()[i * sl..(i + 1) * sl];
+    p.stress.as_mut_slice()[i] = material.stress_at_rest(state, p.j.as_slice()[i]);
+}

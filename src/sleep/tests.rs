@@ -1,0 +1,309 @@
+//! Unit tests of sleeping: the speed rule, the held nodes, the wake test on load.
+
+use super::loads::LOAD_SHARE;
+use super::passes::{tick, Limits};
+use super::units::*;
+use super::*;
+use crate::grid::Grid;
+use crate::kernels::transfer::BLOCK_EDGE;
+use crate::kernels::Real;
+
+fn geom(periodic: [bool; 3]) -> GridGeom {
+    let nb = [3, 2, 4];
+    let cells = nb.map(|n| n * BLOCK_EDGE as i32);
+    GridGeom { dx: 0.01, origin: [0.0; 3], cells, nb, periodic, lo: [0.0; 3], hi: [0.1; 3] }
+}
+
+/// Sleep tables for `geom` under gravity along -z, `config` its `[sleep]` keys, with units
+/// `asleep` asleep.
+fn sleep_with(geom: &GridGeom, config: &str, asleep: &[[i32; 3]]) -> Sleep {
+    let cfg: SleepConfig = toml::from_str(config).unwrap();
+    let mut s = Sleep::new(cfg, geom, geom.table_len(), 1, [0.0, 0.0, -9.81], &Backing::default()).unwrap();
+    for &u in asleep {
+        states_mut(s.state.as_mut_slice())[unit_index(geom, u) as usize] = UnitState::Asleep;
+    }
+    s.recount();
+    s
+}
+
+#[test]
+fn a_woken_unit_settles_before_it_wakes_neighbours() {
+    let cfg: SleepConfig = toml::from_str("wake_grace = 0.01").unwrap();
+    let lim = Limits::of(&cfg);
+    let (fast, calm, slow) = ([5e-3, 1.0], [1e-4, 1e-3], [1.5e-3, 1e-3]);
+    let dt = 1e-3;
+    // just woken: fast material wakes nobody until the grace is over, and does not rest
+    let mut rest = -cfg.wake_grace as f32;
+    let mut steps = 0;
+    loop {
+        let (r, loud) = tick(rest, fast, dt, &lim);
+        rest = r;
+        steps += 1;
+        if loud {
+            break;
+        }
+        assert!(rest <= 0.0 && steps < 100, "step {steps}: clock {rest}");
+    }
+    assert!((10..=12).contains(&steps), "woke neighbours after {steps} steps of 1 ms, grace 10 ms");
+    assert_eq!(rest, 0.0, "fast material is not at rest");
+    // after the grace: at rest counts up, moving (above the rest speed) resets, fast is loud
+    let (r, loud) = tick(0.0, calm, dt, &lim);
+    assert!(r == dt && !loud);
+    let (r, loud) = tick(r, slow, dt, &lim);
+    assert!(r == 0.0 && !loud, "1.5 mm/s is neither at rest nor loud");
+    assert!(tick(0.02, fast, dt, &lim) == (0.0, true));
+    // without a grace, a woken unit is loud at once
+    let cfg: SleepConfig = toml::from_str("wake_grace = 0.0").unwrap();
+    assert!(tick(-0.0, fast, dt, &Limits::of(&cfg)).1);
+}
+
+#[test]
+fn unit_index_is_a_bijection_onto_the_refined_table() {
+    let g = geom([false; 3]);
+    let per = BLOCK_EDGE as i32 / UNIT_CELLS;
+    let mut seen = vec![false; g.table_len() * UNITS];
+    for i in 0..g.nb[0] * per {
+        for j in 0..g.nb[1] * per {
+            for k in 0..g.nb[2] * per {
+                let idx = unit_index(&g, [i, j, k]);
+                assert!(!seen[idx as usize], "unit {:?} shares index {idx}", [i, j, k]);
+                seen[idx as usize] = true;
+                assert_eq!(unit_coords(&g, idx), [i, j, k]);
+                assert_eq!(idx as usize / UNITS, g.block_index([i / per, j / per, k / per]) as usize);
+            }
+        }
+    }
+    assert!(seen.iter().all(|&s| s));
+}
+
+/// A node is held exactly by the sleeping units whose stencil reach 2u..=2u+3 holds it,
+/// in every block of the table.
+#[test]
+fn held_nodes_are_the_stencil_reach_of_sleeping_units() {
+    for periodic in [[false; 3], [true, false, true]] {
+        let g = geom(periodic);
+        let asleep = [[0, 0, 0], [3, 1, 5], [5, 3, 7], [2, 2, 2]];
+        let s = sleep_with(&g, "", &asleep);
+        assert_eq!(s.sleeping_units, asleep.len());
+        let mut held = 0;
+        for bi in 0..g.table_len() as u32 {
+            let b = g.block_coords(bi);
+            let window = s.holds().block(&g, b);
+            for li in 0..NODES_PER_BLOCK {
+                let n = g.node_of(b, li);
+                // offset of the node from the unit's first reach node (around the period on
+                // periodic axes)
+                let off = |u: &[i32; 3], a: usize| {
+                    let d = n[a] - 2 * u[a];
+                    if periodic[a] { d.rem_euclid(g.cells[a]) } else { d }
+                };
+                let mut want: Vec<u32> = asleep.iter().filter(|u| (0..3).all(|a| (0..=3).contains(&off(u, a)))).map(|&u| unit_index(&g, u)).collect();
+                let mut got: Vec<u32> = window.as_ref().map(|w| w.holders(li).collect()).unwrap_or_default();
+                want.sort();
+                got.sort();
+                assert_eq!(got, want, "node {n:?}");
+                assert_eq!(window.as_ref().is_some_and(|w| w.holds(li)), !want.is_empty());
+                held += !want.is_empty() as usize;
+            }
+        }
+        // [0, 0, 0] and [2, 2, 2] hold 4^3 nodes each; the others fewer where the grid ends
+        assert!(held >= 2 * 64, "{held} nodes held");
+    }
+}
+
+#[test]
+fn the_load_keys_parse_with_their_defaults_and_validate() {
+    let cfg: SleepConfig = toml::from_str("").unwrap();
+    assert_eq!(cfg.wake_by_load, None, "the scenario resolves it from its layers");
+    assert_eq!((cfg.load_time, cfg.load_floor, cfg.load_fraction, cfg.arrive_speed), (0.02, 20.0, 0.5, 0.01));
+    assert!(cfg.validate().is_ok());
+    assert!(cfg.tests_loads([0.0, 0.0, -9.81]), "unresolved, the safe side");
+    let off: SleepConfig = toml::from_str("wake_by_load = false").unwrap();
+    assert!(!off.tests_loads([0.0, 0.0, -9.81]));
+    let on: SleepConfig = toml::from_str("wake_by_load = true\nload_floor = 5.0\nload_time = 0.01").unwrap();
+    assert!(on.wake_by_load == Some(true) && on.load_floor == 5.0 && on.load_time == 0.01);
+    assert!(on.validate().is_ok());
+    assert!(on.tests_loads([0.0, 0.0, -9.81]) && on.tests_loads([9.81, 0.0, 0.0]));
+    assert!(!on.tests_loads([0.0, 1.0, -9.81]) && !on.tests_loads([0.0; 3]), "no axis is down");
+    for bad in [-1.0, f64::NAN, f64::INFINITY] {
+        let cfg = SleepConfig { load_floor: bad, ..on.clone() };
+        let e = cfg.validate().expect_err("an invalid floor passed");
+        assert!(e.contains("sleep.load_floor"), "{e}");
+    }
+    let e = toml::from_str::<SleepConfig>("load_floor = nan").unwrap().validate().unwrap_err();
+    assert!(e.contains("sleep.load_floor"), "{e}");
+    for bad in [0.0, -0.5, 1.5, f64::NAN] {
+        let cfg = SleepConfig { load_fraction: bad, ..on.clone() };
+        let e = cfg.validate().expect_err("an invalid fraction passed");
+        assert!(e.contains("sleep.load_fraction"), "{e}");
+    }
+    assert!(SleepConfig { load_fraction: 1.0, ..on.clone() }.validate().is_ok());
+    for bad in [1e-3, -1.0, f64::NAN] {
+        let cfg = SleepConfig { arrive_speed: bad, ..on.clone() };
+        let e = cfg.validate().expect_err("an invalid arrival speed passed");
+        assert!(e.contains("sleep.arrive_speed"), "{e}");
+    }
+    let by_load_alone: SleepConfig = toml::from_str("wake_by_load = true\narrive_speed = inf").unwrap();
+    assert!(by_load_alone.validate().is_ok() && by_load_alone.arrive_speed == f64::INFINITY);
+}
+
+fn evp(a_thix: f64) -> Box<dyn Material> {
+    let text = format!(
+        "kind = \"evp_bingham\"\ndensity = 2100.0\nbulk_modulus = 1e6\npoisson_ratio = 0.3\nviscosity = 7.5\nyield_stress = 630.0\na_thix = {a_thix}\n"
+    );
+    crate::materials::build_material(&text.parse::<toml::Table>().unwrap()).unwrap()
+}
+
+/// A grid on `geom` whose first active slots are `first` (then every other block), the
+/// first `particle_blocks` of them holding particles.
+fn grid_with(geom: &GridGeom, first: &[[i32; 3]], particle_blocks: usize) -> Grid {
+    let mut grid = Grid::new(geom.clone(), geom.table_len(), &Backing::default()).unwrap();
+    for &b in first {
+        grid.activate(geom.block_index(b)).unwrap();
+    }
+    for b in 0..geom.table_len() as u32 {
+        grid.activate(b).unwrap();
+    }
+    grid.n_particle_blocks = particle_blocks;
+    grid
+}
+
+/// Under the speed rule fast material above a sleeping unit wakes it. With the load test it
+/// does not (its load does, if it can make the unit yield), unless it is faster than
+/// `arrive_speed`.
+#[test]
+fn fast_material_above_wakes_a_sleeping_unit_only_under_the_speed_rule() {
+    let g = geom([false; 3]);
+    let mat = evp(0.0);
+    let (below, above): ([i32; 3], [i32; 3]) = ([2, 1, 4], [2, 1, 5]);
+    let block = above.map(|c| c.div_euclid(BLOCK_EDGE as i32 / UNIT_CELLS));
+    let k = unit_index(&g, above) as usize % UNITS;
+    let configs = [
+        ("wake_by_load = false", true),
+        ("wake_by_load = true\narrive_speed = inf", false),
+        ("wake_by_load = true\narrive_speed = 0.004", true),
+        ("wake_by_load = true\narrive_speed = 0.02", false),
+    ];
+    for (config, wakes) in configs {
+        let mut s = sleep_with(&g, config, &[below]);
+        assert_eq!(s.tests_loads(), config.starts_with("wake_by_load = true"));
+        let grid = grid_with(&g, &[block], 1);
+        let mut act = [EMPTY_UNIT; UNITS];
+        act[k] = [5.0 * s.cfg.wake_speed as Real, 1.0];
+        s.activity.as_mut_slice()[0] = act;
+        let mut particles = Particles::new(1, mat.state_names().len(), &Backing::default()).unwrap();
+        let moved = s.update(&grid, &mut particles, &*mat, 1e-3, 1.0, 1000, false, None);
+        let state = states(s.state.as_slice())[unit_index(&g, below) as usize];
+        assert_eq!((moved, state == UnitState::Awake, s.sleeping_units), (wakes, wakes, !wakes as usize), "config '{config}'");
+    }
+}
+
+/// With the load test, material moving above a unit at rest keeps it awake only when faster
+/// than `arrive_speed`; under the speed rule, when faster than `wake_speed`.
+#[test]
+fn material_above_keeps_a_unit_awake_only_when_it_arrives_fast() {
+    let g = geom([false; 3]);
+    let mat = evp(0.0);
+    let (below, above): ([i32; 3], [i32; 3]) = ([2, 1, 4], [2, 1, 5]);
+    let block = above.map(|c| c.div_euclid(BLOCK_EDGE as i32 / UNIT_CELLS));
+    let configs = [
+        ("wake_by_load = false", false),
+        ("wake_by_load = true\narrive_speed = inf", true),
+        ("wake_by_load = true\narrive_speed = 0.004", false),
+        ("wake_by_load = true\narrive_speed = 0.02", true),
+    ];
+    for (config, sleeps) in configs {
+        let mut s = sleep_with(&g, config, &[]);
+        s.rest.as_mut_slice()[unit_index(&g, below) as usize] = 1.0;
+        let grid = grid_with(&g, &[block], 1);
+        let mut act = [EMPTY_UNIT; UNITS];
+        act[unit_index(&g, below) as usize % UNITS] = [0.0, 0.0];
+        act[unit_index(&g, above) as usize % UNITS] = [5.0 * s.cfg.wake_speed as Real, 1.0];
+        s.activity.as_mut_slice()[0] = act;
+        let mut particles = Particles::new(1, mat.state_names().len(), &Backing::default()).unwrap();
+        s.update(&grid, &mut particles, &*mat, 1e-3, 1.0, 1000, true, None);
+        let state = states(s.state.as_slice())[unit_index(&g, below) as usize];
+        assert_eq!((state == UnitState::Asleep, s.sleeping_units), (sleeps, sleeps as usize), "config '{config}'");
+    }
+}
+
+/// A sleeping column for the load rule under `config`, top to bottom, with these margins
+/// [Pa] (A_thix = 10 Pa/s): the load it fell asleep under sets its base and never wakes it,
+/// and 25 Pa more wakes nothing (that passes the bottom-but-one unit's 10 Pa margin, plus
+/// under 6 Pa of build-up, but not by the 20 Pa floor). Then `extra` Pa over the base: the
+/// column's states, the time, the step, and what `update` needs to wake the loaded units.
+fn loaded_column(config: &str, extra: f32) -> ([UnitState; 4], Sleep, Grid, Box<dyn Material>, f64, u64) {
+    let g = geom([false; 3]);
+    let mat = evp(10.0);
+    let column = [([2, 1, 4], 30.0), ([2, 1, 3], 80.0), ([2, 1, 2], 10.0), ([2, 1, 1], 150.0)];
+    let units: Vec<[i32; 3]> = column.iter().map(|c| c.0).collect();
+    let mut s = sleep_with(&g, config, &units);
+    for &(u, m) in &column {
+        let i = unit_index(&g, u) as usize;
+        // fell asleep at t = 0 in step 0, as `update` leaves a unit falling asleep
+        (s.rest.as_mut_slice()[i], s.margin.as_mut_slice()[i], s.base.as_mut_slice()[i]) = (0.0, m, f32::NAN);
+    }
+    // a node only the top unit holds (its stencil reach is nodes 2u..=2u+3): the weight on
+    // the column
+    let node: [i32; 3] = [5, 3, 11];
+    let b = node.map(|c| c.div_euclid(BLOCK_EDGE as i32));
+    let li = (0..NODES_PER_BLOCK).find(|&li| g.node_of(b, li) == node).unwrap();
+    let holders: Vec<u32> = s.holds().block(&g, b).unwrap().holders(li).collect();
+    assert_eq!(holders, [unit_index(&g, column[0].0)]);
+    let grid = grid_with(&g, &[b], 0);
+    let at = grid.slot(g.block_index(b)) as usize * NODES_PER_BLOCK + li;
+    // the load whose share of tau is `tau` [Pa] (what it adds on the unit's face)
+    let share = LOAD_SHARE * s.per_area;
+    let force = |tau: f32| tau / share;
+    let dt = 1e-3;
+    let mut step = 0u64;
+    // ten `load_time`s a phase: the average has converged
+    let mut carry = |s: &mut Sleep, load: f32| {
+        for _ in 0..200 {
+            step += 1;
+            s.reactions.as_mut_slice()[at] = [0.0, 0.0, -load];
+            s.take_loads(&grid, dt, step, step as f64 * dt, &*mat);
+        }
+        step as f64 * dt
+    };
+    let states = |s: &Sleep| column.map(|(u, _)| states(s.state.as_slice())[unit_index(&g, u) as usize]);
+    let weight = force(300.0);
+    carry(&mut s, weight);
+    let base = s.base.as_slice()[holders[0] as usize];
+    assert!((base / weight - 1.0).abs() < 0.01, "base {base} N under a {weight} N load");
+    assert_eq!(states(&s), [UnitState::Asleep; 4]);
+    let now = carry(&mut s, weight + force(25.0));
+    assert!(mat.strength_gain(now as Real) < 6.0);
+    assert_eq!((states(&s), s.n_loaded), ([UnitState::Asleep; 4], 0), "config '{config}'");
+    let now = carry(&mut s, weight + force(extra));
+    (states(&s), s, grid, mat, now, step)
+}
+
+/// The load rule on a sleeping column: the load added on its top unit since it fell asleep,
+/// averaged, wakes the column down to the deepest unit whose margin (plus its build-up and
+/// `load_floor`) the load's share of tau passes, and no unit when it passes none.
+#[test]
+fn a_load_wakes_the_sleeping_column_down_to_the_deepest_unit_it_makes_yield() {
+    // 70 Pa more passes the top unit's and the bottom-but-one's margins: the three upper
+    // units are loaded, the bottom one (150 Pa) is not
+    let (column_states, mut s, grid, mat, now, step) = loaded_column("wake_by_load = true", 70.0);
+    assert_eq!(column_states, [UnitState::Loaded, UnitState::Loaded, UnitState::Loaded, UnitState::Asleep]);
+    assert_eq!(s.n_loaded, 3);
+    // the next update wakes them; their nodes were held until then
+    let mut particles = Particles::new(1, mat.state_names().len(), &Backing::default()).unwrap();
+    assert!(s.update(&grid, &mut particles, &*mat, 1e-3, now, step, false, None));
+    let g = geom([false; 3]);
+    let after = [[2, 1, 4], [2, 1, 3], [2, 1, 2], [2, 1, 1]].map(|u| states(s.state.as_slice())[unit_index(&g, u) as usize]);
+    assert_eq!(after, [UnitState::Awake, UnitState::Awake, UnitState::Awake, UnitState::Asleep]);
+    assert_eq!((s.sleeping_units, s.n_loaded), (1, 0));
+}
+
+/// `load_fraction` (0.5 by default): a unit wakes once the load passes that share of its
+/// margin. 100 Pa passes half the bottom unit's 150 Pa (plus the floor) but not all of it.
+#[test]
+fn a_load_wakes_at_its_fraction_of_the_margin() {
+    let (whole, ..) = loaded_column("wake_by_load = true\nload_fraction = 1.0", 100.0);
+    assert_eq!(whole, [UnitState::Loaded, UnitState::Loaded, UnitState::Loaded, UnitState::Asleep]);
+    let (half, ..) = loaded_column("wake_by_load = true", 100.0);
+    assert_eq!(half, [UnitState::Loaded; 4]);
+}
