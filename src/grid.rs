@@ -6,7 +6,6 @@
 use crate::kernels::transfer::{Node, BLOCK_EDGE};
 use crate::kernels::{Real, V3};
 use crate::memory::{Backing, MemoryError, MemoryPlan, Pool};
-use crate::scenario::Scenario;
 
 pub const EMPTY: u32 = u32::MAX;
 pub const NODES_PER_BLOCK: usize = BLOCK_EDGE * BLOCK_EDGE * BLOCK_EDGE;
@@ -31,21 +30,21 @@ pub struct GridGeom {
 pub const PAD: i32 = 3;
 
 impl GridGeom {
-    pub fn new(sc: &Scenario) -> Self {
-        let dx = sc.simulation.dx;
-        let d = &sc.domain;
-        let mut g = GridGeom { dx, origin: [0.0; 3], cells: [0; 3], nb: [0; 3], periodic: d.periodic, lo: [0.0; 3], hi: [0.0; 3] };
+    /// The grid of cells `dx` over the box `min`..`max` (a scenario's `simulation.dx` and
+    /// `[domain]`), periodic along the axes `periodic` names.
+    pub fn new(dx: f64, min: [f64; 3], max: [f64; 3], periodic: [bool; 3]) -> Self {
+        let mut g = GridGeom { dx, origin: [0.0; 3], cells: [0; 3], nb: [0; 3], periodic, lo: [0.0; 3], hi: [0.0; 3] };
         for a in 0..3 {
-            let n = ((d.max[a] - d.min[a]) / dx).round() as i32;
-            if d.periodic[a] {
-                g.origin[a] = d.min[a] - 0.5 * dx;
+            let n = ((max[a] - min[a]) / dx).round() as i32;
+            if periodic[a] {
+                g.origin[a] = min[a] - 0.5 * dx;
                 g.cells[a] = n;
                 g.nb[a] = n / BLOCK_EDGE as i32;
                 // stored positions wrap into [0.5, n + 0.5): the stencil base is then in 0..n
                 g.lo[a] = 0.5;
                 g.hi[a] = n as f64 + 0.5;
             } else {
-                g.origin[a] = d.min[a] - PAD as f64 * dx;
+                g.origin[a] = min[a] - PAD as f64 * dx;
                 g.cells[a] = n + 2 * PAD;
                 g.nb[a] = g.cells[a] / BLOCK_EDGE as i32 + 2;
                 g.lo[a] = PAD as f64;

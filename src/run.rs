@@ -834,7 +834,7 @@ pub fn preflight(sc: &Scenario) -> Result<(), String> {
     let budget = parse_size(&sc.memory.budget).map_err(|e| format!("memory.budget: {e}"))?;
     let state_len = crate::materials::build_material(&sc.material)?.state_names().len();
     let fewest: f64 = sc.bodies.iter().map(|b| fewest_particles(sc, b)).sum();
-    let geom = crate::grid::GridGeom::new(sc);
+    let geom = crate::grid::GridGeom::new(sc.simulation.dx, sc.domain.min, sc.domain.max, sc.domain.periodic);
     let mut plan = MemoryPlan::default();
     crate::particles::Particles::plan(&mut plan, fewest.min(1e15) as usize, state_len);
     crate::grid::Grid::plan(&mut plan, &geom, sc.memory.max_blocks.unwrap_or(geom.table_len()).max(8));

@@ -176,7 +176,7 @@ impl Simulation {
     pub fn new(scenario: &Scenario) -> Result<Self, SimError> {
         scenario.validate().map_err(|e| SimError::Setup(e.to_string()))?;
         let material = build_material(&scenario.material).map_err(SimError::Setup)?;
-        let geom = GridGeom::new(scenario);
+        let geom = GridGeom::new(scenario.simulation.dx, scenario.domain.min, scenario.domain.max, scenario.domain.periodic);
         let state_len = material.state_names().len();
 
         let printer = match &scenario.print {

@@ -290,7 +290,7 @@ fn two_hidden_effects_are_resolved_by_rounds() {
 /// fitted, without leave-one-out refits (each would refit on differenced Jacobians: several
 /// times this test's runs).
 #[test]
-#[ignore = "not yet run to completion: written on a saturated machine (see BENCHMARKS \"Printing to failure\")"]
+#[ignore = "fails: measured 136 s on the idle 2-core machine, the verdict is add wall_friction (LR 1088) and thixotropy reads not significant (its difference step at the null, 0.5 Pa/s, does not move a failure layer)"]
 fn hidden_structuration_is_found_from_failure_heights() {
     let d = fixtures("failure");
     let tmp = tempfile::tempdir().unwrap();
@@ -298,8 +298,9 @@ fn hidden_structuration_is_found_from_failure_heights() {
     let exps = d.join("experiments.toml");
     let (code, _, err) = strand(&["synth", "--model", s(&d.join("truth_thixotropy.toml")), "--experiments", s(&exps), "--noise", "0.01", "--seed", "7", "--out", s(&data), "--jobs", "2"]);
     assert_eq!(code, 0, "{err}");
+    let base = d.join("base.toml");
     let args = [
-        "diagnose", "--model", s(&d.join("base.toml")), "--data", s(&data), "--experiments", s(&exps),
+        "diagnose", "--model", s(&base), "--data", s(&data), "--experiments", s(&exps),
         "--fit", "material.yield_stress", "--json", "--jobs", "2", "--max-fitted", "1", "--no-loo",
     ];
     let (code, json, err) = strand(&args);

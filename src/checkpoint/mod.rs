@@ -199,7 +199,7 @@ fn bounding_box(ck: &Checkpoint) -> ([f64; 3], [f64; 3]) {
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
     let Ok(sc) = crate::scenario::Scenario::parse(&ck.header.scenario_text) else { return (lo, hi) };
-    let geom = crate::grid::GridGeom::new(&sc);
+    let geom = crate::grid::GridGeom::new(sc.simulation.dx, sc.domain.min, sc.domain.max, sc.domain.periodic);
     let Some(x) = ck.section("particles.x") else { return (lo, hi) };
     let size = std::mem::size_of::<crate::V3>();
     for chunk in x.chunks_exact(size) {
