@@ -171,13 +171,12 @@ fn candidate(e: &dyn Effect, score: f64, dof: usize, p_value: f64, verdict: Stri
 pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[String], opts: &DiagnoseOptions) -> Result<Diagnosis, String> {
     let m = data.len();
     let mut timing = Timing::default();
-    let clock = std::time::Instant::now();
     let lap = |since: &mut std::time::Instant| {
         let t = since.elapsed().as_secs_f64();
         *since = std::time::Instant::now();
         t
     };
-    let mut since = clock;
+    let mut since = std::time::Instant::now();
     let base: Fit = if fit.is_empty() {
         let v = opts.fit.engine.sensitivity(opts.fit.jobs, model, data, exps, None)??.values;
         let c2 = chi2(&v, data);
