@@ -8,6 +8,10 @@
 //! parameters, see `failure.rs`) gets its values from forward runs as `strand compare` runs them,
 //! and its Jacobian columns by central differences of forward runs ([`differenced`]).
 //!
+//! A simulation whose adjoint costs more than central differences (few parameters against the
+//! experiment's observations: [`by_differences_is_cheaper`]) gets its Jacobian by central
+//! differences of the same fixed-step runs that give its values ([`DIFFERENCE_STEP_SMOOTH`]).
+//!
 //! Simulations here run the way a gradient run does (fixed step, every particle awake, one sort
 //! by block up front), values and gradients alike, so a fit compares like with like; their values
 //! can differ from `strand compare`'s in the last bits. An observation at an earlier time is taken
@@ -67,10 +71,32 @@ pub fn has_adjoint(o: &Observable) -> bool {
 /// 0 (an effect at its null) steps by its scale, the typical magnitude a fit moves it by.
 pub const DIFFERENCE_STEP: f64 = 0.1;
 
+/// The relative step of the central differences that stand in for a simulation's adjoint
+/// ([`simulated`]): 3 % of the parameter (of its scale where it is 0, an effect at its null). A
+/// print's section is sampled by particles, so it is rough in the parameters below about 1 %:
+/// on the print campaign's line, differences at 0.1 % and 0.03 % scatter by factors of several
+/// and change sign, while those at 1, 3 and 10 % agree with each other and with the adjoint (test
+/// `differences_stand_in_for_the_adjoint_on_a_print_line`).
+pub const DIFFERENCE_STEP_SMOOTH: f64 = 0.03;
+
+/// What one experiment's adjoint costs, in forward runs of it: a share every observation's
+/// adjoint reuses (the forward sweep with its recomputations, and each reversed step's
+/// recomputation) and a share per observation (its materials, G2P and P2G adjoints). Measured on
+/// a printed line (BENCHMARKS.md "Gradient cost per observation": 6.1 forward runs for one
+/// observation, 48 % of it shared).
+pub const ADJOINT_SHARED_RUNS: f64 = 2.9;
+pub const ADJOINT_RUNS_PER_OBSERVATION: f64 = 3.2;
+
+/// Whether central differences in `moved` parameters (1 + 2 `moved` forward runs, the values
+/// included) cost less than one adjoint of `observations` (each a scalar's reverse pass).
+pub fn by_differences_is_cheaper(moved: usize, observations: usize) -> bool {
+    ((1 + 2 * moved) as f64) < 1.0 + ADJOINT_SHARED_RUNS + ADJOINT_RUNS_PER_OBSERVATION * observations as f64
+}
+
 fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>) -> Result<Vec<Valued>, String> {
     let (adjoint, other): (Vec<usize>, Vec<usize>) = (0..wanted.len()).partition(|&k| has_adjoint(&wanted[k]));
     if other.is_empty() {
-        return by_adjoint(model, exps, x, wanted, names, threads);
+        return simulated(model, exps, x, wanted, names, threads);
     }
     let pick = |ks: &[usize]| ks.iter().map(|&k| wanted[k].clone()).collect::<Vec<_>>();
     let mut out: Vec<Option<Valued>> = vec![None; wanted.len()];
@@ -78,45 +104,97 @@ fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obser
         out[k] = Some(v);
     }
     if !adjoint.is_empty() {
-        for (&k, v) in adjoint.iter().zip(by_adjoint(model, exps, x, &pick(&adjoint), names, threads)?) {
+        for (&k, v) in adjoint.iter().zip(simulated(model, exps, x, &pick(&adjoint), names, threads)?) {
             out[k] = Some(v);
         }
     }
     Ok(out.into_iter().map(|v| v.expect("every observation valued")).collect())
 }
 
+/// Observables with an adjoint: values from the fixed-step runs of a gradient, and their Jacobian
+/// from the adjoint, or from central differences of those runs ([`DIFFERENCE_STEP_SMOOTH`]) for
+/// a parameter that moves the toolpath (the adjoint holds fixed which step each slab of
+/// material enters in, and a changed flow or speed changes that over a whole print: the
+/// extrusion factor's adjoint gets the sign of a line's width wrong) and, for a simulation, for
+/// every parameter when that costs less than the adjoint ([`by_differences_is_cheaper`]).
+fn simulated(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>) -> Result<Vec<Valued>, String> {
+    let (Some(names), Some(_)) = (names, &x.scenario) else { return by_adjoint(model, exps, x, wanted, names, threads) };
+    let keys = experiment_keys(model, x)?;
+    let sides = names.iter().map(|n| moves(model, x, &keys, n, (DIFFERENCE_STEP_SMOOTH, DIFFERENCE_STEP_SMOOTH))).collect::<Result<Vec<_>, _>>()?;
+    let all = by_differences_is_cheaper(sides.iter().filter(|s| s.is_some()).count(), wanted.len());
+    let by_differences: Vec<bool> = sides.iter().map(|s| s.as_ref().is_some_and(|s| all || s.toolpath)).collect();
+    let adjoint: Vec<String> = names.iter().zip(&by_differences).filter(|(_, d)| !**d).map(|(n, _)| n.clone()).collect();
+    let at_model = by_adjoint(model, exps, x, wanted, (!adjoint.is_empty()).then_some(&adjoint[..]), threads)?;
+    let values: Vec<f64> = at_model.iter().map(|(v, _)| *v).collect();
+    let run = |m: &Model| Ok(by_adjoint(m, exps, x, wanted, None, threads)?.into_iter().map(|(v, _)| v).collect());
+    let differenced: Vec<Option<Sides>> = sides.into_iter().zip(&by_differences).map(|(s, &d)| s.filter(|_| d)).collect();
+    let columns = central(&values, run, differenced)?;
+    let mut from_adjoint = 0..adjoint.len();
+    let picks: Vec<Option<usize>> = by_differences.iter().map(|&d| if d { None } else { from_adjoint.next() }).collect();
+    Ok(at_model
+        .into_iter()
+        .zip(columns)
+        .map(|((v, g), fd)| {
+            let row = picks.iter().zip(fd).map(|(k, d)| k.map_or(d, |k| g.as_ref().expect("asked")[k])).collect();
+            (v, Some(row))
+        })
+        .collect())
+}
+
 /// Values of `wanted` from a forward run ([`compare::evaluate`](super::compare::evaluate)) and,
-/// with `names`, their gradients by central differences of forward runs: parameter p moved to
-/// p +- h, h = [`DIFFERENCE_STEP`] |p| (its scale where p = 0), the
-/// difference one-sided where p - h or p + h leaves the parameter's bounds (an effect at its
-/// null on its lower bound). A parameter that leaves this experiment's scenario keys as they are
-/// has a zero column without a run.
+/// with `names`, their gradients by central differences of forward runs ([`moves`] with
+/// [`DIFFERENCE_STEP`]).
 fn differenced(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>) -> Result<Vec<Valued>, String> {
     let run = |m: &Model| super::compare::evaluate(m, exps, x, wanted, threads);
     let values = run(model)?;
     let Some(names) = names else { return Ok(values.into_iter().map(|v| (v, None)).collect()) };
     let keys = experiment_keys(model, x)?;
-    let mut rows = vec![vec![0.0; names.len()]; wanted.len()];
-    for (j, name) in names.iter().enumerate() {
-        let (p, b) = (model.get(name)?, model.bounds(name)?);
-        let h = if p != 0.0 { DIFFERENCE_STEP * p.abs() } else { b.scale };
-        let (lo, hi) = ((p - h).max(b.lower), (p + h).min(b.upper));
-        let moved = |v: f64| -> Result<Option<Model>, String> {
-            let mut m = model.clone();
-            m.set(name, v)?;
-            Ok((v != p && experiment_keys(&m, x)? != keys).then_some(m))
-        };
-        let (m_lo, m_hi) = (moved(lo)?, moved(hi)?);
-        if m_lo.is_none() && m_hi.is_none() {
-            continue;
-        }
-        let side = |m: Option<Model>| m.map_or(Ok(values.clone()), |m| run(&m));
+    let sides = names.iter().map(|n| moves(model, x, &keys, n, (DIFFERENCE_STEP, 1.0))).collect::<Result<Vec<_>, _>>()?;
+    let rows = central(&values, run, sides)?;
+    Ok(values.into_iter().zip(rows).map(|(v, g)| (v, Some(g))).collect())
+}
+
+/// A parameter's two sides for a central difference ([`moves`]).
+struct Sides {
+    lo: (f64, Option<Model>),
+    hi: (f64, Option<Model>),
+    /// Whether the parameter moves a toolpath key (`print.*`).
+    toolpath: bool,
+}
+
+/// `name` moved to p +- h, h = `step.0` |p| (`step.1` times its scale where p = 0), each side held
+/// within the parameter's bounds, with the models there (None for a side at p, or one that
+/// leaves this experiment's scenario keys as they are). None when neither side changes the
+/// experiment: its column is 0 without a run.
+fn moves(model: &Model, x: &Experiment, keys: &Keys, name: &str, step: (f64, f64)) -> Result<Option<Sides>, String> {
+    let (p, b) = (model.get(name)?, model.bounds(name)?);
+    let h = if p != 0.0 { step.0 * p.abs() } else { step.1 * b.scale };
+    let (lo, hi) = ((p - h).max(b.lower), (p + h).min(b.upper));
+    let mut toolpath = false;
+    let mut moved = |v: f64| -> Result<Option<Model>, String> {
+        let mut m = model.clone();
+        m.set(name, v)?;
+        let there = experiment_keys(&m, x)?;
+        toolpath |= there.iter().any(|(k, v)| k.starts_with("print.") && keys.get(k) != Some(v));
+        Ok((v != p && there != *keys).then_some(m))
+    };
+    let (m_lo, m_hi) = (moved(lo)?, moved(hi)?);
+    Ok((m_lo.is_some() || m_hi.is_some()).then_some(Sides { lo: (lo, m_lo), hi: (hi, m_hi), toolpath }))
+}
+
+/// Each parameter's column (a row per value): `run` at its two sides, one-sided where a side
+/// stays at p (`values`, the run at the model); 0 without sides.
+fn central(values: &[f64], run: impl Fn(&Model) -> Result<Vec<f64>, String>, sides: Vec<Option<Sides>>) -> Result<Vec<Vec<f64>>, String> {
+    let mut rows = vec![vec![0.0; sides.len()]; values.len()];
+    for (j, s) in sides.into_iter().enumerate() {
+        let Some(Sides { lo: (lo, m_lo), hi: (hi, m_hi), .. }) = s else { continue };
+        let side = |m: Option<Model>| m.map_or(Ok(values.to_vec()), |m| run(&m));
         let (v_lo, v_hi) = (side(m_lo)?, side(m_hi)?);
         for (row, (a, b)) in rows.iter_mut().zip(v_lo.iter().zip(&v_hi)) {
             row[j] = (b - a) / (hi - lo);
         }
     }
-    Ok(values.into_iter().zip(rows).map(|(v, g)| (v, Some(g))).collect())
+    Ok(rows)
 }
 
 fn by_adjoint(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>) -> Result<Vec<Valued>, String> {
@@ -236,5 +314,54 @@ mod tests {
             let (g, ga) = (g.as_ref().unwrap(), ga.as_ref().unwrap());
             assert!((g[2] / (630.0 * 100.0) - 1.0).abs() < 1e-6 && (g[2] / ga[2] - 1.0).abs() < 1e-6, "{g:?} against the adjoint's {ga:?}");
         }
+    }
+
+    /// On a printed line (the print campaign's, at its 3 mm cells) the differences that stand in
+    /// for the adjoint give a section's response to the material as the adjoint does, and its
+    /// response to the pump as mass balance does: the area of a line is the delivered flow over
+    /// the print speed, so d area / d factor = area / factor. The adjoint holds the number of
+    /// particles the nozzle emits fixed, so it misses that response (printed beside).
+    #[test]
+    fn differences_stand_in_for_the_adjoint_on_a_print_line() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/measure/print");
+        let mut m = Model::from_table(&std::fs::read_to_string(dir.join("base.toml")).unwrap().parse().unwrap()).unwrap();
+        m = m.with_effect(crate::measure::effects::find("extrusion_factor").unwrap());
+        m.set("extrusion_factor.factor", 0.95).unwrap();
+        let e = Experiments::load(&dir.join("experiments.toml")).unwrap();
+        let x = find(&e, "line_V60").unwrap();
+        let wanted: Vec<Observable> = x.observe.iter().map(|o| Observable::parse(o).unwrap()).collect();
+        let names: Vec<String> = ["material.yield_stress", "material.viscosity", "extrusion_factor.factor"].map(String::from).to_vec();
+        assert!(by_differences_is_cheaper(names.len(), wanted.len()));
+        let fd = experiment(&m, &e, x, &wanted, Some(&names), Some(1)).unwrap();
+        let adj = by_adjoint(&m, &e, x, &wanted, Some(&names), Some(1)).unwrap();
+        let p: Vec<f64> = names.iter().map(|n| m.get(n).unwrap()).collect();
+        let mut by_name = std::collections::BTreeMap::new();
+        for (o, ((v, g), (va, ga))) in wanted.iter().zip(fd.iter().zip(&adj)) {
+            assert_eq!(v, va, "{o:?}: the values come from the same runs");
+            let (g, ga) = (g.as_ref().unwrap(), ga.as_ref().unwrap());
+            for j in 0..names.len() {
+                println!("{} {:?}: d / d ln {}: differences {:.4e}, adjoint {:.4e}", o.name, o.at2, names[j], g[j] * p[j], ga[j] * p[j]);
+            }
+            by_name.insert(o.name.clone(), (*v, g.clone(), ga.clone()));
+        }
+        let (area, g, _) = &by_name["area"];
+        println!("d ln area / d ln factor = {:.4}", g[2] * p[2] / area);
+        assert!((g[2] * p[2] / area - 1.0).abs() < 0.05, "d ln area / d ln factor = {} against mass balance's 1", g[2] * p[2] / area);
+        for o in ["width", "height"] {
+            let (_, g, ga) = &by_name[o];
+            let big = (0..2).map(|j| (ga[j] * p[j]).abs()).fold(0.0, f64::max);
+            for j in 0..2 {
+                assert!((g[j] - ga[j]).abs() * p[j] <= 0.25 * big, "{o}: d / d {}: differences {} against the adjoint's {}", names[j], g[j], ga[j]);
+            }
+        }
+        // with more parameters than differences pay for, the material's columns come from the
+        // adjoint and the toolpath's from differences
+        let more: Vec<String> = ["material.bulk_modulus"].map(String::from).into_iter().chain(names.iter().cloned()).collect();
+        assert!(!by_differences_is_cheaper(more.len(), 1));
+        let hybrid = experiment(&m, &e, x, &wanted[..1], Some(&more), Some(1)).unwrap();
+        let adj = by_adjoint(&m, &e, x, &wanted[..1], Some(&more[..3]), Some(1)).unwrap();
+        let (row, adj_row) = (hybrid[0].1.as_ref().unwrap(), adj[0].1.as_ref().unwrap());
+        assert_eq!(&row[..3], &adj_row[..], "the material's columns from the adjoint");
+        assert_eq!(row[3], fd[0].1.as_ref().unwrap()[2], "the extrusion factor's from differences");
     }
 }
