@@ -156,8 +156,8 @@ pub fn calibrate(model: &Model, data: &[Observation], exps: &Experiments, names:
             };
             let tc2 = chi2(&tv, data);
             if tc2.is_finite() && tc2 < c2 {
-                let gain = (c2 - tc2) / c2.max(1e-300);
-                let prev = c2;
+                let drop = c2 - tc2;
+                let gain = drop / c2.max(1e-300);
                 theta = trial;
                 model = tm;
                 lambda = (lambda / 3.0).max(1e-9);
@@ -168,7 +168,7 @@ pub fn calibrate(model: &Model, data: &[Observation], exps: &Experiments, names:
                     eprintln!("step {}: chi^2 = {c2:.6e} (damping {lambda:.1e})", history.len() - 1);
                 }
                 accepted = true;
-                if gain < opts.tolerance || prev - c2 < CHI2_NEGLIGIBLE {
+                if gain < opts.tolerance || drop < CHI2_NEGLIGIBLE {
                     converged = true;
                 }
                 break;
