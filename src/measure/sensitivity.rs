@@ -61,10 +61,8 @@ pub fn has_adjoint(o: &Observable) -> bool {
     !crate::failure::OBSERVABLES.contains(&o.name.as_str())
 }
 
-/// The relative step of [`differenced`]: a tenth of the parameter. A failure layer moves by
-/// whole layers, so the step must move the failure by a good part of a layer to be seen at all:
-/// a tenth of the yield stress moves a failure at layer 5 by about half a layer. A parameter at
-/// 0 (an effect at its null) steps by its scale, the typical magnitude a fit moves it by.
+/// The relative step [`differenced`] starts from: a tenth of the parameter (its scale, the
+/// typical magnitude a fit moves it by, for a parameter at 0: an effect at its null).
 pub const DIFFERENCE_STEP: f64 = 0.1;
 
 fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>) -> Result<Vec<Valued>, String> {
@@ -86,12 +84,26 @@ fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obser
 }
 
 /// Values of `wanted` from a forward run ([`compare::evaluate`](super::compare::evaluate)) and,
-/// with `names`, their gradients by central differences of forward runs: parameter p moved to
-/// p +- h, h = [`DIFFERENCE_STEP`] |p| (its scale where p = 0), the
-/// difference one-sided where p - h or p + h leaves the parameter's bounds (an effect at its
-/// null on its lower bound). A parameter that leaves this experiment's scenario keys as they are
-/// has a zero column without a run.
+/// with `names`, their gradients by central differences of forward runs over a step wide enough
+/// to see them move. A failure layer and time are staircases in a parameter: whole layers, and
+/// times resolved to the output interval, flat between stairs. A difference over a step that
+/// crosses no stair is 0, one that crosses one is a stair over however short a step (a slope
+/// without bound near a stair), and neither says how the failure moves with the parameter. So
+/// the step starts at h = [`DIFFERENCE_STEP`] |p| (its scale where p = 0) and grows fourfold
+/// while an observable has moved by less than twice the smallest move it made: the difference
+/// then spans at least two of its stairs, within a factor 2 of the staircase's mean slope. Each
+/// observable keeps the difference over the first step that resolved it; one that never does
+/// keeps the widest. The step stops at 0.4 |p| (the parameter stays near itself: a yield stress
+/// stays a yield stress), at 64 times its scale from 0 (a structuration rate of 0.5 Pa/s, its
+/// scale, moves no failure layer of a print of a few layers of seconds each; 32 Pa/s does), and
+/// at the last step whose runs run (a process offset wide enough to put the nozzle outside the
+/// domain is refused). The difference is one-sided where p - h or p + h leaves the parameter's
+/// bounds (an effect at its null on its lower bound). A parameter that leaves this experiment's
+/// scenario keys as they are has a zero column without a run.
 fn differenced(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>) -> Result<Vec<Valued>, String> {
+    const WIDEST: f64 = 0.4;
+    const WIDEST_AT_NULL: f64 = 64.0;
+    const GROWTH: f64 = 4.0;
     let run = |m: &Model| super::compare::evaluate(m, exps, x, wanted, threads);
     let values = run(model)?;
     let Some(names) = names else { return Ok(values.into_iter().map(|v| (v, None)).collect()) };
@@ -99,21 +111,41 @@ fn differenced(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obse
     let mut rows = vec![vec![0.0; names.len()]; wanted.len()];
     for (j, name) in names.iter().enumerate() {
         let (p, b) = (model.get(name)?, model.bounds(name)?);
-        let h = if p != 0.0 { DIFFERENCE_STEP * p.abs() } else { b.scale };
-        let (lo, hi) = ((p - h).max(b.lower), (p + h).min(b.upper));
         let moved = |v: f64| -> Result<Option<Model>, String> {
             let mut m = model.clone();
             m.set(name, v)?;
             Ok((v != p && experiment_keys(&m, x)? != keys).then_some(m))
         };
-        let (m_lo, m_hi) = (moved(lo)?, moved(hi)?);
-        if m_lo.is_none() && m_hi.is_none() {
-            continue;
-        }
         let side = |m: Option<Model>| m.map_or(Ok(values.clone()), |m| run(&m));
-        let (v_lo, v_hi) = (side(m_lo)?, side(m_hi)?);
-        for (row, (a, b)) in rows.iter_mut().zip(v_lo.iter().zip(&v_hi)) {
-            row[j] = (b - a) / (hi - lo);
+        let (mut h, widest) = if p != 0.0 { (DIFFERENCE_STEP * p.abs(), WIDEST * p.abs()) } else { (b.scale, WIDEST_AT_NULL * b.scale) };
+        // each observable's smallest move so far (its stair), and whether a difference spanned two
+        let mut stair = vec![f64::INFINITY; wanted.len()];
+        let mut resolved = vec![false; wanted.len()];
+        for widened in 0.. {
+            let (lo, hi) = ((p - h).max(b.lower), (p + h).min(b.upper));
+            let (m_lo, m_hi) = (moved(lo)?, moved(hi)?);
+            if m_lo.is_none() && m_hi.is_none() {
+                break;
+            }
+            let (v_lo, v_hi) = match (side(m_lo), side(m_hi)) {
+                (Ok(a), Ok(c)) => (a, c),
+                (Err(e), _) | (_, Err(e)) if widened == 0 => return Err(e),
+                _ => break,
+            };
+            for (i, row) in rows.iter_mut().enumerate().filter(|(i, _)| !resolved[*i]) {
+                let d = v_hi[i] - v_lo[i];
+                if d != 0.0 {
+                    stair[i] = stair[i].min(d.abs());
+                }
+                row[j] = d / (hi - lo);
+            }
+            for (i, r) in resolved.iter_mut().enumerate() {
+                *r = *r || (v_hi[i] - v_lo[i]).abs() >= 2.0 * stair[i];
+            }
+            if resolved.iter().all(|&r| r) || h >= widest || (lo <= b.lower && hi >= b.upper) {
+                break;
+            }
+            h = (GROWTH * h).min(widest);
         }
     }
     Ok(values.into_iter().zip(rows).map(|(v, g)| (v, Some(g))).collect())
