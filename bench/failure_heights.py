@@ -133,7 +133,6 @@ def main():
     if a.side_by_side:
         p = pauses[0]
         runs["speed_rule"] = start(a.strand, a.out, "speed_rule", failure_wall.scenario(p, a.layers, a.a_thix, "speed", 1.0))
-        runs["awake"] = start(a.strand, a.out, "awake", failure_wall.scenario(p, a.layers, a.a_thix, "none", 1.0))
     res = {k: finish(v, a.out, k) for k, v in runs.items()}
     names = " / ".join(name for name, _ in ALPHAS)
     print(f"| T s | build rate mm/s | criterion layer, alpha = {names} | H* mm | yield onset layer (simulated) | onset / criterion, {ALPHAS[-1][0]} | onset height / H* | failure layer (run) |")
@@ -151,12 +150,12 @@ def main():
         print(f"| {T:.2f} | {H / T * 1e3:.2f} | {' / '.join(map(str, layers))} | {' / '.join(f'{x * 1e3:.0f}' for x in heights)} | {on or '-'} | {ratio} | {hratio} | {fl} |")
     if a.side_by_side:
         print()
-        print("| fastest rate | failure layer | failure time s | steps | wall s | awake particle-steps |")
-        print("|---|---|---|---|---|---|")
-        for k, label in [(f"pause{pauses[0]}", "load rule (new default)"), ("speed_rule", "speed rule (old default)"), ("awake", "all awake")]:
+        print("| fastest rate, sleeping | yield onset layer | steps | awake particle-steps | wall s, one thread |")
+        print("|---|---|---|---|---|")
+        for k, label in [(f"pause{pauses[0]}", "wake on load (default)"), ("speed_rule", "speed rule (old default)")]:
             r = res[k]
-            f = r.get("failure") or {}
-            print(f"| {label} | {f.get('layer', '-')} | {f.get('time', float('nan')):.2f} | {r['steps']} | {r['wall_s']:.0f} | {r.get('awake_particle_steps', '-')} |")
+            on = onset_layer(os.path.join(a.out, k, "sections.csv"), pauses[0])
+            print(f"| {label} | {on or '-'} | {r['steps']:,} | {r['awake_particle_steps']:,} | {r['wall_s']:.0f} |")
 
 
 if __name__ == "__main__":
