@@ -23,8 +23,8 @@ nozzle's squeeze of the next; then the width stands, within 1 mm a layer, until 
 above yields the bottom, and grows by 2-3 mm a layer from then on). The section's height is no
 measure of the onset: read at the same point of every layer, it rises by 10 and 14 mm on
 alternate layers (the direction of the pass), so a rule on its rise fires on the alternation.
-A run whose summary (OUT/NAME.json) was written
-for the same scenario text is not repeated. Usage:
+A run whose summary (OUT/NAME.json) was written for the same scenario text is not repeated.
+Usage:
 
     failure_heights.py [--strand PATH] [--out DIR] [--pauses 0.1,1.42,2.92] [--side-by-side]
 """
