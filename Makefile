@@ -72,10 +72,10 @@ bench-layers-dwell: build
 
 # Printing to failure: the wall of fixtures/scenarios/print/wall_to_failure.toml at three build
 # rates, its failure and yield-onset layers against the closed-form plastic-collapse criterion
-# (BENCHMARKS.md "Printing to failure"; three single-thread runs at once, about 25 CPU minutes;
-# add --side-by-side for the fastest rate with the speed rule and all awake too).
+# (BENCHMARKS.md "Printing to failure"; three single-thread runs at once, 20-25 minutes each;
+# add --side-by-side for the fastest rate with the speed rule, the old sleeping default, too).
 bench-failure: build
-	python3 bench/failure_heights.py --strand $(STRAND) --out $(OUT)/failure --layers 14
+	python3 bench/failure_heights.py --strand $(STRAND) --out $(OUT)/failure --layers 12
 
 # Case 1's section at five cell sizes (5 to 2 mm, 5 to 12.5 cells per nozzle diameter), its
 # observed order of convergence and Richardson extrapolation (BENCHMARKS.md "Discretisation

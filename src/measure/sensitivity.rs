@@ -65,10 +65,8 @@ pub fn has_adjoint(o: &Observable) -> bool {
     !crate::failure::OBSERVABLES.contains(&o.name.as_str())
 }
 
-/// The relative step of [`differenced`]: a tenth of the parameter. A failure layer moves by
-/// whole layers, so the step must move the failure by a good part of a layer to be seen at all:
-/// a tenth of the yield stress moves a failure at layer 5 by about half a layer. A parameter at
-/// 0 (an effect at its null) steps by its scale, the typical magnitude a fit moves it by.
+/// The relative step [`differenced`] starts from: a tenth of the parameter (its scale, the
+/// typical magnitude a fit moves it by, for a parameter at 0: an effect at its null).
 pub const DIFFERENCE_STEP: f64 = 0.1;
 
 /// The relative step of the central differences that stand in for a simulation's adjoint
@@ -78,6 +76,12 @@ pub const DIFFERENCE_STEP: f64 = 0.1;
 /// and change sign, while those at 1, 3 and 10 % agree with each other and with the adjoint (test
 /// `differences_stand_in_for_the_adjoint_on_a_print_line`).
 pub const DIFFERENCE_STEP_SMOOTH: f64 = 0.03;
+
+/// [`DIFFERENCE_STEP_SMOOTH`] of `name`'s value, or of its scale where it is 0.
+fn smooth_step(model: &Model, name: &str) -> Result<f64, String> {
+    let p = model.get(name)?;
+    Ok(DIFFERENCE_STEP_SMOOTH * if p != 0.0 { p.abs() } else { model.bounds(name)?.scale })
+}
 
 /// What one experiment's adjoint costs, in forward runs of it: a share every observation's
 /// adjoint reuses (the forward sweep with its recomputations, and each reversed step's
@@ -120,7 +124,7 @@ fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obser
 fn simulated(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>) -> Result<Vec<Valued>, String> {
     let (Some(names), Some(_)) = (names, &x.scenario) else { return by_adjoint(model, exps, x, wanted, names, threads) };
     let keys = experiment_keys(model, x)?;
-    let sides = names.iter().map(|n| moves(model, x, &keys, n, (DIFFERENCE_STEP_SMOOTH, DIFFERENCE_STEP_SMOOTH))).collect::<Result<Vec<_>, _>>()?;
+    let sides = names.iter().map(|n| smooth_step(model, n).and_then(|h| moves(model, x, &keys, n, h))).collect::<Result<Vec<_>, _>>()?;
     let all = by_differences_is_cheaper(sides.iter().filter(|s| s.is_some()).count(), wanted.len());
     let by_differences: Vec<bool> = sides.iter().map(|s| s.as_ref().is_some_and(|s| all || s.toolpath)).collect();
     let adjoint: Vec<String> = names.iter().zip(&by_differences).filter(|(_, d)| !**d).map(|(n, _)| n.clone()).collect();
@@ -142,15 +146,61 @@ fn simulated(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observ
 }
 
 /// Values of `wanted` from a forward run ([`compare::evaluate`](super::compare::evaluate)) and,
-/// with `names`, their gradients by central differences of forward runs ([`moves`] with
-/// [`DIFFERENCE_STEP`]).
+/// with `names`, their gradients by central differences of forward runs over a step wide enough
+/// to see them move. A failure layer and time are staircases in a parameter: whole layers, and
+/// times resolved to the output interval, flat between stairs. A difference over a step that
+/// crosses no stair is 0, one that crosses one is a stair over however short a step (a slope
+/// without bound near a stair), and neither says how the failure moves with the parameter. So
+/// the step starts at h = [`DIFFERENCE_STEP`] |p| (its scale where p = 0) and grows fourfold
+/// while an observable has moved by less than twice the smallest move it made: the difference
+/// then spans at least two of its stairs, within a factor 2 of the staircase's mean slope. Each
+/// observable keeps the difference over the first step that resolved it; one that never does
+/// keeps the widest. The step stops at 0.4 |p| (the parameter stays near itself: a yield stress
+/// stays a yield stress), at 64 times its scale from 0 (a structuration rate of 0.5 Pa/s, its
+/// scale, moves no failure layer of a print of a few layers of seconds each; 32 Pa/s does), and
+/// at the last step whose runs run (a process offset wide enough to put the nozzle outside the
+/// domain is refused). The difference is one-sided where p - h or p + h leaves the parameter's
+/// bounds (an effect at its null on its lower bound). A parameter that leaves this experiment's
+/// scenario keys as they are has a zero column without a run.
 fn differenced(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>) -> Result<Vec<Valued>, String> {
+    const WIDEST: f64 = 0.4;
+    const WIDEST_AT_NULL: f64 = 64.0;
+    const GROWTH: f64 = 4.0;
     let run = |m: &Model| super::compare::evaluate(m, exps, x, wanted, threads);
     let values = run(model)?;
     let Some(names) = names else { return Ok(values.into_iter().map(|v| (v, None)).collect()) };
     let keys = experiment_keys(model, x)?;
-    let sides = names.iter().map(|n| moves(model, x, &keys, n, (DIFFERENCE_STEP, 1.0))).collect::<Result<Vec<_>, _>>()?;
-    let rows = central(&values, run, sides)?;
+    let mut rows = vec![vec![0.0; names.len()]; wanted.len()];
+    for (j, name) in names.iter().enumerate() {
+        let (p, b) = (model.get(name)?, model.bounds(name)?);
+        let side = |m: Option<Model>| m.map_or(Ok(values.clone()), |m| run(&m));
+        let (mut h, widest) = if p != 0.0 { (DIFFERENCE_STEP * p.abs(), WIDEST * p.abs()) } else { (b.scale, WIDEST_AT_NULL * b.scale) };
+        // each observable's smallest move so far (its stair), and whether a difference spanned two
+        let mut stair = vec![f64::INFINITY; wanted.len()];
+        let mut resolved = vec![false; wanted.len()];
+        for widened in 0.. {
+            let Some(Sides { lo: (lo, m_lo), hi: (hi, m_hi), .. }) = moves(model, x, &keys, name, h)? else { break };
+            let (v_lo, v_hi) = match (side(m_lo), side(m_hi)) {
+                (Ok(a), Ok(c)) => (a, c),
+                (Err(e), _) | (_, Err(e)) if widened == 0 => return Err(e),
+                _ => break,
+            };
+            for (i, row) in rows.iter_mut().enumerate().filter(|(i, _)| !resolved[*i]) {
+                let d = v_hi[i] - v_lo[i];
+                if d != 0.0 {
+                    stair[i] = stair[i].min(d.abs());
+                }
+                row[j] = d / (hi - lo);
+            }
+            for (i, r) in resolved.iter_mut().enumerate() {
+                *r = *r || (v_hi[i] - v_lo[i]).abs() >= 2.0 * stair[i];
+            }
+            if resolved.iter().all(|&r| r) || h >= widest || (lo <= b.lower && hi >= b.upper) {
+                break;
+            }
+            h = (GROWTH * h).min(widest);
+        }
+    }
     Ok(values.into_iter().zip(rows).map(|(v, g)| (v, Some(g))).collect())
 }
 
@@ -162,13 +212,11 @@ struct Sides {
     toolpath: bool,
 }
 
-/// `name` moved to p +- h, h = `step.0` |p| (`step.1` times its scale where p = 0), each side held
-/// within the parameter's bounds, with the models there (None for a side at p, or one that
-/// leaves this experiment's scenario keys as they are). None when neither side changes the
-/// experiment: its column is 0 without a run.
-fn moves(model: &Model, x: &Experiment, keys: &Keys, name: &str, step: (f64, f64)) -> Result<Option<Sides>, String> {
+/// `name` moved to p +- h, each side held within the parameter's bounds, with the models there
+/// (None for a side at p, or one that leaves this experiment's scenario keys as they are). None
+/// when neither side changes the experiment: its column is 0 without a run.
+fn moves(model: &Model, x: &Experiment, keys: &Keys, name: &str, h: f64) -> Result<Option<Sides>, String> {
     let (p, b) = (model.get(name)?, model.bounds(name)?);
-    let h = if p != 0.0 { step.0 * p.abs() } else { step.1 * b.scale };
     let (lo, hi) = ((p - h).max(b.lower), (p + h).min(b.upper));
     let mut toolpath = false;
     let mut moved = |v: f64| -> Result<Option<Model>, String> {
