@@ -290,10 +290,9 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
     // the likelihood ratio: the effect fitted from its start (a modulus: the base model's
     // stand-in for the null, where the model is the base model), with the fitted parameters from
     // the base fit's values (so a modulus's chi^2 starts at chi^2_base and the fit only lowers
-    // it), and, when that finds no significant drop with the effect out of reach of the data at
-    // the fit's end, from the model's own: the base fit may have gone where the effect has no
-    // gradient (a yield stress fitted so low that every reading is past yield, where G drops
-    // out); the better of the two fits counts
+    // it), and, when that finds no significant drop, from the model's own: the base fit may have
+    // gone where the effect has no gradient (a yield stress fitted so low that every reading is
+    // past yield, where G drops out); the better of the two fits counts
     timing.score_tests = lap(&mut since);
     let mut prefit: std::collections::BTreeMap<String, Fit> = Default::default();
     let base_keys = base.model.keys(&Covariates::default())?;
@@ -303,7 +302,7 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
         let mut best: Option<Fit> = None;
         let mut screened: Option<f64> = None;
         for from in if fit.is_empty() { vec![&base.model] } else { vec![&base.model, model] } {
-            if best.as_ref().is_some_and(|b| p_value(base.chi2 - b.chi2, e.params().len()) < opts.alpha || b.influence[fit.len()..].iter().any(|&i| i)) {
+            if best.as_ref().is_some_and(|b| p_value(base.chi2 - b.chi2, e.params().len()) < opts.alpha) {
                 break;
             }
             let mut with = from.with_effect(*e);
@@ -311,10 +310,13 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
                 with.set(n, *v)?;
             }
             // the start's Jacobian, and the fit only where one Gauss-Newton step from it
-            // predicts a drop worth fitting for
+            // predicts a drop worth fitting for; an effect without influence at its start
+            // (G where every reading is past yield) is fitted: the step says nothing there,
+            // and the fitted parameters may move to where it has
             let at_start = calibrate(&with, data, exps, &fnames, &FitOptions { max_iterations: 0, ..opts.fit.clone() })?;
             let predicted = base.chi2 - at_start.chi2 + gauss_newton_drop(&at_start, data)?;
-            let f = if predicted < LR_WORTH_FITTING {
+            let informed = at_start.influence[fit.len()..].iter().any(|&i| i);
+            let f = if informed && predicted < LR_WORTH_FITTING {
                 screened = Some(predicted);
                 at_start
             } else {
