@@ -1,7 +1,7 @@
 //! The grid update: momentum to velocity, gravity, sleeping holds, the nozzle drive, walls,
 //! solid bodies, then the ghost nodes beyond the walls.
 
-use super::walls::{apply_walls, mirror_ghost};
+use super::walls::apply_walls;
 use super::Simulation;
 use crate::grid::{GridGeom, NODES_PER_BLOCK};
 use crate::kernels::{Real, V3};
@@ -17,7 +17,6 @@ impl Simulation {
         let nodes = SharedSlice::new(self.grid.nodes.as_mut_slice());
         let accel = self.accel;
         let walls = &self.walls;
-        let table = self.grid.table.as_slice();
         let threads = self.team.threads();
         let drive_box = drive.map(|d| d.bounds());
         // solids hook (issue 30): placements now, and a reaction slot per block and solid
@@ -89,25 +88,7 @@ impl Simulation {
                 }
             }
         });
-        // Ghost nodes beyond no-slip and free-slip walls take the mirror image of the velocity
-        // inside, so G2P sees a field that is odd (no-slip) or has an odd normal part (free-slip)
-        // across the wall. Zeroing them instead destroys the momentum of the material near the
-        // wall once per step: a drag proportional to the number of steps, not to time (measured:
-        // a channel flow lost 20-70 % of its speed as dt shrank).
-        self.team.run(|tid| {
-            for s in ThreadTeam::share(na, tid, threads) {
-                let b = geom.block_coords(slot_block[s]);
-                if !geom.block_reaches_beyond_walls(b) {
-                    continue;
-                }
-                for li in 0..NODES_PER_BLOCK {
-                    let g = geom.node_of(b, li);
-                    // SAFETY: this pass writes only ghost nodes and reads only nodes that are
-                    // not ghosts on any axis; each ghost node belongs to one slot and thread.
-                    unsafe { mirror_ghost(geom, walls, g, s * NODES_PER_BLOCK + li, &nodes, table) };
-                }
-            }
-        });
+        self.mirror_ghosts();
         if let Some(z) = self.solids.as_mut() {
             z.total_forces(na, dt as f64); // solids hook (issue 30)
         }

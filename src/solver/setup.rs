@@ -36,30 +36,10 @@ impl Simulation {
         if let Some(p) = &printer {
             check_print_inside_domain(scenario, p)?;
         }
-        let initial = count_body_particles(scenario);
-        let emitted = printer.as_ref().map_or(0, |p| p.plan.total_particles() as usize);
-        let cap = scenario.memory.max_particles.unwrap_or(initial + emitted).max(1);
-        if initial + emitted > cap {
-            return Err(SimError::Setup(format!(
-                "particle pool: the scenario needs {} particles ({initial} initial + {emitted} emitted by the whole print) \
-                 but [memory] max_particles = {cap}; raise it or leave it out to size the pool for the whole print",
-                initial + emitted
-            )));
-        }
+        let cap = particle_capacity(scenario, printer.as_ref())?;
         let max_blocks = scenario.memory.max_blocks.unwrap_or(geom.table_len()).max(8);
         let budget = parse_size(&scenario.memory.budget)?;
-        let mut memory = MemoryPlan::default();
-        Particles::plan(&mut memory, cap, state_len);
-        Grid::plan(&mut memory, &geom, max_blocks);
-        Scratch::plan(&mut memory, cap, max_blocks, state_len);
-        crate::solid::Solids::plan(&mut memory, scenario.solids.len(), max_blocks); // solids hook (issue 30)
-        if let Some(cfg) = &scenario.sleep {
-            Sleep::plan(&mut memory, cfg, &geom, max_blocks, cap, scenario.simulation.gravity);
-        }
-        if let Some(p) = &printer {
-            let q = scenario.print.as_ref().map_or(0, |c| c.queue);
-            memory.add::<[f64; 3]>("emission.queue", (q + 1) * p.plan.particles_per_slab());
-        }
+        let memory = plan_memory(scenario, printer.as_ref(), &geom, cap, max_blocks, state_len);
         memory.check(budget)?;
 
         let backing = Backing { dir: scenario.memory.dir.clone() };
@@ -87,24 +67,8 @@ impl Simulation {
             t => t,
         }
         .min(MAX_THREADS);
-
-        let s = &scenario.simulation;
-        let rho = material.density() as f64;
-        let accel = V3::new(
-            (s.gravity[0] + s.body_force[0] / rho) as Real,
-            (s.gravity[1] + s.body_force[1] / rho) as Real,
-            (s.gravity[2] + s.body_force[2] / rho) as Real,
-        );
-        let b = &scenario.boundary;
-        let walls = Walls {
-            faces: [[b.x_min, b.x_max], [b.y_min, b.y_max], [b.z_min, b.z_max]],
-            platform: b.platform.as_ref().map(|p| {
-                let g = &grid.geom;
-                let lo = g.to_grid([p.xy_min[0], p.xy_min[1], p.z]);
-                let hi = g.to_grid([p.xy_max[0], p.xy_max[1], p.z]);
-                (lo.z, [lo.x, lo.y, hi.x, hi.y], p.kind)
-            }),
-        };
+        let accel = acceleration(scenario, material.density() as f64);
+        let walls = Walls::new(&scenario.boundary, &grid.geom);
 
         let mut sim = Simulation {
             scenario: scenario.clone(),
@@ -141,6 +105,48 @@ impl Simulation {
     }
 }
 
+/// The particle pool's length: `[memory] max_particles`, or what the bodies and the whole print
+/// need; an error when the print needs more than the pool holds.
+fn particle_capacity(scenario: &Scenario, printer: Option<&Printer>) -> Result<usize, SimError> {
+    let initial = count_body_particles(scenario);
+    let emitted = printer.map_or(0, |p| p.plan.total_particles() as usize);
+    let cap = scenario.memory.max_particles.unwrap_or(initial + emitted).max(1);
+    if initial + emitted > cap {
+        return Err(SimError::Setup(format!(
+            "particle pool: the scenario needs {} particles ({initial} initial + {emitted} emitted by the whole print) \
+             but [memory] max_particles = {cap}; raise it or leave it out to size the pool for the whole print",
+            initial + emitted
+        )));
+    }
+    Ok(cap)
+}
+
+/// Every pool the run maps, sized before any is mapped.
+fn plan_memory(scenario: &Scenario, printer: Option<&Printer>, geom: &GridGeom, cap: usize, max_blocks: usize, state_len: usize) -> MemoryPlan {
+    let mut memory = MemoryPlan::default();
+    Particles::plan(&mut memory, cap, state_len);
+    Grid::plan(&mut memory, geom, max_blocks);
+    Scratch::plan(&mut memory, cap, max_blocks, state_len);
+    crate::solid::Solids::plan(&mut memory, scenario.solids.len(), max_blocks); // solids hook (issue 30)
+    if let Some(cfg) = &scenario.sleep {
+        Sleep::plan(&mut memory, cfg, geom, max_blocks, cap, scenario.simulation.gravity);
+    }
+    if let Some(p) = printer {
+        let q = scenario.print.as_ref().map_or(0, |c| c.queue);
+        memory.add::<[f64; 3]>("emission.queue", (q + 1) * p.plan.particles_per_slab());
+    }
+    memory
+}
+
+/// Gravity plus the body force per unit mass of a material of density `rho`.
+fn acceleration(scenario: &Scenario, rho: f64) -> V3 {
+    let s = &scenario.simulation;
+    V3::new(
+        (s.gravity[0] + s.body_force[0] / rho) as Real,
+        (s.gravity[1] + s.body_force[1] / rho) as Real,
+        (s.gravity[2] + s.body_force[2] / rho) as Real,
+    )
+}
 
 /// Start-up check: the tube must stay inside the domain along the whole toolpath, with room above
 /// it for the slab that is entering (continuous emission), whose lattice points outside the
