@@ -31,6 +31,7 @@ pub mod solver;
 // solid bodies (issue 30)
 pub mod solid;
 pub mod threads;
+pub mod writer;
 pub mod verify;
 pub mod sleep;
 pub mod report;

@@ -15,236 +15,274 @@ struct Cli {
 #[derive(Subcommand)]
 enum Cmd {
     /// Run a scenario (TOML) to its end time; without SCENARIO, the embedded default.
-    Run {
-        scenario: Option<PathBuf>,
-        /// Output directory (VTU snapshots, globals.csv, observables).
-        #[arg(long, default_value = "out")]
-        out: PathBuf,
-        /// Worker threads (overrides simulation.threads).
-        #[arg(long)]
-        threads: Option<usize>,
-        /// No progress or summary on stderr.
-        #[arg(long)]
-        quiet: bool,
-        /// Print a JSON summary on stdout (steps, times, particles, peak memory, state hash,
-        /// last observables).
-        #[arg(long)]
-        json: bool,
-        /// Continue from the newest good checkpoint in OUT/checkpoints.
-        #[arg(long)]
-        resume: bool,
-        /// With --resume: continue even though the scenario changed since the checkpoint.
-        #[arg(long, requires = "resume")]
-        force: bool,
-        /// Start afresh even though OUT holds checkpoints of an unfinished run (deletes them).
-        #[arg(long, conflicts_with = "resume")]
-        overwrite: bool,
-    },
+    Run(RunArgs),
     /// Show a checkpoint's header and summary (a file, or a run's output folder for all of its
     /// checkpoints), verifying every checksum.
-    Inspect {
-        path: PathBuf,
-        #[arg(long)]
-        json: bool,
-    },
+    Inspect(InspectArgs),
     /// Check a scenario and print its memory plan without running it.
-    Check { scenario: PathBuf },
+    Check(CheckArgs),
     /// Run the verification suite against closed-form and experimental references.
-    Verify {
-        /// Reduced resolution (looser tolerances, marked in the table).
-        #[arg(long)]
-        quick: bool,
-        #[arg(long)]
-        json: bool,
-        /// Only cases whose name contains this text.
-        #[arg(long)]
-        case: Option<String>,
-        /// List the case names and exit.
-        #[arg(long)]
-        list: bool,
-        #[arg(long)]
-        threads: Option<usize>,
-    },
+    Verify(VerifyArgs),
     /// Gradient of an objective of the final state with respect to scenario parameters, by the
     /// adjoint method under a checkpoint schedule within the RAM and disk caps.
-    Grad {
-        scenario: PathBuf,
-        /// What to differentiate: spread, width@X, height@X, area@X, profile@X:Y (the section's
-        /// top at x = X, y = Y), layer_height@X:K, layer_width@X:K (layer K = 1, 2, ... at x = X),
-        /// total_height, front, vx_max, kinetic_energy, mean_z. Given several times, the
-        /// objectives share one forward and one reverse sweep (an adjoint for each).
-        #[arg(long, required = true)]
-        objective: Vec<String>,
-        /// Parameters, comma-separated scenario keys (material.yield_stress,
-        /// simulation.body_force.x, body.0.velocity.z, boundary.z_min.friction.mu, ...).
-        #[arg(long, value_delimiter = ',', required = true)]
-        wrt: Vec<String>,
-        /// Also central differences at several steps and the Taylor remainder test.
-        #[arg(long)]
-        check: bool,
-        /// Relative steps of --check's central differences.
-        #[arg(long, value_delimiter = ',', default_values_t = strand::grad::check::REL_STEPS)]
-        check_steps: Vec<f64>,
-        #[arg(long)]
-        json: bool,
-        /// Memory for the backward pass: adjoint arrays plus RAM checkpoints.
-        #[arg(long, default_value = "1 GiB")]
-        ram: String,
-        /// Disk for checkpoints beyond the RAM cap.
-        #[arg(long, default_value = "0")]
-        disk: String,
-        /// Folder of the disk checkpoints (deleted files when done).
-        #[arg(long, default_value = "grad_checkpoints")]
-        disk_dir: PathBuf,
-        #[arg(long)]
-        threads: Option<usize>,
-        /// Stop the run once the largest particle speed, having exceeded SPEED m/s, falls back
-        /// below it (or at the end time); the online schedule then checkpoints a run of unknown
-        /// length.
-        #[arg(long, value_name = "SPEED")]
-        until_rest: Option<f64>,
-        /// Force a schedule instead of choosing one from --ram and --disk: store-all,
-        /// two-level[:SEGMENT] or revolve:RAM_SLOTS,DISK_SLOTS.
-        #[arg(long)]
-        schedule: Option<String>,
-    },
+    Grad(GradArgs),
     /// A virtual rheometer: MODEL's [material] as one material point in simple shear under the
     /// [rheometer] protocol (rest, shear, sweeps of rates), printing the shear stress at the end
     /// of every recorded hold.
-    Rheometer {
-        model: PathBuf,
-        /// Protocol file ([[phase]] tables) instead of MODEL's [rheometer] table.
-        #[arg(long)]
-        protocol: Option<PathBuf>,
-        /// Also each reading's derivative with respect to every material parameter (adjoint).
-        #[arg(long)]
-        sensitivity: bool,
-        #[arg(long)]
-        json: bool,
-    },
+    Rheometer(RheometerArgs),
     /// Run every experiment the measurements name under MODEL's [material] and compare: each
     /// observation (measured, model, residual, z), summaries per experiment and per observable,
     /// and where the model fails most.
-    Compare {
-        #[command(flatten)]
-        inputs: MeasureInputs,
-        /// Also write a report into DIR: model against data and z against each covariate
-        /// (PNG), the trends of z (trends.csv, also printed) and index.html showing it all.
-        #[arg(long, value_name = "DIR")]
-        report: Option<PathBuf>,
-        /// Run nothing: write DIR/jobs.txt, one command per experiment (GNU parallel, or the
-        /// Slurm job array DIR/slurm.sh), each saving its values into DIR.
-        #[arg(long, value_name = "DIR", conflicts_with_all = ["collect", "only"])]
-        plan: Option<PathBuf>,
-        /// Compare from the values the planned jobs saved in DIR instead of running.
-        #[arg(long, value_name = "DIR", conflicts_with = "only")]
-        collect: Option<PathBuf>,
-        /// Run this experiment alone (a planned job).
-        #[arg(long, value_name = "ID", requires = "save")]
-        only: Option<String>,
-        /// Where --only saves its values (JSON).
-        #[arg(long, value_name = "FILE", requires = "only")]
-        save: Option<PathBuf>,
-    },
+    Compare(CompareArgs),
     /// Synthetic measurements: every experiment's `observe` list under MODEL, with relative
     /// Gaussian noise from a seed.
-    Synth {
-        #[arg(long)]
-        model: PathBuf,
-        #[arg(long)]
-        experiments: PathBuf,
-        /// Relative noise (standard deviation), also written as each value's uncertainty.
-        #[arg(long, default_value_t = 0.0)]
-        noise: f64,
-        #[arg(long, default_value_t = 1)]
-        seed: u64,
-        /// Output CSV.
-        #[arg(long)]
-        out: PathBuf,
-        #[arg(long, default_value_t = 1)]
-        jobs: usize,
-    },
+    Synth(SynthArgs),
     /// Fit named model parameters to measurements (bounded Levenberg-Marquardt, gradients from
     /// the adjoints): prints each parameter with its uncertainty and the error before and after,
     /// writes the calibrated model and a convergence plot.
-    Calibrate {
-        #[command(flatten)]
-        inputs: MeasureInputs,
-        /// Parameters to fit: material.KEY or EFFECT.PARAM, comma-separated.
-        #[arg(long, value_delimiter = ',', required = true)]
-        fit: Vec<String>,
-        /// Where the calibrated model goes (default: MODEL's name with .calibrated.toml).
-        #[arg(long)]
-        out: Option<PathBuf>,
-        /// Convergence plot (PNG; default beside --out).
-        #[arg(long)]
-        plot: Option<PathBuf>,
-        #[arg(long, default_value_t = 30)]
-        max_iterations: usize,
-        #[command(flatten)]
-        engine: EngineArgs,
-    },
+    Calibrate(CalibrateArgs),
     /// Which physical effect the model lacks: fits --fit, scores every effect not in the model
     /// at its null (score test from the adjoint gradient; a likelihood-ratio test, from a fit,
     /// for an effect whose null lies at infinity: G, K or the floor's mu = infinity), fits the
     /// significant ones, checks them by leave-one-experiment-out, and gives a verdict ("add
     /// EFFECT", "explained" or "unexplained").
-    Diagnose {
-        #[command(flatten)]
-        inputs: MeasureInputs,
-        /// Base parameters refitted first (and in every candidate's fit), comma-separated.
-        #[arg(long, value_delimiter = ',')]
-        fit: Vec<String>,
-        /// Significance level of the score and likelihood-ratio tests and of the base model's fit.
-        #[arg(long, default_value_t = 0.01)]
-        alpha: f64,
-        /// Skip the leave-one-experiment-out check.
-        #[arg(long)]
-        no_loo: bool,
-        /// Leave each experiment out by a full refit, instead of one Gauss-Newton step from the
-        /// full fit checked against a run at it (and replaced by a refit where the check refuses
-        /// it): see docs/gradient_cost.md.
-        #[arg(long, conflicts_with = "no_loo")]
-        loo_refits: bool,
-        /// How many significant effects, best first, are fitted and checked by leave-one-out
-        /// (each check refits once per experiment); the rest are reported significant.
-        #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..))]
-        max_fitted: u64,
-        /// Write the model with the recommended effect, fitted, here (with --rounds, the final
-        /// model with every effect added).
-        #[arg(long)]
-        out: Option<PathBuf>,
-        #[arg(long, default_value_t = 30)]
-        max_iterations: usize,
-        /// Run up to N rounds: diagnose, add the verdict's effect, refit, and diagnose again
-        /// until nothing is significant, printing the error after each round.
-        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
-        rounds: u64,
-        #[command(flatten)]
-        engine: EngineArgs,
-    },
+    Diagnose(DiagnoseArgs),
     /// One job of calibrate's or diagnose's --engine: compute the experiment a job file names
     /// (its values, and gradients when asked) and save the result with its provenance.
-    Evaluate {
-        job: PathBuf,
-        #[arg(long)]
-        out: PathBuf,
-    },
+    Evaluate(EvaluateArgs),
     /// Throughput of the peer benchmark scene (3D J-fluid dam break).
-    Bench {
-        #[arg(long, default_value_t = 262_144)]
-        particles: usize,
-        #[arg(long, default_value_t = 64)]
-        grid: usize,
-        #[arg(long, default_value_t = 30)]
-        steps: usize,
-        #[arg(long, default_value_t = 3)]
-        repeats: usize,
-        #[arg(long)]
-        threads: Option<usize>,
-        #[arg(long)]
-        json: bool,
-    },
+    Bench(BenchArgs),
+}
+
+#[derive(clap::Args)]
+struct RunArgs {
+    scenario: Option<PathBuf>,
+    /// Output directory (VTU snapshots, globals.csv, observables).
+    #[arg(long, default_value = "out")]
+    out: PathBuf,
+    /// Worker threads (overrides simulation.threads).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// No progress or summary on stderr.
+    #[arg(long)]
+    quiet: bool,
+    /// Print a JSON summary on stdout (steps, times, particles, peak memory, state hash,
+    /// last observables).
+    #[arg(long)]
+    json: bool,
+    /// Continue from the newest good checkpoint in OUT/checkpoints.
+    #[arg(long)]
+    resume: bool,
+    /// With --resume: continue even though the scenario changed since the checkpoint.
+    #[arg(long, requires = "resume")]
+    force: bool,
+    /// Start afresh even though OUT holds checkpoints of an unfinished run (deletes them).
+    #[arg(long, conflicts_with = "resume")]
+    overwrite: bool,
+}
+
+#[derive(clap::Args)]
+struct InspectArgs {
+    path: PathBuf,
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(clap::Args)]
+struct CheckArgs {
+    scenario: PathBuf,
+}
+
+#[derive(clap::Args)]
+struct VerifyArgs {
+    /// Reduced resolution (looser tolerances, marked in the table).
+    #[arg(long)]
+    quick: bool,
+    #[arg(long)]
+    json: bool,
+    /// Only cases whose name contains this text.
+    #[arg(long)]
+    case: Option<String>,
+    /// List the case names and exit.
+    #[arg(long)]
+    list: bool,
+    #[arg(long)]
+    threads: Option<usize>,
+}
+
+#[derive(clap::Args)]
+struct GradArgs {
+    scenario: PathBuf,
+    /// What to differentiate: spread, width@X, height@X, area@X, profile@X:Y (the section's
+    /// top at x = X, y = Y), layer_height@X:K, layer_width@X:K (layer K = 1, 2, ... at x = X),
+    /// total_height, front, vx_max, kinetic_energy, mean_z. Given several times, the
+    /// objectives share one forward and one reverse sweep (an adjoint for each).
+    #[arg(long, required = true)]
+    objective: Vec<String>,
+    /// Parameters, comma-separated scenario keys (material.yield_stress,
+    /// simulation.body_force.x, body.0.velocity.z, boundary.z_min.friction.mu, ...).
+    #[arg(long, value_delimiter = ',', required = true)]
+    wrt: Vec<String>,
+    /// Also central differences at several steps and the Taylor remainder test.
+    #[arg(long)]
+    check: bool,
+    /// Relative steps of --check's central differences.
+    #[arg(long, value_delimiter = ',', default_values_t = strand::grad::check::REL_STEPS)]
+    check_steps: Vec<f64>,
+    #[arg(long)]
+    json: bool,
+    /// Memory for the backward pass: adjoint arrays plus RAM checkpoints.
+    #[arg(long, default_value = "1 GiB")]
+    ram: String,
+    /// Disk for checkpoints beyond the RAM cap.
+    #[arg(long, default_value = "0")]
+    disk: String,
+    /// Folder of the disk checkpoints (deleted files when done).
+    #[arg(long, default_value = "grad_checkpoints")]
+    disk_dir: PathBuf,
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Stop the run once the largest particle speed, having exceeded SPEED m/s, falls back
+    /// below it (or at the end time); the online schedule then checkpoints a run of unknown
+    /// length.
+    #[arg(long, value_name = "SPEED")]
+    until_rest: Option<f64>,
+    /// Force a schedule instead of choosing one from --ram and --disk: store-all,
+    /// two-level[:SEGMENT] or revolve:RAM_SLOTS,DISK_SLOTS.
+    #[arg(long)]
+    schedule: Option<String>,
+}
+
+#[derive(clap::Args)]
+struct RheometerArgs {
+    model: PathBuf,
+    /// Protocol file ([[phase]] tables) instead of MODEL's [rheometer] table.
+    #[arg(long)]
+    protocol: Option<PathBuf>,
+    /// Also each reading's derivative with respect to every material parameter (adjoint).
+    #[arg(long)]
+    sensitivity: bool,
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(clap::Args)]
+struct CompareArgs {
+    #[command(flatten)]
+    inputs: MeasureInputs,
+    /// Also write a report into DIR: model against data and z against each covariate
+    /// (PNG), the trends of z (trends.csv, also printed) and index.html showing it all.
+    #[arg(long, value_name = "DIR")]
+    report: Option<PathBuf>,
+    /// Run nothing: write DIR/jobs.txt, one command per experiment (GNU parallel, or the
+    /// Slurm job array DIR/slurm.sh), each saving its values into DIR.
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["collect", "only"])]
+    plan: Option<PathBuf>,
+    /// Compare from the values the planned jobs saved in DIR instead of running.
+    #[arg(long, value_name = "DIR", conflicts_with = "only")]
+    collect: Option<PathBuf>,
+    /// Run this experiment alone (a planned job).
+    #[arg(long, value_name = "ID", requires = "save")]
+    only: Option<String>,
+    /// Where --only saves its values (JSON).
+    #[arg(long, value_name = "FILE", requires = "only")]
+    save: Option<PathBuf>,
+}
+
+#[derive(clap::Args)]
+struct SynthArgs {
+    #[arg(long)]
+    model: PathBuf,
+    #[arg(long)]
+    experiments: PathBuf,
+    /// Relative noise (standard deviation), also written as each value's uncertainty.
+    #[arg(long, default_value_t = 0.0)]
+    noise: f64,
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Output CSV.
+    #[arg(long)]
+    out: PathBuf,
+    #[arg(long, default_value_t = 1)]
+    jobs: usize,
+}
+
+#[derive(clap::Args)]
+struct CalibrateArgs {
+    #[command(flatten)]
+    inputs: MeasureInputs,
+    /// Parameters to fit: material.KEY or EFFECT.PARAM, comma-separated.
+    #[arg(long, value_delimiter = ',', required = true)]
+    fit: Vec<String>,
+    /// Where the calibrated model goes (default: MODEL's name with .calibrated.toml).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Convergence plot (PNG; default beside --out).
+    #[arg(long)]
+    plot: Option<PathBuf>,
+    #[arg(long, default_value_t = 30)]
+    max_iterations: usize,
+    #[command(flatten)]
+    engine: EngineArgs,
+}
+
+#[derive(clap::Args)]
+struct DiagnoseArgs {
+    #[command(flatten)]
+    inputs: MeasureInputs,
+    /// Base parameters refitted first (and in every candidate's fit), comma-separated.
+    #[arg(long, value_delimiter = ',')]
+    fit: Vec<String>,
+    /// Significance level of the score and likelihood-ratio tests and of the base model's fit.
+    #[arg(long, default_value_t = 0.01)]
+    alpha: f64,
+    /// Skip the leave-one-experiment-out check.
+    #[arg(long)]
+    no_loo: bool,
+    /// Leave each experiment out by a full refit, instead of one Gauss-Newton step from the
+    /// full fit checked against a run at it (and replaced by a refit where the check refuses
+    /// it): see docs/gradient_cost.md.
+    #[arg(long, conflicts_with = "no_loo")]
+    loo_refits: bool,
+    /// How many significant effects, best first, are fitted and checked by leave-one-out
+    /// (each check refits once per experiment); the rest are reported significant.
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..))]
+    max_fitted: u64,
+    /// Write the model with the recommended effect, fitted, here (with --rounds, the final
+    /// model with every effect added).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    #[arg(long, default_value_t = 30)]
+    max_iterations: usize,
+    /// Run up to N rounds: diagnose, add the verdict's effect, refit, and diagnose again
+    /// until nothing is significant, printing the error after each round.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
+    rounds: u64,
+    #[command(flatten)]
+    engine: EngineArgs,
+}
+
+#[derive(clap::Args)]
+struct EvaluateArgs {
+    job: PathBuf,
+    #[arg(long)]
+    out: PathBuf,
+}
+
+#[derive(clap::Args)]
+struct BenchArgs {
+    #[arg(long, default_value_t = 262_144)]
+    particles: usize,
+    #[arg(long, default_value_t = 64)]
+    grid: usize,
+    #[arg(long, default_value_t = 30)]
+    steps: usize,
+    #[arg(long, default_value_t = 3)]
+    repeats: usize,
+    #[arg(long)]
+    threads: Option<usize>,
+    #[arg(long)]
+    json: bool,
 }
 
 const DEFAULT_SCENARIO: &str = include_str!("../fixtures/scenarios/default.toml");
@@ -315,263 +353,317 @@ fn check_writable(path: &std::path::Path, what: &str) -> Result<(), String> {
     Ok(())
 }
 
+/// `strand run`: the run, and its JSON summary with --json.
+fn run(args: RunArgs) -> Result<bool, Failure> {
+    let RunArgs { scenario, out, threads, quiet, json, resume, force, overwrite } = args;
+    let sc = match &scenario {
+        Some(p) => Scenario::load(p).map_err(|e| e.to_string())?,
+        None => Scenario::parse(DEFAULT_SCENARIO).map_err(|e| e.to_string())?,
+    };
+    let mut command = "strand run".to_string();
+    if let Some(p) = &scenario {
+        command += &format!(" {}", p.display());
+    }
+    command += &format!(" --out {}", out.display());
+    if let Some(t) = threads {
+        command += &format!(" --threads {t}");
+    }
+    let opts = RunOptions { out, threads, quiet, resume, force, overwrite, command };
+    let r = run_scenario(&sc, &opts).map_err(|e| Failure { code: e.exit_code(), message: e.to_string() })?;
+    if json {
+        let summary = serde_json::json!({
+            "scenario": sc.name,
+            "steps": r.steps,
+            "time": r.time,
+            "wall_s": r.wall_s,
+            "particles": r.particles,
+            "peak_rss_bytes": strand::verify::peak_rss_bytes(),
+            "state_hash": format!("{:016x}", r.state_hash),
+            "resumed_from": r.resumed_from,
+            "last_checkpoint": r.last_checkpoint,
+            "phase_seconds": strand::solver::PHASES.iter().zip(r.phase_seconds).map(|(k, v)| (k.to_string(), v)).collect::<std::collections::BTreeMap<_, _>>(),
+            "last_observation": r.observations.last(),
+            "failure": r.failure,
+            "awake_particle_steps": r.awake_particle_steps,
+        });
+        println!("{summary:#}");
+    }
+    Ok(true)
+}
+
+/// `strand check`: the scenario checked, its memory plan and time step printed.
+fn check(args: CheckArgs) -> Result<bool, Failure> {
+    let CheckArgs { scenario } = args;
+    let sc = Scenario::load(&scenario).map_err(|e| e.to_string())?;
+    strand::run::preflight(&sc)?;
+    let mut sim = strand::solver::Simulation::new(&sc).map_err(|e| e.to_string())?;
+    strand::run::plan_checkpoint_staging(&mut sim).map_err(|e| e.to_string())?;
+    for w in strand::run::scenario_warnings(&sc, &sim) {
+        eprintln!("{w}");
+    }
+    let (dt, lim) = sim.choose_dt(f64::INFINITY);
+    let steps = strand::run::planned_steps(&sim, sc.simulation.end_time)?;
+    println!("{}: {} particles\nmemory plan:\n{}\ntime step {dt:.3e} s ({lim:?}), about {steps:.0} steps to end_time", sc.name, sim.particles.n, sim.memory);
+    Ok(true)
+}
+
+/// `strand grad`: gradients by the adjoint, checked against central differences with --check.
+fn grad(args: GradArgs) -> Result<bool, Failure> {
+    let GradArgs { scenario, objective, wrt, check, check_steps, json, ram, disk, disk_dir, threads, until_rest, schedule } = args;
+    if let Some(h) = check_steps.iter().find(|h| !(h.is_finite() && **h > 0.0)) {
+        return Err(format!("--check-steps: each relative step must be finite and > 0, got {h}").into());
+    }
+    if let Some(v) = until_rest.filter(|v| !(v.is_finite() && *v > 0.0)) {
+        return Err(format!("--until-rest: the speed must be finite and > 0 m/s (a speed the run can exceed and fall back below), got {v}").into());
+    }
+    let sc = Scenario::load(&scenario).map_err(|e| e.to_string())?;
+    let objs: Vec<strand::grad::Objective> = objective.iter().map(|o| o.parse()).collect::<Result<_, _>>()?;
+    let size = |s: &str, what: &str| strand::memory::parse_size(s).map_err(|e| format!("--{what}: {e}"));
+    let opts = strand::grad::GradOptions {
+        ram_bytes: size(&ram, "ram")?,
+        disk_bytes: size(&disk, "disk")?,
+        disk_dir,
+        threads,
+        schedule: schedule.as_deref().map(strand::grad::schedule::Kind::parse).transpose()?,
+        until_rest,
+    };
+    let seeds: Vec<strand::grad::driver::Seeded> = objs.into_iter().map(|objective| strand::grad::driver::Seeded { objective, step: None }).collect();
+    let rs = strand::grad::driver::gradients(&sc, &seeds, &wrt, &opts)?;
+    let mut chks = Vec::new();
+    for (s, r) in seeds.iter().zip(&rs) {
+        chks.push(if check { Some(strand::grad::check::check(&sc, &s.objective, r, threads, &check_steps)?) } else { None });
+    }
+    if json && rs.len() == 1 {
+        println!("{:#}", serde_json::json!({ "result": rs[0], "check": chks[0], "peak_rss_bytes": strand::verify::peak_rss_bytes() }));
+    } else if json {
+        println!("{:#}", serde_json::json!({ "results": rs, "checks": chks, "peak_rss_bytes": strand::verify::peak_rss_bytes() }));
+    } else {
+        for (r, c) in rs.iter().zip(&chks) {
+            print!("{}", strand::grad::driver::report(r, c.as_ref()));
+        }
+    }
+    Ok(true)
+}
+
+/// `strand compare`: the model against the measurements, or a planned or collected distributed run of it.
+fn compare(args: CompareArgs) -> Result<bool, Failure> {
+    let CompareArgs { inputs, report, plan, collect, only, save } = args;
+    use strand::measure::{compare, plan as jobs, report as folder, resolution};
+    if let Some(dir) = &report {
+        folder::prepare_dir(dir)?;
+    }
+    let (m, d, e) = inputs.load()?;
+    if let Some(dir) = &plan {
+        let exe = std::env::current_exe().map_err(|e| e.to_string())?;
+        let n = jobs::plan(dir, &exe, &inputs.model, &inputs.data, &inputs.experiments, &d)?;
+        eprintln!("{n} jobs in {0}/jobs.txt: `parallel < {0}/jobs.txt` or `sbatch {0}/slurm.sh`, then --collect {0}", dir.display());
+        return Ok(true);
+    }
+    if let (Some(id), Some(file)) = (&only, &save) {
+        let mine = jobs::only(&d, id)?;
+        let values = compare::model_values(&m, &mine, &e, 1)?;
+        jobs::save(file, &m, &e, id, &mine, &values)?;
+        eprintln!("{id}: {} values saved to {}", values.len(), file.display());
+        return Ok(true);
+    }
+    let values = match &collect {
+        Some(dir) => jobs::collect(dir, &m, &e, &d)?,
+        None => compare::model_values(&m, &d, &e, inputs.jobs)?,
+    };
+    // [resolution]: the finer runs, here also after --collect (the jobs ran the model's)
+    let disc = resolution::estimate(&m, &d, &e, Some(&values), inputs.jobs)?;
+    let c = match &disc {
+        Some(est) => compare::comparison_with_discretisation(&d, &values, &resolution::errors(est)),
+        None => compare::comparison(&d, &values),
+    };
+    let trends = report.as_deref().map(|dir| folder::write(dir, &c, &e, &m)).transpose()?;
+    if inputs.json {
+        let mut v = serde_json::to_value(&c).map_err(|e| e.to_string())?;
+        if let Some((t, shapes)) = &trends {
+            v["trends"] = serde_json::to_value(t).map_err(|e| e.to_string())?;
+            v["shapes"] = serde_json::to_value(shapes).map_err(|e| e.to_string())?;
+        }
+        if let Some(est) = &disc {
+            v["discretisation"] = serde_json::to_value(est).map_err(|e| e.to_string())?;
+        }
+        println!("{v:#}");
+    } else {
+        if let Some(est) = &disc {
+            print!("{}", resolution::report(&d, est, &values, "compared"));
+        }
+        print!("{}", compare::report(&c));
+        if let Some((t, shapes)) = &trends {
+            print!("{}", folder::trends_text(t));
+            print!("{}", strand::measure::residuals::text(shapes));
+        }
+    }
+    if let Some(dir) = &report {
+        eprintln!("report written to {}", dir.join("index.html").display());
+    }
+    Ok(true)
+}
+
+/// `strand synth`: synthetic measurements.
+fn synth(args: SynthArgs) -> Result<bool, Failure> {
+    let SynthArgs { model, experiments, noise, seed, out, jobs } = args;
+    use strand::measure::{compare, data::{write_observations, Experiments}};
+    let m = compare::Model::load(&model)?;
+    let e = Experiments::load(&experiments)?;
+    let obs = compare::synth(&m, &e, noise, seed, jobs)?;
+    write_observations(&out, &obs)?;
+    eprintln!("{} observations of {} experiments written to {}", obs.len(), e.experiment.len(), out.display());
+    Ok(true)
+}
+
+/// `strand calibrate`: the fit, its report, the calibrated model and the convergence plot.
+fn calibrate(args: CalibrateArgs) -> Result<bool, Failure> {
+    let CalibrateArgs { inputs, fit, out, plot, max_iterations, engine } = args;
+    use strand::measure::{calibrate, resolution};
+    let (m, d0, e) = inputs.load()?;
+    let out = out.unwrap_or_else(|| inputs.model.with_extension("calibrated.toml"));
+    let plot = plot.unwrap_or_else(|| out.with_extension("png"));
+    check_writable(&out, "--out")?;
+    check_writable(&plot, "--plot")?;
+    let (d, disc) = resolution::counted_data(&m, d0, &e, inputs.jobs)?;
+    let opts = calibrate::FitOptions { max_iterations, jobs: inputs.jobs, engine: engine.engine()?, progress: true, ..Default::default() };
+    let f = calibrate::calibrate(&m, &d, &e, &fit, &opts)?;
+    // the fitted values first: a file that fails to write then loses nothing
+    if inputs.json {
+        println!("{:#}", resolution::with_estimates(serde_json::to_value(&f).map_err(|e| e.to_string())?, &disc)?);
+    } else {
+        if let Some(c) = &disc {
+            print!("{}", resolution::report(&c.data, &c.estimates, &f.model_values, "fitted"));
+        }
+        print!("{}", calibrate::report(&f));
+    }
+    std::fs::write(&out, f.model.to_toml()).map_err(|e| format!("--out {}: {e}", out.display()))?;
+    calibrate::plot_convergence(&f, &plot).map_err(|e| format!("--plot {}: {e}", plot.display()))?;
+    eprintln!("calibrated model written to {}, convergence plot to {}", out.display(), plot.display());
+    Ok(true)
+}
+
+/// `strand diagnose`: which effect the model lacks, in one round or several.
+fn diagnose(args: DiagnoseArgs) -> Result<bool, Failure> {
+    let DiagnoseArgs { inputs, fit, alpha, no_loo, loo_refits, max_fitted, out, max_iterations, rounds, engine } = args;
+    use strand::measure::{calibrate::FitOptions, diagnose, resolution};
+    if !(alpha > 0.0 && alpha < 1.0) {
+        return Err(format!("--alpha must be in (0, 1), got {alpha}").into());
+    }
+    let (m, d0, e) = inputs.load()?;
+    if let Some(out) = &out {
+        check_writable(out, "--out")?;
+    }
+    let (d, disc) = resolution::counted_data(&m, d0, &e, inputs.jobs)?;
+    let opts = diagnose::DiagnoseOptions { fit: FitOptions { max_iterations, jobs: inputs.jobs, engine: engine.engine()?, ..Default::default() }, alpha, leave_one_out: !no_loo, exact_refits: loo_refits, max_fitted: max_fitted as usize };
+    if rounds > 1 {
+        use strand::measure::rounds;
+        let r = rounds::rounds(&m, &d, &e, &fit, &opts, rounds as usize)?;
+        // the report first: a file that fails to write then loses nothing
+        if inputs.json {
+            println!("{:#}", serde_json::to_value(&r).map_err(|e| e.to_string())?);
+        } else {
+            print!("{}", rounds::report(&r));
+        }
+        if let (Some(out), false) = (&out, r.added.is_empty()) {
+            std::fs::write(out, r.model.to_toml()).map_err(|e| format!("--out {}: {e}", out.display()))?;
+            eprintln!("model with {} written to {}", r.added.join(", "), out.display());
+        }
+        return Ok(true);
+    }
+    let r = diagnose::diagnose(&m, &d, &e, &fit, &opts)?;
+    // the report first: a file that fails to write then loses nothing
+    if inputs.json {
+        println!("{:#}", resolution::with_estimates(serde_json::to_value(&r).map_err(|e| e.to_string())?, &disc)?);
+    } else {
+        if let Some(c) = &disc {
+            print!("{}", resolution::report(&c.data, &c.estimates, &c.start_values, "start"));
+        }
+        print!("{}", diagnose::report(&r));
+    }
+    if let (Some(out), Some(best)) = (&out, &r.recommended_model) {
+        std::fs::write(out, best.to_toml()).map_err(|e| format!("--out {}: {e}", out.display()))?;
+        eprintln!("model with {} written to {}", r.recommended.as_deref().unwrap_or(""), out.display());
+    }
+    Ok(true)
+}
+
+/// `strand inspect`: false when a checkpoint fails its checks.
+fn inspect(args: InspectArgs) -> Result<bool, Failure> {
+    let (t, valid) = strand::checkpoint::inspect(&args.path, args.json)?;
+    println!("{t}");
+    Ok(valid)
+}
+
+/// `strand verify`: the suite, or with --list the case names.
+fn verify(args: VerifyArgs) -> Result<bool, Failure> {
+    let VerifyArgs { quick, json, case, list, threads } = args;
+    if list {
+        for (name, _) in strand::verify::CASES {
+            println!("{name}");
+        }
+        for (name, _) in strand::verify::SLOW_CASES {
+            println!("{name}  (slow: runs only when named with --case)");
+        }
+        return Ok(true);
+    }
+    Ok(strand::verify::run_suite(quick, json, case.as_deref(), threads)?)
+}
+
+/// `strand rheometer`: the virtual rheometer's readings.
+fn rheometer(args: RheometerArgs) -> Result<bool, Failure> {
+    print!("{}", strand::measure::rheometer::run_cli(&args.model, args.protocol.as_deref(), args.sensitivity, args.json)?);
+    Ok(true)
+}
+
+/// `strand evaluate`: one job of a distributed engine.
+fn evaluate(args: EvaluateArgs) -> Result<bool, Failure> {
+    eprintln!("{}", strand::measure::engine::evaluate(&args.job, &args.out)?);
+    Ok(true)
+}
+
+/// `strand bench`: the peer benchmark's throughput.
+fn bench(args: BenchArgs) -> Result<bool, Failure> {
+    let BenchArgs { particles, grid, steps, repeats, threads, json } = args;
+    strand::bench::run_bench(particles, grid, steps, repeats, threads, json)?;
+    Ok(true)
+}
+
+/// A command's failure: its message, and the process exit status (2 unless the command gives
+/// another).
+struct Failure {
+    message: String,
+    code: u8,
+}
+
+impl From<String> for Failure {
+    fn from(message: String) -> Self {
+        Failure { message, code: 2 }
+    }
+}
+
+/// Exit status 0 when the command succeeded, 1 when it ran but found a failure (a bad checkpoint,
+/// a failed verification case), else the failure's.
 fn main() -> ExitCode {
-    let cli = Cli::parse();
-    let mut exit_code = 2u8;
-    let result: Result<bool, String> = match cli.cmd {
-        Cmd::Run { scenario, out, threads, quiet, json, resume, force, overwrite } => (|| {
-            let sc = match &scenario {
-                Some(p) => Scenario::load(p).map_err(|e| e.to_string())?,
-                None => Scenario::parse(DEFAULT_SCENARIO).map_err(|e| e.to_string())?,
-            };
-            let mut command = "strand run".to_string();
-            if let Some(p) = &scenario {
-                command += &format!(" {}", p.display());
-            }
-            command += &format!(" --out {}", out.display());
-            if let Some(t) = threads {
-                command += &format!(" --threads {t}");
-            }
-            let opts = RunOptions { out, threads, quiet, resume, force, overwrite, command };
-            let r = match run_scenario(&sc, &opts) {
-                Ok(r) => r,
-                Err(e) => {
-                    exit_code = e.exit_code();
-                    return Err(e.to_string());
-                }
-            };
-            if json {
-                let summary = serde_json::json!({
-                    "scenario": sc.name,
-                    "steps": r.steps,
-                    "time": r.time,
-                    "wall_s": r.wall_s,
-                    "particles": r.particles,
-                    "peak_rss_bytes": strand::verify::peak_rss_bytes(),
-                    "state_hash": format!("{:016x}", r.state_hash),
-                    "resumed_from": r.resumed_from,
-                    "last_checkpoint": r.last_checkpoint,
-                    "phase_seconds": strand::solver::PHASES.iter().zip(r.phase_seconds).map(|(k, v)| (k.to_string(), v)).collect::<std::collections::BTreeMap<_, _>>(),
-                    "last_observation": r.observations.last(),
-                    "failure": r.failure,
-                    "awake_particle_steps": r.awake_particle_steps,
-                });
-                println!("{summary:#}");
-            }
-            Ok(true)
-        })(),
-        Cmd::Inspect { path, json } => strand::checkpoint::inspect(&path, json).map(|(t, valid)| {
-            println!("{t}");
-            valid
-        }),
-        Cmd::Check { scenario } => (|| {
-            let sc = Scenario::load(&scenario).map_err(|e| e.to_string())?;
-            strand::run::preflight(&sc)?;
-            let mut sim = strand::solver::Simulation::new(&sc).map_err(|e| e.to_string())?;
-            strand::run::plan_checkpoint_staging(&mut sim).map_err(|e| e.to_string())?;
-            for w in strand::run::scenario_warnings(&sc, &sim) {
-                eprintln!("{w}");
-            }
-            let (dt, lim) = sim.choose_dt(f64::INFINITY);
-            let steps = strand::run::planned_steps(&sim, sc.simulation.end_time)?;
-            println!("{}: {} particles\nmemory plan:\n{}\ntime step {dt:.3e} s ({lim:?}), about {steps:.0} steps to end_time", sc.name, sim.particles.n, sim.memory);
-            Ok(true)
-        })(),
-        Cmd::Verify { list: true, .. } => {
-            for (name, _) in strand::verify::CASES {
-                println!("{name}");
-            }
-            for (name, _) in strand::verify::SLOW_CASES {
-                println!("{name}  (slow: runs only when named with --case)");
-            }
-            Ok(true)
-        }
-        Cmd::Verify { quick, json, case, threads, .. } => strand::verify::run_suite(quick, json, case.as_deref(), threads),
-        Cmd::Grad { scenario, objective, wrt, check, check_steps, json, ram, disk, disk_dir, threads, until_rest, schedule } => (|| {
-            if let Some(h) = check_steps.iter().find(|h| !(h.is_finite() && **h > 0.0)) {
-                return Err(format!("--check-steps: each relative step must be finite and > 0, got {h}"));
-            }
-            if let Some(v) = until_rest.filter(|v| !(v.is_finite() && *v > 0.0)) {
-                return Err(format!("--until-rest: the speed must be finite and > 0 m/s (a speed the run can exceed and fall back below), got {v}"));
-            }
-            let sc = Scenario::load(&scenario).map_err(|e| e.to_string())?;
-            let objs: Vec<strand::grad::Objective> = objective.iter().map(|o| o.parse()).collect::<Result<_, _>>()?;
-            let size = |s: &str, what: &str| strand::memory::parse_size(s).map_err(|e| format!("--{what}: {e}"));
-            let opts = strand::grad::GradOptions {
-                ram_bytes: size(&ram, "ram")?,
-                disk_bytes: size(&disk, "disk")?,
-                disk_dir,
-                threads,
-                schedule: schedule.as_deref().map(strand::grad::schedule::Kind::parse).transpose()?,
-                until_rest,
-            };
-            let seeds: Vec<strand::grad::driver::Seeded> = objs.into_iter().map(|objective| strand::grad::driver::Seeded { objective, step: None }).collect();
-            let rs = strand::grad::driver::gradients(&sc, &seeds, &wrt, &opts)?;
-            let mut chks = Vec::new();
-            for (s, r) in seeds.iter().zip(&rs) {
-                chks.push(if check { Some(strand::grad::check::check(&sc, &s.objective, r, threads, &check_steps)?) } else { None });
-            }
-            if json && rs.len() == 1 {
-                println!("{:#}", serde_json::json!({ "result": rs[0], "check": chks[0], "peak_rss_bytes": strand::verify::peak_rss_bytes() }));
-            } else if json {
-                println!("{:#}", serde_json::json!({ "results": rs, "checks": chks, "peak_rss_bytes": strand::verify::peak_rss_bytes() }));
-            } else {
-                for (r, c) in rs.iter().zip(&chks) {
-                    print!("{}", strand::grad::driver::report(r, c.as_ref()));
-                }
-            }
-            Ok(true)
-        })(),
-        Cmd::Rheometer { model, protocol, sensitivity, json } => {
-            strand::measure::rheometer::run_cli(&model, protocol.as_deref(), sensitivity, json).map(|s| {
-                print!("{s}");
-                true
-            })
-        }
-        Cmd::Compare { inputs, report, plan, collect, only, save } => (|| {
-            use strand::measure::{compare, plan as jobs, report as folder, resolution};
-            if let Some(dir) = &report {
-                folder::prepare_dir(dir)?;
-            }
-            let (m, d, e) = inputs.load()?;
-            if let Some(dir) = &plan {
-                let exe = std::env::current_exe().map_err(|e| e.to_string())?;
-                let n = jobs::plan(dir, &exe, &inputs.model, &inputs.data, &inputs.experiments, &d)?;
-                eprintln!("{n} jobs in {0}/jobs.txt: `parallel < {0}/jobs.txt` or `sbatch {0}/slurm.sh`, then --collect {0}", dir.display());
-                return Ok(true);
-            }
-            if let (Some(id), Some(file)) = (&only, &save) {
-                let mine = jobs::only(&d, id)?;
-                let values = compare::model_values(&m, &mine, &e, 1)?;
-                jobs::save(file, &m, &e, id, &mine, &values)?;
-                eprintln!("{id}: {} values saved to {}", values.len(), file.display());
-                return Ok(true);
-            }
-            let values = match &collect {
-                Some(dir) => jobs::collect(dir, &m, &e, &d)?,
-                None => compare::model_values(&m, &d, &e, inputs.jobs)?,
-            };
-            // [resolution]: the finer runs, here also after --collect (the jobs ran the model's)
-            let disc = resolution::estimate(&m, &d, &e, Some(&values), inputs.jobs)?;
-            let c = match &disc {
-                Some(est) => compare::comparison_with_discretisation(&d, &values, &resolution::errors(est)),
-                None => compare::comparison(&d, &values),
-            };
-            let trends = report.as_deref().map(|dir| folder::write(dir, &c, &e, &m)).transpose()?;
-            if inputs.json {
-                let mut v = serde_json::to_value(&c).map_err(|e| e.to_string())?;
-                if let Some((t, shapes)) = &trends {
-                    v["trends"] = serde_json::to_value(t).map_err(|e| e.to_string())?;
-                    v["shapes"] = serde_json::to_value(shapes).map_err(|e| e.to_string())?;
-                }
-                if let Some(est) = &disc {
-                    v["discretisation"] = serde_json::to_value(est).map_err(|e| e.to_string())?;
-                }
-                println!("{v:#}");
-            } else {
-                if let Some(est) = &disc {
-                    print!("{}", resolution::report(&d, est, &values, "compared"));
-                }
-                print!("{}", compare::report(&c));
-                if let Some((t, shapes)) = &trends {
-                    print!("{}", folder::trends_text(t));
-                    print!("{}", strand::measure::residuals::text(shapes));
-                }
-            }
-            if let Some(dir) = &report {
-                eprintln!("report written to {}", dir.join("index.html").display());
-            }
-            Ok(true)
-        })(),
-        Cmd::Synth { model, experiments, noise, seed, out, jobs } => (|| {
-            use strand::measure::{compare, data::{write_observations, Experiments}};
-            let m = compare::Model::load(&model)?;
-            let e = Experiments::load(&experiments)?;
-            let obs = compare::synth(&m, &e, noise, seed, jobs)?;
-            write_observations(&out, &obs)?;
-            eprintln!("{} observations of {} experiments written to {}", obs.len(), e.experiment.len(), out.display());
-            Ok(true)
-        })(),
-        Cmd::Calibrate { inputs, fit, out, plot, max_iterations, engine } => (|| {
-            use strand::measure::{calibrate, resolution};
-            let (m, d0, e) = inputs.load()?;
-            let out = out.unwrap_or_else(|| inputs.model.with_extension("calibrated.toml"));
-            let plot = plot.unwrap_or_else(|| out.with_extension("png"));
-            check_writable(&out, "--out")?;
-            check_writable(&plot, "--plot")?;
-            let (d, disc) = resolution::counted_data(&m, d0, &e, inputs.jobs)?;
-            let opts = calibrate::FitOptions { max_iterations, jobs: inputs.jobs, engine: engine.engine()?, progress: true, ..Default::default() };
-            let f = calibrate::calibrate(&m, &d, &e, &fit, &opts)?;
-            // the fitted values first: a file that fails to write then loses nothing
-            if inputs.json {
-                println!("{:#}", resolution::with_estimates(serde_json::to_value(&f).map_err(|e| e.to_string())?, &disc)?);
-            } else {
-                if let Some(c) = &disc {
-                    print!("{}", resolution::report(&c.data, &c.estimates, &f.model_values, "fitted"));
-                }
-                print!("{}", calibrate::report(&f));
-            }
-            std::fs::write(&out, f.model.to_toml()).map_err(|e| format!("--out {}: {e}", out.display()))?;
-            calibrate::plot_convergence(&f, &plot).map_err(|e| format!("--plot {}: {e}", plot.display()))?;
-            eprintln!("calibrated model written to {}, convergence plot to {}", out.display(), plot.display());
-            Ok(true)
-        })(),
-        Cmd::Diagnose { inputs, fit, alpha, no_loo, loo_refits, max_fitted, out, max_iterations, rounds, engine } => (|| {
-            use strand::measure::{calibrate::FitOptions, diagnose, resolution};
-            if !(alpha > 0.0 && alpha < 1.0) {
-                return Err(format!("--alpha must be in (0, 1), got {alpha}"));
-            }
-            let (m, d0, e) = inputs.load()?;
-            if let Some(out) = &out {
-                check_writable(out, "--out")?;
-            }
-            let (d, disc) = resolution::counted_data(&m, d0, &e, inputs.jobs)?;
-            let opts = diagnose::DiagnoseOptions { fit: FitOptions { max_iterations, jobs: inputs.jobs, engine: engine.engine()?, ..Default::default() }, alpha, leave_one_out: !no_loo, exact_refits: loo_refits, max_fitted: max_fitted as usize };
-            if rounds > 1 {
-                use strand::measure::rounds;
-                let r = rounds::rounds(&m, &d, &e, &fit, &opts, rounds as usize)?;
-                // the report first: a file that fails to write then loses nothing
-                if inputs.json {
-                    println!("{:#}", serde_json::to_value(&r).map_err(|e| e.to_string())?);
-                } else {
-                    print!("{}", rounds::report(&r));
-                }
-                if let (Some(out), false) = (&out, r.added.is_empty()) {
-                    std::fs::write(out, r.model.to_toml()).map_err(|e| format!("--out {}: {e}", out.display()))?;
-                    eprintln!("model with {} written to {}", r.added.join(", "), out.display());
-                }
-                return Ok(true);
-            }
-            let r = diagnose::diagnose(&m, &d, &e, &fit, &opts)?;
-            // the report first: a file that fails to write then loses nothing
-            if inputs.json {
-                println!("{:#}", resolution::with_estimates(serde_json::to_value(&r).map_err(|e| e.to_string())?, &disc)?);
-            } else {
-                if let Some(c) = &disc {
-                    print!("{}", resolution::report(&c.data, &c.estimates, &c.start_values, "start"));
-                }
-                print!("{}", diagnose::report(&r));
-            }
-            if let (Some(out), Some(best)) = (&out, &r.recommended_model) {
-                std::fs::write(out, best.to_toml()).map_err(|e| format!("--out {}: {e}", out.display()))?;
-                eprintln!("model with {} written to {}", r.recommended.as_deref().unwrap_or(""), out.display());
-            }
-            Ok(true)
-        })(),
-        Cmd::Evaluate { job, out } => strand::measure::engine::evaluate(&job, &out).map(|line| {
-            eprintln!("{line}");
-            true
-        }),
-        Cmd::Bench { particles, grid, steps, repeats, threads, json } => {
-            strand::bench::run_bench(particles, grid, steps, repeats, threads, json).map(|_| true)
-        }
+    let result = match Cli::parse().cmd {
+        Cmd::Run(a) => run(a),
+        Cmd::Inspect(a) => inspect(a),
+        Cmd::Check(a) => check(a),
+        Cmd::Verify(a) => verify(a),
+        Cmd::Grad(a) => grad(a),
+        Cmd::Rheometer(a) => rheometer(a),
+        Cmd::Compare(a) => compare(a),
+        Cmd::Synth(a) => synth(a),
+        Cmd::Calibrate(a) => calibrate(a),
+        Cmd::Diagnose(a) => diagnose(a),
+        Cmd::Evaluate(a) => evaluate(a),
+        Cmd::Bench(a) => bench(a),
     };
     match result {
         Ok(true) => ExitCode::SUCCESS,
         Ok(false) => ExitCode::from(1),
         Err(e) => {
-            eprintln!("error: {e}");
-            ExitCode::from(exit_code)
+            eprintln!("error: {}", e.message);
+            ExitCode::from(e.code)
         }
     }
 }

@@ -257,6 +257,46 @@ struct DiskGuard {
     reserve: u64,
 }
 
+impl<'a> Outputs<'a> {
+    /// The output files of a run in `out`: a resumed run's CSV and snapshots cut back to the
+    /// `k_out` outputs its checkpoint had written, a fresh run's CSV begun with its header.
+    #[allow(clippy::too_many_arguments)]
+    fn open(sc: &Scenario, sim: &Simulation, out: &'a Path, csv_path: PathBuf, resumed: bool, k_out: u64, mut progress: state::Progress, staging_bytes: usize) -> Result<Self, RunError> {
+        if resumed {
+            keep_first_rows(&csv_path, k_out + 1).map_err(io_err(&csv_path))?;
+            remove_snapshots_after(out, k_out);
+        } else {
+            std::fs::write(&csv_path, format!("{GLOBALS_HEADER}\n")).map_err(io_err(&csv_path))?;
+        }
+        let csv = std::fs::OpenOptions::new().append(true).open(&csv_path).map_err(io_err(&csv_path))?;
+        let mut reporter = Reporter::new(sc, sim).map_err(RunError::Report)?;
+        if let Some(r) = &mut reporter {
+            r.history = std::mem::take(&mut progress.observations);
+            r.detect_failure();
+        }
+        let disk = match &sc.output.disk_budget {
+            Some(b) => Some(DiskGuard {
+                limit: parse_size(b).map_err(|e| RunError::DiskBudget(format!("output.disk_budget: {e}")))?,
+                policy: sc.output.on_disk_full,
+                reserve: disk::SMALL_FILE_RESERVE + if sc.checkpoint.enabled { staging_bytes as u64 + (1 << 20) } else { 0 },
+            }),
+            None => None,
+        };
+        Ok(Outputs {
+            out,
+            vtu: sc.output.vtu,
+            csv_path,
+            csv: std::io::BufWriter::new(csv),
+            pvd: progress.pvd,
+            staging: Vec::with_capacity(sim.particles.capacity() * (4 + sim.particles.state_len)),
+            reporter,
+            start: Instant::now(),
+            k_out,
+            disk,
+        })
+    }
+}
+
 impl Outputs<'_> {
     fn write(&mut self, sim: &Simulation) -> Result<(), RunError> {
         // the snapshot first: if the disk budget refuses it, nothing of this output is written,
@@ -334,6 +374,26 @@ struct Checkpoints {
 }
 
 impl Checkpoints {
+    /// The checkpoint stage of a run in `out`, its writer thread started with a staging buffer
+    /// of `staging_bytes`.
+    fn open(sc: &Scenario, sim: &Simulation, out: &Path, disk_limit: Option<u64>, staging_bytes: usize, last_good: Option<(PathBuf, u64)>, resume: String) -> Result<Self, RunError> {
+        let ckpt_dir = checkpoint::dir_of(out);
+        let backing = Backing { dir: sc.memory.dir.clone() };
+        let staging = Pool::<u8>::new("checkpoint.staging", staging_bytes, &backing).map_err(SimError::from)?;
+        let place = checkpoint::writer::Placement { dir: ckpt_dir.clone(), keep: sc.checkpoint.keep, out: out.to_path_buf(), disk_limit };
+        let writer = CheckpointWriter::spawn(place, staging).map_err(io_err(&ckpt_dir))?;
+        Ok(Checkpoints {
+            writer,
+            cfg: sc.checkpoint.clone(),
+            last_wall: Instant::now(),
+            last_step: sim.step,
+            last_good,
+            resume,
+            staged: None,
+            this_step: false,
+        })
+    }
+
     fn due(&self, sim: &Simulation) -> bool {
         self.cfg.step_interval.is_some_and(|k| sim.step >= self.last_step + k)
             || self.last_wall.elapsed().as_secs_f64() >= self.cfg.wall_interval
@@ -477,342 +537,412 @@ impl Drop for Signals {
     }
 }
 
-/// Run a scenario to its end, writing outputs into `opts.out`.
-pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary, RunError> {
-    let mut sc = scenario.clone();
-    if let Some(t) = opts.threads {
-        sc.simulation.threads = t;
-    }
-    std::fs::create_dir_all(&opts.out).map_err(io_err(&opts.out))?;
-    let say = |m: String| {
-        if !opts.quiet {
+impl RunOptions {
+    /// A progress message on stderr, unless quiet.
+    fn say(&self, m: String) {
+        if !self.quiet {
             eprintln!("{m}");
         }
-    };
-    let resume_cmd = format!("{} --resume", opts.command);
-    let ckpt_dir = checkpoint::dir_of(&opts.out);
-    let csv_path = opts.out.join("globals.csv");
-    let resume_from = if opts.resume {
-        let (ck, notes) = checkpoint::newest_valid(&ckpt_dir).map_err(|e| RunError::Resume(no_checkpoint(&opts.out, &e, opts)))?;
-        for n in notes {
-            eprintln!("warning: {n}");
-        }
-        let diffs = checkpoint::scenario_differences(&ck.header.scenario_text, &sc.source)
-            .map_err(|e| RunError::Resume(format!("cannot resume: {e}")))?;
-        if !diffs.is_empty() {
-            let list = diffs.iter().map(|d| format!("\n    {d}")).collect::<String>();
-            if !opts.force {
-                return Err(RunError::Resume(format!(
-                    "cannot resume: the scenario changed since {} was written:{list}\n  \
-                     run with --force to resume anyway, or start afresh in another --out folder",
-                    ck.path.display()
-                )));
-            }
-            eprintln!("warning: resuming with a changed scenario (--force):{list}");
-        }
-        Some(ck)
-    } else {
-        clear_previous_run(&opts.out, &sc, opts)?;
-        None
-    };
+    }
+}
 
-    preflight(&sc).map_err(|e| RunError::Sim(SimError::Setup(e)))?;
-    let mut sim = Simulation::new(&sc)?;
-    plan_checkpoint_staging(&mut sim)?;
-    for w in scenario_warnings(&sc, &sim) {
-        eprintln!("{w}");
-    }
-    // the step a checkpoint was taken in, to finish first: (dt, its bound)
-    let mut resume_step = None;
-    let mut k_out = 0;
-    let mut progress = state::Progress::default();
-    if let Some(ck) = &resume_from {
-        if ck.header.toolpath_hash != state::toolpath_hash(&sim) && !opts.force {
-            return Err(RunError::Resume(format!(
-                "cannot resume: the print's toolpath (its G-code file?) changed since {} was written; run with --force to resume anyway",
-                ck.path.display()
-            )));
-        }
-        let pending = state::restore(&mut sim, ck).map_err(|e| RunError::Resume(format!("cannot resume from {}: {e}", ck.path.display())))?;
-        if let Some(mut done) = finished_run(&mut sim, ck, pending.0, &csv_path, sc.simulation.end_time)? {
-            // the finished run's observations and failure, as its own summary gave them
-            let progress: state::Progress = serde_json::from_str(&ck.header.progress_json)
-                .map_err(|e| RunError::Resume(format!("cannot read {}: run progress does not decode: {e}", ck.path.display())))?;
-            if let Some(mut r) = Reporter::new(&sc, &sim).map_err(RunError::Report)? {
-                r.history = progress.observations;
-                r.detect_failure();
-                done.failure = r.failure;
-                done.observations = r.history;
-            }
-            say(format!(
-                "the run in {} has finished (step {}, t = {:.6} s = simulation.end_time): nothing to resume, nothing changed",
-                opts.out.display(),
-                done.steps,
-                done.time
-            ));
-            return Ok(done);
-        }
-        resume_step = Some(pending);
-        k_out = ck.header.outputs;
-        progress = serde_json::from_str(&ck.header.progress_json)
-            .map_err(|e| RunError::Resume(format!("cannot resume from {}: run progress does not decode: {e}", ck.path.display())))?;
-        say(format!(
-            "resuming from {} (step {}, t = {:.6} s, {} particles)",
-            ck.path.display(),
-            sim.step,
-            sim.time,
-            sim.particles.n
-        ));
-    }
-    say(format!(
-        "strand: '{}' — {} particles, {} threads, {} precision\nmemory plan (budget {}):\n{}",
-        sc.name,
-        sim.particles.n,
-        sim.threads(),
-        crate::kernels::real::NAME,
-        fmt_bytes(sim.budget),
-        sim.memory
-    ));
-    let (dt0, lim0) = sim.choose_dt(f64::INFINITY);
-    let steps = planned_steps(&sim, sc.simulation.end_time).map_err(|e| RunError::Sim(SimError::Setup(e)))?;
-    say(format!("time step: {dt0:.3e} s, bound by {lim0:?} (about {steps:.0} steps to t = {} s at this step)", sc.simulation.end_time));
+/// A run in progress: the simulation, its outputs and checkpoints, the signals that stop it and
+/// its progress display. [`run_scenario`] drives one from [`Run::open`] to [`Run::finish`].
+pub struct Run<'a> {
+    opts: &'a RunOptions,
+    sc: Scenario,
+    sim: Simulation,
+    outputs: Outputs<'a>,
+    ckpts: Option<Checkpoints>,
+    signals: Signals,
+    bar: Option<indicatif::ProgressBar>,
+    resumed_from: Option<PathBuf>,
+    /// The step a resumed checkpoint was taken in, to finish first: (dt, its bound).
+    pending: Option<(f64, DtLimit)>,
+    /// The end time: the scenario's, or earlier once a failed print's `stop_after` has passed.
+    end: f64,
+    first_step: u64,
+    last_line: Instant,
+    resume_cmd: String,
+}
 
-    if resume_from.is_some() {
-        keep_first_rows(&csv_path, k_out + 1).map_err(io_err(&csv_path))?;
-        remove_snapshots_after(&opts.out, k_out);
-    } else {
-        std::fs::write(&csv_path, format!("{GLOBALS_HEADER}\n")).map_err(io_err(&csv_path))?;
-    }
-    let csv = std::fs::OpenOptions::new().append(true).open(&csv_path).map_err(io_err(&csv_path))?;
-    let mut reporter = Reporter::new(&sc, &sim).map_err(RunError::Report)?;
-    if let Some(r) = &mut reporter {
-        r.history = std::mem::take(&mut progress.observations);
-        r.detect_failure();
-    }
-    let staging_bytes = state::staging_bytes(&sim);
-    let disk_guard = match &sc.output.disk_budget {
-        Some(b) => Some(DiskGuard {
-            limit: parse_size(b).map_err(|e| RunError::DiskBudget(format!("output.disk_budget: {e}")))?,
-            policy: sc.output.on_disk_full,
-            reserve: disk::SMALL_FILE_RESERVE + if sc.checkpoint.enabled { staging_bytes as u64 + (1 << 20) } else { 0 },
-        }),
-        None => None,
+/// What opening a run gives: the run, or the summary of a resumed run that had already finished.
+pub enum Opened<'a> {
+    Run(Box<Run<'a>>),
+    Finished(Box<RunSummary>),
+}
+
+/// Where a resumed run goes on from: the step its checkpoint was taken in, the outputs written
+/// and the run's progress then.
+struct Resumed {
+    pending: (f64, DtLimit),
+    k_out: u64,
+    progress: state::Progress,
+}
+
+/// Run a scenario to its end, writing outputs into `opts.out`.
+pub fn run_scenario(scenario: &Scenario, opts: &RunOptions) -> Result<RunSummary, RunError> {
+    let mut run = match Run::open(scenario, opts)? {
+        Opened::Run(run) => run,
+        Opened::Finished(done) => return Ok(*done),
     };
-    let start = Instant::now();
-    let mut outputs = Outputs {
-        out: &opts.out,
-        vtu: sc.output.vtu,
-        csv_path: csv_path.clone(),
-        csv: std::io::BufWriter::new(csv),
-        pvd: progress.pvd,
-        staging: Vec::with_capacity(sim.particles.capacity() * (4 + sim.particles.state_len)),
-        reporter,
-        start,
-        k_out,
-        disk: disk_guard,
-    };
-    let mut ckpts = if sc.checkpoint.enabled {
-        let backing = Backing { dir: sc.memory.dir.clone() };
-        let staging = Pool::<u8>::new("checkpoint.staging", staging_bytes, &backing).map_err(SimError::from)?;
-        let place = checkpoint::writer::Placement {
-            dir: ckpt_dir.clone(),
-            keep: sc.checkpoint.keep,
-            out: opts.out.clone(),
-            disk_limit: outputs.disk.as_ref().map(|d| d.limit),
+    run.finish_pending_step()?;
+    while !run.ended() {
+        let next_out = run.next_output_time();
+        while run.sim.time < next_out * (1.0 - 1e-12) {
+            run.step(next_out)?;
+        }
+        run.output()?;
+    }
+    run.finish()
+}
+
+impl<'a> Run<'a> {
+    /// Open a run in `opts.out`: afresh (refusing to lose an unfinished run's checkpoints) or,
+    /// with `opts.resume`, from the newest good checkpoint. A fresh run writes its initial output.
+    pub fn open(scenario: &Scenario, opts: &'a RunOptions) -> Result<Opened<'a>, RunError> {
+        let mut sc = scenario.clone();
+        if let Some(t) = opts.threads {
+            sc.simulation.threads = t;
+        }
+        std::fs::create_dir_all(&opts.out).map_err(io_err(&opts.out))?;
+        let resume_from = if opts.resume {
+            Some(resume_checkpoint(&sc, opts)?)
+        } else {
+            clear_previous_run(&opts.out, &sc, opts)?;
+            None
         };
-        let writer = CheckpointWriter::spawn(place, staging).map_err(io_err(&ckpt_dir))?;
-        Some(Checkpoints {
-            writer,
-            cfg: sc.checkpoint.clone(),
-            last_wall: Instant::now(),
-            last_step: sim.step,
-            last_good: resume_from.as_ref().map(|c| (c.path.clone(), c.header.step)),
-            resume: resume_cmd.clone(),
-            staged: None,
-            this_step: false,
-        })
-    } else {
-        None
-    };
-    let resumed_from = resume_from.map(|c| c.path.clone());
-    let signals = Signals::register();
+        preflight(&sc).map_err(|e| RunError::Sim(SimError::Setup(e)))?;
+        let mut sim = Simulation::new(&sc)?;
+        plan_checkpoint_staging(&mut sim)?;
+        for w in scenario_warnings(&sc, &sim) {
+            eprintln!("{w}");
+        }
+        let csv_path = opts.out.join("globals.csv");
+        let resumed = match &resume_from {
+            Some(ck) => match restore(&mut sim, ck, &sc, opts, &csv_path)? {
+                Ok(resumed) => Some(resumed),
+                Err(done) => return Ok(Opened::Finished(Box::new(done))),
+            },
+            None => None,
+        };
+        opts.say(format!(
+            "strand: '{}' — {} particles, {} threads, {} precision\nmemory plan (budget {}):\n{}",
+            sc.name,
+            sim.particles.n,
+            sim.threads(),
+            crate::kernels::real::NAME,
+            fmt_bytes(sim.budget),
+            sim.memory
+        ));
+        let (dt0, lim0) = sim.choose_dt(f64::INFINITY);
+        let steps = planned_steps(&sim, sc.simulation.end_time).map_err(|e| RunError::Sim(SimError::Setup(e)))?;
+        opts.say(format!("time step: {dt0:.3e} s, bound by {lim0:?} (about {steps:.0} steps to t = {} s at this step)", sc.simulation.end_time));
 
-    if resumed_from.is_none() {
-        outputs.write(&sim)?;
-    }
-    let mut end = sc.simulation.end_time;
-    let interval = sc.output.interval;
-    let first_step = sim.step;
-    let est_steps = ((end - sim.time) / dt0).ceil().max(1.0) as u64;
-    let bar = if !opts.quiet && std::io::stderr().is_terminal() {
-        let b = indicatif::ProgressBar::new(est_steps);
-        b.set_style(
-            indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} steps  {msg}  ETA {eta}")
-                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-        );
-        Some(b)
-    } else {
-        None
-    };
-    let mut last_line = Instant::now();
-    // Errors once the loop runs say what is on disk to go on from.
-    let stopped = |e: RunError, ck: &Option<Checkpoints>| -> RunError {
-        let note = ck.as_ref().map_or("checkpoints are disabled ([checkpoint] enabled = false)".to_string(), |c| c.note());
-        RunError::Stopped { source: Box::new(e), note }
-    };
-    // keep what a failing step produced, for diagnosis in ParaView
-    let failed = |source: SimError, sim: &Simulation| -> RunError {
-        let snapshot = opts.out.join("failed_state.vtu");
-        match write_snapshot(sim, &snapshot, &mut Vec::new(), |_| Ok(())) {
-            Ok(()) => RunError::Failed { source, snapshot },
-            Err(_) => RunError::Sim(source),
+        let (pending, k_out, progress) = match resumed {
+            Some(r) => (Some(r.pending), r.k_out, r.progress),
+            None => (None, 0, state::Progress::default()),
+        };
+        let staging_bytes = state::staging_bytes(&sim);
+        let mut outputs = Outputs::open(&sc, &sim, &opts.out, csv_path, pending.is_some(), k_out, progress, staging_bytes)?;
+        let resume_cmd = format!("{} --resume", opts.command);
+        let ckpts = if sc.checkpoint.enabled {
+            let last_good = resume_from.as_ref().map(|c| (c.path.clone(), c.header.step));
+            let disk_limit = outputs.disk.as_ref().map(|d| d.limit);
+            Some(Checkpoints::open(&sc, &sim, &opts.out, disk_limit, staging_bytes, last_good, resume_cmd.clone())?)
+        } else {
+            None
+        };
+        let resumed_from = resume_from.map(|c| c.path.clone());
+        let signals = Signals::register();
+        if resumed_from.is_none() {
+            outputs.write(&sim)?;
         }
-    };
-    if let Some((dt, limit)) = resume_step {
-        if let Err(source) = sim.finish_step(dt) {
-            return Err(stopped(failed(source, &sim), &ckpts));
-        }
-        sim.last_dt = dt;
-        sim.last_limit = limit;
+        let end = sc.simulation.end_time;
+        let bar = progress_bar(opts, ((end - sim.time) / dt0).ceil().max(1.0) as u64);
+        let first_step = sim.step;
+        let last_line = Instant::now();
+        let run = Run { opts, sc, sim, outputs, ckpts, signals, bar, resumed_from, pending, end, first_step, last_line, resume_cmd };
+        Ok(Opened::Run(Box::new(run)))
     }
-    while sim.time < end * (1.0 - 1e-12) {
-        let next_out = ((outputs.k_out + 1) as f64 * interval).min(end);
-        while sim.time < next_out * (1.0 - 1e-12) {
-            let (dt, limit) = sim.choose_dt(next_out);
-            if let Err(source) = sim.begin_step(dt) {
-                return Err(stopped(failed(source, &sim), &ckpts));
+
+    /// The simulation as it stands.
+    pub fn sim(&self) -> &Simulation {
+        &self.sim
+    }
+
+    /// Whether the run has reached its end time.
+    pub fn ended(&self) -> bool {
+        self.sim.time >= self.end * (1.0 - 1e-12)
+    }
+
+    /// The time of the next output (or the end, if sooner).
+    pub fn next_output_time(&self) -> f64 {
+        ((self.outputs.k_out + 1) as f64 * self.sc.output.interval).min(self.end)
+    }
+
+    /// Finish the step a resumed checkpoint was taken in the middle of.
+    pub fn finish_pending_step(&mut self) -> Result<(), RunError> {
+        if let Some((dt, limit)) = self.pending.take() {
+            if let Err(source) = self.sim.finish_step(dt) {
+                return Err(self.failed_step(source));
             }
-            // The middle of the step, where checkpoints are taken (see checkpoint/state.rs).
-            if let Some(ck) = &mut ckpts {
-                ck.this_step = false;
-                if let Err(e) = ck.poll() {
-                    return Err(stopped(e, &ckpts));
+            self.sim.last_dt = dt;
+            self.sim.last_limit = limit;
+        }
+        Ok(())
+    }
+
+    /// One step, not going past `next_out`.
+    pub fn step(&mut self, next_out: f64) -> Result<(), RunError> {
+        let (dt, limit) = self.sim.choose_dt(next_out);
+        if let Err(source) = self.sim.begin_step(dt) {
+            return Err(self.failed_step(source));
+        }
+        self.middle_of_step(dt, limit, next_out)?;
+        if let Err(source) = self.sim.finish_step(dt) {
+            return Err(self.failed_step(source));
+        }
+        self.sim.last_dt = dt;
+        self.sim.last_limit = limit;
+        self.show_progress();
+        Ok(())
+    }
+
+    /// The middle of the step, where checkpoints are taken (see checkpoint/state.rs) and a
+    /// caught signal stops the run with one.
+    fn middle_of_step(&mut self, dt: f64, limit: DtLimit, next_out: f64) -> Result<(), RunError> {
+        if let Some(ck) = &mut self.ckpts {
+            ck.this_step = false;
+            if let Err(e) = ck.poll() {
+                return Err(self.stopped(e));
+            }
+        }
+        if let Some(signal) = self.signals.caught() {
+            return Err(self.interrupted(signal, dt, limit));
+        }
+        if let Some(ck) = &mut self.ckpts {
+            // the same sum finish_step makes: whether this step ends on the output
+            let ends_on_output = self.sim.time + dt >= next_out * (1.0 - 1e-12);
+            let r = if ck.due(&self.sim) {
+                ck.submit(&self.sim, dt, limit, &self.outputs)
+            } else if ends_on_output {
+                ck.stage(&self.sim, dt, limit, &self.outputs)
+            } else {
+                Ok(())
+            };
+            if let Err(e) = r {
+                return Err(self.stopped(e));
+            }
+        }
+        Ok(())
+    }
+
+    /// Stop on a signal, with a checkpoint of the middle of this step when checkpoints are on.
+    fn interrupted(&mut self, signal: &'static str, dt: f64, limit: DtLimit) -> RunError {
+        if let Some(b) = &self.bar {
+            b.abandon();
+        }
+        let saved = match &mut self.ckpts {
+            Some(ck) => {
+                if let Err(e) = ck.write_now(&self.sim, dt, limit, &self.outputs) {
+                    return self.stopped(e);
                 }
+                format!("checkpoint {}", ck.last_good.as_ref().map_or(String::new(), |(p, _)| p.display().to_string()))
             }
-            if let Some(signal) = signals.caught() {
-                if let Some(b) = &bar {
-                    b.abandon();
-                }
-                let saved = match &mut ckpts {
-                    Some(ck) => {
-                        let r = ck.write_now(&sim, dt, limit, &outputs);
-                        if let Err(e) = r {
-                            return Err(stopped(e, &ckpts));
-                        }
-                        format!("checkpoint {}", ck.last_good.as_ref().map_or(String::new(), |(p, _)| p.display().to_string()))
-                    }
-                    None => "no checkpoint written: [checkpoint] enabled = false, the run cannot be resumed".into(),
-                };
-                return Err(RunError::Interrupted { signal, step: sim.step, time: sim.time, saved, resume: resume_cmd });
-            }
-            if let Some(ck) = &mut ckpts {
-                // the same sum finish_step makes: whether this step ends on the output
-                let ends_on_output = sim.time + dt >= next_out * (1.0 - 1e-12);
-                let r = if ck.due(&sim) {
-                    ck.submit(&sim, dt, limit, &outputs)
-                } else if ends_on_output {
-                    ck.stage(&sim, dt, limit, &outputs)
-                } else {
-                    Ok(())
-                };
-                if let Err(e) = r {
-                    return Err(stopped(e, &ckpts));
-                }
-            }
-            if let Err(source) = sim.finish_step(dt) {
-                return Err(stopped(failed(source, &sim), &ckpts));
-            }
-            sim.last_dt = dt;
-            sim.last_limit = limit;
-            if let Some(b) = &bar {
-                if sim.step % 16 == 0 {
-                    let rate = (sim.step - first_step) as f64 / start.elapsed().as_secs_f64();
-                    let remaining = ((end - sim.time) / sim.last_dt.max(1e-300)).ceil() as u64;
-                    b.set_length(sim.step - first_step + remaining);
-                    b.set_position(sim.step - first_step);
-                    b.set_message(format!("{rate:.0} steps/s  t = {:.4} s  {} particles", sim.time, sim.particles.n));
-                }
-            } else if !opts.quiet && last_line.elapsed().as_secs_f64() > 10.0 {
-                last_line = Instant::now();
+            None => "no checkpoint written: [checkpoint] enabled = false, the run cannot be resumed".into(),
+        };
+        RunError::Interrupted { signal, step: self.sim.step, time: self.sim.time, saved, resume: self.resume_cmd.clone() }
+    }
+
+    /// The progress bar on a terminal, else a line every 10 s.
+    fn show_progress(&mut self) {
+        let sim = &self.sim;
+        let (first_step, end, start) = (self.first_step, self.end, self.outputs.start);
+        if let Some(b) = &self.bar {
+            if sim.step.is_multiple_of(16) {
                 let rate = (sim.step - first_step) as f64 / start.elapsed().as_secs_f64();
-                let remaining = (end - sim.time) / sim.last_dt.max(1e-300) / rate.max(1e-9);
-                eprintln!(
-                    "step {} t = {:.4e} s dt = {:.2e} ({:?}) {:.0} steps/s ETA {:.0} s, {} particles",
-                    sim.step, sim.time, sim.last_dt, sim.last_limit, rate, remaining, sim.particles.n
-                );
+                let remaining = ((end - sim.time) / sim.last_dt.max(1e-300)).ceil() as u64;
+                b.set_length(sim.step - first_step + remaining);
+                b.set_position(sim.step - first_step);
+                b.set_message(format!("{rate:.0} steps/s  t = {:.4} s  {} particles", sim.time, sim.particles.n));
             }
+        } else if !self.opts.quiet && self.last_line.elapsed().as_secs_f64() > 10.0 {
+            self.last_line = Instant::now();
+            let rate = (sim.step - first_step) as f64 / start.elapsed().as_secs_f64();
+            let remaining = (end - sim.time) / sim.last_dt.max(1e-300) / rate.max(1e-9);
+            eprintln!(
+                "step {} t = {:.4e} s dt = {:.2e} ({:?}) {:.0} steps/s ETA {:.0} s, {} particles",
+                sim.step, sim.time, sim.last_dt, sim.last_limit, rate, remaining, sim.particles.n
+            );
         }
-        outputs.k_out += 1;
-        if let Err(e) = outputs.write(&sim) {
+    }
+
+    /// Write the output the last step ended on; a failed print's `stop_after` may end the run
+    /// there.
+    pub fn output(&mut self) -> Result<(), RunError> {
+        self.outputs.k_out += 1;
+        if let Err(e) = self.outputs.write(&self.sim) {
             // a snapshot over the disk budget: stop with a checkpoint of the middle of the step
             // before this output (room was kept for it)
-            if let (RunError::DiskBudget(_), Some(ck)) = (&e, &mut ckpts) {
+            if let (RunError::DiskBudget(_), Some(ck)) = (&e, &mut self.ckpts) {
                 let _ = ck.write_staged();
             }
-            return Err(stopped(e, &ckpts));
+            return Err(self.stopped(e));
         }
         // `[observe] failure.stop_after`: this output ends the run once that time after the
         // print's failure has passed
-        if let Some(stop) = outputs.reporter.as_ref().and_then(|r| r.stop_time()) {
-            if sim.time >= stop * (1.0 - 1e-12) && sim.time < end {
-                say(format!("the print has failed; the run ends stop_after later, at t = {:.4} s", sim.time));
-                end = sim.time;
+        if let Some(stop) = self.outputs.reporter.as_ref().and_then(|r| r.stop_time()) {
+            if self.sim.time >= stop * (1.0 - 1e-12) && self.sim.time < self.end {
+                self.opts.say(format!("the print has failed; the run ends stop_after later, at t = {:.4} s", self.sim.time));
+                self.end = self.sim.time;
             }
         }
-        let last = sim.time >= end * (1.0 - 1e-12);
-        if let Some(ck) = &mut ckpts {
-            if !(last && sc.checkpoint.at_end) {
+        let last = self.ended();
+        if let Some(ck) = &mut self.ckpts {
+            if !(last && self.sc.checkpoint.at_end) {
                 ck.release_staged();
             }
         }
+        Ok(())
     }
-    if let Some(b) = bar {
-        b.finish_and_clear();
-    }
-    if let Some(ck) = &mut ckpts {
-        // the end checkpoint is the middle of the last step (staged there), unless the run
-        // resumed from it and had nothing left to do
-        let r = if sc.checkpoint.at_end { ck.write_staged() } else { ck.drain() };
-        if let Err(e) = r {
-            return Err(stopped(e, &ckpts));
+
+    /// The end checkpoint, the closing messages and the run's summary.
+    pub fn finish(mut self) -> Result<RunSummary, RunError> {
+        if let Some(b) = self.bar.take() {
+            b.finish_and_clear();
         }
-    }
-    let wall = start.elapsed().as_secs_f64();
-    let failure = outputs.reporter.as_ref().and_then(|r| r.failure);
-    if let Some(f) = failure {
-        say(format!(
-            "the print failed in layer {} at t = {:.3} s (nominal height {:.1} mm; top at x = {} m sinking faster than {:.2} mm/s)",
-            f.layer,
-            f.time,
-            f.height * 1e3,
-            f.station,
-            f.sink_rate * 1e3
+        if let Some(ck) = &mut self.ckpts {
+            // the end checkpoint is the middle of the last step (staged there), unless the run
+            // resumed from it and had nothing left to do
+            let r = if self.sc.checkpoint.at_end { ck.write_staged() } else { ck.drain() };
+            if let Err(e) = r {
+                return Err(self.stopped(e));
+            }
+        }
+        let (sim, opts) = (&self.sim, self.opts);
+        let wall = self.outputs.start.elapsed().as_secs_f64();
+        let failure = self.outputs.reporter.as_ref().and_then(|r| r.failure);
+        if let Some(f) = failure {
+            opts.say(format!(
+                "the print failed in layer {} at t = {:.3} s (nominal height {:.1} mm; top at x = {} m sinking faster than {:.2} mm/s)",
+                f.layer,
+                f.time,
+                f.height * 1e3,
+                f.station,
+                f.sink_rate * 1e3
+            ));
+        }
+        opts.say(format!(
+            "done: {} steps to t = {:.4} s in {:.1} s ({:.0} steps/s), {} particles{}, peak memory {}; output in {}",
+            sim.step,
+            sim.time,
+            wall,
+            (sim.step - self.first_step) as f64 / wall,
+            sim.particles.n,
+            if sim.particles.n_sleep > 0 { format!(" ({} asleep)", sim.particles.n_sleep) } else { String::new() },
+            crate::verify::peak_rss_bytes().map_or("unknown".into(), fmt_bytes),
+            opts.out.display()
         ));
+        Ok(RunSummary {
+            steps: sim.step,
+            time: sim.time,
+            wall_s: wall,
+            particles: sim.particles.n,
+            observations: self.outputs.reporter.take().map(|r| r.history).unwrap_or_default(),
+            phase_seconds: sim.phase_seconds,
+            awake_particle_steps: sim.awake_particle_steps,
+            state_hash: state::current_state_hash(sim),
+            resumed_from: self.resumed_from.take(),
+            last_checkpoint: self.ckpts.take().and_then(|c| c.last_good.map(|g| g.0)),
+            failure,
+        })
     }
-    say(format!(
-        "done: {} steps to t = {:.4} s in {:.1} s ({:.0} steps/s), {} particles{}, peak memory {}; output in {}",
-        sim.step,
-        sim.time,
-        wall,
-        (sim.step - first_step) as f64 / wall,
-        sim.particles.n,
-        if sim.particles.n_sleep > 0 { format!(" ({} asleep)", sim.particles.n_sleep) } else { String::new() },
-        crate::verify::peak_rss_bytes().map_or("unknown".into(), fmt_bytes),
-        opts.out.display()
-    ));
-    Ok(RunSummary {
-        steps: sim.step,
-        time: sim.time,
-        wall_s: wall,
-        particles: sim.particles.n,
-        observations: outputs.reporter.map(|r| r.history).unwrap_or_default(),
-        phase_seconds: sim.phase_seconds,
-        awake_particle_steps: sim.awake_particle_steps,
-        state_hash: state::current_state_hash(&sim),
-        resumed_from,
-        last_checkpoint: ckpts.and_then(|c| c.last_good.map(|g| g.0)),
-        failure,
-    })
+
+    /// An error once the run has started, with what is on disk to go on from.
+    fn stopped(&self, e: RunError) -> RunError {
+        let note = self.ckpts.as_ref().map_or("checkpoints are disabled ([checkpoint] enabled = false)".to_string(), |c| c.note());
+        RunError::Stopped { source: Box::new(e), note }
+    }
+
+    /// A failed step: the state it produced is kept for diagnosis in ParaView.
+    fn failed_step(&self, source: SimError) -> RunError {
+        let snapshot = self.opts.out.join("failed_state.vtu");
+        let e = match write_snapshot(&self.sim, &snapshot, &mut Vec::new(), |_| Ok(())) {
+            Ok(()) => RunError::Failed { source, snapshot },
+            Err(_) => RunError::Sim(source),
+        };
+        self.stopped(e)
+    }
+}
+
+/// The newest good checkpoint in `opts.out` to resume from, refused if the scenario changed since
+/// (unless `opts.force`).
+fn resume_checkpoint(sc: &Scenario, opts: &RunOptions) -> Result<Checkpoint, RunError> {
+    let ckpt_dir = checkpoint::dir_of(&opts.out);
+    let (ck, notes) = checkpoint::newest_valid(&ckpt_dir).map_err(|e| RunError::Resume(no_checkpoint(&opts.out, &e, opts)))?;
+    for n in notes {
+        eprintln!("warning: {n}");
+    }
+    let diffs = checkpoint::scenario_differences(&ck.header.scenario_text, &sc.source).map_err(|e| RunError::Resume(format!("cannot resume: {e}")))?;
+    if !diffs.is_empty() {
+        let list = diffs.iter().map(|d| format!("\n    {d}")).collect::<String>();
+        if !opts.force {
+            return Err(RunError::Resume(format!(
+                "cannot resume: the scenario changed since {} was written:{list}\n  \
+                 run with --force to resume anyway, or start afresh in another --out folder",
+                ck.path.display()
+            )));
+        }
+        eprintln!("warning: resuming with a changed scenario (--force):{list}");
+    }
+    Ok(ck)
+}
+
+/// Put `sim` back to checkpoint `ck`: where the run goes on from, or (as the error side) the
+/// summary of a run that had already finished there.
+fn restore(sim: &mut Simulation, ck: &Checkpoint, sc: &Scenario, opts: &RunOptions, csv_path: &Path) -> Result<Result<Resumed, RunSummary>, RunError> {
+    if ck.header.toolpath_hash != state::toolpath_hash(sim) && !opts.force {
+        return Err(RunError::Resume(format!(
+            "cannot resume: the print's toolpath (its G-code file?) changed since {} was written; run with --force to resume anyway",
+            ck.path.display()
+        )));
+    }
+    let pending = state::restore(sim, ck).map_err(|e| RunError::Resume(format!("cannot resume from {}: {e}", ck.path.display())))?;
+    if let Some(mut done) = finished_run(sim, ck, pending.0, csv_path, sc.simulation.end_time)? {
+        // the finished run's observations and failure, as its own summary gave them
+        let progress: state::Progress = serde_json::from_str(&ck.header.progress_json)
+            .map_err(|e| RunError::Resume(format!("cannot read {}: run progress does not decode: {e}", ck.path.display())))?;
+        if let Some(mut r) = Reporter::new(sc, sim).map_err(RunError::Report)? {
+            r.history = progress.observations;
+            r.detect_failure();
+            done.failure = r.failure;
+            done.observations = r.history;
+        }
+        opts.say(format!(
+            "the run in {} has finished (step {}, t = {:.6} s = simulation.end_time): nothing to resume, nothing changed",
+            opts.out.display(),
+            done.steps,
+            done.time
+        ));
+        return Ok(Err(done));
+    }
+    let progress = serde_json::from_str(&ck.header.progress_json)
+        .map_err(|e| RunError::Resume(format!("cannot resume from {}: run progress does not decode: {e}", ck.path.display())))?;
+    opts.say(format!("resuming from {} (step {}, t = {:.6} s, {} particles)", ck.path.display(), sim.step, sim.time, sim.particles.n));
+    Ok(Ok(Resumed { pending, k_out: ck.header.outputs, progress }))
+}
+
+/// A progress bar of `steps` estimated steps, on a terminal unless quiet.
+fn progress_bar(opts: &RunOptions, steps: u64) -> Option<indicatif::ProgressBar> {
+    if opts.quiet || !std::io::stderr().is_terminal() {
+        return None;
+    }
+    let b = indicatif::ProgressBar::new(steps);
+    b.set_style(
+        indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} steps  {msg}  ETA {eta}").unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    Some(b)
 }
 
 /// Add the checkpoint staging buffer a run maps (when its scenario writes checkpoints) to

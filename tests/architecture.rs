@@ -251,6 +251,39 @@ fn no_circle_inside_the_core_folders() {
 }
 
 #[test]
+fn every_checked_folder_is_a_folder_of_several_files() {
+    // a folder that is a single file (or gone) would pass the circle check without being checked
+    for folder in FOLDERS_WITHOUT_CIRCLES {
+        let mut files = Vec::new();
+        rust_files(&src().join(folder), &mut files);
+        assert!(files.len() > 1, "src/{folder}/ is checked for circles but holds {} files", files.len());
+    }
+}
+
+/// Folders whose files each stay under [`MAX_CODE_LINES`] lines of code: one phase or concept a
+/// file.
+const FOLDERS_OF_SMALL_FILES: &[&str] = &["solver"];
+const MAX_CODE_LINES: usize = 300;
+
+/// Lines of a file's code (not blank, not only a comment), its unit tests left out.
+fn code_lines(text: &str) -> usize {
+    code(text).lines().filter(|l| !l.trim().is_empty()).count()
+}
+
+#[test]
+fn the_solver_is_one_phase_a_file() {
+    for folder in FOLDERS_OF_SMALL_FILES {
+        let mut files = Vec::new();
+        rust_files(&src().join(folder), &mut files);
+        for f in files {
+            let n = code_lines(&std::fs::read_to_string(src().join(&f)).unwrap());
+            assert!(n <= MAX_CODE_LINES, "src/{f} has {n} lines of code, more than {MAX_CODE_LINES}: split it by phase");
+        }
+    }
+    assert_eq!(code_lines("// a comment\n\nlet x = 1; // and one after code\n#[cfg(test)]\nmod tests {\n}\n"), 1);
+}
+
+#[test]
 fn the_graph_sees_imports_and_circles() {
     // the check can fail: a known import is found, and a made-up circle is reported
     let g = import_graph();

@@ -295,11 +295,9 @@ pub fn toolpath_hash(sim: &Simulation) -> u64 {
     sim.printer.as_ref().map_or(0, |p| checksum(format!("{:?}", p.toolpath.moves()).as_bytes()))
 }
 
-/// Put the checkpoint's state into `sim`, freshly built from a compatible scenario, leaving it
-/// in the middle of the step the checkpoint was taken in: the caller finishes that step with
-/// `Simulation::finish_step` and the returned step length (and records its bound). Fails,
-/// naming the mismatch, when the pools, the grid or the rebuilt arrays do not fit.
-pub fn restore(sim: &mut Simulation, ck: &Checkpoint) -> Result<(f64, DtLimit), String> {
+/// Refuse a checkpoint `sim` cannot take: another precision, material state, pool size, grid,
+/// FLIP setting, sleeping or merging.
+fn check_compatible(sim: &Simulation, ck: &Checkpoint) -> Result<(), String> {
     let h = &ck.header;
     let precision = crate::kernels::real::NAME;
     if h.precision != precision {
@@ -340,19 +338,25 @@ pub fn restore(sim: &mut Simulation, ck: &Checkpoint) -> Result<(f64, DtLimit), 
     if coarsens(sim) != ck.section("particles.next_id").is_some() {
         return Err("the checkpoint and the scenario differ in merging sleeping particles ([sleep] coarsen)".into());
     }
+    Ok(())
+}
+
+/// Put the checkpoint's state into `sim`, freshly built from a compatible scenario, leaving it
+/// in the middle of the step the checkpoint was taken in: the caller finishes that step with
+/// `Simulation::finish_step` and the returned step length (and records its bound). Fails,
+/// naming the mismatch, when the pools, the grid or the rebuilt arrays do not fit.
+pub fn restore(sim: &mut Simulation, ck: &Checkpoint) -> Result<(f64, DtLimit), String> {
+    let h = &ck.header;
+    check_compatible(sim, ck)?;
+    let sl = sim.particles.state_len;
+    let flip = sim.scenario.simulation.flip > 0.0;
     let limit = DtLimit::from_name(&h.dt_limit).ok_or_else(|| format!("unknown time-step bound '{}'", h.dt_limit))?;
     let n = h.particles as usize;
     let asleep = h.asleep as usize;
     if asleep > n {
         return Err(format!("the checkpoint has {asleep} particles asleep of {n}"));
     }
-    let get = |name: &str, len: usize| -> Result<&[u8], String> {
-        let b = ck.section(name).ok_or_else(|| format!("section '{name}' is missing"))?;
-        if b.len() != len {
-            return Err(format!("section '{name}' has {} bytes, expected {len}", b.len()));
-        }
-        Ok(b)
-    };
+    let get = |name: &str, len: usize| section(ck, name, len);
     fn put<T: bytemuck::Pod>(dst: &mut [T], src: &[u8]) {
         bytemuck::cast_slice_mut::<T, u8>(dst).copy_from_slice(src);
     }
@@ -444,6 +448,15 @@ pub fn restore(sim: &mut Simulation, ck: &Checkpoint) -> Result<(f64, DtLimit), 
             return Err(format!("the sleep table holds {} sleeping units, the header {}", sleep.sleeping_units, h.sleeping_units));
         }
     }
+    restore_grid(sim, ck)?;
+    Ok((h.dt, limit))
+}
+
+/// Bin the restored particles, check that they give the checkpoint's grid blocks, and put the
+/// stored node velocities back.
+fn restore_grid(sim: &mut Simulation, ck: &Checkpoint) -> Result<(), String> {
+    let h = &ck.header;
+    let get = |name: &str, len: usize| section(ck, name, len);
     sim.bin_particles().map_err(|e| e.to_string())?;
     let na = sim.grid.n_active;
     let saved: &[u32] = bytemuck::cast_slice(get("grid.slot_block", h.active_blocks as usize * 4)?);
@@ -473,7 +486,16 @@ pub fn restore(sim: &mut Simulation, ck: &Checkpoint) -> Result<(f64, DtLimit), 
             }
         }
     }
-    Ok((h.dt, limit))
+    Ok(())
+}
+
+/// Section `name` of `ck`, which must hold `len` bytes.
+fn section<'a>(ck: &'a Checkpoint, name: &str, len: usize) -> Result<&'a [u8], String> {
+    let b = ck.section(name).ok_or_else(|| format!("section '{name}' is missing"))?;
+    if b.len() != len {
+        return Err(format!("section '{name}' has {} bytes, expected {len}", b.len()));
+    }
+    Ok(b)
 }
 
 /// Put a table saved by [`sparse`] back: zero, then its nonzero elements at their indices.

@@ -1,17 +1,16 @@
 //! The checkpoint stage of the pipeline: the stepper copies the state into a staging buffer
-//! (a memcpy), and a writer thread checksums it, writes it to a temporary file, fsyncs it and
-//! renames it into place, then prunes old checkpoints. The staging buffer circulates through
-//! two bounded queues, so the stepper waits only when the previous checkpoint is still being
-//! written when the next is due.
+//! (a memcpy), and the disk writer (`writer.rs`) checksums it, writes it to a temporary file,
+//! fsyncs it and renames it into place, then prunes old checkpoints. There is one staging
+//! buffer, so the stepper waits only when the previous checkpoint is still being written when
+//! the next is due.
 
 use super::format::{checksum, file_size, layout, state_hash, write_to, Header, Section};
 use super::state::Part;
 use crate::disk;
 use crate::memory::Pool;
-use crossbeam::channel::{bounded, Receiver, Sender};
+use crate::writer::Writer;
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::thread::JoinHandle;
 
 /// File name of the checkpoint at `step`.
 pub fn file_name(step: u64) -> String {
@@ -55,31 +54,22 @@ pub struct Placement {
     pub disk_limit: Option<u64>,
 }
 
-struct Job {
-    staging: Pool<u8>,
-    header: Header,
-}
-
 /// A checkpoint copied into the staging buffer but not queued yet: the run keeps the middle of
 /// a step that ends on an output, in case the run must stop with a checkpoint after that
 /// output (at its end, or when the disk budget refuses the snapshot). It holds the one staging
 /// buffer until submitted or released.
-pub struct Staged(Job);
+pub struct Staged {
+    staging: Pool<u8>,
+    header: Header,
+}
 
 impl Staged {
     pub fn step(&self) -> u64 {
-        self.0.header.step
+        self.header.step
     }
 }
 
-pub struct CheckpointWriter {
-    jobs: Option<Sender<Job>>,
-    free: Receiver<Pool<u8>>,
-    give_back: Sender<Pool<u8>>,
-    events: Receiver<Event>,
-    worker: Option<JoinHandle<()>>,
-    in_flight: usize,
-}
+pub struct CheckpointWriter(Writer<Pool<u8>, Header, Event>);
 
 impl CheckpointWriter {
     pub fn spawn(place: Placement, staging: Pool<u8>) -> std::io::Result<CheckpointWriter> {
@@ -92,20 +82,10 @@ impl CheckpointWriter {
                 }
             }
         }
-        let (job_tx, job_rx) = bounded::<Job>(1);
-        let (free_tx, free_rx) = bounded::<Pool<u8>>(1);
-        let (ev_tx, ev_rx) = bounded::<Event>(64);
-        free_tx.send(staging).expect("room for the one buffer");
-        let give_back = free_tx.clone();
-        let worker = std::thread::Builder::new().name("strand-checkpoint".into()).spawn(move || {
-            for job in job_rx {
-                let step = job.header.step;
-                let ev = write_one(&place, &job);
-                let _ = free_tx.send(job.staging);
-                let _ = ev_tx.send(ev.unwrap_or_else(|error| Event::Failed { step, error }));
-            }
-        })?;
-        Ok(CheckpointWriter { jobs: Some(job_tx), free: free_rx, give_back, events: ev_rx, worker: Some(worker), in_flight: 0 })
+        let write = move |staging: &Pool<u8>, header: &Header| {
+            write_one(&place, staging, header).unwrap_or_else(|error| Event::Failed { step: header.step, error })
+        };
+        Ok(CheckpointWriter(Writer::spawn("strand-checkpoint", vec![staging], 64, write)?))
     }
 
     /// Copy `sections` into the staging buffer (waiting for the previous checkpoint to be
@@ -119,12 +99,12 @@ impl CheckpointWriter {
     /// Copy `sections` into the staging buffer (waiting for it as `submit` does) without
     /// queueing them.
     pub fn stage(&mut self, mut header: Header, sections: &[Part]) -> Result<Staged, String> {
-        let mut staging = self.free.recv().map_err(|_| "the checkpoint writer has stopped".to_string())?;
+        let mut staging = self.0.buffer().ok_or("the checkpoint writer has stopped")?;
         let lay = layout(sections.iter().map(|p| (p.name, p.len)));
         let need = lay.last().map_or(0, |(_, o, b)| (o + b) as usize);
         if need > staging.len() {
             let have = staging.len();
-            let _ = self.give_back.send(staging);
+            self.0.give_back(staging);
             return Err(format!("checkpoint staging holds {have} bytes, the state needs {need}"));
         }
         let buf = staging.as_mut_slice();
@@ -132,59 +112,39 @@ impl CheckpointWriter {
             part.fill(&mut buf[*off as usize..(*off + *len) as usize]);
         }
         header.sections = lay.into_iter().map(|(name, offset, bytes)| Section { name, offset, bytes, xxh3: 0 }).collect();
-        Ok(Staged(Job { staging, header }))
+        Ok(Staged { staging, header })
     }
 
     /// Queue a staged checkpoint for writing.
     pub fn submit_staged(&mut self, staged: Staged) -> Result<(), String> {
-        self.jobs.as_ref().expect("writer running").send(staged.0).map_err(|_| "the checkpoint writer has stopped".to_string())?;
-        self.in_flight += 1;
+        if !self.0.submit(staged.staging, staged.header) {
+            return Err("the checkpoint writer has stopped".to_string());
+        }
         Ok(())
     }
 
     /// Drop a staged checkpoint, giving its buffer back.
     pub fn release(&mut self, staged: Staged) {
-        let _ = self.give_back.send(staged.0.staging);
+        self.0.give_back(staged.staging);
     }
 
     /// An event, if one is ready.
     pub fn poll(&mut self) -> Option<Event> {
-        let e = self.events.try_recv().ok()?;
-        self.in_flight -= 1;
-        Some(e)
+        self.0.poll()
     }
 
     /// Wait until every queued checkpoint is written; their events, oldest first.
     pub fn drain(&mut self) -> Vec<Event> {
-        let mut v = Vec::new();
-        while self.in_flight > 0 {
-            match self.events.recv() {
-                Ok(e) => {
-                    self.in_flight -= 1;
-                    v.push(e)
-                }
-                Err(_) => break,
-            }
-        }
-        v
+        self.0.drain()
     }
 }
 
-impl Drop for CheckpointWriter {
-    fn drop(&mut self) {
-        self.jobs = None;
-        if let Some(w) = self.worker.take() {
-            let _ = w.join();
-        }
-    }
-}
-
-fn write_one(place: &Placement, job: &Job) -> std::io::Result<Event> {
-    let mut header = job.header.clone();
+fn write_one(place: &Placement, staging: &Pool<u8>, header: &Header) -> std::io::Result<Event> {
+    let mut header = header.clone();
     let data: Vec<&[u8]> = header
         .sections
         .iter()
-        .map(|s| &job.staging.as_slice()[s.offset as usize..(s.offset + s.bytes) as usize])
+        .map(|s| &staging.as_slice()[s.offset as usize..(s.offset + s.bytes) as usize])
         .collect();
     for (s, d) in header.sections.iter_mut().zip(&data) {
         s.xxh3 = checksum(d);

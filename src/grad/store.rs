@@ -1,6 +1,6 @@
 //! Where the checkpoint schedule keeps its stored states: a fixed number of RAM slots in one
-//! mapped pool, and disk slots as files written by a background writer over a bounded lock-free
-//! queue and read back through mmap.
+//! mapped pool, and disk slots as files written by the disk writer (`writer.rs`) and read back
+//! through mmap.
 //!
 //! Disk writes overlap the forward sweep: `store` hands a copy to the writer and returns; only a
 //! `restore` or `free` of a state still in flight waits for it. Two staging buffers circulate
@@ -10,7 +10,7 @@ use super::fields::{load, save};
 use super::schedule::Tier;
 use crate::memory::{Backing, MemoryError, Pool};
 use crate::solver::Simulation;
-use crossbeam::channel::{bounded, Receiver, Sender};
+use crate::writer::Writer;
 use std::path::{Path, PathBuf};
 
 pub struct RamSlots {
@@ -49,20 +49,15 @@ impl RamSlots {
     }
 }
 
-struct Job {
-    step: u64,
-    data: Vec<u8>,
-}
+/// Writes a state (the buffer) into the slot of its step (the job), reporting the step.
+type SlotWriter = Writer<Vec<u8>, u64, Result<u64, String>>;
 
 pub struct DiskSlots {
     dir: PathBuf,
     bytes: usize,
-    jobs: Option<Sender<Job>>,
-    buffers: Receiver<Vec<u8>>,
-    done: Receiver<Result<u64, String>>,
+    writer: Option<SlotWriter>,
     in_flight: Vec<u64>,
     on_disk: Vec<u64>,
-    writer: Option<std::thread::JoinHandle<()>>,
     /// Bytes written and read, for the report.
     pub written: u64,
     pub read: u64,
@@ -75,38 +70,13 @@ fn slot_path(dir: &Path, step: u64) -> PathBuf {
 impl DiskSlots {
     pub fn new(dir: &Path, bytes: usize) -> Result<DiskSlots, String> {
         std::fs::create_dir_all(dir).map_err(|e| format!("gradient checkpoint folder {}: {e}", dir.display()))?;
-        let (job_tx, job_rx) = bounded::<Job>(1);
-        let (buf_tx, buf_rx) = bounded::<Vec<u8>>(2);
-        let (done_tx, done_rx) = bounded::<Result<u64, String>>(4);
-        for _ in 0..2 {
-            buf_tx.send(vec![0u8; bytes]).expect("fresh channel");
-        }
         let wdir = dir.to_path_buf();
-        let writer = std::thread::Builder::new()
-            .name("grad-writer".into())
-            .spawn(move || {
-                for job in job_rx {
-                    let path = slot_path(&wdir, job.step);
-                    let r = std::fs::write(&path, &job.data).map(|_| job.step).map_err(|e| format!("writing {}: {e}", path.display()));
-                    let _ = buf_tx.send(job.data);
-                    if done_tx.send(r).is_err() {
-                        break;
-                    }
-                }
-            })
-            .map_err(|e| format!("starting the gradient checkpoint writer: {e}"))?;
-        Ok(DiskSlots {
-            dir: dir.to_path_buf(),
-            bytes,
-            jobs: Some(job_tx),
-            buffers: buf_rx,
-            done: done_rx,
-            in_flight: Vec::new(),
-            on_disk: Vec::new(),
-            writer: Some(writer),
-            written: 0,
-            read: 0,
-        })
+        let write = move |data: &Vec<u8>, &step: &u64| {
+            let path = slot_path(&wdir, step);
+            std::fs::write(&path, data).map(|_| step).map_err(|e| format!("writing {}: {e}", path.display()))
+        };
+        let writer = Writer::spawn("grad-writer", vec![vec![0u8; bytes]; 2], 4, write).map_err(|e| format!("starting the gradient checkpoint writer: {e}"))?;
+        Ok(DiskSlots { dir: dir.to_path_buf(), bytes, writer: Some(writer), in_flight: Vec::new(), on_disk: Vec::new(), written: 0, read: 0 })
     }
 
     fn settle(&mut self, r: Result<u64, String>) -> Result<(), String> {
@@ -117,27 +87,37 @@ impl DiskSlots {
         Ok(())
     }
 
-    /// Wait until `step` (if in flight) is on disk; collect any other finished writes.
-    fn wait_for(&mut self, step: u64) -> Result<(), String> {
-        while let Ok(r) = self.done.try_recv() {
+    fn writer(&mut self) -> Result<&mut SlotWriter, String> {
+        self.writer.as_mut().ok_or_else(|| "the gradient checkpoint writer is closed".to_string())
+    }
+
+    /// Settle the writes that are done.
+    fn collect(&mut self) -> Result<(), String> {
+        while let Some(r) = self.writer()?.poll() {
             self.settle(r)?;
         }
+        Ok(())
+    }
+
+    /// Wait until `step` (if in flight) is on disk; collect any other finished writes.
+    fn wait_for(&mut self, step: u64) -> Result<(), String> {
+        self.collect()?;
         while self.in_flight.contains(&step) {
-            let r = self.done.recv().map_err(|_| "the gradient checkpoint writer stopped".to_string())?;
+            let r = self.writer()?.wait().ok_or("the gradient checkpoint writer stopped")?;
             self.settle(r)?;
         }
         Ok(())
     }
 
     fn store(&mut self, sim: &Simulation) -> Result<(), String> {
-        while let Ok(r) = self.done.try_recv() {
-            self.settle(r)?;
-        }
-        let mut data = self.buffers.recv().map_err(|_| "the gradient checkpoint writer stopped".to_string())?;
+        self.collect()?;
+        let mut data = self.writer()?.buffer().ok_or("the gradient checkpoint writer stopped")?;
         save(sim, &mut data);
         self.in_flight.push(sim.step);
-        let jobs = self.jobs.as_ref().ok_or("the gradient checkpoint writer is closed")?;
-        jobs.send(Job { step: sim.step, data }).map_err(|_| "the gradient checkpoint writer stopped".to_string())
+        if !self.writer()?.submit(data, sim.step) {
+            return Err("the gradient checkpoint writer stopped".to_string());
+        }
+        Ok(())
     }
 
     fn restore(&mut self, sim: &mut Simulation, step: u64) -> Result<(), String> {
@@ -165,12 +145,8 @@ impl DiskSlots {
 
 impl Drop for DiskSlots {
     fn drop(&mut self) {
-        self.jobs = None;
         if let Some(w) = self.writer.take() {
-            let _ = w.join();
-        }
-        while let Ok(Ok(step)) = self.done.try_recv() {
-            self.on_disk.push(step);
+            self.on_disk.extend(w.finish().into_iter().flatten());
         }
         for s in self.on_disk.iter().chain(&self.in_flight) {
             let _ = std::fs::remove_file(slot_path(&self.dir, *s));

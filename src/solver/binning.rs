@@ -1,0 +1,171 @@
+//! Binning: particles grouped by the grid block of their stencil base, each particle block's
+//! 2x2x2 neighbourhood activated, particle blocks grouped by colour for the P2G passes, and the
+//! particles reordered into block order.
+
+use super::{SimError, Simulation};
+use crate::memory::{Backing, MemoryError, MemoryPlan, Pool};
+use crate::particles::Particles;
+
+/// Buffers the binning and the parallel phases share.
+pub(crate) struct Scratch {
+    /// Slot of each particle's block.
+    pub(crate) pslot: Pool<u32>,
+    /// Particle indices grouped by particle block (a stable counting sort).
+    pub(crate) order: Pool<u32>,
+    /// First `order` entry of each particle block; `n_particle_blocks + 1` entries used.
+    pub(crate) slot_start: Pool<u32>,
+    cursor: Pool<u32>,
+    /// Slots of the 2x2x2 block neighbourhood of each particle block.
+    pub(crate) nbr: Pool<[u32; 8]>,
+    /// Particle blocks grouped by colour, and the running particle count before each.
+    pub(crate) colour_blocks: Pool<u32>,
+    pub(crate) colour_cum: Pool<u32>,
+    pub(crate) colour_start: [usize; 9],
+    permute: Pool<u8>,
+}
+
+impl Scratch {
+    pub(super) fn plan(plan: &mut MemoryPlan, cap: usize, max_blocks: usize, state_len: usize) {
+        plan.add::<u32>("scratch.pslot", cap);
+        plan.add::<u32>("scratch.order", cap);
+        plan.add::<u32>("scratch.slot_start", max_blocks + 1);
+        plan.add::<u32>("scratch.cursor", max_blocks);
+        plan.add::<[u32; 8]>("scratch.neighbours", max_blocks);
+        plan.add::<u32>("scratch.colour_blocks", max_blocks);
+        plan.add::<u32>("scratch.colour_cum", max_blocks);
+        plan.add::<u8>("scratch.permute", Particles::permute_scratch_bytes(cap, state_len));
+    }
+    pub(super) fn new(cap: usize, max_blocks: usize, state_len: usize, b: &Backing) -> Result<Self, MemoryError> {
+        Ok(Scratch {
+            pslot: Pool::new("scratch.pslot", cap, b)?,
+            order: Pool::new("scratch.order", cap, b)?,
+            slot_start: Pool::new("scratch.slot_start", max_blocks + 1, b)?,
+            cursor: Pool::new("scratch.cursor", max_blocks, b)?,
+            nbr: Pool::new("scratch.neighbours", max_blocks, b)?,
+            colour_blocks: Pool::new("scratch.colour_blocks", max_blocks, b)?,
+            colour_cum: Pool::new("scratch.colour_cum", max_blocks, b)?,
+            colour_start: [0; 9],
+            permute: Pool::new("scratch.permute", Particles::permute_scratch_bytes(cap, state_len), b)?,
+        })
+    }
+}
+
+impl Simulation {
+    /// Bin particles by the block of their stencil base, activate each particle block's 2x2x2
+    /// neighbourhood, and group particle blocks by colour. Serial: it is a few operations per
+    /// particle, and doing it in one order makes slot numbering deterministic.
+    pub(crate) fn bin_particles(&mut self) -> Result<(), SimError> {
+        let n = self.particles.n;
+        let first = self.particles.n_sleep;
+        let grid = &mut self.grid;
+        let sc = &mut self.scratch;
+        grid.reset();
+        // each particle's block key, in parallel; slots are then handed out serially in particle
+        // order, so that they do not depend on the number of threads
+        let pslot = sc.pslot.as_mut_slice();
+        let (xg, geom) = (&self.particles.xg.as_slice()[first..n], &grid.geom);
+        self.team.for_each_share(&mut pslot[first..n], 1, |r, keys| {
+            for (key, &x) in keys.iter_mut().zip(&xg[r]) {
+                *key = geom.block_index(geom.particle_block(x));
+            }
+        });
+        let count = sc.cursor.as_mut_slice();
+        let mut last_key = u32::MAX;
+        let mut last_slot = 0u32;
+        for p in first..n {
+            let key = pslot[p];
+            if key != last_key {
+                let before = grid.n_active;
+                last_slot = grid.activate(key)?;
+                if grid.n_active > before {
+                    count[last_slot as usize] = 0;
+                }
+                last_key = key;
+            }
+            count[last_slot as usize] += 1;
+            pslot[p] = last_slot;
+        }
+        let npb = grid.n_active;
+        grid.n_particle_blocks = npb;
+
+        // neighbourhoods and colours
+        let mut per_colour = [0usize; 8];
+        for s in 0..npb {
+            let b = grid.geom.block_coords(grid.slot_block.as_slice()[s]);
+            let mut nb = [0u32; 8];
+            for (d, slot) in nb.iter_mut().enumerate() {
+                let o = [(d >> 2) as i32 & 1, (d >> 1) as i32 & 1, d as i32 & 1];
+                let w = grid.geom.wrap_block([b[0] + o[0], b[1] + o[1], b[2] + o[2]]);
+                *slot = grid.activate(grid.geom.block_index(w))?;
+            }
+            sc.nbr.as_mut_slice()[s] = nb;
+            per_colour[colour(b)] += 1;
+        }
+        let mut cs = [0usize; 9];
+        for c in 0..8 {
+            cs[c + 1] = cs[c] + per_colour[c];
+        }
+        sc.colour_start = cs;
+
+        // counting sort of particles by slot (stable)
+        let starts = sc.slot_start.as_mut_slice();
+        let mut acc = 0u32;
+        for s in 0..npb {
+            let c = count[s];
+            starts[s] = acc;
+            count[s] = acc; // becomes the write cursor
+            acc += c;
+        }
+        starts[npb] = acc;
+        let order = sc.order.as_mut_slice();
+        for p in first..n {
+            let s = pslot[p] as usize;
+            order[count[s] as usize] = p as u32;
+            count[s] += 1;
+        }
+
+        // colour lists, with running particle counts for load balance
+        let mut fill = cs;
+        let blocks = sc.colour_blocks.as_mut_slice();
+        let cum = sc.colour_cum.as_mut_slice();
+        let mut run = [0u32; 8];
+        for s in 0..npb {
+            let c = colour(grid.geom.block_coords(grid.slot_block.as_slice()[s]));
+            blocks[fill[c]] = s as u32;
+            cum[fill[c]] = run[c];
+            run[c] += starts[s + 1] - starts[s];
+            fill[c] += 1;
+        }
+        Ok(())
+    }
+
+    /// Move particles into block order so the transfers stream through memory.
+    pub(crate) fn reorder_particles(&mut self) {
+        let (first, n) = (self.particles.n_sleep, self.particles.n);
+        self.particles.permute(&self.scratch.order.as_slice()[..n - first], self.scratch.permute.as_mut_slice(), &self.team);
+        for (k, o) in self.scratch.order.as_mut_slice()[..n - first].iter_mut().enumerate() {
+            *o = (first + k) as u32;
+        }
+    }
+}
+
+#[inline]
+pub(crate) fn colour(b: [i32; 3]) -> usize {
+    ((b[0] & 1) << 2 | (b[1] & 1) << 1 | (b[2] & 1)) as usize
+}
+
+/// Split items with running weights `cum` (exclusive prefix sums, total `total`) into `threads`
+/// contiguous shares of about equal weight; returns thread `tid`'s item range.
+pub(crate) fn balanced(cum: &[u32], total: u32, tid: usize, threads: usize) -> (usize, usize) {
+    let at = |t: usize| {
+        let target = (total as u64 * t as u64 / threads as u64) as u32;
+        if t == threads {
+            cum.len()
+        } else if t == 0 {
+            0
+        } else {
+            cum.partition_point(|&c| c < target)
+        }
+    };
+    (at(tid), at(tid + 1))
+}

@@ -1,0 +1,143 @@
+//! The MLS-MPM step (paper 000 eqs. 8-17):
+//!
+//! ```text
+//! bin particles by block ─▶ clear grid ─▶ P2G (8 colours) ─▶ grid update ─▶ G2P ─▶ materials
+//! ```
+//!
+//! Every buffer is a mapped pool sized at start-up; the step allocates nothing. P2G runs the 8
+//! block colours one after the other: blocks of one colour never write the same nodes, so
+//! threads add into the grid without atomics, and each node receives its sums in the same order
+//! whatever the thread count, which makes runs bit-identical for any number of threads.//!
+//! Files, one phase each: `setup.rs` (pools, walls, threads), `bodies.rs` (initial particles),
+//! `step.rs` (the time step and the phase order), `emit.rs`, `binning.rs`, `p2g.rs`,
+//! `grid_update.rs`, `g2p.rs`, `materials.rs`; `neighbourhood.rs` (a particle block's nodes)
+//! and `walls.rs` (walls, ghosts, platform) serve the transfers and the grid update.
+
+mod binning;
+mod bodies;
+mod emit;
+mod g2p;
+mod grid_update;
+mod materials;
+mod neighbourhood;
+mod p2g;
+mod setup;
+mod step;
+mod walls;
+
+pub(crate) use binning::{balanced, Scratch};
+pub use bodies::{count_body_particles, for_each_lattice_point};
+pub(crate) use emit::note_newest;
+pub(crate) use grid_update::apply_drive;
+pub(crate) use neighbourhood::{flush_local, gather_local};
+pub use step::max_shear_rate;
+pub(crate) use walls::{apply_walls, ghost_source, wall_sequence, Walls};
+
+use crate::grid::Grid;
+use crate::kernels::material::Material;
+use crate::kernels::{M3, V3};
+use crate::memory::{MemoryError, MemoryPlan};
+use crate::particles::Particles;
+use crate::print::Printer;
+use crate::scenario::Scenario;
+use crate::sleep::Sleep;
+use crate::threads::ThreadTeam;
+use std::sync::atomic::AtomicU64;
+
+pub const MAX_THREADS: usize = 64;
+
+#[derive(Debug, thiserror::Error)]
+pub enum SimError {
+    #[error(transparent)]
+    Memory(#[from] MemoryError),
+    #[error("{0}")]
+    Setup(String),
+    #[error("blow-up at step {step} (t = {time:.6e} s): particle {index} (id {id}) has {field} = {value}; \
+             try a smaller simulation.cfl or simulation.dt")]
+    BlowUp { step: u64, time: f64, index: usize, id: u32, field: &'static str, value: String },
+}
+
+/// Which bound set the time step.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DtLimit {
+    Fixed,
+    Wave,
+    Viscous,
+    MaxDt,
+    /// Shortened to land exactly on an output time or the end.
+    Schedule,
+}
+
+impl DtLimit {
+    const ALL: [DtLimit; 5] = [DtLimit::Fixed, DtLimit::Wave, DtLimit::Viscous, DtLimit::MaxDt, DtLimit::Schedule];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            DtLimit::Fixed => "fixed",
+            DtLimit::Wave => "wave",
+            DtLimit::Viscous => "viscous",
+            DtLimit::MaxDt => "max_dt",
+            DtLimit::Schedule => "schedule",
+        }
+    }
+
+    pub fn from_name(s: &str) -> Option<DtLimit> {
+        Self::ALL.into_iter().find(|l| l.name() == s)
+    }
+}
+
+pub struct Simulation {
+    pub scenario: Scenario,
+    pub material: Box<dyn Material>,
+    pub particles: Particles,
+    pub grid: Grid,
+    pub(crate) scratch: Scratch,
+    pub(crate) team: ThreadTeam,
+    pub(crate) walls: Walls,
+    /// Gravity plus body force per unit mass.
+    pub(crate) accel: V3,
+    pub time: f64,
+    pub step: u64,
+    /// Largest particle speed after the last G2P.
+    pub vmax: f64,
+    pub last_dt: f64,
+    pub last_limit: DtLimit,
+    pub memory: MemoryPlan,
+    pub budget: u64,
+    thread_out: [AtomicU64; MAX_THREADS],
+    /// Wall time spent in each phase of the step, in the order of [`PHASES`].
+    pub phase_seconds: [f64; 6],
+    /// The printing process, when the scenario prints.
+    pub printer: Option<Printer>,
+    /// Sleeping blocks, when enabled.
+    pub sleep: Option<Sleep>,
+    /// Awake particles summed over the steps taken: the work the step loops did, a cost
+    /// measure no other job on the machine can distort.
+    pub awake_particle_steps: u64,
+    /// Keep the pool order fixed (no reordering by block): the gradient driver indexes its
+    /// adjoint arrays by pool position, which must then mean the same particle in every step.
+    pub frozen_order: bool,
+    /// Solid bodies inside the domain (`src/solid/`; issue 30 hook), None without `[[solid]]`.
+    pub solids: Option<crate::solid::Solids>,
+}
+
+/// Names of the step's phases, as accumulated in `Simulation::phase_seconds`.
+pub const PHASES: [&str; 6] = ["emit+sleep+bin+reorder", "clear grid", "P2G", "grid update", "G2P", "materials"];
+
+impl Simulation {
+    pub fn threads(&self) -> usize {
+        self.team.threads()
+    }
+
+    /// World position of particle `i`.
+    pub fn position(&self, i: usize) -> [f64; 3] {
+        self.grid.geom.to_world(self.particles.xg.as_slice()[i])
+    }
+
+    /// Pressure -tr(sigma)/3 of particle `i`.
+    pub fn pressure(&self, i: usize) -> f64 {
+        let s: M3 = self.particles.stress.as_slice()[i];
+        -((s.x_axis.x + s.y_axis.y + s.z_axis.z) / 3.0) as f64
+    }
+}
