@@ -303,3 +303,55 @@ budget = "64 MiB"
         }
     }
 }
+
+/// Paper 001's L-box reduced (issue 30): Mix-A's fixture at 2 cm cells, half its width (the
+/// plane y = 0.1 m through the middle rebar as a symmetry wall), to 2.3 s (2 s after the gate
+/// opens), run as a `strand compare` experiment with Mix-A's uncalibrated model; the same with
+/// the rebars removed at the start (`open_at = 0`).
+#[test]
+fn a_reduced_lbox_holds_at_the_gate_then_flows_through_the_rebars_to_the_end() {
+    use strand::measure::{compare, data::{Experiments, Observable}, model::Model};
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let full = std::fs::read_to_string(root.join("fixtures/scenarios/lbox/lbox_mix_a.toml")).unwrap();
+    let mut text = full.clone();
+    for (from, to) in [
+        ("dx = 0.01\n", "dx = 0.02\n"),
+        ("end_time = 5.3\n", "end_time = 2.3\n"),
+        ("max = [0.7, 0.2, 0.64]", "max = [0.7, 0.1, 0.64]"),
+        ("y_max = { friction = { mu = 0.25 } }", "y_max = \"symmetry\""),
+        ("max = [0.1, 0.2, 0.6]", "max = [0.1, 0.1, 0.6]"),
+    ] {
+        assert_eq!(text.matches(from).count(), 1, "the L-box fixture changed: '{from}'");
+        text = text.replace(from, to);
+    }
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("lbox.toml"), &text).unwrap();
+    let observe = r#"observe = ["front@0.29", "front@0.8", "arrival@0.69", "height@0.69", "front", "stop_time@0.005"]"#;
+    let experiments = format!(
+        "[[experiment]]\nid = \"LB0\"\nscenario = \"lbox.toml\"\n{observe}\n\n[[experiment]]\nid = \"bare\"\nscenario = \"lbox.toml\"\nset = {{ \"solid.2.open_at\" = 0.0 }}\n{observe}\n"
+    );
+    std::fs::write(dir.path().join("experiments.toml"), experiments).unwrap();
+    let exps = Experiments::load(&dir.path().join("experiments.toml")).unwrap();
+    let model = Model::load(&root.join("fixtures/measure/lbox/mix_a.toml")).unwrap();
+    let wanted: Vec<Observable> = ["front@0.29", "front@0.8", "arrival@0.69", "height@0.69", "front", "stop_time@0.005"].iter().map(|s| Observable::parse(s).unwrap()).collect();
+    let start = std::time::Instant::now();
+    let values = compare::evaluate_all(&model, &exps, &[("LB0".into(), wanted.clone()), ("bare".into(), wanted)], 2).unwrap();
+    eprintln!("two reduced L-boxes in {:.1} s: with rebars {:?}, without {:?}", start.elapsed().as_secs_f64(), values[0], values[1]);
+    for (v, what) in values.iter().zip(["with rebars", "without rebars"]) {
+        let [held, early, arrival, height, front, stop] = v[..] else { panic!("{v:?}") };
+        // the closed gate (x >= 0.1) holds the column: the front at the reservoir's particles' 0.1 m
+        assert!(held <= 0.1 + 1e-9, "{what}: the closed gate let material through: front {held} m at 0.29 s");
+        // once open, the front passes the rebars (x = 0.125) and reaches the end within the run
+        assert!(early > 0.2, "{what}: front only at {early} m 0.5 s after the gate opened");
+        assert!(arrival > 0.3 && arrival < 2.3, "{what}: the front reaches x = 0.69 m at {arrival} s (the gate opens at 0.3 s, the run ends at 2.3 s)");
+        assert!(front >= 0.69 && front <= 0.7 + 1e-9, "{what}: final front {front} m (the box ends at 0.7 m)");
+        // the material stands at the end, below the level of 12 L spread flat over the whole box
+        let flat = 0.1 * 0.6 / 0.7;
+        assert!(height > 0.01 && height < flat, "{what}: end height {height} m (flat level {flat:.4} m)");
+        // the flow stops after the front arrives (to within 5 mm), at the latest at the run's end
+        assert!(stop >= arrival - 1e-9 && stop <= 2.3 + 1e-9, "{what}: stop {stop} s, arrival {arrival} s");
+    }
+    // the rebars hold the flow back
+    assert!(values[0][2] > values[1][2], "arrival with rebars {} s, without {} s", values[0][2], values[1][2]);
+    assert!(values[0][1] < values[1][1], "front at 0.8 s with rebars {} m, without {} m", values[0][1], values[1][1]);
+}
