@@ -103,6 +103,7 @@ pub fn observable_plan(o: &Observable, end: f64) -> Result<(f64, Objective), Str
         "front" => (o.at.unwrap_or(end), Objective::Front),
         "width" => (end, Objective::Width { stations: vec![station()?] }),
         "height" => (end, Objective::Height { stations: vec![station()?] }),
+        "level" => (end, Objective::Level { station: station()? }),
         "area" => (end, Objective::Area { stations: vec![station()?] }),
         "profile" => {
             let (station, y) = both()?;

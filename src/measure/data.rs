@@ -60,7 +60,7 @@ pub struct Observable {
 }
 
 /// Observables a simulation experiment can produce, and those of a rheometer experiment.
-pub const SIMULATION_OBSERVABLES: &[&str] = &["spread", "front", "width", "height", "area", "profile", "layer_height", "layer_width", "vx_max", "kinetic_energy", "mean_z", "failure_layer", "failure_time", "arrival", "stop_time"];
+pub const SIMULATION_OBSERVABLES: &[&str] = &["spread", "front", "width", "height", "level", "area", "profile", "layer_height", "layer_width", "vx_max", "kinetic_energy", "mean_z", "failure_layer", "failure_time", "arrival", "stop_time"];
 pub const RHEOMETER_OBSERVABLES: &[&str] = &["stress"];
 
 /// `X` or `X:Y`, finite numbers, as the `at` of an observable; the error says what is wrong.
