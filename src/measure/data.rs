@@ -9,7 +9,7 @@
 //! rheo240,stress,10.0,287.0,5.0
 //! ```
 //!
-//! `at` is the station x [m] of a printed-geometry observable (`width`, `height`, `area`), the time [s] of one observed during
+//! `at` is the station x [m] of a printed-geometry observable (`width`, `height`, `level`, `area`), the time [s] of one observed during
 //! a run (`spread`, `front`: a slump spread or a flow distance against time; empty for the end), or the shear rate [1/s] of a rheometer reading.
 //! Three printed-geometry observables take a second coordinate after a colon, `X:Y` in the `at`
 //! column as in `name@X:Y`: `profile` the lateral position y [m] of a point of the section's top
