@@ -1,6 +1,6 @@
 //! Solid bodies (`[[solid]]`, issue 30): a column resting on a box carries its hydrostatic
 //! load, a block slides down an inclined wall at the Coulomb acceleration, a gate holds material
-//! until it opens, and bad input names its key.
+//! until it opens, a reduced L-box flows past its rebars to the end, and bad input names its key.
 
 mod common;
 
