@@ -46,8 +46,7 @@ def main():
         exps, fit = f"{FIX}/experiments_mix_{mix}.toml", os.path.join(a.out, f"mix_{mix}_fit.toml")
         if not os.path.exists(fit):
             run([strand, "calibrate", "--model", f"{FIX}/mix_{mix}.toml", "--data", f"{FIX}/slump_mix_{mix}.csv", "--experiments", exps,
-                 "--jobs", str(a.jobs), "--fit", "material.yield_stress,thixotropy.a_thix", "--out", fit + ".part"], fit + ".log", fit + ".err")
-            os.replace(fit + ".part", fit)
+                 "--jobs", str(a.jobs), "--fit", "material.yield_stress,thixotropy.a_thix", "--out", fit], fit + ".log", fit + ".err")
         found = os.path.join(a.out, f"lbox_mix_{mix}.json")
         if not os.path.exists(found):
             run([strand, "compare", "--model", fit, "--data", f"{FIX}/lbox_mix_{mix}.csv", "--experiments", exps, "--jobs", str(a.jobs),
