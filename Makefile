@@ -5,7 +5,7 @@ OUT ?= out
 TARGET_DIR := $(if $(CARGO_TARGET_DIR),$(CARGO_TARGET_DIR),target)
 STRAND := $(TARGET_DIR)/release/strand
 
-.PHONY: run test fuzz verify verify-quick bench bench-peer bench-restart bench-kernels bench-case1 bench-layers bench-layers-dwell bench-failure bench-convergence bench-nozzle-cells bench-nozzle-body lbox build fmt clippy clean
+.PHONY: run test fuzz verify verify-quick bench bench-peer bench-restart bench-kernels bench-case1 bench-layers bench-layers-dwell bench-failure bench-convergence bench-nozzle-cells bench-nozzle-body bench-lbox lbox build fmt clippy clean
 
 build:
 	$(CARGO) build --release
@@ -98,6 +98,13 @@ bench-nozzle-cells: build
 # already in $(OUT)/nozzle_body is not repeated.
 bench-nozzle-body: build
 	python3 bench/nozzle_body.py --out $(OUT)/nozzle_body 5 2.5
+
+# Paper 001's L-box predicted from the slump flow: Mix-A and Mix-B calibrated on their three
+# slump flows only, then their L-box after 0 and 600 s of rest against Table 3 and 001's own MPM,
+# at 2 cm cells (fixtures/measure/lbox/, bench/lbox.py; BENCHMARKS.md "L-box"). A calibrated
+# model or comparison already in $(OUT)/lbox is not repeated.
+bench-lbox: build
+	python3 bench/lbox.py --out $(OUT)/lbox --jobs 2
 
 # Paper 001's L-box (Sec. 4.2), Mix-A and Mix-B after no rest, at 10 mm cells (96,000 particles;
 # about 46,000 and 132,000 steps).

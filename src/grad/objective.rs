@@ -21,6 +21,9 @@ pub enum Objective {
     Width { stations: Vec<f64> },
     /// Top of the particles within half a cell of x = station above the base [m], summed.
     Height { stations: Vec<f64> },
+    /// `Height` at one station where the material may not have arrived: 0 when no particle lies
+    /// within half a cell of it (an L-box's height at the end of the box).
+    Level { station: f64 },
     /// Cross-section area at x = station [m2], summed: the particle volumes V0 J weighted by the
     /// quadratic B-spline of knot spacing `slab` in x, over the slab (as `sections.csv`'s `area`,
     /// consistent with the mass balance); with `[observe] mirror_y`, of the mirrored material.
@@ -60,7 +63,7 @@ pub enum Objective {
     MeanZ,
 }
 
-pub const NAMES: &str = "spread, width@X[,X...], height@X[,X...], area@X[,X...], profile@X:Y, layer_height@X:K, layer_width@X:K, total_height, front, vx_max, kinetic_energy, mean_z";
+pub const NAMES: &str = "spread, width@X[,X...], height@X[,X...], level@X, area@X[,X...], profile@X:Y, layer_height@X:K, layer_width@X:K, total_height, front, vx_max, kinetic_energy, mean_z";
 
 impl std::str::FromStr for Objective {
     type Err = String;
@@ -73,6 +76,10 @@ impl std::str::FromStr for Objective {
         match s.split_once('@') {
             Some(("width", x)) => Ok(Objective::Width { stations: stations(x)? }),
             Some(("height", x)) => Ok(Objective::Height { stations: stations(x)? }),
+            Some(("level", x)) => match stations(x)?[..] {
+                [station] => Ok(Objective::Level { station }),
+                _ => Err(format!("objective '{s}': level takes one station")),
+            },
             Some(("area", x)) => Ok(Objective::Area { stations: stations(x)? }),
             Some((name @ ("profile" | "layer_height" | "layer_width"), x)) => {
                 let what = if name == "profile" { "X:Y, the station x and the lateral position y in metres" } else { "X:K, the station x in metres and the layer K (1 = the bottom one)" };
@@ -177,6 +184,13 @@ impl Objective {
                     s.xg[yl].y -= 0.5 * scale;
                 }
                 value
+            }
+            Objective::Level { station } => {
+                let slab = |i: usize| (world(i)[0] - station).abs() <= 0.5 * dx;
+                if arg_max(n, slab, |_| 0.0).is_none() {
+                    return Ok(0.0);
+                }
+                Objective::Height { stations: vec![*station] }.evaluate(sim, frame, seed)?
             }
             Objective::Width { stations } | Objective::Height { stations } => {
                 let width = matches!(self, Objective::Width { .. });
@@ -373,6 +387,7 @@ impl Objective {
             Objective::Spread => "spread".into(),
             Objective::Width { stations } => format!("width@{}", join(stations)),
             Objective::Height { stations } => format!("height@{}", join(stations)),
+            Objective::Level { station } => format!("level@{station}"),
             Objective::Area { stations } => format!("area@{}", join(stations)),
             Objective::Profile { station, y } => format!("profile@{station}:{y}"),
             Objective::LayerHeight { station, layer } => format!("layer_height@{station}:{layer}"),
@@ -541,6 +556,13 @@ budget = "16 MiB"
         let cloud = Cloud { pos: &pos, vol: &vol, spacing: frame.spacing };
         let section = observe::cross_section(&cloud, 0.025, frame.slab, frame.base_z);
         assert_eq!(section.profile.len(), 5 + 2 + 8, "{:?}", section.profile);
+        // the level is the height where there is material, 0 where there is none
+        let top = section.height;
+        assert!((value(&sim, &frame, "level@0.025") - top).abs() <= 1e-12 && (value(&sim, &frame, "height@0.025") - top).abs() <= 1e-12);
+        assert_eq!(value(&sim, &frame, "level@0.08"), 0.0);
+        assert!("height@0.08".parse::<Objective>().unwrap().evaluate(&sim, &frame, None).unwrap_err().contains("no particle"));
+        assert_eq!("level@0.025".parse::<Objective>().unwrap().name(), "level@0.025");
+        assert!("level@0.02,0.03".parse::<Objective>().unwrap_err().contains("one station"));
         for j in 0..100 {
             let y = 0.01 + 0.07 * (j as f64 + 0.5) / 100.0;
             let want = observe::profile_z_at(&section.profile, y).map_or(0.0, |z| z - frame.base_z);

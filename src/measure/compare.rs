@@ -103,6 +103,7 @@ pub fn observable_plan(o: &Observable, end: f64) -> Result<(f64, Objective), Str
         "front" => (o.at.unwrap_or(end), Objective::Front),
         "width" => (end, Objective::Width { stations: vec![station()?] }),
         "height" => (end, Objective::Height { stations: vec![station()?] }),
+        "level" => (end, Objective::Level { station: station()? }),
         "area" => (end, Objective::Area { stations: vec![station()?] }),
         "profile" => {
             let (station, y) = both()?;
@@ -119,6 +120,7 @@ pub fn observable_plan(o: &Observable, end: f64) -> Result<(f64, Objective), Str
         "vx_max" => (o.at.unwrap_or(end), Objective::VxMax),
         "kinetic_energy" => (o.at.unwrap_or(end), Objective::KineticEnergy),
         "mean_z" => (o.at.unwrap_or(end), Objective::MeanZ),
+        name if super::front::OBSERVABLES.contains(&name) => return Err(format!("'{o}' is read from the front's history over the run, not at one time: it has no adjoint")),
         other => return Err(format!("a simulation cannot observe '{other}'")),
     };
     if !(0.0..=end).contains(&t) {
@@ -142,20 +144,38 @@ fn simulate(model: &Model, keys: &Keys, scenario: &Path, wanted: &[Observable], 
             values[k] = crate::failure::observable(&wanted[k].name, failure.as_ref(), layers, end)?;
         }
     }
-    let rest: Vec<usize> = (0..wanted.len()).filter(|k| !failing.contains(k)).collect();
-    if rest.is_empty() {
+    // the front's arrival and stop: its history over the whole run (`front.rs`)
+    let history: Vec<usize> = (0..wanted.len()).filter(|&k| super::front::OBSERVABLES.contains(&wanted[k].name.as_str())).collect();
+    let rest: Vec<usize> = (0..wanted.len()).filter(|k| !failing.contains(k) && !history.contains(k)).collect();
+    if rest.is_empty() && history.is_empty() {
         return Ok(values);
     }
     let mut plan: Vec<(usize, f64, Objective)> = rest.iter().map(|&k| observable_plan(&wanted[k], end).map(|(t, o)| (k, t, o))).collect::<Result<_, _>>()?;
     plan.sort_by(|a, b| a.1.total_cmp(&b.1));
     let mut sim = Simulation::new(&sc).map_err(|e| e.to_string())?;
+    let mut trace = if history.is_empty() { None } else { Some(super::front::FrontTrace::start(&sim)?) };
     for (k, t, obj) in plan {
-        while sim.time < t * (1.0 - 1e-12) {
-            sim.step_until(t).map_err(|e| e.to_string())?;
-        }
+        step_to(&mut sim, t, trace.as_mut())?;
         values[k] = obj.evaluate(&sim, &Frame::of(&sim), None)?;
     }
+    if let Some(mut trace) = trace {
+        step_to(&mut sim, end, Some(&mut trace))?;
+        for k in history {
+            values[k] = trace.value(&wanted[k])?;
+        }
+    }
     Ok(values)
+}
+
+/// Step `sim` to time `t`, recording the front after each step into `trace` when given.
+fn step_to(sim: &mut Simulation, t: f64, mut trace: Option<&mut super::front::FrontTrace>) -> Result<(), String> {
+    while sim.time < t * (1.0 - 1e-12) {
+        sim.step_until(t).map_err(|e| e.to_string())?;
+        if let Some(tr) = trace.as_mut() {
+            tr.record(sim)?;
+        }
+    }
+    Ok(())
 }
 
 /// The material of a rheometer experiment (the model's, with its `material.*` keys; walls and the

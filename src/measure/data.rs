@@ -9,13 +9,14 @@
 //! rheo240,stress,10.0,287.0,5.0
 //! ```
 //!
-//! `at` is the station x [m] of a printed-geometry observable (`width`, `height`, `area`), the time [s] of one observed during
+//! `at` is the station x [m] of a printed-geometry observable (`width`, `height`, `level`, `area`), the time [s] of one observed during
 //! a run (`spread`, `front`: a slump spread or a flow distance against time; empty for the end), or the shear rate [1/s] of a rheometer reading.
 //! Three printed-geometry observables take a second coordinate after a colon, `X:Y` in the `at`
 //! column as in `name@X:Y`: `profile` the lateral position y [m] of a point of the section's top
 //! outline (`profile@0.075:0.01`), `layer_height` and `layer_width` the layer, 1 = the bottom one
 //! (`layer_height@0.075:2`). `failure_layer` and `failure_time` take no `at`: the layer and time
-//! at which a print fails (`failure.rs`). The experiments file
+//! at which a print fails (`failure.rs`). `arrival@X` and `stop_time@D` are read from the flow
+//! front's history: the time it reaches x = X, and the time it stops (`front.rs`). The experiments file
 //! (TOML) maps each id to what produced it: a scenario with per-experiment overrides (rest time,
 //! speeds, geometry: any scenario key), or a virtual-rheometer protocol, and lists what it observes
 //! (what `strand synth` produces):
@@ -59,7 +60,7 @@ pub struct Observable {
 }
 
 /// Observables a simulation experiment can produce, and those of a rheometer experiment.
-pub const SIMULATION_OBSERVABLES: &[&str] = &["spread", "front", "width", "height", "area", "profile", "layer_height", "layer_width", "vx_max", "kinetic_energy", "mean_z", "failure_layer", "failure_time"];
+pub const SIMULATION_OBSERVABLES: &[&str] = &["spread", "front", "width", "height", "level", "area", "profile", "layer_height", "layer_width", "vx_max", "kinetic_energy", "mean_z", "failure_layer", "failure_time", "arrival", "stop_time"];
 pub const RHEOMETER_OBSERVABLES: &[&str] = &["stress"];
 
 /// `X` or `X:Y`, finite numbers, as the `at` of an observable; the error says what is wrong.
@@ -293,6 +294,8 @@ impl Experiments {
                 // the coordinates each takes (the time of one taken during the run is checked when it runs)
                 let checked = if crate::failure::OBSERVABLES.contains(&ob.name.as_str()) {
                     crate::failure::check_observable(&ob.name, ob.at)
+                } else if super::front::OBSERVABLES.contains(&ob.name.as_str()) {
+                    super::front::check_observable(&ob)
                 } else if x.scenario.is_some() {
                     super::compare::observable_plan(&ob, f64::INFINITY).map(|_| ())
                 } else {

@@ -2,7 +2,7 @@
 //! (`data.rs`), a model and its effects (`model.rs`, `effects/`), a virtual rheometer
 //! (`rheometer.rs`), running experiments under a model to compare with measurements or to
 //! synthesise them (`compare.rs`) and the comparison as a folder of plots and trends
-//! (`report.rs`), the discretisation error counted beside the measurement uncertainty
+//! (`report.rs`), observables of the flow front's history (`front.rs`), the discretisation error counted beside the measurement uncertainty
 //! (`resolution.rs`), their gradients (`sensitivity.rs`), fitting a model (`calibrate.rs`) and
 //! finding the effect it lacks (`diagnose.rs`); where the experiments run (`engine.rs`: here, or
 //! as a scheduler's jobs) and what a saved result was computed from (`provenance.rs`).
@@ -14,6 +14,7 @@ pub mod diagnose;
 pub mod effects;
 pub mod engine;
 pub mod expression;
+pub mod front;
 pub mod linalg;
 pub mod model;
 pub mod plan;
