@@ -15,10 +15,9 @@
 //!   the end gives a time close to the end: run long enough for the flow to stop.
 //!
 //! Neither has an adjoint (a first crossing and a last departure are not smooth in the
-//! positions): `strand compare` and `synth` evaluate them; a gradient of them (calibrate,
-//! sensitivity) is refused by `compare::observable_plan` with that message until
-//! `sensitivity::has_adjoint` sends them to central differences as it does the failure
-//! observables.
+//! positions): `strand compare` and `synth` evaluate them, and calibrate and diagnose take their
+//! Jacobian columns by central differences (`sensitivity::has_adjoint`), as they do the failure
+//! observables'; `strand grad` refuses them (`compare::observable_plan`).
 
 use super::data::Observable;
 use crate::grad::objective::{Frame, Objective};

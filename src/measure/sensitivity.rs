@@ -4,8 +4,8 @@
 //! adjoint each: `strand grad`'s driver), the rheometer's for a rheometer test, then the model's
 //! effects backwards ([`Model::keys_adjoint`]).
 //!
-//! An observable without an adjoint (a print's failure layer and time: piecewise constant in the
-//! parameters, see `failure.rs`) gets its values from forward runs as `strand compare` runs them,
+//! An observable without an adjoint (a print's failure layer and time, a flow front's arrival
+//! and stop times: piecewise constant in the parameters, see `failure.rs` and `front.rs`) gets its values from forward runs as `strand compare` runs them,
 //! and its Jacobian columns by central differences of forward runs ([`differenced`]).
 //!
 //! A simulation whose adjoint costs more than central differences (few parameters against the
@@ -62,7 +62,7 @@ pub type Valued = (f64, Option<Vec<f64>>);
 
 /// Whether an observable's gradient comes from an adjoint; the others are differenced.
 pub fn has_adjoint(o: &Observable) -> bool {
-    !crate::failure::OBSERVABLES.contains(&o.name.as_str())
+    ![crate::failure::OBSERVABLES, super::front::OBSERVABLES].concat().contains(&o.name.as_str())
 }
 
 /// The relative step [`differenced`] starts from: a tenth of the parameter (its scale, the
