@@ -5,7 +5,8 @@
 //! effects backwards ([`Model::keys_adjoint`]).
 //!
 //! An observable without an adjoint (a print's failure layer and time, a flow front's arrival
-//! and stop times: piecewise constant in the parameters, see `failure.rs` and `front.rs`) gets its values from forward runs as `strand compare` runs them,
+//! and stop times: piecewise constant in the parameters, see `failure.rs` and `front.rs`) gets
+//! its values from forward runs as `strand compare` runs them,
 //! and its Jacobian columns by central differences of forward runs ([`differenced`]).
 //!
 //! A simulation whose adjoint costs more than central differences (few parameters against the
