@@ -316,15 +316,10 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
             let at_start = calibrate(&with, data, exps, &fnames, &FitOptions { max_iterations: 0, ..opts.fit.clone() })?;
             let predicted = base.chi2 - at_start.chi2 + gauss_newton_drop(&at_start, data)?;
             let informed = at_start.influence[fit.len()..].iter().any(|&i| i);
-            let f = if informed && predicted < LR_WORTH_FITTING {
-                screened = Some(predicted);
-                at_start
-            } else {
-                screened = None;
-                calibrate(&with, data, exps, &fnames, &opts.fit)?
-            };
+            let (f, unfitted) = if informed && predicted < LR_WORTH_FITTING { (at_start, Some(predicted)) } else { (calibrate(&with, data, exps, &fnames, &opts.fit)?, None) };
             if best.as_ref().is_none_or(|b| f.chi2 < b.chi2) {
                 best = Some(f);
+                screened = unfitted;
             }
         }
         let f = best.expect("one start at least");
@@ -345,9 +340,12 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
             String::new()
         };
         let mut c = candidate(*e, lr, dof, p, verdict);
-        c.record(&f, base.chi2, m);
+        // a screened effect's start is no fit: nothing to report as fitted or to refit from
+        if screened.is_none() {
+            c.record(&f, base.chi2, m);
+            prefit.insert(e.name().to_string(), f);
+        }
         cands.push(c);
-        prefit.insert(e.name().to_string(), f);
     }
     timing.likelihood_ratio_fits = lap(&mut since);
     cands.sort_by(|a, b| b.score.total_cmp(&a.score).then(a.effect.cmp(&b.effect)));
