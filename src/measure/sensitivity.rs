@@ -128,14 +128,16 @@ fn simulated(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observ
     let sides = names.iter().map(|n| smooth_step(model, n).and_then(|h| moves(model, x, &keys, n, h))).collect::<Result<Vec<_>, _>>()?;
     let all = by_differences_is_cheaper(sides.iter().filter(|s| s.is_some()).count(), wanted.len());
     let by_differences: Vec<bool> = sides.iter().map(|s| s.as_ref().is_some_and(|s| all || s.toolpath)).collect();
-    let adjoint: Vec<String> = names.iter().zip(&by_differences).filter(|(_, d)| !**d).map(|(n, _)| n.clone()).collect();
+    // a parameter that leaves the experiment as it is has a zero column, from neither
+    let from_the_adjoint: Vec<bool> = sides.iter().zip(&by_differences).map(|(s, &d)| s.is_some() && !d).collect();
+    let adjoint: Vec<String> = names.iter().zip(&from_the_adjoint).filter(|(_, a)| **a).map(|(n, _)| n.clone()).collect();
     let at_model = by_adjoint(model, exps, x, wanted, (!adjoint.is_empty()).then_some(&adjoint[..]), threads)?;
     let values: Vec<f64> = at_model.iter().map(|(v, _)| *v).collect();
     let run = |m: &Model| Ok(by_adjoint(m, exps, x, wanted, None, threads)?.into_iter().map(|(v, _)| v).collect());
     let differenced: Vec<Option<Sides>> = sides.into_iter().zip(&by_differences).map(|(s, &d)| s.filter(|_| d)).collect();
     let columns = central(&values, run, differenced)?;
     let mut from_adjoint = 0..adjoint.len();
-    let picks: Vec<Option<usize>> = by_differences.iter().map(|&d| if d { None } else { from_adjoint.next() }).collect();
+    let picks: Vec<Option<usize>> = from_the_adjoint.iter().map(|&a| if a { from_adjoint.next() } else { None }).collect();
     Ok(at_model
         .into_iter()
         .zip(columns)
