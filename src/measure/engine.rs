@@ -105,6 +105,16 @@ impl Engine {
             Engine::Scheduler(s) => s.sensitivity(model, data, exps, names),
         }
     }
+
+    /// The Jacobian in `names` at `model`, whose values the engine has just given (`values`: a
+    /// calibration's accepted trial). Here the experiments differenced throughout take them
+    /// instead of running them again; a scheduler's jobs compute them again, to the same bits.
+    pub fn jacobian_at(&self, jobs: usize, model: &Model, data: &[Observation], exps: &Experiments, names: &[String], values: &[f64]) -> Result<Answer, String> {
+        match self {
+            Engine::Local => Ok(sensitivity::jacobian_at(model, data, exps, names, jobs, values)),
+            Engine::Scheduler(s) => s.sensitivity(model, data, exps, Some(names)),
+        }
+    }
 }
 
 /// One job: what `strand evaluate` computes.

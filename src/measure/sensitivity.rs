@@ -28,6 +28,7 @@ use crate::grad::driver::Seeded;
 use crate::grad::{driver, params, GradOptions, Objective};
 
 /// Values (one per observation) and, when asked, d value / d parameter (a row per observation).
+#[derive(Clone, Debug)]
 pub struct Sensitivity {
     pub values: Vec<f64>,
     pub jacobian: Option<Vec<Vec<f64>>>,
@@ -36,17 +37,44 @@ pub struct Sensitivity {
 /// Values of every observation under `model`, with their gradients in `names` when given;
 /// experiments run `jobs` at a time.
 pub fn sensitivity(model: &Model, data: &[Observation], exps: &Experiments, names: Option<&[String]>, jobs: usize) -> Result<Sensitivity, String> {
+    campaign(model, data, exps, names, jobs, None)
+}
+
+/// [`sensitivity`] in `names` at a model whose values are known (`values`, in the data's order,
+/// as [`sensitivity`] gives them there: a calibration's accepted trial). An experiment whose
+/// Jacobian is all central differences takes them instead of running the model again: one run
+/// of its 1 + 2 p.
+pub fn jacobian_at(model: &Model, data: &[Observation], exps: &Experiments, names: &[String], jobs: usize, values: &[f64]) -> Result<Sensitivity, String> {
+    campaign(model, data, exps, Some(names), jobs, Some(values))
+}
+
+fn campaign(model: &Model, data: &[Observation], exps: &Experiments, names: Option<&[String]>, jobs: usize, known: Option<&[f64]>) -> Result<Sensitivity, String> {
     let wanted = group(data);
     let threads = job_threads(jobs);
-    let per = par_map(wanted.len(), jobs, |k| one(model, exps, &wanted[k].0, &wanted[k].1, names, threads))?;
+    let known = known.map(|v| regroup(data, &wanted, v));
+    let per = par_map(wanted.len(), jobs, |k| one_known(model, exps, &wanted[k].0, &wanted[k].1, names, threads, known.as_ref().map(|v| &v[k][..])))?;
     Ok(assemble(data, &wanted, &per, names))
+}
+
+/// Values in the data's order grouped by experiment, as [`group`] orders them (the inverse of
+/// [`ungroup`]).
+fn regroup(data: &[Observation], wanted: &[(String, Vec<Observable>)], values: &[f64]) -> Vec<Vec<f64>> {
+    let mut per = vec![Vec::new(); wanted.len()];
+    for (o, v) in data.iter().zip(values) {
+        per[wanted.iter().position(|(id, _)| *id == o.experiment).expect("grouped")].push(*v);
+    }
+    per
 }
 
 /// One experiment's values of `wanted` and, with `names`, their gradients: the unit of work
 /// [`sensitivity`] runs side by side and a scheduler's job runs alone (`engine.rs`).
 pub fn one(model: &Model, exps: &Experiments, id: &str, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>) -> Result<Vec<Valued>, String> {
+    one_known(model, exps, id, wanted, names, threads, None)
+}
+
+fn one_known(model: &Model, exps: &Experiments, id: &str, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>, known: Option<&[f64]>) -> Result<Vec<Valued>, String> {
     let x = find(exps, id)?;
-    experiment(model, exps, x, wanted, names, threads).map_err(|e| format!("experiment '{id}': {e}"))
+    experiment(model, exps, x, wanted, names, threads, known).map_err(|e| format!("experiment '{id}': {e}"))
 }
 
 /// The experiments' results ([`one`] each, in `wanted`'s order) in the data's order.
@@ -98,18 +126,21 @@ pub fn by_differences_is_cheaper(moved: usize, observations: usize) -> bool {
     ((1 + 2 * moved) as f64) < 1.0 + ADJOINT_SHARED_RUNS + ADJOINT_RUNS_PER_OBSERVATION * observations as f64
 }
 
-fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>) -> Result<Vec<Valued>, String> {
+/// One experiment's values of `wanted` and, with `names`, their gradients; `known`: its values at
+/// `model`, where the caller has them.
+fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>, known: Option<&[f64]>) -> Result<Vec<Valued>, String> {
     let (adjoint, other): (Vec<usize>, Vec<usize>) = (0..wanted.len()).partition(|&k| has_adjoint(&wanted[k]));
     if other.is_empty() {
-        return simulated(model, exps, x, wanted, names, threads);
+        return simulated(model, exps, x, wanted, names, threads, known);
     }
     let pick = |ks: &[usize]| ks.iter().map(|&k| wanted[k].clone()).collect::<Vec<_>>();
+    let known_of = |ks: &[usize]| known.map(|v| ks.iter().map(|&k| v[k]).collect::<Vec<f64>>());
     let mut out: Vec<Option<Valued>> = vec![None; wanted.len()];
-    for (&k, v) in other.iter().zip(differenced(model, exps, x, &pick(&other), names, threads)?) {
+    for (&k, v) in other.iter().zip(differenced(model, exps, x, &pick(&other), names, threads, known_of(&other).as_deref())?) {
         out[k] = Some(v);
     }
     if !adjoint.is_empty() {
-        for (&k, v) in adjoint.iter().zip(simulated(model, exps, x, &pick(&adjoint), names, threads)?) {
+        for (&k, v) in adjoint.iter().zip(simulated(model, exps, x, &pick(&adjoint), names, threads, known_of(&adjoint).as_deref())?) {
             out[k] = Some(v);
         }
     }
@@ -122,7 +153,7 @@ fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obser
 /// material enters in, and a changed flow or speed changes that over a whole print: the
 /// extrusion factor's adjoint gets the sign of a line's width wrong) and, for a simulation, for
 /// every parameter when that costs less than the adjoint ([`by_differences_is_cheaper`]).
-fn simulated(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>) -> Result<Vec<Valued>, String> {
+fn simulated(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>, known: Option<&[f64]>) -> Result<Vec<Valued>, String> {
     let (Some(names), Some(_)) = (names, &x.scenario) else { return by_adjoint(model, exps, x, wanted, names, threads) };
     let keys = experiment_keys(model, x)?;
     let sides = names.iter().map(|n| smooth_step(model, n).and_then(|h| moves(model, x, &keys, n, h))).collect::<Result<Vec<_>, _>>()?;
@@ -131,7 +162,10 @@ fn simulated(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observ
     // a parameter that leaves the experiment as it is has a zero column, from neither
     let from_the_adjoint: Vec<bool> = sides.iter().zip(&by_differences).map(|(s, &d)| s.is_some() && !d).collect();
     let adjoint: Vec<String> = names.iter().zip(&from_the_adjoint).filter(|(_, a)| **a).map(|(n, _)| n.clone()).collect();
-    let at_model = by_adjoint(model, exps, x, wanted, (!adjoint.is_empty()).then_some(&adjoint[..]), threads)?;
+    let at_model = match known {
+        Some(v) if adjoint.is_empty() => v.iter().map(|&v| (v, None)).collect(),
+        _ => by_adjoint(model, exps, x, wanted, (!adjoint.is_empty()).then_some(&adjoint[..]), threads)?,
+    };
     let values: Vec<f64> = at_model.iter().map(|(v, _)| *v).collect();
     let run = |m: &Model| Ok(by_adjoint(m, exps, x, wanted, None, threads)?.into_iter().map(|(v, _)| v).collect());
     let differenced: Vec<Option<Sides>> = sides.into_iter().zip(&by_differences).map(|(s, &d)| s.filter(|_| d)).collect();
@@ -165,12 +199,15 @@ fn simulated(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observ
 /// domain is refused). The difference is one-sided where p - h or p + h leaves the parameter's
 /// bounds (an effect at its null on its lower bound). A parameter that leaves this experiment's
 /// scenario keys as they are has a zero column without a run.
-fn differenced(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>) -> Result<Vec<Valued>, String> {
+fn differenced(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>, known: Option<&[f64]>) -> Result<Vec<Valued>, String> {
     const WIDEST: f64 = 0.4;
     const WIDEST_AT_NULL: f64 = 64.0;
     const GROWTH: f64 = 4.0;
     let run = |m: &Model| super::compare::evaluate(m, exps, x, wanted, threads);
-    let values = run(model)?;
+    let values = match known {
+        Some(v) => v.to_vec(),
+        None => run(model)?,
+    };
     let Some(names) = names else { return Ok(values.into_iter().map(|v| (v, None)).collect()) };
     let keys = experiment_keys(model, x)?;
     let mut rows = vec![vec![0.0; names.len()]; wanted.len()];
@@ -346,7 +383,7 @@ mod tests {
         let x = find(&e, "flow").unwrap();
         let wanted = [Observable::parse("stress@20").unwrap(), Observable::parse("stress@5").unwrap()];
         let names: Vec<String> = ["material.yield_stress", "material.viscosity", "ageing.rate"].map(String::from).to_vec();
-        let fd = differenced(&m, &e, x, &wanted, Some(&names), None).unwrap();
+        let fd = differenced(&m, &e, x, &wanted, Some(&names), None, None).unwrap();
         let adj = by_adjoint(&m, &e, x, &wanted, Some(&names), None).unwrap();
         for ((v, g), (va, ga)) in fd.iter().zip(&adj) {
             assert!((v - va).abs() <= 1e-9 * va.abs(), "{v} against {va}");
@@ -356,10 +393,12 @@ mod tests {
             }
             assert_eq!(g[2], 0.0);
         }
+        let values: Vec<f64> = fd.iter().map(|(v, _)| *v).collect();
+        assert_eq!(differenced(&m, &e, x, &wanted, Some(&names), None, Some(&values)).unwrap(), fd);
         // at age 100 s ageing moves the yield stress: d stress / d rate = tau0 age, one-sided
         let aged: Experiments = toml::from_str(&EXPS.replace("observe = ", "age = 100.0\nobserve = ")).unwrap();
         let x = find(&aged, "flow").unwrap();
-        let fd = differenced(&m, &aged, x, &wanted, Some(&names), None).unwrap();
+        let fd = differenced(&m, &aged, x, &wanted, Some(&names), None, None).unwrap();
         let adj = by_adjoint(&m, &aged, x, &wanted, Some(&names), None).unwrap();
         for ((_, g), (_, ga)) in fd.iter().zip(&adj) {
             let (g, ga) = (g.as_ref().unwrap(), ga.as_ref().unwrap());
@@ -383,8 +422,12 @@ mod tests {
         let wanted: Vec<Observable> = x.observe.iter().map(|o| Observable::parse(o).unwrap()).collect();
         let names: Vec<String> = ["material.yield_stress", "material.viscosity", "extrusion_factor.factor"].map(String::from).to_vec();
         assert!(by_differences_is_cheaper(names.len(), wanted.len()));
-        let fd = experiment(&m, &e, x, &wanted, Some(&names), Some(1)).unwrap();
+        let fd = experiment(&m, &e, x, &wanted, Some(&names), Some(1), None).unwrap();
         let adj = by_adjoint(&m, &e, x, &wanted, Some(&names), Some(1)).unwrap();
+        // the values known (a calibration's accepted trial), the same Jacobian without their run
+        let values: Vec<f64> = fd.iter().map(|(v, _)| *v).collect();
+        let known = experiment(&m, &e, x, &wanted, Some(&names), Some(1), Some(&values)).unwrap();
+        assert_eq!(known, fd);
         let p: Vec<f64> = names.iter().map(|n| m.get(n).unwrap()).collect();
         let mut by_name = std::collections::BTreeMap::new();
         for (o, ((v, g), (va, ga))) in wanted.iter().zip(fd.iter().zip(&adj)) {
@@ -409,7 +452,7 @@ mod tests {
         // adjoint and the toolpath's from differences
         let more: Vec<String> = ["material.bulk_modulus"].map(String::from).into_iter().chain(names.iter().cloned()).collect();
         assert!(!by_differences_is_cheaper(more.len(), 1));
-        let hybrid = experiment(&m, &e, x, &wanted[..1], Some(&more), Some(1)).unwrap();
+        let hybrid = experiment(&m, &e, x, &wanted[..1], Some(&more), Some(1), None).unwrap();
         let adj = by_adjoint(&m, &e, x, &wanted[..1], Some(&more[..3]), Some(1)).unwrap();
         let (row, adj_row) = (hybrid[0].1.as_ref().unwrap(), adj[0].1.as_ref().unwrap());
         assert_eq!(&row[..3], &adj_row[..], "the material's columns from the adjoint");
