@@ -246,6 +246,8 @@ fn differenced(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obse
 
 /// A parameter's two sides for a central difference ([`moves`]).
 struct Sides {
+    /// The parameter's value p.
+    at: f64,
     lo: (f64, Option<Model>),
     hi: (f64, Option<Model>),
     /// Whether the parameter moves a toolpath key (`print.*`).
@@ -267,17 +269,23 @@ fn moves(model: &Model, x: &Experiment, keys: &Keys, name: &str, h: f64) -> Resu
         Ok((v != p && there != *keys).then_some(m))
     };
     let (m_lo, m_hi) = (moved(lo)?, moved(hi)?);
-    Ok((m_lo.is_some() || m_hi.is_some()).then_some(Sides { lo: (lo, m_lo), hi: (hi, m_hi), toolpath }))
+    Ok((m_lo.is_some() || m_hi.is_some()).then_some(Sides { at: p, lo: (lo, m_lo), hi: (hi, m_hi), toolpath }))
 }
 
 /// Each parameter's column (a row per value): `run` at its two sides, one-sided where a side
-/// stays at p (`values`, the run at the model); 0 without sides.
+/// stays at p (`values`, the run at the model) or fails to run (a printed line that breaks up
+/// there); 0 without sides.
 fn central(values: &[f64], run: impl Fn(&Model) -> Result<Vec<f64>, String>, sides: Vec<Option<Sides>>) -> Result<Vec<Vec<f64>>, String> {
     let mut rows = vec![vec![0.0; sides.len()]; values.len()];
     for (j, s) in sides.into_iter().enumerate() {
-        let Some(Sides { lo: (lo, m_lo), hi: (hi, m_hi), .. }) = s else { continue };
+        let Some(Sides { lo: (lo, m_lo), hi: (hi, m_hi), at, .. }) = s else { continue };
         let side = |m: Option<Model>| m.map_or(Ok(values.to_vec()), |m| run(&m));
-        let (v_lo, v_hi) = (side(m_lo)?, side(m_hi)?);
+        let ((lo, v_lo), (hi, v_hi)) = match (side(m_lo), side(m_hi)) {
+            (Ok(a), Ok(b)) => ((lo, a), (hi, b)),
+            (Err(_), Ok(b)) if hi != at => ((at, values.to_vec()), (hi, b)),
+            (Ok(a), Err(_)) if lo != at => ((lo, a), (at, values.to_vec())),
+            (Err(e), _) | (_, Err(e)) => return Err(e),
+        };
         for (row, (a, b)) in rows.iter_mut().zip(v_lo.iter().zip(&v_hi)) {
             row[j] = (b - a) / (hi - lo);
         }
