@@ -221,6 +221,23 @@ pub fn par_map<T: Send>(n: usize, jobs: usize, f: impl Fn(usize) -> Result<T, St
     results.into_iter().map(|m| m.into_inner().unwrap().expect("every job ran")).collect()
 }
 
+#[cfg(test)]
+mod tests {
+    use super::fixture::setup;
+    use super::*;
+
+    #[test]
+    fn unknown_experiments_and_readings_are_named() {
+        let (m, e) = setup();
+        let data = vec![Observation { experiment: "nope".into(), observable: Observable::parse("stress@5").unwrap(), value: 1.0, uncertainty: 1.0 }];
+        let err = model_values(&m, &data, &e, 1).unwrap_err();
+        assert!(err.contains("'nope'") && err.contains("flow, weak"), "{err}");
+        let data = vec![Observation { experiment: "flow".into(), observable: Observable::parse("stress@7").unwrap(), value: 1.0, uncertainty: 1.0 }];
+        let err = model_values(&m, &data, &e, 1).unwrap_err();
+        assert!(err.contains("flow") && err.contains("no reading at rate 7"), "{err}");
+    }
+}
+
 /// Two rheometer experiments under a Bingham model: the fixture of the runner's, the
 /// comparison's and the synthesis's unit tests.
 #[cfg(test)]
@@ -236,22 +253,5 @@ pub(super) mod fixture {
         let e: Experiments = toml::from_str(EXPS).unwrap();
         e.validate().unwrap();
         (m, e)
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::fixture::setup;
-    use super::*;
-
-    #[test]
-    fn unknown_experiments_and_readings_are_named() {
-        let (m, e) = setup();
-        let data = vec![Observation { experiment: "nope".into(), observable: Observable::parse("stress@5").unwrap(), value: 1.0, uncertainty: 1.0 }];
-        let err = model_values(&m, &data, &e, 1).unwrap_err();
-        assert!(err.contains("'nope'") && err.contains("flow, weak"), "{err}");
-        let data = vec![Observation { experiment: "flow".into(), observable: Observable::parse("stress@7").unwrap(), value: 1.0, uncertainty: 1.0 }];
-        let err = model_values(&m, &data, &e, 1).unwrap_err();
-        assert!(err.contains("flow") && err.contains("no reading at rate 7"), "{err}");
     }
 }
