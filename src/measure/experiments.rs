@@ -1,5 +1,5 @@
-//! The experiments file (TOML): what produced the measurements. It maps each id to what produced
-//! it: a scenario with per-experiment overrides (rest time, speeds, geometry: any scenario key),
+//! The experiments file (TOML): what produced the measurements. It maps each experiment's id to
+//! a scenario with per-experiment overrides (rest time, speeds, geometry: any scenario key),
 //! or a virtual-rheometer protocol, and lists what it observes (what `strand synth` produces):
 //!
 //! ```toml
@@ -16,7 +16,6 @@
 //! protocol = "rest240.toml"               # a rheometer protocol ([[phase]] tables)
 //! observe = ["stress@10", "stress@1"]
 //! ```
-
 
 use super::effects::Covariates;
 use super::observables::{self, RHEOMETER_OBSERVABLES, SIMULATION_OBSERVABLES};

@@ -91,7 +91,6 @@ pub fn observable_plan(o: &Observable, end: f64) -> Result<(f64, Objective), Str
     Ok((t, obj))
 }
 
-
 /// Which reading a rheometer observable is: the last one at its shear rate.
 pub fn reading_index(o: &Observable, readings: &[Reading]) -> Result<usize, String> {
     let rate = reading_rate(o)?;
@@ -111,7 +110,6 @@ pub fn reading_rate(o: &Observable) -> Result<f64, String> {
         (None, _) => Err("'stress' needs the shear rate: stress@RATE".into()),
     }
 }
-
 
 #[cfg(test)]
 mod tests {

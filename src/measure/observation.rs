@@ -167,7 +167,6 @@ mod tests {
         assert!(e.contains("no 'at' column"), "{e}");
     }
 
-
     #[test]
     fn a_second_coordinate_parses_prints_back_and_bad_ones_are_named() {
         let o = Observable::parse("profile@0.075:0.01").unwrap();
