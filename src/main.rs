@@ -332,9 +332,9 @@ impl EngineArgs {
 }
 
 impl MeasureInputs {
-    fn load(&self) -> Result<(strand::measure::model::Model, Vec<strand::measure::data::Observation>, strand::measure::data::Experiments), String> {
-        use strand::measure::{data, model::Model};
-        Ok((Model::load(&self.model)?, data::read_observations(&self.data)?, data::Experiments::load(&self.experiments)?))
+    fn load(&self) -> Result<(strand::measure::model::Model, Vec<strand::measure::observation::Observation>, strand::measure::experiments::Experiments), String> {
+        use strand::measure::{experiments::Experiments, model::Model, observation::read_observations};
+        Ok((Model::load(&self.model)?, read_observations(&self.data)?, Experiments::load(&self.experiments)?))
     }
 }
 
@@ -448,7 +448,7 @@ fn grad(args: GradArgs) -> Result<bool, Failure> {
 /// `strand compare`: the model against the measurements, or a planned or collected distributed run of it.
 fn compare(args: CompareArgs) -> Result<bool, Failure> {
     let CompareArgs { inputs, report, plan, collect, only, save } = args;
-    use strand::measure::{compare, plan as jobs, report as folder, resolution};
+    use strand::measure::{compare, plan as jobs, report as folder, resolution, runner};
     if let Some(dir) = &report {
         folder::prepare_dir(dir)?;
     }
@@ -461,14 +461,14 @@ fn compare(args: CompareArgs) -> Result<bool, Failure> {
     }
     if let (Some(id), Some(file)) = (&only, &save) {
         let mine = jobs::only(&d, id)?;
-        let values = compare::model_values(&m, &mine, &e, 1)?;
+        let values = runner::model_values(&m, &mine, &e, 1)?;
         jobs::save(file, &m, &e, id, &mine, &values)?;
         eprintln!("{id}: {} values saved to {}", values.len(), file.display());
         return Ok(true);
     }
     let values = match &collect {
         Some(dir) => jobs::collect(dir, &m, &e, &d)?,
-        None => compare::model_values(&m, &d, &e, inputs.jobs)?,
+        None => runner::model_values(&m, &d, &e, inputs.jobs)?,
     };
     // [resolution]: the finer runs, here also after --collect (the jobs ran the model's)
     let disc = resolution::estimate(&m, &d, &e, Some(&values), inputs.jobs)?;
@@ -506,10 +506,10 @@ fn compare(args: CompareArgs) -> Result<bool, Failure> {
 /// `strand synth`: synthetic measurements.
 fn synth(args: SynthArgs) -> Result<bool, Failure> {
     let SynthArgs { model, experiments, noise, seed, out, jobs } = args;
-    use strand::measure::{compare, data::{write_observations, Experiments}};
-    let m = compare::Model::load(&model)?;
+    use strand::measure::{experiments::Experiments, model::Model, observation::write_observations, synth::synth};
+    let m = Model::load(&model)?;
     let e = Experiments::load(&experiments)?;
-    let obs = compare::synth(&m, &e, noise, seed, jobs)?;
+    let obs = synth(&m, &e, noise, seed, jobs)?;
     write_observations(&out, &obs)?;
     eprintln!("{} observations of {} experiments written to {}", obs.len(), e.experiment.len(), out.display());
     Ok(true)

@@ -327,7 +327,7 @@ fn hidden_structuration_is_found_from_failure_heights() {
 /// 0.05 a layer per Pa/s).
 #[test]
 fn a_failure_layers_column_resolves_its_staircase() {
-    use strand::measure::{data::{Experiments, Observable}, model::Model, sensitivity};
+    use strand::measure::{experiments::Experiments, model::Model, observation::Observable, sensitivity};
     let d = fixtures("failure");
     let exps = Experiments::load(&d.join("experiments.toml")).unwrap();
     let text = std::fs::read_to_string(d.join("truth_thixotropy.toml")).unwrap().replace("a_thix = 20.0", "a_thix = 0.0");

@@ -184,7 +184,7 @@ fn printed_profile_points_and_layers_measured_by_synth_are_what_the_run_writes()
     assert_eq!(code, 0, "{err}");
     let csv = std::fs::read_to_string(d.join("data.csv")).unwrap();
     assert!(csv.contains("P,profile,0.015:0.004,") && csv.contains("P,layer_height,0.015:2,"), "{csv}");
-    let data = strand::measure::data::read_observations(&d.join("data.csv")).unwrap();
+    let data = strand::measure::observation::read_observations(&d.join("data.csv")).unwrap();
     assert_eq!(data.len(), ys.len() + 3);
 
     // the run's outline at its last output (the base is the floor, z = 0)

@@ -378,7 +378,7 @@ proptest! {
         for (a, b, c, d, e) in &rows {
             text += &format!("{a},{b},{c},{d},{e}\n");
         }
-        let _ = strand::measure::data::parse_observations(&text);
+        let _ = strand::measure::observation::parse_observations(&text);
     }
 
     #[test]

@@ -310,7 +310,7 @@ budget = "64 MiB"
 /// and with them removed at the start (`open_at = 0`), where the flow reaches the end.
 #[test]
 fn a_reduced_lbox_holds_at_the_gate_then_flows_to_the_end_held_back_by_the_rebars() {
-    use strand::measure::{compare, data::{Experiments, Observable}, model::Model};
+    use strand::measure::{experiments::Experiments, model::Model, observation::Observable, runner};
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut text = std::fs::read_to_string(root.join("fixtures/scenarios/lbox/lbox_mix_a.toml")).unwrap();
     for (from, to) in [
@@ -335,7 +335,7 @@ fn a_reduced_lbox_holds_at_the_gate_then_flows_to_the_end_held_back_by_the_rebar
         ("bare".to_string(), obs(&["front@0.29", "front@0.8", "front", "arrival@0.69", "height@0.69", "stop_time@0.005"])),
     ];
     let start = std::time::Instant::now();
-    let values = compare::evaluate_all(&model, &exps, &wanted, 2).unwrap();
+    let values = runner::evaluate_all(&model, &exps, &wanted, 2).unwrap();
     eprintln!("two reduced L-boxes in {:.1} s: with rebars {:?}, without {:?}", start.elapsed().as_secs_f64(), values[0], values[1]);
     let (rebars, bare) = (&values[0], &values[1]);
     // the closed gate (x >= 0.1) holds the column: the front stays within 2 mm of the reservoir's

@@ -84,8 +84,7 @@ fn gradient_run() -> String {
 /// The slump campaign (`fixtures/measure/slump`): synthesised measurements of the truth with a
 /// hidden effect (compressibility), noisy, and the base model's values at them.
 fn campaign() -> String {
-    use strand::measure::compare::{model_values, synth, Model};
-    use strand::measure::data::Experiments;
+    use strand::measure::{experiments::Experiments, model::Model, runner::model_values, synth::synth};
     let dir = root().join("fixtures/measure/slump");
     let e = Experiments::load(&dir.join("experiments.toml")).unwrap();
     let truth = Model::load(&dir.join("truth_compressibility.toml")).unwrap();

@@ -8,7 +8,8 @@
 //! of the diagonal of (J^T J)^-1 of the standardised residuals at the optimum: with the data's
 //! uncertainties taken as given (not rescaled by the reduced chi^2, which is reported beside).
 
-use super::data::{Experiments, Observation};
+use super::experiments::Experiments;
+use super::observation::Observation;
 use super::linalg::{normal_equations, pinv_sym, Mat};
 use super::engine::Engine;
 use super::model::{Bounds, Model};
@@ -319,7 +320,7 @@ mod tests {
     fn a_bingham_flow_curve_fit_recovers_yield_stress_and_viscosity() {
         let truth = Model::from_table(&MODEL.parse().unwrap()).unwrap();
         let e: Experiments = toml::from_str(EXPS).unwrap();
-        let data = super::super::compare::synth(&truth, &e, 0.0, 1, 1).unwrap();
+        let data = super::super::synth::synth(&truth, &e, 0.0, 1, 1).unwrap();
         let data: Vec<Observation> = data.into_iter().map(|mut o| {
             o.uncertainty = 1.0;
             o

@@ -34,7 +34,8 @@
 //!    quantile) the verdict is "unexplained", with the pattern of the residuals.
 
 use super::calibrate::{calibrate, calibrate_from, chi2, predicted_drop, standardised, Fit, FitOptions};
-use super::data::{Experiments, Observation};
+use super::experiments::Experiments;
+use super::observation::Observation;
 use super::effects::{Covariates, Effect};
 use super::linalg::{chi2_sf, normal_equations, pinv_sym};
 use super::model::Model;
@@ -365,7 +366,7 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
     }
 
     // fit the significant ones, and check each by leave-one-experiment-out
-    let ids: Vec<String> = super::compare::group(data).into_iter().map(|(id, _)| id).collect();
+    let ids: Vec<String> = super::runner::group(data).into_iter().map(|(id, _)| id).collect();
     let mut base_loo: Option<f64> = None;
     let mut models: Vec<Option<Model>> = vec![None; cands.len()];
     let mut fitted = 0;
@@ -497,7 +498,7 @@ fn choose(cands: &mut [Candidate]) -> Option<usize> {
 /// each run with `model`'s `[material]`.
 fn applicable(effect: &'static dyn Effect, model: &Model, data: &[Observation], exps: &Experiments) -> Result<(), String> {
     model.with_effect(effect).keys(&Covariates::default()).map_err(|m| format!("in this model, {m}"))?;
-    for (id, _) in super::compare::group(data) {
+    for (id, _) in super::runner::group(data) {
         if let Some(s) = exps.get(&id).and_then(|x| x.scenario.as_ref()) {
             let path = exps.base_dir.join(s);
             let text = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;

@@ -27,10 +27,11 @@
 //! model's hash), every number is saved exactly ([`Exact`]), and a run's result does not depend
 //! on its thread count.
 
-use super::compare::{find, group};
-use super::data::{Experiment, Experiments, Observable, Observation};
+use super::experiments::{Experiment, Experiments};
 use super::model::Model;
+use super::observation::{Observable, Observation};
 use super::provenance::{self, exact, plain, Exact, Provenance};
+use super::runner::{find, group};
 use super::sensitivity::{self, Sensitivity, Valued};
 use std::path::{Path, PathBuf};
 

@@ -17,9 +17,9 @@
 //! Neither has an adjoint (a first crossing and a last departure are not smooth in the
 //! positions): `strand compare` and `synth` evaluate them, and calibrate and diagnose take their
 //! Jacobian columns by central differences (`sensitivity::has_adjoint`), as they do the failure
-//! observables'; `strand grad` refuses them (`compare::observable_plan`).
+//! observables'; `strand grad` refuses them (`observables::observable_plan`).
 
-use super::data::Observable;
+use super::observation::Observable;
 use crate::grad::objective::{Frame, Objective};
 use crate::solver::Simulation;
 

@@ -35,10 +35,6 @@ pub fn pinv_sym(a: &Mat, rel: f64) -> (Mat, usize) {
     (out, rank)
 }
 
-pub fn mat_vec(a: &Mat, x: &[f64]) -> Vec<f64> {
-    a.iter().map(|r| r.iter().zip(x).map(|(a, b)| a * b).sum()).collect()
-}
-
 /// J^T J and J^T z for the columns `cols` of J (rows are observations).
 pub fn normal_equations(j: &[Vec<f64>], z: &[f64], cols: &[usize]) -> (Mat, Vec<f64>) {
     let n = cols.len();

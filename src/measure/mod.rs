@@ -1,22 +1,31 @@
-//! The measurement loop: measurements and the experiments that produced them
-//! (`data.rs`), a model and its effects (`model.rs`, `effects/`), a virtual rheometer
-//! (`rheometer.rs`), running experiments under a model to compare with measurements or to
-//! synthesise them (`compare.rs`) and the comparison as a folder of plots and trends
-//! (`report.rs`), observables of the flow front's history (`front.rs`), the discretisation error counted beside the measurement uncertainty
-//! (`resolution.rs`), their gradients (`sensitivity.rs`), fitting a model (`calibrate.rs`) and
-//! finding the effect it lacks (`diagnose.rs`); where the experiments run (`engine.rs`: here, or
-//! as a scheduler's jobs) and what a saved result was computed from (`provenance.rs`).
+//! The measurement loop: measurements (`observation.rs`), what can be observed
+//! (`observables.rs`; the flow front's history in `front.rs`) and the experiments that produced
+//! them (`experiments.rs`), a model and its effects (`model.rs`, `effects/`), a virtual rheometer
+//! (`rheometer.rs`), running experiments under a model (`runner.rs`), comparing with measurements
+//! (`compare.rs`) or synthesising them (`synth.rs`), the comparison as a folder of plots and
+//! trends (`report.rs`) and the shapes of its residuals (`residuals.rs`), the discretisation
+//! error counted beside the measurement uncertainty (`resolution.rs`), gradients
+//! (`sensitivity.rs`), fitting a model (`calibrate.rs`) and finding the effect it lacks
+//! (`diagnose.rs`); where the experiments run (`engine.rs`: here, or as a scheduler's jobs) and
+//! what a saved result was computed from (`provenance.rs`).
+//!
+//! Imports point one way (no circle among these files, `tests/architecture.rs`): `observation.rs`
+//! at the bottom; then the observables, the effects and the model; the experiments; the runner;
+//! comparison and synthesis; reports and residual shapes; and sensitivity, calibration, the
+//! engine, diagnosis and rounds on top.
 
 pub mod calibrate;
 pub mod compare;
-pub mod data;
 pub mod diagnose;
 pub mod effects;
 pub mod engine;
+pub mod experiments;
 pub mod expression;
 pub mod front;
 pub mod linalg;
 pub mod model;
+pub mod observables;
+pub mod observation;
 pub mod plan;
 pub mod provenance;
 pub mod report;
@@ -24,4 +33,6 @@ pub mod residuals;
 pub mod resolution;
 pub mod rheometer;
 pub mod rounds;
+pub mod runner;
 pub mod sensitivity;
+pub mod synth;

@@ -119,7 +119,7 @@ impl Model {
                     let i = effect.params().iter().position(|s| s.name == k).ok_or_else(|| {
                         format!("effects.{name}: unknown parameter '{k}'; it has {}", effect.params().iter().map(|s| s.name).collect::<Vec<_>>().join(", "))
                     })?;
-                    p[i] = super::data::number(x).ok_or_else(|| format!("effects.{name}.{k} must be a number"))?;
+                    p[i] = super::observation::number(x).ok_or_else(|| format!("effects.{name}.{k} must be a number"))?;
                 }
                 model = model.with_effect(effect);
                 model.effects.iter_mut().find(|(e, _)| e.name() == name).expect("just added").1 = p;
@@ -167,7 +167,7 @@ impl Model {
 
     /// Every parameter: the material's numbers, then each effect's.
     pub fn param_names(&self) -> Vec<String> {
-        let mut n: Vec<String> = self.material.iter().filter(|(_, v)| super::data::number(v).is_some()).map(|(k, _)| format!("material.{k}")).collect();
+        let mut n: Vec<String> = self.material.iter().filter(|(_, v)| super::observation::number(v).is_some()).map(|(k, _)| format!("material.{k}")).collect();
         for (e, _) in &self.effects {
             n.extend(e.params().iter().map(|s| format!("{}.{}", e.name(), s.name)));
         }
@@ -178,7 +178,7 @@ impl Model {
         let unknown = || format!("unknown parameter '{name}'; the model has {}", self.param_names().join(", "));
         let (head, key) = name.split_once('.').ok_or_else(unknown)?;
         if head == "material" {
-            return match self.material.get(key).and_then(super::data::number) {
+            return match self.material.get(key).and_then(super::observation::number) {
                 Some(_) => Ok(Slot::Material(key.to_string())),
                 None => Err(unknown()),
             };
@@ -194,7 +194,7 @@ impl Model {
 
     pub fn get(&self, name: &str) -> Result<f64, String> {
         Ok(match self.locate(name)? {
-            Slot::Material(k) => super::data::number(&self.material[&k]).expect("located"),
+            Slot::Material(k) => super::observation::number(&self.material[&k]).expect("located"),
             Slot::Effect(e, p) => self.effects[e].1[p],
         })
     }
@@ -229,7 +229,7 @@ impl Model {
     /// `poisson_ratio` by `shear_modulus`).
     pub fn material_for(&self, keys: &Keys) -> toml::Table {
         let mut m = self.material.clone();
-        m.retain(|k, v| super::data::number(v).is_none() || keys.contains_key(&format!("material.{k}")));
+        m.retain(|k, v| super::observation::number(v).is_none() || keys.contains_key(&format!("material.{k}")));
         m
     }
 
@@ -240,7 +240,7 @@ impl Model {
 
     /// The keys after every effect, and the keys before each effect (what its adjoint reads).
     fn keys_traced(&self, x: &Covariates) -> Result<(Keys, Vec<Keys>), String> {
-        let mut keys: Keys = self.material.iter().filter_map(|(k, v)| super::data::number(v).map(|n| (format!("material.{k}"), n))).collect();
+        let mut keys: Keys = self.material.iter().filter_map(|(k, v)| super::observation::number(v).map(|n| (format!("material.{k}"), n))).collect();
         let mut before = Vec::with_capacity(self.effects.len());
         for (e, p) in &self.effects {
             before.push(keys.clone());

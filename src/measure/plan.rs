@@ -6,10 +6,11 @@
 //! are the same, and saved exactly). Each saved file carries the [`Provenance`] of its values,
 //! and collect refuses one computed under another model, scenario, experiments entry or binary.
 
-use super::compare::{find, group};
-use super::data::{Experiments, Observable, Observation};
+use super::experiments::Experiments;
 use super::model::Model;
+use super::observation::{Observable, Observation};
 use super::provenance::{exact, plain, Exact, Provenance};
+use super::runner::{find, group};
 use std::path::{Path, PathBuf};
 
 /// One experiment's values, as a job saves them.
@@ -97,5 +98,5 @@ pub fn collect(dir: &Path, model: &Model, exps: &Experiments, data: &[Observatio
             Ok(plain(&s.values))
         })
         .collect::<Result<_, String>>()?;
-    Ok(super::compare::ungroup(data, &wanted, &per))
+    Ok(super::runner::ungroup(data, &wanted, &per))
 }

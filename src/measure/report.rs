@@ -6,9 +6,11 @@
 //! for thixotropy, age for ageing, a speed for a rate effect), so a strong correlation of z with a
 //! covariate points at what to add before `strand diagnose` is run.
 
-use super::compare::{experiment_keys, find, Comparison, Model, Row};
-use super::data::Experiments;
-use super::residuals::Shape;
+use super::compare::{Comparison, Row};
+use super::experiments::Experiments;
+use super::model::Model;
+use super::residuals::{Covariate, Shape};
+use super::runner::{experiment_keys, find};
 use crate::output::plot::{plot_measured_model, plot_xy, MeasuredPoint};
 use std::collections::{BTreeSet, HashMap, HashSet};
 use std::fmt::Write as _;
@@ -19,18 +21,6 @@ pub const TREND_R: f64 = 0.5;
 
 /// How many of the largest |z| the page lists.
 const WORST: usize = 10;
-
-/// Something z may move with: its value at each row of the comparison, None where it does not
-/// apply (the `at` of another observable, a key an experiment does not have).
-#[derive(Clone, Debug, PartialEq)]
-pub struct Covariate {
-    /// `rest_time`, `age`, a covariate experiments declare (by its name), `at(OBSERVABLE)`,
-    /// `at2(OBSERVABLE)` (a second coordinate) or `set.KEY`.
-    pub name: String,
-    /// The plot's axis title.
-    pub axis: String,
-    pub values: Vec<Option<f64>>,
-}
 
 /// Pearson correlation and least-squares slope of z against one covariate.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
@@ -59,7 +49,7 @@ pub fn covariates(rows: &[Row], exps: &Experiments, model: &Model) -> Result<Vec
             keys.insert(&r.experiment, experiment_keys(model, x)?);
         }
     }
-    let per_experiment = |f: &dyn Fn(&super::data::Experiment) -> f64| -> Result<Vec<Option<f64>>, String> {
+    let per_experiment = |f: &dyn Fn(&super::experiments::Experiment) -> f64| -> Result<Vec<Option<f64>>, String> {
         rows.iter().map(|r| find(exps, &r.experiment).map(|x| Some(f(x)))).collect()
     };
     let mut out = vec![
@@ -87,7 +77,7 @@ pub fn covariates(rows: &[Row], exps: &Experiments, model: &Model) -> Result<Vec
     Ok(out)
 }
 
-/// What `at` is for an observable (see `data.rs`).
+/// What `at` is for an observable (see `observables.rs`).
 fn at_meaning(observable: &str) -> &'static str {
     match observable {
         "stress" => "shear rate [1/s]",
@@ -392,7 +382,7 @@ fn html(c: &Comparison, trends: &[Trend], shapes: &[Shape], fits: &[Figure], res
 mod tests {
     use super::*;
     use crate::measure::compare::comparison;
-    use crate::measure::data::{Observable, Observation};
+    use crate::measure::observation::{Observable, Observation};
 
     /// Rows whose z equals `z`, one per experiment `e0`, `e1`, ...
     fn rows(z: &[f64]) -> Vec<Row> {

@@ -23,8 +23,19 @@
 
 use super::compare::Row;
 use super::linalg::{f_sf, pinv_sym};
-use super::report::Covariate;
 use std::fmt::Write as _;
+
+/// Something z may move with: its value at each row of the comparison, None where it does not
+/// apply (the `at` of another observable, a key an experiment does not have).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Covariate {
+    /// `rest_time`, `age`, a covariate experiments declare (by its name), `at(OBSERVABLE)`,
+    /// `at2(OBSERVABLE)` (a second coordinate) or `set.KEY`.
+    pub name: String,
+    /// The plot's axis title.
+    pub axis: String,
+    pub values: Vec<Option<f64>>,
+}
 
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct Shape {
@@ -292,7 +303,7 @@ pub fn text(shapes: &[Shape]) -> String {
 mod tests {
     use super::*;
     use crate::measure::compare::comparison;
-    use crate::measure::data::{Observable, Observation};
+    use crate::measure::observation::{Observable, Observation};
 
     /// A campaign's layout: six experiments (rest time, age) of three rates each.
     const EXPERIMENTS: [(f64, f64); 6] = [(0.0, 600.0), (60.0, 1200.0), (300.0, 1800.0), (0.0, 2400.0), (600.0, 3000.0), (0.0, 3600.0)];

@@ -31,8 +31,9 @@
 //! The default order, [`DEFAULT_ORDER`], is measured on case 1 (BENCHMARKS.md,
 //! "Discretisation error").
 
-use super::compare::{evaluate, experiment_keys, find, group, job_threads, par_map, parse_scenario, scenario_text, ungroup};
-use super::data::{Experiment, Experiments, Observable, Observation, ResolutionTable};
+use super::experiments::{Experiment, Experiments, ResolutionTable};
+use super::observation::{Observable, Observation};
+use super::runner::{evaluate, experiment_keys, find, group, job_threads, par_map, parse_scenario, scenario_text, ungroup};
 use super::model::Model;
 
 /// The order of convergence p assumed when `[resolution]` gives none: case 1's width at 8, 10
@@ -180,7 +181,7 @@ pub fn counted_data(model: &Model, data: Vec<Observation>, exps: &Experiments, j
     if exps.resolution.is_none() {
         return Ok((data, None));
     }
-    let start_values = super::compare::model_values(model, &data, exps, jobs)?;
+    let start_values = super::runner::model_values(model, &data, exps, jobs)?;
     let estimates = estimate(model, &data, exps, Some(&start_values), jobs)?.expect("a [resolution] table");
     Ok((counted(&data, &estimates), Some(Counted { data, estimates, start_values })))
 }

@@ -4,7 +4,8 @@
 //! verdict is not "add EFFECT") or N rounds have run. The error after each round is the
 //! chi^2 per observation of the model it leaves.
 
-use super::data::{Experiments, Observation};
+use super::experiments::Experiments;
+use super::observation::Observation;
 use super::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
 use super::model::Model;
 use std::fmt::Write as _;

@@ -19,8 +19,10 @@
 //! after the step of the whole run that reaches it (to the step control's rounding of 1e-9 dt),
 //! not from a run that ends there: the two differ by that rounding of the last step's length.
 
-use super::compare::{experiment_keys, find, group, job_threads, observable_plan, par_map, parse_scenario, reading_index, rheometer_setup, scenario_text, ungroup};
-use super::data::{Experiment, Experiments, Observable, Observation};
+use super::experiments::{Experiment, Experiments};
+use super::observables::{observable_plan, reading_index};
+use super::observation::{Observable, Observation};
+use super::runner::{experiment_keys, find, group, job_threads, par_map, parse_scenario, rheometer_setup, scenario_text, ungroup};
 use super::effects::Keys;
 use super::model::Model;
 use super::rheometer::Rheometer;
@@ -182,7 +184,7 @@ fn simulated(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observ
         .collect())
 }
 
-/// Values of `wanted` from a forward run ([`compare::evaluate`](super::compare::evaluate)) and,
+/// Values of `wanted` from a forward run ([`runner::evaluate`](super::runner::evaluate)) and,
 /// with `names`, their gradients by central differences of forward runs over a step wide enough
 /// to see them move. A failure layer and time are staircases in a parameter: whole layers, and
 /// times resolved to the output interval, flat between stairs. A difference over a step that
@@ -203,7 +205,7 @@ fn differenced(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obse
     const WIDEST: f64 = 0.4;
     const WIDEST_AT_NULL: f64 = 64.0;
     const GROWTH: f64 = 4.0;
-    let run = |m: &Model| super::compare::evaluate(m, exps, x, wanted, threads);
+    let run = |m: &Model| super::runner::evaluate(m, exps, x, wanted, threads);
     let values = match known {
         Some(v) => v.to_vec(),
         None => run(model)?,

@@ -104,7 +104,7 @@ pub fn declare(name: &str, table: &toml::Table, material: &toml::Table, line_of:
     for p in &params {
         let clash = if ["rest_time", "age"].contains(&p.name.as_str()) || covariates.iter().any(|c| *c == p.name) {
             Some("a covariate")
-        } else if material.get(&p.name).and_then(crate::measure::data::number).is_some() {
+        } else if material.get(&p.name).and_then(crate::measure::observation::number).is_some() {
             Some("a number of [material]")
         } else {
             None
@@ -131,7 +131,7 @@ pub fn declare(name: &str, table: &toml::Table, material: &toml::Table, line_of:
                         "{here}.sets.\"{key}\"{line}: unknown symbol '{s}' in '{text}'; an expression reads the effect's parameters ({}), rest_time, age, the covariates it lists in `covariates` ({}), a key in full (material.KEY) or a number of [material] by name ({})",
                         names_or_none(params.iter().map(|p| p.name.as_str())),
                         names_or_none(covariates.iter().map(String::as_str)),
-                        names_or_none(material.iter().filter(|(_, v)| crate::measure::data::number(v).is_some()).map(|(k, _)| k.as_str())),
+                        names_or_none(material.iter().filter(|(_, v)| crate::measure::observation::number(v).is_some()).map(|(k, _)| k.as_str())),
                     )
                 })
             })
@@ -151,7 +151,7 @@ pub fn declare(name: &str, table: &toml::Table, material: &toml::Table, line_of:
         let i = params.iter().position(|p| p.name == *k).ok_or_else(|| {
             format!("{here}: unknown key '{k}'; a declared effect has {}, {CANDIDATE}, and the values of its parameters ({})", DECLARATION.join(", "), names_or_none(params.iter().map(|p| p.name.as_str())))
         })?;
-        values[i] = crate::measure::data::number(v).ok_or_else(|| format!("{here}.{k} must be a number"))?;
+        values[i] = crate::measure::observation::number(v).ok_or_else(|| format!("{here}.{k} must be a number"))?;
     }
     let declaration: toml::Table = table.iter().filter(|(k, _)| DECLARATION.contains(&k.as_str())).map(|(k, v)| (k.clone(), v.clone())).collect();
     let effect = intern(name, about, params, sets, declaration);
@@ -190,7 +190,7 @@ fn resolve(symbol: &str, params: &[Spec], covariates: &[String], material: &toml
     if symbol.contains('.') {
         return Some(Read::Key(symbol.to_string()));
     }
-    material.get(symbol).and_then(crate::measure::data::number).map(|_| Read::Key(format!("material.{symbol}")))
+    material.get(symbol).and_then(crate::measure::observation::number).map(|_| Read::Key(format!("material.{symbol}")))
 }
 
 /// A parameter as declared, before the effect is kept (see [`intern`]).
@@ -220,7 +220,7 @@ fn read_params(here: &str, v: Option<&toml::Value>) -> Result<Vec<Spec>, String>
         }
         let num = |k: &str, default: Option<f64>| -> Result<f64, String> {
             match spec.get(k) {
-                Some(v) => crate::measure::data::number(v).ok_or_else(|| format!("{at}.{k} must be a number")),
+                Some(v) => crate::measure::observation::number(v).ok_or_else(|| format!("{at}.{k} must be a number")),
                 None => default.ok_or_else(|| format!("{at}: give {k}")),
             }
         };
@@ -297,7 +297,7 @@ impl Declared {
     /// Refuse a declaration that does not vanish at its null: each key it sets that the
     /// material gives must come back unchanged, at a few values of the covariates.
     fn check_null(&self, material: &toml::Table) -> Result<(), String> {
-        let keys: Keys = material.iter().filter_map(|(k, v)| crate::measure::data::number(v).map(|n| (format!("material.{k}"), n))).collect();
+        let keys: Keys = material.iter().filter_map(|(k, v)| crate::measure::observation::number(v).map(|n| (format!("material.{k}"), n))).collect();
         let null: Vec<f64> = self.params.iter().map(|s| s.null).collect();
         for (rest_time, age, c) in [(0.0, 0.0, 0.0), (240.0, 1800.0, 1.0), (600.0, 7200.0, 25.0)] {
             let mut x = Covariates { rest_time, age, ..Default::default() };

@@ -63,7 +63,7 @@ impl Effect for Process {
     fn check_scenario(&self, scenario: &toml::Table) -> Result<(), String> {
         let print = scenario.get("print").ok_or("acts on the printing process, and this scenario prints nothing (no [print])")?;
         let null = self.params[0].null;
-        match print.get(self.field).map(super::super::data::number) {
+        match print.get(self.field).map(super::super::observation::number) {
             None => Ok(()),
             Some(Some(v)) if v == null => Ok(()),
             Some(v) => Err(format!("needs print.{} at its null {null}, and the scenario sets {}", self.field, v.map_or("a non-number".to_string(), |v| v.to_string()))),

@@ -1,0 +1,257 @@
+//! Running experiments under a model: the scenario keys each runs with, a simulation or a
+//! virtual-rheometer test producing every observable asked of it, and many experiments as
+//! independent jobs (`strand compare`, `synth`, `calibrate` and `diagnose` all run them here).
+//!
+//! A model file holds the `[material]` every experiment uses and the effects switched on
+//! (`model.rs`): its material replaces the scenario's own, its keys and its effects' keys are set,
+//! and an experiment's `set` overrides apply after them (a speed, a geometry). Each experiment
+//! runs once, producing every observable asked of it; experiments are independent jobs, run
+//! `jobs` at a time, and give the same numbers however many run together.
+
+use super::effects::Keys;
+use super::experiments::{Experiment, Experiments};
+use super::front::FrontTrace;
+use super::model::{set_path, Model};
+use super::observables::{observable_plan, reading_index};
+use super::observation::{Observable, Observation};
+use super::rheometer::{Protocol, Rheometer};
+use crate::grad::objective::{Frame, Objective};
+use crate::kernels::material::Material;
+use crate::scenario::Scenario;
+use crate::solver::Simulation;
+use std::path::Path;
+
+/// The scenario keys experiment `x` runs with: the model's for its covariates, then its own
+/// `set` overrides.
+pub fn experiment_keys(model: &Model, x: &Experiment) -> Result<Keys, String> {
+    let mut keys = model.keys(&x.covariates())?;
+    for (k, v) in &x.set {
+        keys.insert(k.clone(), number(v));
+    }
+    Ok(keys)
+}
+
+/// An override's value (validated as a number when the experiments were loaded).
+fn number(v: &toml::Value) -> f64 {
+    super::observation::number(v).unwrap_or(f64::NAN)
+}
+
+/// The model's values of `wanted` for experiment `x`; a simulation with `threads` threads (its
+/// scenario's when `None`).
+pub fn evaluate(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], threads: Option<usize>) -> Result<Vec<f64>, String> {
+    let r = experiment_keys(model, x).and_then(|keys| match (&x.scenario, &x.protocol) {
+        (Some(s), _) => simulate(model, &keys, &exps.base_dir.join(s), wanted, threads),
+        (None, Some(p)) => {
+            let (material, proto) = rheometer_setup(model, &keys, &exps.base_dir, p)?;
+            let readings = Rheometer::new(&*material, &proto)?.run();
+            wanted.iter().map(|o| reading_index(o, &readings).map(|k| readings[k].stress)).collect()
+        }
+        (None, None) => Err("neither scenario nor protocol".into()),
+    });
+    r.map_err(|e| format!("experiment '{}': {e}", x.id))
+}
+
+/// The scenario of a simulation experiment: the file's, with the model's `[material]` in place
+/// of its own and every key set.
+pub fn scenario_text(model: &Model, keys: &Keys, scenario: &Path) -> Result<String, String> {
+    let text = std::fs::read_to_string(scenario).map_err(|e| format!("{}: {e}", scenario.display()))?;
+    let mut doc: toml::Table = text.parse().map_err(|e| format!("{}: {e}", scenario.display()))?;
+    doc.insert("material".into(), toml::Value::Table(model.material_for(keys)));
+    for (e, _) in &model.effects {
+        e.check_scenario(&doc).map_err(|m| format!("effect '{}' {m} in {}", e.name(), scenario.display()))?;
+    }
+    for (k, v) in keys {
+        let at = super::effects::placed(k, &doc);
+        set_path(&mut doc, &at, *v).map_err(|e| format!("set.{k}: {e}"))?;
+    }
+    toml::to_string(&doc).map_err(|e| e.to_string())
+}
+
+pub fn parse_scenario(text: &str, scenario: &Path) -> Result<Scenario, String> {
+    let mut sc = Scenario::parse(text).map_err(|e| format!("{}: {e}", scenario.display()))?;
+    sc.base_dir = scenario.parent().map(Path::to_path_buf).unwrap_or_default();
+    sc.checkpoint.enabled = false;
+    Ok(sc)
+}
+
+fn simulate(model: &Model, keys: &Keys, scenario: &Path, wanted: &[Observable], threads: Option<usize>) -> Result<Vec<f64>, String> {
+    let mut sc = parse_scenario(&scenario_text(model, keys, scenario)?, scenario)?;
+    if let Some(t) = threads {
+        sc.simulation.threads = t;
+    }
+    let end = sc.simulation.end_time;
+    let mut values = vec![0.0; wanted.len()];
+    // a print's failure layer and time: one run to the failure, observed as `strand run` does
+    let failing: Vec<usize> = (0..wanted.len()).filter(|&k| crate::failure::OBSERVABLES.contains(&wanted[k].name.as_str())).collect();
+    if !failing.is_empty() {
+        let (failure, layers) = crate::report::failure_of(&sc)?;
+        for &k in &failing {
+            values[k] = crate::failure::observable(&wanted[k].name, failure.as_ref(), layers, end)?;
+        }
+    }
+    // the front's arrival and stop: its history over the whole run (`front.rs`)
+    let history: Vec<usize> = (0..wanted.len()).filter(|&k| super::front::OBSERVABLES.contains(&wanted[k].name.as_str())).collect();
+    let rest: Vec<usize> = (0..wanted.len()).filter(|k| !failing.contains(k) && !history.contains(k)).collect();
+    if rest.is_empty() && history.is_empty() {
+        return Ok(values);
+    }
+    let mut plan: Vec<(usize, f64, Objective)> = rest.iter().map(|&k| observable_plan(&wanted[k], end).map(|(t, o)| (k, t, o))).collect::<Result<_, _>>()?;
+    plan.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let mut sim = Simulation::new(&sc).map_err(|e| e.to_string())?;
+    let mut trace = if history.is_empty() { None } else { Some(FrontTrace::start(&sim)?) };
+    for (k, t, obj) in plan {
+        step_to(&mut sim, t, trace.as_mut())?;
+        values[k] = obj.evaluate(&sim, &Frame::of(&sim), None)?;
+    }
+    if let Some(mut trace) = trace {
+        step_to(&mut sim, end, Some(&mut trace))?;
+        for k in history {
+            values[k] = trace.value(&wanted[k])?;
+        }
+    }
+    Ok(values)
+}
+
+/// Step `sim` to time `t`, recording the front after each step into `trace` when given.
+fn step_to(sim: &mut Simulation, t: f64, mut trace: Option<&mut FrontTrace>) -> Result<(), String> {
+    while sim.time < t * (1.0 - 1e-12) {
+        sim.step_until(t).map_err(|e| e.to_string())?;
+        if let Some(tr) = trace.as_mut() {
+            tr.record(sim)?;
+        }
+    }
+    Ok(())
+}
+
+/// The material of a rheometer experiment (the model's, with its `material.*` keys; walls and the
+/// printing process do not reach a rheometer) and its protocol.
+pub fn rheometer_setup(model: &Model, keys: &Keys, base: &Path, protocol: &toml::Value) -> Result<(Box<dyn Material>, Protocol), String> {
+    let mut mat = model.material_for(keys);
+    for (k, v) in keys {
+        match k.strip_prefix("material.") {
+            Some(key) => {
+                mat.insert(key.to_string(), toml::Value::Float(*v));
+            }
+            None if k.starts_with("boundary.") || k.starts_with("print.") => {}
+            None => return Err(format!("set.{k}: a rheometer test takes material keys only")),
+        }
+    }
+    let material = crate::materials::build_material(&mat)?;
+    let proto: Protocol = match protocol {
+        toml::Value::String(file) => {
+            let p = base.join(file);
+            let text = std::fs::read_to_string(&p).map_err(|e| format!("{}: {e}", p.display()))?;
+            toml::from_str(&text).map_err(|e| format!("{}: {}", p.display(), e.message()))?
+        }
+        v => v.clone().try_into().map_err(|e: toml::de::Error| format!("protocol: {}", e.message()))?,
+    };
+    Ok((material, proto))
+}
+
+/// The observations grouped by experiment, in order of first appearance.
+pub fn group(data: &[Observation]) -> Vec<(String, Vec<Observable>)> {
+    let mut wanted: Vec<(String, Vec<Observable>)> = Vec::new();
+    for o in data {
+        match wanted.iter_mut().find(|(id, _)| *id == o.experiment) {
+            Some((_, v)) => v.push(o.observable.clone()),
+            None => wanted.push((o.experiment.clone(), vec![o.observable.clone()])),
+        }
+    }
+    wanted
+}
+
+/// The model's value of every observation, in the data's order.
+pub fn model_values(model: &Model, data: &[Observation], exps: &Experiments, jobs: usize) -> Result<Vec<f64>, String> {
+    let wanted = group(data);
+    let values = evaluate_all(model, exps, &wanted, jobs)?;
+    Ok(ungroup(data, &wanted, &values))
+}
+
+/// Per-experiment results back in the data's order.
+pub fn ungroup<T: Clone>(data: &[Observation], wanted: &[(String, Vec<Observable>)], per: &[Vec<T>]) -> Vec<T> {
+    let mut seen = vec![0usize; wanted.len()];
+    data.iter()
+        .map(|o| {
+            let e = wanted.iter().position(|(id, _)| *id == o.experiment).expect("grouped");
+            seen[e] += 1;
+            per[e][seen[e] - 1].clone()
+        })
+        .collect()
+}
+
+/// Evaluate each experiment's `wanted` observables, `jobs` experiments at a time.
+pub fn evaluate_all(model: &Model, exps: &Experiments, wanted: &[(String, Vec<Observable>)], jobs: usize) -> Result<Vec<Vec<f64>>, String> {
+    let threads = job_threads(jobs);
+    par_map(wanted.len(), jobs, |k| {
+        let (id, obs) = &wanted[k];
+        evaluate(model, exps, find(exps, id)?, obs, threads)
+    })
+}
+
+/// Threads of each simulation when `jobs` run side by side: the cores shared out (at least one
+/// each), so the jobs' thread teams together do not outnumber the cores (teams beyond the cores
+/// wait on each other: system time, not work). `None` (the scenario's own) for one job.
+pub fn job_threads(jobs: usize) -> Option<usize> {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    (jobs > 1).then(|| (cores / jobs).max(1))
+}
+
+/// Experiment `id`, or an error listing the ids there are.
+pub fn find<'a>(exps: &'a Experiments, id: &str) -> Result<&'a Experiment, String> {
+    exps.get(id).ok_or_else(|| format!("experiment '{id}' is not in the experiments file (it has {})", exps.experiment.iter().map(|e| e.id.as_str()).collect::<Vec<_>>().join(", ")))
+}
+
+/// `f(0..n)` as independent jobs, `jobs` at a time; results in index order whatever the number
+/// of jobs, the first error (by index) if any failed.
+pub fn par_map<T: Send>(n: usize, jobs: usize, f: impl Fn(usize) -> Result<T, String> + Sync) -> Result<Vec<T>, String> {
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let results: Vec<std::sync::Mutex<Option<Result<T, String>>>> = (0..n).map(|_| std::sync::Mutex::new(None)).collect();
+    std::thread::scope(|s| {
+        for _ in 0..jobs.clamp(1, n.max(1)) {
+            s.spawn(|| loop {
+                let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                if k >= n {
+                    break;
+                }
+                let r = f(k);
+                *results[k].lock().unwrap() = Some(r);
+            });
+        }
+    });
+    results.into_iter().map(|m| m.into_inner().unwrap().expect("every job ran")).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::fixture::setup;
+    use super::*;
+
+    #[test]
+    fn unknown_experiments_and_readings_are_named() {
+        let (m, e) = setup();
+        let data = vec![Observation { experiment: "nope".into(), observable: Observable::parse("stress@5").unwrap(), value: 1.0, uncertainty: 1.0 }];
+        let err = model_values(&m, &data, &e, 1).unwrap_err();
+        assert!(err.contains("'nope'") && err.contains("flow, weak"), "{err}");
+        let data = vec![Observation { experiment: "flow".into(), observable: Observable::parse("stress@7").unwrap(), value: 1.0, uncertainty: 1.0 }];
+        let err = model_values(&m, &data, &e, 1).unwrap_err();
+        assert!(err.contains("flow") && err.contains("no reading at rate 7"), "{err}");
+    }
+}
+
+/// Two rheometer experiments under a Bingham model: the fixture of the runner's, the
+/// comparison's and the synthesis's unit tests.
+#[cfg(test)]
+pub(super) mod fixture {
+    use super::{Experiments, Model};
+
+    pub const MODEL: &str = "[material]\nkind = \"bingham\"\ndensity = 2100.0\nbulk_modulus = 1e6\nviscosity = 7.5\nyield_stress = 630.0\n";
+    pub const EXPS: &str = "[[experiment]]\nid = \"flow\"\nobserve = [\"stress@20\", \"stress@5\"]\n[experiment.protocol]\n[[experiment.protocol.phase]]\nkind = \"sweep\"\nrates = [20.0, 5.0]\nhold = 0.5\n\n\
+                        [[experiment]]\nid = \"weak\"\nset = { \"material.yield_stress\" = 300.0 }\nobserve = [\"stress@5\"]\n[experiment.protocol]\n[[experiment.protocol.phase]]\nkind = \"shear\"\nrate = 5.0\nduration = 0.5\n";
+
+    pub fn setup() -> (Model, Experiments) {
+        let m = Model::from_table(&MODEL.parse().unwrap()).unwrap();
+        let e: Experiments = toml::from_str(EXPS).unwrap();
+        e.validate().unwrap();
+        (m, e)
+    }
+}
