@@ -318,14 +318,14 @@ fn hidden_structuration_is_found_from_failure_heights() {
 /// is 0. At the null of a structuration rate (A_thix = 0, its scale 0.5 Pa/s) no failure layer of
 /// the failure campaign's mid-rate wall moves, so the step widens until the layer has moved by
 /// two stairs: the column is then positive (a mortar that structures at rest stands longer) and
-/// near the staircase's mean slope (measured: 2 layers over 32 Pa/s, 0.0625; layer 5 at 20 Pa/s,
+/// near the staircase's mean slope (measured: 2 layers over 32 Pa/s, 0.0625; layer 6 at 40 Pa/s,
 /// 0.05 a layer per Pa/s).
 #[test]
 fn a_failure_layers_column_resolves_its_staircase() {
     use strand::measure::{data::{Experiments, Observable}, model::Model, sensitivity};
     let d = fixtures("failure");
     let exps = Experiments::load(&d.join("experiments.toml")).unwrap();
-    let text = std::fs::read_to_string(d.join("truth_thixotropy.toml")).unwrap().replace("a_thix = 20.0", "a_thix = 0.0");
+    let text = std::fs::read_to_string(d.join("truth_thixotropy.toml")).unwrap().replace("a_thix = 40.0", "a_thix = 0.0");
     let model = Model::from_table(&text.parse().unwrap()).unwrap();
     let wanted = [Observable::parse("failure_layer").unwrap(), Observable::parse("failure_time").unwrap()];
     let names = ["thixotropy.a_thix".to_string()];
