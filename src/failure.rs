@@ -33,8 +33,9 @@
 //! (a width is resolved to a fraction of a cell), so it has no default.
 //!
 //! The failure layer is the layer being printed (or the last one started) when the sinking
-//! began (when the nozzle passed the station, for spreading): 1 is the first layer. The detector is a pure function of the observation history, so
-//! a resumed run finds the same failure.
+//! began (when the nozzle passed the station, for spreading): 1 is the first layer. The
+//! detector is a pure function of the observation history, so a resumed run finds the same
+//! failure.
 
 use crate::print::toolpath::{MoveKind, Toolpath};
 use crate::observe::CrossSection;
