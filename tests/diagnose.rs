@@ -292,7 +292,7 @@ fn two_hidden_effects_are_resolved_by_rounds() {
 /// columns are central differences of forward runs (measure/sensitivity.rs). One candidate is
 /// fitted, without leave-one-out refits, and every fit stops after 4 iterations.
 #[test]
-#[ignore = "passes (thixotropy first, score 1962; verdict add thixotropy; error x 0.068; wall friction LR 23, error x 0.994), but takes 735 CPU s, 876 of 1269 wall s in the likelihood-ratio fits: beyond make test's budget"]
+#[ignore = "passes (thixotropy first, score 1962; verdict add thixotropy; error x 0.068; wall friction LR 23, error x 0.994), but costs 735 CPU s (1233 s here, 859 of them in the likelihood-ratio fits, on the shared machine): beyond make test's budget"]
 fn hidden_structuration_is_found_from_failure_heights() {
     let d = fixtures("failure");
     let tmp = tempfile::tempdir().unwrap();
