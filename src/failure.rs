@@ -23,9 +23,19 @@
 //! height) against the nominal height of the layers printed over it: the nozzle then lays the
 //! next layer in the air a layer or more above the top, a print no one would go on with.
 //!
+//! A wall that spreads can stand on its widening base for many layers, its top still rising
+//! nearly a layer per layer, while its bottom has long yielded (BENCHMARKS.md "Printing to
+//! failure"). With `spread` set, the print has also failed when the section's width at a
+//! station, read just before the nozzle next passes it, has grown by more than `spread` over a
+//! layer, once it had grown by less over an earlier one: the first layers spread under the
+//! squeeze of the next, then the width stands until the weight above yields the bottom (the
+//! plastic-collapse criterion's onset, docs/failure.md). The threshold depends on the cell size
+//! (a width is resolved to a fraction of a cell), so it has no default.
+//!
 //! The failure layer is the layer being printed (or the last one started) when the sinking
-//! began: 1 is the first layer. The detector is a pure function of the observation history, so
-//! a resumed run finds the same failure.
+//! began (when the nozzle passed the station, for spreading): 1 is the first layer. The
+//! detector is a pure function of the observation history, so a resumed run finds the same
+//! failure.
 
 use crate::print::toolpath::{MoveKind, Toolpath};
 use crate::observe::CrossSection;
@@ -46,6 +56,11 @@ pub struct FailureConfig {
     /// station before the print has failed; default one layer height.
     #[serde(default)]
     pub lost: Option<f64>,
+    /// Growth [m] of the section's width at a station over one layer, read just before the
+    /// nozzle next passes it, past which the print has failed (once the width grew by less over
+    /// an earlier layer); default: no spreading rule.
+    #[serde(default)]
+    pub spread: Option<f64>,
     /// End the run this long after the failure time [s]; default: run to `end_time`.
     #[serde(default)]
     pub stop_after: Option<f64>,
@@ -53,7 +68,7 @@ pub struct FailureConfig {
 
 impl Default for FailureConfig {
     fn default() -> Self {
-        FailureConfig { sink_rate: None, window: default_window(), lost: None, stop_after: None }
+        FailureConfig { sink_rate: None, window: default_window(), lost: None, spread: None, stop_after: None }
     }
 }
 
@@ -68,9 +83,11 @@ impl FailureConfig {
                 return Err(format!("observe.failure.sink_rate must be > 0 m/s, got {r}"));
             }
         }
-        if let Some(l) = self.lost {
-            if !(l > 0.0 && l.is_finite()) {
-                return Err(format!("observe.failure.lost must be > 0 m, got {l}"));
+        for (name, v) in [("lost", self.lost), ("spread", self.spread)] {
+            if let Some(l) = v {
+                if !(l > 0.0 && l.is_finite()) {
+                    return Err(format!("observe.failure.{name} must be > 0 m, got {l}"));
+                }
             }
         }
         if !(self.window > 0.0 && self.window.is_finite()) {
@@ -113,6 +130,8 @@ pub struct Detector {
     clearance: f64,
     /// Height the top may lose against the nominal [m].
     lost: f64,
+    /// Width growth over a layer past which the print has failed [m], if that rule is on.
+    spread: Option<f64>,
 }
 
 impl Detector {
@@ -136,6 +155,7 @@ impl Detector {
             window: cfg.window,
             clearance: 3.0 * nozzle_half_x,
             lost: cfg.lost.unwrap_or(h),
+            spread: cfg.spread,
         })
     }
 
@@ -169,29 +189,38 @@ impl Detector {
             // the current run of outputs (nozzle away) whose top sank faster than the threshold
             let mut prev: Option<(f64, f64)> = None;
             let mut start: Option<f64> = None;
+            let mut spreading = Spreading::default();
+            let mut found = |f: Failure| {
+                if first.is_none_or(|g| f.time < g.time) {
+                    first = Some(f);
+                }
+            };
             for o in history {
                 let (time, sections) = at(o);
                 let Some(s) = sections.get(k) else { break };
                 let x = self.toolpath.state_at(time).position[0];
-                if (x - s.station).abs() < self.clearance || s.particles == 0 {
+                if (x - s.station).abs() < self.clearance {
+                    if let Some(t) = self.spread.and_then(|limit| spreading.pass(time, limit)) {
+                        found(self.failure(t, s.station));
+                        break;
+                    }
                     (prev, start) = (None, None);
                     continue;
                 }
+                if s.particles == 0 {
+                    (prev, start) = (None, None);
+                    continue;
+                }
+                spreading.away = Some(s.width);
                 if self.nominal_at(s.station, time) - s.height >= self.lost {
-                    let f = self.failure(time, s.station);
-                    if first.is_none_or(|g| f.time < g.time) {
-                        first = Some(f);
-                    }
+                    found(self.failure(time, s.station));
                     break;
                 }
                 if let Some((t0, h0)) = prev {
                     if (h0 - s.height) > self.sink_rate * (time - t0) {
                         let t_start = *start.get_or_insert(t0);
                         if time - t_start >= self.window * (1.0 - 1e-9) {
-                            let f = self.failure(t_start, s.station);
-                            if first.is_none_or(|g| f.time < g.time) {
-                                first = Some(f);
-                            }
+                            found(self.failure(t_start, s.station));
                             break;
                         }
                     } else {
@@ -207,6 +236,37 @@ impl Detector {
     fn failure(&self, time: f64, station: f64) -> Failure {
         let layer = self.layer_at(time);
         Failure { layer, time, station, height: self.layers[layer - 1].0 - self.base, sink_rate: self.sink_rate }
+    }
+}
+
+/// The spreading rule's state at one station: the section's width read just before each pass
+/// of the nozzle, compared with the one before the previous pass.
+#[derive(Default)]
+struct Spreading {
+    /// Width at the latest output with the nozzle away (None once the nozzle has come near).
+    away: Option<f64>,
+    /// Width read just before the last pass, and when that pass began.
+    before: Option<(f64, f64)>,
+    /// Whether the width has grown by less than the limit over a layer.
+    stood: bool,
+}
+
+impl Spreading {
+    /// The nozzle is near the station at `time`: on its first output near, the width read just
+    /// before is compared with the one before the previous pass. Returns when that previous
+    /// pass began if the width grew by more than `limit` over it, having stood before.
+    fn pass(&mut self, time: f64, limit: f64) -> Option<f64> {
+        let now = self.away.take()?;
+        let mut failed = None;
+        if let Some((then, passed)) = self.before {
+            let grew = now - then > limit;
+            if grew && self.stood {
+                failed = Some(passed);
+            }
+            self.stood |= !grew;
+        }
+        self.before = Some((now, time));
+        failed
     }
 }
 
@@ -257,13 +317,14 @@ mod tests {
         Arc::new(Toolpath::from_segments([0.0, 0.0, 0.01], &segs).unwrap())
     }
 
-    fn obs(time: f64, station: f64, height: f64) -> (f64, Vec<CrossSection>) {
+    fn obs(time: f64, station: f64, height: f64, width: f64) -> (f64, Vec<CrossSection>) {
         let section = CrossSection {
             station,
             slab: 0.001,
-            particles: 10,
+            // no particles at the station before the first layer is laid there (width 0)
+            particles: if width > 0.0 { 10 } else { 0 },
             profile: Vec::new(),
-            width: 0.02,
+            width,
             height,
             area: 0.0,
             profile_area: 0.0,
@@ -275,7 +336,11 @@ mod tests {
     /// Layer k of `wall(n)` spans [2.2 k, 2.2 k + 2] s (2 s of print, 0.2 s of rise); the
     /// station at x = 0.05 sees the nozzle at t = 1 s into each layer.
     fn history(height: impl Fn(f64) -> f64) -> Vec<(f64, Vec<CrossSection>)> {
-        (0..=200).map(|i| 0.05 * i as f64).map(|t| obs(t, 0.05, height(t))).collect()
+        spreading_history(height, |_| 0.02)
+    }
+
+    fn spreading_history(height: impl Fn(f64) -> f64, width: impl Fn(f64) -> f64) -> Vec<(f64, Vec<CrossSection>)> {
+        (0..=300).map(|i| 0.05 * i as f64).map(|t| obs(t, 0.05, height(t), width(t))).collect()
     }
 
     /// Layers printed over the station by `t`: the nozzle passes it 1 s into each layer.
@@ -334,6 +399,31 @@ mod tests {
     }
 
     #[test]
+    fn a_wall_whose_width_grows_after_standing_has_failed_by_spreading() {
+        let spreading = FailureConfig { spread: Some(0.0015), ..FailureConfig::default() };
+        let d = Detector::new(&spreading, wall(6), 0.005).unwrap();
+        // the top rises a full layer per layer (no sinking, nothing lost); the width grows 3 mm
+        // under the second layer's squeeze, stands (0.5 mm a layer) under the third and fourth,
+        // and grows 3 mm a layer from the fifth on: the bottom yielded under the fifth
+        let grown = [0.0, 3.0, 3.5, 4.0, 7.0, 10.0];
+        let width = |t: f64| if passed(t) < 1.0 { 0.0 } else { 0.02 + 1e-3 * grown[passed(t).min(6.0) as usize - 1] };
+        let f = d.detect(&spreading_history(|t| 0.01 * passed(t), width), |o| (o.0, &o.1[..])).expect("fails");
+        // the nozzle comes within 1.5 nozzle widths of the station 0.3 s before it passes it,
+        // 1 s into layer 5 (t = 9.8 s)
+        assert_eq!(f.layer, 5, "{f:?}");
+        assert!((f.time - 9.5).abs() <= 0.05 + 1e-9, "{f:?}");
+        // without the rule, or with a limit over the growth, the wall stands
+        let off = Detector::new(&FailureConfig::default(), wall(6), 0.005).unwrap();
+        assert_eq!(off.detect(&spreading_history(|t| 0.01 * passed(t), width), |o| (o.0, &o.1[..])), None);
+        let wide = Detector::new(&FailureConfig { spread: Some(0.004), ..FailureConfig::default() }, wall(6), 0.005).unwrap();
+        assert_eq!(wide.detect(&spreading_history(|t| 0.01 * passed(t), width), |o| (o.0, &o.1[..])), None);
+        // a wall that spreads from its first layers on, never standing, has not failed by this
+        // rule: the first layers spread under the squeeze of the next
+        let always = |t: f64| if passed(t) < 1.0 { 0.0 } else { 0.02 + 3e-3 * passed(t) };
+        assert_eq!(d.detect(&spreading_history(|t| 0.01 * passed(t), always), |o| (o.0, &o.1[..])), None);
+    }
+
+    #[test]
     fn the_nozzle_passing_the_station_is_not_a_failure() {
         let d = Detector::new(&FailureConfig::default(), wall(4), 0.005).unwrap();
         // the tube's material stands 20 mm above the top while the nozzle is over the station,
@@ -352,5 +442,7 @@ mod tests {
         assert!(bad.validate().unwrap_err().contains("window"));
         let bad = FailureConfig { sink_rate: Some(-1.0), ..FailureConfig::default() };
         assert!(bad.validate().unwrap_err().contains("sink_rate"));
+        let bad = FailureConfig { spread: Some(0.0), ..FailureConfig::default() };
+        assert!(bad.validate().unwrap_err().contains("spread"));
     }
 }

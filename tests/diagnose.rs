@@ -288,14 +288,16 @@ fn two_hidden_effects_are_resolved_by_rounds() {
 }
 
 /// Structuration from failure heights (issue 31): the layer and time at which a wall printed at
-/// three build rates fails (fixtures/measure/failure: 10 mm cells, a run well under a second),
-/// synthesised from a truth with a structural build-up at rest (A_thix = 20 Pa/s) and diagnosed
-/// from a base model without it. The failure observables have no adjoint: their Jacobian
+/// three build rates fails (fixtures/measure/failure: 10 mm cells, a layer every 0.65, 1.0 and
+/// 1.6 s), synthesised from a truth with a structural build-up at rest (A_thix = 40 Pa/s:
+/// failure layers 5, 6, 8) and diagnosed from a base model without it. Structuration gains
+/// A_thix T of strength under each layer, so the failure comes later the slower the print; a
+/// yield stress or a Coulomb floor moves it at every rate alike (docs/failure.md), so the
+/// campaign itself tells them apart. The failure observables have no adjoint: their Jacobian
 /// columns are central differences of forward runs (measure/sensitivity.rs). One candidate is
-/// fitted, without leave-one-out refits (each would refit on differenced Jacobians: several
-/// times this test's runs).
+/// fitted, without leave-one-out refits, and every fit stops after 4 iterations.
 #[test]
-#[ignore = "fails: thixotropy is significant (score 409, p = 3e-91; 0 before the step widened), but a Coulomb floor (wall_friction, mu = 0.2) fits these six observations as well (LR 1151, error x 0.056) and is chosen: three failure layers one layer apart do not tell structuration from floor slip; 200 CPU s"]
+#[ignore = "passes (thixotropy first, score 1962; verdict add thixotropy; error x 0.068; wall friction LR 23, error x 0.994), but costs 735 CPU s (1233 s here, 859 of them in the likelihood-ratio fits, on the shared machine): beyond make test's budget"]
 fn hidden_structuration_is_found_from_failure_heights() {
     let d = fixtures("failure");
     let tmp = tempfile::tempdir().unwrap();
@@ -306,7 +308,7 @@ fn hidden_structuration_is_found_from_failure_heights() {
     let base = d.join("base.toml");
     let args = [
         "diagnose", "--model", s(&base), "--data", s(&data), "--experiments", s(&exps),
-        "--fit", "material.yield_stress", "--json", "--jobs", "2", "--max-fitted", "1", "--no-loo",
+        "--fit", "material.yield_stress", "--json", "--jobs", "2", "--max-fitted", "1", "--no-loo", "--max-iterations", "4",
     ];
     let (code, json, err) = strand(&args);
     assert_eq!(code, 0, "{err}");
@@ -316,21 +318,21 @@ fn hidden_structuration_is_found_from_failure_heights() {
     assert_eq!(c["effect"], "thixotropy", "{v:#}");
     assert_eq!(v["verdict"], "add thixotropy", "{v:#}");
     let ratio = c["error_ratio"].as_f64().unwrap();
-    assert!(ratio <= 0.5, "recalibrated error {ratio} of the base model's: {v:#}");
+    assert!(ratio <= 0.3, "recalibrated error {ratio} of the base model's: {v:#}");
 }
 
 /// A failure layer is a staircase in a parameter: a difference over a step that crosses no stair
 /// is 0. At the null of a structuration rate (A_thix = 0, its scale 0.5 Pa/s) no failure layer of
 /// the failure campaign's mid-rate wall moves, so the step widens until the layer has moved by
 /// two stairs: the column is then positive (a mortar that structures at rest stands longer) and
-/// near the staircase's mean slope (measured: 2 layers over 32 Pa/s, 0.0625; layer 5 at 20 Pa/s,
+/// near the staircase's mean slope (measured: 2 layers over 32 Pa/s, 0.0625; layer 6 at 40 Pa/s,
 /// 0.05 a layer per Pa/s).
 #[test]
 fn a_failure_layers_column_resolves_its_staircase() {
     use strand::measure::{experiments::Experiments, model::Model, observation::Observable, sensitivity};
     let d = fixtures("failure");
     let exps = Experiments::load(&d.join("experiments.toml")).unwrap();
-    let text = std::fs::read_to_string(d.join("truth_thixotropy.toml")).unwrap().replace("a_thix = 20.0", "a_thix = 0.0");
+    let text = std::fs::read_to_string(d.join("truth_thixotropy.toml")).unwrap().replace("a_thix = 40.0", "a_thix = 0.0");
     let model = Model::from_table(&text.parse().unwrap()).unwrap();
     let wanted = [Observable::parse("failure_layer").unwrap(), Observable::parse("failure_time").unwrap()];
     let names = ["thixotropy.a_thix".to_string()];

@@ -338,6 +338,22 @@ fn a_failing_wall_fails_at_the_same_layer_asleep_and_awake() {
     assert!((asleep.time - awake.time).abs() <= 0.1 * period, "asleep {asleep:?}, awake {awake:?}");
 }
 
+/// A wall that spreads is found failed by its width (`[observe] failure.spread`, docs/failure.md)
+/// while its top still rises: at 300 Pa the tiny wall's width, read before each pass, grows 3.6
+/// and 3.7 mm under the squeeze of the second and third layers, stands (under 1 mm a layer) under
+/// the next three, and grows 2.6, 3.2 and 3.8 mm a layer from the seventh on; the top rises until
+/// the tenth, where the default rules fire (measured, t = 14.3 s). The threshold, 1.5 mm, is the
+/// one the failure benchmark reads the yield onset with at the same 5 mm cells.
+#[test]
+fn a_wall_that_spreads_fails_by_its_width_before_its_top_sinks() {
+    let text = tiny_wall(10, 300.0, None);
+    assert!(text.contains("failure = { stop_after = 0.5 }"), "{text}");
+    let (f, _) = failure_of(&text.replace("failure = { stop_after = 0.5 }", "failure = { stop_after = 0.5, spread = 0.0015 }"));
+    let period = 0.05 / 0.04 + 0.1 + 0.12;
+    assert!((6..=8).contains(&f.layer), "{f:?}");
+    assert!(f.time < 9.0 * period, "{f:?}");
+}
+
 /// `[sleep] wake_by_load` defaults to on for a print of two or more layers and off for one
 /// layer; a value written in the scenario is kept.
 #[test]
