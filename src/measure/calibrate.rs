@@ -73,14 +73,6 @@ pub struct Fit {
 /// user reads.
 pub const CHI2_NEGLIGIBLE: f64 = 0.01;
 
-/// A fit also ends when its first trial step raises chi^2 where the undamped Gauss-Newton step
-/// predicted a drop below this times the reduced chi^2 (at least 1), a standard deviation: the
-/// model's values are rough on that scale (a print's section is sampled by particles), so its
-/// linearisation no longer says where the optimum is, and damping the step until one passes
-/// spends runs on less than the runs resolve (measured on the print campaign's friction truth:
-/// two steps of 0.02 in chi^2 2.6 after ten rejected trials, 170 s of 390).
-pub const CHI2_UNRESOLVED: f64 = 1.0;
-
 /// Sum of the squared standardised residuals of `values` against `data`.
 pub fn chi2(values: &[f64], data: &[Observation]) -> f64 {
     values.iter().zip(data).map(|(v, o)| ((v - o.value) / o.uncertainty).powi(2)).sum()
@@ -142,14 +134,13 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
         }
         let (a, g) = normal_equations(&jz, &z, &cols);
         let birge = (c2 / m.saturating_sub(cols.len()).max(1) as f64).max(1.0);
-        let (negligible, unresolved) = (CHI2_NEGLIGIBLE * birge, CHI2_UNRESOLVED * birge);
-        let predicted = predicted_drop(&a, &g);
-        if predicted < negligible {
+        let negligible = CHI2_NEGLIGIBLE * birge;
+        if predicted_drop(&a, &g) < negligible {
             converged = true;
             break;
         }
         let mut accepted = false;
-        for trial_number in 0..12 {
+        for _ in 0..12 {
             let mut damped: Mat = a.clone();
             for (k, row) in damped.iter_mut().enumerate() {
                 row[k] += lambda * a[k][k].max(1e-12);
@@ -200,10 +191,6 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
                 if gain < opts.tolerance || drop < negligible {
                     converged = true;
                 }
-                break;
-            }
-            if trial_number == 0 && predicted < unresolved {
-                converged = true;
                 break;
             }
             lambda *= 4.0;

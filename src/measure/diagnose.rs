@@ -324,7 +324,7 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
             // and the fitted parameters may move to where it has
             say(format!("{}: its likelihood ratio, from {}", e.name(), if std::ptr::eq(from, model) { "the model's values" } else { "the base fit's values" }));
             let start_values = opts.fit.engine.sensitivity(opts.fit.jobs, &with, data, exps, Some(&fnames))??;
-            let at_start = calibrate_from(&with, data, exps, &fnames, &FitOptions { max_iterations: 0, ..opts.fit.clone() }, start_values.clone())?;
+            let at_start = calibrate_from(&with, data, exps, &fnames, &FitOptions { max_iterations: 0, progress: false, ..opts.fit.clone() }, start_values.clone())?;
             let predicted = base.chi2 - at_start.chi2 + gauss_newton_drop(&at_start, data)?;
             let informed = at_start.influence[fit.len()..].iter().any(|&i| i);
             let (f, unfitted) = if informed && predicted < LR_WORTH_FITTING { (at_start, Some(predicted)) } else { (calibrate_from(&with, data, exps, &fnames, &opts.fit, start_values)?, None) };
