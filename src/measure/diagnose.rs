@@ -318,16 +318,16 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
             for (n, v) in fnames[fit.len()..].iter().zip(&start) {
                 with.set(n, *v)?;
             }
-            // the start's Jacobian, and the fit only where one Gauss-Newton step from it
-            // predicts a drop worth fitting for; an effect without influence at its start
-            // (G where every reading is past yield) is fitted: the step says nothing there,
-            // and the fitted parameters may move to where it has
+            // the start's Jacobian, and the fit only where the effect reaches the data there and
+            // one Gauss-Newton step from it predicts a drop worth fitting for: without influence
+            // (G where every reading is past yield) the fit would only refit the fitted
+            // parameters; from the model's values, where they are elsewhere, it may have
             say(format!("{}: its likelihood ratio, from {}", e.name(), if std::ptr::eq(from, model) { "the model's values" } else { "the base fit's values" }));
             let start_values = opts.fit.engine.sensitivity(opts.fit.jobs, &with, data, exps, Some(&fnames))??;
             let at_start = calibrate_from(&with, data, exps, &fnames, &FitOptions { max_iterations: 0, progress: false, ..opts.fit.clone() }, start_values.clone())?;
             let predicted = base.chi2 - at_start.chi2 + gauss_newton_drop(&at_start, data)?;
             let informed = at_start.influence[fit.len()..].iter().any(|&i| i);
-            let (f, unfitted) = if informed && predicted < LR_WORTH_FITTING { (at_start, Some(predicted)) } else { (calibrate_from(&with, data, exps, &fnames, &opts.fit, start_values)?, None) };
+            let (f, unfitted) = if !informed || predicted < LR_WORTH_FITTING { (at_start, Some(predicted)) } else { (calibrate_from(&with, data, exps, &fnames, &opts.fit, start_values)?, None) };
             if best.as_ref().is_none_or(|b| f.chi2 < b.chi2) {
                 best = Some(f);
                 screened = unfitted;
@@ -383,7 +383,7 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
         let effect = base.model.effect(&c.effect)?;
         let fnames = fit_names(fit, effect);
         let _ = lap(&mut since);
-        say(format!("{}: fitted, then checked by leaving each experiment out", c.effect));
+        say(format!("{}: fitted{}", c.effect, if opts.leave_one_out { ", then checked by leaving each experiment out" } else { "" }));
         let f = match prefit.remove(&c.effect) {
             Some(f) => f,
             // from the score tests' Jacobian, taken where every absent effect is at its null,
