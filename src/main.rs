@@ -329,6 +329,26 @@ impl EngineArgs {
         let threads = if self.job_threads == 0 { None } else { Some(self.job_threads) };
         strand::measure::engine::Engine::new(&self.engine, self.engine_dir.as_deref(), &exe, threads)
     }
+
+    /// A fit's options on this engine, `jobs` experiments at a time, each step on stderr.
+    fn fit_options(&self, max_iterations: usize, jobs: usize) -> Result<strand::measure::calibrate::FitOptions, String> {
+        Ok(strand::measure::calibrate::FitOptions { max_iterations, jobs, engine: self.engine()?, progress: true, ..Default::default() })
+    }
+}
+
+/// A fit's or a diagnosis's result on stdout: as JSON with the discretisation estimates, or as
+/// `text` after the estimates' `table`.
+fn print_result(json: bool, result: &impl serde::Serialize, disc: &Option<strand::measure::resolution::Counted>, table: impl Fn(&strand::measure::resolution::Counted) -> String, text: impl FnOnce() -> String) -> Result<(), String> {
+    use strand::measure::resolution;
+    if json {
+        println!("{:#}", resolution::with_estimates(serde_json::to_value(result).map_err(|e| e.to_string())?, disc)?);
+    } else {
+        if let Some(c) = disc {
+            print!("{}", table(c));
+        }
+        print!("{}", text());
+    }
+    Ok(())
 }
 
 impl MeasureInputs {
@@ -525,17 +545,9 @@ fn calibrate(args: CalibrateArgs) -> Result<bool, Failure> {
     check_writable(&out, "--out")?;
     check_writable(&plot, "--plot")?;
     let (d, disc) = resolution::counted_data(&m, d0, &e, inputs.jobs)?;
-    let opts = calibrate::FitOptions { max_iterations, jobs: inputs.jobs, engine: engine.engine()?, progress: true, ..Default::default() };
-    let f = calibrate::calibrate(&m, &d, &e, &fit, &opts)?;
+    let f = calibrate::calibrate(&m, &d, &e, &fit, &engine.fit_options(max_iterations, inputs.jobs)?)?;
     // the fitted values first: a file that fails to write then loses nothing
-    if inputs.json {
-        println!("{:#}", resolution::with_estimates(serde_json::to_value(&f).map_err(|e| e.to_string())?, &disc)?);
-    } else {
-        if let Some(c) = &disc {
-            print!("{}", resolution::report(&c.data, &c.estimates, &f.model_values, "fitted"));
-        }
-        print!("{}", calibrate::report(&f));
-    }
+    print_result(inputs.json, &f, &disc, |c| resolution::report(&c.data, &c.estimates, &f.model_values, "fitted"), || calibrate::report(&f))?;
     std::fs::write(&out, f.model.to_toml()).map_err(|e| format!("--out {}: {e}", out.display()))?;
     calibrate::plot_convergence(&f, &plot).map_err(|e| format!("--plot {}: {e}", plot.display()))?;
     eprintln!("calibrated model written to {}, convergence plot to {}", out.display(), plot.display());
@@ -545,7 +557,7 @@ fn calibrate(args: CalibrateArgs) -> Result<bool, Failure> {
 /// `strand diagnose`: which effect the model lacks, in one round or several.
 fn diagnose(args: DiagnoseArgs) -> Result<bool, Failure> {
     let DiagnoseArgs { inputs, fit, alpha, no_loo, loo_refits, max_fitted, out, max_iterations, rounds, engine } = args;
-    use strand::measure::{calibrate::FitOptions, diagnose, resolution};
+    use strand::measure::{diagnose, resolution};
     if !(alpha > 0.0 && alpha < 1.0) {
         return Err(format!("--alpha must be in (0, 1), got {alpha}").into());
     }
@@ -554,7 +566,7 @@ fn diagnose(args: DiagnoseArgs) -> Result<bool, Failure> {
         check_writable(out, "--out")?;
     }
     let (d, disc) = resolution::counted_data(&m, d0, &e, inputs.jobs)?;
-    let opts = diagnose::DiagnoseOptions { fit: FitOptions { max_iterations, jobs: inputs.jobs, engine: engine.engine()?, progress: true, ..Default::default() }, alpha, leave_one_out: !no_loo, exact_refits: loo_refits, max_fitted: max_fitted as usize };
+    let opts = diagnose::DiagnoseOptions { fit: engine.fit_options(max_iterations, inputs.jobs)?, alpha, leave_one_out: !no_loo, exact_refits: loo_refits, max_fitted: max_fitted as usize };
     if rounds > 1 {
         use strand::measure::rounds;
         let r = rounds::rounds(&m, &d, &e, &fit, &opts, rounds as usize)?;
@@ -572,14 +584,7 @@ fn diagnose(args: DiagnoseArgs) -> Result<bool, Failure> {
     }
     let r = diagnose::diagnose(&m, &d, &e, &fit, &opts)?;
     // the report first: a file that fails to write then loses nothing
-    if inputs.json {
-        println!("{:#}", resolution::with_estimates(serde_json::to_value(&r).map_err(|e| e.to_string())?, &disc)?);
-    } else {
-        if let Some(c) = &disc {
-            print!("{}", resolution::report(&c.data, &c.estimates, &c.start_values, "start"));
-        }
-        print!("{}", diagnose::report(&r));
-    }
+    print_result(inputs.json, &r, &disc, |c| resolution::report(&c.data, &c.estimates, &c.start_values, "start"), || diagnose::report(&r))?;
     if let (Some(out), Some(best)) = (&out, &r.recommended_model) {
         std::fs::write(out, best.to_toml()).map_err(|e| format!("--out {}: {e}", out.display()))?;
         eprintln!("model with {} written to {}", r.recommended.as_deref().unwrap_or(""), out.display());
