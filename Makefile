@@ -15,7 +15,8 @@ build:
 run: build
 	$(STRAND) run --out $(OUT)
 
-# Unit, property and integration tests (release-optimised; includes `strand verify --quick`).
+# Unit, property and integration tests (release-optimised; includes `strand verify --quick`). The
+# integration tests are one binary, tests/suite/ (one link, where one per file cost 6 minutes).
 test:
 	$(CARGO) test --release --workspace
 	$(CARGO) test --release -p strand-kernels --features f32
@@ -23,7 +24,7 @@ test:
 # The property tests of the four parsers (scenario TOML, G-code, measurement CSV, checkpoint
 # reader) with many more cases than `make test` runs: no panic, no hang.
 fuzz:
-	PROPTEST_CASES=20000 $(CARGO) test --release --test robustness parsers_ -- --test-threads 1
+	PROPTEST_CASES=20000 $(CARGO) test --release --test suite -- robustness::parsers_ --test-threads 1
 
 # The verification suite (the closed-form cases at full resolution, printing at reduced
 # resolution; the closed-form cases take 10 minutes on 2 cores, the printing cases roughly an hour
@@ -47,7 +48,7 @@ bench-peer:
 	bash bench/compare.sh
 
 bench-restart:
-	$(CARGO) test --release --test resume the_evp_print_restart_state -- --nocapture 2>&1 | grep -E "B/particle|test result"
+	$(CARGO) test --release --test suite -- resume::the_evp_print_restart_state --nocapture 2>&1 | grep -E "B/particle|test result"
 
 bench-kernels:
 	$(CARGO) bench -p strand-kernels --bench kernels

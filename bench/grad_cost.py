@@ -35,7 +35,7 @@ velocity = [0.3, 0.1, 0.0]
 budget = "16 MiB"
 """
 
-# The Poiseuille channel of tests/grad.rs (2,048 particles, 4,167 steps), whose state is large
+# The Poiseuille channel of tests/suite/grad.rs (2,048 particles, 4,167 steps), whose state is large
 # enough that the step's fixed costs do not dominate.
 CHANNEL = os.path.join(os.path.dirname(__file__), "..", "fixtures", "scenarios", "grad", "poiseuille.toml")
 

@@ -13,7 +13,7 @@
 //! BENCHMARKS.md "Thread team").
 //!
 //! Spinning pays only while every team thread has a core of its own; otherwise the spinner takes
-//! the core from the very thread it waits for. `cargo test --release --test grad` (two tests at
+//! the core from the very thread it waits for. `cargo test --release --test suite -- grad::` (two tests at
 //! once, each with a two-thread team, on two cores) took more than 8.5 min against 154-193 s with
 //! the barriers, and with one other single-thread process on the two cores the quick slump check
 //! took 131 s against 19 s. So a waiter spins only while (1) the team threads in use in this

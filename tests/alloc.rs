@@ -1,6 +1,7 @@
 //! The step loop allocates nothing on the heap. Its own test binary with a single test, because
 //! the counting allocator sees every thread of the process.
 
+#[path = "suite/common.rs"]
 mod common;
 
 use std::alloc::{GlobalAlloc, Layout, System};

@@ -99,7 +99,7 @@ fn default_load_time() -> f64 {
 }
 fn default_load_fraction() -> f64 {
     // Half: a unit wakes when the load added since it fell asleep approaches its margin to
-    // yield, so sleeping never holds up a collapse. Measured on the tiny wall of tests/print.rs
+    // yield, so sleeping never holds up a collapse. Measured on the tiny wall of tests/suite/print.rs
     // (6 mm layers, tau0 = 100 Pa, 5 mm cells), failure layer and time: all awake 5 at 7.06 s;
     // the speed rule alone 5 at 6.96 s; wake on load with the whole margin (1.0) 6 at 8.44 s, a
     // layer late; with half of it 5 at 6.96 s, and the fewest awake particle-steps of the four

@@ -9,7 +9,7 @@
 //! (`diagnose.rs`); where the experiments run (`engine.rs`: here, or as a scheduler's jobs) and
 //! what a saved result was computed from (`provenance.rs`).
 //!
-//! Imports point one way (no circle among these files, `tests/architecture.rs`): `observation.rs`
+//! Imports point one way (no circle among these files, `tests/suite/architecture.rs`): `observation.rs`
 //! at the bottom; then the observables, the effects and the model; the experiments; the runner;
 //! comparison and synthesis; reports and residual shapes; and sensitivity, calibration, the
 //! engine, diagnosis and rounds on top.

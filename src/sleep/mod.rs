@@ -30,7 +30,7 @@
 //! stack that grows slowly enough never sees fast material next to it, and stays frozen while the
 //! weight above passes its yield stress; the print would stand where it collapses awake. The load
 //! test wakes it when the added load approaches its margin (`load_fraction`, half by default),
-//! so sleeping does not hide a plastic collapse (tests/print.rs prints a wall to failure with and without sleeping; the cost against
+//! so sleeping does not hide a plastic collapse (tests/suite/print.rs prints a wall to failure with and without sleeping; the cost against
 //! the speed rule is in BENCHMARKS.md "Printing to failure").
 //!
 //! Material arriving faster than `arrive_speed` still wakes the units under it, and keeps them

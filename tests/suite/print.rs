@@ -4,7 +4,7 @@
 // `m as f64` is a no-op in the default build but a conversion with the `f32` feature.
 #![allow(clippy::unnecessary_cast)]
 
-mod common;
+use crate::common;
 
 use strand::run::{run_scenario, RunOptions};
 use strand::scenario::Scenario;

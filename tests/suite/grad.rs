@@ -2,7 +2,7 @@
 //! agrees with central differences and passes the Taylor test, the Poiseuille derivative matches
 //! the closed form, and a long backward pass stays within its RAM and disk caps.
 
-mod common;
+use crate::common;
 
 use std::process::Command;
 use strand::grad::schedule::Kind;
@@ -120,7 +120,7 @@ fn poiseuille_centre_speed_derivative_matches_the_closed_form() {
     // Steady plane Poiseuille flow: v_max = F H^2 / (8 eta), so dv_max/dF = H^2 / (8 eta)
     // (paper 000 sec. 4.1). H = 0.25 m, eta = 60 Pa s: the slowest mode decays in
     // H^2 rho / (pi^2 eta) = 0.21 s, so 1.5 s is steady to 1e-3.
-    let text = include_str!("../fixtures/scenarios/grad/poiseuille.toml");
+    let text = include_str!("../../fixtures/scenarios/grad/poiseuille.toml");
     let sc = Scenario::parse(text).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let r = gradient(&sc, &"vx_max".parse().unwrap(), &keys(&["simulation.body_force.x"]), &opts(None, dir.path())).unwrap();

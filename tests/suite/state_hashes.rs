@@ -4,7 +4,7 @@
 //! campaign's synthesised measurements and model values — are compared, bit for bit, with the
 //! values recorded in `tests/state_hashes/CASE.txt`.
 //!
-//! Re-recording: `STRAND_RECORD_HASHES=1 cargo test --release --test state_hashes` rewrites the
+//! Re-recording: `STRAND_RECORD_HASHES=1 cargo test --release --test suite -- state_hashes::` rewrites the
 //! files from this build instead of comparing. Do it only for a deliberate change of numerics, in
 //! a commit of its own that says why the numbers changed; a refactoring never re-records.
 //!
@@ -13,7 +13,7 @@
 //! the platform's libm for `exp`, `powf`, `ln`, ... (a different libm or target may round them
 //! differently, and then the file must be re-recorded on that machine).
 
-mod common;
+use crate::common;
 
 use std::path::PathBuf;
 use strand::run::{run_scenario, RunOptions};
@@ -31,7 +31,7 @@ fn set(text: &str, old: &str, new: &str) -> String {
 }
 
 /// The final state hash and step count of a whole `strand run` (outputs and all), on one thread
-/// (tests/print.rs asserts any thread count gives the same bits).
+/// (tests/suite/print.rs asserts any thread count gives the same bits).
 fn run_hash(text: &str) -> String {
     let dir = tempfile::tempdir().unwrap();
     let opts = RunOptions { out: dir.path().join("out"), quiet: true, threads: Some(1), ..Default::default() };
@@ -98,7 +98,7 @@ fn campaign() -> String {
 /// Compare `got` with `tests/state_hashes/NAME.txt`, or record it there with
 /// STRAND_RECORD_HASHES=1.
 fn check(name: &str, got: String) {
-    let path = root().join("tests/state_hashes").join(format!("{name}.txt"));
+    let path = root().join("tests/suite/state_hashes").join(format!("{name}.txt"));
     if std::env::var_os("STRAND_RECORD_HASHES").is_some_and(|v| v == "1") {
         std::fs::create_dir_all(path.parent().unwrap()).unwrap();
         std::fs::write(&path, format!("{got}\n")).unwrap();

@@ -1,6 +1,6 @@
 //! Solver-core properties: bit-identical results for any thread count, clean failures for budgets and pools that are too small, and blow-up reports.
 
-mod common;
+use crate::common;
 
 use strand::scenario::Scenario;
 use strand::solver::Simulation;

@@ -2,7 +2,7 @@
 //! load, a block slides down an inclined wall at the Coulomb acceleration, a gate holds material
 //! until it opens, a reduced L-box flows past its rebars to the end, and bad input names its key.
 
-mod common;
+use crate::common;
 
 use strand::scenario::Scenario;
 use strand::solver::Simulation;

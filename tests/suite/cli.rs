@@ -1,7 +1,7 @@
 //! The `strand` command line: a run writes its outputs, bad input is an error naming the problem,
 //! and a blow-up keeps what was computed plus the failing state.
 
-mod common;
+use crate::common;
 
 use std::process::Command;
 

@@ -2,7 +2,7 @@
 //! budgets and a full disk, each ending bit-identical to the run in one go (compared by the
 //! state hash over every particle array, and by the outputs).
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output};

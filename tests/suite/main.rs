@@ -1,0 +1,22 @@
+//! The integration tests, one module per area, in one binary: one link instead of one per file
+//! (`cargo test --release --test suite AREA::`). `tests/alloc.rs` stays apart: it installs its own
+//! global allocator.
+
+mod architecture;
+mod cli;
+mod common;
+mod diagnose;
+mod engine;
+mod grad;
+mod measure;
+mod measure_report;
+mod print;
+mod print_campaign;
+mod resolution;
+mod resume;
+mod robustness;
+mod shear_thinning;
+mod solids;
+mod solver_core;
+mod state_hashes;
+mod verify_quick;
