@@ -5,7 +5,7 @@ OUT ?= out
 TARGET_DIR := $(if $(CARGO_TARGET_DIR),$(CARGO_TARGET_DIR),target)
 STRAND := $(TARGET_DIR)/release/strand
 
-.PHONY: run test fuzz verify verify-quick bench bench-peer bench-restart bench-kernels bench-case1 bench-layers bench-layers-dwell bench-failure bench-convergence bench-nozzle-cells bench-nozzle-body bench-lbox lbox build fmt clippy clean
+.PHONY: run test fuzz verify verify-quick bench bench-peer bench-restart bench-kernels bench-case1 bench-layers bench-layers-dwell bench-failure bench-convergence bench-nozzle-cells bench-nozzle-body bench-lbox bench-print-diagnose lbox build fmt clippy clean
 
 build:
 	$(CARGO) build --release
@@ -99,6 +99,13 @@ bench-nozzle-cells: build
 # already in $(OUT)/nozzle_body is not repeated.
 bench-nozzle-body: build
 	python3 bench/nozzle_body.py --out $(OUT)/nozzle_body 5 2.5
+
+# A six-print campaign's diagnosis at 8 cells per nozzle diameter (the issue's target: 30
+# minutes on 2 cores): fixtures/measure/print/'s four lines and two walls at 1.5 mm cells against
+# data synthesised from its friction truth at 1 mm, timed by stage (bench/print_diagnose.sh;
+# BENCHMARKS.md "A print campaign's diagnosis").
+bench-print-diagnose: build
+	bash bench/print_diagnose.sh $(STRAND) $(OUT)/print_diagnose
 
 # Paper 001's L-box predicted from the slump flow: Mix-A and Mix-B calibrated on their three
 # slump flows only, then their L-box after 0 and 600 s of rest against Table 3 and 001's own MPM,

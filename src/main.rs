@@ -1,6 +1,7 @@
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 use std::process::ExitCode;
+use strand::measure::{experiments::Experiments, model::Model, observation::Observation, resolution::Counted};
 use strand::run::{run_scenario, RunOptions};
 use strand::scenario::Scenario;
 
@@ -338,7 +339,7 @@ impl EngineArgs {
 
 /// A fit's or a diagnosis's result on stdout: as JSON with the discretisation estimates, or as
 /// `text` after the estimates' `table`.
-fn print_result(json: bool, result: &impl serde::Serialize, disc: &Option<strand::measure::resolution::Counted>, table: impl Fn(&strand::measure::resolution::Counted) -> String, text: impl FnOnce() -> String) -> Result<(), String> {
+fn print_result(json: bool, result: &impl serde::Serialize, disc: &Option<Counted>, table: impl Fn(&Counted) -> String, text: impl FnOnce() -> String) -> Result<(), String> {
     use strand::measure::resolution;
     if json {
         println!("{:#}", resolution::with_estimates(serde_json::to_value(result).map_err(|e| e.to_string())?, disc)?);
@@ -352,8 +353,8 @@ fn print_result(json: bool, result: &impl serde::Serialize, disc: &Option<strand
 }
 
 impl MeasureInputs {
-    fn load(&self) -> Result<(strand::measure::model::Model, Vec<strand::measure::observation::Observation>, strand::measure::experiments::Experiments), String> {
-        use strand::measure::{experiments::Experiments, model::Model, observation::read_observations};
+    fn load(&self) -> Result<(Model, Vec<Observation>, Experiments), String> {
+        use strand::measure::observation::read_observations;
         Ok((Model::load(&self.model)?, read_observations(&self.data)?, Experiments::load(&self.experiments)?))
     }
 }
@@ -535,6 +536,17 @@ fn synth(args: SynthArgs) -> Result<bool, Failure> {
     Ok(true)
 }
 
+/// The data with their discretisation errors counted (`[resolution]`), saying on stderr how long
+/// the finer runs took: part of a fit's or a diagnosis's cost.
+fn counted_data(m: &Model, d: Vec<Observation>, e: &Experiments, jobs: usize) -> Result<(Vec<Observation>, Option<Counted>), String> {
+    let clock = std::time::Instant::now();
+    let counted = strand::measure::resolution::counted_data(m, d, e, jobs)?;
+    if counted.1.is_some() {
+        eprintln!("discretisation errors estimated from [resolution]'s cells in {:.0} s", clock.elapsed().as_secs_f64());
+    }
+    Ok(counted)
+}
+
 /// `strand calibrate`: the fit, its report, the calibrated model and the convergence plot.
 fn calibrate(args: CalibrateArgs) -> Result<bool, Failure> {
     let CalibrateArgs { inputs, fit, out, plot, max_iterations, engine } = args;
@@ -544,7 +556,7 @@ fn calibrate(args: CalibrateArgs) -> Result<bool, Failure> {
     let plot = plot.unwrap_or_else(|| out.with_extension("png"));
     check_writable(&out, "--out")?;
     check_writable(&plot, "--plot")?;
-    let (d, disc) = resolution::counted_data(&m, d0, &e, inputs.jobs)?;
+    let (d, disc) = counted_data(&m, d0, &e, inputs.jobs)?;
     let f = calibrate::calibrate(&m, &d, &e, &fit, &engine.fit_options(max_iterations, inputs.jobs)?)?;
     // the fitted values first: a file that fails to write then loses nothing
     print_result(inputs.json, &f, &disc, |c| resolution::report(&c.data, &c.estimates, &f.model_values, "fitted"), || calibrate::report(&f))?;
@@ -565,7 +577,7 @@ fn diagnose(args: DiagnoseArgs) -> Result<bool, Failure> {
     if let Some(out) = &out {
         check_writable(out, "--out")?;
     }
-    let (d, disc) = resolution::counted_data(&m, d0, &e, inputs.jobs)?;
+    let (d, disc) = counted_data(&m, d0, &e, inputs.jobs)?;
     let opts = diagnose::DiagnoseOptions { fit: engine.fit_options(max_iterations, inputs.jobs)?, alpha, leave_one_out: !no_loo, exact_refits: loo_refits, max_fitted: max_fitted as usize };
     if rounds > 1 {
         use strand::measure::rounds;
