@@ -287,26 +287,26 @@ fn two_hidden_effects_are_resolved_by_rounds() {
     assert!(written.contains("[effects.thixotropy]") && written.contains("[effects.viscosity_ageing]"), "{written}");
 }
 
-/// Structuration from failure heights (issue 31): the layer and time at which a wall printed at
-/// three build rates fails (fixtures/measure/failure: 10 mm cells, a layer every 0.65, 1.0 and
-/// 1.6 s), synthesised from a truth with a structural build-up at rest (A_thix = 40 Pa/s:
-/// failure layers 5, 6, 8) and diagnosed from a base model without it. Structuration gains
-/// A_thix T of strength under each layer, so the failure comes later the slower the print; a
-/// yield stress or a Coulomb floor moves it at every rate alike (docs/failure.md), so the
-/// campaign itself tells them apart. The failure observables have no adjoint: their Jacobian
-/// columns are central differences of forward runs (measure/sensitivity.rs). One candidate is
-/// fitted, without leave-one-out refits, and every fit stops after 4 iterations. Measured with
-/// the `strand diagnose` command below, on the commit that runs this test in `make test`:
-/// 336 CPU-s (wall: base fit 38 s, score tests 56 s, likelihood-ratio fits 84 s, the candidate's
-/// fit 110 s), thixotropy first (score 1962), error x 0.068; a Coulomb floor fitted lowers it
-/// only to x 0.994 (LR 23).
+/// Structuration from failure heights: the layer and time at which a wall printed at three build
+/// rates fails (fixtures/measure/failure: 10 mm cells, a layer every 0.65, 1.0 and 1.6 s),
+/// synthesised at 5 mm cells (finer than the model's, as measured walls would be) from a truth
+/// with a structural build-up at rest (A_thix = 40 Pa/s: failure layers 5, 6, 7 there; 5, 6, 8 at
+/// 10 mm) and diagnosed from a base model without it. Structuration gains A_thix T of strength
+/// under each layer, so the failure comes later the slower the print; a yield stress or a Coulomb
+/// floor moves it at every rate alike (docs/failure.md), so the campaign itself tells them apart.
+/// The failure observables have no adjoint: their Jacobian columns are central differences of
+/// forward runs (measure/sensitivity.rs). One candidate is fitted, without leave-one-out, and
+/// every fit stops after 4 iterations. Measured at 0bf333a beside other runs: 243 s wall (base
+/// fit 35 s, score tests 54 s, likelihood-ratio fits 64 s, the candidate's fit 89 s), thixotropy
+/// first (score 1192), error x 0.042 (107 Pa, A_thix 53 Pa/s); a Coulomb floor fitted lowers it
+/// only to x 0.994 (LR 16).
 #[test]
 fn hidden_structuration_is_found_from_failure_heights() {
     let d = fixtures("failure");
     let tmp = tempfile::tempdir().unwrap();
     let data = tmp.path().join("data.csv");
     let exps = d.join("experiments.toml");
-    let (code, _, err) = strand(&["synth", "--model", s(&d.join("truth_thixotropy.toml")), "--experiments", s(&exps), "--noise", "0.01", "--seed", "7", "--out", s(&data), "--jobs", "2"]);
+    let (code, _, err) = strand(&["synth", "--model", s(&d.join("truth_thixotropy.toml")), "--experiments", s(&d.join("experiments_fine.toml")), "--noise", "0.01", "--seed", "7", "--out", s(&data), "--jobs", "2"]);
     assert_eq!(code, 0, "{err}");
     let base = d.join("base.toml");
     let args = [

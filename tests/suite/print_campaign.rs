@@ -91,15 +91,15 @@ fn assert_found(v: &serde_json::Value, effect: &str) {
 // own material at 3 mm misses its 2 mm data by 12.7 % in width, 2.5 % in height, 0.85 % in area
 // and 9.3 % in the profile point, chi^2 = 1.53 over 22 with the error counted.
 
-/// Measured at ab5beca: passes in 278 CPU-s (wall: base fit 36 s, score tests 47 s,
-/// likelihood-ratio fits 214 s, leave-one-out 15 s), wall friction first (LR 331), error x 0.088.
-/// Its fitted values (278 Pa, a viscosity at its floor, mu 0.41) are not the truth's (150 Pa,
-/// 20 Pa s, 0.3): four lines' sections do not tell a stiffer material on a slipping floor from
-/// the truth.
+/// One candidate fitted, no leave-one-out (`one_step_leave_one_out_agrees_with_exact_refits...`
+/// in diagnose.rs checks it), every fit stopped after 4 iterations, so that it fits `make test`.
+/// Measured at 0bf333a (beside other runs): 322 s wall (base fit 22 s, score tests 27 s,
+/// likelihood-ratio fits 253 s), wall friction first (LR 331), error x 0.089. Its fitted values
+/// (279 Pa, a viscosity at its floor, mu 0.41) are not the truth's (150 Pa, 20 Pa s, 0.3): four
+/// lines' sections do not tell a stiffer material on a slipping floor from the truth.
 #[test]
-#[ignore = "passes in 278 CPU-s at ab5beca, where make test has no room left (docs/print_campaign.md)"]
 fn hidden_platform_friction_under_single_lines_is_found() {
-    let v = diagnose("truth_friction.toml", "experiments_fine.toml", &["line_"], "experiments_resolved.toml", &["--max-fitted", "1"]);
+    let v = diagnose("truth_friction.toml", "experiments_fine.toml", &["line_"], "experiments_resolved.toml", &["--max-fitted", "1", "--no-loo", "--max-iterations", "4"]);
     assert_found(&v, "wall_friction");
     assert_eq!(v["candidates"][0]["test"], "likelihood-ratio", "{v:#}");
 }
@@ -114,11 +114,13 @@ fn a_truth_without_effects_flags_nothing() {
     assert!(v["candidates"].as_array().unwrap().iter().all(|c| c["recommended"] == false), "{v:#}");
 }
 
+/// Fitted as the friction's is. Measured at 0bf333a (beside other runs): 297 s wall (base fit
+/// 58 s, score tests 26 s, likelihood-ratio fits 140 s, the candidate's fit 52 s), "add
+/// extrusion_factor", factor 0.931, error x 0.22.
 #[test]
-#[ignore = "passes at ab5beca (add extrusion_factor, factor 0.931, error x 0.22) but costs 581 CPU-s (wall: leave-one-out 198 s, likelihood-ratio fits 207 s, base fit 92 s, candidate fit 90 s), where CI holds a couple (docs/print_campaign.md)"]
 fn a_pump_short_of_its_flow_is_not_pinned_on_a_material_effect() {
     // the pump's 7 % shows in the area, which no material parameter moves (mass balance)
-    let v = diagnose("truth_null.toml", "experiments_fine_pump.toml", &["line_"], "experiments_resolved.toml", &["--max-fitted", "1"]);
+    let v = diagnose("truth_null.toml", "experiments_fine_pump.toml", &["line_"], "experiments_resolved.toml", &["--max-fitted", "1", "--no-loo", "--max-iterations", "4"]);
     let verdict = v["verdict"].as_str().unwrap();
     assert!(verdict == "unexplained" || verdict == "add extrusion_factor", "{v:#}");
     if verdict == "add extrusion_factor" {
@@ -129,7 +131,7 @@ fn a_pump_short_of_its_flow_is_not_pinned_on_a_material_effect() {
 }
 
 #[test]
-#[ignore = "not finished in 29 CPU-minutes a diagnosis (docs/print_campaign.md); not run to its end"]
+#[ignore = "a diagnosis not finished in 29 CPU-minutes (docs/print_campaign.md); in make test, build-up is diagnosed from the failure heights of walls (diagnose::hidden_structuration_is_found_from_failure_heights)"]
 fn hidden_build_up_is_found_from_lines_and_walls() {
     // In two-layer walls of this geometry the first layer does not settle under the second: at 3
     // mm cells, 60 Pa and no build-up, its height is 6.51 mm at layer times 0.1, 0.6 and 1.5 s
