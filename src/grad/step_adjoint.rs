@@ -66,7 +66,7 @@ impl StepAdjoint {
                 self.tape.save(what, sim);
             }
             if phase.read_by_adjoints() || !objectives.is_empty() {
-                sim.run(phase, &mut step).map_err(|e| e.to_string())?;
+                sim.run_phase(phase, &mut step).map_err(|e| e.to_string())?;
             }
         }
         let n = sim.particles.n;
@@ -87,7 +87,7 @@ impl StepAdjoint {
         for (i, phase) in PHASES.iter().enumerate().rev().filter(|(_, p)| p.has_adjoint()) {
             for ((a, pp), _) in self.seeds.iter_mut().zip(prints.iter_mut()).zip(active).filter(|(_, on)| **on) {
                 let toolpath = pp.as_mut().map(|p| p as &mut dyn ToolpathBar);
-                sim.adjoint(*phase, &step, &mut self.tape, a, toolpath)?;
+                sim.phase_adjoint(*phase, &step, &mut self.tape, a, toolpath)?;
             }
             lap(&mut clock, &mut self.phase_s[1 + i]);
         }

@@ -1,9 +1,9 @@
 //! One step: the time step control and the phases in order. [`PHASES`] is the step, run as it
 //! stands by [`Simulation::advance`] (in two halves, for restart checkpoints) and by the
 //! gradient's recompute, which saves what each phase's [`Phase::saves`] names before it runs;
-//! the reverse step walks the same list backwards through [`Simulation::adjoint`]. A new phase
-//! is a variant, its place in `PHASES` and its arms in `run` and `adjoint` (the compiler asks
-//! for the arms); its adjoint goes beside its forward, in the phase's file.
+//! the reverse step walks the same list backwards through [`Simulation::phase_adjoint`]. A new
+//! phase is a variant, its place in `PHASES` and its arms in `run_phase` and `phase_adjoint`
+//! (the compiler asks for the arms); its adjoint goes beside its forward, in the phase's file.
 
 use super::adjoint::{Adjoint, Saved, Tape, ToolpathBar};
 use super::{DtLimit, SimError, Simulation};
@@ -216,14 +216,14 @@ impl Simulation {
     fn run_timed(&mut self, phases: &[Phase], step: &mut Step) -> Result<(), SimError> {
         let mut clock = PhaseClock::start();
         for &phase in phases {
-            self.run(phase, step)?;
+            self.run_phase(phase, step)?;
             clock.lap(&mut self.phase_seconds[phase as usize]);
         }
         Ok(())
     }
 
     /// Run one phase of `step`.
-    pub fn run(&mut self, phase: Phase, step: &mut Step) -> Result<(), SimError> {
+    pub fn run_phase(&mut self, phase: Phase, step: &mut Step) -> Result<(), SimError> {
         let dt = step.dt as Real;
         match phase {
             Phase::Emit => {
@@ -256,7 +256,7 @@ impl Simulation {
     /// The adjoint of one phase of `step` for one objective's adjoint `a`, after the step was
     /// recomputed into `tape` and the live state; `toolpath` takes the adjoints of the
     /// toolpath's closed forms. Gradient runs keep every particle awake, with the order frozen.
-    pub fn adjoint(&mut self, phase: Phase, step: &Step, tape: &mut Tape, a: &mut Adjoint, toolpath: Option<&mut dyn ToolpathBar>) -> Result<(), String> {
+    pub fn phase_adjoint(&mut self, phase: Phase, step: &Step, tape: &mut Tape, a: &mut Adjoint, toolpath: Option<&mut dyn ToolpathBar>) -> Result<(), String> {
         let dt = step.dt as Real;
         match phase {
             Phase::Emit => self.emission_adjoint(step, a, toolpath)?,
