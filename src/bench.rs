@@ -120,7 +120,7 @@ pub fn run_bench(
     for _ in 0..3 {
         sim.advance(dt).map_err(|e| e.to_string())?;
     }
-    sim.phase_seconds = [0.0; 6];
+    sim.phase_seconds = [0.0; crate::solver::PHASES.len()];
     let mut runs = Vec::new();
     for _ in 0..repeats.max(1) {
         let t0 = Instant::now();
@@ -144,7 +144,7 @@ pub fn run_bench(
         particle_steps_per_s: particles as f64 / sec_per_step,
         phases: {
             let total: f64 = sim.phase_seconds.iter().sum();
-            crate::solver::PHASES.iter().zip(sim.phase_seconds).map(|(n, t)| (*n, t / total)).collect()
+            crate::solver::PHASES.iter().zip(sim.phase_seconds).map(|(p, t)| (p.name(), t / total)).collect()
         },
         runs_s: runs,
         restart_bytes_per_particle: crate::checkpoint::state::restart_bytes_per_particle(&sim),

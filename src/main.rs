@@ -402,7 +402,7 @@ fn run(args: RunArgs) -> Result<bool, Failure> {
             "state_hash": format!("{:016x}", r.state_hash),
             "resumed_from": r.resumed_from,
             "last_checkpoint": r.last_checkpoint,
-            "phase_seconds": strand::solver::PHASES.iter().zip(r.phase_seconds).map(|(k, v)| (k.to_string(), v)).collect::<std::collections::BTreeMap<_, _>>(),
+            "phase_seconds": strand::solver::PHASES.iter().zip(r.phase_seconds).map(|(k, v)| (k.name(), v)).collect::<std::collections::BTreeMap<_, _>>(),
             "last_observation": r.observations.last(),
             "failure": r.failure,
             "awake_particle_steps": r.awake_particle_steps,

@@ -221,7 +221,7 @@ pub struct RunSummary {
     /// Observables at each output, when the scenario asks for them.
     pub observations: Vec<crate::report::Observation>,
     /// Wall seconds spent in each phase of the step (see `solver::PHASES`).
-    pub phase_seconds: [f64; 6],
+    pub phase_seconds: [f64; crate::solver::PHASES.len()],
     /// Awake particles summed over the steps of this run (see `Simulation`).
     pub awake_particle_steps: u64,
     /// Hash of the final state (as `strand inspect` shows for a checkpoint of it).
@@ -1205,7 +1205,7 @@ fn finished_run(sim: &mut Simulation, ck: &Checkpoint, dt: f64, csv: &Path, end:
         wall_s: 0.0,
         particles: sim.particles.n,
         observations: Vec::new(),
-        phase_seconds: [0.0; 6],
+        phase_seconds: [0.0; crate::solver::PHASES.len()],
         awake_particle_steps: 0,
         state_hash: state::current_state_hash(sim),
         resumed_from: Some(ck.path.clone()),

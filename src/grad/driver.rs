@@ -12,13 +12,13 @@ use super::fields::state_bytes;
 use super::objective::{Frame, Objective};
 use super::params::{resolve, Param};
 use super::schedule::{choose, Action, Budget, Kind, OnlineSchedule, Plan};
-use super::step_adjoint::{Adjoint, StepAdjoint, PHASES};
+use super::step_adjoint::StepAdjoint;
 use super::store::{DiskSlots, RamSlots, Store};
 use crate::memory::{fmt_bytes, Backing, MemoryPlan};
 use crate::scenario::Scenario;
 use super::print_adjoint::PrintParams;
 use crate::print::SyncEmission;
-use crate::solver::{for_each_lattice_point, Simulation};
+use crate::solver::{for_each_lattice_point, Adjoint, Simulation};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -56,7 +56,7 @@ pub struct GradResult {
     pub disk_written_bytes: u64,
     pub forward_s: f64,
     pub reverse_s: f64,
-    /// The reverse sweep's wall time by phase (`step_adjoint::PHASES`).
+    /// The reverse sweep's wall time: the recompute, then each phase's adjoint.
     pub reverse_phases_s: Vec<(String, f64)>,
     /// Objectives carried together by the run's reverse sweep (its costs are theirs together).
     pub seeds: usize,
@@ -84,9 +84,7 @@ pub fn prepare(sc: &Scenario, threads: Option<usize>) -> Result<Simulation, Stri
         p.sync = Some(SyncEmission::new(&p.plan, 0));
     }
     // one sort by block up front (the step's binning then reorders nothing), then frozen
-    sim.bin_particles().map_err(|e| e.to_string())?;
-    sim.reorder_particles();
-    sim.frozen_order = true;
+    sim.freeze_order().map_err(|e| e.to_string())?;
     Ok(sim)
 }
 
@@ -325,7 +323,7 @@ fn gradient_run(sc: &Scenario, seeds: &[Seeded], wrt: &[String], opts: &GradOpti
     };
     let Executor { sim, adj, store, prints, values: seeded, forward_steps, forward_s, reverse_s, .. } = ex;
     let disk_written_bytes = store.as_ref().and_then(|s| s.disk.as_ref()).map_or(0, |d| d.written);
-    let reverse_phases_s: Vec<(String, f64)> = PHASES.iter().zip(adj.phase_s).map(|(p, s)| (p.to_string(), s)).collect();
+    let reverse_phases_s = adj.phase_seconds();
     let wall_s = wall.elapsed().as_secs_f64();
     seeds
         .iter()

@@ -1,69 +1,11 @@
-//! The per-particle arrays a step changes, as one group of pools: the tape of one step (the
-//! state it started from), the adjoints of a state, and the layout of a stored checkpoint.
+//! The layout of a stored state of the gradient schedule: the per-particle arrays a step changes
+//! (those of `solver::Fields`).
 //!
 //! Masses and initial volumes are not here: without emission they never change, so a gradient
-//! run neither stores them nor keeps two copies of their adjoints (they accumulate in place).
+//! run does not store them.
 
 use crate::kernels::{Real, M3, V3};
-use crate::memory::{Backing, MemoryError, MemoryPlan, Pool};
 use crate::solver::Simulation;
-
-pub struct Fields {
-    pub xg: Pool<V3>,
-    pub v: Pool<V3>,
-    pub c: Pool<M3>,
-    pub stress: Pool<M3>,
-    pub j: Pool<Real>,
-    pub state: Pool<Real>,
-}
-
-const NAMES: [&str; 6] = ["x", "v", "C", "stress", "J", "state"];
-
-impl Fields {
-    pub fn plan(plan: &mut MemoryPlan, prefix: &str, n: usize, state_len: usize) {
-        plan.add::<V3>(&format!("{prefix}.{}", NAMES[0]), n);
-        plan.add::<V3>(&format!("{prefix}.{}", NAMES[1]), n);
-        plan.add::<M3>(&format!("{prefix}.{}", NAMES[2]), n);
-        plan.add::<M3>(&format!("{prefix}.{}", NAMES[3]), n);
-        plan.add::<Real>(&format!("{prefix}.{}", NAMES[4]), n);
-        plan.add::<Real>(&format!("{prefix}.{}", NAMES[5]), n * state_len);
-    }
-
-    pub fn new(prefix: &str, n: usize, state_len: usize, b: &Backing) -> Result<Fields, MemoryError> {
-        let name = |k: usize| format!("{prefix}.{}", NAMES[k]);
-        Ok(Fields {
-            xg: Pool::new(&name(0), n, b)?,
-            v: Pool::new(&name(1), n, b)?,
-            c: Pool::new(&name(2), n, b)?,
-            stress: Pool::new(&name(3), n, b)?,
-            j: Pool::new(&name(4), n, b)?,
-            state: Pool::new(&name(5), n * state_len, b)?,
-        })
-    }
-
-    /// Zero particles `r` (with `state_len` state values each).
-    pub fn zero_range(&mut self, r: std::ops::Range<usize>, state_len: usize) {
-        self.xg.as_mut_slice()[r.clone()].fill(V3::ZERO);
-        self.v.as_mut_slice()[r.clone()].fill(V3::ZERO);
-        self.c.as_mut_slice()[r.clone()].fill(M3::ZERO);
-        self.stress.as_mut_slice()[r.clone()].fill(M3::ZERO);
-        self.j.as_mut_slice()[r.clone()].fill(0.0);
-        self.state.as_mut_slice()[r.start * state_len..r.end * state_len].fill(0.0);
-    }
-
-    /// Copy the simulation's first `n` particles' changing arrays in.
-    pub fn copy_from(&mut self, sim: &Simulation) {
-        let p = &sim.particles;
-        let n = p.n;
-        self.xg.as_mut_slice()[..n].copy_from_slice(&p.xg.as_slice()[..n]);
-        self.v.as_mut_slice()[..n].copy_from_slice(&p.v.as_slice()[..n]);
-        self.c.as_mut_slice()[..n].copy_from_slice(&p.c.as_slice()[..n]);
-        self.stress.as_mut_slice()[..n].copy_from_slice(&p.stress.as_slice()[..n]);
-        self.j.as_mut_slice()[..n].copy_from_slice(&p.j.as_slice()[..n]);
-        let s = n * p.state_len;
-        self.state.as_mut_slice()[..s].copy_from_slice(&p.state.as_slice()[..s]);
-    }
-}
 
 const HEADER: usize = 32;
 

@@ -6,7 +6,6 @@
 pub mod check;
 pub mod driver;
 mod fields;
-mod grid_adjoint;
 pub mod objective;
 pub mod params;
 mod print_adjoint;

@@ -21,6 +21,7 @@ use crate::print::emitter::{EmissionPlan, Slab};
 use crate::print::toolpath::Segment;
 use crate::print::PrintConfig;
 use crate::scenario::Scenario;
+use crate::solver::ToolpathBar;
 use std::sync::Arc;
 
 /// Relative step of the central differences of the toolpath.
@@ -148,5 +149,17 @@ impl PrintParams {
             q += 1;
         }
         Ok(())
+    }
+}
+
+impl ToolpathBar for PrintParams {
+    fn drive(&mut self, k: usize, t: f64, outlet_bar: [f64; 3], velocity_bar: [f64; 3]) {
+        PrintParams::drive(self, k, t, outlet_bar, velocity_bar)
+    }
+    fn extruded(&mut self, k: usize, t: f64, length_bar: f64) {
+        PrintParams::extruded(self, k, t, length_bar)
+    }
+    fn emission(&mut self, plan: &EmissionPlan, first_slab: u64, t: f64, x_bar: &[[f64; 3]], v_bar: &[[f64; 3]]) -> Result<(), String> {
+        PrintParams::emission(self, plan, first_slab, t, x_bar, v_bar)
     }
 }

@@ -50,7 +50,32 @@ impl Scratch {
     }
 }
 
+impl Scratch {
+    /// The particle blocks of colour `c`, the running particle count before each and the
+    /// colour's particle total; None when no block has the colour.
+    pub(crate) fn colour(&self, c: usize) -> Option<(&[u32], &[u32], u32)> {
+        let (c0, c1) = (self.colour_start[c], self.colour_start[c + 1]);
+        if c0 == c1 {
+            return None;
+        }
+        let blocks = &self.colour_blocks.as_slice()[c0..c1];
+        let cum = &self.colour_cum.as_slice()[c0..c1];
+        let starts = self.slot_start.as_slice();
+        let last = *blocks.last().unwrap() as usize;
+        Some((blocks, cum, cum[cum.len() - 1] + (starts[last + 1] - starts[last])))
+    }
+}
+
 impl Simulation {
+    /// Sort the pool by block once and keep that order from then on: a gradient run indexes its
+    /// adjoint arrays by pool position, which must mean the same particle in every step.
+    pub fn freeze_order(&mut self) -> Result<(), SimError> {
+        self.bin_particles()?;
+        self.reorder_particles();
+        self.frozen_order = true;
+        Ok(())
+    }
+
     /// Bin particles by the block of their stencil base, activate each particle block's 2x2x2
     /// neighbourhood, and group particle blocks by colour. Serial: it is a few operations per
     /// particle, and doing it in one order makes slot numbering deterministic.

@@ -1,5 +1,8 @@
-//! Emission: the printer's slabs added to the pool, and the newest slab's masses and feed.
+//! Emission: the printer's slabs added to the pool, and the newest slab's masses and feed; and
+//! their adjoints, which hand the toolpath's share to a [`ToolpathBar`].
 
+use super::adjoint::{Adjoint, ToolpathBar, MAX_PARAMS};
+use super::step::Step;
 use super::{SimError, Simulation};
 use crate::grid::GridGeom;
 use crate::kernels::material::Material;
@@ -7,6 +10,7 @@ use crate::kernels::{Real, V3};
 use crate::memory::MemoryError;
 use crate::particles::Particles;
 use crate::print::emitter::Slab;
+use crate::print::newest::{follow_feed_adjoint, FollowFeedBar};
 use crate::print::{NozzleDrive, Printer};
 
 impl Simulation {
@@ -44,6 +48,105 @@ impl Simulation {
             let inv_dx = (1.0 / self.scenario.simulation.dx) as Real;
             pr.newest.follow_feed(&mut self.particles, dt, inv_dx, V3::new(v[0] as Real, v[1] as Real, v[2] as Real));
         }
+    }
+}
+
+impl Simulation {
+    /// The base toolpath's move at the step's time, on which the toolpath's closed forms are
+    /// differentiated.
+    pub(super) fn toolpath_move(&self) -> usize {
+        self.printer.as_ref().map_or(0, |p| p.toolpath.state_at(self.time).interval)
+    }
+
+    /// Adjoint of the blend with the feed: `a.next`'s adjoints of the blended outputs become
+    /// those of G2P's, and the pool gets G2P's outputs back for the adjoints of G2P and its
+    /// clamp. The adjoints of the fraction and of the feed velocity are kept in `a` for the
+    /// grid update's and the newest masses' adjoints.
+    pub(crate) fn follow_feed_adjoint(&mut self, a: &mut Adjoint, dt: Real) {
+        (a.feed_fraction_bar, a.feed_velocity_bar) = (0.0, [0.0; 3]);
+        let Some(pr) = self.printer.as_ref().filter(|p| p.newest.moving) else { return };
+        let nw = &pr.newest;
+        let v = pr.drive(self.time).map_or([0.0; 3], |d| d.velocity);
+        let v_feed = V3::new(v[0] as Real, v[1] as Real, v[2] as Real);
+        let inv_dx = (1.0 / self.scenario.simulation.dx) as Real;
+        let (mut fraction_bar, mut v_feed_bar) = (0.0, V3::ZERO);
+        for (k, &i) in nw.index.iter().enumerate() {
+            let i = i as usize;
+            let out_bar = (a.next.xg.as_slice()[i], a.next.v.as_slice()[i], a.next.c.as_slice()[i], a.next.j.as_slice()[i]);
+            let bar = FollowFeedBar {
+                x0: &mut a.cur.xg.as_mut_slice()[i],
+                j0: &mut a.cur.j.as_mut_slice()[i],
+                v_feed: &mut v_feed_bar,
+                fraction: &mut fraction_bar,
+            };
+            let (xb, vb, cb, jb) = follow_feed_adjoint(nw.fraction as Real, dt, inv_dx, nw.x0[k], nw.j0[k], v_feed, nw.g2p[k], out_bar, bar);
+            a.next.xg.as_mut_slice()[i] = xb;
+            a.next.v.as_mut_slice()[i] = vb;
+            a.next.c.as_mut_slice()[i] = cb;
+            a.next.j.as_mut_slice()[i] = jb;
+            let p = &mut self.particles;
+            (p.xg.as_mut_slice()[i], p.v.as_mut_slice()[i], p.c.as_mut_slice()[i], p.j.as_mut_slice()[i]) = nw.g2p[k];
+        }
+        (a.feed_fraction_bar, a.feed_velocity_bar) = (fraction_bar, [v_feed_bar.x as f64, v_feed_bar.y as f64, v_feed_bar.z as f64]);
+    }
+
+    /// Adjoint of [`Simulation::newest_masses`]: the step set the masses and initial volumes of
+    /// particles `set_from..` (the newest slab's to its fraction f, a just completed one's to
+    /// full); their adjoints gathered since are settled here — into the density's, and for the
+    /// newest slab into f's — and cleared, for the earlier steps to gather those of the values
+    /// before. f's adjoint, with the blend's, goes to `toolpath` as the extruded length's.
+    pub(crate) fn newest_masses_adjoint(&self, a: &mut Adjoint, toolpath: Option<&mut dyn ToolpathBar>) {
+        let Some(pr) = self.printer.as_ref() else { return };
+        let nw = &pr.newest;
+        let mut fraction_bar = 0.0;
+        if nw.set_from != u32::MAX {
+            let p = &self.particles;
+            let rho = self.material.density() as f64;
+            let vol = pr.particle_volume;
+            let (mass_bar, vol0_bar) = (a.mass_bar.as_mut_slice(), a.vol0_bar.as_mut_slice());
+            // emitted particles are never reordered in a gradient run: index = id
+            for i in nw.set_from as usize..p.n {
+                debug_assert_eq!(p.id.as_slice()[i] as usize, i);
+                let (mb, vb) = (mass_bar[i] as f64, vol0_bar[i] as f64);
+                a.density_bar += mb * p.mass.as_slice()[i] as f64 / rho;
+                if i >= nw.first as usize {
+                    fraction_bar += rho * vol * mb + vol * vb;
+                }
+                (mass_bar[i], vol0_bar[i]) = (0.0, 0.0);
+            }
+        }
+        if let (Some(tb), true) = (toolpath, nw.moving) {
+            tb.extruded(self.toolpath_move(), self.time, (fraction_bar + a.feed_fraction_bar) / pr.plan.slab_thickness());
+        }
+    }
+
+    /// Emission's adjoint: the particles `step.n_before..n` entered in this step, so their
+    /// adjoints are those of the emission, owed to the toolpath (handed to `toolpath`) and,
+    /// through their initial state, the material; they did not exist before the step, so their
+    /// adjoints end here.
+    pub(crate) fn emission_adjoint(&self, step: &Step, a: &mut Adjoint, toolpath: Option<&mut dyn ToolpathBar>) -> Result<(), String> {
+        let p = &self.particles;
+        let (first, n, sl) = (step.n_before, p.n, p.state_len);
+        if n <= first {
+            return Ok(());
+        }
+        if let Some(tb) = toolpath {
+            let inv_dx = 1.0 / self.scenario.simulation.dx;
+            let x_bar: Vec<[f64; 3]> = a.cur.xg.as_slice()[first..n].iter().map(|b| [b.x as f64 * inv_dx, b.y as f64 * inv_dx, b.z as f64 * inv_dx]).collect();
+            let v_bar: Vec<[f64; 3]> = a.cur.v.as_slice()[first..n].iter().map(|b| [b.x as f64, b.y as f64, b.z as f64]).collect();
+            let plan = &self.printer.as_ref().ok_or("emission without a printer")?.plan;
+            tb.emission(plan, step.first_slab, self.time, &x_bar, &v_bar)?;
+        }
+        let mut init = [0.0 as Real; MAX_PARAMS];
+        let np = a.material_bar.len();
+        for i in first..n {
+            self.material.init_state_adjoint(&a.cur.state.as_slice()[i * sl..(i + 1) * sl], &mut init[..np]);
+        }
+        for (m, v) in a.material_bar.iter_mut().zip(&init[..np]) {
+            *m += *v as f64;
+        }
+        a.cur.zero_range(first..n, sl);
+        Ok(())
     }
 }
 

@@ -1,6 +1,9 @@
-//! The material update, and the finiteness check that names the first bad particle.
+//! The material update, and the finiteness check that names the first bad particle; and the
+//! update's adjoint.
 
+use super::adjoint::{Adjoint, Tape, CHUNK, MAX_PARAMS, MAX_STATE};
 use super::{SimError, Simulation};
+use crate::kernels::material::UpdateAdjoint;
 use crate::kernels::Real;
 use crate::threads::{SharedSlice, ThreadTeam};
 use std::sync::atomic::Ordering;
@@ -51,6 +54,59 @@ impl Simulation {
             return Err(SimError::BlowUp { step: self.step, time: self.time, index: i, id: p.id.as_slice()[i], field, value });
         }
         Ok(())
+    }
+}
+
+impl Simulation {
+    /// The material update's adjoint: `a.next.stress` and `a.next.state` (the adjoints of its
+    /// outputs) go to the velocity gradient and volume ratio G2P produced (`a.next.c`,
+    /// `a.next.j`), the state before the step (`a.cur.state`) and the parameters. Reads the
+    /// pool as the recompute left it (before the blend's adjoint gives G2P's outputs back).
+    pub(crate) fn materials_adjoint(&self, tape: &mut Tape, a: &mut Adjoint, dt: Real) {
+        let p = &self.particles;
+        let (n, sl) = (p.n, p.state_len);
+        let (c1, j1) = (&p.c.as_slice()[..n], &p.j.as_slice()[..n]);
+        let state0 = tape.particles.state.as_slice();
+        let mat = &*self.material;
+        let np = a.material_bar.len();
+        let next_stress = a.next.stress.as_slice();
+        let next_state = a.next.state.as_slice();
+        let next_c = SharedSlice::new(&mut a.next.c.as_mut_slice()[..n]);
+        let next_j = SharedSlice::new(&mut a.next.j.as_mut_slice()[..n]);
+        let cur_state = SharedSlice::new(&mut a.cur.state.as_mut_slice()[..n * sl]);
+        let chunks = n.div_ceil(CHUNK);
+        let partial = SharedSlice::new(&mut tape.chunks[..chunks]);
+        let threads = self.team.threads();
+        self.team.run(|tid| {
+            for k in ThreadTeam::share(chunks, tid, threads) {
+                // SAFETY: chunk k and its particles belong to this thread.
+                let acc = unsafe { partial.get_mut(k) };
+                *acc = [0.0; MAX_PARAMS];
+                for i in k * CHUNK..((k + 1) * CHUNK).min(n) {
+                    let mut out_bar = [0.0 as Real; MAX_STATE];
+                    out_bar[..sl].copy_from_slice(&next_state[i * sl..(i + 1) * sl]);
+                    let mut params = [0.0 as Real; MAX_PARAMS];
+                    let mut adj = unsafe {
+                        UpdateAdjoint {
+                            grad_v_bar: next_c.get_mut(i),
+                            j_bar: next_j.get_mut(i),
+                            state_bar: cur_state.slice_mut(i * sl..(i + 1) * sl),
+                            params_bar: &mut params[..np],
+                        }
+                    };
+                    mat.update_adjoint(&c1[i], j1[i], dt, &state0[i * sl..(i + 1) * sl], &next_stress[i], &out_bar[..sl], &mut adj);
+                    for (a, v) in acc.iter_mut().zip(&params[..np]) {
+                        *a += *v as f64;
+                    }
+                }
+            }
+        });
+        // chunk sums in chunk order: the same bits for any thread count
+        for acc in &tape.chunks[..chunks] {
+            for (m, v) in a.material_bar.iter_mut().zip(acc) {
+                *m += v;
+            }
+        }
     }
 }
 

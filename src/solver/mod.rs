@@ -8,11 +8,14 @@
 //! block colours one after the other: blocks of one colour never write the same nodes, so
 //! threads add into the grid without atomics, and each node receives its sums in the same order
 //! whatever the thread count, which makes runs bit-identical for any number of threads.//!
-//! Files, one phase each: `setup.rs` (pools, walls, threads), `bodies.rs` (initial particles),
-//! `step.rs` (the time step and the phase order), `emit.rs`, `binning.rs`, `p2g.rs`,
-//! `grid_update.rs`, `g2p.rs`, `materials.rs`; `neighbourhood.rs` (a particle block's nodes)
-//! and `walls.rs` (walls, ghosts, platform) serve the transfers and the grid update.
+//! Files, one phase each with its adjoint beside it: `step.rs` (the time step and the list of
+//! phases, [`PHASES`]), `emit.rs`, `binning.rs`, `p2g.rs`, `grid_update.rs`, `g2p.rs`,
+//! `materials.rs`; `neighbourhood.rs` (a particle block's nodes) and `walls.rs` (walls, ghosts,
+//! platform) serve the transfers and the grid update; `adjoint.rs` holds what the adjoints work
+//! on (the tape, the adjoint arrays); `setup.rs` (pools, walls, threads) and `bodies.rs`
+//! (initial particles) build the simulation.
 
+mod adjoint;
 mod binning;
 mod bodies;
 mod emit;
@@ -25,13 +28,12 @@ mod setup;
 mod step;
 mod walls;
 
-pub(crate) use binning::{balanced, Scratch};
+pub use adjoint::{Adjoint, Fields, GridParamsBar, Saved, Tape, ToolpathBar};
+pub(crate) use binning::Scratch;
 pub use bodies::{count_body_particles, for_each_lattice_point};
 pub(crate) use emit::note_newest;
-pub(crate) use grid_update::apply_drive;
-pub(crate) use neighbourhood::{flush_local, gather_local};
-pub use step::max_shear_rate;
-pub(crate) use walls::{apply_walls, ghost_source, wall_sequence, Walls};
+pub use step::{max_shear_rate, Phase, Step, PHASES};
+pub(crate) use walls::Walls;
 
 use crate::grid::Grid;
 use crate::kernels::material::Material;
@@ -107,7 +109,7 @@ pub struct Simulation {
     pub budget: u64,
     thread_out: [AtomicU64; MAX_THREADS],
     /// Wall time spent in each phase of the step, in the order of [`PHASES`].
-    pub phase_seconds: [f64; 6],
+    pub phase_seconds: [f64; PHASES.len()],
     /// The printing process, when the scenario prints.
     pub printer: Option<Printer>,
     /// Sleeping blocks, when enabled.
@@ -121,9 +123,6 @@ pub struct Simulation {
     /// Solid bodies inside the domain (`src/solid/`; issue 30 hook), None without `[[solid]]`.
     pub solids: Option<crate::solid::Solids>,
 }
-
-/// Names of the step's phases, as accumulated in `Simulation::phase_seconds`.
-pub const PHASES: [&str; 6] = ["emit+sleep+bin+reorder", "clear grid", "P2G", "grid update", "G2P", "materials"];
 
 impl Simulation {
     pub fn threads(&self) -> usize {

@@ -1,7 +1,7 @@
 //! The 6^3 node neighbourhood of a particle block, read from and added into the grid's 2x2x2
 //! blocks.
 
-use crate::grid::NODES_PER_BLOCK;
+use crate::grid::{GridGeom, NODES_PER_BLOCK};
 use crate::kernels::transfer::{local_index, Node, BLOCK_EDGE, NEIGHBOURHOOD_EDGE, NEIGHBOURHOOD_NODES};
 use crate::threads::SharedSlice;
 
@@ -39,4 +39,11 @@ pub(crate) unsafe fn flush_local(local: &[Node; NEIGHBOURHOOD_NODES], nbr: &[u32
 /// Gather the nodes of a particle block's neighbourhood.
 pub(crate) fn gather_local(local: &mut [Node; NEIGHBOURHOOD_NODES], nbr: &[u32; 8], nodes: &[Node]) {
     for_each_neighbourhood_node(nbr, |l, g| local[l] = nodes[g]);
+}
+
+/// The first node of the particle block at grid block index `block`.
+#[inline]
+pub(crate) fn block_origin(geom: &GridGeom, block: u32) -> [i32; 3] {
+    let b = geom.block_coords(block);
+    [b[0] * BLOCK_EDGE as i32, b[1] * BLOCK_EDGE as i32, b[2] * BLOCK_EDGE as i32]
 }

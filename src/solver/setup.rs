@@ -87,7 +87,7 @@ impl Simulation {
             memory,
             budget,
             thread_out: std::array::from_fn(|_| AtomicU64::new(0)),
-            phase_seconds: [0.0; 6],
+            phase_seconds: [0.0; super::PHASES.len()],
             printer,
             sleep,
             awake_particle_steps: 0,

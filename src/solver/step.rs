@@ -1,7 +1,138 @@
-//! One step: the time step control and the order of the phases.
+//! One step: the time step control and the phases in order. [`PHASES`] is the step, run as it
+//! stands by [`Simulation::advance`] (in two halves, for restart checkpoints) and by the
+//! gradient's recompute, which saves what each phase's [`Phase::saves`] names before it runs;
+//! the reverse step walks the same list backwards through [`Simulation::phase_adjoint`]. A new
+//! phase is a variant, its place in `PHASES` and its arms in `run_phase` and `phase_adjoint`
+//! (the compiler asks for the arms); its adjoint goes beside its forward, in the phase's file.
 
+use super::adjoint::{Adjoint, Saved, Tape, ToolpathBar};
 use super::{DtLimit, SimError, Simulation};
 use crate::kernels::Real;
+use crate::print::NozzleDrive;
+
+/// A phase of the step.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Phase {
+    /// The printer's due slabs enter the pool (`emit.rs`).
+    Emit,
+    /// Sleeping units fall asleep and wake (`sleep/`).
+    Sleep,
+    /// Particles grouped by the block of their stencil base, blocks by colour (`binning.rs`).
+    Bin,
+    /// Particles moved into block order, every `reorder_interval` steps and when sleeping moved
+    /// some (`binning.rs`).
+    Reorder,
+    /// The masses emission changed this step, set after reordering (`emit.rs`).
+    NewestMasses,
+    /// The active grid nodes zeroed (`p2g.rs`).
+    ClearGrid,
+    /// Particles scattered to the grid in 8 colour passes (`p2g.rs`).
+    P2g,
+    /// Momentum to velocity, gravity, sleeping holds, the nozzle drive, walls, solids, ghosts
+    /// (`grid_update.rs`).
+    GridUpdate,
+    /// Sleeping blocks take the loads of their held nodes (`sleep/loads.rs`).
+    Loads,
+    /// Velocities, affine fields and positions gathered back, positions kept inside the walls
+    /// (`g2p.rs`).
+    G2p,
+    /// The newest slab blended with the feed (`emit.rs`).
+    FollowFeed,
+    /// The material update and the finiteness check (`materials.rs`).
+    Materials,
+}
+
+/// The step's phases, in order.
+pub const PHASES: [Phase; 12] = [
+    Phase::Emit,
+    Phase::Sleep,
+    Phase::Bin,
+    Phase::Reorder,
+    Phase::NewestMasses,
+    Phase::ClearGrid,
+    Phase::P2g,
+    Phase::GridUpdate,
+    Phase::Loads,
+    Phase::G2p,
+    Phase::FollowFeed,
+    Phase::Materials,
+];
+
+/// Where [`Simulation::begin_step`] ends and [`Simulation::finish_step`] begins: at G2P, when
+/// the rest of the step needs only the grid's node velocities and per particle x, J, the
+/// material state and id (v too with FLIP). Restart checkpoints are taken there.
+const SECOND_HALF: usize = {
+    let mut i = 0;
+    while !matches!(PHASES[i], Phase::G2p) {
+        i += 1;
+    }
+    i
+};
+
+impl Phase {
+    pub fn name(self) -> &'static str {
+        match self {
+            Phase::Emit => "emit",
+            Phase::Sleep => "sleep",
+            Phase::Bin => "bin",
+            Phase::Reorder => "reorder",
+            Phase::NewestMasses => "newest_masses",
+            Phase::ClearGrid => "clear_grid",
+            Phase::P2g => "p2g",
+            Phase::GridUpdate => "grid_update",
+            Phase::Loads => "loads",
+            Phase::G2p => "g2p",
+            Phase::FollowFeed => "follow_feed",
+            Phase::Materials => "materials",
+        }
+    }
+
+    /// What the phase overwrites that an adjoint reads (its own or an earlier phase's): the
+    /// recompute saves it just before the phase runs. G2P is the first phase to overwrite the
+    /// particle state, the grid update the grid as P2G left it.
+    pub fn saves(self) -> Option<Saved> {
+        match self {
+            Phase::G2p => Some(Saved::Particles),
+            Phase::GridUpdate => Some(Saved::Grid),
+            _ => None,
+        }
+    }
+
+    /// Whether the phase has an adjoint. Sleeping (and with it the loads and the reordering it
+    /// triggers) is refused by gradient runs, which also freeze the pool order; the binning is
+    /// piecewise constant, held fixed; clearing the grid leaves nothing to differentiate (G2P's
+    /// adjoint starts the grid's adjoint from zero).
+    pub fn has_adjoint(self) -> bool {
+        !matches!(self, Phase::Sleep | Phase::Bin | Phase::Reorder | Phase::ClearGrid | Phase::Loads)
+    }
+
+    /// Whether an adjoint reads what the phase computes. The material update's outputs (stress
+    /// and material state after the step) feed only the next step, whose reverse has its own
+    /// tape, and the objectives: the recompute runs it only when objectives are evaluated.
+    pub fn read_by_adjoints(self) -> bool {
+        self != Phase::Materials
+    }
+}
+
+/// One step's inputs, and what its phases hand on to later phases and to the adjoint.
+pub struct Step {
+    pub dt: f64,
+    /// The nozzle drive during the step (a pure function of the step's start time).
+    pub drive: Option<NozzleDrive>,
+    /// The sleep update moved particles between the awake and sleeping ranges.
+    moved: bool,
+    /// Particles before emission, and the first slab it added (for its adjoint).
+    pub n_before: usize,
+    pub first_slab: u64,
+}
+
+impl Step {
+    /// The step of length `dt` starting at `sim`'s time.
+    pub fn new(sim: &Simulation, dt: f64) -> Step {
+        let drive = sim.printer.as_ref().and_then(|p| p.drive(sim.time));
+        Step { dt, drive, moved: false, n_before: sim.particles.n, first_slab: 0 }
+    }
+}
 
 struct PhaseClock(std::time::Instant);
 impl PhaseClock {
@@ -66,15 +197,83 @@ impl Simulation {
         self.finish_step(dt)
     }
 
-    /// The first half of a step: emission, sleeping, binning, P2G and the grid update. Between
-    /// the halves the rest of the step needs only the grid's node velocities, and per particle
-    /// x, J, the material state and id (v too with FLIP): C and stress are rebuilt by G2P and
-    /// the material update. That is where restart checkpoints are taken
+    /// The first half of a step: the phases before G2P. Restart checkpoints are taken after it
     /// (`checkpoint/state.rs`).
     pub fn begin_step(&mut self, dt: f64) -> Result<(), SimError> {
+        self.run_timed(&PHASES[..SECOND_HALF], &mut Step::new(self, dt))
+    }
+
+    /// The second half of a step begun by [`Simulation::begin_step`] with the same `dt` (or put
+    /// back by a checkpoint restore): G2P and what follows it; then the clock moves on.
+    pub fn finish_step(&mut self, dt: f64) -> Result<(), SimError> {
+        self.run_timed(&PHASES[SECOND_HALF..], &mut Step::new(self, dt))?;
+        self.step += 1;
+        self.time += dt;
+        Ok(())
+    }
+
+    /// Run `phases` in order, each timed into `phase_seconds`.
+    fn run_timed(&mut self, phases: &[Phase], step: &mut Step) -> Result<(), SimError> {
         let mut clock = PhaseClock::start();
-        self.emit()?;
-        let drive = self.printer.as_ref().and_then(|p| p.drive(self.time));
+        for &phase in phases {
+            self.run_phase(phase, step)?;
+            clock.lap(&mut self.phase_seconds[phase as usize]);
+        }
+        Ok(())
+    }
+
+    /// Run one phase of `step`.
+    pub fn run_phase(&mut self, phase: Phase, step: &mut Step) -> Result<(), SimError> {
+        let dt = step.dt as Real;
+        match phase {
+            Phase::Emit => {
+                (step.n_before, step.first_slab) = (self.particles.n, self.printer.as_ref().map_or(0, |p| p.emitted()));
+                self.emit()?;
+            }
+            Phase::Sleep => step.moved = self.sleep_update(step.drive.as_ref()),
+            Phase::Bin => self.bin_particles()?,
+            Phase::Reorder => {
+                if !self.frozen_order && (step.moved || self.step.is_multiple_of(self.scenario.simulation.reorder_interval)) {
+                    self.reorder_particles();
+                }
+            }
+            Phase::NewestMasses => self.newest_masses(self.particles.n_sleep),
+            Phase::ClearGrid => self.clear_grid(),
+            Phase::P2g => self.p2g(dt),
+            Phase::GridUpdate => self.grid_update(dt, step.drive.as_ref()),
+            Phase::Loads => {
+                if let Some(sl) = &mut self.sleep {
+                    sl.take_loads(&self.grid, step.dt, self.step, self.time + step.dt, &*self.material);
+                }
+            }
+            Phase::G2p => self.g2p(dt),
+            Phase::FollowFeed => self.follow_feed(dt, step.drive.as_ref()),
+            Phase::Materials => self.update_materials(dt)?,
+        }
+        Ok(())
+    }
+
+    /// The adjoint of one phase of `step` for one objective's adjoint `a`, after the step was
+    /// recomputed into `tape` and the live state; `toolpath` takes the adjoints of the
+    /// toolpath's closed forms. Gradient runs keep every particle awake, with the order frozen.
+    pub fn phase_adjoint(&mut self, phase: Phase, step: &Step, tape: &mut Tape, a: &mut Adjoint, toolpath: Option<&mut dyn ToolpathBar>) -> Result<(), String> {
+        let dt = step.dt as Real;
+        match phase {
+            Phase::Emit => self.emission_adjoint(step, a, toolpath)?,
+            Phase::NewestMasses => self.newest_masses_adjoint(a, toolpath),
+            Phase::P2g => self.p2g_adjoint(tape, a, dt),
+            Phase::GridUpdate => self.grid_update_adjoint(step.drive.as_ref(), tape, a, dt, toolpath),
+            Phase::G2p => self.g2p_adjoint(tape, a, dt),
+            Phase::FollowFeed => self.follow_feed_adjoint(a, dt),
+            Phase::Materials => self.materials_adjoint(tape, a, dt),
+            Phase::Sleep | Phase::Bin | Phase::Reorder | Phase::ClearGrid | Phase::Loads => {}
+        }
+        Ok(())
+    }
+
+    /// Sleeping units fall asleep and wake; returns whether particles moved between the awake
+    /// and sleeping ranges. Counts the awake particles the step works on.
+    fn sleep_update(&mut self, drive: Option<&NozzleDrive>) -> bool {
         let mut moved = false;
         if let Some(sl) = &mut self.sleep {
             if self.step > 0 {
@@ -87,37 +286,7 @@ impl Simulation {
             }
         }
         self.awake_particle_steps += (self.particles.n - self.particles.n_sleep) as u64;
-        self.bin_particles()?;
-        if !self.frozen_order && (moved || self.step.is_multiple_of(self.scenario.simulation.reorder_interval)) {
-            self.reorder_particles();
-        }
-        self.newest_masses(self.particles.n_sleep);
-        clock.lap(&mut self.phase_seconds[0]);
-        self.clear_grid();
-        clock.lap(&mut self.phase_seconds[1]);
-        self.p2g(dt as Real);
-        clock.lap(&mut self.phase_seconds[2]);
-        self.grid_update(dt as Real, drive.as_ref());
-        if let Some(sl) = &mut self.sleep {
-            sl.take_loads(&self.grid, dt, self.step, self.time + dt, &*self.material);
-        }
-        clock.lap(&mut self.phase_seconds[3]);
-        Ok(())
-    }
-
-    /// The second half of a step begun by [`Simulation::begin_step`] with the same `dt` (or put
-    /// back by a checkpoint restore): G2P, the newest slab's blend, the material update.
-    pub fn finish_step(&mut self, dt: f64) -> Result<(), SimError> {
-        let mut clock = PhaseClock::start();
-        let drive = self.printer.as_ref().and_then(|p| p.drive(self.time));
-        self.g2p(dt as Real);
-        self.follow_feed(dt as Real, drive.as_ref());
-        clock.lap(&mut self.phase_seconds[4]);
-        self.update_materials(dt as Real)?;
-        clock.lap(&mut self.phase_seconds[5]);
-        self.step += 1;
-        self.time += dt;
-        Ok(())
+        moved
     }
 }
 
@@ -129,3 +298,12 @@ impl Simulation {
 pub fn max_shear_rate(speed: f64, dx: f64) -> f64 {
     2.0 * 6f64.sqrt() * speed / dx
 }
+
+// `phase_seconds` is indexed by a phase's discriminant: the variants stand in `PHASES`' order
+const _: () = {
+    let mut i = 0;
+    while i < PHASES.len() {
+        assert!(PHASES[i] as usize == i);
+        i += 1;
+    }
+};

@@ -2,7 +2,8 @@
 //! the walls, and the particles kept inside.
 
 use crate::grid::{GridGeom, NODES_PER_BLOCK, PAD};
-use crate::kernels::boundary::{apply_wall, WallKind};
+use super::adjoint::GridParamsBar;
+use crate::kernels::boundary::{apply_wall, apply_wall_adjoint, WallKind};
 use crate::kernels::transfer::{Node, BLOCK_EDGE};
 use crate::kernels::{Real, V3};
 use super::Simulation;
@@ -40,6 +41,34 @@ pub(crate) fn apply_walls(geom: &GridGeom, walls: &Walls, g: [i32; 3], v: V3) ->
     seq[..k].iter().fold(v, |v, &(kind, nrm, _)| apply_wall(kind, nrm, V3::ZERO, v))
 }
 
+/// Adjoint of [`apply_walls`] at node `g` for input velocity `v`: the adjoint of `v` for the
+/// adjoint `v_bar` of the result; friction coefficients' adjoints go to `bar`.
+pub(crate) fn apply_walls_adjoint(geom: &GridGeom, walls: &Walls, g: [i32; 3], v: V3, v_bar: V3, bar: &mut GridParamsBar) -> V3 {
+    let mut seq = [(WallKind::NoSlip, V3::ZERO, None); 4];
+    let k = wall_sequence(geom, walls, g, &mut seq);
+    if k == 0 {
+        return v_bar;
+    }
+    // inputs of each application, recomputed forward
+    let mut inputs = [V3::ZERO; 4];
+    let mut at = v;
+    for (i, (kind, nrm, _)) in seq[..k].iter().enumerate() {
+        inputs[i] = at;
+        at = apply_wall(*kind, *nrm, V3::ZERO, at);
+    }
+    let mut b = v_bar;
+    for i in (0..k).rev() {
+        let (kind, nrm, face) = seq[i];
+        let (vb, mu_bar) = apply_wall_adjoint(kind, nrm, V3::ZERO, inputs[i], b);
+        b = vb;
+        match face {
+            Some((a, s)) => bar.wall_mu[a][s] += mu_bar as f64,
+            None => bar.platform_mu += mu_bar as f64,
+        }
+    }
+    b
+}
+
 /// One wall condition at a node: kind, outward normal, and the wall as (axis, side) or None for
 /// the platform.
 pub(crate) type WallAt = (WallKind, V3, Option<(usize, usize)>);
@@ -47,7 +76,7 @@ pub(crate) type WallAt = (WallKind, V3, Option<(usize, usize)>);
 /// The wall conditions node `g` takes, in the order they apply (one per non-periodic axis whose
 /// wall it lies on, then the platform): (kind, outward normal, the wall as (axis, side), or None
 /// for the platform). Returns how many; the grid update and its adjoint both walk this list.
-pub(crate) fn wall_sequence(geom: &GridGeom, walls: &Walls, g: [i32; 3], out: &mut [WallAt; 4]) -> usize {
+fn wall_sequence(geom: &GridGeom, walls: &Walls, g: [i32; 3], out: &mut [WallAt; 4]) -> usize {
     let mut k = 0;
     for a in 0..3 {
         if geom.periodic[a] {
@@ -105,12 +134,45 @@ impl Simulation {
     }
 }
 
+impl Simulation {
+    /// Adjoint of [`Simulation::mirror_ghosts`] on the grid's adjoint `grid_bar`: a ghost's
+    /// velocity was overwritten by its partner's, so its adjoint goes there. Reads the grid as
+    /// the update left it.
+    pub(crate) fn mirror_ghosts_adjoint(&self, grid_bar: &mut [Node]) {
+        let grid = &self.grid;
+        let geom = &grid.geom;
+        let slot_block = grid.slot_block.as_slice();
+        let table = grid.table.as_slice();
+        let after = grid.nodes.as_slice();
+        for s in 0..grid.n_active {
+            let b = geom.block_coords(slot_block[s]);
+            if !geom.block_reaches_beyond_walls(b) {
+                continue;
+            }
+            for li in 0..NODES_PER_BLOCK {
+                let at = s * NODES_PER_BLOCK + li;
+                if after[at][0] <= 0.0 {
+                    continue;
+                }
+                let Some((src, sign)) = ghost_source(geom, &self.walls, geom.node_of(b, li), table) else { continue };
+                let gb = [grid_bar[at][1], grid_bar[at][2], grid_bar[at][3]];
+                grid_bar[at][1..4].fill(0.0);
+                if let Some(i) = src {
+                    for c in 0..3 {
+                        grid_bar[i][1 + c] += gb[c] * sign[c];
+                    }
+                }
+            }
+        }
+    }
+}
+
 /// Where a ghost node `g` (beyond a wall on at least one axis) takes its velocity from: the pool
 /// index of its mirror partner inside (None when the partner's block is inactive, which reads as
 /// zero) and the sign of each component (negated for no-slip, the normal one for free-slip; a
 /// corner negates once per wall). None when `g` is no ghost, or a ghost of a friction wall, which
 /// keeps its own velocity.
-pub(crate) fn ghost_source(geom: &GridGeom, walls: &Walls, g: [i32; 3], table: &[u32]) -> Option<(Option<usize>, [Real; 3])> {
+fn ghost_source(geom: &GridGeom, walls: &Walls, g: [i32; 3], table: &[u32]) -> Option<(Option<usize>, [Real; 3])> {
     let mut mirror = g;
     let mut sign = [1.0 as Real; 3];
     let mut ghost = false;
@@ -158,6 +220,30 @@ pub(crate) unsafe fn mirror_ghost(geom: &GridGeom, walls: &Walls, g: [i32; 3], a
     });
     for c in 0..3 {
         node[1 + c] = v[c] * sign[c];
+    }
+}
+
+impl Simulation {
+    /// Adjoint of [`keep_inside`] on G2P's positions, on their adjoints `xg_bar`: a coordinate
+    /// projected onto a wall (or the platform) no longer depends on anything; a periodic wrap
+    /// shifts by a constant and passes the adjoint through.
+    pub(crate) fn keep_inside_adjoint(&self, xg_bar: &mut [V3]) {
+        let geom = &self.grid.geom;
+        let x1 = self.particles.xg.as_slice();
+        let platform = self.walls.platform;
+        for i in 0..self.particles.n {
+            for a in 0..3 {
+                if !geom.periodic[a] && (x1[i][a] == geom.lo[a] as Real || x1[i][a] == geom.hi[a] as Real) {
+                    xg_bar[i][a] = 0.0;
+                }
+            }
+            if let Some((z, xy, _)) = platform {
+                let x = x1[i];
+                if x.z == z && x.x >= xy[0] && x.x <= xy[2] && x.y >= xy[1] && x.y <= xy[3] {
+                    xg_bar[i].z = 0.0;
+                }
+            }
+        }
     }
 }
 
