@@ -1,5 +1,5 @@
 //! The integration tests, one module per area, in one binary: one link instead of one per file
-//! (`cargo test --release --test suite AREA::`). `tests/alloc.rs` stays apart: it installs its own
+//! (`cargo test --release --test suite -- AREA::`). `tests/alloc.rs` stays apart: it installs its own
 //! global allocator.
 
 mod architecture;
