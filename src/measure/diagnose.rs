@@ -188,31 +188,121 @@ fn candidate(e: &dyn Effect, score: f64, dof: usize, p_value: f64, verdict: Stri
 
 pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[String], opts: &DiagnoseOptions) -> Result<Diagnosis, String> {
     let m = data.len();
-    let mut timing = Timing::default();
-    let lap = |since: &mut std::time::Instant| {
-        let t = since.elapsed().as_secs_f64();
-        *since = std::time::Instant::now();
-        t
-    };
-    let mut since = std::time::Instant::now();
-    let began = std::time::Instant::now();
-    let say = |what: String| {
-        if opts.fit.progress {
-            eprintln!("diagnose ({:.0} s): {what}", began.elapsed().as_secs_f64());
-        }
-    };
-    say("the base model".into());
-    let base: Fit = if fit.is_empty() {
-        let v = opts.fit.engine.sensitivity(opts.fit.jobs, model, data, exps, None)??.values;
-        let c2 = chi2(&v, data);
-        Fit { names: vec![], start: vec![], values: vec![], uncertainty: vec![], at_bound: vec![], influence: vec![], chi2_start: c2, chi2: c2, reduced_chi2: c2 / m as f64, history: vec![c2], converged: true, observations: m, model_values: v, jacobian: vec![], model: model.clone() }
-    } else {
-        calibrate(model, data, exps, fit, &opts.fit)?
-    };
+    let mut clock = Clock::new(opts.fit.progress);
+    clock.say("the base model".into());
+    let base = base_fit(model, data, exps, fit, opts)?;
     let base_p_value = chi2_sf(base.chi2, m.saturating_sub(fit.len()).max(1));
-    timing.base_fit = lap(&mut since);
+    clock.timing.base_fit = clock.lap();
+    let mut scored = score_tests(&base, data, exps, fit, opts, &clock)?;
+    clock.timing.score_tests = clock.lap();
+    let (lr, mut prefit) = likelihood_ratio_tests(&base, model, data, exps, fit, &scored.unreachable, opts, &clock)?;
+    clock.timing.likelihood_ratio_fits = clock.lap();
+    let mut cands = std::mem::take(&mut scored.candidates);
+    cands.extend(lr);
+    cands.sort_by(|a, b| b.score.total_cmp(&a.score).then(a.effect.cmp(&b.effect)));
+    cands.append(&mut scored.inapplicable);
+    for (i, c) in cands.iter_mut().enumerate() {
+        c.rank = i + 1;
+    }
+    let models = fit_and_check(&mut cands, &base, &mut prefit, &scored, data, exps, fit, opts, &mut clock)?;
 
-    // every absent effect that can act on these experiments at its null, differentiated at once
+    // Effects equal at first order at the null (linear and exponential ageing) tie on the score;
+    // the fit tells them apart. The statistic ranks, score and likelihood ratio alike (module
+    // doc).
+    let key = |c: &Candidate| (c.score * 1e6).round() / 1e6;
+    let mut order: Vec<usize> = (0..cands.len()).collect();
+    order.sort_by(|&a, &b| {
+        let (ca, cb) = (&cands[a], &cands[b]);
+        key(cb).total_cmp(&key(ca)).then(ca.fitted_chi2.unwrap_or(f64::INFINITY).total_cmp(&cb.fitted_chi2.unwrap_or(f64::INFINITY))).then(a.cmp(&b))
+    });
+    let mut cands: Vec<Candidate> = order.iter().map(|&i| cands[i].clone()).collect();
+    let models: Vec<Option<Model>> = order.iter().map(|&i| models[i].clone()).collect();
+    for (i, c) in cands.iter_mut().enumerate() {
+        c.rank = i + 1;
+    }
+    let best = choose(&mut cands);
+    let recommended = best.map(|i| cands[i].effect.clone());
+    let recommended_model = best.and_then(|i| models[i].clone());
+    let shapes = residual_shapes(&base, data, exps, opts.alpha)?;
+    let (verdict, mut pattern) = match (&recommended, base_p_value < opts.alpha) {
+        (Some(e), _) => (format!("add {e}"), vec![]),
+        (None, true) => ("unexplained".to_string(), largest_residuals(&base, data)),
+        (None, false) => ("explained".to_string(), vec![]),
+    };
+    pattern.extend(shapes.iter().map(|s| s.text.clone()));
+    Ok(Diagnosis {
+        fit: fit.to_vec(),
+        observations: m,
+        base_chi2: base.chi2,
+        base_rms_z: rms(base.chi2, m),
+        base_p_value,
+        base_values: base.names.iter().cloned().zip(base.values.iter().copied()).collect(),
+        timing: clock.timing,
+        candidates: cands,
+        recommended,
+        verdict,
+        pattern,
+        shapes,
+        recommended_model,
+        base_model: base.model.clone(),
+    })
+}
+
+/// A diagnosis's stages timed, and said on stderr as they begin when `progress` is on.
+struct Clock {
+    progress: bool,
+    began: std::time::Instant,
+    since: std::time::Instant,
+    timing: Timing,
+}
+
+impl Clock {
+    fn new(progress: bool) -> Clock {
+        let now = std::time::Instant::now();
+        Clock { progress, began: now, since: now, timing: Timing::default() }
+    }
+
+    /// Seconds since the last lap.
+    fn lap(&mut self) -> f64 {
+        let t = self.since.elapsed().as_secs_f64();
+        self.since = std::time::Instant::now();
+        t
+    }
+
+    fn say(&self, what: String) {
+        if self.progress {
+            eprintln!("diagnose ({:.0} s): {what}", self.began.elapsed().as_secs_f64());
+        }
+    }
+}
+
+/// The base model fitted in `fit` (or taken as it is when `fit` is empty).
+fn base_fit(model: &Model, data: &[Observation], exps: &Experiments, fit: &[String], opts: &DiagnoseOptions) -> Result<Fit, String> {
+    if !fit.is_empty() {
+        return calibrate(model, data, exps, fit, &opts.fit);
+    }
+    let m = data.len();
+    let v = opts.fit.engine.sensitivity(opts.fit.jobs, model, data, exps, None)??.values;
+    let c2 = chi2(&v, data);
+    Ok(Fit { names: vec![], start: vec![], values: vec![], uncertainty: vec![], at_bound: vec![], influence: vec![], chi2_start: c2, chi2: c2, reduced_chi2: c2 / m as f64, history: vec![c2], converged: true, observations: m, model_values: v, jacobian: vec![], model: model.clone() })
+}
+
+/// What the score tests leave: a candidate for each effect tested by its score, the effects
+/// whose null lies at infinity (for the likelihood ratio) and those that cannot act here, and the
+/// Jacobian at the nulls in the fitted parameters and every score-tested effect's (a candidate's
+/// fit starts from its columns).
+struct ScoreTests {
+    candidates: Vec<Candidate>,
+    unreachable: Vec<&'static dyn Effect>,
+    inapplicable: Vec<Candidate>,
+    at_nulls: Sensitivity,
+    /// Each score-tested effect's columns in `at_nulls`' Jacobian.
+    columns: Vec<(&'static str, Vec<usize>)>,
+}
+
+/// Every absent effect that can act on these experiments at its null, differentiated at once,
+/// and scored.
+fn score_tests(base: &Fit, data: &[Observation], exps: &Experiments, fit: &[String], opts: &DiagnoseOptions, clock: &Clock) -> Result<ScoreTests, String> {
     let mut absent: Vec<&'static dyn Effect> = Vec::new();
     let mut unreachable: Vec<&'static dyn Effect> = Vec::new();
     let mut inapplicable: Vec<Candidate> = Vec::new();
@@ -233,7 +323,7 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
         cols_of.push((names.len()..names.len() + e.params().len()).collect());
         names.extend(e.params().iter().map(|s| format!("{}.{}", e.name(), s.name)));
     }
-    say(format!("score tests at the nulls of {}", absent.iter().map(|e| e.name()).collect::<Vec<_>>().join(", ")));
+    clock.say(format!("score tests at the nulls of {}", absent.iter().map(|e| e.name()).collect::<Vec<_>>().join(", ")));
     let at_nulls = opts.fit.engine.sensitivity(opts.fit.jobs, &aug, data, exps, Some(&names))??;
     let scale: Vec<f64> = names.iter().map(|n| aug.bounds(n).map(|b| b.scale)).collect::<Result<_, _>>()?;
     let (z, jz) = standardised(&at_nulls.values, at_nulls.jacobian.as_ref().expect("asked"), data, &scale);
@@ -296,16 +386,32 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
         };
         cands.push(candidate(*e, score, dof, p_value, verdict));
     }
+    let columns = absent.iter().map(|e| e.name()).zip(cols_of).collect();
+    Ok(ScoreTests { candidates: cands, unreachable, inapplicable, at_nulls, columns })
+}
+
     // the likelihood ratio: the effect fitted from its start (a modulus: the base model's
     // stand-in for the null, where the model is the base model), with the fitted parameters from
     // the base fit's values (so a modulus's chi^2 starts at chi^2_base and the fit only lowers
     // it), and, when that finds no significant drop, from the model's own: the base fit may have
     // gone where the effect has no gradient (a yield stress fitted so low that every reading is
     // past yield, where G drops out); the better of the two fits counts
-    timing.score_tests = lap(&mut since);
+#[allow(clippy::too_many_arguments)]
+fn likelihood_ratio_tests(
+    base: &Fit,
+    model: &Model,
+    data: &[Observation],
+    exps: &Experiments,
+    fit: &[String],
+    unreachable: &[&'static dyn Effect],
+    opts: &DiagnoseOptions,
+    clock: &Clock,
+) -> Result<(Vec<Candidate>, std::collections::BTreeMap<String, Fit>), String> {
+    let m = data.len();
+    let mut cands = Vec::new();
     let mut prefit: std::collections::BTreeMap<String, Fit> = Default::default();
     let base_keys = base.model.keys(&Covariates::default())?;
-    for e in &unreachable {
+    for e in unreachable {
         let start = e.lr_start(&base_keys)?;
         let fnames = fit_names(fit, *e);
         let mut best: Option<Fit> = None;
@@ -322,7 +428,7 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
             // one Gauss-Newton step from it predicts a drop worth fitting for: without influence
             // (G where every reading is past yield) the fit would only refit the fitted
             // parameters; from the model's values, where they are elsewhere, it may have
-            say(format!("{}: its likelihood ratio, from {}", e.name(), if std::ptr::eq(from, model) { "the model's values" } else { "the base fit's values" }));
+            clock.say(format!("{}: its likelihood ratio, from {}", e.name(), if std::ptr::eq(from, model) { "the model's values" } else { "the base fit's values" }));
             let start_values = opts.fit.engine.sensitivity(opts.fit.jobs, &with, data, exps, Some(&fnames))??;
             let at_start = calibrate_from(&with, data, exps, &fnames, &FitOptions { max_iterations: 0, progress: false, ..opts.fit.clone() }, start_values.clone())?;
             let predicted = base.chi2 - at_start.chi2 + gauss_newton_drop(&at_start, data)?;
@@ -358,14 +464,25 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
         }
         cands.push(c);
     }
-    timing.likelihood_ratio_fits = lap(&mut since);
-    cands.sort_by(|a, b| b.score.total_cmp(&a.score).then(a.effect.cmp(&b.effect)));
-    cands.extend(inapplicable);
-    for (i, c) in cands.iter_mut().enumerate() {
-        c.rank = i + 1;
-    }
+    Ok((cands, prefit))
+}
 
-    // fit the significant ones, and check each by leave-one-experiment-out
+/// Fit the significant candidates, best first, up to `max_fitted` (a likelihood-ratio effect's
+/// fit is already in `prefit`), and check each by leave-one-experiment-out; their verdicts set.
+/// Returns each candidate's fitted model.
+#[allow(clippy::too_many_arguments)]
+fn fit_and_check(
+    cands: &mut [Candidate],
+    base: &Fit,
+    prefit: &mut std::collections::BTreeMap<String, Fit>,
+    scored: &ScoreTests,
+    data: &[Observation],
+    exps: &Experiments,
+    fit: &[String],
+    opts: &DiagnoseOptions,
+    clock: &mut Clock,
+) -> Result<Vec<Option<Model>>, String> {
+    let m = data.len();
     let ids: Vec<String> = super::runner::group(data).into_iter().map(|(id, _)| id).collect();
     let mut base_loo: Option<f64> = None;
     let mut models: Vec<Option<Model>> = vec![None; cands.len()];
@@ -382,29 +499,29 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
         fitted += 1;
         let effect = base.model.effect(&c.effect)?;
         let fnames = fit_names(fit, effect);
-        let _ = lap(&mut since);
-        say(format!("{}: fitted{}", c.effect, if opts.leave_one_out { ", then checked by leaving each experiment out" } else { "" }));
+        let _ = clock.lap();
+        clock.say(format!("{}: fitted{}", c.effect, if opts.leave_one_out { ", then checked by leaving each experiment out" } else { "" }));
         let f = match prefit.remove(&c.effect) {
             Some(f) => f,
             // from the score tests' Jacobian, taken where every absent effect is at its null,
             // as this one is here: the same runs, unless an effect at its null moved a value
-            None if at_nulls.values == base.model_values => {
-                let cols: Vec<usize> = (0..fit.len()).chain(cols_of[absent.iter().position(|e| e.name() == c.effect).expect("a score-tested effect")].iter().copied()).collect();
-                let jacobian = at_nulls.jacobian.as_ref().expect("asked").iter().map(|r| cols.iter().map(|&k| r[k]).collect()).collect();
-                calibrate_from(&base.model.with_effect(effect), data, exps, &fnames, &opts.fit, Sensitivity { values: at_nulls.values.clone(), jacobian: Some(jacobian) })?
+            None if scored.at_nulls.values == base.model_values => {
+                let cols: Vec<usize> = (0..fit.len()).chain(scored.columns.iter().find(|(e, _)| *e == c.effect).expect("a score-tested effect").1.iter().copied()).collect();
+                let jacobian = scored.at_nulls.jacobian.as_ref().expect("asked").iter().map(|r| cols.iter().map(|&k| r[k]).collect()).collect();
+                calibrate_from(&base.model.with_effect(effect), data, exps, &fnames, &opts.fit, Sensitivity { values: scored.at_nulls.values.clone(), jacobian: Some(jacobian) })?
             }
             None => calibrate(&base.model.with_effect(effect), data, exps, &fnames, &opts.fit)?,
         };
-        timing.candidate_fits += lap(&mut since);
+        clock.timing.candidate_fits += clock.lap();
         c.record(&f, base.chi2, m);
         // a fit that moves the error by less than 1 % has not found anything
         let better = f.chi2 < 0.99 * base.chi2;
         if opts.leave_one_out && ids.len() >= 2 {
             if base_loo.is_none() {
-                base_loo = Some(leave_one_out(&base, data, exps, &ids, opts)?);
+                base_loo = Some(leave_one_out(base, data, exps, &ids, opts)?);
             }
             let loo = leave_one_out(&f, data, exps, &ids, opts)?;
-            timing.leave_one_out += lap(&mut since);
+            clock.timing.leave_one_out += clock.lap();
             c.loo_chi2_base = base_loo;
             c.loo_chi2 = Some(loo);
             c.recommended = better && loo < 0.9 * base_loo.expect("set");
@@ -426,46 +543,7 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
         models[ci] = Some(f.model);
     }
 
-    // Effects equal at first order at the null (linear and exponential ageing) tie on the score;
-    // the fit tells them apart. The statistic ranks, score and likelihood ratio alike (module
-    // doc).
-    let key = |c: &Candidate| (c.score * 1e6).round() / 1e6;
-    let mut order: Vec<usize> = (0..cands.len()).collect();
-    order.sort_by(|&a, &b| {
-        let (ca, cb) = (&cands[a], &cands[b]);
-        key(cb).total_cmp(&key(ca)).then(ca.fitted_chi2.unwrap_or(f64::INFINITY).total_cmp(&cb.fitted_chi2.unwrap_or(f64::INFINITY))).then(a.cmp(&b))
-    });
-    let mut cands: Vec<Candidate> = order.iter().map(|&i| cands[i].clone()).collect();
-    let models: Vec<Option<Model>> = order.iter().map(|&i| models[i].clone()).collect();
-    for (i, c) in cands.iter_mut().enumerate() {
-        c.rank = i + 1;
-    }
-    let best = choose(&mut cands);
-    let recommended = best.map(|i| cands[i].effect.clone());
-    let recommended_model = best.and_then(|i| models[i].clone());
-    let shapes = residual_shapes(&base, data, exps, opts.alpha)?;
-    let (verdict, mut pattern) = match (&recommended, base_p_value < opts.alpha) {
-        (Some(e), _) => (format!("add {e}"), vec![]),
-        (None, true) => ("unexplained".to_string(), largest_residuals(&base, data)),
-        (None, false) => ("explained".to_string(), vec![]),
-    };
-    pattern.extend(shapes.iter().map(|s| s.text.clone()));
-    Ok(Diagnosis {
-        fit: fit.to_vec(),
-        observations: m,
-        base_chi2: base.chi2,
-        base_rms_z: rms(base.chi2, m),
-        base_p_value,
-        base_values: base.names.iter().cloned().zip(base.values.iter().copied()).collect(),
-        timing,
-        candidates: cands,
-        recommended,
-        verdict,
-        pattern,
-        shapes,
-        recommended_model,
-        base_model: base.model.clone(),
-    })
+    Ok(models)
 }
 
 /// The shapes of the base fit's residuals against every covariate (`residuals.rs`).
