@@ -107,26 +107,7 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
     let mut free = vec![true; n];
     for _ in 0..opts.max_iterations {
         let (z, jz) = standardised(&s.values, s.jacobian.as_ref().expect("asked"), data, &scale);
-        // hold a parameter at a bound when the Gauss-Newton step of the others and itself would
-        // take it past the bound (the step, not its own gradient: a parameter collinear with
-        // another may lower the loss only moving with it)
-        free = vec![true; n];
-        loop {
-            let cols: Vec<usize> = (0..n).filter(|&i| free[i]).collect();
-            if cols.is_empty() {
-                break;
-            }
-            let (a, g) = normal_equations(&jz, &z, &cols);
-            let (inv, _) = pinv_sym(&a, 1e-12);
-            let step: Vec<f64> = inv.iter().map(|r| -r.iter().zip(&g).map(|(a, b)| a * b).sum::<f64>()).collect();
-            let out: Vec<usize> = cols.iter().zip(&step).filter(|&(&i, &d)| (theta[i] <= bounds[i].lower && d < 0.0) || (theta[i] >= bounds[i].upper && d > 0.0)).map(|(&i, _)| i).collect();
-            if out.is_empty() {
-                break;
-            }
-            for i in out {
-                free[i] = false;
-            }
-        }
+        free = free_parameters(&jz, &z, &theta, &bounds);
         let cols: Vec<usize> = (0..n).filter(|&i| free[i]).collect();
         if cols.is_empty() {
             converged = true;
@@ -139,63 +120,18 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
             converged = true;
             break;
         }
-        let mut accepted = false;
-        for _ in 0..12 {
-            let mut damped: Mat = a.clone();
-            for (k, row) in damped.iter_mut().enumerate() {
-                row[k] += lambda * a[k][k].max(1e-12);
-            }
-            let (inv, _) = pinv_sym(&damped, 1e-14);
-            let step: Vec<f64> = inv.iter().map(|r| -r.iter().zip(&g).map(|(a, b)| a * b).sum::<f64>()).collect();
-            let mut trial = theta.clone();
-            for (k, &i) in cols.iter().enumerate() {
-                trial[i] = (theta[i] + step[k] * scale[i]).clamp(bounds[i].lower, bounds[i].upper);
-            }
-            let moved = trial.iter().zip(&theta).zip(&scale).map(|((a, b), s)| ((a - b) / s).abs()).fold(0.0, f64::max);
-            if moved < 1e-12 {
-                break;
-            }
-            let mut tm = model.clone();
-            for (nm, v) in names.iter().zip(&trial) {
-                tm.set(nm, *v)?;
-            }
-            // a trial the model rejects (a material that will not build) is a failed step; the
-            // engine failing to run it is an error
-            let tv = match opts.engine.sensitivity(opts.jobs, &tm, data, exps, None)? {
-                Ok(t) => t.values,
-                Err(_) => {
-                    lambda *= 4.0;
-                    continue;
-                }
-            };
-            let tc2 = chi2(&tv, data);
-            if tc2.is_finite() && tc2 < c2 {
-                // so is a step where a run of its Jacobian is rejected (a side of a central
-                // difference where a printed line breaks up)
-                let Ok(at_trial) = opts.engine.jacobian_at(opts.jobs, &tm, data, exps, names, &tv)? else {
-                    lambda *= 4.0;
-                    continue;
-                };
-                let drop = c2 - tc2;
-                let gain = drop / c2.max(1e-300);
-                theta = trial;
-                model = tm;
-                lambda = (lambda / 3.0).max(1e-9);
-                s = at_trial;
-                c2 = tc2;
-                history.push(c2);
-                if opts.progress {
-                    eprintln!("step {}: chi^2 = {c2:.6e} (damping {lambda:.1e}, {:.1} s into the fit)", history.len() - 1, clock.elapsed().as_secs_f64());
-                }
-                accepted = true;
-                if gain < opts.tolerance || drop < negligible {
-                    converged = true;
-                }
-                break;
-            }
-            lambda *= 4.0;
+        let Some(next) = damped_step(&model, &theta, c2, (&a, &g), &cols, &mut lambda, names, &bounds, data, exps, opts)? else {
+            converged = true;
+            break;
+        };
+        let drop = c2 - next.chi2;
+        let gain = drop / c2.max(1e-300);
+        (theta, model, s, c2) = (next.theta, next.model, next.at, next.chi2);
+        history.push(c2);
+        if opts.progress {
+            eprintln!("step {}: chi^2 = {c2:.6e} (damping {lambda:.1e}, {:.1} s into the fit)", history.len() - 1, clock.elapsed().as_secs_f64());
         }
-        if !accepted || converged {
+        if gain < opts.tolerance || drop < negligible {
             converged = true;
             break;
         }
@@ -231,6 +167,98 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
         jacobian: s.jacobian.expect("asked"),
         model,
     })
+}
+
+/// Which parameters move: one is held at its bound when the Gauss-Newton step of the others and
+/// itself would take it past the bound (the step, not its own gradient: a parameter collinear
+/// with another may lower the loss only moving with it).
+fn free_parameters(jz: &[Vec<f64>], z: &[f64], theta: &[f64], bounds: &[Bounds]) -> Vec<bool> {
+    let mut free = vec![true; theta.len()];
+    loop {
+        let cols: Vec<usize> = (0..theta.len()).filter(|&i| free[i]).collect();
+        if cols.is_empty() {
+            return free;
+        }
+        let (a, g) = normal_equations(jz, z, &cols);
+        let (inv, _) = pinv_sym(&a, 1e-12);
+        let step: Vec<f64> = inv.iter().map(|r| -r.iter().zip(&g).map(|(a, b)| a * b).sum::<f64>()).collect();
+        let out: Vec<usize> = cols.iter().zip(&step).filter(|&(&i, &d)| (theta[i] <= bounds[i].lower && d < 0.0) || (theta[i] >= bounds[i].upper && d > 0.0)).map(|(&i, _)| i).collect();
+        if out.is_empty() {
+            return free;
+        }
+        for i in out {
+            free[i] = false;
+        }
+    }
+}
+
+/// A step a fit accepted: the parameters, the model with them, its values and Jacobian there,
+/// and chi^2.
+struct Accepted {
+    theta: Vec<f64>,
+    model: Model,
+    at: Sensitivity,
+    chi2: f64,
+}
+
+/// A Levenberg-Marquardt step from `theta` (at `model`, chi^2 `c2`) on the normal equations
+/// `(a, g)` of the free parameters `cols`, the damping `lambda` raised until a step lowers chi^2
+/// (at most 12 tries) and lowered after it; none when no step lowers it. A trial the model
+/// rejects (a material that will not build), or whose Jacobian run is rejected (a side of a
+/// central difference where a printed line breaks up), is a failed step; the engine failing to
+/// run it is an error.
+#[allow(clippy::too_many_arguments)]
+fn damped_step(
+    model: &Model,
+    theta: &[f64],
+    c2: f64,
+    (a, g): (&Mat, &[f64]),
+    cols: &[usize],
+    lambda: &mut f64,
+    names: &[String],
+    bounds: &[Bounds],
+    data: &[Observation],
+    exps: &Experiments,
+    opts: &FitOptions,
+) -> Result<Option<Accepted>, String> {
+    for _ in 0..12 {
+        let mut damped: Mat = a.clone();
+        for (k, row) in damped.iter_mut().enumerate() {
+            row[k] += *lambda * a[k][k].max(1e-12);
+        }
+        let (inv, _) = pinv_sym(&damped, 1e-14);
+        let step: Vec<f64> = inv.iter().map(|r| -r.iter().zip(g).map(|(a, b)| a * b).sum::<f64>()).collect();
+        let mut trial = theta.to_vec();
+        for (k, &i) in cols.iter().enumerate() {
+            trial[i] = (theta[i] + step[k] * bounds[i].scale).clamp(bounds[i].lower, bounds[i].upper);
+        }
+        let moved = trial.iter().zip(theta).zip(bounds).map(|((a, b), bd)| ((a - b) / bd.scale).abs()).fold(0.0, f64::max);
+        if moved < 1e-12 {
+            return Ok(None);
+        }
+        let mut tm = model.clone();
+        for (nm, v) in names.iter().zip(&trial) {
+            tm.set(nm, *v)?;
+        }
+        let tv = match opts.engine.sensitivity(opts.jobs, &tm, data, exps, None)? {
+            Ok(t) => t.values,
+            Err(_) => {
+                *lambda *= 4.0;
+                continue;
+            }
+        };
+        let tc2 = chi2(&tv, data);
+        if tc2.is_finite() && tc2 < c2 {
+            let Ok(at_trial) = opts.engine.jacobian_at(opts.jobs, &tm, data, exps, names, &tv)? else {
+                *lambda *= 4.0;
+                continue;
+            };
+            *lambda = (*lambda / 3.0).max(1e-9);
+            return Ok(Some(Accepted { theta: trial, model: tm, at: at_trial, chi2: tc2 }));
+        }
+        *lambda *= 4.0;
+    }
+    Ok(None)
 }
 
 /// chi^2's drop one undamped Gauss-Newton step predicts, g^T A^+ g, from the normal equations
