@@ -390,12 +390,13 @@ fn score_tests(base: &Fit, data: &[Observation], exps: &Experiments, fit: &[Stri
     Ok(ScoreTests { candidates: cands, unreachable, inapplicable, at_nulls, columns })
 }
 
-    // the likelihood ratio: the effect fitted from its start (a modulus: the base model's
-    // stand-in for the null, where the model is the base model), with the fitted parameters from
-    // the base fit's values (so a modulus's chi^2 starts at chi^2_base and the fit only lowers
-    // it), and, when that finds no significant drop, from the model's own: the base fit may have
-    // gone where the effect has no gradient (a yield stress fitted so low that every reading is
-    // past yield, where G drops out); the better of the two fits counts
+/// The likelihood ratio of each effect whose null lies at infinity: the effect fitted from its
+/// start (a modulus: the base model's stand-in for the null, where the model is the base model),
+/// with the fitted parameters from the base fit's values (so a modulus's chi^2 starts at
+/// chi^2_base and the fit only lowers it), and, when that finds no significant drop, from the
+/// model's own: the base fit may have gone where the effect has no gradient (a yield stress
+/// fitted so low that every reading is past yield, where G drops out); the better of the two
+/// fits counts. Returns the candidates and the fits a candidate's fit can take over.
 #[allow(clippy::too_many_arguments)]
 fn likelihood_ratio_tests(
     base: &Fit,
