@@ -10,7 +10,7 @@
 
 use super::experiments::Experiments;
 use super::observation::Observation;
-use super::linalg::{normal_equations, pinv_sym, Mat};
+use super::linalg::{gauss_newton_step, normal_equations, pinv_sym, Mat};
 use super::engine::Engine;
 use super::model::{Bounds, Model};
 use super::sensitivity::Sensitivity;
@@ -180,8 +180,7 @@ fn free_parameters(jz: &[Vec<f64>], z: &[f64], theta: &[f64], bounds: &[Bounds])
             return free;
         }
         let (a, g) = normal_equations(jz, z, &cols);
-        let (inv, _) = pinv_sym(&a, 1e-12);
-        let step: Vec<f64> = inv.iter().map(|r| -r.iter().zip(&g).map(|(a, b)| a * b).sum::<f64>()).collect();
+        let step = gauss_newton_step(&a, &g, 1e-12);
         let out: Vec<usize> = cols.iter().zip(&step).filter(|&(&i, &d)| (theta[i] <= bounds[i].lower && d < 0.0) || (theta[i] >= bounds[i].upper && d > 0.0)).map(|(&i, _)| i).collect();
         if out.is_empty() {
             return free;
@@ -226,8 +225,7 @@ fn damped_step(
         for (k, row) in damped.iter_mut().enumerate() {
             row[k] += *lambda * a[k][k].max(1e-12);
         }
-        let (inv, _) = pinv_sym(&damped, 1e-14);
-        let step: Vec<f64> = inv.iter().map(|r| -r.iter().zip(g).map(|(a, b)| a * b).sum::<f64>()).collect();
+        let step = gauss_newton_step(&damped, g, 1e-14);
         let mut trial = theta.to_vec();
         for (k, &i) in cols.iter().enumerate() {
             trial[i] = (theta[i] + step[k] * bounds[i].scale).clamp(bounds[i].lower, bounds[i].upper);

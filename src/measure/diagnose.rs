@@ -37,7 +37,7 @@ use super::calibrate::{calibrate, calibrate_from, chi2, predicted_drop, standard
 use super::experiments::Experiments;
 use super::observation::Observation;
 use super::effects::{Covariates, Effect};
-use super::linalg::{chi2_sf, normal_equations, pinv_sym};
+use super::linalg::{chi2_sf, gauss_newton_step, normal_equations, pinv_sym};
 use super::model::Model;
 use super::sensitivity::Sensitivity;
 
@@ -201,9 +201,6 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
     cands.extend(lr);
     cands.sort_by(|a, b| b.score.total_cmp(&a.score).then(a.effect.cmp(&b.effect)));
     cands.append(&mut scored.inapplicable);
-    for (i, c) in cands.iter_mut().enumerate() {
-        c.rank = i + 1;
-    }
     let models = fit_and_check(&mut cands, &base, &mut prefit, &scored, data, exps, fit, opts, &mut clock)?;
 
     // Effects equal at first order at the null (linear and exponential ageing) tie on the score;
@@ -670,13 +667,12 @@ fn one_step_without(f: &Fit, data: &[Observation], id: &str) -> Result<Step, Str
     let (z, jz) = standardised(&pick(&f.model_values), &jac, &train, &scale);
     let cols: Vec<usize> = (0..f.names.len()).filter(|&i| !f.at_bound[i]).collect();
     let (a, g) = normal_equations(&jz, &z, &cols);
-    let (inv, _) = pinv_sym(&a, 1e-12);
+    let step = gauss_newton_step(&a, &g, 1e-12);
     let mut model = f.model.clone();
     // the step taken in scaled parameters, after the clamp to the bounds
     let mut taken = vec![0.0; f.names.len()];
     for (k, &i) in cols.iter().enumerate() {
-        let step: f64 = -inv[k].iter().zip(&g).map(|(a, b)| a * b).sum::<f64>();
-        let value = (f.values[i] + step * scale[i]).clamp(bounds[i].lower, bounds[i].upper);
+        let value = (f.values[i] + step[k] * scale[i]).clamp(bounds[i].lower, bounds[i].upper);
         taken[i] = (value - f.values[i]) / scale[i];
         model.set(&f.names[i], value)?;
     }

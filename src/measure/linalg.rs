@@ -35,6 +35,13 @@ pub fn pinv_sym(a: &Mat, rel: f64) -> (Mat, usize) {
     (out, rank)
 }
 
+/// The Gauss-Newton step -A^+ g of the normal equations (A, g), eigenvalues of A below `rel`
+/// times the largest dropped.
+pub fn gauss_newton_step(a: &Mat, g: &[f64], rel: f64) -> Vec<f64> {
+    let (inv, _) = pinv_sym(a, rel);
+    inv.iter().map(|r| -r.iter().zip(g).map(|(a, b)| a * b).sum::<f64>()).collect()
+}
+
 /// J^T J and J^T z for the columns `cols` of J (rows are observations).
 pub fn normal_equations(j: &[Vec<f64>], z: &[f64], cols: &[usize]) -> (Mat, Vec<f64>) {
     let n = cols.len();
