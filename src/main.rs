@@ -221,10 +221,23 @@ struct CalibrateArgs {
     /// Convergence plot (PNG; default beside --out).
     #[arg(long)]
     plot: Option<PathBuf>,
-    #[arg(long, default_value_t = 30)]
-    max_iterations: usize,
+    #[command(flatten)]
+    fit_steps: FitSteps,
     #[command(flatten)]
     engine: EngineArgs,
+}
+
+/// How a fit steps.
+#[derive(clap::Args)]
+struct FitSteps {
+    /// Accepted steps at most, per fit.
+    #[arg(long, default_value_t = 30)]
+    max_iterations: usize,
+    /// Compute the Jacobian again after every accepted step. By default, a campaign with
+    /// simulations updates it by Broyden's secant between exact Jacobians, taken at the start,
+    /// where a step is refused and at the end (docs/measurement.md).
+    #[arg(long)]
+    jacobian_every_step: bool,
 }
 
 #[derive(clap::Args)]
@@ -253,8 +266,8 @@ struct DiagnoseArgs {
     /// model with every effect added).
     #[arg(long)]
     out: Option<PathBuf>,
-    #[arg(long, default_value_t = 30)]
-    max_iterations: usize,
+    #[command(flatten)]
+    fit_steps: FitSteps,
     /// Run up to N rounds: diagnose, add the verdict's effect, refit, and diagnose again
     /// until nothing is significant, printing the error after each round.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
@@ -332,8 +345,9 @@ impl EngineArgs {
     }
 
     /// A fit's options on this engine, `jobs` experiments at a time, each step on stderr.
-    fn fit_options(&self, max_iterations: usize, jobs: usize) -> Result<strand::measure::calibrate::FitOptions, String> {
-        Ok(strand::measure::calibrate::FitOptions { max_iterations, jobs, engine: self.engine()?, progress: true, ..Default::default() })
+    fn fit_options(&self, steps: &FitSteps, jobs: usize) -> Result<strand::measure::calibrate::FitOptions, String> {
+        let (max_iterations, secant) = (steps.max_iterations, !steps.jacobian_every_step);
+        Ok(strand::measure::calibrate::FitOptions { max_iterations, jobs, engine: self.engine()?, progress: true, secant, ..Default::default() })
     }
 }
 
@@ -549,7 +563,7 @@ fn counted_data(m: &Model, d: Vec<Observation>, e: &Experiments, jobs: usize) ->
 
 /// `strand calibrate`: the fit, its report, the calibrated model and the convergence plot.
 fn calibrate(args: CalibrateArgs) -> Result<bool, Failure> {
-    let CalibrateArgs { inputs, fit, out, plot, max_iterations, engine } = args;
+    let CalibrateArgs { inputs, fit, out, plot, fit_steps, engine } = args;
     use strand::measure::{calibrate, resolution};
     let (m, d0, e) = inputs.load()?;
     let out = out.unwrap_or_else(|| inputs.model.with_extension("calibrated.toml"));
@@ -557,7 +571,7 @@ fn calibrate(args: CalibrateArgs) -> Result<bool, Failure> {
     check_writable(&out, "--out")?;
     check_writable(&plot, "--plot")?;
     let (d, disc) = counted_data(&m, d0, &e, inputs.jobs)?;
-    let f = calibrate::calibrate(&m, &d, &e, &fit, &engine.fit_options(max_iterations, inputs.jobs)?)?;
+    let f = calibrate::calibrate(&m, &d, &e, &fit, &engine.fit_options(&fit_steps, inputs.jobs)?)?;
     // the fitted values first: a file that fails to write then loses nothing
     print_result(inputs.json, &f, &disc, |c| resolution::report(&c.data, &c.estimates, &f.model_values, "fitted"), || calibrate::report(&f))?;
     std::fs::write(&out, f.model.to_toml()).map_err(|e| format!("--out {}: {e}", out.display()))?;
@@ -568,7 +582,7 @@ fn calibrate(args: CalibrateArgs) -> Result<bool, Failure> {
 
 /// `strand diagnose`: which effect the model lacks, in one round or several.
 fn diagnose(args: DiagnoseArgs) -> Result<bool, Failure> {
-    let DiagnoseArgs { inputs, fit, alpha, no_loo, loo_refits, max_fitted, out, max_iterations, rounds, engine } = args;
+    let DiagnoseArgs { inputs, fit, alpha, no_loo, loo_refits, max_fitted, out, fit_steps, rounds, engine } = args;
     use strand::measure::{diagnose, resolution};
     if !(alpha > 0.0 && alpha < 1.0) {
         return Err(format!("--alpha must be in (0, 1), got {alpha}").into());
@@ -578,7 +592,7 @@ fn diagnose(args: DiagnoseArgs) -> Result<bool, Failure> {
         check_writable(out, "--out")?;
     }
     let (d, disc) = counted_data(&m, d0, &e, inputs.jobs)?;
-    let opts = diagnose::DiagnoseOptions { fit: engine.fit_options(max_iterations, inputs.jobs)?, alpha, leave_one_out: !no_loo, exact_refits: loo_refits, max_fitted: max_fitted as usize };
+    let opts = diagnose::DiagnoseOptions { fit: engine.fit_options(&fit_steps, inputs.jobs)?, alpha, leave_one_out: !no_loo, exact_refits: loo_refits, max_fitted: max_fitted as usize };
     if rounds > 1 {
         use strand::measure::rounds;
         let r = rounds::rounds(&m, &d, &e, &fit, &opts, rounds as usize)?;

@@ -2,6 +2,13 @@
 //! measurements, minimising chi^2 = sum ((model - measured) / uncertainty)^2 with the Jacobian
 //! from the adjoints (`sensitivity.rs`).
 //!
+//! Where the campaign runs simulations, whose Jacobian costs 2 p forward runs (or an adjoint's
+//! several) against one for the values, an accepted step updates the Jacobian by Broyden's
+//! rank-one secant (the update that matches the step's change of values) instead of computing
+//! it again; the engine computes it again where the secant fit stalls (a step refused, or a
+//! stop that the Jacobian declares) and at the end, so the fit stops, and its uncertainties come,
+//! from an exact Jacobian ([`FitOptions::secant`]).
+//!
 //! Parameters move in units of their scale (an effect's typical magnitude, a material number's
 //! starting value), so the damping treats them alike. A parameter at a bound whose gradient
 //! Gauss-Newton step would cross it is held there for the step (an active set). Uncertainties are the square roots
@@ -27,11 +34,15 @@ pub struct FitOptions {
     pub engine: Engine,
     /// A line on stderr per accepted step.
     pub progress: bool,
+    /// Broyden's secant update of the Jacobian after an accepted step, for a campaign with a
+    /// simulation (module doc); a rheometer campaign's adjoints cost less than its runs and
+    /// always give the Jacobian.
+    pub secant: bool,
 }
 
 impl Default for FitOptions {
     fn default() -> FitOptions {
-        FitOptions { max_iterations: 30, tolerance: 1e-5, jobs: 1, engine: Engine::Local, progress: false }
+        FitOptions { max_iterations: 30, tolerance: 1e-5, jobs: 1, engine: Engine::Local, progress: false, secant: true }
     }
 }
 
@@ -105,36 +116,47 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
     let mut lambda = 1e-3;
     let mut converged = false;
     let mut free = vec![true; n];
-    for _ in 0..opts.max_iterations {
+    let secant = opts.secant && runs_simulations(data, exps);
+    // whether `s`'s Jacobian is the engine's, not a secant update: a fit stops on an exact one
+    let mut exact = true;
+    let exact_at = |m: &Model, s: &Sensitivity| opts.engine.jacobian_at(opts.jobs, m, data, exps, names, &s.values)?;
+    while history.len() <= opts.max_iterations {
         let (z, jz) = standardised(&s.values, s.jacobian.as_ref().expect("asked"), data, &scale);
         free = free_parameters(&jz, &z, &theta, &bounds);
         let cols: Vec<usize> = (0..n).filter(|&i| free[i]).collect();
-        if cols.is_empty() {
-            converged = true;
-            break;
-        }
-        let (a, g) = normal_equations(&jz, &z, &cols);
         let birge = (c2 / m.saturating_sub(cols.len()).max(1) as f64).max(1.0);
         let negligible = CHI2_NEGLIGIBLE * birge;
-        if predicted_drop(&a, &g) < negligible {
-            converged = true;
-            break;
-        }
-        let Some(next) = damped_step(&model, &theta, c2, (&a, &g), &cols, &mut lambda, names, &bounds, data, exps, opts)? else {
-            converged = true;
-            break;
+        let (a, g) = normal_equations(&jz, &z, &cols);
+        let next = if cols.is_empty() || predicted_drop(&a, &g) < negligible {
+            None
+        } else {
+            damped_step(&model, &theta, (&s, c2), (&a, &g), &cols, &mut lambda, names, &scale, &bounds, data, exps, opts, (secant, exact))?
+        };
+        let Some(next) = next else {
+            if exact {
+                converged = true;
+                break;
+            }
+            (s, exact) = (exact_at(&model, &s)?, true);
+            continue;
         };
         let drop = c2 - next.chi2;
         let gain = drop / c2.max(1e-300);
-        (theta, model, s, c2) = (next.theta, next.model, next.at, next.chi2);
+        (theta, model, s, c2, exact) = (next.theta, next.model, next.at, next.chi2, !secant);
         history.push(c2);
         if opts.progress {
-            eprintln!("step {}: chi^2 = {c2:.6e} (damping {lambda:.1e}, {:.1} s into the fit)", history.len() - 1, clock.elapsed().as_secs_f64());
+            eprintln!("step {}: chi^2 = {c2:.6e} (damping {lambda:.1e}{}, {:.1} s into the fit)", history.len() - 1, if exact { "" } else { ", secant Jacobian" }, clock.elapsed().as_secs_f64());
         }
         if gain < opts.tolerance || drop < negligible {
-            converged = true;
-            break;
+            if exact {
+                converged = true;
+                break;
+            }
+            (s, exact) = (exact_at(&model, &s)?, true);
         }
+    }
+    if !exact {
+        s = exact_at(&model, &s)?;
     }
 
     // uncertainties from the undamped normal matrix at the optimum
@@ -200,27 +222,31 @@ struct Accepted {
     chi2: f64,
 }
 
-/// A Levenberg-Marquardt step from `theta` (at `model`, chi^2 `c2`) on the normal equations
-/// `(a, g)` of the free parameters `cols`, the damping `lambda` raised until a step lowers chi^2
-/// (at most 12 tries) and lowered after it; none when no step lowers it. A trial the model
-/// rejects (a material that will not build), or whose Jacobian run is rejected (a side of a
+/// A Levenberg-Marquardt step from `theta` (at `model`, with values and Jacobian `at` and chi^2
+/// `c2`) on the normal equations `(a, g)` of the free parameters `cols`, the damping `lambda`
+/// raised until a step lowers chi^2 (at most 12 tries; one on a secant Jacobian, which the caller
+/// then computes again) and lowered after it; none when no step lowers it. With `secant` the
+/// accepted step's Jacobian is the secant update of `at`'s, otherwise the engine's. A trial the
+/// model rejects (a material that will not build), or whose Jacobian run is rejected (a side of a
 /// central difference where a printed line breaks up), is a failed step; the engine failing to
 /// run it is an error.
 #[allow(clippy::too_many_arguments)]
 fn damped_step(
     model: &Model,
     theta: &[f64],
-    c2: f64,
+    (at, c2): (&Sensitivity, f64),
     (a, g): (&Mat, &[f64]),
     cols: &[usize],
     lambda: &mut f64,
     names: &[String],
+    scale: &[f64],
     bounds: &[Bounds],
     data: &[Observation],
     exps: &Experiments,
     opts: &FitOptions,
+    (secant, exact): (bool, bool),
 ) -> Result<Option<Accepted>, String> {
-    for _ in 0..12 {
+    for _ in 0..if exact { 12 } else { 1 } {
         let mut damped: Mat = a.clone();
         for (k, row) in damped.iter_mut().enumerate() {
             row[k] += *lambda * a[k][k].max(1e-12);
@@ -247,9 +273,15 @@ fn damped_step(
         };
         let tc2 = chi2(&tv, data);
         if tc2.is_finite() && tc2 < c2 {
-            let Ok(at_trial) = opts.engine.jacobian_at(opts.jobs, &tm, data, exps, names, &tv)? else {
-                *lambda *= 4.0;
-                continue;
+            let at_trial = if secant {
+                let jacobian = secant_update(at.jacobian.as_ref().expect("asked"), (theta, &trial), scale, (&at.values, &tv));
+                Sensitivity { values: tv, jacobian: Some(jacobian) }
+            } else {
+                let Ok(at_trial) = opts.engine.jacobian_at(opts.jobs, &tm, data, exps, names, &tv)? else {
+                    *lambda *= 4.0;
+                    continue;
+                };
+                at_trial
             };
             *lambda = (*lambda / 3.0).max(1e-9);
             return Ok(Some(Accepted { theta: trial, model: tm, at: at_trial, chi2: tc2 }));
@@ -257,6 +289,28 @@ fn damped_step(
         *lambda *= 4.0;
     }
     Ok(None)
+}
+
+/// Broyden's update of `jac` (at `from`) for a step to `to`, where the values went from `v0` to
+/// `v1`: the least change, in the parameters' scales, after which the Jacobian maps the step onto
+/// the values' change.
+fn secant_update(jac: &[Vec<f64>], (from, to): (&[f64], &[f64]), scale: &[f64], (v0, v1): (&[f64], &[f64])) -> Vec<Vec<f64>> {
+    let dx: Vec<f64> = to.iter().zip(from).map(|(b, a)| b - a).collect();
+    let ds: Vec<f64> = dx.iter().zip(scale).map(|(d, s)| d / s).collect();
+    let norm2: f64 = ds.iter().map(|d| d * d).sum();
+    jac.iter()
+        .zip(v0.iter().zip(v1))
+        .map(|(row, (a, b))| {
+            let miss = (b - a) - row.iter().zip(&dx).map(|(g, d)| g * d).sum::<f64>();
+            row.iter().zip(ds.iter().zip(scale)).map(|(g, (d, s))| g + miss * d / (s * norm2)).collect()
+        })
+        .collect()
+}
+
+/// Whether any of the experiments `data` observes is a simulation (a rheometer test's Jacobian
+/// comes from its adjoint at less than a run's cost).
+fn runs_simulations(data: &[Observation], exps: &Experiments) -> bool {
+    super::runner::group(data).iter().any(|(id, _)| exps.get(id).is_some_and(|x| x.scenario.is_some()))
 }
 
 /// chi^2's drop one undamped Gauss-Newton step predicts, g^T A^+ g, from the normal equations

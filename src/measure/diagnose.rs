@@ -284,6 +284,23 @@ fn base_fit(model: &Model, data: &[Observation], exps: &Experiments, fit: &[Stri
     Ok(Fit { names: vec![], start: vec![], values: vec![], uncertainty: vec![], at_bound: vec![], influence: vec![], chi2_start: c2, chi2: c2, reduced_chi2: c2 / m as f64, history: vec![c2], converged: true, observations: m, model_values: v, jacobian: vec![], model: model.clone() })
 }
 
+/// Values and Jacobian, in the base fit's parameters then `extra`, at `with`: the base fit's model
+/// with effects added. Where `with` gives the base fit's values (every added effect at its null,
+/// or a modulus at the stand-in the base model runs in its place), the fitted parameters' columns
+/// are the base fit's own and only `extra`'s are computed, from those values; elsewhere every
+/// column is, from `with`'s values.
+fn beside_base(base: &Fit, with: &Model, extra: &[String], data: &[Observation], exps: &Experiments, opts: &DiagnoseOptions) -> Result<Sensitivity, String> {
+    let (engine, jobs) = (&opts.fit.engine, opts.fit.jobs);
+    let names: Vec<String> = base.names.iter().chain(extra).cloned().collect();
+    let values = engine.sensitivity(jobs, with, data, exps, None)??.values;
+    if values != base.model_values || base.names.is_empty() || extra.is_empty() {
+        return Ok(engine.jacobian_at(jobs, with, data, exps, &names, &values)??);
+    }
+    let added = engine.jacobian_at(jobs, with, data, exps, extra, &values)??;
+    let jacobian = base.jacobian.iter().zip(added.jacobian.expect("asked")).map(|(b, a)| b.iter().copied().chain(a).collect()).collect();
+    Ok(Sensitivity { values, jacobian: Some(jacobian) })
+}
+
 /// What the score tests leave: a candidate for each effect tested by its score, the effects
 /// whose null lies at infinity (for the likelihood ratio) and those that cannot act here, and the
 /// Jacobian at the nulls in the fitted parameters and every score-tested effect's (a candidate's
@@ -321,7 +338,7 @@ fn score_tests(base: &Fit, data: &[Observation], exps: &Experiments, fit: &[Stri
         names.extend(e.params().iter().map(|s| format!("{}.{}", e.name(), s.name)));
     }
     clock.say(format!("score tests at the nulls of {}", absent.iter().map(|e| e.name()).collect::<Vec<_>>().join(", ")));
-    let at_nulls = opts.fit.engine.sensitivity(opts.fit.jobs, &aug, data, exps, Some(&names))??;
+    let at_nulls = beside_base(base, &aug, &names[fit.len()..], data, exps, opts)?;
     let scale: Vec<f64> = names.iter().map(|n| aug.bounds(n).map(|b| b.scale)).collect::<Result<_, _>>()?;
     let (z, jz) = standardised(&at_nulls.values, at_nulls.jacobian.as_ref().expect("asked"), data, &scale);
     let fcols: Vec<usize> = (0..fit.len()).collect();
@@ -427,7 +444,7 @@ fn likelihood_ratio_tests(
             // (G where every reading is past yield) the fit would only refit the fitted
             // parameters; from the model's values, where they are elsewhere, it may have
             clock.say(format!("{}: its likelihood ratio, from {}", e.name(), if std::ptr::eq(from, model) { "the model's values" } else { "the base fit's values" }));
-            let start_values = opts.fit.engine.sensitivity(opts.fit.jobs, &with, data, exps, Some(&fnames))??;
+            let start_values = if std::ptr::eq(from, &base.model) { beside_base(base, &with, &fnames[fit.len()..], data, exps, opts)? } else { opts.fit.engine.sensitivity(opts.fit.jobs, &with, data, exps, Some(&fnames))?? };
             let at_start = calibrate_from(&with, data, exps, &fnames, &FitOptions { max_iterations: 0, progress: false, ..opts.fit.clone() }, start_values.clone())?;
             let predicted = base.chi2 - at_start.chi2 + gauss_newton_drop(&at_start, data)?;
             let informed = at_start.influence[fit.len()..].iter().any(|&i| i);

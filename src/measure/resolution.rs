@@ -33,7 +33,7 @@
 
 use super::experiments::{Experiment, Experiments, ResolutionTable};
 use super::observation::{Observable, Observation};
-use super::runner::{evaluate, experiment_keys, find, group, job_threads, par_map, parse_scenario, scenario_text, ungroup};
+use super::runner::{evaluate, experiment_keys, find, group, job_threads, par_map_experiments, parse_scenario, scenario_text, ungroup};
 use super::model::Model;
 
 /// The order of convergence p assumed when `[resolution]` gives none: case 1's width at 8, 10
@@ -108,7 +108,7 @@ pub fn estimate(model: &Model, data: &[Observation], exps: &Experiments, values:
     let wanted = group(data);
     let given: Option<Vec<Vec<f64>>> = values.map(|v| per_experiment(data, &wanted, v));
     let threads = job_threads(jobs);
-    let per = par_map(wanted.len(), jobs, |k| -> Result<Vec<Option<Estimate>>, String> {
+    let per = par_map_experiments(&wanted, jobs, |k| -> Result<Vec<Option<Estimate>>, String> {
         let (id, obs) = &wanted[k];
         let x = find(exps, id)?;
         if x.scenario.is_none() {

@@ -22,7 +22,7 @@
 use super::experiments::{Experiment, Experiments};
 use super::observables::{observable_plan, reading_index};
 use super::observation::{Observable, Observation};
-use super::runner::{experiment_keys, find, group, job_threads, par_map, parse_scenario, rheometer_setup, scenario_text, ungroup};
+use super::runner::{experiment_keys, find, group, job_threads, par_map_experiments, parse_scenario, rheometer_setup, scenario_text, ungroup};
 use super::effects::Keys;
 use super::model::Model;
 use super::rheometer::Rheometer;
@@ -54,7 +54,7 @@ fn campaign(model: &Model, data: &[Observation], exps: &Experiments, names: Opti
     let wanted = group(data);
     let threads = job_threads(jobs);
     let known = known.map(|v| regroup(data, &wanted, v));
-    let per = par_map(wanted.len(), jobs, |k| one_known(model, exps, &wanted[k].0, &wanted[k].1, names, threads, known.as_ref().map(|v| &v[k][..])))?;
+    let per = par_map_experiments(&wanted, jobs, |k| one_known(model, exps, &wanted[k].0, &wanted[k].1, names, threads, known.as_ref().map(|v| &v[k][..])))?;
     Ok(assemble(data, &wanted, &per, names))
 }
 
