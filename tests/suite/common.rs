@@ -1,5 +1,33 @@
-// Shared scenario text for the integration tests.
+// What the integration tests share: running the strand binary, and scenario text.
 #![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// `strand ARGS` in the test's own directory: its exit code, stdout and stderr.
+pub fn strand(args: &[&str]) -> (i32, String, String) {
+    output(Command::new(env!("CARGO_BIN_EXE_strand")).args(args))
+}
+
+/// `strand ARGS` in `dir`: its exit code, stdout and stderr.
+pub fn strand_in(args: &[&str], dir: &Path) -> (i32, String, String) {
+    output(Command::new(env!("CARGO_BIN_EXE_strand")).args(args).current_dir(dir))
+}
+
+fn output(c: &mut Command) -> (i32, String, String) {
+    let o = c.output().unwrap();
+    (o.status.code().unwrap_or(-1), String::from_utf8_lossy(&o.stdout).into(), String::from_utf8_lossy(&o.stderr).into())
+}
+
+/// A path as a command-line argument.
+pub fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// `fixtures/measure/DIR` of the repository.
+pub fn measure_fixtures(dir: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/measure").join(dir)
+}
 
 /// A small quasi-2D dam break: `threads` workers, `budget` memory.
 pub fn dam_break(threads: usize, budget: &str, extra_memory: &str) -> String {

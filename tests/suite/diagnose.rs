@@ -6,21 +6,7 @@
 //! compressibility cases run slump simulations with their adjoints (a few minutes each on 2
 //! cores).
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
-
-fn fixtures(dir: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/measure").join(dir)
-}
-
-fn strand(args: &[&str]) -> (i32, String, String) {
-    let o = Command::new(env!("CARGO_BIN_EXE_strand")).args(args).output().unwrap();
-    (o.status.code().unwrap_or(-1), String::from_utf8_lossy(&o.stdout).into(), String::from_utf8_lossy(&o.stderr).into())
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
+use crate::common::{strand, s, measure_fixtures};
 
 /// Synthesised and diagnosed with the same experiments.
 const EXPS: [&str; 2] = ["experiments.toml"; 2];
@@ -28,7 +14,7 @@ const EXPS: [&str; 2] = ["experiments.toml"; 2];
 /// Synthesise data from `truth` (with `truth_exps`), then diagnose `base` against it with `exps`
 /// (and `extra` arguments).
 fn diagnose(dir: &str, truth: &str, [truth_exps, exps]: [&str; 2], noise: &str, jobs: &str, extra: &[&str]) -> serde_json::Value {
-    let d = fixtures(dir);
+    let d = measure_fixtures(dir);
     let tmp = tempfile::tempdir().unwrap();
     let data = tmp.path().join("data.csv");
     let (code, _, err) = strand(&["synth", "--model", s(&d.join(truth)), "--experiments", s(&d.join(truth_exps)), "--noise", noise, "--seed", "7", "--out", s(&data), "--jobs", jobs]);
@@ -178,7 +164,7 @@ fn hidden_compressibility_is_found_from_the_slumps_height() {
 
 #[test]
 fn calibrate_writes_the_fitted_model_and_its_convergence_plot() {
-    let d = fixtures("campaign");
+    let d = measure_fixtures("campaign");
     let tmp = tempfile::tempdir().unwrap();
     let data = tmp.path().join("data.csv");
     let (code, _, err) = strand(&["synth", "--model", s(&d.join("truth_thixotropy.toml")), "--experiments", s(&d.join("experiments.toml")), "--noise", "0.01", "--seed", "3", "--out", s(&data)]);
@@ -217,7 +203,7 @@ fn calibrate_writes_the_fitted_model_and_its_convergence_plot() {
 /// Synthesise the campaign's data from `truth` (1 % noise), then run `strand diagnose` on `base`
 /// with `extra` arguments; its JSON and the model it wrote.
 fn diagnose_campaign(truth: &str, base: &str, extra: &[&str]) -> (serde_json::Value, String, tempfile::TempDir) {
-    let d = fixtures("campaign");
+    let d = measure_fixtures("campaign");
     let tmp = tempfile::tempdir().unwrap();
     let data = tmp.path().join("data.csv");
     let exps = d.join("experiments.toml");
@@ -253,7 +239,7 @@ fn an_effect_declared_in_the_model_file_lowers_the_error_to_the_noise() {
     // the written model has it declared and on, and compares as the fit said
     assert!(written.contains("[effects.yield_growth]") && written.contains("age^b") && !written.contains("candidate"), "{written}");
     let model = tmp.path().join("best.toml");
-    let d = fixtures("campaign");
+    let d = measure_fixtures("campaign");
     let (code, json, err) = strand(&["compare", "--model", s(&model), "--data", s(&tmp.path().join("data.csv")), "--experiments", s(&d.join("experiments.toml")), "--json"]);
     assert_eq!(code, 0, "{err}");
     let cmp: serde_json::Value = serde_json::from_str(&json).unwrap();
@@ -302,7 +288,7 @@ fn two_hidden_effects_are_resolved_by_rounds() {
 /// only to x 0.994 (LR 16).
 #[test]
 fn hidden_structuration_is_found_from_failure_heights() {
-    let d = fixtures("failure");
+    let d = measure_fixtures("failure");
     let tmp = tempfile::tempdir().unwrap();
     let data = tmp.path().join("data.csv");
     let exps = d.join("experiments.toml");
@@ -333,7 +319,7 @@ fn hidden_structuration_is_found_from_failure_heights() {
 #[test]
 fn a_failure_layers_column_resolves_its_staircase() {
     use strand::measure::{experiments::Experiments, model::Model, observation::Observable, sensitivity};
-    let d = fixtures("failure");
+    let d = measure_fixtures("failure");
     let exps = Experiments::load(&d.join("experiments.toml")).unwrap();
     let text = std::fs::read_to_string(d.join("truth_thixotropy.toml")).unwrap().replace("a_thix = 40.0", "a_thix = 0.0");
     let model = Model::from_table(&text.parse().unwrap()).unwrap();

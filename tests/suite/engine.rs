@@ -4,12 +4,8 @@
 //! (`apt-get install -y parallel`; `.ci/run` installs it).
 
 use std::path::{Path, PathBuf};
+use crate::common::{strand_in};
 use std::process::Command;
-
-fn strand(args: &[&str], dir: &Path) -> (i32, String, String) {
-    let o = Command::new(env!("CARGO_BIN_EXE_strand")).args(args).current_dir(dir).output().unwrap();
-    (o.status.code().unwrap_or(-1), String::from_utf8_lossy(&o.stdout).into(), String::from_utf8_lossy(&o.stderr).into())
-}
 
 /// A copy of the rheometer campaign (edited by some tests) and data synthesised from its
 /// thixotropic truth.
@@ -20,7 +16,7 @@ fn campaign() -> (tempfile::TempDir, PathBuf) {
     for f in ["base.toml", "experiments.toml", "flow_curve.toml", "truth_thixotropy.toml"] {
         std::fs::copy(fx.join(f), d.join(f)).unwrap();
     }
-    let (code, _, err) = strand(&["synth", "--model", "truth_thixotropy.toml", "--experiments", "experiments.toml", "--noise", "0.01", "--seed", "7", "--out", "data.csv"], &d);
+    let (code, _, err) = strand_in(&["synth", "--model", "truth_thixotropy.toml", "--experiments", "experiments.toml", "--noise", "0.01", "--seed", "7", "--out", "data.csv"], &d);
     assert_eq!(code, 0, "{err}");
     (dir, d)
 }
@@ -37,7 +33,7 @@ const FIT: [&str; 2] = ["--fit", "material.yield_stress,material.viscosity"];
 fn calibrate_and_diagnose_through_gnu_parallel_are_bit_identical_to_local_and_a_failed_job_loses_nothing() {
     require_parallel();
     let (_keep, d) = campaign();
-    let calibrate = |out: &str, extra: &[&str]| strand(&[&["calibrate"], &INPUTS[..], &FIT[..], &["--json", "--out", out], extra].concat(), &d);
+    let calibrate = |out: &str, extra: &[&str]| strand_in(&[&["calibrate"], &INPUTS[..], &FIT[..], &["--json", "--out", out], extra].concat(), &d);
 
     let (code, local, err) = calibrate("local.toml", &[]);
     assert_eq!(code, 0, "{err}");
@@ -84,7 +80,7 @@ fn calibrate_and_diagnose_through_gnu_parallel_are_bit_identical_to_local_and_a_
     std::fs::write(&proto, std::fs::read_to_string(&proto).unwrap().replace("hold = 0.6", "hold = 0.5")).unwrap();
 
     // diagnose: the score tests, the likelihood-ratio fits and the verdict, to the bit
-    let diagnose = |extra: &[&str]| strand(&[&["diagnose"], &INPUTS[..], &FIT[..], &["--json", "--no-loo", "--max-fitted", "1"], extra].concat(), &d);
+    let diagnose = |extra: &[&str]| strand_in(&[&["diagnose"], &INPUTS[..], &FIT[..], &["--json", "--no-loo", "--max-fitted", "1"], extra].concat(), &d);
     let (code, local, err) = diagnose(&[]);
     assert_eq!(code, 0, "{err}");
     let v: serde_json::Value = serde_json::from_str(&local).unwrap();
@@ -105,7 +101,7 @@ fn collect_refuses_results_saved_under_another_model_or_scenario() {
     // issue 27's finding: compare --collect took values saved under another model (chi^2 11.5
     // where the true value is 1.38e4)
     let (_keep, d) = campaign();
-    let compare = |model: &str, extra: &[&str]| strand(&[&["compare", "--model", model, "--data", "data.csv", "--experiments", "experiments.toml", "--json"], extra].concat(), &d);
+    let compare = |model: &str, extra: &[&str]| strand_in(&[&["compare", "--model", model, "--data", "data.csv", "--experiments", "experiments.toml", "--json"], extra].concat(), &d);
     let (code, _, err) = compare("truth_thixotropy.toml", &["--plan", "plan"]);
     assert_eq!(code, 0, "{err}");
     for line in std::fs::read_to_string(d.join("plan/jobs.txt")).unwrap().lines() {

@@ -3,6 +3,7 @@
 //! compared against it and against another.
 
 use std::path::Path;
+use crate::common::{strand_in};
 use std::process::Command;
 
 const SLUMP: &str = r#"
@@ -56,11 +57,6 @@ hold = 0.5
 
 const TRUTH: &str = "[material]\nkind = \"evp_bingham\"\ndensity = 2300.0\nbulk_modulus = 1.0e6\npoisson_ratio = 0.3\nviscosity = 50.0\nyield_stress = 100.0\n";
 
-fn strand(args: &[&str], dir: &Path) -> (i32, String, String) {
-    let o = Command::new(env!("CARGO_BIN_EXE_strand")).args(args).current_dir(dir).output().unwrap();
-    (o.status.code().unwrap_or(-1), String::from_utf8_lossy(&o.stdout).into(), String::from_utf8_lossy(&o.stderr).into())
-}
-
 #[test]
 fn synthesised_measurements_compare_to_their_model_exactly_and_to_another_not() {
     let dir = tempfile::tempdir().unwrap();
@@ -70,14 +66,14 @@ fn synthesised_measurements_compare_to_their_model_exactly_and_to_another_not() 
     std::fs::write(d.join("truth.toml"), TRUTH).unwrap();
     std::fs::write(d.join("other.toml"), TRUTH.replace("yield_stress = 100.0", "yield_stress = 200.0")).unwrap();
 
-    let (code, _, err) = strand(&["synth", "--model", "truth.toml", "--experiments", "exps.toml", "--out", "data.csv", "--jobs", "2"], d);
+    let (code, _, err) = strand_in(&["synth", "--model", "truth.toml", "--experiments", "exps.toml", "--out", "data.csv", "--jobs", "2"], d);
     assert_eq!(code, 0, "{err}");
     let csv = std::fs::read_to_string(d.join("data.csv")).unwrap();
     assert_eq!(csv.lines().count(), 1 + 5, "{csv}");
 
     // the model that made the data: every residual zero (the scenario's own Newtonian material
     // was replaced by the model's, whatever the number of jobs)
-    let (code, out, err) = strand(&["compare", "--model", "truth.toml", "--data", "data.csv", "--experiments", "exps.toml", "--json", "--jobs", "2"], d);
+    let (code, out, err) = strand_in(&["compare", "--model", "truth.toml", "--data", "data.csv", "--experiments", "exps.toml", "--json", "--jobs", "2"], d);
     assert_eq!(code, 0, "{err}");
     let v: serde_json::Value = serde_json::from_str(&out).unwrap();
     let rows = v["rows"].as_array().unwrap();
@@ -89,20 +85,20 @@ fn synthesised_measurements_compare_to_their_model_exactly_and_to_another_not() 
     assert!(spread("SF-stiff", None) < spread("SF", None), "{out}");
 
     // a stiffer model under-predicts the spreads and over-predicts the stresses
-    let (code, out, err) = strand(&["compare", "--model", "other.toml", "--data", "data.csv", "--experiments", "exps.toml"], d);
+    let (code, out, err) = strand_in(&["compare", "--model", "other.toml", "--data", "data.csv", "--experiments", "exps.toml"], d);
     assert_eq!(code, 0, "{err}");
     assert!(out.contains("where the model fails most") && out.contains("per experiment") && out.contains("over-predicts"), "{out}");
-    let (_, out, _) = strand(&["compare", "--model", "other.toml", "--data", "data.csv", "--experiments", "exps.toml", "--json"], d);
+    let (_, out, _) = strand_in(&["compare", "--model", "other.toml", "--data", "data.csv", "--experiments", "exps.toml", "--json"], d);
     let v: serde_json::Value = serde_json::from_str(&out).unwrap();
     assert!(v["chi2"].as_f64().unwrap() > 1e6, "{out}");
 
     // bad input names the problem
     std::fs::write(d.join("bad.csv"), "experiment,observable,at,value,uncertainty\nSF,spread,,0.3,0.01\nSF,spread,,wide,0.01\n").unwrap();
-    let (code, _, err) = strand(&["compare", "--model", "truth.toml", "--data", "bad.csv", "--experiments", "exps.toml"], d);
+    let (code, _, err) = strand_in(&["compare", "--model", "truth.toml", "--data", "bad.csv", "--experiments", "exps.toml"], d);
     assert_eq!(code, 2);
     assert!(err.contains("bad.csv") && err.contains("line 3"), "{err}");
     std::fs::write(d.join("ghost.csv"), "experiment,observable,at,value,uncertainty\nSF9,spread,,0.3,0.01\n").unwrap();
-    let (code, _, err) = strand(&["compare", "--model", "truth.toml", "--data", "ghost.csv", "--experiments", "exps.toml"], d);
+    let (code, _, err) = strand_in(&["compare", "--model", "truth.toml", "--data", "ghost.csv", "--experiments", "exps.toml"], d);
     assert_eq!(code, 2);
     assert!(err.contains("'SF9'") && err.contains("SF, SF-stiff, flow"), "{err}");
 }
@@ -110,7 +106,7 @@ fn synthesised_measurements_compare_to_their_model_exactly_and_to_another_not() 
 #[test]
 fn the_rheometer_prints_a_flow_curve_and_its_sensitivities() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let (code, out, err) = strand(&["rheometer", "fixtures/rheometer/mix_a.toml", "--sensitivity", "--json"], root);
+    let (code, out, err) = strand_in(&["rheometer", "fixtures/rheometer/mix_a.toml", "--sensitivity", "--json"], root);
     assert_eq!(code, 0, "{err}");
     let v: serde_json::Value = serde_json::from_str(&out).unwrap();
     let r = v["readings"].as_array().unwrap();
@@ -119,7 +115,7 @@ fn the_rheometer_prints_a_flow_curve_and_its_sensitivities() {
     let fast = r.iter().find(|x| x["rate"] == 50.0).unwrap();
     assert!((fast["stress"].as_f64().unwrap() / (92.0 + 19.5 * 50.0) - 1.0).abs() < 0.01, "{fast}");
     assert!((fast["d_stress"]["viscosity"].as_f64().unwrap() - 50.0).abs() < 0.1, "{fast}");
-    let (code, _, err) = strand(&["rheometer", "fixtures/scenarios/slump.toml"], root);
+    let (code, _, err) = strand_in(&["rheometer", "fixtures/scenarios/slump.toml"], root);
     assert_eq!(code, 2);
     assert!(err.contains("no [rheometer] table"), "{err}");
 }
@@ -132,13 +128,13 @@ fn planned_jobs_collected_compare_exactly_as_a_local_run() {
     let exps = fx.join("experiments.toml");
     let (e, m) = (exps.to_str().unwrap(), fx.join("base.toml"));
     let truth = fx.join("truth_thixotropy.toml");
-    let (code, _, err) = strand(&["synth", "--model", truth.to_str().unwrap(), "--experiments", e, "--noise", "0.01", "--seed", "5", "--out", "data.csv"], d);
+    let (code, _, err) = strand_in(&["synth", "--model", truth.to_str().unwrap(), "--experiments", e, "--noise", "0.01", "--seed", "5", "--out", "data.csv"], d);
     assert_eq!(code, 0, "{err}");
     let args = ["compare", "--model", m.to_str().unwrap(), "--data", "data.csv", "--experiments", e, "--json"];
-    let (code, local, err) = strand(&args, d);
+    let (code, local, err) = strand_in(&args, d);
     assert_eq!(code, 0, "{err}");
 
-    let (code, _, err) = strand(&[&args[..], &["--plan", "jobs"]].concat(), d);
+    let (code, _, err) = strand_in(&[&args[..], &["--plan", "jobs"]].concat(), d);
     assert_eq!(code, 0, "{err}");
     let lines: Vec<String> = std::fs::read_to_string(d.join("jobs/jobs.txt")).unwrap().lines().map(str::to_string).collect();
     assert_eq!(lines.len(), 6, "{lines:?}");
@@ -148,16 +144,16 @@ fn planned_jobs_collected_compare_exactly_as_a_local_run() {
         let o = Command::new("bash").arg("-c").arg(line).current_dir("/").output().unwrap();
         assert!(o.status.success(), "{line}: {}", String::from_utf8_lossy(&o.stderr));
     }
-    let (code, _, err) = strand(&[&args[..], &["--collect", "jobs"]].concat(), d);
+    let (code, _, err) = strand_in(&[&args[..], &["--collect", "jobs"]].concat(), d);
     assert_ne!(code, 0);
     assert!(err.contains("experiment 'F' has no result"), "{err}");
     let o = Command::new("bash").arg("-c").arg(&lines[5]).output().unwrap();
     assert!(o.status.success());
-    let (code, collected, err) = strand(&[&args[..], &["--collect", "jobs"]].concat(), d);
+    let (code, collected, err) = strand_in(&[&args[..], &["--collect", "jobs"]].concat(), d);
     assert_eq!(code, 0, "{err}");
     assert_eq!(collected, local);
 
-    let (code, _, err) = strand(&["compare", "--model", m.to_str().unwrap(), "--data", "data.csv", "--experiments", e, "--only", "Z", "--save", "z.json"], d);
+    let (code, _, err) = strand_in(&["compare", "--model", m.to_str().unwrap(), "--data", "data.csv", "--experiments", e, "--only", "Z", "--save", "z.json"], d);
     assert_ne!(code, 0);
     assert!(err.contains("--only Z") && err.contains("A, B, C, D, E, F"), "{err}");
 }
@@ -178,9 +174,9 @@ fn printed_profile_points_and_layers_measured_by_synth_are_what_the_run_writes()
     std::fs::write(d.join("truth.toml"), truth).unwrap();
     std::fs::write(d.join("other.toml"), truth.replace("yield_stress = 100.0", "yield_stress = 150.0")).unwrap();
 
-    let (code, _, err) = strand(&["run", "print.toml", "--out", "out", "--quiet"], d);
+    let (code, _, err) = strand_in(&["run", "print.toml", "--out", "out", "--quiet"], d);
     assert_eq!(code, 0, "{err}");
-    let (code, _, err) = strand(&["synth", "--model", "truth.toml", "--experiments", "exps.toml", "--out", "data.csv"], d);
+    let (code, _, err) = strand_in(&["synth", "--model", "truth.toml", "--experiments", "exps.toml", "--out", "data.csv"], d);
     assert_eq!(code, 0, "{err}");
     let csv = std::fs::read_to_string(d.join("data.csv")).unwrap();
     assert!(csv.contains("P,profile,0.015:0.004,") && csv.contains("P,layer_height,0.015:2,"), "{csv}");
@@ -209,7 +205,7 @@ fn printed_profile_points_and_layers_measured_by_synth_are_what_the_run_writes()
     assert!(data[ys.len() + 2].value > 0.01, "{:?}", data[ys.len() + 2]);
 
     // a stiffer model stands taller; the report plots the profile against y
-    let (code, out, err) = strand(&["compare", "--model", "other.toml", "--data", "data.csv", "--experiments", "exps.toml", "--report", "rep"], d);
+    let (code, out, err) = strand_in(&["compare", "--model", "other.toml", "--data", "data.csv", "--experiments", "exps.toml", "--report", "rep"], d);
     assert_eq!(code, 0, "{err}");
     assert!(out.contains("0.015:0.004") && out.contains("over-predicts"), "{out}");
     for f in ["model_vs_data_profile.png", "model_vs_data_layer_height.png", "model_vs_data_layer_width.png", "index.html"] {

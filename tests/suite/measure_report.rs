@@ -4,16 +4,7 @@
 //! truth's structure builds up at rest, the more the model under-predicts).
 
 use std::path::Path;
-use std::process::Command;
-
-fn strand(args: &[&str]) -> (i32, String, String) {
-    let o = Command::new(env!("CARGO_BIN_EXE_strand")).args(args).output().unwrap();
-    (o.status.code().unwrap_or(-1), String::from_utf8_lossy(&o.stdout).into(), String::from_utf8_lossy(&o.stderr).into())
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
+use crate::common::{strand, s};
 
 /// Four flow curves after rests of 0 to 600 s, at ages that do not follow the rests; one
 /// experiment sets a key the others take from the model, so that key varies too.

@@ -2,11 +2,11 @@
 //! central differences, and print campaigns with a hidden effect, synthesised at finer cells than
 //! the model runs at, diagnosed from a base model started away from the truth.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::path::Path;
 use strand::grad::check::check;
 use strand::grad::{gradient, GradOptions, Objective};
 use strand::scenario::Scenario;
+use crate::common::{strand, s, measure_fixtures};
 
 #[test]
 fn the_extrusion_factor_and_the_z_offset_gradients_match_central_differences() {
@@ -34,24 +34,11 @@ fn the_extrusion_factor_and_the_z_offset_gradients_match_central_differences() {
     }
 }
 
-fn campaign() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/measure/print")
-}
-
-fn strand(args: &[&str]) -> (i32, String, String) {
-    let o = Command::new(env!("CARGO_BIN_EXE_strand")).args(args).output().unwrap();
-    (o.status.code().unwrap_or(-1), String::from_utf8_lossy(&o.stdout).into(), String::from_utf8_lossy(&o.stderr).into())
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
 /// Synthesise data from `truth` with `truth_exps` (2 mm cells: finer than the model's 3 mm), keep
 /// the experiments whose id starts with one of `only`, then diagnose the base model against them
 /// with `exps` (and `extra` arguments); the diagnosis as JSON.
 fn diagnose(truth: &str, truth_exps: &str, only: &[&str], exps: &str, extra: &[&str]) -> serde_json::Value {
-    let d = campaign();
+    let d = measure_fixtures("print");
     let tmp = tempfile::tempdir().unwrap();
     let all = tmp.path().join("all.csv");
     let t = std::time::Instant::now();

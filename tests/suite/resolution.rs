@@ -3,7 +3,7 @@
 //! without the experiments' `[resolution]` table, and bad tables named.
 
 use std::path::Path;
-use std::process::Command;
+use crate::common::{strand_in};
 
 const EXPERIMENTS: &str = r#"
 [[experiment]]
@@ -24,13 +24,8 @@ hold = 0.5
 
 const MODEL: &str = "[material]\nkind = \"evp_bingham\"\ndensity = 2300.0\nbulk_modulus = 1.0e6\npoisson_ratio = 0.3\nviscosity = 50.0\nyield_stress = 100.0\n";
 
-fn strand(args: &[&str], dir: &Path) -> (i32, String, String) {
-    let o = Command::new(env!("CARGO_BIN_EXE_strand")).args(args).current_dir(dir).output().unwrap();
-    (o.status.code().unwrap_or(-1), String::from_utf8_lossy(&o.stdout).into(), String::from_utf8_lossy(&o.stderr).into())
-}
-
 fn compare_json(d: &Path, exps: &str) -> serde_json::Value {
-    let (code, out, err) = strand(&["compare", "--model", "model.toml", "--data", "data.csv", "--experiments", exps, "--json"], d);
+    let (code, out, err) = strand_in(&["compare", "--model", "model.toml", "--data", "data.csv", "--experiments", exps, "--json"], d);
     assert_eq!(code, 0, "{err}");
     serde_json::from_str(&out).unwrap()
 }
@@ -43,7 +38,7 @@ fn measurements_of_the_finer_run_are_explained_by_the_estimated_discretisation_e
     std::fs::write(d.join("model.toml"), MODEL).unwrap();
     // the "measurements": the same model at 2 cm cells, 1 % uncertainty
     std::fs::write(d.join("fine.toml"), EXPERIMENTS.replace("\"simulation.dx\" = 0.04", "\"simulation.dx\" = 0.02")).unwrap();
-    let (code, _, err) = strand(&["synth", "--model", "model.toml", "--experiments", "fine.toml", "--noise", "0.01", "--seed", "3", "--out", "data.csv"], d);
+    let (code, _, err) = strand_in(&["synth", "--model", "model.toml", "--experiments", "fine.toml", "--noise", "0.01", "--seed", "3", "--out", "data.csv"], d);
     assert_eq!(code, 0, "{err}");
     std::fs::write(d.join("coarse.toml"), EXPERIMENTS).unwrap();
     std::fs::write(d.join("counted.toml"), format!("{EXPERIMENTS}\n[resolution]\nfine = {{ \"simulation.dx\" = 0.02 }}\norder = 1.0\n")).unwrap();
@@ -72,7 +67,7 @@ fn measurements_of_the_finer_run_are_explained_by_the_estimated_discretisation_e
     assert_eq!(num(&counted[2], "z"), num(&coarse[2], "z"));
 
     // the text report shows the error beside z, and the estimates with their runs
-    let (code, out, err) = strand(&["compare", "--model", "model.toml", "--data", "data.csv", "--experiments", "counted.toml"], d);
+    let (code, out, err) = strand_in(&["compare", "--model", "model.toml", "--data", "data.csv", "--experiments", "counted.toml"], d);
     assert_eq!(code, 0, "{err}");
     assert!(out.contains("discretisation error (Richardson, order p = 1") && out.contains("discretis.") && out.contains("extrapolated"), "{out}");
     assert!(out.contains("with the discretisation error counted"), "{out}");
@@ -87,7 +82,7 @@ fn measurements_of_the_finer_run_are_explained_by_the_estimated_discretisation_e
         ("fine = { \"simulation.dx\" = 0.08 }", "is not finer than the cell size the model runs it at, 0.04"),
     ] {
         std::fs::write(d.join("bad.toml"), format!("{EXPERIMENTS}\n[resolution]\n{table}\n")).unwrap();
-        let (code, _, err) = strand(&["compare", "--model", "model.toml", "--data", "data.csv", "--experiments", "bad.toml"], d);
+        let (code, _, err) = strand_in(&["compare", "--model", "model.toml", "--data", "data.csv", "--experiments", "bad.toml"], d);
         assert_eq!(code, 2, "{table}: {err}");
         assert!(err.contains(want), "{table}: {err}");
     }

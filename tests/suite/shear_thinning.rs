@@ -3,25 +3,12 @@
 //! Bingham base model: `strand diagnose` must rank shear_thinning first, recommend it, and the
 //! recalibration must find n within 10 %. Rheometer campaigns: seconds.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
-
-fn fixtures() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/measure/shear_thinning")
-}
-
-fn strand(args: &[&str]) -> (i32, String, String) {
-    let o = Command::new(env!("CARGO_BIN_EXE_strand")).args(args).output().unwrap();
-    (o.status.code().unwrap_or(-1), String::from_utf8_lossy(&o.stdout).into(), String::from_utf8_lossy(&o.stderr).into())
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
+use std::path::Path;
+use crate::common::{strand, s, measure_fixtures};
 
 #[test]
 fn hidden_shear_thinning_is_ranked_first_and_recalibrated() {
-    let d = fixtures();
+    let d = measure_fixtures("shear_thinning");
     let tmp = tempfile::tempdir().unwrap();
     let data = tmp.path().join("data.csv");
     let exps = d.join("experiments.toml");
@@ -58,7 +45,7 @@ fn hidden_shear_thinning_is_ranked_first_and_recalibrated() {
 fn a_bingham_truth_does_not_call_for_shear_thinning() {
     // the same campaign from the base model's own law (n = 1): the score test in n is two-sided
     // (its null is inside its bounds) and must not flag it
-    let d = fixtures();
+    let d = measure_fixtures("shear_thinning");
     let tmp = tempfile::tempdir().unwrap();
     let truth = tmp.path().join("truth.toml");
     std::fs::write(&truth, std::fs::read_to_string(d.join("truth_hb.toml")).unwrap().replace("n = 0.6", "n = 1.0")).unwrap();
