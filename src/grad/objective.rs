@@ -157,229 +157,22 @@ fn arg_max(n: usize, keep: impl Fn(usize) -> bool, key: impl Fn(usize) -> f64) -
 impl Objective {
     /// The objective on `sim`'s current state; with `seed`, also add its adjoint there.
     pub fn evaluate(&self, sim: &Simulation, frame: &Frame, seed: Option<Seed>) -> Result<f64, String> {
-        let p = &sim.particles;
-        let n = p.n;
-        let geom = &sim.grid.geom;
-        let world = |i: usize| geom.to_world(p.xg.as_slice()[i]);
-        let dx = frame.dx;
-        // d(world coordinate)/d(grid coordinate)
-        let scale = dx as Real;
-        let value = match self {
-            Objective::Spread => {
-                let band = |i: usize| world(i)[2] < frame.base_z + 2.0 * frame.spacing;
-                let ext = |a: usize| {
-                    let hi = arg_max(n, band, |i| world(i)[a]);
-                    let lo = arg_max(n, band, |i| -world(i)[a]);
-                    hi.zip(lo)
-                };
-                let (Some((xh, xl)), Some((yh, yl))) = (ext(0), ext(1)) else {
-                    return Err("objective spread: no particle lies within two spacings of the base".into());
-                };
-                let d = |h: usize, l: usize, a: usize| world(h)[a] - world(l)[a] + frame.spacing;
-                let value = 0.5 * (d(xh, xl, 0) + d(yh, yl, 1));
-                if let Some(s) = seed {
-                    s.xg[xh].x += 0.5 * scale;
-                    s.xg[xl].x -= 0.5 * scale;
-                    s.xg[yh].y += 0.5 * scale;
-                    s.xg[yl].y -= 0.5 * scale;
-                }
-                value
-            }
-            Objective::Level { station } => {
-                let slab = |i: usize| (world(i)[0] - station).abs() <= 0.5 * dx;
-                if arg_max(n, slab, |_| 0.0).is_none() {
-                    return Ok(0.0);
-                }
-                Objective::Height { stations: vec![*station] }.evaluate(sim, frame, seed)?
-            }
-            Objective::Width { stations } | Objective::Height { stations } => {
-                let width = matches!(self, Objective::Width { .. });
-                let mut total = 0.0;
-                let mut seed = seed;
-                for &station in stations {
-                    let slab = |i: usize| (world(i)[0] - station).abs() <= 0.5 * dx;
-                    let top = arg_max(n, slab, |i| world(i)[2]);
-                    let (hi, lo) = (arg_max(n, slab, |i| world(i)[1]), arg_max(n, slab, |i| -world(i)[1]));
-                    let (Some(top), Some(hi), Some(lo)) = (top, hi, lo) else {
-                        return Err(format!("objective {}: no particle within half a cell of x = {station} m", self.name()));
-                    };
-                    total += if !width {
-                        world(top)[2] + 0.5 * frame.spacing - frame.base_z
-                    } else if let Some(y0) = frame.mirror_y {
-                        2.0 * (world(hi)[1] - y0) + frame.spacing
-                    } else {
-                        world(hi)[1] - world(lo)[1] + frame.spacing
-                    };
-                    if let Some(s) = seed.as_mut() {
-                        match (width, frame.mirror_y) {
-                            (false, _) => s.xg[top].z += scale,
-                            (true, Some(_)) => s.xg[hi].y += 2.0 * scale,
-                            (true, None) => {
-                                s.xg[hi].y += scale;
-                                s.xg[lo].y -= scale;
-                            }
-                        }
-                    }
-                }
-                total
-            }
-            Objective::Area { stations } => {
-                let (vol0, jv) = (p.vol0.as_slice(), p.j.as_slice());
-                let copies = if frame.mirror_y.is_some() { 2.0 } else { 1.0 };
-                let slab = frame.slab;
-                let mut total = 0.0;
-                let mut seed = seed;
-                for &station in stations {
-                    for i in 0..n {
-                        let u = (world(i)[0] - station) / slab;
-                        if u.abs() >= 1.5 {
-                            continue;
-                        }
-                        let (b, db) = crate::observe::quadratic_bspline_and_slope(u);
-                        let vol = (vol0[i] * jv[i]) as f64;
-                        total += copies * vol * b / slab;
-                        if let Some(s) = seed.as_mut() {
-                            s.xg[i].x += (copies * vol * db / (slab * slab)) as Real * scale;
-                            s.j[i] += (copies * vol0[i] as f64 * b / slab) as Real;
-                            s.vol0[i] += (copies * jv[i] as f64 * b / slab) as Real;
-                        }
-                    }
-                }
-                total
-            }
-            Objective::Profile { station, y } => {
-                let h = frame.spacing;
-                let pts = section_points(sim, frame, *station).ok_or_else(|| format!("objective {}: no particle within half a slab of x = {station} m", self.name()))?;
-                let py = |pt: &(usize, f64)| section_y(frame, world(pt.0)[1], pt.1);
-                // the bins' origin: the lowest y (first on ties), and each bin's top particle
-                let o = pts.iter().enumerate().fold(0, |b, (k, pt)| if py(pt) < py(&pts[b]) { k } else { b });
-                let origin = py(&pts[o]);
-                let mut tops: std::collections::BTreeMap<i64, (f64, usize)> = std::collections::BTreeMap::new();
-                for pt in &pts {
-                    let top = world(pt.0)[2] + 0.5 * h;
-                    let e = tops.entry(crate::observe::bin(py(pt), origin, h)).or_insert((top, pt.0));
-                    if top > e.0 {
-                        *e = (top, pt.0);
-                    }
-                }
-                let u = (y - origin) / h;
-                let k0 = u.floor();
-                let t = u - k0;
-                let k0 = k0 as i64;
-                // (weight, particle) of the tops the point interpolates, and d value / d origin
-                let (terms, d_origin): (Vec<(f64, usize)>, f64) = match (tops.get(&k0), tops.get(&(k0 + 1))) {
-                    (Some(&(a, ia)), Some(&(b, ib))) => (vec![(1.0 - t, ia), (t, ib)], -(b - a) / h),
-                    (Some(&(_, ia)), None) if t <= 0.5 => (vec![(1.0, ia)], 0.0),
-                    (None, Some(&(_, ib))) if t >= 0.5 => (vec![(1.0, ib)], 0.0),
-                    _ => (Vec::new(), 0.0),
-                };
-                let value = if terms.is_empty() { 0.0 } else { terms.iter().map(|&(w, i)| w * (world(i)[2] + 0.5 * h)).sum::<f64>() - frame.base_z };
-                if let Some(s) = seed {
-                    for &(w, i) in &terms {
-                        s.xg[i].z += w as Real * scale;
-                    }
-                    let (io, sign) = pts[o];
-                    s.xg[io].y += (sign * d_origin) as Real * scale;
-                }
-                value
-            }
-            Objective::LayerHeight { station, layer } | Objective::LayerWidth { station, layer } => {
-                let tops = layer_tops(sim).ok_or_else(|| format!("objective {}: the scenario prints no layers whose heights ascend (the toolpath's layer z, as layers.csv takes them)", self.name()))?;
-                if *layer == 0 || *layer > tops.len() {
-                    return Err(format!("objective {}: layer {layer} is not one of the toolpath's layers 1..={}", self.name(), tops.len()));
-                }
-                let pts = section_points(sim, frame, *station).ok_or_else(|| format!("objective {}: no particle within half a slab of x = {station} m", self.name()))?;
-                let k = *layer - 1;
-                let layer_of = |pt: &(usize, f64)| crate::observe::layer_of(&tops, world(pt.0)[2]);
-                let mine: Vec<(usize, f64)> = pts.iter().copied().filter(|pt| layer_of(pt) == k).collect();
-                if mine.is_empty() {
-                    return Ok(0.0);
-                }
-                if matches!(self, Objective::LayerHeight { .. }) {
-                    // each layer's top particle in the slab (the first on ties; the mirror images,
-                    // listed after the originals, add nothing in z), then this layer's and the
-                    // nearest non-empty one's below it
-                    let mut top: Vec<Option<usize>> = vec![None; k + 1];
-                    for pt in &pts {
-                        let l = layer_of(pt);
-                        if l <= k && top[l].is_none_or(|b| world(pt.0)[2] > world(b)[2]) {
-                            top[l] = Some(pt.0);
-                        }
-                    }
-                    let it = top[k].expect("the layer has particles");
-                    let below = top[..k].iter().rev().find_map(|&t| t);
-                    let value = world(it)[2] + 0.5 * frame.spacing - below.map_or(frame.base_z, |ib| world(ib)[2] + 0.5 * frame.spacing);
-                    if let Some(s) = seed {
-                        s.xg[it].z += scale;
-                        if let Some(ib) = below {
-                            s.xg[ib].z -= scale;
-                        }
-                    }
-                    value
-                } else {
-                    let py = |pt: &(usize, f64)| section_y(frame, world(pt.0)[1], pt.1);
-                    let hi = mine.iter().fold(mine[0], |b, pt| if py(pt) > py(&b) { *pt } else { b });
-                    let lo = mine.iter().fold(mine[0], |b, pt| if py(pt) < py(&b) { *pt } else { b });
-                    if let Some(s) = seed {
-                        s.xg[hi.0].y += hi.1 as Real * scale;
-                        s.xg[lo.0].y -= lo.1 as Real * scale;
-                    }
-                    py(&hi) - py(&lo) + frame.spacing
-                }
-            }
-            Objective::TotalHeight => {
-                let top = arg_max(n, |_| true, |i| world(i)[2]).ok_or("objective total_height: no particles")?;
-                if let Some(s) = seed {
-                    s.xg[top].z += scale;
-                }
-                world(top)[2] + 0.5 * frame.spacing - frame.base_z
-            }
-            Objective::Front => {
-                let lead = arg_max(n, |_| true, |i| world(i)[0]).ok_or("objective front: no particles")?;
-                if let Some(s) = seed {
-                    s.xg[lead].x += scale;
-                }
-                world(lead)[0] + 0.5 * frame.spacing
-            }
-            Objective::VxMax => {
-                let v = p.v.as_slice();
-                let i = arg_max(n, |_| true, |i| v[i].x as f64).ok_or("objective vx_max: no particles")?;
-                if let Some(s) = seed {
-                    s.v[i].x += 1.0;
-                }
-                v[i].x as f64
-            }
-            Objective::KineticEnergy => {
-                let (v, m) = (p.v.as_slice(), p.mass.as_slice());
-                let value = (0..n).map(|i| 0.5 * (m[i] * v[i].length_squared()) as f64).sum();
-                if let Some(s) = seed {
-                    for i in 0..n {
-                        s.v[i] += v[i] * m[i];
-                        s.mass[i] += 0.5 * v[i].length_squared();
-                    }
-                }
-                value
-            }
-            Objective::MeanZ => {
-                let (vol0, jv) = (p.vol0.as_slice(), p.j.as_slice());
-                let w: f64 = (0..n).map(|i| (vol0[i] * jv[i]) as f64).sum();
-                if w <= 0.0 {
-                    return Err("objective mean_z: no particles".into());
-                }
-                let wz: f64 = (0..n).map(|i| (vol0[i] * jv[i]) as f64 * (world(i)[2] - frame.base_z)).sum();
-                let value = wz / w;
-                if let Some(s) = seed {
-                    for i in 0..n {
-                        let vi = (vol0[i] * jv[i]) as f64;
-                        s.xg[i].z += (vi / w) as Real * scale;
-                        s.j[i] += (vol0[i] as f64 * ((world(i)[2] - frame.base_z) - value) / w) as Real;
-                        s.vol0[i] += (jv[i] as f64 * ((world(i)[2] - frame.base_z) - value) / w) as Real;
-                    }
-                }
-                value
-            }
-        };
-        Ok(value)
+        let at = State { sim, frame, scale: frame.dx as Real };
+        match self {
+            Objective::Spread => at.spread(seed),
+            Objective::Level { station } => at.level(*station, seed),
+            Objective::Width { stations } => at.width_or_height(self, stations, true, seed),
+            Objective::Height { stations } => at.width_or_height(self, stations, false, seed),
+            Objective::Area { stations } => Ok(at.area(stations, seed)),
+            Objective::Profile { station, y } => at.profile(self, *station, *y, seed),
+            Objective::LayerHeight { station, layer } => at.layer(self, *station, *layer, true, seed),
+            Objective::LayerWidth { station, layer } => at.layer(self, *station, *layer, false, seed),
+            Objective::TotalHeight => at.total_height(seed),
+            Objective::Front => at.front(seed),
+            Objective::VxMax => at.vx_max(seed),
+            Objective::KineticEnergy => Ok(at.kinetic_energy(seed)),
+            Objective::MeanZ => at.mean_z(seed),
+        }
     }
 
     pub fn name(&self) -> String {
@@ -398,6 +191,255 @@ impl Objective {
             Objective::KineticEnergy => "kinetic_energy".into(),
             Objective::MeanZ => "mean_z".into(),
         }
+    }
+}
+
+/// The state an objective reads: the simulation, its frame, and d(world coordinate)/d(grid
+/// coordinate) (`scale`, the cell size: seeds are of grid coordinates).
+struct State<'a> {
+    sim: &'a Simulation,
+    frame: &'a Frame,
+    scale: Real,
+}
+
+impl State<'_> {
+    fn n(&self) -> usize {
+        self.sim.particles.n
+    }
+
+    fn world(&self, i: usize) -> [f64; 3] {
+        self.sim.grid.geom.to_world(self.sim.particles.xg.as_slice()[i])
+    }
+
+    fn spread(&self, seed: Option<Seed>) -> Result<f64, String> {
+        let (frame, n) = (self.frame, self.n());
+        let band = |i: usize| self.world(i)[2] < frame.base_z + 2.0 * frame.spacing;
+        let ext = |a: usize| {
+            let hi = arg_max(n, band, |i| self.world(i)[a]);
+            let lo = arg_max(n, band, |i| -self.world(i)[a]);
+            hi.zip(lo)
+        };
+        let (Some((xh, xl)), Some((yh, yl))) = (ext(0), ext(1)) else {
+            return Err("objective spread: no particle lies within two spacings of the base".into());
+        };
+        let d = |h: usize, l: usize, a: usize| self.world(h)[a] - self.world(l)[a] + frame.spacing;
+        let value = 0.5 * (d(xh, xl, 0) + d(yh, yl, 1));
+        if let Some(s) = seed {
+            s.xg[xh].x += 0.5 * self.scale;
+            s.xg[xl].x -= 0.5 * self.scale;
+            s.xg[yh].y += 0.5 * self.scale;
+            s.xg[yl].y -= 0.5 * self.scale;
+        }
+        Ok(value)
+    }
+
+    fn level(&self, station: f64, seed: Option<Seed>) -> Result<f64, String> {
+        let slab = |i: usize| (self.world(i)[0] - station).abs() <= 0.5 * self.frame.dx;
+        if arg_max(self.n(), slab, |_| 0.0).is_none() {
+            return Ok(0.0);
+        }
+        let height = Objective::Height { stations: vec![station] };
+        self.width_or_height(&height, &[station], false, seed)
+    }
+
+    fn width_or_height(&self, what: &Objective, stations: &[f64], width: bool, mut seed: Option<Seed>) -> Result<f64, String> {
+        let (frame, n, scale) = (self.frame, self.n(), self.scale);
+        let mut total = 0.0;
+        for &station in stations {
+            let slab = |i: usize| (self.world(i)[0] - station).abs() <= 0.5 * frame.dx;
+            let top = arg_max(n, slab, |i| self.world(i)[2]);
+            let (hi, lo) = (arg_max(n, slab, |i| self.world(i)[1]), arg_max(n, slab, |i| -self.world(i)[1]));
+            let (Some(top), Some(hi), Some(lo)) = (top, hi, lo) else {
+                return Err(format!("objective {}: no particle within half a cell of x = {station} m", what.name()));
+            };
+            total += if !width {
+                self.world(top)[2] + 0.5 * frame.spacing - frame.base_z
+            } else if let Some(y0) = frame.mirror_y {
+                2.0 * (self.world(hi)[1] - y0) + frame.spacing
+            } else {
+                self.world(hi)[1] - self.world(lo)[1] + frame.spacing
+            };
+            if let Some(s) = seed.as_mut() {
+                match (width, frame.mirror_y) {
+                    (false, _) => s.xg[top].z += scale,
+                    (true, Some(_)) => s.xg[hi].y += 2.0 * scale,
+                    (true, None) => {
+                        s.xg[hi].y += scale;
+                        s.xg[lo].y -= scale;
+                    }
+                }
+            }
+        }
+        Ok(total)
+    }
+
+    fn area(&self, stations: &[f64], mut seed: Option<Seed>) -> f64 {
+        let p = &self.sim.particles;
+        let (vol0, jv) = (p.vol0.as_slice(), p.j.as_slice());
+        let copies = if self.frame.mirror_y.is_some() { 2.0 } else { 1.0 };
+        let slab = self.frame.slab;
+        let mut total = 0.0;
+        for &station in stations {
+            for i in 0..p.n {
+                let u = (self.world(i)[0] - station) / slab;
+                if u.abs() >= 1.5 {
+                    continue;
+                }
+                let (b, db) = crate::observe::quadratic_bspline_and_slope(u);
+                let vol = (vol0[i] * jv[i]) as f64;
+                total += copies * vol * b / slab;
+                if let Some(s) = seed.as_mut() {
+                    s.xg[i].x += (copies * vol * db / (slab * slab)) as Real * self.scale;
+                    s.j[i] += (copies * vol0[i] as f64 * b / slab) as Real;
+                    s.vol0[i] += (copies * jv[i] as f64 * b / slab) as Real;
+                }
+            }
+        }
+        total
+    }
+
+    fn profile(&self, what: &Objective, station: f64, y: f64, seed: Option<Seed>) -> Result<f64, String> {
+        let frame = self.frame;
+        let h = frame.spacing;
+        let pts = section_points(self.sim, frame, station).ok_or_else(|| format!("objective {}: no particle within half a slab of x = {station} m", what.name()))?;
+        let py = |pt: &(usize, f64)| section_y(frame, self.world(pt.0)[1], pt.1);
+        // the bins' origin: the lowest y (first on ties), and each bin's top particle
+        let o = pts.iter().enumerate().fold(0, |b, (k, pt)| if py(pt) < py(&pts[b]) { k } else { b });
+        let origin = py(&pts[o]);
+        let mut tops: std::collections::BTreeMap<i64, (f64, usize)> = std::collections::BTreeMap::new();
+        for pt in &pts {
+            let top = self.world(pt.0)[2] + 0.5 * h;
+            let e = tops.entry(crate::observe::bin(py(pt), origin, h)).or_insert((top, pt.0));
+            if top > e.0 {
+                *e = (top, pt.0);
+            }
+        }
+        let u = (y - origin) / h;
+        let k0 = u.floor();
+        let t = u - k0;
+        let k0 = k0 as i64;
+        // (weight, particle) of the tops the point interpolates, and d value / d origin
+        let (terms, d_origin): (Vec<(f64, usize)>, f64) = match (tops.get(&k0), tops.get(&(k0 + 1))) {
+            (Some(&(a, ia)), Some(&(b, ib))) => (vec![(1.0 - t, ia), (t, ib)], -(b - a) / h),
+            (Some(&(_, ia)), None) if t <= 0.5 => (vec![(1.0, ia)], 0.0),
+            (None, Some(&(_, ib))) if t >= 0.5 => (vec![(1.0, ib)], 0.0),
+            _ => (Vec::new(), 0.0),
+        };
+        let value = if terms.is_empty() { 0.0 } else { terms.iter().map(|&(w, i)| w * (self.world(i)[2] + 0.5 * h)).sum::<f64>() - frame.base_z };
+        if let Some(s) = seed {
+            for &(w, i) in &terms {
+                s.xg[i].z += w as Real * self.scale;
+            }
+            let (io, sign) = pts[o];
+            s.xg[io].y += (sign * d_origin) as Real * self.scale;
+        }
+        Ok(value)
+    }
+
+    /// A printed layer's thickness (`height`) or width at a station.
+    fn layer(&self, what: &Objective, station: f64, layer: usize, height: bool, seed: Option<Seed>) -> Result<f64, String> {
+        let frame = self.frame;
+        let tops = layer_tops(self.sim).ok_or_else(|| format!("objective {}: the scenario prints no layers whose heights ascend (the toolpath's layer z, as layers.csv takes them)", what.name()))?;
+        if layer == 0 || layer > tops.len() {
+            return Err(format!("objective {}: layer {layer} is not one of the toolpath's layers 1..={}", what.name(), tops.len()));
+        }
+        let pts = section_points(self.sim, frame, station).ok_or_else(|| format!("objective {}: no particle within half a slab of x = {station} m", what.name()))?;
+        let k = layer - 1;
+        let layer_of = |pt: &(usize, f64)| crate::observe::layer_of(&tops, self.world(pt.0)[2]);
+        let mine: Vec<(usize, f64)> = pts.iter().copied().filter(|pt| layer_of(pt) == k).collect();
+        if mine.is_empty() {
+            return Ok(0.0);
+        }
+        if height {
+            // each layer's top particle in the slab (the first on ties; the mirror images,
+            // listed after the originals, add nothing in z), then this layer's and the
+            // nearest non-empty one's below it
+            let mut top: Vec<Option<usize>> = vec![None; k + 1];
+            for pt in &pts {
+                let l = layer_of(pt);
+                if l <= k && top[l].is_none_or(|b| self.world(pt.0)[2] > self.world(b)[2]) {
+                    top[l] = Some(pt.0);
+                }
+            }
+            let it = top[k].expect("the layer has particles");
+            let below = top[..k].iter().rev().find_map(|&t| t);
+            let value = self.world(it)[2] + 0.5 * frame.spacing - below.map_or(frame.base_z, |ib| self.world(ib)[2] + 0.5 * frame.spacing);
+            if let Some(s) = seed {
+                s.xg[it].z += self.scale;
+                if let Some(ib) = below {
+                    s.xg[ib].z -= self.scale;
+                }
+            }
+            Ok(value)
+        } else {
+            let py = |pt: &(usize, f64)| section_y(frame, self.world(pt.0)[1], pt.1);
+            let hi = mine.iter().fold(mine[0], |b, pt| if py(pt) > py(&b) { *pt } else { b });
+            let lo = mine.iter().fold(mine[0], |b, pt| if py(pt) < py(&b) { *pt } else { b });
+            if let Some(s) = seed {
+                s.xg[hi.0].y += hi.1 as Real * self.scale;
+                s.xg[lo.0].y -= lo.1 as Real * self.scale;
+            }
+            Ok(py(&hi) - py(&lo) + frame.spacing)
+        }
+    }
+
+    fn total_height(&self, seed: Option<Seed>) -> Result<f64, String> {
+        let top = arg_max(self.n(), |_| true, |i| self.world(i)[2]).ok_or("objective total_height: no particles")?;
+        if let Some(s) = seed {
+            s.xg[top].z += self.scale;
+        }
+        Ok(self.world(top)[2] + 0.5 * self.frame.spacing - self.frame.base_z)
+    }
+
+    fn front(&self, seed: Option<Seed>) -> Result<f64, String> {
+        let lead = arg_max(self.n(), |_| true, |i| self.world(i)[0]).ok_or("objective front: no particles")?;
+        if let Some(s) = seed {
+            s.xg[lead].x += self.scale;
+        }
+        Ok(self.world(lead)[0] + 0.5 * self.frame.spacing)
+    }
+
+    fn vx_max(&self, seed: Option<Seed>) -> Result<f64, String> {
+        let v = self.sim.particles.v.as_slice();
+        let i = arg_max(self.n(), |_| true, |i| v[i].x as f64).ok_or("objective vx_max: no particles")?;
+        if let Some(s) = seed {
+            s.v[i].x += 1.0;
+        }
+        Ok(v[i].x as f64)
+    }
+
+    fn kinetic_energy(&self, seed: Option<Seed>) -> f64 {
+        let p = &self.sim.particles;
+        let (v, m) = (p.v.as_slice(), p.mass.as_slice());
+        let value = (0..p.n).map(|i| 0.5 * (m[i] * v[i].length_squared()) as f64).sum();
+        if let Some(s) = seed {
+            for i in 0..p.n {
+                s.v[i] += v[i] * m[i];
+                s.mass[i] += 0.5 * v[i].length_squared();
+            }
+        }
+        value
+    }
+
+    fn mean_z(&self, seed: Option<Seed>) -> Result<f64, String> {
+        let p = &self.sim.particles;
+        let base_z = self.frame.base_z;
+        let (vol0, jv) = (p.vol0.as_slice(), p.j.as_slice());
+        let w: f64 = (0..p.n).map(|i| (vol0[i] * jv[i]) as f64).sum();
+        if w <= 0.0 {
+            return Err("objective mean_z: no particles".into());
+        }
+        let wz: f64 = (0..p.n).map(|i| (vol0[i] * jv[i]) as f64 * (self.world(i)[2] - base_z)).sum();
+        let value = wz / w;
+        if let Some(s) = seed {
+            for i in 0..p.n {
+                let vi = (vol0[i] * jv[i]) as f64;
+                s.xg[i].z += (vi / w) as Real * self.scale;
+                s.j[i] += (vol0[i] as f64 * ((self.world(i)[2] - base_z) - value) / w) as Real;
+                s.vol0[i] += (jv[i] as f64 * ((self.world(i)[2] - base_z) - value) / w) as Real;
+            }
+        }
+        Ok(value)
     }
 }
 
