@@ -222,7 +222,7 @@ fn gradient_run(sc: &Scenario, seeds: &[Seeded], wrt: &[String], opts: &GradOpti
     let params: Vec<Param> = wrt.iter().map(|k| resolve(&sim, k)).collect::<Result<_, _>>()?;
     let values: Vec<f64> = wrt.iter().map(|k| super::params::value(&sc.source, k)).collect::<Result<_, _>>()?;
     let frame = Frame::of(&sim);
-    let (n0, cap, sl) = (sim.particles.n, sim.particles.capacity(), sim.particles.state_len);
+    let n0 = sim.particles.n;
     let print_keys: Vec<(String, f64)> =
         wrt.iter().zip(&values).filter(|(k, _)| k.starts_with("print.")).map(|(k, v)| (k.clone(), *v)).collect();
     let prints = match &sim.printer {
@@ -233,21 +233,7 @@ fn gradient_run(sc: &Scenario, seeds: &[Seeded], wrt: &[String], opts: &GradOpti
     if opts.until_rest.is_some() && seeds.iter().any(|s| s.step.is_some()) {
         return Err("a run stopped at rest takes its objectives at its last step".into());
     }
-
-    let mut grad_plan = MemoryPlan::default();
-    StepAdjoint::plan(&mut grad_plan, cap, sl, sim.grid.nodes.len(), seeds.len());
-    let adjoint_bytes = grad_plan.total();
-    // a print grows: every slot is sized for the full pool
-    let sbytes = state_bytes(cap, sl) as u64;
-    if opts.ram_bytes < adjoint_bytes {
-        return Err(format!(
-            "the gradient's RAM budget of {} does not hold its adjoint arrays ({}; one stored state is {}):\n{grad_plan}",
-            fmt_bytes(opts.ram_bytes),
-            fmt_bytes(adjoint_bytes),
-            fmt_bytes(sbytes)
-        ));
-    }
-    let budget = Budget { state_bytes: sbytes, ram_bytes: opts.ram_bytes - adjoint_bytes, disk_bytes: opts.disk_bytes };
+    let memory = Memory::plan(&sim, seeds.len(), opts)?;
     let backing = Backing { dir: sc.memory.dir.clone() };
     let adj = StepAdjoint::new(&sim, &backing, seeds.len())?;
     let end = sc.simulation.end_time;
@@ -268,103 +254,152 @@ fn gradient_run(sc: &Scenario, seeds: &[Seeded], wrt: &[String], opts: &GradOpti
         forward_s: 0.0,
         reverse_s: 0.0,
     };
-
-    let (schedule, peak, n_steps) = match opts.until_rest {
-        None => {
-            let n_steps = count_steps(&ex.sim);
-            ex.set_stops(n_steps)?;
-            let plan = match opts.schedule {
-                Some(Kind::TwoLevel { segment: 0 }) => Plan::two_level(n_steps),
-                Some(kind) => Plan::new(kind, n_steps).map_err(|e| e.to_string())?,
-                None => choose(n_steps, &budget).map_err(|e| e.to_string())?,
-            };
-            let (ram_slots, disk_slots) = plan.peak_slots();
-            ex.store = Some(Store {
-                ram: RamSlots::new(ram_slots, sbytes as usize, &backing).map_err(|e| e.to_string())?,
-                disk: if disk_slots > 0 { Some(DiskSlots::new(&opts.disk_dir, sbytes as usize)?) } else { None },
-            });
-            if n_steps == 0 {
-                ex.seed_initial(n0)?;
-            }
-            for action in plan.actions() {
-                ex.run(action)?;
-            }
-            (format!("{:?}", plan.kind()), (ram_slots, disk_slots), n_steps)
-        }
-        Some(v_rest) => {
-            // the run's length is known only when it stops: the online schedule, RAM only
-            let slots = usize::try_from(budget.ram_bytes / sbytes).unwrap_or(usize::MAX).min(1 << 20);
-            let mut online = OnlineSchedule::new(slots).map_err(|e| e.to_string())?;
-            ex.store = Some(Store { ram: RamSlots::new(slots, sbytes as usize, &backing).map_err(|e| e.to_string())?, disk: None });
-            // material released from rest comes to rest again: stop once the speed, having
-            // exceeded v_rest, falls back below it
-            let mut moved = false;
-            while ex.sim.time < end * (1.0 - 1e-12) {
-                moved |= ex.sim.vmax >= v_rest;
-                if moved && ex.sim.vmax < v_rest {
-                    break;
-                }
-                for action in online.on_step() {
-                    ex.run(action)?;
-                }
-                let s = ex.sim.step;
-                ex.run(Action::Advance { from: s, to: s + 1 })?;
-            }
-            let n_steps = online.steps();
-            ex.set_stops(n_steps)?;
-            if n_steps == 0 {
-                ex.seed_initial(n0)?;
-            }
-            for action in online.finish() {
-                ex.run(action)?;
-            }
-            (format!("Online {{ slots: {slots}, stopped at rest (max speed < {v_rest} m/s) or at the end time }}"), (slots, 0), n_steps)
-        }
+    let run = match opts.until_rest {
+        None => ex.run_to_end(opts, &memory, &backing, n0)?,
+        Some(v_rest) => ex.run_until_rest(v_rest, &memory, &backing, n0)?,
     };
-    let Executor { sim, adj, store, prints, values: seeded, forward_steps, forward_s, reverse_s, .. } = ex;
-    let disk_written_bytes = store.as_ref().and_then(|s| s.disk.as_ref()).map_or(0, |d| d.written);
-    let reverse_phases_s = adj.phase_seconds();
-    let wall_s = wall.elapsed().as_secs_f64();
-    seeds
-        .iter()
-        .zip(&adj.seeds)
-        .zip(prints)
-        .zip(seeded)
-        .map(|(((seed, a), print), value)| {
-            let value = value.ok_or("the schedule never reached the objective's step")?;
-            let mut gradient = assemble(&sim, n0, a, &params);
-            if let Some(pp) = print {
-                let g = pp.gradient();
-                let mut k = 0;
-                for (i, key) in wrt.iter().enumerate() {
-                    if key.starts_with("print.") {
-                        gradient[i] = g[k];
-                        k += 1;
+    ex.results(wrt, &values, &params, n0, &memory, &run, wall.elapsed().as_secs_f64())
+}
+
+/// What a gradient run's memory holds: its adjoint arrays, and the schedule's stored states
+/// within the rest of the budget.
+struct Memory {
+    adjoint_bytes: u64,
+    /// One stored state (a print grows: every slot is sized for the full pool).
+    state_bytes: u64,
+    budget: Budget,
+}
+
+impl Memory {
+    fn plan(sim: &Simulation, seeds: usize, opts: &GradOptions) -> Result<Memory, String> {
+        let (cap, sl) = (sim.particles.capacity(), sim.particles.state_len);
+        let mut grad_plan = MemoryPlan::default();
+        StepAdjoint::plan(&mut grad_plan, cap, sl, sim.grid.nodes.len(), seeds);
+        let adjoint_bytes = grad_plan.total();
+        let sbytes = state_bytes(cap, sl) as u64;
+        if opts.ram_bytes < adjoint_bytes {
+            return Err(format!(
+                "the gradient's RAM budget of {} does not hold its adjoint arrays ({}; one stored state is {}):\n{grad_plan}",
+                fmt_bytes(opts.ram_bytes),
+                fmt_bytes(adjoint_bytes),
+                fmt_bytes(sbytes)
+            ));
+        }
+        let budget = Budget { state_bytes: sbytes, ram_bytes: opts.ram_bytes - adjoint_bytes, disk_bytes: opts.disk_bytes };
+        Ok(Memory { adjoint_bytes, state_bytes: sbytes, budget })
+    }
+}
+
+/// How a gradient run went: its schedule, the peak RAM and disk slots, and its steps.
+struct RunShape {
+    schedule: String,
+    peak: (usize, usize),
+    n_steps: u64,
+}
+
+impl Executor<'_> {
+    /// The run to its end time, reversed by the budget's schedule (or `opts.schedule`).
+    fn run_to_end(&mut self, opts: &GradOptions, memory: &Memory, backing: &Backing, n0: usize) -> Result<RunShape, String> {
+        let n_steps = count_steps(&self.sim);
+        self.set_stops(n_steps)?;
+        let plan = match opts.schedule {
+            Some(Kind::TwoLevel { segment: 0 }) => Plan::two_level(n_steps),
+            Some(kind) => Plan::new(kind, n_steps).map_err(|e| e.to_string())?,
+            None => choose(n_steps, &memory.budget).map_err(|e| e.to_string())?,
+        };
+        let (ram_slots, disk_slots) = plan.peak_slots();
+        let sbytes = memory.state_bytes as usize;
+        self.store = Some(Store {
+            ram: RamSlots::new(ram_slots, sbytes, backing).map_err(|e| e.to_string())?,
+            disk: if disk_slots > 0 { Some(DiskSlots::new(&opts.disk_dir, sbytes)?) } else { None },
+        });
+        if n_steps == 0 {
+            self.seed_initial(n0)?;
+        }
+        for action in plan.actions() {
+            self.run(action)?;
+        }
+        Ok(RunShape { schedule: format!("{:?}", plan.kind()), peak: (ram_slots, disk_slots), n_steps })
+    }
+
+    /// The run until the material released from rest comes to rest again (its speed, having
+    /// exceeded `v_rest`, falls back below it) or the end time: its length is known only when it
+    /// stops, so the online schedule, in RAM only.
+    fn run_until_rest(&mut self, v_rest: f64, memory: &Memory, backing: &Backing, n0: usize) -> Result<RunShape, String> {
+        let slots = usize::try_from(memory.budget.ram_bytes / memory.state_bytes).unwrap_or(usize::MAX).min(1 << 20);
+        let mut online = OnlineSchedule::new(slots).map_err(|e| e.to_string())?;
+        self.store = Some(Store { ram: RamSlots::new(slots, memory.state_bytes as usize, backing).map_err(|e| e.to_string())?, disk: None });
+        let mut moved = false;
+        while self.sim.time < self.end * (1.0 - 1e-12) {
+            moved |= self.sim.vmax >= v_rest;
+            if moved && self.sim.vmax < v_rest {
+                break;
+            }
+            for action in online.on_step() {
+                self.run(action)?;
+            }
+            let s = self.sim.step;
+            self.run(Action::Advance { from: s, to: s + 1 })?;
+        }
+        let n_steps = online.steps();
+        self.set_stops(n_steps)?;
+        if n_steps == 0 {
+            self.seed_initial(n0)?;
+        }
+        for action in online.finish() {
+            self.run(action)?;
+        }
+        let schedule = format!("Online {{ slots: {slots}, stopped at rest (max speed < {v_rest} m/s) or at the end time }}");
+        Ok(RunShape { schedule, peak: (slots, 0), n_steps })
+    }
+
+    /// Each seed's value and gradient in `wrt` (at `values`), with the run's costs.
+    #[allow(clippy::too_many_arguments)]
+    fn results(self, wrt: &[String], values: &[f64], params: &[Param], n0: usize, memory: &Memory, run: &RunShape, wall_s: f64) -> Result<Vec<GradResult>, String> {
+        let Executor { sim, adj, store, prints, values: seeded, forward_steps, forward_s, reverse_s, seeds, .. } = self;
+        let disk_written_bytes = store.as_ref().and_then(|s| s.disk.as_ref()).map_or(0, |d| d.written);
+        let reverse_phases_s = adj.phase_seconds();
+        seeds
+            .iter()
+            .zip(&adj.seeds)
+            .zip(prints)
+            .zip(seeded)
+            .map(|(((seed, a), print), value)| {
+                let value = value.ok_or("the schedule never reached the objective's step")?;
+                let mut gradient = assemble(&sim, n0, a, params);
+                if let Some(pp) = print {
+                    let g = pp.gradient();
+                    let mut k = 0;
+                    for (i, key) in wrt.iter().enumerate() {
+                        if key.starts_with("print.") {
+                            gradient[i] = g[k];
+                            k += 1;
+                        }
                     }
                 }
-            }
-            Ok(GradResult {
-                objective: seed.objective.name(),
-                value,
-                params: wrt.to_vec(),
-                values: values.clone(),
-                gradient,
-                steps: seed.step.unwrap_or(n_steps),
-                schedule: schedule.clone(),
-                forward_steps,
-                peak_ram_slots: peak.0,
-                peak_disk_slots: peak.1,
-                state_bytes: sbytes,
-                adjoint_bytes,
-                disk_written_bytes,
-                forward_s,
-                reverse_s,
-                reverse_phases_s: reverse_phases_s.clone(),
-                seeds: seeds.len(),
-                wall_s,
+                Ok(GradResult {
+                    objective: seed.objective.name(),
+                    value,
+                    params: wrt.to_vec(),
+                    values: values.to_vec(),
+                    gradient,
+                    steps: seed.step.unwrap_or(run.n_steps),
+                    schedule: run.schedule.clone(),
+                    forward_steps,
+                    peak_ram_slots: run.peak.0,
+                    peak_disk_slots: run.peak.1,
+                    state_bytes: memory.state_bytes,
+                    adjoint_bytes: memory.adjoint_bytes,
+                    disk_written_bytes,
+                    forward_s,
+                    reverse_s,
+                    reverse_phases_s: reverse_phases_s.clone(),
+                    seeds: seeds.len(),
+                    wall_s,
+                })
             })
-        })
-        .collect()
+            .collect()
+    }
 }
 
 /// Carries out schedule actions on the simulation, the step adjoint and the checkpoint store.
