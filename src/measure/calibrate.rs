@@ -130,7 +130,7 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
         let next = if cols.is_empty() || predicted_drop(&a, &g) < negligible {
             None
         } else {
-            damped_step(&model, &theta, (&s, c2), (&a, &g), &cols, &mut lambda, names, &scale, &bounds, data, exps, opts, (secant, exact))?
+            damped_step(&model, &theta, (&s, c2, negligible), (&a, &g), &cols, &mut lambda, names, &scale, &bounds, data, exps, opts, (secant, exact))?
         };
         let Some(next) = next else {
             if exact {
@@ -225,7 +225,8 @@ struct Accepted {
 /// A Levenberg-Marquardt step from `theta` (at `model`, with values and Jacobian `at` and chi^2
 /// `c2`) on the normal equations `(a, g)` of the free parameters `cols`, the damping `lambda`
 /// raised until a step lowers chi^2 (at most 12 tries; one on a secant Jacobian, which the caller
-/// then computes again) and lowered after it; none when no step lowers it. With `secant` the
+/// then computes again) and lowered after it; none when no step lowers it, or when the damping
+/// has left a step whose linearised drop is under `negligible`. With `secant` the
 /// accepted step's Jacobian is the secant update of `at`'s, otherwise the engine's. A trial the
 /// model rejects (a material that will not build), or whose Jacobian run is rejected (a side of a
 /// central difference where a printed line breaks up), is a failed step; the engine failing to
@@ -234,7 +235,7 @@ struct Accepted {
 fn damped_step(
     model: &Model,
     theta: &[f64],
-    (at, c2): (&Sensitivity, f64),
+    (at, c2, negligible): (&Sensitivity, f64, f64),
     (a, g): (&Mat, &[f64]),
     cols: &[usize],
     lambda: &mut f64,
@@ -257,7 +258,12 @@ fn damped_step(
             trial[i] = (theta[i] + step[k] * bounds[i].scale).clamp(bounds[i].lower, bounds[i].upper);
         }
         let moved = trial.iter().zip(theta).zip(bounds).map(|((a, b), bd)| ((a - b) / bd.scale).abs()).fold(0.0, f64::max);
-        if moved < 1e-12 {
+        // the drop the linearisation predicts for the step taken (after the clamp): once the
+        // damping leaves less than a negligible one, no step worth a run remains
+        let taken: Vec<f64> = cols.iter().map(|&i| (trial[i] - theta[i]) / bounds[i].scale).collect();
+        let a_taken: Vec<f64> = a.iter().map(|r| r.iter().zip(&taken).map(|(x, t)| x * t).sum()).collect();
+        let linear_drop = -taken.iter().zip(g.iter().zip(&a_taken)).map(|(t, (gi, at))| t * (2.0 * gi + at)).sum::<f64>();
+        if moved < 1e-12 || linear_drop < negligible {
             return Ok(None);
         }
         let mut tm = model.clone();
