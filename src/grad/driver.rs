@@ -238,7 +238,7 @@ fn gradient_run(sc: &Scenario, seeds: &[Seeded], wrt: &[String], opts: &GradOpti
     StepAdjoint::plan(&mut grad_plan, cap, sl, sim.grid.nodes.len(), seeds.len());
     let adjoint_bytes = grad_plan.total();
     // a print grows: every slot is sized for the full pool
-    let sbytes = state_bytes(cap, sl) as u64;
+    let sbytes = state_bytes(&sim.particles) as u64;
     if opts.ram_bytes < adjoint_bytes {
         return Err(format!(
             "the gradient's RAM budget of {} does not hold its adjoint arrays ({}; one stored state is {}):\n{grad_plan}",
