@@ -9,6 +9,7 @@ use crate::kernels::{Real, M3, V3};
 use crate::memory::{Backing, MemoryError, MemoryPlan, Pool};
 use bytemuck::Pod;
 use std::any::TypeId;
+use std::borrow::Cow;
 
 /// What a pool is to a checkpoint (`checkpoint/state.rs` reads it).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -130,7 +131,7 @@ impl<T: Pod> AnyPool for Pool<T> {
 /// One pool of a component `C`: its name, what its entries are of, its role, and the field that
 /// holds it.
 pub struct PoolDecl<C> {
-    pub name: &'static str,
+    pub name: Cow<'static, str>,
     pub per: Per,
     pub role: Role,
     pool: fn(&C) -> &dyn AnyPool,
@@ -138,8 +139,8 @@ pub struct PoolDecl<C> {
 }
 
 impl<C> PoolDecl<C> {
-    pub fn new(name: &'static str, per: Per, role: Role, pool: fn(&C) -> &dyn AnyPool, pool_mut: fn(&mut C) -> &mut dyn AnyPool) -> Self {
-        PoolDecl { name, per, role, pool, pool_mut }
+    pub fn new(name: impl Into<Cow<'static, str>>, per: Per, role: Role, pool: fn(&C) -> &dyn AnyPool, pool_mut: fn(&mut C) -> &mut dyn AnyPool) -> Self {
+        PoolDecl { name: name.into(), per, role, pool, pool_mut }
     }
 
     /// The pool in `c`.
@@ -186,14 +187,14 @@ pub trait Pools: Sized {
 /// [`Pools::plan_memory`]'s default: each pool of `c` at its length for `cap`.
 pub fn plan_pools<C: Pools>(c: &C, plan: &mut MemoryPlan, cap: &Counts) {
     for d in c.pools() {
-        plan.add_bytes(d.name, d.bytes_for(c, cap));
+        plan.add_bytes(&d.name, d.bytes_for(c, cap));
     }
 }
 
 /// [`Pools::map_pools`]'s default: map each pool of `c` at its length for `cap`.
 pub fn map_pools<C: Pools>(c: &mut C, cap: &Counts, backing: &Backing) -> Result<(), MemoryError> {
     for d in c.pools() {
-        d.of_mut(c).map(d.name, d.per.len(cap), backing)?;
+        d.of_mut(c).map(&d.name, d.per.len(cap), backing)?;
     }
     Ok(())
 }
@@ -205,6 +206,12 @@ pub fn with_role<C: Pools>(c: &C, keep: impl Fn(Role) -> bool) -> Vec<PoolDecl<C
 
 /// The live parts of the pools of `c` whose role passes `keep`, with their names, in declaration
 /// order.
-pub fn live<'a, C: Pools>(c: &'a C, now: &Counts, keep: impl Fn(Role) -> bool) -> Vec<(&'static str, &'a [u8])> {
-    with_role(c, keep).iter().map(|d| (d.name, d.live(c, now))).collect()
+pub fn live<'a, C: Pools>(c: &'a C, now: &Counts, keep: impl Fn(Role) -> bool) -> Vec<(Cow<'static, str>, &'a [u8])> {
+    with_role(c, keep)
+        .into_iter()
+        .map(|d| {
+            let bytes = d.live(c, now);
+            (d.name, bytes)
+        })
+        .collect()
 }

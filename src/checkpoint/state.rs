@@ -22,6 +22,7 @@ use crate::kernels::transfer::Node;
 use crate::kernels::{Real, M3, V3};
 use crate::pools::{live, with_role, Counts, Pools, Role};
 use crate::solver::{DtLimit, Simulation};
+use std::borrow::Cow;
 use std::mem::size_of;
 
 fn bytes<T: bytemuck::Pod>(s: &[T]) -> &[u8] {
@@ -108,7 +109,7 @@ fn nonzero(e: &[u8]) -> bool {
 fn stored<'a, C: Pools>(c: &'a C, now: &Counts, keep: impl Fn(Role) -> bool) -> Vec<Part<'a>> {
     let part = |d: &crate::pools::PoolDecl<C>| {
         let b = d.live(c, now);
-        Part { name: d.name.into(), len: b.len(), reals: d.per.len(now) * d.of(c).reals_per_elem(), source: Source::Raw(b) }
+        Part { name: d.name.to_string(), len: b.len(), reals: d.per.len(now) * d.of(c).reals_per_elem(), source: Source::Raw(b) }
     };
     with_role(c, keep).iter().map(part).collect()
 }
@@ -122,7 +123,7 @@ fn sparse<C: Pools>(c: &C) -> Vec<Part<'_>> {
         let (table, size) = (d.of(c).bytes(), d.of(c).elem_bytes());
         let count = table.chunks_exact(size).filter(|e| nonzero(e)).count();
         v.push(Part { name: format!("{}_at", d.name), len: count * 4, reals: 0, source: Source::NonZeroAt(table, size) });
-        v.push(Part { name: d.name.into(), len: count * size, reals: 0, source: Source::NonZero(table, size) });
+        v.push(Part { name: d.name.to_string(), len: count * size, reals: 0, source: Source::NonZero(table, size) });
     }
     v
 }
@@ -230,7 +231,7 @@ pub fn staging_bytes(sim: &Simulation) -> usize {
 /// The arrays of the whole state at a step boundary, for the state hash: equal hashes,
 /// bit-identical particles (whatever a checkpoint leaves out to be rebuilt). With sleeping, the
 /// last step's binning and the sleep tables too: the next step's sleeping depends on them.
-fn full_state(sim: &Simulation) -> Vec<(&'static str, &[u8])> {
+fn full_state(sim: &Simulation) -> Vec<(Cow<'static, str>, &[u8])> {
     let now = counts_now(sim);
     let mut v = live(&sim.particles, &now, Role::is_state);
     if let Some(sl) = &sim.sleep {
@@ -383,7 +384,7 @@ pub fn restore(sim: &mut Simulation, ck: &Checkpoint) -> Result<(f64, DtLimit), 
 
     let p = &mut sim.particles;
     for d in with_role(p, always_stored) {
-        put(d.live_mut(p, &at), d.name)?;
+        put(d.live_mut(p, &at), &d.name)?;
     }
     p.v.as_mut_slice()[..n].fill(V3::ZERO);
     if flip {
@@ -393,7 +394,7 @@ pub fn restore(sim: &mut Simulation, ck: &Checkpoint) -> Result<(f64, DtLimit), 
     p.n_sleep = asleep;
     if let Some(b) = ck.section("particles.next_id") {
         for d in with_role(p, |r| r == Role::FromIds) {
-            put(d.live_mut(p, &at), d.name)?;
+            put(d.live_mut(p, &at), &d.name)?;
         }
         p.next_id = u32::from_le_bytes(b.try_into().map_err(|_| "section 'particles.next_id' is not 4 bytes".to_string())?);
     } else {
@@ -450,7 +451,7 @@ pub fn restore(sim: &mut Simulation, ck: &Checkpoint) -> Result<(f64, DtLimit), 
         for d in with_role(sleep, |r| r == Role::Sparse) {
             let pool = d.of_mut(sleep);
             let size = pool.elem_bytes();
-            scatter(pool.bytes_mut(), size, ck, &format!("{}_at", d.name), d.name)?;
+            scatter(pool.bytes_mut(), size, ck, &format!("{}_at", d.name), &d.name)?;
         }
         sleep.restored()?;
         if sleep.sleeping_units != h.sleeping_units as usize {
@@ -472,7 +473,7 @@ fn restore_grid(sim: &mut Simulation, ck: &Checkpoint, at: &Counts) -> Result<()
         return Err(differ.into());
     }
     for d in with_role(grid, |r| r == Role::Stored) {
-        if get(d.name, d.bytes_for(grid, at))? != d.live(grid, &now) {
+        if get(&d.name, d.bytes_for(grid, at))? != d.live(grid, &now) {
             return Err(differ.into());
         }
     }

@@ -15,6 +15,7 @@ use super::schedule::{choose, Action, Budget, Kind, OnlineSchedule, Plan};
 use super::step_adjoint::StepAdjoint;
 use super::store::{DiskSlots, RamSlots, Store};
 use crate::memory::{fmt_bytes, Backing, MemoryPlan};
+use crate::pools::Counts;
 use crate::scenario::Scenario;
 use super::print_adjoint::PrintParams;
 use crate::print::SyncEmission;
@@ -201,10 +202,10 @@ pub fn gradients(sc: &Scenario, seeds: &[Seeded], wrt: &[String], opts: &GradOpt
         return Ok(Vec::new());
     }
     let sim = prepare(sc, opts.threads)?;
-    let (cap, sl, nodes) = (sim.particles.capacity(), sim.particles.state_len, sim.grid.nodes.len());
+    let (cap, sl) = (Counts::capacity(sim.particles.capacity(), sim.grid.max_blocks()), sim.particles.state_len);
     let bytes = |k: usize| {
         let mut plan = MemoryPlan::default();
-        StepAdjoint::plan(&mut plan, cap, sl, nodes, k);
+        StepAdjoint::plan(&mut plan, &cap, sl, k);
         plan.total()
     };
     let per_seed = bytes(2) - bytes(1);
@@ -235,7 +236,7 @@ fn gradient_run(sc: &Scenario, seeds: &[Seeded], wrt: &[String], opts: &GradOpti
     }
 
     let mut grad_plan = MemoryPlan::default();
-    StepAdjoint::plan(&mut grad_plan, cap, sl, sim.grid.nodes.len(), seeds.len());
+    StepAdjoint::plan(&mut grad_plan, &Counts::capacity(cap, sim.grid.max_blocks()), sl, seeds.len());
     let adjoint_bytes = grad_plan.total();
     // a print grows: every slot is sized for the full pool
     let sbytes = state_bytes(&sim.particles) as u64;

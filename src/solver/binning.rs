@@ -8,6 +8,7 @@ use crate::particles::Particles;
 use crate::pools::{Per, PoolDecl, Pools, Role};
 
 /// Buffers the binning and the parallel phases share.
+#[derive(Default)]
 pub(crate) struct Scratch {
     max_blocks: usize,
     state_len: usize,
@@ -29,17 +30,17 @@ pub(crate) struct Scratch {
 
 impl Pools for Scratch {
     fn pools(&self) -> Vec<PoolDecl<Self>> {
-        use Role::Scratch;
+        let scratch = Role::Scratch;
         let permute = Particles::permute_scratch_per_particle(self.state_len);
         vec![
-            PoolDecl::new("scratch.pslot", Per::Particle(1), Scratch, |s| &s.pslot, |s| &mut s.pslot),
-            PoolDecl::new("scratch.order", Per::Particle(1), Scratch, |s| &s.order, |s| &mut s.order),
-            PoolDecl::new("scratch.slot_start", Per::Table(self.max_blocks + 1), Scratch, |s| &s.slot_start, |s| &mut s.slot_start),
-            PoolDecl::new("scratch.cursor", Per::Block(1), Scratch, |s| &s.cursor, |s| &mut s.cursor),
-            PoolDecl::new("scratch.neighbours", Per::Block(1), Scratch, |s| &s.nbr, |s| &mut s.nbr),
-            PoolDecl::new("scratch.colour_blocks", Per::Block(1), Scratch, |s| &s.colour_blocks, |s| &mut s.colour_blocks),
-            PoolDecl::new("scratch.colour_cum", Per::Block(1), Scratch, |s| &s.colour_cum, |s| &mut s.colour_cum),
-            PoolDecl::new("scratch.permute", Per::Particle(permute), Scratch, |s| &s.permute, |s| &mut s.permute),
+            PoolDecl::new("scratch.pslot", Per::Particle(1), scratch, |s| &s.pslot, |s| &mut s.pslot),
+            PoolDecl::new("scratch.order", Per::Particle(1), scratch, |s| &s.order, |s| &mut s.order),
+            PoolDecl::new("scratch.slot_start", Per::Table(self.max_blocks + 1), scratch, |s| &s.slot_start, |s| &mut s.slot_start),
+            PoolDecl::new("scratch.cursor", Per::Block(1), scratch, |s| &s.cursor, |s| &mut s.cursor),
+            PoolDecl::new("scratch.neighbours", Per::Block(1), scratch, |s| &s.nbr, |s| &mut s.nbr),
+            PoolDecl::new("scratch.colour_blocks", Per::Block(1), scratch, |s| &s.colour_blocks, |s| &mut s.colour_blocks),
+            PoolDecl::new("scratch.colour_cum", Per::Block(1), scratch, |s| &s.colour_cum, |s| &mut s.colour_cum),
+            PoolDecl::new("scratch.permute", Per::Particle(permute), scratch, |s| &s.permute, |s| &mut s.permute),
         ]
     }
 }
@@ -48,19 +49,7 @@ impl Scratch {
     /// The buffers for `max_blocks` grid slots and particles of `state_len` state values,
     /// declared but not mapped ([`Pools::map_pools`] maps them).
     pub(super) fn declared(max_blocks: usize, state_len: usize) -> Self {
-        Scratch {
-            max_blocks,
-            state_len,
-            pslot: Pool::default(),
-            order: Pool::default(),
-            slot_start: Pool::default(),
-            cursor: Pool::default(),
-            nbr: Pool::default(),
-            colour_blocks: Pool::default(),
-            colour_cum: Pool::default(),
-            colour_start: [0; 9],
-            permute: Pool::default(),
-        }
+        Scratch { max_blocks, state_len, ..Default::default() }
     }
 }
 
