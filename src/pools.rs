@@ -215,3 +215,36 @@ pub fn live<'a, C: Pools>(c: &'a C, now: &Counts, keep: impl Fn(Role) -> bool) -
         })
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::particles::Particles;
+
+    #[test]
+    fn a_table_sizes_the_plan_and_the_pools_and_its_live_parts_follow_the_counts() {
+        let p = Particles::declared(2);
+        let mut plan = MemoryPlan::default();
+        p.plan_memory(&mut plan, &Counts::particles(10));
+        let names: Vec<&str> = plan.pools.iter().map(|(n, _)| n.as_str()).collect();
+        assert_eq!(names, ["particles.x", "particles.v", "particles.C", "particles.stress", "particles.J", "particles.mass", "particles.vol0", "particles.id", "particles.state"]);
+        assert_eq!(plan.pools[8].1 as usize, 10 * 2 * size_of::<Real>());
+        // declared, nothing is mapped
+        assert!(p.xg.as_slice().is_empty() && p.state.as_slice().is_empty());
+
+        let mut p = Particles::new(10, 2, &Backing::default()).unwrap();
+        assert_eq!((p.capacity(), p.state.len()), (10, 20));
+        p.n = 3;
+        let now = Counts::particles(p.n);
+        let live = live(&p, &now, Role::is_state);
+        assert_eq!(live.len(), 9);
+        assert_eq!(live[0].1.len(), 3 * size_of::<V3>());
+        assert_eq!(live[8].1.len(), 3 * 2 * size_of::<Real>());
+        // what a gradient run stores: the arrays a step changes, in declaration order
+        let stepped: Vec<_> = with_role(&p, Role::changes_in_step).into_iter().map(|d| d.name).collect();
+        assert_eq!(stepped, ["particles.x", "particles.v", "particles.C", "particles.stress", "particles.J", "particles.state"]);
+        let d = &with_role(&p, |r| r == Role::Stored)[0];
+        d.live_mut(&mut p, &now).fill(1);
+        assert!(p.xg.as_slice()[..3].iter().all(|x| x.x != 0.0) && p.xg.as_slice()[3] == V3::ZERO);
+    }
+}

@@ -157,7 +157,10 @@ impl Pools for Sleep {
         use Role::*;
         let (units, blocks) = (Per::Table(self.table_len * UNITS), Per::Table(self.table_len));
         let decl = PoolDecl::<Self>::new;
-        let mut v = vec![decl("sleep.state", units, Sparse, |s| &s.state, |s| &mut s.state), decl("sleep.rest", units, Sparse, |s| &s.rest, |s| &mut s.rest)];
+        let mut v = vec![
+            decl("sleep.state", units, Sparse, |s| &s.state, |s| &mut s.state),
+            decl("sleep.rest", units, Sparse, |s| &s.rest, |s| &mut s.rest),
+        ];
         if self.tests_loads() {
             v.extend([
                 decl("sleep.load", units, Sparse, |s| &s.load, |s| &mut s.load),
