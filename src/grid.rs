@@ -5,7 +5,8 @@
 
 use crate::kernels::transfer::{Node, BLOCK_EDGE};
 use crate::kernels::{Real, V3};
-use crate::memory::{Backing, MemoryError, MemoryPlan, Pool};
+use crate::memory::{Backing, MemoryError, Pool};
+use crate::pools::{map_pools, Counts, Per, PoolDecl, Pools, Role};
 
 pub const EMPTY: u32 = u32::MAX;
 pub const NODES_PER_BLOCK: usize = BLOCK_EDGE * BLOCK_EDGE * BLOCK_EDGE;
@@ -162,24 +163,35 @@ pub struct Grid {
     pub n_particle_blocks: usize,
 }
 
-impl Grid {
-    pub fn plan(plan: &mut MemoryPlan, geom: &GridGeom, max_blocks: usize) {
-        plan.add::<u32>("grid.table", geom.table_len());
-        plan.add::<Node>("grid.nodes", max_blocks * NODES_PER_BLOCK);
-        plan.add::<u32>("grid.slot_block", max_blocks);
+impl Pools for Grid {
+    fn pools(&self) -> Vec<PoolDecl<Self>> {
+        use Role::*;
+        vec![
+            // rebuilt by binning the restored particles
+            PoolDecl::new("grid.table", Per::Table(self.geom.table_len()), Scratch, |g| &g.table, |g| &mut g.table),
+            PoolDecl::new("grid.nodes", Per::Block(NODES_PER_BLOCK), Nodes, |g| &g.nodes, |g| &mut g.nodes),
+            PoolDecl::new("grid.slot_block", Per::Block(1), Stored, |g| &g.slot_block, |g| &mut g.slot_block),
+        ]
     }
 
+    fn map_pools(&mut self, cap: &Counts, backing: &Backing) -> Result<(), MemoryError> {
+        map_pools(self, cap, backing)?;
+        self.table.as_mut_slice().fill(EMPTY);
+        Ok(())
+    }
+}
+
+impl Grid {
+    /// The grid of `geom`, its pools declared but not mapped ([`Pools::map_pools`] maps them).
+    pub fn declared(geom: GridGeom) -> Self {
+        Grid { geom, table: Pool::default(), nodes: Pool::default(), slot_block: Pool::default(), n_active: 0, n_particle_blocks: 0 }
+    }
+
+    /// The grid of `geom` with `max_blocks` slots, mapped.
     pub fn new(geom: GridGeom, max_blocks: usize, backing: &Backing) -> Result<Self, MemoryError> {
-        let mut table = Pool::new("grid.table", geom.table_len(), backing)?;
-        table.as_mut_slice().fill(EMPTY);
-        Ok(Grid {
-            geom,
-            table,
-            nodes: Pool::new("grid.nodes", max_blocks * NODES_PER_BLOCK, backing)?,
-            slot_block: Pool::new("grid.slot_block", max_blocks, backing)?,
-            n_active: 0,
-            n_particle_blocks: 0,
-        })
+        let mut g = Grid::declared(geom);
+        g.map_pools(&Counts::capacity(0, max_blocks), backing)?;
+        Ok(g)
     }
 
     pub fn max_blocks(&self) -> usize {

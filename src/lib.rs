@@ -24,6 +24,7 @@ pub mod memory;
 pub mod observe;
 pub mod output;
 pub mod particles;
+pub mod pools;
 pub mod print;
 pub mod run;
 pub mod scenario;

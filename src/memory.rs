@@ -68,7 +68,10 @@ pub struct MemoryPlan {
 
 impl MemoryPlan {
     pub fn add<T>(&mut self, name: &str, len: usize) {
-        self.pools.push((name.to_string(), (len * std::mem::size_of::<T>()) as u64));
+        self.add_bytes(name, len * std::mem::size_of::<T>());
+    }
+    pub fn add_bytes(&mut self, name: &str, bytes: usize) {
+        self.pools.push((name.to_string(), bytes as u64));
     }
     pub fn total(&self) -> u64 {
         self.pools.iter().map(|p| p.1).sum()
@@ -102,11 +105,18 @@ pub struct Backing {
     pub dir: Option<PathBuf>,
 }
 
-/// A fixed-capacity array of plain data in its own memory map.
+/// A fixed-capacity array of plain data in its own memory map. A pool declared but not mapped
+/// yet (`Pool::default()`, see `pools.rs`) is empty.
 pub struct Pool<T: Pod> {
-    map: MmapMut,
+    map: Option<MmapMut>,
     len: usize,
     _t: PhantomData<T>,
+}
+
+impl<T: Pod> Default for Pool<T> {
+    fn default() -> Self {
+        Pool { map: None, len: 0, _t: PhantomData }
+    }
 }
 
 impl<T: Pod> Pool<T> {
@@ -130,7 +140,7 @@ impl<T: Pod> Pool<T> {
                 unsafe { MmapOptions::new().len(bytes).map_mut(&file).map_err(err)? }
             }
         };
-        Ok(Pool { map, len, _t: PhantomData })
+        Ok(Pool { map: Some(map), len, _t: PhantomData })
     }
 
     pub fn len(&self) -> usize {
@@ -141,11 +151,17 @@ impl<T: Pod> Pool<T> {
     }
     #[inline]
     pub fn as_slice(&self) -> &[T] {
-        bytemuck::cast_slice(&self.map[..self.len * std::mem::size_of::<T>()])
+        match &self.map {
+            Some(m) => bytemuck::cast_slice(&m[..self.len * std::mem::size_of::<T>()]),
+            None => &[],
+        }
     }
     #[inline]
     pub fn as_mut_slice(&mut self) -> &mut [T] {
-        bytemuck::cast_slice_mut(&mut self.map[..self.len * std::mem::size_of::<T>()])
+        match &mut self.map {
+            Some(m) => bytemuck::cast_slice_mut(&mut m[..self.len * std::mem::size_of::<T>()]),
+            None => &mut [],
+        }
     }
 }
 

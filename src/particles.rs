@@ -3,9 +3,11 @@
 //! accurate far from the origin and saves the kernels a multiply.
 
 use crate::kernels::{Real, M3, V3};
-use crate::memory::{Backing, MemoryError, MemoryPlan, Pool};
+use crate::memory::{Backing, MemoryError, Pool};
+use crate::pools::{Counts, Per, PoolDecl, Pools, Role};
 use crate::threads::ThreadTeam;
 
+#[derive(Default)]
 pub struct Particles {
     /// Live particles: indices `0..n`.
     pub n: usize,
@@ -36,35 +38,36 @@ pub struct Particles {
     pub state: Pool<Real>,
 }
 
+impl Pools for Particles {
+    fn pools(&self) -> Vec<PoolDecl<Self>> {
+        use Role::*;
+        let sl = self.state_len;
+        vec![
+            PoolDecl::new("particles.x", Per::Particle(1), Stored, |p| &p.xg, |p| &mut p.xg),
+            PoolDecl::new("particles.v", Per::Particle(1), Rebuilt, |p| &p.v, |p| &mut p.v),
+            PoolDecl::new("particles.C", Per::Particle(1), Rebuilt, |p| &p.c, |p| &mut p.c),
+            PoolDecl::new("particles.stress", Per::Particle(1), Rebuilt, |p| &p.stress, |p| &mut p.stress),
+            PoolDecl::new("particles.J", Per::Particle(1), Stored, |p| &p.j, |p| &mut p.j),
+            PoolDecl::new("particles.mass", Per::Particle(1), FromIds, |p| &p.mass, |p| &mut p.mass),
+            PoolDecl::new("particles.vol0", Per::Particle(1), FromIds, |p| &p.vol0, |p| &mut p.vol0),
+            PoolDecl::new("particles.id", Per::Particle(1), Ids, |p| &p.id, |p| &mut p.id),
+            PoolDecl::new("particles.state", Per::Particle(sl), Stored, |p| &p.state, |p| &mut p.state),
+        ]
+    }
+}
+
 impl Particles {
-    pub fn plan(plan: &mut MemoryPlan, cap: usize, state_len: usize) {
-        plan.add::<V3>("particles.x", cap);
-        plan.add::<V3>("particles.v", cap);
-        plan.add::<M3>("particles.C", cap);
-        plan.add::<M3>("particles.stress", cap);
-        plan.add::<Real>("particles.J", cap);
-        plan.add::<Real>("particles.mass", cap);
-        plan.add::<Real>("particles.vol0", cap);
-        plan.add::<u32>("particles.id", cap);
-        plan.add::<Real>("particles.state", cap * state_len);
+    /// The pools for particles with `state_len` state values, declared but not mapped
+    /// ([`Pools::map_pools`] maps them).
+    pub fn declared(state_len: usize) -> Self {
+        Particles { state_len, ..Default::default() }
     }
 
+    /// Room for `cap` particles, mapped.
     pub fn new(cap: usize, state_len: usize, backing: &Backing) -> Result<Self, MemoryError> {
-        Ok(Particles {
-            n: 0,
-            n_sleep: 0,
-            next_id: 0,
-            state_len,
-            xg: Pool::new("particles.x", cap, backing)?,
-            v: Pool::new("particles.v", cap, backing)?,
-            c: Pool::new("particles.C", cap, backing)?,
-            stress: Pool::new("particles.stress", cap, backing)?,
-            j: Pool::new("particles.J", cap, backing)?,
-            mass: Pool::new("particles.mass", cap, backing)?,
-            vol0: Pool::new("particles.vol0", cap, backing)?,
-            id: Pool::new("particles.id", cap, backing)?,
-            state: Pool::new("particles.state", cap * state_len, backing)?,
-        })
+        let mut p = Particles::declared(state_len);
+        p.map_pools(&Counts::capacity(cap, 0), backing)?;
+        Ok(p)
     }
 
     pub fn capacity(&self) -> usize {
@@ -136,9 +139,9 @@ impl Particles {
         }
     }
 
-    /// Bytes of scratch `permute` needs for `cap` particles.
-    pub fn permute_scratch_bytes(cap: usize, state_len: usize) -> usize {
-        cap * std::mem::size_of::<M3>().max(state_len * std::mem::size_of::<Real>())
+    /// Bytes of scratch `permute` needs per particle.
+    pub fn permute_scratch_per_particle(state_len: usize) -> usize {
+        std::mem::size_of::<M3>().max(state_len * std::mem::size_of::<Real>())
     }
 }
 

@@ -961,13 +961,15 @@ pub fn plan_checkpoint_staging(sim: &mut Simulation) -> Result<(), SimError> {
 /// particles one by one would take hours.
 pub fn preflight(sc: &Scenario) -> Result<(), String> {
     use crate::memory::MemoryPlan;
+    use crate::pools::Pools;
     let budget = parse_size(&sc.memory.budget).map_err(|e| format!("memory.budget: {e}"))?;
     let state_len = crate::materials::build_material(&sc.material)?.state_names().len();
     let fewest: f64 = sc.bodies.iter().map(|b| fewest_particles(sc, b)).sum();
     let geom = crate::grid::GridGeom::new(sc.simulation.dx, sc.domain.min, sc.domain.max, sc.domain.periodic);
+    let capacity = crate::pools::Counts::capacity(fewest.min(1e15) as usize, sc.memory.max_blocks.unwrap_or(geom.table_len()).max(8));
     let mut plan = MemoryPlan::default();
-    crate::particles::Particles::plan(&mut plan, fewest.min(1e15) as usize, state_len);
-    crate::grid::Grid::plan(&mut plan, &geom, sc.memory.max_blocks.unwrap_or(geom.table_len()).max(8));
+    crate::particles::Particles::declared(state_len).plan_memory(&mut plan, &capacity);
+    crate::grid::Grid::declared(geom).plan_memory(&mut plan, &capacity);
     if plan.total() > budget {
         return Err(format!(
             "memory plan: the grid and the at least {fewest:.4e} particles of the bodies at dx = {} m need at least {}, over the budget of {} \

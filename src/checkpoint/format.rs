@@ -101,7 +101,8 @@ pub enum FormatError {
     SectionChecksum { path: PathBuf, name: String },
 }
 
-fn pad(n: usize) -> usize {
+/// `n` bytes padded to [`ALIGN`].
+pub fn pad(n: usize) -> usize {
     n.div_ceil(ALIGN) * ALIGN
 }
 

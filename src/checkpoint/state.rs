@@ -16,11 +16,13 @@
 //! - the step's binning and block slots by binning the restored positions again (the saved
 //!   `grid.slot_block` proves it gave the same slots); the per-block activity by G2P.
 
-use super::format::{checksum, state_hash, Checkpoint, Header, Section};
+use super::format::{checksum, pad, state_hash, Checkpoint, Header, Section};
 use crate::grid::NODES_PER_BLOCK;
 use crate::kernels::transfer::Node;
 use crate::kernels::{Real, M3, V3};
+use crate::pools::{live, with_role, Counts, Pools, Role};
 use crate::solver::{DtLimit, Simulation};
+use std::borrow::Cow;
 use std::mem::size_of;
 
 fn bytes<T: bytemuck::Pod>(s: &[T]) -> &[u8] {
@@ -46,7 +48,7 @@ pub enum Source<'a> {
 
 /// One section of the restart state.
 pub struct Part<'a> {
-    pub name: &'static str,
+    pub name: String,
     pub len: usize,
     /// How many of its values are reals (the rest are integers, whatever the precision).
     pub reals: usize,
@@ -54,8 +56,8 @@ pub struct Part<'a> {
 }
 
 impl Part<'_> {
-    fn raw<'a, T: bytemuck::Pod>(name: &'static str, s: &'a [T], reals_each: usize) -> Part<'a> {
-        Part { name, len: std::mem::size_of_val(s), reals: s.len() * reals_each, source: Source::Raw(bytes(s)) }
+    fn raw<'a, T: bytemuck::Pod>(name: &str, s: &'a [T], reals_each: usize) -> Part<'a> {
+        Part { name: name.into(), len: std::mem::size_of_val(s), reals: s.len() * reals_each, source: Source::Raw(bytes(s)) }
     }
 
     /// Write the section into `dst` (`len` bytes).
@@ -102,13 +104,28 @@ fn nonzero(e: &[u8]) -> bool {
     e.iter().any(|&b| b != 0)
 }
 
-/// The two sections of a mostly-zero table: indices of its nonzero elements, then those.
-fn sparse<'a>(name_at: &'static str, name: &'static str, table: &'a [u8], size: usize, real: bool) -> [Part<'a>; 2] {
-    let count = table.chunks_exact(size).filter(|e| nonzero(e)).count();
-    [
-        Part { name: name_at, len: count * 4, reals: 0, source: Source::NonZeroAt(table, size) },
-        Part { name, len: count * size, reals: if real { count } else { 0 }, source: Source::NonZero(table, size) },
-    ]
+/// The live parts of `c`'s pools whose role passes `keep`, one section each, in declaration
+/// order.
+fn stored<'a, C: Pools>(c: &'a C, now: &Counts, keep: impl Fn(Role) -> bool) -> Vec<Part<'a>> {
+    let part = |d: &crate::pools::PoolDecl<C>| {
+        let b = d.live(c, now);
+        Part { name: d.name.to_string(), len: b.len(), reals: d.per.len(now) * d.of(c).reals_per_elem(), source: Source::Raw(b) }
+    };
+    with_role(c, keep).iter().map(part).collect()
+}
+
+/// The two sections of each of `c`'s sparse tables (all their values are counted as integers:
+/// the sleep tables are f32 or integers whatever the precision): the indices of its nonzero
+/// elements (section `NAME_at`), then those.
+fn sparse<C: Pools>(c: &C) -> Vec<Part<'_>> {
+    let mut v = Vec::new();
+    for d in with_role(c, |r| r == Role::Sparse) {
+        let (table, size) = (d.of(c).bytes(), d.of(c).elem_bytes());
+        let count = table.chunks_exact(size).filter(|e| nonzero(e)).count();
+        v.push(Part { name: format!("{}_at", d.name), len: count * 4, reals: 0, source: Source::NonZeroAt(table, size) });
+        v.push(Part { name: d.name.to_string(), len: count * size, reals: 0, source: Source::NonZero(table, size) });
+    }
+    v
 }
 
 /// Node channels a restart needs: the velocity, and with FLIP the velocity before the update.
@@ -120,45 +137,48 @@ fn node_channels(sim: &Simulation) -> usize {
     }
 }
 
+/// How many particles and grid slots `sim` has now.
+fn counts_now(sim: &Simulation) -> Counts {
+    Counts { particles: sim.particles.n, blocks: sim.grid.n_active, particle_blocks: sim.grid.n_particle_blocks }
+}
+
+/// What a checkpoint stores of the particles always: [`Role::Stored`] and the ids.
+fn always_stored(r: Role) -> bool {
+    matches!(r, Role::Stored | Role::Ids)
+}
+
 /// The restart state's sections, in file order, at the middle of a step (after
-/// `begin_step`; at a step boundary they describe the middle of the step just taken).
+/// `begin_step`; at a step boundary they describe the middle of the step just taken): the
+/// particles' stored pools (and FLIP's velocities), the grid's and its moving nodes, what
+/// merging adds, and the sleep tables.
 pub fn sections(sim: &Simulation) -> Vec<Part<'_>> {
+    let now = counts_now(sim);
     let p = &sim.particles;
-    let (n, sl) = (p.n, p.state_len);
-    let mut v = vec![
-        Part::raw("particles.x", &p.xg.as_slice()[..n], 3),
-        Part::raw("particles.J", &p.j.as_slice()[..n], 1),
-        Part::raw("particles.id", &p.id.as_slice()[..n], 0),
-        Part::raw("particles.state", &p.state.as_slice()[..n * sl], 1),
-    ];
+    let mut v = stored(p, &now, always_stored);
     if sim.scenario.simulation.flip > 0.0 {
         // FLIP adds the change of the grid velocity to the particle's own; asleep it is zero
-        v.push(Part::raw("particles.v_awake", &p.v.as_slice()[p.n_sleep..n], 3));
+        v.push(Part::raw("particles.v_awake", &p.v.as_slice()[p.n_sleep..p.n], 3));
     }
-    let na = sim.grid.n_active;
-    let nodes = &sim.grid.nodes.as_slice()[..na * NODES_PER_BLOCK];
+    v.extend(stored(&sim.grid, &now, |r| r == Role::Stored));
+    let nodes = &sim.grid.nodes.as_slice()[..now.blocks * NODES_PER_BLOCK];
     let k = node_channels(sim);
     let occupied = nodes.iter().filter(|n| moving(n, k)).count();
-    v.push(Part::raw("grid.slot_block", &sim.grid.slot_block.as_slice()[..na], 0));
-    v.push(Part { name: "grid.moving", len: na * 8, reals: 0, source: Source::Moving(nodes, k) });
+    v.push(Part { name: "grid.moving".into(), len: now.blocks * 8, reals: 0, source: Source::Moving(nodes, k) });
     v.push(Part {
-        name: "grid.velocity",
+        name: "grid.velocity".into(),
         len: occupied * k * size_of::<Real>(),
         reals: occupied * k,
         source: Source::Velocities(nodes, k),
     });
     if coarsens(sim) {
         // merged particles carry what their ids no longer tell (module notes)
-        v.push(Part::raw("particles.mass", &p.mass.as_slice()[..n], 1));
-        v.push(Part::raw("particles.vol0", &p.vol0.as_slice()[..n], 1));
+        v.extend(stored(p, &now, |r| r == Role::FromIds));
         v.push(Part::raw("particles.next_id", std::slice::from_ref(&p.next_id), 0));
     }
     if let Some(sl) = &sim.sleep {
         // per unit of the whole domain, but zero away from material (and the load tables
-        // away from sleeping units; without the load test they hold nothing and are left out)
-        for t in sl.stored_tables() {
-            v.extend(sparse(t.name_at, t.name, t.bytes, t.size, false));
-        }
+        // away from sleeping units)
+        v.extend(sparse(sl));
     }
     v
 }
@@ -181,54 +201,42 @@ pub fn restart_bytes_per_particle(sim: &Simulation) -> f64 {
     restart_bytes_per_particle_with(sim, size_of::<Real>())
 }
 
-/// Bytes of the staging buffer `strand run` maps for `sim`'s checkpoints:
-/// [`max_staging_bytes`] at its pools' capacity.
+/// Bytes of the staging buffer `strand run` maps for `sim`'s checkpoints: [`sections`] at the
+/// pools' capacity (every entry of a sparse table nonzero, and as many nodes moving as the
+/// grid's slots hold, or 27 per particle), each padded.
 pub fn staging_bytes(sim: &Simulation) -> usize {
-    let sc = &sim.scenario;
-    let loads = sim.sleep.as_ref().is_some_and(|s| s.tests_loads());
-    let coarsen = sc.sleep.as_ref().is_some_and(|c| c.coarsen);
-    let (cap, sl, blocks, table) = (sim.particles.capacity(), sim.particles.state_len, sim.grid.max_blocks(), sim.grid.geom.table_len());
-    max_staging_bytes(cap, sl, blocks, table, sc.sleep.is_some(), loads, coarsen, sc.simulation.flip > 0.0)
-}
-
-/// Bytes of staging a checkpoint can need at the pools' full capacity: `cap` particles with
-/// `state_len` state values, `max_blocks` grid slots, and with sleeping a `table_len` table
-/// (and its load tables with `loads`).
-#[allow(clippy::too_many_arguments)]
-pub fn max_staging_bytes(cap: usize, state_len: usize, max_blocks: usize, table_len: usize, sleep: bool, loads: bool, coarsen: bool, flip: bool) -> usize {
-    let real = size_of::<Real>();
-    let per_particle = size_of::<V3>() + real + 4 + state_len * real + if flip { size_of::<V3>() } else { 0 } + if coarsen { 2 * real } else { 0 };
-    // a particle's stencil gives mass to 27 nodes, so no more nodes than that can hold mass
-    let nodes = (max_blocks * NODES_PER_BLOCK).min(27 * cap);
-    let channels = if flip { 6 } else { 3 };
-    let align = super::format::ALIGN;
-    let mut total = cap * per_particle + max_blocks * (4 + 8) + nodes * channels * real + 15 * align + 4;
-    if sleep {
-        total += crate::sleep::Sleep::max_stored_bytes(table_len, loads);
-    }
-    total
-}
-
-/// The arrays of the whole particle state at a step boundary, for the state hash: equal hashes,
-/// bit-identical particles (whatever a checkpoint leaves out to be rebuilt).
-fn full_state(sim: &Simulation) -> Vec<(&'static str, &[u8])> {
     let p = &sim.particles;
-    let n = p.n;
-    let mut v: Vec<(&'static str, &[u8])> = vec![
-        ("particles.x", bytes(&p.xg.as_slice()[..n])),
-        ("particles.v", bytes(&p.v.as_slice()[..n])),
-        ("particles.C", bytes(&p.c.as_slice()[..n])),
-        ("particles.stress", bytes(&p.stress.as_slice()[..n])),
-        ("particles.J", bytes(&p.j.as_slice()[..n])),
-        ("particles.mass", bytes(&p.mass.as_slice()[..n])),
-        ("particles.vol0", bytes(&p.vol0.as_slice()[..n])),
-        ("particles.id", bytes(&p.id.as_slice()[..n])),
-        ("particles.state", bytes(&p.state.as_slice()[..n * p.state_len])),
-    ];
+    let cap = Counts::capacity(p.capacity(), sim.grid.max_blocks());
+    let mut lens: Vec<usize> = with_role(p, always_stored).iter().map(|d| d.bytes_for(p, &cap)).collect();
+    if sim.scenario.simulation.flip > 0.0 {
+        lens.push(cap.particles * size_of::<V3>());
+    }
+    lens.extend(with_role(&sim.grid, |r| r == Role::Stored).iter().map(|d| d.bytes_for(&sim.grid, &cap)));
+    // a particle's stencil gives mass to 27 nodes, so no more nodes than that can move
+    let nodes = (cap.blocks * NODES_PER_BLOCK).min(27 * cap.particles);
+    lens.extend([cap.blocks * 8, nodes * node_channels(sim) * size_of::<Real>()]);
+    if coarsens(sim) {
+        lens.extend(with_role(p, |r| r == Role::FromIds).iter().map(|d| d.bytes_for(p, &cap)));
+        lens.push(4);
+    }
     if let Some(sl) = &sim.sleep {
-        v.push(("grid.slot_block", bytes(&sim.grid.slot_block.as_slice()[..sim.grid.n_active])));
-        v.extend(sl.stored_tables().into_iter().map(|t| (t.name, t.bytes)));
-        v.push(("sleep.activity", bytes(&sl.activity.as_slice()[..sim.grid.n_particle_blocks])));
+        for d in with_role(sl, |r| r == Role::Sparse) {
+            let n = d.per.len(&cap);
+            lens.extend([n * 4, n * d.of(sl).elem_bytes()]);
+        }
+    }
+    lens.into_iter().map(pad).sum()
+}
+
+/// The arrays of the whole state at a step boundary, for the state hash: equal hashes,
+/// bit-identical particles (whatever a checkpoint leaves out to be rebuilt). With sleeping, the
+/// last step's binning and the sleep tables too: the next step's sleeping depends on them.
+fn full_state(sim: &Simulation) -> Vec<(Cow<'static, str>, &[u8])> {
+    let now = counts_now(sim);
+    let mut v = live(&sim.particles, &now, Role::is_state);
+    if let Some(sl) = &sim.sleep {
+        v.extend(live(&sim.grid, &now, |r| r == Role::Stored));
+        v.extend(live(sl, &now, Role::is_state));
     }
     v
 }
@@ -348,7 +356,6 @@ fn check_compatible(sim: &Simulation, ck: &Checkpoint) -> Result<(), String> {
 pub fn restore(sim: &mut Simulation, ck: &Checkpoint) -> Result<(f64, DtLimit), String> {
     let h = &ck.header;
     check_compatible(sim, ck)?;
-    let sl = sim.particles.state_len;
     let flip = sim.scenario.simulation.flip > 0.0;
     let limit = DtLimit::from_name(&h.dt_limit).ok_or_else(|| format!("unknown time-step bound '{}'", h.dt_limit))?;
     let n = h.particles as usize;
@@ -356,10 +363,11 @@ pub fn restore(sim: &mut Simulation, ck: &Checkpoint) -> Result<(f64, DtLimit), 
     if asleep > n {
         return Err(format!("the checkpoint has {asleep} particles asleep of {n}"));
     }
-    let get = |name: &str, len: usize| section(ck, name, len);
-    fn put<T: bytemuck::Pod>(dst: &mut [T], src: &[u8]) {
-        bytemuck::cast_slice_mut::<T, u8>(dst).copy_from_slice(src);
-    }
+    let at = Counts { particles: n, blocks: h.active_blocks as usize, particle_blocks: h.particle_blocks as usize };
+    let put = |dst: &mut [u8], name: &str| -> Result<(), String> {
+        dst.copy_from_slice(section(ck, name, dst.len())?);
+        Ok(())
+    };
 
     // The fresh simulation holds the bodies' particles, ids 0..fresh, with the masses and
     // volumes the run gave them: runs of equal values, one per body.
@@ -375,19 +383,19 @@ pub fn restore(sim: &mut Simulation, ck: &Checkpoint) -> Result<(f64, DtLimit), 
     let printed = sim.printer.as_ref().map(|pr| ((rho * pr.particle_volume) as Real, pr.particle_volume as Real));
 
     let p = &mut sim.particles;
-    put(&mut p.xg.as_mut_slice()[..n], get("particles.x", n * size_of::<V3>())?);
-    put(&mut p.j.as_mut_slice()[..n], get("particles.J", n * size_of::<Real>())?);
-    put(&mut p.id.as_mut_slice()[..n], get("particles.id", n * 4)?);
-    put(&mut p.state.as_mut_slice()[..n * sl], get("particles.state", n * sl * size_of::<Real>())?);
+    for d in with_role(p, always_stored) {
+        put(d.live_mut(p, &at), &d.name)?;
+    }
     p.v.as_mut_slice()[..n].fill(V3::ZERO);
     if flip {
-        put(&mut p.v.as_mut_slice()[asleep..n], get("particles.v_awake", (n - asleep) * size_of::<V3>())?);
+        put(bytemuck::cast_slice_mut(&mut p.v.as_mut_slice()[asleep..n]), "particles.v_awake")?;
     }
     p.n = n;
     p.n_sleep = asleep;
     if let Some(b) = ck.section("particles.next_id") {
-        put(&mut p.mass.as_mut_slice()[..n], get("particles.mass", n * size_of::<Real>())?);
-        put(&mut p.vol0.as_mut_slice()[..n], get("particles.vol0", n * size_of::<Real>())?);
+        for d in with_role(p, |r| r == Role::FromIds) {
+            put(d.live_mut(p, &at), &d.name)?;
+        }
         p.next_id = u32::from_le_bytes(b.try_into().map_err(|_| "section 'particles.next_id' is not 4 bytes".to_string())?);
     } else {
         // without merging, ids are 0..n in some order
@@ -440,32 +448,36 @@ pub fn restore(sim: &mut Simulation, ck: &Checkpoint) -> Result<(f64, DtLimit), 
             // margins to test loads against
             return Err("the checkpoint holds no sleep load tables (written without sleep.wake_by_load)".into());
         }
-        for t in sleep.stored_tables_mut() {
-            scatter(t.bytes, t.size, ck, t.name_at, t.name)?;
+        for d in with_role(sleep, |r| r == Role::Sparse) {
+            let pool = d.of_mut(sleep);
+            let size = pool.elem_bytes();
+            scatter(pool.bytes_mut(), size, ck, &format!("{}_at", d.name), &d.name)?;
         }
         sleep.restored()?;
         if sleep.sleeping_units != h.sleeping_units as usize {
             return Err(format!("the sleep table holds {} sleeping units, the header {}", sleep.sleeping_units, h.sleeping_units));
         }
     }
-    restore_grid(sim, ck)?;
+    restore_grid(sim, ck, &at)?;
     Ok((h.dt, limit))
 }
 
-/// Bin the restored particles, check that they give the checkpoint's grid blocks, and put the
-/// stored node velocities back.
-fn restore_grid(sim: &mut Simulation, ck: &Checkpoint) -> Result<(), String> {
-    let h = &ck.header;
+/// Bin the restored particles, check that they give the checkpoint's grid blocks (`at`), and
+/// put the stored node velocities back.
+fn restore_grid(sim: &mut Simulation, ck: &Checkpoint, at: &Counts) -> Result<(), String> {
     let get = |name: &str, len: usize| section(ck, name, len);
     sim.bin_particles().map_err(|e| e.to_string())?;
-    let na = sim.grid.n_active;
-    let saved: &[u32] = bytemuck::cast_slice(get("grid.slot_block", h.active_blocks as usize * 4)?);
-    if na != h.active_blocks as usize
-        || sim.grid.n_particle_blocks != h.particle_blocks as usize
-        || saved != &sim.grid.slot_block.as_slice()[..na]
-    {
-        return Err("binning the restored particles does not give the checkpoint's grid blocks".into());
+    let (now, grid) = (counts_now(sim), &sim.grid);
+    let differ = "binning the restored particles does not give the checkpoint's grid blocks";
+    if now.blocks != at.blocks || now.particle_blocks != at.particle_blocks {
+        return Err(differ.into());
     }
+    for d in with_role(grid, |r| r == Role::Stored) {
+        if get(&d.name, d.bytes_for(grid, at))? != d.live(grid, &now) {
+            return Err(differ.into());
+        }
+    }
+    let na = now.blocks;
     let occupied: Vec<u64> = get("grid.moving", na * 8)?
         .chunks_exact(8)
         .map(|b| u64::from_le_bytes(b.try_into().expect("8 bytes")))

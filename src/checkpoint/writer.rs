@@ -100,7 +100,7 @@ impl CheckpointWriter {
     /// queueing them.
     pub fn stage(&mut self, mut header: Header, sections: &[Part]) -> Result<Staged, String> {
         let mut staging = self.0.buffer().ok_or("the checkpoint writer has stopped")?;
-        let lay = layout(sections.iter().map(|p| (p.name, p.len)));
+        let lay = layout(sections.iter().map(|p| (p.name.as_str(), p.len)));
         let need = lay.last().map_or(0, |(_, o, b)| (o + b) as usize);
         if need > staging.len() {
             let have = staging.len();

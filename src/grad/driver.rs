@@ -15,6 +15,7 @@ use super::schedule::{choose, Action, Budget, Kind, OnlineSchedule, Plan};
 use super::step_adjoint::StepAdjoint;
 use super::store::{DiskSlots, RamSlots, Store};
 use crate::memory::{fmt_bytes, Backing, MemoryPlan};
+use crate::pools::Counts;
 use crate::scenario::Scenario;
 use super::print_adjoint::PrintParams;
 use crate::print::SyncEmission;
@@ -201,10 +202,10 @@ pub fn gradients(sc: &Scenario, seeds: &[Seeded], wrt: &[String], opts: &GradOpt
         return Ok(Vec::new());
     }
     let sim = prepare(sc, opts.threads)?;
-    let (cap, sl, nodes) = (sim.particles.capacity(), sim.particles.state_len, sim.grid.nodes.len());
+    let (cap, sl) = (Counts::capacity(sim.particles.capacity(), sim.grid.max_blocks()), sim.particles.state_len);
     let bytes = |k: usize| {
         let mut plan = MemoryPlan::default();
-        StepAdjoint::plan(&mut plan, cap, sl, nodes, k);
+        StepAdjoint::plan(&mut plan, &cap, sl, k);
         plan.total()
     };
     let per_seed = bytes(2) - bytes(1);
@@ -274,9 +275,9 @@ impl Memory {
     fn plan(sim: &Simulation, seeds: usize, opts: &GradOptions) -> Result<Memory, String> {
         let (cap, sl) = (sim.particles.capacity(), sim.particles.state_len);
         let mut grad_plan = MemoryPlan::default();
-        StepAdjoint::plan(&mut grad_plan, cap, sl, sim.grid.nodes.len(), seeds);
+        StepAdjoint::plan(&mut grad_plan, &Counts::capacity(cap, sim.grid.max_blocks()), sl, seeds);
         let adjoint_bytes = grad_plan.total();
-        let sbytes = state_bytes(cap, sl) as u64;
+        let sbytes = state_bytes(&sim.particles) as u64;
         if opts.ram_bytes < adjoint_bytes {
             return Err(format!(
                 "the gradient's RAM budget of {} does not hold its adjoint arrays ({}; one stored state is {}):\n{grad_plan}",

@@ -1,32 +1,25 @@
-//! The layout of a stored state of the gradient schedule: the per-particle arrays a step changes
-//! (those of `solver::Fields`).
+//! The layout of a stored state of the gradient schedule: step, time, particle count and the
+//! next slab to emit, then the live part of each particle pool a step changes
+//! ([`Role::changes_in_step`], the arrays of `solver::Fields`), in declaration order.
 //!
-//! Masses and initial volumes are not here: without emission they never change, so a gradient
-//! run does not store them.
+//! Masses, initial volumes and ids are not here: without emission, reordering or merging they
+//! never change, so a gradient run does not store them.
 
-use crate::kernels::{Real, M3, V3};
+use crate::particles::Particles;
+use crate::pools::{with_role, Counts, PoolDecl, Role};
 use crate::solver::Simulation;
 
 const HEADER: usize = 32;
 
-/// Bytes of one stored state of `n` particles: step, time, particle count and the next slab to
-/// emit, then the arrays of [`Fields`].
-pub fn state_bytes(n: usize, state_len: usize) -> usize {
-    HEADER + n * (2 * size_of::<V3>() + 2 * size_of::<M3>() + size_of::<Real>() * (1 + state_len))
+/// The particle pools a stored state holds.
+fn stored(p: &Particles) -> Vec<PoolDecl<Particles>> {
+    with_role(p, Role::changes_in_step)
 }
 
-/// The simulation's changing arrays (and step, time) as byte ranges, in stored order.
-fn arrays(sim: &Simulation) -> [&[u8]; 6] {
-    let p = &sim.particles;
-    let n = p.n;
-    [
-        bytemuck::cast_slice(&p.xg.as_slice()[..n]),
-        bytemuck::cast_slice(&p.v.as_slice()[..n]),
-        bytemuck::cast_slice(&p.c.as_slice()[..n]),
-        bytemuck::cast_slice(&p.stress.as_slice()[..n]),
-        bytemuck::cast_slice(&p.j.as_slice()[..n]),
-        bytemuck::cast_slice(&p.state.as_slice()[..n * p.state_len]),
-    ]
+/// Bytes of one stored state of a full pool of `p`'s particles.
+pub fn state_bytes(p: &Particles) -> usize {
+    let cap = Counts::particles(p.capacity());
+    HEADER + stored(p).iter().map(|d| d.bytes_for(p, &cap)).sum::<usize>()
 }
 
 fn next_slab(sim: &Simulation) -> u64 {
@@ -39,8 +32,11 @@ pub fn save(sim: &Simulation, out: &mut [u8]) {
     out[8..16].copy_from_slice(&sim.time.to_le_bytes());
     out[16..24].copy_from_slice(&(sim.particles.n as u64).to_le_bytes());
     out[24..32].copy_from_slice(&next_slab(sim).to_le_bytes());
+    let p = &sim.particles;
+    let now = Counts::particles(p.n);
     let mut at = HEADER;
-    for a in arrays(sim) {
+    for d in stored(p) {
+        let a = d.live(p, &now);
         out[at..at + a.len()].copy_from_slice(a);
         at += a.len();
     }
@@ -59,17 +55,11 @@ pub fn load(sim: &mut Simulation, bytes: &[u8]) {
     p.n = word(2) as usize;
     // nothing merges without sleeping (which gradients refuse): ids are 0..n
     p.next_id = p.n as u32;
-    let n = p.n;
-    let sl = p.state_len;
+    let now = Counts::particles(p.n);
     let mut at = HEADER;
-    let mut take = |dst: &mut [u8]| {
+    for d in stored(p) {
+        let dst = d.live_mut(p, &now);
         dst.copy_from_slice(&bytes[at..at + dst.len()]);
         at += dst.len();
-    };
-    take(bytemuck::cast_slice_mut(&mut p.xg.as_mut_slice()[..n]));
-    take(bytemuck::cast_slice_mut(&mut p.v.as_mut_slice()[..n]));
-    take(bytemuck::cast_slice_mut(&mut p.c.as_mut_slice()[..n]));
-    take(bytemuck::cast_slice_mut(&mut p.stress.as_mut_slice()[..n]));
-    take(bytemuck::cast_slice_mut(&mut p.j.as_mut_slice()[..n]));
-    take(bytemuck::cast_slice_mut(&mut p.state.as_mut_slice()[..n * sl]));
+    }
 }

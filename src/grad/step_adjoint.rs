@@ -7,6 +7,7 @@
 use super::objective::{Frame, Objective, Seed};
 use super::print_adjoint::PrintParams;
 use crate::memory::{Backing, MemoryError, MemoryPlan};
+use crate::pools::Counts;
 use crate::solver::{Adjoint, Simulation, Step, Tape, ToolpathBar, PHASES};
 use std::time::Instant;
 
@@ -24,10 +25,10 @@ pub struct StepAdjoint {
 
 impl StepAdjoint {
     /// Bytes shared by all seeds (the tape) into `plan`, and those of `seeds` seeds' adjoints.
-    pub fn plan(plan: &mut MemoryPlan, n: usize, state_len: usize, grid_nodes: usize, seeds: usize) {
-        Tape::plan(plan, n, state_len, grid_nodes);
+    pub fn plan(plan: &mut MemoryPlan, cap: &Counts, state_len: usize, seeds: usize) {
+        Tape::plan(plan, cap, state_len);
         for k in 0..seeds {
-            Adjoint::plan(plan, k, n, state_len, grid_nodes);
+            Adjoint::plan(plan, k, cap, state_len);
         }
     }
 
@@ -92,7 +93,7 @@ impl StepAdjoint {
             lap(&mut clock, &mut self.phase_s[1 + i]);
         }
         for (a, _) in self.seeds.iter_mut().zip(active).filter(|(_, on)| **on) {
-            a.end_step(n, sim.particles.state_len);
+            a.end_step(n);
         }
         // timed with the last adjoint to run
         let last = PHASES.iter().position(|p| p.has_adjoint()).unwrap_or(0);

@@ -26,12 +26,15 @@
 use crate::grid::GridGeom;
 use crate::kernels::material::Material;
 use crate::kernels::{Real, V3};
-use crate::memory::{Backing, MemoryError, MemoryPlan, Pool};
+use crate::memory::{Backing, MemoryError, Pool};
+use crate::pools::{Counts, Per, PoolDecl, Pools, Role};
 use crate::particles::Particles;
 use super::units::{offsets_26, unit_coords, unit_in_table, unit_index, wrap_unit, UNITS, UNIT_CELLS};
 
 /// Scratch for merging, preallocated.
 pub struct Coarsen {
+    /// Units of the domain.
+    units: usize,
     /// Per unit (sleep tables' layout), one bit per cell: whether a particle has its stencil
     /// base there.
     occupied: Pool<u8>,
@@ -42,17 +45,26 @@ pub struct Coarsen {
 /// Removed-particle mark, in `id`, between merging and compaction.
 const GONE: u32 = u32::MAX;
 
+impl Pools for Coarsen {
+    fn pools(&self) -> Vec<PoolDecl<Self>> {
+        vec![
+            PoolDecl::new("coarsen.occupied", Per::Table(self.units), Role::Scratch, |c| &c.occupied, |c| &mut c.occupied),
+            PoolDecl::new("coarsen.keys", Per::Particle(1), Role::Scratch, |c| &c.keys, |c| &mut c.keys),
+        ]
+    }
+}
+
 impl Coarsen {
-    pub fn plan(plan: &mut MemoryPlan, geom: &GridGeom, capacity: usize) {
-        plan.add::<u8>("coarsen.occupied", geom.table_len() * UNITS);
-        plan.add::<u64>("coarsen.keys", capacity);
+    /// Scratch for `geom`'s domain, declared but not mapped ([`Pools::map_pools`] maps it).
+    pub fn declared(geom: &GridGeom) -> Self {
+        Coarsen { units: geom.table_len() * UNITS, occupied: Pool::default(), keys: Pool::default() }
     }
 
+    /// Scratch for `geom`'s domain and `capacity` particles, mapped.
     pub fn new(geom: &GridGeom, capacity: usize, b: &Backing) -> Result<Self, MemoryError> {
-        Ok(Coarsen {
-            occupied: Pool::new("coarsen.occupied", geom.table_len() * UNITS, b)?,
-            keys: Pool::new("coarsen.keys", capacity, b)?,
-        })
+        let mut c = Coarsen::declared(geom);
+        c.map_pools(&Counts::capacity(capacity, 0), b)?;
+        Ok(c)
     }
 
     /// Merge the particles of each interior cell among `from..p.n_sleep` (the particles that

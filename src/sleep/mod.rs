@@ -96,33 +96,15 @@ use crate::grid::{GridGeom, NODES_PER_BLOCK};
 use crate::kernels::material::Material;
 use crate::kernels::{M3, V3};
 use crate::memory::{Backing, MemoryError, MemoryPlan, Pool};
+use crate::pools::{map_pools, plan_pools, Counts, Per, PoolDecl, Pools, Role};
 use crate::particles::Particles;
 use units::{states, states_mut, valid_states};
-
-/// The per-unit tables a checkpoint stores: section name, name of the section of their indices,
-/// bytes per unit. The first two always, the rest with the load test.
-const STORED: [(&str, &str, usize); 6] = [
-    ("sleep.state", "sleep.state_at", 1),
-    ("sleep.rest", "sleep.rest_at", 4),
-    ("sleep.load", "sleep.load_at", 12),
-    ("sleep.load_step", "sleep.load_step_at", 4),
-    ("sleep.margin", "sleep.margin_at", 4),
-    ("sleep.base", "sleep.base_at", 4),
-];
-
-/// One per-unit table as a checkpoint stores it ([`Sleep::stored_tables`]).
-pub struct StoredTable<B> {
-    pub name: &'static str,
-    /// The section of the indices of its nonzero entries.
-    pub name_at: &'static str,
-    /// Bytes per unit.
-    pub size: usize,
-    pub bytes: B,
-}
 
 /// Per-unit sleep bookkeeping, over the dense block table refined to units.
 pub struct Sleep {
     pub cfg: SleepConfig,
+    /// Blocks of the domain's dense table (the per-unit tables have [`UNITS`] entries each).
+    table_len: usize,
     /// A [`UnitState`] per unit, `Asleep` or `Awake` (`Woken` only inside `update`, `Loaded`
     /// between a step and the next update), indexed by [`units::unit_index`]; stored as bytes
     /// (`units::states` views them).
@@ -167,104 +149,95 @@ pub struct Sleep {
     coarsen: Option<Coarsen>,
 }
 
-impl Sleep {
-    pub fn plan(plan: &mut MemoryPlan, cfg: &SleepConfig, geom: &GridGeom, max_blocks: usize, capacity: usize, gravity: [f64; 3]) {
-        let units = geom.table_len() * UNITS;
-        plan.add::<u8>("sleep.state", units);
-        plan.add::<f32>("sleep.rest", units);
-        plan.add::<u32>("sleep.woken", units);
-        plan.add::<u8>("sleep.asleep_in_block", geom.table_len());
-        plan.add::<UnitActivity>("sleep.activity", max_blocks);
-        if cfg.tests_loads(gravity) {
-            plan.add::<[f32; 3]>("sleep.load", units);
-            plan.add::<u32>("sleep.load_step", units);
-            plan.add::<f32>("sleep.margin", units);
-            plan.add::<f32>("sleep.base", units);
-            plan.add::<u32>("sleep.loaded", units);
-            plan.add::<[f32; 3]>("sleep.reactions", max_blocks * NODES_PER_BLOCK);
+impl Pools for Sleep {
+    /// The per-unit tables a checkpoint stores, sparse (a unit's entries are zero away from
+    /// material, and the load tables away from sleeping units), come first; the load tables
+    /// exist only when loads are tested.
+    fn pools(&self) -> Vec<PoolDecl<Self>> {
+        use Role::*;
+        let (units, blocks) = (Per::Table(self.table_len * UNITS), Per::Table(self.table_len));
+        let decl = PoolDecl::<Self>::new;
+        let mut v = vec![
+            decl("sleep.state", units, Sparse, |s| &s.state, |s| &mut s.state),
+            decl("sleep.rest", units, Sparse, |s| &s.rest, |s| &mut s.rest),
+        ];
+        if self.tests_loads() {
+            v.extend([
+                decl("sleep.load", units, Sparse, |s| &s.load, |s| &mut s.load),
+                decl("sleep.load_step", units, Sparse, |s| &s.load_step, |s| &mut s.load_step),
+                decl("sleep.margin", units, Sparse, |s| &s.margin, |s| &mut s.margin),
+                decl("sleep.base", units, Sparse, |s| &s.base, |s| &mut s.base),
+            ]);
         }
-        if cfg.coarsen {
-            Coarsen::plan(plan, geom, capacity);
+        v.extend([
+            decl("sleep.woken", units, Scratch, |s| &s.woken, |s| &mut s.woken),
+            // counted again from the state table ([`Sleep::restored`])
+            decl("sleep.asleep_in_block", blocks, Scratch, |s| &s.asleep_in_block, |s| &mut s.asleep_in_block),
+            // written again by this step's G2P
+            decl("sleep.activity", Per::ParticleBlock(1), Rebuilt, |s| &s.activity, |s| &mut s.activity),
+        ]);
+        if self.tests_loads() {
+            v.extend([
+                decl("sleep.loaded", units, Scratch, |s| &s.loaded, |s| &mut s.loaded),
+                decl("sleep.reactions", Per::Block(NODES_PER_BLOCK), Scratch, |s| &s.reactions, |s| &mut s.reactions),
+            ]);
+        }
+        v
+    }
+
+    fn plan_memory(&self, plan: &mut MemoryPlan, cap: &Counts) {
+        plan_pools(self, plan, cap);
+        if let Some(c) = &self.coarsen {
+            c.plan_memory(plan, cap);
+        }
+    }
+
+    fn map_pools(&mut self, cap: &Counts, backing: &Backing) -> Result<(), MemoryError> {
+        map_pools(self, cap, backing)?;
+        if let Some(c) = &mut self.coarsen {
+            c.map_pools(cap, backing)?;
+        }
+        Ok(())
+    }
+}
+
+impl Sleep {
+    /// Tables for `geom`'s domain under `gravity`, declared but not mapped ([`Pools::map_pools`]
+    /// maps them for a number of grid slots and particles; the load tables only when loads are
+    /// tested).
+    pub fn declared(cfg: SleepConfig, geom: &GridGeom, gravity: [f64; 3]) -> Self {
+        let face = UNIT_CELLS as f64 * geom.dx;
+        Sleep {
+            coarsen: cfg.coarsen.then(|| Coarsen::declared(geom)),
+            down: cfg.down(gravity),
+            cfg,
+            table_len: geom.table_len(),
+            state: Pool::default(),
+            rest: Pool::default(),
+            woken: Pool::default(),
+            asleep_in_block: Pool::default(),
+            activity: Pool::default(),
+            sleeping_units: 0,
+            load: Pool::default(),
+            load_step: Pool::default(),
+            margin: Pool::default(),
+            base: Pool::default(),
+            loaded: Pool::default(),
+            n_loaded: 0,
+            reactions: Pool::default(),
+            per_area: (1.0 / (face * face)) as f32,
         }
     }
 
     /// Tables for `geom`'s domain with `max_blocks` grid slots and room for `capacity`
-    /// particles, under `gravity` (the load tables empty unless loads are tested).
+    /// particles, under `gravity`, mapped.
     pub fn new(cfg: SleepConfig, geom: &GridGeom, max_blocks: usize, capacity: usize, gravity: [f64; 3], b: &Backing) -> Result<Self, MemoryError> {
-        let units = geom.table_len() * UNITS;
-        let down = cfg.down(gravity);
-        let per_unit = if down.is_some() { units } else { 0 };
-        let per_node = if down.is_some() { max_blocks * NODES_PER_BLOCK } else { 0 };
-        let face = UNIT_CELLS as f64 * geom.dx;
-        let coarsen = if cfg.coarsen { Some(Coarsen::new(geom, capacity, b)?) } else { None };
-        Ok(Sleep {
-            cfg,
-            coarsen,
-            state: Pool::new("sleep.state", units, b)?,
-            rest: Pool::new("sleep.rest", units, b)?,
-            woken: Pool::new("sleep.woken", units, b)?,
-            asleep_in_block: Pool::new("sleep.asleep_in_block", geom.table_len(), b)?,
-            activity: Pool::new("sleep.activity", max_blocks, b)?,
-            sleeping_units: 0,
-            load: Pool::new("sleep.load", per_unit, b)?,
-            load_step: Pool::new("sleep.load_step", per_unit, b)?,
-            margin: Pool::new("sleep.margin", per_unit, b)?,
-            base: Pool::new("sleep.base", per_unit, b)?,
-            loaded: Pool::new("sleep.loaded", per_unit, b)?,
-            n_loaded: 0,
-            reactions: Pool::new("sleep.reactions", per_node, b)?,
-            down,
-            per_area: (1.0 / (face * face)) as f32,
-        })
+        let mut s = Sleep::declared(cfg, geom, gravity);
+        s.map_pools(&Counts::capacity(capacity, max_blocks), b)?;
+        Ok(s)
     }
 
-    /// The per-unit tables a checkpoint stores, in this order, each as a [`StoredTable`]: the
-    /// state and the rest clock, and with the load test the load tables. Stored sparse: only the
-    /// nonzero entries, with their indices (a unit's entries are zero away from material, and
-    /// the load tables away from sleeping units).
-    pub fn stored_tables(&self) -> Vec<StoredTable<&[u8]>> {
-        let all = [
-            self.state.as_slice(),
-            bytemuck::cast_slice(self.rest.as_slice()),
-            bytemuck::cast_slice(self.load.as_slice()),
-            bytemuck::cast_slice(self.load_step.as_slice()),
-            bytemuck::cast_slice(self.margin.as_slice()),
-            bytemuck::cast_slice(self.base.as_slice()),
-        ];
-        STORED.iter().zip(all).take(self.stored_count()).map(|(&(name, name_at, size), bytes)| StoredTable { name, name_at, size, bytes }).collect()
-    }
-
-    /// [`Sleep::stored_tables`], to restore into; [`Sleep::restored`] must follow.
-    pub fn stored_tables_mut(&mut self) -> Vec<StoredTable<&mut [u8]>> {
-        let n = self.stored_count();
-        let all = [
-            self.state.as_mut_slice(),
-            bytemuck::cast_slice_mut(self.rest.as_mut_slice()),
-            bytemuck::cast_slice_mut(self.load.as_mut_slice()),
-            bytemuck::cast_slice_mut(self.load_step.as_mut_slice()),
-            bytemuck::cast_slice_mut(self.margin.as_mut_slice()),
-            bytemuck::cast_slice_mut(self.base.as_mut_slice()),
-        ];
-        STORED.iter().zip(all).take(n).map(|(&(name, name_at, size), bytes)| StoredTable { name, name_at, size, bytes }).collect()
-    }
-
-    /// How many of [`STORED`] a checkpoint holds: the load tables only with the load test.
-    fn stored_count(&self) -> usize {
-        if self.tests_loads() {
-            STORED.len()
-        } else {
-            2
-        }
-    }
-
-    /// Bytes the stored tables can take in a checkpoint, every unit of a `table_len`-block table
-    /// stored with its u32 index (with the load tables when `loads`).
-    pub fn max_stored_bytes(table_len: usize, loads: bool) -> usize {
-        let tables = if loads { STORED.len() } else { 2 };
-        table_len * UNITS * STORED[..tables].iter().map(|&(_, _, size)| 4 + size).sum::<usize>()
-    }
-
-    /// Check and take in the tables a checkpoint restored ([`Sleep::stored_tables_mut`]) and
+    /// Check and take in the tables a checkpoint restored (its [`Role::Sparse`] pools) and
     /// rebuild what follows from them.
     pub fn restored(&mut self) -> Result<(), String> {
         if !valid_states(self.state.as_slice()) {

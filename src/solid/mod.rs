@@ -24,7 +24,8 @@ use crate::grid::GridGeom;
 use crate::kernels::boundary::WallKind;
 use crate::kernels::solid::{contact, contact_adjoint};
 use crate::kernels::{Real, V3};
-use crate::memory::{Backing, MemoryError, MemoryPlan, Pool};
+use crate::memory::{Backing, Pool};
+use crate::pools::{Counts, Per, PoolDecl, Pools, Role};
 use crate::print::toolpath::Toolpath;
 use glam::DVec3;
 use serde::Deserialize;
@@ -181,16 +182,17 @@ pub struct Solids {
     force: Vec<[f64; 3]>,
 }
 
-impl Solids {
-    pub fn plan(plan: &mut MemoryPlan, n: usize, max_blocks: usize) {
-        if n > 0 {
-            plan.add::<[f64; 3]>("solid.reactions", n * max_blocks);
-        }
+impl Pools for Solids {
+    fn pools(&self) -> Vec<PoolDecl<Self>> {
+        vec![PoolDecl::new("solid.reactions", Per::Block(self.list.len()), Role::Scratch, |s| &s.reactions, |s| &mut s.reactions)]
     }
+}
 
-    /// Build the solids of a scenario (None when it has none). `nozzle` is the printer's
-    /// (inner diameter, tube height) for a circular nozzle.
-    pub fn new(cfgs: &[SolidConfig], dx: f64, nozzle: Option<(f64, f64)>, max_blocks: usize, backing: &Backing) -> Result<Option<Solids>, String> {
+impl Solids {
+    /// Build the solids of a scenario (None when it has none), their pool declared but not mapped
+    /// ([`Pools::map_pools`] maps it). `nozzle` is the printer's (inner diameter, tube height)
+    /// for a circular nozzle.
+    pub fn declared(cfgs: &[SolidConfig], dx: f64, nozzle: Option<(f64, f64)>) -> Result<Option<Solids>, String> {
         if cfgs.is_empty() {
             return Ok(None);
         }
@@ -203,8 +205,16 @@ impl Solids {
             let reach = sdf.bounds().map(|(lo, hi)| (lo - DVec3::splat(delta), hi + DVec3::splat(delta)));
             list.push(Solid { name: c.name.clone().unwrap_or(key), sdf, contact: c.contact, motion: c.motion, open_at: c.open_at, delta, reach });
         }
-        let reactions = Pool::new("solid.reactions", cfgs.len() * max_blocks, backing).map_err(|e: MemoryError| e.to_string())?;
-        Ok(Some(Solids { force: vec![[0.0; 3]; list.len()], list, reactions }))
+        Ok(Some(Solids { force: vec![[0.0; 3]; list.len()], list, reactions: Pool::default() }))
+    }
+
+    /// [`Solids::declared`] with `max_blocks` grid slots, mapped.
+    pub fn new(cfgs: &[SolidConfig], dx: f64, nozzle: Option<(f64, f64)>, max_blocks: usize, backing: &Backing) -> Result<Option<Solids>, String> {
+        let mut solids = Solids::declared(cfgs, dx, nozzle)?;
+        if let Some(s) = &mut solids {
+            s.map_pools(&Counts::capacity(0, max_blocks), backing).map_err(|e| e.to_string())?;
+        }
+        Ok(solids)
     }
 
     /// The solids' placements at time `t` (`toolpath`: the print's, for solids carried by the

@@ -6,6 +6,8 @@ use super::Simulation;
 use crate::kernels::transfer::Node;
 use crate::kernels::{Real, M3, V3};
 use crate::memory::{Backing, MemoryError, MemoryPlan, Pool};
+use crate::grid::NODES_PER_BLOCK;
+use crate::pools::{map_pools, plan_pools, with_role, Counts, Per, PoolDecl, Pools, Role};
 use crate::print::emitter::EmissionPlan;
 
 /// Most internal state reals any material keeps per particle, for its adjoint.
@@ -28,11 +30,16 @@ pub enum Saved {
 }
 
 /// The per-particle arrays a step changes, as one group of pools: the tape of one step (the
-/// state it started from) and the adjoints of a state.
+/// state it started from) and the adjoints of a state. One pool per particle pool a step changes
+/// ([`Role::changes_in_step`]), in the same order.
 ///
 /// Masses and initial volumes are not here: without emission they never change, so their
 /// adjoints accumulate in place.
+#[derive(Default)]
 pub struct Fields {
+    /// Pool names are `PREFIX.x` and so on.
+    prefix: String,
+    state_len: usize,
     pub xg: Pool<V3>,
     pub v: Pool<V3>,
     pub c: Pool<M3>,
@@ -41,51 +48,46 @@ pub struct Fields {
     pub state: Pool<Real>,
 }
 
-const NAMES: [&str; 6] = ["x", "v", "C", "stress", "J", "state"];
+impl Pools for Fields {
+    fn pools(&self) -> Vec<PoolDecl<Self>> {
+        let (sl, name) = (self.state_len, |field: &str| format!("{}.{field}", self.prefix));
+        let decl = PoolDecl::<Self>::new;
+        vec![
+            decl(name("x"), Per::Particle(1), Role::Scratch, |f| &f.xg, |f| &mut f.xg),
+            decl(name("v"), Per::Particle(1), Role::Scratch, |f| &f.v, |f| &mut f.v),
+            decl(name("C"), Per::Particle(1), Role::Scratch, |f| &f.c, |f| &mut f.c),
+            decl(name("stress"), Per::Particle(1), Role::Scratch, |f| &f.stress, |f| &mut f.stress),
+            decl(name("J"), Per::Particle(1), Role::Scratch, |f| &f.j, |f| &mut f.j),
+            decl(name("state"), Per::Particle(sl), Role::Scratch, |f| &f.state, |f| &mut f.state),
+        ]
+    }
+}
 
 impl Fields {
-    pub fn plan(plan: &mut MemoryPlan, prefix: &str, n: usize, state_len: usize) {
-        plan.add::<V3>(&format!("{prefix}.{}", NAMES[0]), n);
-        plan.add::<V3>(&format!("{prefix}.{}", NAMES[1]), n);
-        plan.add::<M3>(&format!("{prefix}.{}", NAMES[2]), n);
-        plan.add::<M3>(&format!("{prefix}.{}", NAMES[3]), n);
-        plan.add::<Real>(&format!("{prefix}.{}", NAMES[4]), n);
-        plan.add::<Real>(&format!("{prefix}.{}", NAMES[5]), n * state_len);
+    /// The pools `PREFIX.x` ... for particles of `state_len` state values, declared but not
+    /// mapped.
+    fn declared(prefix: &str, state_len: usize) -> Fields {
+        Fields { prefix: prefix.into(), state_len, ..Default::default() }
     }
 
-    pub fn new(prefix: &str, n: usize, state_len: usize, b: &Backing) -> Result<Fields, MemoryError> {
-        let name = |k: usize| format!("{prefix}.{}", NAMES[k]);
-        Ok(Fields {
-            xg: Pool::new(&name(0), n, b)?,
-            v: Pool::new(&name(1), n, b)?,
-            c: Pool::new(&name(2), n, b)?,
-            stress: Pool::new(&name(3), n, b)?,
-            j: Pool::new(&name(4), n, b)?,
-            state: Pool::new(&name(5), n * state_len, b)?,
-        })
-    }
-
-    /// Zero particles `r` (with `state_len` state values each).
-    pub fn zero_range(&mut self, r: std::ops::Range<usize>, state_len: usize) {
-        self.xg.as_mut_slice()[r.clone()].fill(V3::ZERO);
-        self.v.as_mut_slice()[r.clone()].fill(V3::ZERO);
-        self.c.as_mut_slice()[r.clone()].fill(M3::ZERO);
-        self.stress.as_mut_slice()[r.clone()].fill(M3::ZERO);
-        self.j.as_mut_slice()[r.clone()].fill(0.0);
-        self.state.as_mut_slice()[r.start * state_len..r.end * state_len].fill(0.0);
+    /// Zero particles `r`.
+    pub fn zero_range(&mut self, r: std::ops::Range<usize>) {
+        let (from, to) = (Counts::particles(r.start), Counts::particles(r.end));
+        for d in self.pools() {
+            let (a, b) = (d.bytes_for(self, &from), d.bytes_for(self, &to));
+            // every type here is floats, whose zero is all bits zero
+            d.of_mut(self).bytes_mut()[a..b].fill(0);
+        }
     }
 
     /// Copy the simulation's first `n` particles' changing arrays in.
     fn copy_from(&mut self, sim: &Simulation) {
         let p = &sim.particles;
-        let n = p.n;
-        self.xg.as_mut_slice()[..n].copy_from_slice(&p.xg.as_slice()[..n]);
-        self.v.as_mut_slice()[..n].copy_from_slice(&p.v.as_slice()[..n]);
-        self.c.as_mut_slice()[..n].copy_from_slice(&p.c.as_slice()[..n]);
-        self.stress.as_mut_slice()[..n].copy_from_slice(&p.stress.as_slice()[..n]);
-        self.j.as_mut_slice()[..n].copy_from_slice(&p.j.as_slice()[..n]);
-        let s = n * p.state_len;
-        self.state.as_mut_slice()[..s].copy_from_slice(&p.state.as_slice()[..s]);
+        let now = Counts::particles(p.n);
+        for (d, src) in self.pools().into_iter().zip(with_role(p, Role::changes_in_step)) {
+            debug_assert_eq!(d.name.rsplit('.').next(), src.name.rsplit('.').next());
+            d.live_mut(self, &now).copy_from_slice(src.live(p, &now));
+        }
     }
 }
 
@@ -100,10 +102,31 @@ pub struct Tape {
     pub(crate) chunks: Vec<[f64; MAX_PARAMS]>,
 }
 
+impl Pools for Tape {
+    fn pools(&self) -> Vec<PoolDecl<Self>> {
+        vec![PoolDecl::new("grad.grid_tape", Per::Block(NODES_PER_BLOCK), Role::Scratch, |t| &t.grid, |t| &mut t.grid)]
+    }
+
+    fn plan_memory(&self, plan: &mut MemoryPlan, cap: &Counts) {
+        self.particles.plan_memory(plan, cap);
+        plan_pools(self, plan, cap);
+    }
+
+    fn map_pools(&mut self, cap: &Counts, backing: &Backing) -> Result<(), MemoryError> {
+        self.particles.map_pools(cap, backing)?;
+        map_pools(self, cap, backing)
+    }
+}
+
 impl Tape {
-    pub fn plan(plan: &mut MemoryPlan, n: usize, state_len: usize, grid_nodes: usize) {
-        Fields::plan(plan, "grad.tape", n, state_len);
-        plan.add::<Node>("grad.grid_tape", grid_nodes);
+    /// The tape for particles of `state_len` state values, declared but not mapped.
+    fn declared(state_len: usize) -> Tape {
+        Tape { particles: Fields::declared("grad.tape", state_len), grid: Pool::default(), grid_used: 0, chunks: Vec::new() }
+    }
+
+    /// Bytes of the tape for room `cap` and `state_len` state values into `plan`.
+    pub fn plan(plan: &mut MemoryPlan, cap: &Counts, state_len: usize) {
+        Tape::declared(state_len).plan_memory(plan, cap);
     }
 
     /// The tape for `sim`'s pools; fails for a material whose adjoint does not fit the fixed
@@ -112,16 +135,10 @@ impl Tape {
         if sim.material.param_names().len() > MAX_PARAMS || sim.particles.state_len > MAX_STATE {
             return Err(format!("material {}: the gradient driver takes at most {MAX_PARAMS} parameters and {MAX_STATE} state values", sim.material.name()));
         }
-        let n = sim.particles.capacity();
-        let pools = || -> Result<Tape, MemoryError> {
-            Ok(Tape {
-                particles: Fields::new("grad.tape", n, sim.particles.state_len, b)?,
-                grid: Pool::new("grad.grid_tape", sim.grid.nodes.len(), b)?,
-                grid_used: 0,
-                chunks: vec![[0.0; MAX_PARAMS]; n.div_ceil(CHUNK)],
-            })
-        };
-        pools().map_err(|e| e.to_string())
+        let mut tape = Tape::declared(sim.particles.state_len);
+        tape.map_pools(&capacity(sim), b).map_err(|e| e.to_string())?;
+        tape.chunks = vec![[0.0; MAX_PARAMS]; sim.particles.capacity().div_ceil(CHUNK)];
+        Ok(tape)
     }
 
     /// Save what a phase is about to overwrite.
@@ -156,7 +173,10 @@ pub struct GridParamsBar {
 /// ([`Adjoint::end_step`]). Masses and initial volumes change only when emission sets them (a
 /// partial slab's fraction), so their adjoints accumulate over the steps in one array each, and
 /// are settled and cleared at the step that set them.
+#[derive(Default)]
 pub struct Adjoint {
+    /// Which objective's (its pools' names end in `.k` from the second on).
+    seed: usize,
     pub cur: Fields,
     pub next: Fields,
     pub mass_bar: Pool<Real>,
@@ -175,6 +195,11 @@ pub struct Adjoint {
     pub(crate) feed_velocity_bar: [f64; 3],
 }
 
+/// Room for `sim`'s particles and grid slots.
+fn capacity(sim: &Simulation) -> Counts {
+    Counts::capacity(sim.particles.capacity(), sim.grid.max_blocks())
+}
+
 /// A pool name for seed `k` (seed 0 keeps the plain names; mapped pools need distinct names).
 fn named(name: &str, k: usize) -> String {
     if k == 0 {
@@ -184,39 +209,56 @@ fn named(name: &str, k: usize) -> String {
     }
 }
 
+impl Pools for Adjoint {
+    fn pools(&self) -> Vec<PoolDecl<Self>> {
+        let (k, decl) = (self.seed, PoolDecl::<Self>::new);
+        vec![
+            decl(named("grad.mass_bar", k), Per::Particle(1), Role::Scratch, |a| &a.mass_bar, |a| &mut a.mass_bar),
+            decl(named("grad.vol0_bar", k), Per::Particle(1), Role::Scratch, |a| &a.vol0_bar, |a| &mut a.vol0_bar),
+            decl(named("grad.grid_bar", k), Per::Block(NODES_PER_BLOCK), Role::Scratch, |a| &a.grid_bar, |a| &mut a.grid_bar),
+        ]
+    }
+
+    fn plan_memory(&self, plan: &mut MemoryPlan, cap: &Counts) {
+        self.cur.plan_memory(plan, cap);
+        self.next.plan_memory(plan, cap);
+        plan_pools(self, plan, cap);
+    }
+
+    fn map_pools(&mut self, cap: &Counts, backing: &Backing) -> Result<(), MemoryError> {
+        self.cur.map_pools(cap, backing)?;
+        self.next.map_pools(cap, backing)?;
+        map_pools(self, cap, backing)
+    }
+}
+
 impl Adjoint {
-    /// Bytes of seed `k`'s adjoint arrays into `plan`.
-    pub fn plan(plan: &mut MemoryPlan, k: usize, n: usize, state_len: usize, grid_nodes: usize) {
-        Fields::plan(plan, &named("grad.adjoint_a", k), n, state_len);
-        Fields::plan(plan, &named("grad.adjoint_b", k), n, state_len);
-        plan.add::<Real>(&named("grad.mass_bar", k), n);
-        plan.add::<Real>(&named("grad.vol0_bar", k), n);
-        plan.add::<Node>(&named("grad.grid_bar", k), grid_nodes);
+    /// Seed `k`'s arrays for particles of `state_len` state values, declared but not mapped.
+    fn declared(k: usize, state_len: usize) -> Adjoint {
+        let (cur, next) = (Fields::declared(&named("grad.adjoint_a", k), state_len), Fields::declared(&named("grad.adjoint_b", k), state_len));
+        Adjoint { seed: k, cur, next, ..Default::default() }
+    }
+
+    /// Bytes of seed `k`'s adjoint arrays for room `cap` and `state_len` state values into
+    /// `plan`.
+    pub fn plan(plan: &mut MemoryPlan, k: usize, cap: &Counts, state_len: usize) {
+        Adjoint::declared(k, state_len).plan_memory(plan, cap);
     }
 
     /// Seed `k`'s adjoint arrays for `sim`'s pools, zero.
     pub fn new(sim: &Simulation, k: usize, b: &Backing) -> Result<Adjoint, MemoryError> {
-        let (n, sl) = (sim.particles.capacity(), sim.particles.state_len);
-        Ok(Adjoint {
-            cur: Fields::new(&named("grad.adjoint_a", k), n, sl, b)?,
-            next: Fields::new(&named("grad.adjoint_b", k), n, sl, b)?,
-            mass_bar: Pool::new(&named("grad.mass_bar", k), n, b)?,
-            vol0_bar: Pool::new(&named("grad.vol0_bar", k), n, b)?,
-            grid_bar: Pool::new(&named("grad.grid_bar", k), sim.grid.nodes.len(), b)?,
-            material_bar: vec![0.0; sim.material.param_names().len()],
-            density_bar: 0.0,
-            grid_params_bar: GridParamsBar::default(),
-            feed_fraction_bar: 0.0,
-            feed_velocity_bar: [0.0; 3],
-        })
+        let mut a = Adjoint::declared(k, sim.particles.state_len);
+        a.map_pools(&capacity(sim), b)?;
+        a.material_bar = vec![0.0; sim.material.param_names().len()];
+        Ok(a)
     }
 
     /// After the last phase's adjoint: the adjoint of the state before the step becomes the one
     /// the earlier step's adjoint starts from, and the other array is cleared for it.
-    pub fn end_step(&mut self, n: usize, state_len: usize) {
+    pub fn end_step(&mut self, n: usize) {
         std::mem::swap(&mut self.cur, &mut self.next);
         // particles beyond n were never touched by this step's adjoint
-        self.cur.zero_range(0..n, state_len);
+        self.cur.zero_range(0..n);
     }
 }
 

@@ -3,11 +3,15 @@
 //! particles reordered into block order.
 
 use super::{SimError, Simulation};
-use crate::memory::{Backing, MemoryError, MemoryPlan, Pool};
+use crate::memory::Pool;
 use crate::particles::Particles;
+use crate::pools::{Per, PoolDecl, Pools, Role};
 
 /// Buffers the binning and the parallel phases share.
+#[derive(Default)]
 pub(crate) struct Scratch {
+    max_blocks: usize,
+    state_len: usize,
     /// Slot of each particle's block.
     pub(crate) pslot: Pool<u32>,
     /// Particle indices grouped by particle block (a stable counting sort).
@@ -24,29 +28,28 @@ pub(crate) struct Scratch {
     permute: Pool<u8>,
 }
 
-impl Scratch {
-    pub(super) fn plan(plan: &mut MemoryPlan, cap: usize, max_blocks: usize, state_len: usize) {
-        plan.add::<u32>("scratch.pslot", cap);
-        plan.add::<u32>("scratch.order", cap);
-        plan.add::<u32>("scratch.slot_start", max_blocks + 1);
-        plan.add::<u32>("scratch.cursor", max_blocks);
-        plan.add::<[u32; 8]>("scratch.neighbours", max_blocks);
-        plan.add::<u32>("scratch.colour_blocks", max_blocks);
-        plan.add::<u32>("scratch.colour_cum", max_blocks);
-        plan.add::<u8>("scratch.permute", Particles::permute_scratch_bytes(cap, state_len));
+impl Pools for Scratch {
+    fn pools(&self) -> Vec<PoolDecl<Self>> {
+        let scratch = Role::Scratch;
+        let permute = Particles::permute_scratch_per_particle(self.state_len);
+        vec![
+            PoolDecl::new("scratch.pslot", Per::Particle(1), scratch, |s| &s.pslot, |s| &mut s.pslot),
+            PoolDecl::new("scratch.order", Per::Particle(1), scratch, |s| &s.order, |s| &mut s.order),
+            PoolDecl::new("scratch.slot_start", Per::Table(self.max_blocks + 1), scratch, |s| &s.slot_start, |s| &mut s.slot_start),
+            PoolDecl::new("scratch.cursor", Per::Block(1), scratch, |s| &s.cursor, |s| &mut s.cursor),
+            PoolDecl::new("scratch.neighbours", Per::Block(1), scratch, |s| &s.nbr, |s| &mut s.nbr),
+            PoolDecl::new("scratch.colour_blocks", Per::Block(1), scratch, |s| &s.colour_blocks, |s| &mut s.colour_blocks),
+            PoolDecl::new("scratch.colour_cum", Per::Block(1), scratch, |s| &s.colour_cum, |s| &mut s.colour_cum),
+            PoolDecl::new("scratch.permute", Per::Particle(permute), scratch, |s| &s.permute, |s| &mut s.permute),
+        ]
     }
-    pub(super) fn new(cap: usize, max_blocks: usize, state_len: usize, b: &Backing) -> Result<Self, MemoryError> {
-        Ok(Scratch {
-            pslot: Pool::new("scratch.pslot", cap, b)?,
-            order: Pool::new("scratch.order", cap, b)?,
-            slot_start: Pool::new("scratch.slot_start", max_blocks + 1, b)?,
-            cursor: Pool::new("scratch.cursor", max_blocks, b)?,
-            nbr: Pool::new("scratch.neighbours", max_blocks, b)?,
-            colour_blocks: Pool::new("scratch.colour_blocks", max_blocks, b)?,
-            colour_cum: Pool::new("scratch.colour_cum", max_blocks, b)?,
-            colour_start: [0; 9],
-            permute: Pool::new("scratch.permute", Particles::permute_scratch_bytes(cap, state_len), b)?,
-        })
+}
+
+impl Scratch {
+    /// The buffers for `max_blocks` grid slots and particles of `state_len` state values,
+    /// declared but not mapped ([`Pools::map_pools`] maps them).
+    pub(super) fn declared(max_blocks: usize, state_len: usize) -> Self {
+        Scratch { max_blocks, state_len, ..Default::default() }
     }
 }
 

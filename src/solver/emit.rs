@@ -145,7 +145,7 @@ impl Simulation {
         for (m, v) in a.material_bar.iter_mut().zip(&init[..np]) {
             *m += *v as f64;
         }
-        a.cur.zero_range(first..n, sl);
+        a.cur.zero_range(first..n);
         Ok(())
     }
 }

@@ -10,6 +10,7 @@ use crate::kernels::boundary::WallKind;
 use crate::kernels::{Real, V3};
 use crate::materials::build_material;
 use crate::memory::{parse_size, Backing, MemoryPlan};
+use crate::pools::{Counts, Pools};
 use crate::particles::Particles;
 use crate::print::Printer;
 use crate::scenario::Scenario;
@@ -39,7 +40,32 @@ impl Simulation {
         let cap = particle_capacity(scenario, printer.as_ref())?;
         let max_blocks = scenario.memory.max_blocks.unwrap_or(geom.table_len()).max(8);
         let budget = parse_size(&scenario.memory.budget)?;
-        let memory = plan_memory(scenario, printer.as_ref(), &geom, cap, max_blocks, state_len);
+        // solids hook (issue 30)
+        let nozzle = printer.as_ref().and_then(|p| match p.shape {
+            crate::print::nozzle::NozzleShape::Circle { diameter } => Some((diameter, p.tube_height)),
+            _ => None,
+        });
+        let mut particles = Particles::declared(state_len);
+        let mut grid = Grid::declared(geom);
+        let mut scratch = Scratch::declared(max_blocks, state_len);
+        let mut sleep = scenario.sleep.as_ref().map(|cfg| Sleep::declared(cfg.clone(), &grid.geom, scenario.simulation.gravity));
+        let mut solids = crate::solid::Solids::declared(&scenario.solids, scenario.simulation.dx, nozzle).map_err(SimError::Setup)?;
+
+        let capacity = Counts::capacity(cap, max_blocks);
+        let mut memory = MemoryPlan::default();
+        particles.plan_memory(&mut memory, &capacity);
+        grid.plan_memory(&mut memory, &capacity);
+        scratch.plan_memory(&mut memory, &capacity);
+        if let Some(s) = &solids {
+            s.plan_memory(&mut memory, &capacity);
+        }
+        if let Some(s) = &sleep {
+            s.plan_memory(&mut memory, &capacity);
+        }
+        if let Some(p) = &printer {
+            let q = scenario.print.as_ref().map_or(0, |c| c.queue);
+            memory.add::<[f64; 3]>("emission.queue", (q + 1) * p.plan.particles_per_slab());
+        }
         memory.check(budget)?;
 
         let backing = Backing { dir: scenario.memory.dir.clone() };
@@ -47,20 +73,15 @@ impl Simulation {
             std::fs::create_dir_all(d)
                 .map_err(|e| SimError::Setup(format!("memory.dir {}: {e}", d.display())))?;
         }
-        let particles = Particles::new(cap, state_len, &backing)?;
-        let grid = Grid::new(geom, max_blocks, &backing)?;
-        let scratch = Scratch::new(cap, max_blocks, state_len, &backing)?;
-        let sleep = match &scenario.sleep {
-            Some(cfg) => Some(Sleep::new(cfg.clone(), &grid.geom, max_blocks, cap, scenario.simulation.gravity, &backing)?),
-            None => None,
-        };
-
-        // solids hook (issue 30)
-        let nozzle = printer.as_ref().and_then(|p| match p.shape {
-            crate::print::nozzle::NozzleShape::Circle { diameter } => Some((diameter, p.tube_height)),
-            _ => None,
-        });
-        let solids = crate::solid::Solids::new(&scenario.solids, scenario.simulation.dx, nozzle, max_blocks, &backing).map_err(SimError::Setup)?;
+        particles.map_pools(&capacity, &backing)?;
+        grid.map_pools(&capacity, &backing)?;
+        scratch.map_pools(&capacity, &backing)?;
+        if let Some(s) = &mut solids {
+            s.map_pools(&capacity, &backing)?;
+        }
+        if let Some(s) = &mut sleep {
+            s.map_pools(&capacity, &backing)?;
+        }
 
         let threads = match scenario.simulation.threads {
             0 => std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1),
@@ -119,23 +140,6 @@ fn particle_capacity(scenario: &Scenario, printer: Option<&Printer>) -> Result<u
         )));
     }
     Ok(cap)
-}
-
-/// Every pool the run maps, sized before any is mapped.
-fn plan_memory(scenario: &Scenario, printer: Option<&Printer>, geom: &GridGeom, cap: usize, max_blocks: usize, state_len: usize) -> MemoryPlan {
-    let mut memory = MemoryPlan::default();
-    Particles::plan(&mut memory, cap, state_len);
-    Grid::plan(&mut memory, geom, max_blocks);
-    Scratch::plan(&mut memory, cap, max_blocks, state_len);
-    crate::solid::Solids::plan(&mut memory, scenario.solids.len(), max_blocks); // solids hook (issue 30)
-    if let Some(cfg) = &scenario.sleep {
-        Sleep::plan(&mut memory, cfg, geom, max_blocks, cap, scenario.simulation.gravity);
-    }
-    if let Some(p) = printer {
-        let q = scenario.print.as_ref().map_or(0, |c| c.queue);
-        memory.add::<[f64; 3]>("emission.queue", (q + 1) * p.plan.particles_per_slab());
-    }
-    memory
 }
 
 /// Gravity plus the body force per unit mass of a material of density `rho`.
