@@ -390,6 +390,30 @@ mod tests {
     const EXPS: &str = "[[experiment]]\nid = \"flow\"\nobserve = [\"stress@40\", \"stress@20\", \"stress@5\"]\n[experiment.protocol]\n[[experiment.protocol.phase]]\nkind = \"sweep\"\nrates = [40.0, 20.0, 5.0]\nhold = 0.5\n";
 
     #[test]
+    fn the_secant_update_maps_the_step_onto_the_change_and_keeps_the_rest() {
+        // values v(p) = (p0^2 + p1, 3 p1), at p = (2, 1) with parameter scales (10, 0.5)
+        let f = |p: &[f64]| vec![p[0] * p[0] + p[1], 3.0 * p[1]];
+        let (from, to, scale) = ([2.0, 1.0], [2.5, 1.2], [10.0, 0.5]);
+        let jac = vec![vec![4.0, 1.0], vec![0.0, 3.0]];
+        let (v0, v1) = (f(&from), f(&to));
+        let new = secant_update(&jac, (&from, &to), &scale, (&v0, &v1));
+        let step = [to[0] - from[0], to[1] - from[1]];
+        for (row, (a, b)) in new.iter().zip(v0.iter().zip(&v1)) {
+            let mapped: f64 = row.iter().zip(&step).map(|(g, d)| g * d).sum();
+            assert!((mapped - (b - a)).abs() < 1e-12, "{mapped} against {}", b - a);
+        }
+        // a direction orthogonal to the step in the scaled parameters is mapped as before
+        let ds = [step[0] / scale[0], step[1] / scale[1]];
+        let ortho = [-ds[1] * scale[0], ds[0] * scale[1]];
+        for (old, row) in jac.iter().zip(&new) {
+            let (a, b): (f64, f64) = (old.iter().zip(&ortho).map(|(g, d)| g * d).sum(), row.iter().zip(&ortho).map(|(g, d)| g * d).sum());
+            assert!((a - b).abs() < 1e-12, "{a} against {b}");
+        }
+        // the second value is linear: its row was right and stays so
+        assert!((new[1][0] - 0.0).abs() < 1e-12 && (new[1][1] - 3.0).abs() < 1e-12, "{:?}", new[1]);
+    }
+
+    #[test]
     fn a_bingham_flow_curve_fit_recovers_yield_stress_and_viscosity() {
         let truth = Model::from_table(&MODEL.parse().unwrap()).unwrap();
         let e: Experiments = toml::from_str(EXPS).unwrap();
