@@ -201,15 +201,9 @@ pub fn find<'a>(exps: &'a Experiments, id: &str) -> Result<&'a Experiment, Strin
     exps.get(id).ok_or_else(|| format!("experiment '{id}' is not in the experiments file (it has {})", exps.experiment.iter().map(|e| e.id.as_str()).collect::<Vec<_>>().join(", ")))
 }
 
-/// `f(0..n)` as independent jobs, `jobs` at a time; results in index order whatever the number
-/// of jobs, the first error (by index) if any failed.
-pub fn par_map<T: Send>(n: usize, jobs: usize, f: impl Fn(usize) -> Result<T, String> + Sync) -> Result<Vec<T>, String> {
-    let order: Vec<usize> = (0..n).collect();
-    in_order(&order, jobs, f)
-}
-
-/// [`par_map`] over the experiments `wanted` (`f(k)` runs `wanted[k]`), handed out longest
-/// first by the seconds each took last in this process (those not yet run first, in their
+/// `f(k)` for each of the experiments `wanted` (`f(k)` runs `wanted[k]`) as independent jobs,
+/// `jobs` at a time, results in index order (the first error by index if any failed), handed out
+/// longest first by the seconds each took last in this process (those not yet run first, in their
 /// order), so that a long experiment does not start last while the other workers stand idle.
 /// The order is scheduling only: the results, and each job's threads, are the same in any order.
 pub fn par_map_experiments<T: Send>(wanted: &[(String, Vec<Observable>)], jobs: usize, f: impl Fn(usize) -> Result<T, String> + Sync) -> Result<Vec<T>, String> {
