@@ -130,7 +130,7 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
         let next = if cols.is_empty() || predicted_drop(&a, &g) < negligible {
             None
         } else {
-            damped_step(&model, &theta, (&s, c2, negligible), (&a, &g), &cols, &mut lambda, names, &scale, &bounds, data, exps, opts, (secant, exact))?
+            damped_step(&model, &theta, (&s, c2, negligible), (&a, &g), &cols, &mut lambda, names, &bounds, data, exps, opts, (secant, exact))?
         };
         let Some(next) = next else {
             if exact {
@@ -240,7 +240,6 @@ fn damped_step(
     cols: &[usize],
     lambda: &mut f64,
     names: &[String],
-    scale: &[f64],
     bounds: &[Bounds],
     data: &[Observation],
     exps: &Experiments,
@@ -280,7 +279,8 @@ fn damped_step(
         let tc2 = chi2(&tv, data);
         if tc2.is_finite() && tc2 < c2 {
             let at_trial = if secant {
-                let jacobian = secant_update(at.jacobian.as_ref().expect("asked"), (theta, &trial), scale, (&at.values, &tv));
+                let scale: Vec<f64> = bounds.iter().map(|b| b.scale).collect();
+                let jacobian = secant_update(at.jacobian.as_ref().expect("asked"), (theta, &trial), &scale, (&at.values, &tv));
                 Sensitivity { values: tv, jacobian: Some(jacobian) }
             } else {
                 let Ok(at_trial) = opts.engine.jacobian_at(opts.jobs, &tm, data, exps, names, &tv)? else {
