@@ -4,11 +4,13 @@
 //! exp(-t / t_M). Sets `material.maxwell_modulus` = G_M and `material.maxwell_time` = t_M (see
 //! `kernels/src/material/maxwell.rs`). Needs `evp_bingham`.
 //!
-//! Null: G_M = 0, whatever t_M: the branch's stress stays exactly 0. The key is set even then, so
-//! the material carries the branch's state and the solver's adjoint gives the derivative in G_M
-//! at the null (the score test's). t_M's null is the material's default, 1 s, which is also
-//! where a fit begun at the null starts it; at G_M = 0 every derivative in t_M is exactly 0, so
-//! only `modulus` can flag the effect, and t_M moves once G_M has.
+//! Null: G_M = 0, whatever t_M: the branch's stress stays exactly 0. The modulus's key is set
+//! even then, so the material carries the branch's state and the solver's adjoint gives the
+//! derivative in G_M at the null (the score test's). t_M's null is the material's default, 1 s,
+//! which is also where a fit begun at the null starts it; at G_M = 0 every derivative in t_M is
+//! exactly 0, so only `modulus` can flag the effect, and t_M moves once G_M has. Its key is left
+//! out at G_M = 0, where it changes nothing: an experiment's keys then do not move with t_M, and
+//! its Jacobian column is 0 without the runs central differences would take.
 
 use super::{bar, Covariates, Effect, Keys, ParamSpec};
 
@@ -34,7 +36,9 @@ impl Effect for Maxwell {
     }
     fn apply(&self, p: &[f64], _: &Covariates, keys: &mut Keys) -> Result<(), String> {
         keys.insert(MODULUS.into(), p[0]);
-        keys.insert(TIME.into(), p[1]);
+        if p[0] != 0.0 {
+            keys.insert(TIME.into(), p[1]);
+        }
         Ok(())
     }
     fn apply_adjoint(&self, _: &[f64], _: &Covariates, _: &Keys, keys_bar: &mut Keys, p_bar: &mut [f64]) {
