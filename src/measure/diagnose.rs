@@ -24,10 +24,11 @@
 //!    brings (S is its Gauss-Newton estimate at the null, LR the drop itself), so they share
 //!    one scale, where p-values would underflow to 0 and tie for every strong effect. Those
 //!    significant at `alpha` (the top `max_fitted`) are fitted with the base parameters (the
-//!    likelihood ratio's fit is that fit), and each is checked by leave-one-experiment-out:
-//!    refitted without each experiment in turn (one Gauss-Newton step from the full fit, checked
-//!    and replaced by a full refit where the check refuses it, or with `exact_refits` always a
-//!    full refit; [`leave_one_out`]), it must predict the left-out
+//!    likelihood ratio's fit is that fit), and each whose fit lowers chi^2 by 1 % or more is
+//!    checked by leave-one-experiment-out: refitted without each experiment in turn (one
+//!    Gauss-Newton step from the full fit, checked by the left-out experiment's run and replaced
+//!    by a full refit where the check refuses it, or with `exact_refits` always a full refit;
+//!    [`leave_one_out`]), it must predict the left-out
 //!    experiments better than the base model refitted the same way, or it only overfits and is
 //!    not recommended.
 //! 4. When no effect is recommended and the base model does not fit (chi^2 beyond its `alpha`
@@ -529,9 +530,12 @@ fn fit_and_check(
         };
         clock.timing.candidate_fits += clock.lap();
         c.record(&f, base.chi2, m);
-        // a fit that moves the error by less than 1 % has not found anything
+        // a fit that moves the error by less than 1 % has not found anything, and is not
+        // recommended whatever leaving experiments out would say
         let better = f.chi2 < 0.99 * base.chi2;
-        if opts.leave_one_out && ids.len() >= 2 {
+        if !better {
+            c.verdict = "does not lower the error when fitted".to_string();
+        } else if opts.leave_one_out && ids.len() >= 2 {
             if base_loo.is_none() {
                 base_loo = Some(leave_one_out(base, data, exps, &ids, opts)?);
             }
@@ -539,21 +543,15 @@ fn fit_and_check(
             clock.timing.leave_one_out += clock.lap();
             c.loo_chi2_base = base_loo;
             c.loo_chi2 = Some(loo);
-            c.recommended = better && loo < 0.9 * base_loo.expect("set");
+            c.recommended = loo < 0.9 * base_loo.expect("set");
             c.verdict = if c.recommended {
                 format!("recommended: error x {:.3}, left-out error x {:.3}", c.error_ratio.unwrap_or(1.0), loo / base_loo.expect("set").max(1e-300))
-            } else if better {
-                "overfits: it lowers the error but does not predict left-out experiments better".to_string()
             } else {
-                "does not lower the error when fitted".to_string()
+                "overfits: it lowers the error but does not predict left-out experiments better".to_string()
             };
         } else {
-            c.recommended = better;
-            c.verdict = if better {
-                format!("recommended: error x {:.3} (not checked by leave-one-out: {})", c.error_ratio.unwrap_or(1.0), if opts.leave_one_out { "one experiment only" } else { "switched off" })
-            } else {
-                "does not lower the error when fitted".to_string()
-            };
+            c.recommended = true;
+            c.verdict = format!("recommended: error x {:.3} (not checked by leave-one-out: {})", c.error_ratio.unwrap_or(1.0), if opts.leave_one_out { "one experiment only" } else { "switched off" });
         }
         models[ci] = Some(f.model);
     }
@@ -607,16 +605,16 @@ fn applicable(effect: &'static dyn Effect, model: &Model, data: &[Observation], 
 ///
 /// By default the refit is one Gauss-Newton step from the full fit, on its own Jacobian with the
 /// left-out experiment's rows taken out (bounds held as the fit held them, the step clamped to
-/// them), checked as a trust region checks a step: every experiment is run at the stepped
-/// parameters, and the step stands when the chi^2 of the experiments kept falls by what its
-/// linearisation predicts (within [`STEP_TRUST`] of the predicted fall, or by less than
-/// [`STEP_NEGLIGIBLE`] either way). Then the left-out experiment's chi^2 is taken from that same
-/// run, which keeps the model's nonlinearity. A step the check refuses (leaving one experiment out
+/// them). The left-out experiment alone is run at the stepped parameters, which keeps the model's
+/// nonlinearity in its chi^2, and that run checks the step as a trust region checks one: the step
+/// stands when the left-out experiment's chi^2 moves from the full fit's by what the
+/// linearisation that made the step predicts (within [`STEP_TRUST`] of the predicted move, or by
+/// less than [`STEP_NEGLIGIBLE`] either way). A step the check refuses (leaving one experiment out
 /// moves the fit far: an experiment that alone pins a parameter, correlated parameters of a
-/// nonlinear effect, a bound the full fit did not touch) is replaced by a full refit started from
-/// the full fit. The check costs a forward run of each experiment per experiment left out, against
-/// a calibration each for a refit. With `exact_refits` every experiment is left out of a full
-/// refit.
+/// nonlinear effect), whose linearisation then fails for the experiment that moved it, is
+/// replaced by a full refit started from the full fit. The check costs one run of each
+/// experiment in all, against a calibration each for refits. With `exact_refits` every experiment
+/// is left out of a full refit.
 fn leave_one_out(f: &Fit, data: &[Observation], exps: &Experiments, ids: &[String], opts: &DiagnoseOptions) -> Result<f64, String> {
     let mut total = 0.0;
     for id in ids {
@@ -629,11 +627,9 @@ fn leave_one_out(f: &Fit, data: &[Observation], exps: &Experiments, ids: &[Strin
             predict(&refit(f, &train, &kept, exps, opts)?)?
         } else {
             let step = one_step_without(f, data, id)?;
-            let values = opts.fit.engine.sensitivity(opts.fit.jobs, &step.model, data, exps, None)??.values;
-            let left: Vec<usize> = (0..data.len()).filter(|&i| data[i].experiment == *id).collect();
-            let pick = |rows: &[usize]| rows.iter().map(|&i| values[i]).collect::<Vec<f64>>();
-            if step.trusted(chi2(&pick(&kept), &train)) {
-                chi2(&pick(&left), &test)
+            let left_out = predict(&step.model)?;
+            if step.trusted(left_out) {
+                left_out
             } else {
                 predict(&refit(f, &train, &kept, exps, opts)?)?
             }
@@ -648,26 +644,26 @@ fn refit(f: &Fit, train: &[Observation], kept: &[usize], exps: &Experiments, opt
     Ok(calibrate_from(&f.model, train, exps, &f.names, &opts.fit, f.at_end(kept))?.model)
 }
 
-/// A step stands when the chi^2 of the experiments kept falls by its predicted fall within this
+/// A step stands when the left-out experiment's chi^2 moves by its predicted move within this
 /// fraction of it: the trust-region ratio within 1 -/+ 0.25.
 const STEP_TRUST: f64 = 0.25;
-/// A change of chi^2 smaller than this is no change: a step that moves the kept experiments' chi^2
-/// by less, actual or predicted, stands.
+/// A change of chi^2 smaller than this is no change: a step that moves the left-out experiment's
+/// chi^2 by less, actual or predicted, stands.
 const STEP_NEGLIGIBLE: f64 = 0.1;
 
-/// One Gauss-Newton step without an experiment, and the chi^2 of the experiments kept at the full
+/// One Gauss-Newton step without an experiment, and the left-out experiment's chi^2 at the full
 /// fit and as the step's linearisation predicts it.
 struct Step {
     model: Model,
-    chi2_kept: f64,
+    chi2_left_out: f64,
     chi2_predicted: f64,
 }
 
 impl Step {
-    /// Whether the step stands, given the kept experiments' chi^2 run at it.
+    /// Whether the step stands, given the left-out experiment's chi^2 run at it.
     fn trusted(&self, chi2_actual: f64) -> bool {
-        let predicted = self.chi2_kept - self.chi2_predicted;
-        let actual = self.chi2_kept - chi2_actual;
+        let predicted = self.chi2_predicted - self.chi2_left_out;
+        let actual = chi2_actual - self.chi2_left_out;
         (actual - predicted).abs() <= STEP_TRUST * predicted.abs() + STEP_NEGLIGIBLE
     }
 }
@@ -677,13 +673,12 @@ impl Step {
 fn one_step_without(f: &Fit, data: &[Observation], id: &str) -> Result<Step, String> {
     let bounds: Vec<_> = f.names.iter().map(|n| f.model.bounds(n)).collect::<Result<_, _>>()?;
     let scale: Vec<f64> = bounds.iter().map(|b| b.scale).collect();
-    let rows: Vec<usize> = (0..data.len()).filter(|&i| data[i].experiment != id).collect();
-    let pick = |v: &[f64]| rows.iter().map(|&i| v[i]).collect::<Vec<f64>>();
-    let train: Vec<Observation> = rows.iter().map(|&i| data[i].clone()).collect();
-    let jac: Vec<Vec<f64>> = rows.iter().map(|&i| f.jacobian[i].clone()).collect();
-    let (z, jz) = standardised(&pick(&f.model_values), &jac, &train, &scale);
+    let (z, jz) = standardised(&f.model_values, &f.jacobian, data, &scale);
+    let (kept, left): (Vec<usize>, Vec<usize>) = (0..data.len()).partition(|&i| data[i].experiment != id);
+    let pick = |rows: &[usize]| (rows.iter().map(|&i| z[i]).collect::<Vec<f64>>(), rows.iter().map(|&i| jz[i].clone()).collect::<Vec<_>>());
+    let (z_kept, jz_kept) = pick(&kept);
     let cols: Vec<usize> = (0..f.names.len()).filter(|&i| !f.at_bound[i]).collect();
-    let (a, g) = normal_equations(&jz, &z, &cols);
+    let (a, g) = normal_equations(&jz_kept, &z_kept, &cols);
     let step = gauss_newton_step(&a, &g, 1e-12);
     let mut model = f.model.clone();
     // the step taken in scaled parameters, after the clamp to the bounds
@@ -693,8 +688,9 @@ fn one_step_without(f: &Fit, data: &[Observation], id: &str) -> Result<Step, Str
         taken[i] = (value - f.values[i]) / scale[i];
         model.set(&f.names[i], value)?;
     }
-    let linear: f64 = z.iter().zip(&jz).map(|(zi, row)| (zi + row.iter().zip(&taken).map(|(j, t)| j * t).sum::<f64>()).powi(2)).sum();
-    Ok(Step { model, chi2_kept: z.iter().map(|zi| zi * zi).sum(), chi2_predicted: linear })
+    let (z_left, jz_left) = pick(&left);
+    let linear: f64 = z_left.iter().zip(&jz_left).map(|(zi, row)| (zi + row.iter().zip(&taken).map(|(j, t)| j * t).sum::<f64>()).powi(2)).sum();
+    Ok(Step { model, chi2_left_out: z_left.iter().map(|zi| zi * zi).sum(), chi2_predicted: linear })
 }
 
 /// Where an unexplained misfit lies: the largest residuals and the observables worst fitted
