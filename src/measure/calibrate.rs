@@ -84,14 +84,14 @@ pub struct Fit {
 /// user reads.
 pub const CHI2_NEGLIGIBLE: f64 = 0.01;
 
-/// Once the model has refused a trial step on an exact Jacobian, a step that the linearisation
-/// predicts to lower chi^2 by less than this times the reduced chi^2 (at least 1) is not tried,
-/// and the fit ends: such a step moves the parameters by less than a third of their uncertainty,
-/// and where a model refuses steps that small its values are not smooth at that scale (a print's
-/// section is sampled by particles), so more damped steps only trade one rough value for
-/// another, a run each. A smooth model refuses no such step near its optimum, where the
-/// linearisation holds.
-pub const CHI2_ROUGH: f64 = 0.1;
+/// Where an exact Jacobian's undamped Gauss-Newton step predicts chi^2 to fall by less than this
+/// times the reduced chi^2 (at least 1), the optimum the linearisation sees lies within one
+/// standard deviation, and a step the model refuses there ends the fit instead of being damped
+/// and tried again: a smooth model refuses no step that close to its optimum, where the
+/// linearisation holds, and a model that does is not smooth at that scale (a print's section is
+/// sampled by particles), where more damped steps only trade one rough value for another, a run
+/// of the campaign each.
+pub const CHI2_ROUGH: f64 = 1.0;
 
 /// Sum of the squared standardised residuals of `values` against `data`.
 pub fn chi2(values: &[f64], data: &[Observation]) -> f64 {
@@ -136,10 +136,13 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
         let birge = (c2 / m.saturating_sub(cols.len()).max(1) as f64).max(1.0);
         let negligible = CHI2_NEGLIGIBLE * birge;
         let (a, g) = normal_equations(&jz, &z, &cols);
-        let next = if cols.is_empty() || predicted_drop(&a, &g) < negligible {
+        let gauss_newton = if cols.is_empty() { 0.0 } else { predicted_drop(&a, &g) };
+        let next = if gauss_newton < negligible {
             None
         } else {
-            damped_step(&model, &theta, (&s, c2, birge), (&a, &g), &cols, &mut lambda, names, &bounds, data, exps, opts, (secant, exact))?
+            // one try on a secant Jacobian, which is then computed again, and near the optimum
+            let tries = if !exact || gauss_newton < CHI2_ROUGH * birge { 1 } else { 12 };
+            damped_step(&model, &theta, (&s, c2, negligible), (&a, &g), &cols, &mut lambda, names, &bounds, data, exps, opts, (secant, tries))?
         };
         let Some(next) = next else {
             if exact {
@@ -232,21 +235,18 @@ struct Accepted {
 }
 
 /// A Levenberg-Marquardt step from `theta` (at `model`, with values and Jacobian `at` and chi^2
-/// `c2`, reduced chi^2 `birge`, at least 1) on the normal equations `(a, g)` of the free
-/// parameters `cols`, the damping `lambda` raised until a step lowers chi^2 (at most 12 tries;
-/// one on a secant Jacobian, which the caller then computes again) and lowered after it; none
-/// when no step lowers it, or when the damping has left a step whose linearised drop is under
-/// [`CHI2_NEGLIGIBLE`] `birge`, or under [`CHI2_ROUGH`] `birge` once the model has refused a
-/// step. With `secant` the
-/// accepted step's Jacobian is the secant update of `at`'s, otherwise the engine's. A trial the
-/// model rejects (a material that will not build), or whose Jacobian run is rejected (a side of a
-/// central difference where a printed line breaks up), is a failed step; the engine failing to
-/// run it is an error.
+/// `c2`) on the normal equations `(a, g)` of the free parameters `cols`, the damping `lambda`
+/// raised until a step lowers chi^2 (at most `tries` tries) and lowered after it; none when no
+/// step lowers it, or when the damping has left a step whose linearised drop is under
+/// `negligible`. With `secant` the accepted step's Jacobian is the secant update of `at`'s,
+/// otherwise the engine's. A trial the model rejects (a material that will not build), or whose
+/// Jacobian run is rejected (a side of a central difference where a printed line breaks up), is
+/// a failed step; the engine failing to run it is an error.
 #[allow(clippy::too_many_arguments)]
 fn damped_step(
     model: &Model,
     theta: &[f64],
-    (at, c2, birge): (&Sensitivity, f64, f64),
+    (at, c2, negligible): (&Sensitivity, f64, f64),
     (a, g): (&Mat, &[f64]),
     cols: &[usize],
     lambda: &mut f64,
@@ -255,11 +255,9 @@ fn damped_step(
     data: &[Observation],
     exps: &Experiments,
     opts: &FitOptions,
-    (secant, exact): (bool, bool),
+    (secant, tries): (bool, usize),
 ) -> Result<Option<Accepted>, String> {
-    // a refused trial leaves the smallest drop still worth a run at CHI2_ROUGH birge
-    let mut worth = CHI2_NEGLIGIBLE * birge;
-    for _ in 0..if exact { 12 } else { 1 } {
+    for _ in 0..tries {
         let mut damped: Mat = a.clone();
         for (k, row) in damped.iter_mut().enumerate() {
             row[k] += *lambda * a[k][k].max(1e-12);
@@ -271,11 +269,11 @@ fn damped_step(
         }
         let moved = trial.iter().zip(theta).zip(bounds).map(|((a, b), bd)| ((a - b) / bd.scale).abs()).fold(0.0, f64::max);
         // the drop the linearisation predicts for the step taken (after the clamp): once the
-        // damping leaves less than is worth a run, no step remains
+        // damping leaves less than a negligible one, no step worth a run remains
         let taken: Vec<f64> = cols.iter().map(|&i| (trial[i] - theta[i]) / bounds[i].scale).collect();
         let a_taken: Vec<f64> = a.iter().map(|r| r.iter().zip(&taken).map(|(x, t)| x * t).sum()).collect();
         let linear_drop = -taken.iter().zip(g.iter().zip(&a_taken)).map(|(t, (gi, at))| t * (2.0 * gi + at)).sum::<f64>();
-        if moved < 1e-12 || linear_drop < worth {
+        if moved < 1e-12 || linear_drop < negligible {
             return Ok(None);
         }
         let mut tm = model.clone();
@@ -306,7 +304,6 @@ fn damped_step(
             return Ok(Some(Accepted { theta: trial, model: tm, at: at_trial, chi2: tc2 }));
         }
         *lambda *= 4.0;
-        worth = worth.max(CHI2_ROUGH * birge);
     }
     Ok(None)
 }
