@@ -122,10 +122,11 @@ fn smooth_step(model: &Model, name: &str) -> Result<f64, String> {
 pub const ADJOINT_SHARED_RUNS: f64 = 2.9;
 pub const ADJOINT_RUNS_PER_OBSERVATION: f64 = 3.2;
 
-/// Whether central differences in `moved` parameters (1 + 2 `moved` forward runs, the values
-/// included) cost less than one adjoint of `observations` (each a scalar's reverse pass).
-pub fn by_differences_is_cheaper(moved: usize, observations: usize) -> bool {
-    ((1 + 2 * moved) as f64) < 1.0 + ADJOINT_SHARED_RUNS + ADJOINT_RUNS_PER_OBSERVATION * observations as f64
+/// Whether differences that take `runs` forward runs beside the values' (two a parameter, one
+/// for a parameter at a bound, which moves one way only) cost less than one adjoint of
+/// `observations` (each a scalar's reverse pass), whose forward sweep gives the values.
+pub fn by_differences_is_cheaper(runs: usize, observations: usize) -> bool {
+    ((1 + runs) as f64) < ADJOINT_SHARED_RUNS + ADJOINT_RUNS_PER_OBSERVATION * observations as f64
 }
 
 /// One experiment's values of `wanted` and, with `names`, their gradients; `known`: its values at
@@ -159,7 +160,8 @@ fn simulated(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observ
     let (Some(names), Some(_)) = (names, &x.scenario) else { return by_adjoint(model, exps, x, wanted, names, threads) };
     let keys = experiment_keys(model, x)?;
     let sides = names.iter().map(|n| smooth_step(model, n).and_then(|h| moves(model, x, &keys, n, h))).collect::<Result<Vec<_>, _>>()?;
-    let all = by_differences_is_cheaper(sides.iter().filter(|s| s.is_some()).count(), wanted.len());
+    // the toolpath's parameters are differenced either way
+    let all = by_differences_is_cheaper(sides.iter().flatten().filter(|s| !s.toolpath).map(Sides::runs).sum(), wanted.len());
     let by_differences: Vec<bool> = sides.iter().map(|s| s.as_ref().is_some_and(|s| all || s.toolpath)).collect();
     // a parameter that leaves the experiment as it is has a zero column, from neither
     let from_the_adjoint: Vec<bool> = sides.iter().zip(&by_differences).map(|(s, &d)| s.is_some() && !d).collect();
@@ -254,6 +256,13 @@ struct Sides {
     hi: (f64, Option<Model>),
     /// Whether the parameter moves a toolpath key (`print.*`).
     toolpath: bool,
+}
+
+impl Sides {
+    /// The forward runs its difference takes beside the values'.
+    fn runs(&self) -> usize {
+        usize::from(self.lo.1.is_some()) + usize::from(self.hi.1.is_some())
+    }
 }
 
 /// `name` moved to p +- h, each side held within the parameter's bounds, with the models there
@@ -431,7 +440,8 @@ mod tests {
         let x = find(&e, "line_V60").unwrap();
         let wanted: Vec<Observable> = x.observe.iter().map(|o| Observable::parse(o).unwrap()).collect();
         let names: Vec<String> = ["material.yield_stress", "material.viscosity", "extrusion_factor.factor"].map(String::from).to_vec();
-        assert!(by_differences_is_cheaper(names.len(), wanted.len()));
+        // two material parameters; the extrusion factor's is differenced either way
+        assert!(by_differences_is_cheaper(2 * 2, wanted.len()));
         let fd = experiment(&m, &e, x, &wanted, Some(&names), Some(1), None).unwrap();
         let adj = by_adjoint(&m, &e, x, &wanted, Some(&names), Some(1)).unwrap();
         // the values known (a calibration's accepted trial), the same Jacobian without their run
@@ -461,7 +471,7 @@ mod tests {
         // with more parameters than differences pay for, the material's columns come from the
         // adjoint and the toolpath's from differences
         let more: Vec<String> = ["material.bulk_modulus"].map(String::from).into_iter().chain(names.iter().cloned()).collect();
-        assert!(!by_differences_is_cheaper(more.len(), 1));
+        assert!(!by_differences_is_cheaper(2 * 3, 1));
         let hybrid = experiment(&m, &e, x, &wanted[..1], Some(&more), Some(1), None).unwrap();
         let adj = by_adjoint(&m, &e, x, &wanted[..1], Some(&more[..3]), Some(1)).unwrap();
         let (row, adj_row) = (hybrid[0].1.as_ref().unwrap(), adj[0].1.as_ref().unwrap());
