@@ -94,12 +94,14 @@ pub const CHI2_NEGLIGIBLE: f64 = 0.01;
 pub const CHI2_ROUGH: f64 = 1.0;
 
 /// The trials a step on an exact Jacobian gets, the damping raised fourfold after each refused
-/// one, where the campaign runs simulations: a print's observables are sampled by particles and
-/// a profile point near a strand's edge jumps, so a Jacobian from differences over 3 % of each
-/// parameter can promise a fall no step delivers; a step the model refuses three times, with the
-/// damping raised 16-fold, is not found by damping further (the six prints' base fit once took 8
-/// more refused runs of the campaign, then a step that lowered chi^2 by 0.58 of 2,286), and the
-/// fit ends there. A rheometer campaign's steps cost less than a run and get 12.
+/// one.
+pub const TRIES: usize = 12;
+
+/// [`TRIES`] where the campaign runs simulations, each trial a run of the campaign: a print's
+/// observables are sampled by particles and a profile point near a strand's edge jumps, so a
+/// Jacobian from differences over 3 % of each parameter can promise a fall that no step
+/// delivers; a step the model refuses three times, the damping raised 16-fold, is not found by
+/// damping further, and the fit ends there.
 pub const SIMULATION_TRIES: usize = 3;
 
 /// Sum of the squared standardised residuals of `values` against `data`.
@@ -156,7 +158,7 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
             } else if simulated {
                 SIMULATION_TRIES
             } else {
-                12
+                TRIES
             };
             if opts.progress && exact && history.len() > 1 {
                 eprintln!("  exact Jacobian: an undamped step predicts chi^2 = {:.6e} (reduced chi^2 {birge:.3})", c2 - gauss_newton);
