@@ -619,14 +619,14 @@ fn leave_one_out(f: &Fit, data: &[Observation], exps: &Experiments, ids: &[Strin
     let mut total = 0.0;
     for id in ids {
         let (train, test): (Vec<Observation>, Vec<Observation>) = data.iter().cloned().partition(|o| o.experiment != *id);
-        let kept: Vec<usize> = (0..data.len()).filter(|&i| data[i].experiment != *id).collect();
+        let (kept, left): (Vec<usize>, Vec<usize>) = (0..data.len()).partition(|&i| data[i].experiment != *id);
         let predict = |model: &Model| -> Result<f64, String> { Ok(chi2(&opts.fit.engine.sensitivity(opts.fit.jobs, model, &test, exps, None)??.values, &test)) };
         total += if f.names.is_empty() {
             predict(&f.model)?
         } else if opts.exact_refits {
             predict(&refit(f, &train, &kept, exps, opts)?)?
         } else {
-            let step = one_step_without(f, data, id)?;
+            let step = one_step_without(f, data, (&kept, &left))?;
             let left_out = predict(&step.model)?;
             if step.trusted(left_out) {
                 left_out
@@ -668,15 +668,15 @@ impl Step {
     }
 }
 
-/// The fit `f` moved by one Gauss-Newton step on the chi^2 of the observations outside
-/// experiment `id`, from `f`'s own values and Jacobian.
-fn one_step_without(f: &Fit, data: &[Observation], id: &str) -> Result<Step, String> {
+/// The fit `f` moved by one Gauss-Newton step on the chi^2 of the observations `kept` (indices
+/// into `data`), from `f`'s own values and Jacobian, with the left-out experiment's observations
+/// `left`.
+fn one_step_without(f: &Fit, data: &[Observation], (kept, left): (&[usize], &[usize])) -> Result<Step, String> {
     let bounds: Vec<_> = f.names.iter().map(|n| f.model.bounds(n)).collect::<Result<_, _>>()?;
     let scale: Vec<f64> = bounds.iter().map(|b| b.scale).collect();
     let (z, jz) = standardised(&f.model_values, &f.jacobian, data, &scale);
-    let (kept, left): (Vec<usize>, Vec<usize>) = (0..data.len()).partition(|&i| data[i].experiment != id);
     let pick = |rows: &[usize]| (rows.iter().map(|&i| z[i]).collect::<Vec<f64>>(), rows.iter().map(|&i| jz[i].clone()).collect::<Vec<_>>());
-    let (z_kept, jz_kept) = pick(&kept);
+    let (z_kept, jz_kept) = pick(kept);
     let cols: Vec<usize> = (0..f.names.len()).filter(|&i| !f.at_bound[i]).collect();
     let (a, g) = normal_equations(&jz_kept, &z_kept, &cols);
     let step = gauss_newton_step(&a, &g, 1e-12);
@@ -688,7 +688,7 @@ fn one_step_without(f: &Fit, data: &[Observation], id: &str) -> Result<Step, Str
         taken[i] = (value - f.values[i]) / scale[i];
         model.set(&f.names[i], value)?;
     }
-    let (z_left, jz_left) = pick(&left);
+    let (z_left, jz_left) = pick(left);
     let linear: f64 = z_left.iter().zip(&jz_left).map(|(zi, row)| (zi + row.iter().zip(&taken).map(|(j, t)| j * t).sum::<f64>()).powi(2)).sum();
     Ok(Step { model, chi2_left_out: z_left.iter().map(|zi| zi * zi).sum(), chi2_predicted: linear })
 }
