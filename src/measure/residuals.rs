@@ -338,8 +338,8 @@ mod tests {
         assert!(flagged.len() <= 9, "{} of 300 noise campaigns flagged: {:?}", flagged.len(), flagged.first());
         // and the noise scaled up 20 times (uncertainties stated too small) flags the same shapes
         // as unscaled, up to rounding (the texts quote mean z, which scales): the tests are F
-        // tests, blind to the scale of z. Checked on
-        // the campaigns that flagged something and on ten that may not have.
+        // tests, blind to the scale of z. Checked on the campaigns that flagged something and on
+        // ten that may not have.
         let seeds = flagged.iter().map(|(s, _)| *s).chain(0..10);
         for seed in seeds {
             let (rows, covs) = campaign(seed, |_, _, _, _| 0.0);
