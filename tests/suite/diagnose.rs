@@ -134,8 +134,8 @@ fn one_step_leave_one_out_agrees_with_exact_refits_on_the_rheometer_campaign() {
 const LOO_TOLERANCE: f64 = 0.3;
 /// The same for the base model, which misses these data (reduced chi^2 in the hundreds): its
 /// refits end within a tenth of a standard deviation scaled by the reduced chi^2
-/// (`calibrate::CHI2_NEGLIGIBLE`), a few units of chi^2 from it (measured: the one step's 0.15 %
-/// and 0.04 % above the refits' on the thixotropy and ageing truths).
+/// (`calibrate::CHI2_NEGLIGIBLE`), a few units of chi^2 from it (measured at 7fdb04f: the one
+/// step's 0.09 % and 0.08 % above the refits' on the thixotropy and ageing truths).
 const BASE_LOO_TOLERANCE: f64 = 5e-3;
 
 #[test]
@@ -283,9 +283,9 @@ fn two_hidden_effects_are_resolved_by_rounds() {
 /// The failure observables have no adjoint: their Jacobian columns are central differences of
 /// forward runs (measure/sensitivity.rs). One candidate is fitted, without leave-one-out, and
 /// every fit stops after 4 iterations. Measured at 0bf333a beside other runs: 243 s wall (base
-/// fit 35 s, score tests 54 s, likelihood-ratio fits 64 s, the candidate's fit 89 s), thixotropy
-/// first (score 1192), error x 0.042 (107 Pa, A_thix 53 Pa/s); a Coulomb floor fitted lowers it
-/// only to x 0.994 (LR 16).
+/// fit 35 s, score tests 54 s, likelihood-ratio fits 64 s, the candidate's fit 89 s); at 7fdb04f
+/// thixotropy first (score 947), error x 0.068 (93 Pa, A_thix 41 Pa/s); a Coulomb floor fitted
+/// does not lower it (x 1.02, LR 0).
 #[test]
 fn hidden_structuration_is_found_from_failure_heights() {
     let d = measure_fixtures("failure");

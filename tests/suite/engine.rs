@@ -98,8 +98,8 @@ fn calibrate_and_diagnose_through_gnu_parallel_are_bit_identical_to_local_and_a_
 
 #[test]
 fn collect_refuses_results_saved_under_another_model_or_scenario() {
-    // issue 27's finding: compare --collect took values saved under another model (chi^2 11.5
-    // where the true value is 1.38e4)
+    // issue 27's finding: compare --collect took values saved under another model (the truth's
+    // chi^2, 12.1, where the base model's is 1.36e4)
     let (_keep, d) = campaign();
     let compare = |model: &str, extra: &[&str]| strand_in(&[&["compare", "--model", model, "--data", "data.csv", "--experiments", "experiments.toml", "--json"], extra].concat(), &d);
     let (code, _, err) = compare("truth_thixotropy.toml", &["--plan", "plan"]);
