@@ -9,11 +9,10 @@
 //! stop that the Jacobian declares) and at the end, so the fit stops, and its uncertainties come,
 //! from an exact Jacobian ([`FitOptions::secant`]).
 //!
-//! Parameters move in units, so the damping treats them alike: an effect's typical magnitude,
-//! and a positive material number's own value, which moves by factors ([`Bounds::relative`]). A
-//! parameter at a bound whose Gauss-Newton step would cross it is held there for the step (an
-//! active set). Uncertainties are the square roots of the diagonal of (J^T J)^-1 of the
-//! standardised residuals at the optimum, times the units: with the data's
+//! Parameters move in units of their scale (an effect's typical magnitude, a material number's
+//! starting value), so the damping treats them alike. A parameter at a bound whose gradient
+//! Gauss-Newton step would cross it is held there for the step (an active set). Uncertainties are the square roots
+//! of the diagonal of (J^T J)^-1 of the standardised residuals at the optimum: with the data's
 //! uncertainties taken as given (not rescaled by the reduced chi^2, which is reported beside).
 
 use super::experiments::Experiments;
@@ -121,6 +120,7 @@ pub fn calibrate(model: &Model, data: &[Observation], exps: &Experiments, names:
 /// what the engine gives at `model` (a fit's own, or its rows for a subset of its data).
 pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, names: &[String], opts: &FitOptions, at_start: Sensitivity) -> Result<Fit, String> {
     let (bounds, start) = check(model, names)?;
+    let scale: Vec<f64> = bounds.iter().map(|b| b.scale).collect();
     let mut theta = start.clone();
     let m = data.len();
     let n = names.len();
@@ -142,7 +142,7 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
     let mut exact = true;
     let exact_at = |m: &Model, s: &Sensitivity| opts.engine.jacobian_at(opts.jobs, m, data, exps, names, &s.values)?;
     while history.len() <= opts.max_iterations {
-        let (z, jz) = standardised(&s.values, s.jacobian.as_ref().expect("asked"), data, &units(&bounds, &theta));
+        let (z, jz) = standardised(&s.values, s.jacobian.as_ref().expect("asked"), data, &scale);
         free = free_parameters(&jz, &z, &theta, &bounds);
         let cols: Vec<usize> = (0..n).filter(|&i| free[i]).collect();
         let birge = (c2 / m.saturating_sub(cols.len()).max(1) as f64).max(1.0);
@@ -193,8 +193,7 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
     }
 
     // uncertainties from the undamped normal matrix at the optimum
-    let unit = units(&bounds, &theta);
-    let (z, jz) = standardised(&s.values, s.jacobian.as_ref().expect("asked"), data, &unit);
+    let (z, jz) = standardised(&s.values, s.jacobian.as_ref().expect("asked"), data, &scale);
     let cols: Vec<usize> = (0..n).filter(|&i| free[i]).collect();
     let (a, _) = normal_equations(&jz, &z, &cols);
     let (cov, _) = pinv_sym(&a, 1e-12);
@@ -202,7 +201,7 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
     let mut uncertainty = vec![f64::NAN; n];
     for (k, &i) in cols.iter().enumerate() {
         // the pseudo-inverse gives 0 where the data say nothing
-        uncertainty[i] = if influence[i] { cov[k][k].sqrt() * unit[i] } else { f64::INFINITY };
+        uncertainty[i] = if influence[i] { cov[k][k].sqrt() * scale[i] } else { f64::INFINITY };
     }
     let at_bound: Vec<bool> = (0..n).map(|i| !free[i]).collect();
     let dof = m.saturating_sub(cols.len()).max(1);
@@ -287,12 +286,12 @@ fn damped_step(
         let step = gauss_newton_step(&damped, g, 1e-14);
         let mut trial = theta.to_vec();
         for (k, &i) in cols.iter().enumerate() {
-            trial[i] = bounds[i].moved(theta[i], step[k]);
+            trial[i] = (theta[i] + step[k] * bounds[i].scale).clamp(bounds[i].lower, bounds[i].upper);
         }
+        let moved = trial.iter().zip(theta).zip(bounds).map(|((a, b), bd)| ((a - b) / bd.scale).abs()).fold(0.0, f64::max);
         // the drop the linearisation predicts for the step taken (after the clamp): once the
         // damping leaves less than a negligible one, no step worth a run remains
-        let taken: Vec<f64> = cols.iter().map(|&i| bounds[i].units_between(theta[i], trial[i])).collect();
-        let moved = taken.iter().map(|t| t.abs()).fold(0.0, f64::max);
+        let taken: Vec<f64> = cols.iter().map(|&i| (trial[i] - theta[i]) / bounds[i].scale).collect();
         let a_taken: Vec<f64> = a.iter().map(|r| r.iter().zip(&taken).map(|(x, t)| x * t).sum()).collect();
         let linear_drop = -taken.iter().zip(g.iter().zip(&a_taken)).map(|(t, (gi, at))| t * (2.0 * gi + at)).sum::<f64>();
         if moved < 1e-12 || linear_drop < negligible {
@@ -312,7 +311,8 @@ fn damped_step(
         let tc2 = chi2(&tv, data);
         if tc2.is_finite() && tc2 < c2 {
             let at_trial = if secant {
-                let jacobian = secant_update(at.jacobian.as_ref().expect("asked"), (theta, &trial), &units(bounds, theta), (&at.values, &tv));
+                let scale: Vec<f64> = bounds.iter().map(|b| b.scale).collect();
+                let jacobian = secant_update(at.jacobian.as_ref().expect("asked"), (theta, &trial), &scale, (&at.values, &tv));
                 Sensitivity { values: tv, jacobian: Some(jacobian) }
             } else {
                 let Ok(at_trial) = opts.engine.jacobian_at(opts.jobs, &tm, data, exps, names, &tv)? else {
@@ -333,17 +333,17 @@ fn damped_step(
 }
 
 /// Broyden's update of `jac` (at `from`) for a step to `to`, where the values went from `v0` to
-/// `v1`: the least change, in the parameters' units at `from` (`unit`), after which the Jacobian
-/// maps the step onto the values' change.
-fn secant_update(jac: &[Vec<f64>], (from, to): (&[f64], &[f64]), unit: &[f64], (v0, v1): (&[f64], &[f64])) -> Vec<Vec<f64>> {
+/// `v1`: the least change, in the parameters' scales, after which the Jacobian maps the step onto
+/// the values' change.
+fn secant_update(jac: &[Vec<f64>], (from, to): (&[f64], &[f64]), scale: &[f64], (v0, v1): (&[f64], &[f64])) -> Vec<Vec<f64>> {
     let dx: Vec<f64> = to.iter().zip(from).map(|(b, a)| b - a).collect();
-    let ds: Vec<f64> = dx.iter().zip(unit).map(|(d, s)| d / s).collect();
+    let ds: Vec<f64> = dx.iter().zip(scale).map(|(d, s)| d / s).collect();
     let norm2: f64 = ds.iter().map(|d| d * d).sum();
     jac.iter()
         .zip(v0.iter().zip(v1))
         .map(|(row, (a, b))| {
             let miss = (b - a) - row.iter().zip(&dx).map(|(g, d)| g * d).sum::<f64>();
-            row.iter().zip(ds.iter().zip(unit)).map(|(g, (d, s))| g + miss * d / (s * norm2)).collect()
+            row.iter().zip(ds.iter().zip(scale)).map(|(g, (d, s))| g + miss * d / (s * norm2)).collect()
         })
         .collect()
 }
@@ -359,11 +359,6 @@ fn runs_simulations(data: &[Observation], exps: &Experiments) -> bool {
 pub fn predicted_drop(a: &Mat, g: &[f64]) -> f64 {
     let (inv, _) = pinv_sym(a, 1e-12);
     g.iter().zip(&inv).map(|(gi, row)| gi * row.iter().zip(g).map(|(a, b)| a * b).sum::<f64>()).sum()
-}
-
-/// Each parameter's unit at `theta` ([`Bounds::unit`]).
-pub fn units(bounds: &[Bounds], theta: &[f64]) -> Vec<f64> {
-    bounds.iter().zip(theta).map(|(b, &t)| b.unit(t)).collect()
 }
 
 /// The parameters' bounds and starting values, checked: something to fit, each start finite.
@@ -387,11 +382,11 @@ impl Fit {
     }
 }
 
-/// Standardised residuals z = (model - measured) / uncertainty and their Jacobian in the
-/// parameters' units (columns times the units, [`units`]).
-pub fn standardised(values: &[f64], jac: &[Vec<f64>], data: &[Observation], unit: &[f64]) -> (Vec<f64>, Vec<Vec<f64>>) {
+/// Standardised residuals z = (model - measured) / uncertainty and their Jacobian in scaled
+/// parameters (columns times the scales).
+pub fn standardised(values: &[f64], jac: &[Vec<f64>], data: &[Observation], scale: &[f64]) -> (Vec<f64>, Vec<Vec<f64>>) {
     let z = values.iter().zip(data).map(|(v, o)| (v - o.value) / o.uncertainty).collect();
-    let jz = jac.iter().zip(data).map(|(row, o)| row.iter().zip(unit).map(|(g, s)| g * s / o.uncertainty).collect()).collect();
+    let jz = jac.iter().zip(data).map(|(row, o)| row.iter().zip(scale).map(|(g, s)| g * s / o.uncertainty).collect()).collect();
     (z, jz)
 }
 

@@ -34,12 +34,12 @@
 //! 4. When no effect is recommended and the base model does not fit (chi^2 beyond its `alpha`
 //!    quantile) the verdict is "unexplained", with the pattern of the residuals.
 
-use super::calibrate::{calibrate, calibrate_from, chi2, predicted_drop, standardised, units, Fit, FitOptions};
+use super::calibrate::{calibrate, calibrate_from, chi2, predicted_drop, standardised, Fit, FitOptions};
 use super::experiments::Experiments;
 use super::observation::Observation;
 use super::effects::{Covariates, Effect};
 use super::linalg::{chi2_sf, gauss_newton_step, normal_equations, pinv_sym};
-use super::model::{Bounds, Model};
+use super::model::Model;
 use super::sensitivity::Sensitivity;
 
 #[derive(Clone, Debug)]
@@ -123,8 +123,8 @@ pub const LR_WORTH_FITTING: f64 = 1.0;
 /// chi^2's drop one undamped Gauss-Newton step from `f`'s end predicts: g^T (J^T J)^+ g, with J
 /// and the residuals standardised.
 fn gauss_newton_drop(f: &Fit, data: &[Observation]) -> Result<f64, String> {
-    let bounds: Vec<Bounds> = f.names.iter().map(|n| f.model.bounds(n)).collect::<Result<_, _>>()?;
-    let (z, jz) = standardised(&f.model_values, &f.jacobian, data, &units(&bounds, &f.values));
+    let scale: Vec<f64> = f.names.iter().map(|n| f.model.bounds(n).map(|b| b.scale)).collect::<Result<_, _>>()?;
+    let (z, jz) = standardised(&f.model_values, &f.jacobian, data, &scale);
     let (a, g) = normal_equations(&jz, &z, &(0..f.names.len()).collect::<Vec<_>>());
     Ok(predicted_drop(&a, &g))
 }
@@ -340,8 +340,8 @@ fn score_tests(base: &Fit, data: &[Observation], exps: &Experiments, fit: &[Stri
     }
     clock.say(format!("score tests at the nulls of {}", absent.iter().map(|e| e.name()).collect::<Vec<_>>().join(", ")));
     let at_nulls = beside_base(base, &aug, &names[fit.len()..], data, exps, opts)?;
-    let unit: Vec<f64> = names.iter().map(|n| Ok(aug.bounds(n)?.unit(aug.get(n)?))).collect::<Result<_, String>>()?;
-    let (z, jz) = standardised(&at_nulls.values, at_nulls.jacobian.as_ref().expect("asked"), data, &unit);
+    let scale: Vec<f64> = names.iter().map(|n| aug.bounds(n).map(|b| b.scale)).collect::<Result<_, _>>()?;
+    let (z, jz) = standardised(&at_nulls.values, at_nulls.jacobian.as_ref().expect("asked"), data, &scale);
     let fcols: Vec<usize> = (0..fit.len()).collect();
     let (ff, _) = normal_equations(&jz, &z, &fcols);
     let (ff_inv, _) = pinv_sym(&ff, 1e-12);
@@ -672,19 +672,20 @@ impl Step {
 /// into `data`), from `f`'s own values and Jacobian, with the left-out experiment's observations
 /// `left`.
 fn one_step_without(f: &Fit, data: &[Observation], (kept, left): (&[usize], &[usize])) -> Result<Step, String> {
-    let bounds: Vec<Bounds> = f.names.iter().map(|n| f.model.bounds(n)).collect::<Result<_, _>>()?;
-    let (z, jz) = standardised(&f.model_values, &f.jacobian, data, &units(&bounds, &f.values));
+    let bounds: Vec<_> = f.names.iter().map(|n| f.model.bounds(n)).collect::<Result<_, _>>()?;
+    let scale: Vec<f64> = bounds.iter().map(|b| b.scale).collect();
+    let (z, jz) = standardised(&f.model_values, &f.jacobian, data, &scale);
     let pick = |rows: &[usize]| (rows.iter().map(|&i| z[i]).collect::<Vec<f64>>(), rows.iter().map(|&i| jz[i].clone()).collect::<Vec<_>>());
     let (z_kept, jz_kept) = pick(kept);
     let cols: Vec<usize> = (0..f.names.len()).filter(|&i| !f.at_bound[i]).collect();
     let (a, g) = normal_equations(&jz_kept, &z_kept, &cols);
     let step = gauss_newton_step(&a, &g, 1e-12);
     let mut model = f.model.clone();
-    // the step taken in the parameters' units, after the clamp to the bounds
+    // the step taken in scaled parameters, after the clamp to the bounds
     let mut taken = vec![0.0; f.names.len()];
     for (k, &i) in cols.iter().enumerate() {
-        let value = bounds[i].moved(f.values[i], step[k]);
-        taken[i] = bounds[i].units_between(f.values[i], value);
+        let value = (f.values[i] + step[k] * scale[i]).clamp(bounds[i].lower, bounds[i].upper);
+        taken[i] = (value - f.values[i]) / scale[i];
         model.set(&f.names[i], value)?;
     }
     let (z_left, jz_left) = pick(left);

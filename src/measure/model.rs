@@ -42,44 +42,12 @@ impl std::fmt::Debug for Model {
     }
 }
 
-/// Bounds of a parameter and the unit a fit moves it in.
+/// Bounds of a parameter and its unit step.
 #[derive(Clone, Copy, Debug)]
 pub struct Bounds {
     pub lower: f64,
     pub upper: f64,
-    /// The unit of a parameter that moves by amounts: an effect's typical magnitude.
     pub scale: f64,
-    /// Whether it moves by factors (a positive material number): its unit is its own value,
-    /// wherever a fit has taken it. A fit in units fixed at the start sees a value that has
-    /// fallen far below them through differences over 3 % of the value, so the column's
-    /// roughness grows as the unit over the value (a viscosity fitted down to 1e-6 of its start
-    /// gave a print's area a slope 10^4 times any other, and promised a fall no step delivers).
-    pub relative: bool,
-}
-
-impl Bounds {
-    /// The unit at `value`.
-    pub fn unit(&self, value: f64) -> f64 {
-        if self.relative { value.abs() } else { self.scale }
-    }
-
-    /// `value` moved by `step` units, within the bounds: times e^step for a relative parameter,
-    /// by at most a factor [`Bounds::FACTOR_STEP`].
-    pub fn moved(&self, value: f64, step: f64) -> f64 {
-        let most = Self::FACTOR_STEP.ln();
-        (if self.relative { value * step.clamp(-most, most).exp() } else { value + step * self.scale }).clamp(self.lower, self.upper)
-    }
-
-    /// The factor a relative parameter moves by at most in one step: its column is a difference
-    /// over 3 % of it, and a Gauss-Newton step along a direction the data barely see (a
-    /// viscosity fitted down to where a print no longer feels it) would extrapolate that
-    /// difference over hundreds of decades.
-    pub const FACTOR_STEP: f64 = 10.0;
-
-    /// The units from `from` to `to` ([`Bounds::moved`]'s inverse).
-    pub fn units_between(&self, from: f64, to: f64) -> f64 {
-        if self.relative { (to / from).ln() } else { (to - from) / self.scale }
-    }
 }
 
 impl Model {
@@ -247,11 +215,11 @@ impl Model {
         Ok(match self.locate(name)? {
             Slot::Material(_) => {
                 let v = self.get(name)?;
-                Bounds { lower: if v > 0.0 { 1e-6 * v } else { 0.0 }, upper: f64::INFINITY, scale: if v != 0.0 { v.abs() } else { 1.0 }, relative: v > 0.0 }
+                Bounds { lower: if v > 0.0 { 1e-6 * v } else { 0.0 }, upper: f64::INFINITY, scale: if v != 0.0 { v.abs() } else { 1.0 } }
             }
             Slot::Effect(e, p) => {
                 let s = self.effects[e].0.params()[p];
-                Bounds { lower: s.lower, upper: s.upper, scale: s.scale, relative: false }
+                Bounds { lower: s.lower, upper: s.upper, scale: s.scale }
             }
         })
     }
@@ -379,25 +347,6 @@ mod tests {
     use super::*;
 
     const M: &str = "[material]\nkind = \"evp_bingham\"\ndensity = 2300.0\nbulk_modulus = 1e6\npoisson_ratio = 0.3\nviscosity = 20.0\nyield_stress = 100.0\n[effects.thixotropy]\na_thix = 0.5\n";
-
-    /// A positive material number moves by factors in units of its own value, an effect's
-    /// parameter by amounts in units of its scale; both within their bounds, and
-    /// `units_between` undoes `moved`.
-    #[test]
-    fn a_material_number_moves_by_factors_and_an_effect_by_amounts() {
-        let m = Model::from_table(&M.parse().unwrap()).unwrap();
-        let v = m.bounds("material.viscosity").unwrap();
-        assert!(v.relative && v.unit(20.0) == 20.0 && v.unit(0.5) == 0.5);
-        assert!((v.moved(20.0, -2.0) - 20.0 * (-2.0f64).exp()).abs() < 1e-12);
-        assert!((v.moved(20.0, -40.0) - 2.0).abs() < 1e-12, "a factor 10 at most");
-        assert_eq!(v.moved(3e-5, -1.0), v.lower, "held at its bound");
-        assert!((v.moved(20.0, 1e300) - 200.0).abs() < 1e-10);
-        assert!((v.units_between(20.0, v.moved(20.0, 0.7)) - 0.7).abs() < 1e-12);
-        let t = m.bounds("thixotropy.a_thix").unwrap();
-        assert!(!t.relative && t.unit(0.5) == t.scale && t.unit(7.0) == t.scale);
-        assert!((t.moved(0.5, 1.0) - (0.5 + t.scale).min(t.upper)).abs() < 1e-12);
-        assert!((t.units_between(0.5, t.moved(0.5, 0.1)) - 0.1).abs() < 1e-12);
-    }
 
     #[test]
     fn a_model_reads_writes_and_names_its_parameters() {
