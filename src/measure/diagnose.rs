@@ -618,30 +618,34 @@ fn applicable(effect: &'static dyn Effect, model: &Model, data: &[Observation], 
 fn leave_one_out(f: &Fit, data: &[Observation], exps: &Experiments, ids: &[String], opts: &DiagnoseOptions) -> Result<f64, String> {
     let mut total = 0.0;
     for id in ids {
-        let (train, test): (Vec<Observation>, Vec<Observation>) = data.iter().cloned().partition(|o| o.experiment != *id);
         let (kept, left): (Vec<usize>, Vec<usize>) = (0..data.len()).partition(|&i| data[i].experiment != *id);
+        let test = rows_of(data, &left);
         let predict = |model: &Model| -> Result<f64, String> { Ok(chi2(&opts.fit.engine.sensitivity(opts.fit.jobs, model, &test, exps, None)??.values, &test)) };
         total += if f.names.is_empty() {
             predict(&f.model)?
         } else if opts.exact_refits {
-            predict(&refit(f, &train, &kept, exps, opts)?)?
+            predict(&refit(f, data, &kept, exps, opts)?)?
         } else {
             let step = one_step_without(f, data, (&kept, &left))?;
             let left_out = predict(&step.model)?;
             if step.trusted(left_out) {
                 left_out
             } else {
-                predict(&refit(f, &train, &kept, exps, opts)?)?
+                predict(&refit(f, data, &kept, exps, opts)?)?
             }
         };
     }
     Ok(total)
 }
 
-/// `f` refitted to `train`, the observations `kept` of its data, from its own values and Jacobian
-/// there.
-fn refit(f: &Fit, train: &[Observation], kept: &[usize], exps: &Experiments, opts: &DiagnoseOptions) -> Result<Model, String> {
-    Ok(calibrate_from(&f.model, train, exps, &f.names, &opts.fit, f.at_end(kept))?.model)
+/// `f` refitted to the observations `kept` of its data, from its own values and Jacobian there.
+fn refit(f: &Fit, data: &[Observation], kept: &[usize], exps: &Experiments, opts: &DiagnoseOptions) -> Result<Model, String> {
+    Ok(calibrate_from(&f.model, &rows_of(data, kept), exps, &f.names, &opts.fit, f.at_end(kept))?.model)
+}
+
+/// The observations `rows` (indices into `data`), in their order.
+fn rows_of(data: &[Observation], rows: &[usize]) -> Vec<Observation> {
+    rows.iter().map(|&i| data[i].clone()).collect()
 }
 
 /// A step stands when the left-out experiment's chi^2 moves by its predicted move within this
