@@ -72,6 +72,10 @@ pub struct Fit {
     /// was fitted): the curvature a one-step leave-one-out refit takes.
     #[serde(skip)]
     pub jacobian: Vec<Vec<f64>>,
+    /// The values and Jacobian the fit started from: where a fit from the same start (a
+    /// likelihood ratio's, with an effect that leaves the model as it is) need not compute them.
+    #[serde(skip)]
+    pub at_start: Sensitivity,
     #[serde(skip)]
     pub model: Model,
 }
@@ -127,6 +131,7 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
     let mut model = model.clone();
     let clock = std::time::Instant::now();
     let mut s = at_start;
+    let first = s.clone();
     let mut c2 = chi2(&s.values, data);
     if opts.progress {
         eprintln!("fit of {}: chi^2 = {c2:.6e} at the start", names.join(", "));
@@ -220,6 +225,7 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
         observations: m,
         model_values: s.values.clone(),
         jacobian: s.jacobian.expect("asked"),
+        at_start: first,
         model,
     })
 }

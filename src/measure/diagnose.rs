@@ -282,23 +282,34 @@ fn base_fit(model: &Model, data: &[Observation], exps: &Experiments, fit: &[Stri
     let m = data.len();
     let v = opts.fit.engine.sensitivity(opts.fit.jobs, model, data, exps, None)??.values;
     let c2 = chi2(&v, data);
-    Ok(Fit { names: vec![], start: vec![], values: vec![], uncertainty: vec![], at_bound: vec![], influence: vec![], chi2_start: c2, chi2: c2, reduced_chi2: c2 / m as f64, history: vec![c2], converged: true, observations: m, model_values: v, jacobian: vec![], model: model.clone() })
+    Ok(Fit { names: vec![], start: vec![], values: vec![], uncertainty: vec![], at_bound: vec![], influence: vec![], chi2_start: c2, chi2: c2, reduced_chi2: c2 / m as f64, history: vec![c2], converged: true, observations: m, model_values: v.clone(), jacobian: vec![], at_start: Sensitivity { values: v, jacobian: Some(vec![]) }, model: model.clone() })
 }
 
 /// Values and Jacobian, in the base fit's parameters then `extra`, at `with`: the base fit's model
-/// with effects added. Where `with` gives the base fit's values (every added effect at its null,
-/// or a modulus at the stand-in the base model runs in its place), the fitted parameters' columns
-/// are the base fit's own and only `extra`'s are computed, from those values; elsewhere every
-/// column is, from `with`'s values.
-fn beside_base(base: &Fit, with: &Model, extra: &[String], data: &[Observation], exps: &Experiments, opts: &DiagnoseOptions) -> Result<Sensitivity, String> {
+/// (or the model it started from, `from_start`) with effects added. Where `with` gives that
+/// point's values (every added effect at its null, or a modulus at the stand-in the base model
+/// runs in its place), the fitted parameters' columns are the base fit's own there, `extra`'s
+/// follow from them where the keys allow ([`chained`](super::chain::chained)), and only the
+/// rest are computed, from those values; elsewhere every column is, from `with`'s values.
+fn beside_base(base: &Fit, from_start: bool, with: &Model, extra: &[String], data: &[Observation], exps: &Experiments, opts: &DiagnoseOptions) -> Result<Sensitivity, String> {
     let (engine, jobs) = (&opts.fit.engine, opts.fit.jobs);
     let names: Vec<String> = base.names.iter().chain(extra).cloned().collect();
+    let (known, known_jacobian) = if from_start { (&base.at_start.values, base.at_start.jacobian.as_ref().expect("asked")) } else { (&base.model_values, &base.jacobian) };
     let values = engine.sensitivity(jobs, with, data, exps, None)??.values;
-    if values != base.model_values || base.names.is_empty() || extra.is_empty() {
-        return Ok(engine.jacobian_at(jobs, with, data, exps, &names, &values)??);
+    if values != *known || base.names.is_empty() || extra.is_empty() {
+        return engine.jacobian_at(jobs, with, data, exps, &names, &values)?;
     }
-    let added = engine.jacobian_at(jobs, with, data, exps, extra, &values)??;
-    let jacobian = base.jacobian.iter().zip(added.jacobian.expect("asked")).map(|(b, a)| b.iter().copied().chain(a).collect()).collect();
+    // an effect's columns the fitted parameters' give through the keys take no run
+    let chained = super::chain::chained(with, data, exps, &base.names, known_jacobian, extra)?;
+    let run: Vec<String> = extra.iter().zip(&chained).filter(|(_, c)| c.is_none()).map(|(n, _)| n.clone()).collect();
+    let mut computed = if run.is_empty() { vec![vec![]; data.len()] } else { engine.jacobian_at(jobs, with, data, exps, &run, &values)??.jacobian.expect("asked") };
+    let jacobian = (0..data.len())
+        .map(|i| {
+            let mut next = computed[i].drain(..);
+            let added = chained.iter().map(|c| c.as_ref().map_or_else(|| next.next().expect("a computed column"), |c| c[i]));
+            known_jacobian[i].iter().copied().chain(added.collect::<Vec<_>>()).collect()
+        })
+        .collect();
     Ok(Sensitivity { values, jacobian: Some(jacobian) })
 }
 
@@ -339,7 +350,7 @@ fn score_tests(base: &Fit, data: &[Observation], exps: &Experiments, fit: &[Stri
         names.extend(e.params().iter().map(|s| format!("{}.{}", e.name(), s.name)));
     }
     clock.say(format!("score tests at the nulls of {}", absent.iter().map(|e| e.name()).collect::<Vec<_>>().join(", ")));
-    let at_nulls = beside_base(base, &aug, &names[fit.len()..], data, exps, opts)?;
+    let at_nulls = beside_base(base, false, &aug, &names[fit.len()..], data, exps, opts)?;
     let scale: Vec<f64> = names.iter().map(|n| aug.bounds(n).map(|b| b.scale)).collect::<Result<_, _>>()?;
     let (z, jz) = standardised(&at_nulls.values, at_nulls.jacobian.as_ref().expect("asked"), data, &scale);
     let fcols: Vec<usize> = (0..fit.len()).collect();
@@ -445,7 +456,7 @@ fn likelihood_ratio_tests(
             // (G where every reading is past yield) the fit would only refit the fitted
             // parameters; from the model's values, where they are elsewhere, it may have
             clock.say(format!("{}: its likelihood ratio, from {}", e.name(), if std::ptr::eq(from, model) { "the model's values" } else { "the base fit's values" }));
-            let start_values = if std::ptr::eq(from, &base.model) { beside_base(base, &with, &fnames[fit.len()..], data, exps, opts)? } else { opts.fit.engine.sensitivity(opts.fit.jobs, &with, data, exps, Some(&fnames))?? };
+            let start_values = beside_base(base, std::ptr::eq(from, model), &with, &fnames[fit.len()..], data, exps, opts)?;
             let at_start = calibrate_from(&with, data, exps, &fnames, &FitOptions { max_iterations: 0, progress: false, ..opts.fit.clone() }, start_values.clone())?;
             let predicted = base.chi2 - at_start.chi2 + gauss_newton_drop(&at_start, data)?;
             let informed = at_start.influence[fit.len()..].iter().any(|&i| i);

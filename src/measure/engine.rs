@@ -131,6 +131,9 @@ pub struct Job {
     pub observables: Vec<String>,
     /// Parameters differentiated; none for values only.
     pub names: Option<Vec<String>>,
+    /// The model's units ([`Model::unit`]), which its file does not hold: they set the
+    /// differences' steps.
+    pub units: std::collections::BTreeMap<String, f64>,
     pub threads: Option<usize>,
 }
 
@@ -157,7 +160,7 @@ impl Job {
     /// file name) and a hash of what the result depends on.
     fn key(&self, id: &str) -> String {
         let safe: String = id.chars().map(|c| if c.is_ascii_alphanumeric() || "-_.".contains(c) { c } else { '_' }).collect();
-        let what = serde_json::to_string(&(&self.provenance, &self.observables, &self.names)).expect("serialises");
+        let what = serde_json::to_string(&(&self.provenance, &self.observables, &self.names, &self.units)).expect("serialises");
         format!("{safe}-{}", &provenance::hash(&what)[..16])
     }
 }
@@ -235,6 +238,7 @@ impl Scheduler {
             base_dir: std::path::absolute(Path::new(".").join(&exps.base_dir)).map_err(|e| format!("{}: {e}", exps.base_dir.display()))?,
             observables: obs.iter().map(Observable::to_string).collect(),
             names: names.map(<[String]>::to_vec),
+            units: model.units.clone(),
             threads: self.threads,
         })
     }
@@ -330,12 +334,14 @@ fn read_result(path: &Path, job: &Job, id: &str) -> Result<Result<Vec<Valued>, S
     })
 }
 
-/// The model of a job file: exactly the numbers written, without the checks a model file
-/// read by a user gets (a trial model that will not build must fail in the evaluation, as it
-/// does locally, not here).
-fn job_model(text: &str) -> Result<Model, String> {
-    let t: toml::Table = text.parse().map_err(|e| format!("the job's model: {e}"))?;
-    Model::from_table_as_written(&t).map_err(|e| format!("the job's model: {e}"))
+/// The model of a job: exactly the numbers written, without the checks a model file read by a
+/// user gets (a trial model that will not build must fail in the evaluation, as it does
+/// locally, not here), with the units of the model it was planned from.
+fn job_model(job: &Job) -> Result<Model, String> {
+    let t: toml::Table = job.model.parse().map_err(|e| format!("the job's model: {e}"))?;
+    let mut model = Model::from_table_as_written(&t).map_err(|e| format!("the job's model: {e}"))?;
+    model.units = job.units.clone();
+    Ok(model)
 }
 
 /// `strand evaluate JOB --out RESULT`: compute one planned job and save its result; the line
@@ -346,7 +352,7 @@ pub fn evaluate(job_path: &Path, out: &Path) -> Result<String, String> {
     let x: Experiment = toml::from_str(&job.experiment).map_err(|e| format!("{}: the experiment: {}", job_path.display(), e.message()))?;
     let id = x.id.clone();
     let exps = Experiments { experiment: vec![x], base_dir: job.base_dir.clone(), resolution: None };
-    let model = job_model(&job.model).map_err(|e| format!("{}: {e}", job_path.display()))?;
+    let model = job_model(&job).map_err(|e| format!("{}: {e}", job_path.display()))?;
     // the files as they are now must be those the job was planned with
     Provenance::of(&model, &exps, &exps.experiment[0]).check(&job.provenance, &id, job_path).map_err(|e| format!("{e}: the job was planned with other files or another strand; run the campaign again to plan it anew"))?;
     let obs: Vec<Observable> = job.observables.iter().map(|o| Observable::parse(o)).collect::<Result<_, _>>()?;
@@ -364,4 +370,36 @@ pub fn evaluate(job_path: &Path, out: &Path) -> Result<String, String> {
     let c = Computed { experiment: id, observables: job.observables, names: job.names, provenance: job.provenance, outcome };
     write_atomic(out, &serde_json::to_string_pretty(&c).map_err(|e| e.to_string())?)?;
     Ok(line)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const MODEL: &str = "[material]\nkind = \"bingham\"\ndensity = 2100.0\nbulk_modulus = 1e6\nviscosity = 7.5\nyield_stress = 630.0\n";
+    const EXPS: &str = "[[experiment]]\nid = \"flow\"\nobserve = [\"stress@20\"]\n[experiment.protocol]\n[[experiment.protocol.phase]]\nkind = \"sweep\"\nrates = [20.0]\nhold = 0.5\n";
+
+    /// A job's model keeps the units of the model it was planned from, which its file does not
+    /// hold, so a job differences a parameter fitted towards 0 over the step a local run takes;
+    /// and the units are part of the job's key.
+    #[test]
+    fn a_job_carries_the_models_units() {
+        let mut model = Model::from_table(&MODEL.parse().unwrap()).unwrap();
+        model.set("material.viscosity", 1e-5).unwrap();
+        let exps: Experiments = toml::from_str(EXPS).unwrap();
+        let s = Scheduler { template: "true".into(), dir: PathBuf::from("unused"), exe: PathBuf::from("strand"), threads: None };
+        let names = vec!["material.viscosity".to_string()];
+        let job = s.job(&model, &exps, &exps.experiment[0], &[Observable::parse("stress@20").unwrap()], Some(&names)).unwrap();
+        let read: Job = serde_json::from_str(&serde_json::to_string(&job).unwrap()).unwrap();
+        let there = job_model(&read).unwrap();
+        assert_eq!(there.get("material.viscosity").unwrap(), 1e-5);
+        assert_eq!(there.unit("material.viscosity").unwrap(), 7.5);
+        assert_eq!(there.unit("material.viscosity").unwrap(), model.unit("material.viscosity").unwrap());
+        // a model read from the job's file alone would take its written value as the unit
+        let written = Model::from_table_as_written(&read.model.parse().unwrap()).unwrap();
+        assert_eq!(written.unit("material.viscosity").unwrap(), 1e-5);
+        let mut other = read;
+        other.units.insert("viscosity".into(), 1.0);
+        assert_ne!(other.key("flow"), job.key("flow"));
+    }
 }

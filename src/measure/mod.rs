@@ -15,6 +15,7 @@
 //! engine, diagnosis and rounds on top.
 
 pub mod calibrate;
+pub mod chain;
 pub mod compare;
 pub mod diagnose;
 pub mod effects;

@@ -24,6 +24,7 @@
 use super::effects::declared::{self, Declared};
 use super::effects::{self, Covariates, Effect, Keys};
 use std::path::{Path, PathBuf};
+use std::collections::BTreeMap;
 
 #[derive(Clone)]
 pub struct Model {
@@ -33,6 +34,9 @@ pub struct Model {
     /// Effects the model file declares, switched on or candidates, by name.
     pub declared: Vec<&'static Declared>,
     pub path: PathBuf,
+    /// Each material number's unit: its value in the model as it was read, before any fit moved
+    /// it (see [`Model::unit`]).
+    pub units: BTreeMap<String, f64>,
 }
 
 impl std::fmt::Debug for Model {
@@ -98,7 +102,8 @@ impl Model {
             Some(toml::Value::Table(m)) => m.clone(),
             _ => return Err("no [material] table".into()),
         };
-        let mut model = Model { material, effects: Vec::new(), declared: Vec::new(), path: PathBuf::new() };
+        let units = material.iter().filter_map(|(k, v)| super::observation::number(v).filter(|x| x.is_finite() && *x != 0.0).map(|x| (k.clone(), x.abs()))).collect();
+        let mut model = Model { material, effects: Vec::new(), declared: Vec::new(), path: PathBuf::new(), units };
         if let Some(e) = t.get("effects") {
             let e = e.as_table().ok_or("effects must be a table of [effects.NAME] tables")?;
             for (name, v) in e {
@@ -221,6 +226,21 @@ impl Model {
                 let s = self.effects[e].0.params()[p];
                 Bounds { lower: s.lower, upper: s.upper, scale: s.scale }
             }
+        })
+    }
+
+    /// The magnitude a parameter is measured against: a material number's value in the model as
+    /// it was read (its scale where that was 0), an effect parameter's scale. A difference of a
+    /// simulation takes its step from the larger of this and the parameter's value: a material
+    /// number a fit has taken towards 0 (a viscosity the data barely see, walked to its bound)
+    /// is still differenced over a step that moves the model by more than particle noise.
+    pub fn unit(&self, name: &str) -> Result<f64, String> {
+        Ok(match self.locate(name)? {
+            Slot::Material(k) => match self.units.get(&k) {
+                Some(&u) => u,
+                None => self.bounds(name)?.scale,
+            },
+            Slot::Effect(e, p) => self.effects[e].0.params()[p].scale,
         })
     }
 

@@ -101,17 +101,19 @@ pub fn has_adjoint(o: &Observable) -> bool {
 pub const DIFFERENCE_STEP: f64 = 0.1;
 
 /// The relative step of the central differences that stand in for a simulation's adjoint
-/// ([`simulated`]): 3 % of the parameter (of its scale where it is 0, an effect at its null). A
+/// ([`simulated`]): 3 % of the parameter, or of its unit where that is larger ([`smooth_step`]). A
 /// print's section is sampled by particles, so it is rough in the parameters below about 1 %:
 /// on the print campaign's line, differences at 0.1 % and 0.03 % scatter by factors of several
 /// and change sign, while those at 1, 3 and 10 % agree with each other and with the adjoint (test
 /// `differences_stand_in_for_the_adjoint_on_a_print_line`).
 pub const DIFFERENCE_STEP_SMOOTH: f64 = 0.03;
 
-/// [`DIFFERENCE_STEP_SMOOTH`] of `name`'s value, or of its scale where it is 0.
+/// [`DIFFERENCE_STEP_SMOOTH`] of `name`'s value, or of its unit ([`Model::unit`]) where that is
+/// larger: 3 % of a viscosity fitted to 1e-5 Pa s moves the model by less than its particle
+/// noise, and a difference over it is that noise over a tiny step, a column 10^4 times the
+/// others that a Gauss-Newton step follows and the model then refuses.
 fn smooth_step(model: &Model, name: &str) -> Result<f64, String> {
-    let p = model.get(name)?;
-    Ok(DIFFERENCE_STEP_SMOOTH * if p != 0.0 { p.abs() } else { model.bounds(name)?.scale })
+    Ok(DIFFERENCE_STEP_SMOOTH * model.get(name)?.abs().max(model.unit(name)?))
 }
 
 /// What one experiment's adjoint costs, in forward runs of it: a share every observation's
@@ -389,6 +391,23 @@ mod tests {
 
     const MODEL: &str = "[material]\nkind = \"bingham\"\ndensity = 2100.0\nbulk_modulus = 1e6\nviscosity = 7.5\nyield_stress = 630.0\n[effects.ageing]\nrate = 0.0\n";
     const EXPS: &str = "[[experiment]]\nid = \"flow\"\nobserve = [\"stress@20\", \"stress@5\"]\n[experiment.protocol]\n[[experiment.protocol.phase]]\nkind = \"sweep\"\nrates = [20.0, 5.0]\nhold = 0.5\n";
+
+    /// A simulation's difference steps 3 % of the parameter, or of its unit where the parameter
+    /// has gone under it: the value the model was read with for a material number, the scale
+    /// for an effect's.
+    #[test]
+    fn a_parameter_fitted_towards_0_is_differenced_over_its_unit() {
+        let mut m = Model::from_table(&MODEL.parse().unwrap()).unwrap();
+        assert_eq!(smooth_step(&m, "material.viscosity").unwrap(), 0.03 * 7.5);
+        m.set("material.viscosity", 1e-5).unwrap();
+        assert_eq!(smooth_step(&m, "material.viscosity").unwrap(), 0.03 * 7.5);
+        m.set("material.viscosity", 30.0).unwrap();
+        assert_eq!(smooth_step(&m, "material.viscosity").unwrap(), 0.03 * 30.0);
+        let scale = m.bounds("ageing.rate").unwrap().scale;
+        assert_eq!(smooth_step(&m, "ageing.rate").unwrap(), 0.03 * scale);
+        m.set("ageing.rate", 1e-3 * scale).unwrap();
+        assert_eq!(smooth_step(&m, "ageing.rate").unwrap(), 0.03 * scale);
+    }
 
     /// The differenced Jacobian is the adjoint's where the observable is linear in the
     /// parameters (a Bingham flow curve: tau0 + eta rate); a parameter that leaves the
