@@ -41,6 +41,7 @@ use crate::print::toolpath::{MoveKind, Toolpath};
 use crate::observe::CrossSection;
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
+use crate::invalid::Invalid;
 
 /// The `[observe] failure` table.
 #[derive(Clone, Debug, Deserialize)]
@@ -77,25 +78,25 @@ fn default_window() -> f64 {
 }
 
 impl FailureConfig {
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), Invalid> {
         if let Some(r) = self.sink_rate {
             if !(r > 0.0 && r.is_finite()) {
-                return Err(format!("observe.failure.sink_rate must be > 0 m/s, got {r}"));
+                return Err(Invalid(format!("observe.failure.sink_rate must be > 0 m/s, got {r}")));
             }
         }
         for (name, v) in [("lost", self.lost), ("spread", self.spread)] {
             if let Some(l) = v {
                 if !(l > 0.0 && l.is_finite()) {
-                    return Err(format!("observe.failure.{name} must be > 0 m, got {l}"));
+                    return Err(Invalid(format!("observe.failure.{name} must be > 0 m, got {l}")));
                 }
             }
         }
         if !(self.window > 0.0 && self.window.is_finite()) {
-            return Err(format!("observe.failure.window must be > 0 s, got {}", self.window));
+            return Err(Invalid(format!("observe.failure.window must be > 0 s, got {}", self.window)));
         }
         if let Some(s) = self.stop_after {
             if !(s >= 0.0 && s.is_finite()) {
-                return Err(format!("observe.failure.stop_after must be >= 0 s, got {s}"));
+                return Err(Invalid(format!("observe.failure.stop_after must be >= 0 s, got {s}")));
             }
         }
         Ok(())
@@ -279,9 +280,9 @@ impl Spreading {
 pub const OBSERVABLES: &[&str] = &["failure_layer", "failure_time"];
 
 /// Whether `name@at` is a failure observable written as one: none takes a coordinate.
-pub fn check_observable(name: &str, at: Option<f64>) -> Result<(), String> {
+pub fn check_observable(name: &str, at: Option<f64>) -> Result<(), Invalid> {
     match at {
-        Some(_) => Err(format!("'{name}' takes no '@' (the print's failure is the first at any station)")),
+        Some(_) => Err(Invalid(format!("'{name}' takes no '@' (the print's failure is the first at any station)"))),
         None => Ok(()),
     }
 }
@@ -290,13 +291,13 @@ pub fn check_observable(name: &str, at: Option<f64>) -> Result<(), String> {
 /// print of `layers` layers that stands to its end `end` counts as failing after its last layer
 /// (`failure_layer` = layers + 1, `failure_time` = end), so a model under which it stands is
 /// still compared, with the smallest miss it can have.
-pub fn observable(name: &str, failure: Option<&Failure>, layers: usize, end: f64) -> Result<f64, String> {
+pub fn observable(name: &str, failure: Option<&Failure>, layers: usize, end: f64) -> Result<f64, Invalid> {
     match (name, failure) {
         ("failure_layer", Some(f)) => Ok(f.layer as f64),
         ("failure_layer", None) => Ok(layers as f64 + 1.0),
         ("failure_time", Some(f)) => Ok(f.time),
         ("failure_time", None) => Ok(end),
-        (other, _) => Err(format!("'{other}' is not a failure observable ({})", OBSERVABLES.join(", "))),
+        (other, _) => Err(Invalid(format!("'{other}' is not a failure observable ({})", OBSERVABLES.join(", ")))),
     }
 }
 
@@ -439,10 +440,10 @@ mod tests {
     fn one_layer_has_no_detector_and_bad_config_is_refused() {
         assert!(Detector::new(&FailureConfig::default(), wall(1), 0.005).is_none());
         let bad = FailureConfig { window: 0.0, ..FailureConfig::default() };
-        assert!(bad.validate().unwrap_err().contains("window"));
+        assert!(bad.validate().unwrap_err().0.contains("window"));
         let bad = FailureConfig { sink_rate: Some(-1.0), ..FailureConfig::default() };
-        assert!(bad.validate().unwrap_err().contains("sink_rate"));
+        assert!(bad.validate().unwrap_err().0.contains("sink_rate"));
         let bad = FailureConfig { spread: Some(0.0), ..FailureConfig::default() };
-        assert!(bad.validate().unwrap_err().contains("spread"));
+        assert!(bad.validate().unwrap_err().0.contains("spread"));
     }
 }

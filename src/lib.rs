@@ -18,6 +18,7 @@ pub mod disk;
 pub mod failure;
 pub mod grad;
 pub mod grid;
+pub mod invalid;
 pub mod materials;
 pub mod measure;
 pub mod memory;

@@ -672,6 +672,18 @@ impl From<String> for Failure {
     }
 }
 
+/// The library's typed errors, as a command's failure with their message and exit status 2.
+macro_rules! failure_from {
+    ($($t:ty),* $(,)?) => {$(
+        impl From<$t> for Failure {
+            fn from(e: $t) -> Self {
+                Failure { message: e.to_string(), code: 2 }
+            }
+        }
+    )*};
+}
+failure_from!(strand::checkpoint::NoCheckpoints, strand::invalid::Invalid);
+
 /// Exit status 0 when the command succeeded, 1 when it ran but found a failure (a bad checkpoint,
 /// a failed verification case), else the failure's.
 fn main() -> ExitCode {

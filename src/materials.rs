@@ -6,8 +6,9 @@ use crate::kernels::material::{
     papanastasiou_roussel::PapanastasiouRoussel, Material,
 };
 use serde::de::DeserializeOwned;
+use crate::invalid::Invalid;
 
-type Builder = fn(toml::Table) -> Result<Box<dyn Material>, String>;
+type Builder = fn(toml::Table) -> Result<Box<dyn Material>, Invalid>;
 
 pub const REGISTRY: &[(&str, Builder)] = &[
     ("newtonian", |t| build::<Newtonian>(t, Newtonian::validate)),
@@ -20,24 +21,24 @@ pub const REGISTRY: &[(&str, Builder)] = &[
 fn build<M: Material + DeserializeOwned + 'static>(
     t: toml::Table,
     validate: fn(&M) -> Result<(), String>,
-) -> Result<Box<dyn Material>, String> {
-    let m: M = t.try_into().map_err(|e: toml::de::Error| format!("material: {}", e.message()))?;
-    validate(&m)?;
+) -> Result<Box<dyn Material>, Invalid> {
+    let m: M = t.try_into().map_err(|e: toml::de::Error| Invalid(format!("material: {}", e.message())))?;
+    validate(&m).map_err(Invalid)?;
     Ok(Box::new(m))
 }
 
 /// Build the material a scenario's `[material]` table describes.
-pub fn build_material(table: &toml::Table) -> Result<Box<dyn Material>, String> {
+pub fn build_material(table: &toml::Table) -> Result<Box<dyn Material>, Invalid> {
     let mut t = table.clone();
     let kind = match t.remove("kind") {
         Some(toml::Value::String(k)) => k,
-        _ => return Err("material.kind must be a string naming the model".into()),
+        _ => return Err(Invalid("material.kind must be a string naming the model".into())),
     };
     match REGISTRY.iter().find(|(name, _)| *name == kind) {
         Some((_, b)) => b(t),
         None => {
             let names: Vec<&str> = REGISTRY.iter().map(|r| r.0).collect();
-            Err(format!("material.kind '{kind}' is unknown; known: {}", names.join(", ")))
+            Err(Invalid(format!("material.kind '{kind}' is unknown; known: {}", names.join(", "))))
         }
     }
 }

@@ -6,6 +6,7 @@ use crate::kernels::boundary::WallKind;
 use crate::memory::parse_size;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
+use crate::invalid::Invalid;
 
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -297,7 +298,7 @@ pub enum ScenarioError {
     #[error("scenario {path}: {message}")]
     Parse { path: PathBuf, message: String },
     #[error("scenario: {0}")]
-    Invalid(String),
+    Invalid(#[from] Invalid),
 }
 
 impl Scenario {
@@ -341,31 +342,31 @@ impl Scenario {
 
     /// Value checks serde cannot express; each message names the key.
     pub fn validate(&self) -> Result<(), ScenarioError> {
-        let bad = |m: String| Err(ScenarioError::Invalid(m));
-        check_simulation(&self.simulation).map_err(ScenarioError::Invalid)?;
-        check_domain(&self.domain, self.simulation.dx).map_err(ScenarioError::Invalid)?;
-        check_boundary(&self.boundary).map_err(ScenarioError::Invalid)?;
+        let bad = |m: String| Err(ScenarioError::Invalid(Invalid(m)));
+        check_simulation(&self.simulation)?;
+        check_domain(&self.domain, self.simulation.dx)?;
+        check_boundary(&self.boundary)?;
         for (i, b) in self.bodies.iter().enumerate() {
-            check_body(i, b, &self.domain).map_err(ScenarioError::Invalid)?;
+            check_body(i, b, &self.domain)?;
         }
         if !(self.output.interval > 0.0) {
             return bad(format!("output.interval must be > 0, got {}", self.output.interval));
         }
-        parse_size(&self.memory.budget).map_err(|e| ScenarioError::Invalid(format!("memory.budget: {e}")))?;
+        parse_size(&self.memory.budget).map_err(|e| ScenarioError::Invalid(Invalid(format!("memory.budget: {e}"))))?;
         if let Some(b) = &self.output.disk_budget {
-            parse_size(b).map_err(|e| ScenarioError::Invalid(format!("output.disk_budget: {e}")))?;
+            parse_size(b).map_err(|e| ScenarioError::Invalid(Invalid(format!("output.disk_budget: {e}"))))?;
         }
-        self.checkpoint.validate().map_err(ScenarioError::Invalid)?;
+        self.checkpoint.validate()?;
         if let Some(p) = &self.print {
-            p.validate().map_err(ScenarioError::Invalid)?;
+            p.validate()?;
         }
         // solids hook (issue 30)
-        crate::solid::validate(&self.solids, self.print.is_some()).map_err(ScenarioError::Invalid)?;
+        crate::solid::validate(&self.solids, self.print.is_some())?;
         if let Some(z) = &self.sleep {
-            z.validate().map_err(ScenarioError::Invalid)?;
+            z.validate()?;
         }
         if let Some(o) = &self.observe {
-            o.validate().map_err(ScenarioError::Invalid)?;
+            o.validate()?;
         }
         if !self.material.contains_key("kind") {
             return bad("material.kind is missing (one of: newtonian, bingham, papanastasiou_roussel, evp_bingham, drucker_prager)".into());
@@ -375,70 +376,70 @@ impl Scenario {
 }
 
 /// `[simulation]`'s values: a positive cell, a finite end, a step the run can plan.
-fn check_simulation(s: &Simulation) -> Result<(), String> {
+fn check_simulation(s: &Simulation) -> Result<(), Invalid> {
     if !(s.dx > 0.0 && s.dx.is_finite()) {
-        return Err(format!("simulation.dx must be a positive length, got {}", s.dx));
+        return Err(Invalid(format!("simulation.dx must be a positive length, got {}", s.dx)));
     }
     if !s.end_time.is_finite() {
-        return Err(format!("simulation.end_time must be a finite time, got {}", s.end_time));
+        return Err(Invalid(format!("simulation.end_time must be a finite time, got {}", s.end_time)));
     }
     if !(s.end_time >= 0.0) {
-        return Err(format!("simulation.end_time must be >= 0, got {}", s.end_time));
+        return Err(Invalid(format!("simulation.end_time must be >= 0, got {}", s.end_time)));
     }
     if let Some(dt) = s.dt {
         if !(dt > 0.0 && dt.is_finite()) {
-            return Err(format!("simulation.dt must be > 0, got {dt}"));
+            return Err(Invalid(format!("simulation.dt must be > 0, got {dt}")));
         }
         let steps = s.end_time / dt;
         if steps > MAX_STEPS {
-            return Err(format!("simulation.dt = {dt:e} s takes {steps:.3e} steps to end_time = {} s, more than the {MAX_STEPS:e} a run may plan", s.end_time));
+            return Err(Invalid(format!("simulation.dt = {dt:e} s takes {steps:.3e} steps to end_time = {} s, more than the {MAX_STEPS:e} a run may plan", s.end_time)));
         }
     }
     if let Some(m) = s.max_dt {
         if !(m > 0.0 && m.is_finite()) {
-            return Err(format!("simulation.max_dt must be > 0, got {m}"));
+            return Err(Invalid(format!("simulation.max_dt must be > 0, got {m}")));
         }
     }
     if !(s.cfl > 0.0 && s.cfl <= 1.0) {
-        return Err(format!("simulation.cfl must be in (0, 1], got {}", s.cfl));
+        return Err(Invalid(format!("simulation.cfl must be in (0, 1], got {}", s.cfl)));
     }
     if !(0.0..=1.0).contains(&s.flip) {
-        return Err(format!("simulation.flip must be in [0, 1], got {}", s.flip));
+        return Err(Invalid(format!("simulation.flip must be in [0, 1], got {}", s.flip)));
     }
     if s.reorder_interval == 0 {
-        return Err("simulation.reorder_interval must be >= 1".into());
+        return Err(Invalid("simulation.reorder_interval must be >= 1".into()));
     }
     if s.gravity.iter().chain(s.body_force.iter()).any(|g| !g.is_finite()) {
-        return Err("simulation.gravity and simulation.body_force must be finite".into());
+        return Err(Invalid("simulation.gravity and simulation.body_force must be finite".into()));
     }
     Ok(())
 }
 
 /// `[domain]`: finite, at least a cell and at most what the grid indexes on every axis; a
 /// periodic axis a whole number of blocks (one, or an even number).
-fn check_domain(d: &Domain, dx: f64) -> Result<(), String> {
+fn check_domain(d: &Domain, dx: f64) -> Result<(), Invalid> {
     for a in 0..3 {
         if !(d.min[a].is_finite() && d.max[a].is_finite()) {
-            return Err(format!("domain.min[{a}] and domain.max[{a}] must be finite, got {} and {}", d.min[a], d.max[a]));
+            return Err(Invalid(format!("domain.min[{a}] and domain.max[{a}] must be finite, got {} and {}", d.min[a], d.max[a])));
         }
         if !(d.max[a] > d.min[a]) {
-            return Err(format!("domain.max[{a}] ({}) must exceed domain.min[{a}] ({})", d.max[a], d.min[a]));
+            return Err(Invalid(format!("domain.max[{a}] ({}) must exceed domain.min[{a}] ({})", d.max[a], d.min[a])));
         }
         let cells = (d.max[a] - d.min[a]) / dx;
         if cells > MAX_CELLS_PER_AXIS {
-            return Err(format!("domain: axis {a} spans {cells:.3e} cells of dx = {dx} m, more than the {MAX_CELLS_PER_AXIS:e} the grid can index; raise simulation.dx"));
+            return Err(Invalid(format!("domain: axis {a} spans {cells:.3e} cells of dx = {dx} m, more than the {MAX_CELLS_PER_AXIS:e} the grid can index; raise simulation.dx")));
         }
         if cells < 1.0 - 1e-6 {
-            return Err(format!("domain: axis {a} spans {} m, less than one cell of simulation.dx = {dx} m", d.max[a] - d.min[a]));
+            return Err(Invalid(format!("domain: axis {a} spans {} m, less than one cell of simulation.dx = {dx} m", d.max[a] - d.min[a])));
         }
         if d.periodic[a] {
             let n = cells.round();
             if (cells - n).abs() > 1e-6 * n.max(1.0) || !(n as u64).is_multiple_of(4) {
-                return Err(format!("domain: periodic axis {a} must span a multiple of 4 cells (got {cells} cells of dx = {dx})"));
+                return Err(Invalid(format!("domain: periodic axis {a} must span a multiple of 4 cells (got {cells} cells of dx = {dx})")));
             }
             let blocks = n as u64 / 4;
             if blocks != 1 && !blocks.is_multiple_of(2) {
-                return Err(format!("domain: periodic axis {a} spans {blocks} blocks of 4 cells; it must be 1 or an even number"));
+                return Err(Invalid(format!("domain: periodic axis {a} spans {blocks} blocks of 4 cells; it must be 1 or an even number")));
             }
         }
     }
@@ -446,17 +447,17 @@ fn check_domain(d: &Domain, dx: f64) -> Result<(), String> {
 }
 
 /// `[boundary]`: friction coefficients >= 0, a platform with an area.
-fn check_boundary(b: &Boundary) -> Result<(), String> {
+fn check_boundary(b: &Boundary) -> Result<(), Invalid> {
     for (k, w) in [("x_min", b.x_min), ("x_max", b.x_max), ("y_min", b.y_min), ("y_max", b.y_max), ("z_min", b.z_min), ("z_max", b.z_max)] {
         if let WallKind::Friction { mu } = w {
             if !(mu >= 0.0 && mu.is_finite()) {
-                return Err(format!("boundary.{k}.friction.mu must be >= 0, got {mu}"));
+                return Err(Invalid(format!("boundary.{k}.friction.mu must be >= 0, got {mu}")));
             }
         }
     }
     if let Some(p) = &b.platform {
         if !(p.xy_max[0] > p.xy_min[0] && p.xy_max[1] > p.xy_min[1]) {
-            return Err("boundary.platform.xy_max must exceed xy_min".into());
+            return Err(Invalid("boundary.platform.xy_max must exceed xy_min".into()));
         }
     }
     Ok(())
@@ -464,30 +465,30 @@ fn check_boundary(b: &Boundary) -> Result<(), String> {
 
 /// `[[body]]` number `i`: a shape with a volume, finite, overlapping the domain (it may be cut by
 /// it: symmetry planes).
-fn check_body(i: usize, b: &Body, domain: &Domain) -> Result<(), String> {
+fn check_body(i: usize, b: &Body, domain: &Domain) -> Result<(), Invalid> {
     let ppc = b.particles_per_cell_axis();
     if ppc == 0 || ppc > 4 {
-        return Err(format!("body[{i}].particles_per_cell_axis must be 1..=4, got {ppc}"));
+        return Err(Invalid(format!("body[{i}].particles_per_cell_axis must be 1..=4, got {ppc}")));
     }
     let (lo, hi) = b.bounds();
     if lo.iter().chain(hi.iter()).chain(b.velocity().iter()).any(|v| !v.is_finite()) {
-        return Err(format!("body[{i}]: its position, size and velocity must be finite"));
+        return Err(Invalid(format!("body[{i}]: its position, size and velocity must be finite")));
     }
     match b {
         Body::Box { min, max, .. } => {
             if (0..3).any(|a| !(max[a] > min[a])) {
-                return Err(format!("body[{i}]: box max must exceed min on every axis"));
+                return Err(Invalid(format!("body[{i}]: box max must exceed min on every axis")));
             }
         }
         Body::Frustum { bottom_radius, top_radius, height, .. } => {
             if !(*bottom_radius > 0.0 && *top_radius >= 0.0 && *height > 0.0) {
-                return Err(format!("body[{i}]: frustum radii must be >= 0 (bottom > 0) and height > 0"));
+                return Err(Invalid(format!("body[{i}]: frustum radii must be >= 0 (bottom > 0) and height > 0")));
             }
         }
     }
     for a in 0..3 {
         if hi[a] <= domain.min[a] || lo[a] >= domain.max[a] {
-            return Err(format!("body[{i}] lies entirely outside the domain on axis {a}"));
+            return Err(Invalid(format!("body[{i}] lies entirely outside the domain on axis {a}")));
         }
     }
     Ok(())

@@ -74,11 +74,27 @@ fn flatten(prefix: &str, v: &toml::Value, out: &mut BTreeMap<String, String>) {
     }
 }
 
+/// A scenario text that is not TOML, `which` saying whose it is (the checkpoint's, or the
+/// current one).
+#[derive(Debug, thiserror::Error)]
+#[error("the {which} scenario does not parse: {source}")]
+pub struct ScenarioParseError {
+    pub which: &'static str,
+    pub source: toml::de::Error,
+}
+
+/// `strand inspect` found no checkpoint in a folder.
+#[derive(Debug, thiserror::Error)]
+#[error("no checkpoints in {}", dir.display())]
+pub struct NoCheckpoints {
+    pub dir: PathBuf,
+}
+
 /// Every key whose value differs between the scenario a checkpoint was written with and the
 /// one given now (keys that cannot change the result are left out), one line each.
-pub fn scenario_differences(then: &str, now: &str) -> Result<Vec<String>, String> {
-    let parse = |t: &str, which: &str| -> Result<BTreeMap<String, String>, String> {
-        let v: toml::Value = toml::from_str(t).map_err(|e| format!("the {which} scenario does not parse: {e}"))?;
+pub fn scenario_differences(then: &str, now: &str) -> Result<Vec<String>, ScenarioParseError> {
+    let parse = |t: &str, which: &'static str| -> Result<BTreeMap<String, String>, ScenarioParseError> {
+        let v: toml::Value = toml::from_str(t).map_err(|source| ScenarioParseError { which, source })?;
         let mut m = BTreeMap::new();
         flatten("", &v, &mut m);
         m.retain(|k, _| !FREE_KEYS.iter().any(|f| k == f || k.starts_with(&format!("{f}.")) || k.starts_with(&format!("{f}["))));
@@ -98,12 +114,12 @@ pub fn scenario_differences(then: &str, now: &str) -> Result<Vec<String>, String
 
 /// `strand inspect`: the header and a summary of a checkpoint (a file, or a run's folder for
 /// every checkpoint in it), as text or JSON, and whether every one read back intact.
-pub fn inspect(path: &Path, json: bool) -> Result<(String, bool), String> {
+pub fn inspect(path: &Path, json: bool) -> Result<(String, bool), NoCheckpoints> {
     let files: Vec<PathBuf> = if path.is_dir() {
         let d = if path.join("checkpoints").is_dir() { dir_of(path) } else { path.to_path_buf() };
         let v: Vec<PathBuf> = writer::list(&d).into_iter().map(|(_, p)| p).collect();
         if v.is_empty() {
-            return Err(format!("no checkpoints in {}", d.display()));
+            return Err(NoCheckpoints { dir: d });
         }
         v
     } else {

@@ -21,7 +21,7 @@ use crate::grid::NODES_PER_BLOCK;
 use crate::kernels::transfer::Node;
 use crate::kernels::{Real, M3, V3};
 use crate::pools::{live, with_role, Counts, Pools, Role};
-use crate::solver::{DtLimit, Simulation};
+use crate::solver::{DtLimit, SimError, Simulation};
 use std::borrow::Cow;
 use std::mem::size_of;
 
@@ -303,48 +303,67 @@ pub fn toolpath_hash(sim: &Simulation) -> u64 {
     sim.printer.as_ref().map_or(0, |p| checksum(format!("{:?}", p.toolpath.moves()).as_bytes()))
 }
 
+/// Why a checkpoint cannot be put into a simulation.
+#[derive(Debug, thiserror::Error)]
+pub enum RestoreError {
+    /// The checkpoint and the scenario (or this build of strand) differ: precision, material
+    /// state, pool size, grid, FLIP, sleeping, merging, or the arrays rebuilt from the scenario.
+    #[error("{0}")]
+    Mismatch(String),
+    #[error("section '{0}' is missing")]
+    MissingSection(String),
+    #[error("section '{name}' has {found} bytes, expected {expected}")]
+    SectionSize { name: String, found: usize, expected: usize },
+    /// The checkpoint's contents disagree with each other or with its header.
+    #[error("{0}")]
+    Inconsistent(String),
+    /// Binning the restored particles failed.
+    #[error(transparent)]
+    Sim(#[from] SimError),
+}
+
 /// Refuse a checkpoint `sim` cannot take: another precision, material state, pool size, grid,
 /// FLIP setting, sleeping or merging.
-fn check_compatible(sim: &Simulation, ck: &Checkpoint) -> Result<(), String> {
+fn check_compatible(sim: &Simulation, ck: &Checkpoint) -> Result<(), RestoreError> {
     let h = &ck.header;
     let precision = crate::kernels::real::NAME;
     if h.precision != precision {
-        return Err(format!("the checkpoint holds {} reals, this strand is built for {precision}", h.precision));
+        return Err(RestoreError::Mismatch(format!("the checkpoint holds {} reals, this strand is built for {precision}", h.precision)));
     }
     let sl = sim.particles.state_len;
     if h.state_len as usize != sl {
-        return Err(format!(
+        return Err(RestoreError::Mismatch(format!(
             "the checkpoint's material keeps {} state values per particle, the scenario's keeps {sl}",
             h.state_len
-        ));
+        )));
     }
     if h.particles as usize > sim.particles.capacity() {
-        return Err(format!(
+        return Err(RestoreError::Mismatch(format!(
             "the checkpoint holds {} particles, the pool has room for {} ([memory] max_particles)",
             h.particles,
             sim.particles.capacity()
-        ));
+        )));
     }
     if h.table_len as usize != sim.grid.geom.table_len() {
-        return Err(format!(
+        return Err(RestoreError::Mismatch(format!(
             "the checkpoint's grid has {} blocks, the scenario's {} (domain or dx changed)",
             h.table_len,
             sim.grid.geom.table_len()
-        ));
+        )));
     }
     let flip = sim.scenario.simulation.flip > 0.0;
     if flip != ck.section("particles.v_awake").is_some() {
-        return Err(format!(
+        return Err(RestoreError::Mismatch(format!(
             "the checkpoint was written {} FLIP, the scenario runs {} it (simulation.flip)",
             if flip { "without" } else { "with" },
             if flip { "with" } else { "without" }
-        ));
+        )));
     }
     if sim.sleep.is_some() != ck.section("sleep.state_at").is_some() {
-        return Err("the checkpoint and the scenario differ in sleeping ([sleep])".into());
+        return Err(RestoreError::Mismatch("the checkpoint and the scenario differ in sleeping ([sleep])".into()));
     }
     if coarsens(sim) != ck.section("particles.next_id").is_some() {
-        return Err("the checkpoint and the scenario differ in merging sleeping particles ([sleep] coarsen)".into());
+        return Err(RestoreError::Mismatch("the checkpoint and the scenario differ in merging sleeping particles ([sleep] coarsen)".into()));
     }
     Ok(())
 }
@@ -353,38 +372,78 @@ fn check_compatible(sim: &Simulation, ck: &Checkpoint) -> Result<(), String> {
 /// in the middle of the step the checkpoint was taken in: the caller finishes that step with
 /// `Simulation::finish_step` and the returned step length (and records its bound). Fails,
 /// naming the mismatch, when the pools, the grid or the rebuilt arrays do not fit.
-pub fn restore(sim: &mut Simulation, ck: &Checkpoint) -> Result<(f64, DtLimit), String> {
+pub fn restore(sim: &mut Simulation, ck: &Checkpoint) -> Result<(f64, DtLimit), RestoreError> {
     let h = &ck.header;
     check_compatible(sim, ck)?;
-    let flip = sim.scenario.simulation.flip > 0.0;
-    let limit = DtLimit::from_name(&h.dt_limit).ok_or_else(|| format!("unknown time-step bound '{}'", h.dt_limit))?;
+    let limit = DtLimit::from_name(&h.dt_limit).ok_or_else(|| RestoreError::Inconsistent(format!("unknown time-step bound '{}'", h.dt_limit)))?;
     let n = h.particles as usize;
     let asleep = h.asleep as usize;
     if asleep > n {
-        return Err(format!("the checkpoint has {asleep} particles asleep of {n}"));
+        return Err(RestoreError::Inconsistent(format!("the checkpoint has {asleep} particles asleep of {n}")));
     }
     let at = Counts { particles: n, blocks: h.active_blocks as usize, particle_blocks: h.particle_blocks as usize };
-    let put = |dst: &mut [u8], name: &str| -> Result<(), String> {
+    let masses = MassSource::of(sim);
+    restore_particles(sim, ck, &at, asleep, &masses)?;
+    sim.step = h.step;
+    sim.time = h.time;
+    restart_printer(sim, h);
+    // every particle: the rebuilt masses of a sleeping slab's particles are full ones
+    sim.newest_masses(0);
+    check_rebuilt(sim, h)?;
+    restore_sleep(sim, ck)?;
+    restore_grid(sim, ck, &at)?;
+    Ok((h.dt, limit))
+}
+
+/// Where a particle's mass and initial volume come from when the checkpoint does not store
+/// them: the fresh simulation holds the bodies' particles, ids 0..fresh, with the masses and
+/// volumes the run gave them (runs of equal values, one per body); ids from `fresh` on were
+/// printed, each with the nozzle's particle.
+struct MassSource {
+    fresh: usize,
+    /// (first particle, mass, initial volume) of each run of equal values.
+    bodies: Vec<(usize, Real, Real)>,
+    printed: Option<(Real, Real)>,
+}
+
+impl MassSource {
+    fn of(sim: &Simulation) -> MassSource {
+        let fresh = sim.particles.n;
+        let mut bodies: Vec<(usize, Real, Real)> = Vec::new();
+        for i in 0..fresh {
+            let (m, v) = (sim.particles.mass.as_slice()[i], sim.particles.vol0.as_slice()[i]);
+            if bodies.last().is_none_or(|&(_, bm, bv)| bm.to_bits() != m.to_bits() || bv.to_bits() != v.to_bits()) {
+                bodies.push((i, m, v));
+            }
+        }
+        let rho = sim.material.density() as f64;
+        let printed = sim.printer.as_ref().map(|pr| ((rho * pr.particle_volume) as Real, pr.particle_volume as Real));
+        MassSource { fresh, bodies, printed }
+    }
+
+    /// The mass and initial volume of the particle with id `id`.
+    fn of_id(&self, id: usize) -> Result<(Real, Real), RestoreError> {
+        if id < self.fresh {
+            let k = self.bodies.partition_point(|b| b.0 <= id) - 1;
+            return Ok((self.bodies[k].1, self.bodies[k].2));
+        }
+        let fresh = self.fresh;
+        self.printed.ok_or_else(|| RestoreError::Inconsistent(format!("particle id {id} was not created by the scenario's bodies ({fresh} particles) and it does not print")))
+    }
+}
+
+/// The particle pools: the stored arrays, the awake velocities under FLIP, and the ids, masses
+/// and volumes (stored when merging, else rebuilt from the ids); C and the stress at rest.
+fn restore_particles(sim: &mut Simulation, ck: &Checkpoint, at: &Counts, asleep: usize, masses: &MassSource) -> Result<(), RestoreError> {
+    let put = |dst: &mut [u8], name: &str| -> Result<(), RestoreError> {
         dst.copy_from_slice(section(ck, name, dst.len())?);
         Ok(())
     };
-
-    // The fresh simulation holds the bodies' particles, ids 0..fresh, with the masses and
-    // volumes the run gave them: runs of equal values, one per body.
-    let fresh = sim.particles.n;
-    let mut bodies: Vec<(usize, Real, Real)> = Vec::new();
-    for i in 0..fresh {
-        let (m, v) = (sim.particles.mass.as_slice()[i], sim.particles.vol0.as_slice()[i]);
-        if bodies.last().is_none_or(|&(_, bm, bv)| bm.to_bits() != m.to_bits() || bv.to_bits() != v.to_bits()) {
-            bodies.push((i, m, v));
-        }
-    }
-    let rho = sim.material.density() as f64;
-    let printed = sim.printer.as_ref().map(|pr| ((rho * pr.particle_volume) as Real, pr.particle_volume as Real));
-
+    let n = at.particles;
+    let flip = sim.scenario.simulation.flip > 0.0;
     let p = &mut sim.particles;
     for d in with_role(p, always_stored) {
-        put(d.live_mut(p, &at), &d.name)?;
+        put(d.live_mut(p, at), &d.name)?;
     }
     p.v.as_mut_slice()[..n].fill(V3::ZERO);
     if flip {
@@ -394,20 +453,14 @@ pub fn restore(sim: &mut Simulation, ck: &Checkpoint) -> Result<(f64, DtLimit), 
     p.n_sleep = asleep;
     if let Some(b) = ck.section("particles.next_id") {
         for d in with_role(p, |r| r == Role::FromIds) {
-            put(d.live_mut(p, &at), &d.name)?;
+            put(d.live_mut(p, at), &d.name)?;
         }
-        p.next_id = u32::from_le_bytes(b.try_into().map_err(|_| "section 'particles.next_id' is not 4 bytes".to_string())?);
+        p.next_id = u32::from_le_bytes(b.try_into().map_err(|_| RestoreError::Inconsistent("section 'particles.next_id' is not 4 bytes".to_string()))?);
     } else {
         // without merging, ids are 0..n in some order
         p.next_id = n as u32;
         for i in 0..n {
-            let id = p.id.as_slice()[i] as usize;
-            let (m, v) = if id < fresh {
-                let k = bodies.partition_point(|b| b.0 <= id) - 1;
-                (bodies[k].1, bodies[k].2)
-            } else {
-                printed.ok_or_else(|| format!("particle id {id} was not created by the scenario's bodies ({fresh} particles) and it does not print"))?
-            };
+            let (m, v) = masses.of_id(p.id.as_slice()[i] as usize)?;
             p.mass.as_mut_slice()[i] = m;
             p.vol0.as_mut_slice()[i] = v;
         }
@@ -419,8 +472,11 @@ pub fn restore(sim: &mut Simulation, ck: &Checkpoint) -> Result<(f64, DtLimit), 
     for i in 0..asleep {
         crate::sleep::put_at_rest(p, i, &*sim.material);
     }
-    sim.step = h.step;
-    sim.time = h.time;
+    Ok(())
+}
+
+/// Start the printer's emitter where the checkpoint left off.
+fn restart_printer(sim: &mut Simulation, h: &Header) {
     if let Some(pr) = &mut sim.printer {
         let queue = sim.scenario.print.as_ref().map_or(64, |c| c.queue);
         // stop the emitter started at slab 0 before starting one where the checkpoint left off
@@ -429,52 +485,59 @@ pub fn restore(sim: &mut Simulation, ck: &Checkpoint) -> Result<(f64, DtLimit), 
         // this step's emission already happened: only the newest slab's fraction matters
         crate::solver::note_newest(pr, h.time, sim.particles.next_id, h.emitted_slabs, sim.particles.next_id);
     }
-    // every particle: the rebuilt masses of a sleeping slab's particles are full ones
-    sim.newest_masses(0);
+}
+
+/// Refuse rebuilt masses or volumes that differ from the run's (their checksums in `h`).
+fn check_rebuilt(sim: &Simulation, h: &Header) -> Result<(), RestoreError> {
+    let n = h.particles as usize;
     for (what, arr, want) in
         [("masses", &sim.particles.mass, h.mass_xxh3), ("initial volumes", &sim.particles.vol0, h.vol0_xxh3)]
     {
         if checksum(bytes(&arr.as_slice()[..n])) != want {
-            return Err(format!(
+            return Err(RestoreError::Mismatch(format!(
                 "the particle {what} rebuilt from the scenario differ from the run's (its bodies or print changed?)"
-            ));
+            )));
         }
     }
+    Ok(())
+}
 
-    if let Some(sleep) = &mut sim.sleep {
-        let loads = sleep.tests_loads();
-        if loads && ck.section("sleep.load_at").is_none() {
-            // forced on a scenario that turned the load test on: its sleeping units have no
-            // margins to test loads against
-            return Err("the checkpoint holds no sleep load tables (written without sleep.wake_by_load)".into());
-        }
-        for d in with_role(sleep, |r| r == Role::Sparse) {
-            let pool = d.of_mut(sleep);
-            let size = pool.elem_bytes();
-            scatter(pool.bytes_mut(), size, ck, &format!("{}_at", d.name), &d.name)?;
-        }
-        sleep.restored()?;
-        if sleep.sleeping_units != h.sleeping_units as usize {
-            return Err(format!("the sleep table holds {} sleeping units, the header {}", sleep.sleeping_units, h.sleeping_units));
-        }
+/// The sleeping tables (when the scenario sleeps), scattered back from their sparse sections, and the counts rebuilt
+/// from them checked against the header.
+fn restore_sleep(sim: &mut Simulation, ck: &Checkpoint) -> Result<(), RestoreError> {
+    let h = &ck.header;
+    let Some(sleep) = &mut sim.sleep else { return Ok(()) };
+    let loads = sleep.tests_loads();
+    if loads && ck.section("sleep.load_at").is_none() {
+        // forced on a scenario that turned the load test on: its sleeping units have no
+        // margins to test loads against
+        return Err(RestoreError::Inconsistent("the checkpoint holds no sleep load tables (written without sleep.wake_by_load)".into()));
     }
-    restore_grid(sim, ck, &at)?;
-    Ok((h.dt, limit))
+    for d in with_role(sleep, |r| r == Role::Sparse) {
+        let pool = d.of_mut(sleep);
+        let size = pool.elem_bytes();
+        scatter(pool.bytes_mut(), size, ck, &format!("{}_at", d.name), &d.name)?;
+    }
+    sleep.restored().map_err(RestoreError::Inconsistent)?;
+    if sleep.sleeping_units != h.sleeping_units as usize {
+        return Err(RestoreError::Inconsistent(format!("the sleep table holds {} sleeping units, the header {}", sleep.sleeping_units, h.sleeping_units)));
+    }
+    Ok(())
 }
 
 /// Bin the restored particles, check that they give the checkpoint's grid blocks (`at`), and
 /// put the stored node velocities back.
-fn restore_grid(sim: &mut Simulation, ck: &Checkpoint, at: &Counts) -> Result<(), String> {
+fn restore_grid(sim: &mut Simulation, ck: &Checkpoint, at: &Counts) -> Result<(), RestoreError> {
     let get = |name: &str, len: usize| section(ck, name, len);
-    sim.bin_particles().map_err(|e| e.to_string())?;
+    sim.bin_particles()?;
     let (now, grid) = (counts_now(sim), &sim.grid);
     let differ = "binning the restored particles does not give the checkpoint's grid blocks";
     if now.blocks != at.blocks || now.particle_blocks != at.particle_blocks {
-        return Err(differ.into());
+        return Err(RestoreError::Inconsistent(differ.into()));
     }
     for d in with_role(grid, |r| r == Role::Stored) {
         if get(&d.name, d.bytes_for(grid, at))? != d.live(grid, &now) {
-            return Err(differ.into());
+            return Err(RestoreError::Inconsistent(differ.into()));
         }
     }
     let na = now.blocks;
@@ -502,26 +565,31 @@ fn restore_grid(sim: &mut Simulation, ck: &Checkpoint, at: &Counts) -> Result<()
 }
 
 /// Section `name` of `ck`, which must hold `len` bytes.
-fn section<'a>(ck: &'a Checkpoint, name: &str, len: usize) -> Result<&'a [u8], String> {
-    let b = ck.section(name).ok_or_else(|| format!("section '{name}' is missing"))?;
+fn section<'a>(ck: &'a Checkpoint, name: &str, len: usize) -> Result<&'a [u8], RestoreError> {
+    let b = present(ck, name)?;
     if b.len() != len {
-        return Err(format!("section '{name}' has {} bytes, expected {len}", b.len()));
+        return Err(RestoreError::SectionSize { name: name.into(), found: b.len(), expected: len });
     }
     Ok(b)
 }
 
+/// Section `name` of `ck`, of any length.
+fn present<'a>(ck: &'a Checkpoint, name: &str) -> Result<&'a [u8], RestoreError> {
+    ck.section(name).ok_or_else(|| RestoreError::MissingSection(name.into()))
+}
+
 /// Put a table saved by [`sparse`] back: zero, then its nonzero elements at their indices.
-fn scatter(table: &mut [u8], size: usize, ck: &Checkpoint, name_at: &str, name: &str) -> Result<(), String> {
-    let at = ck.section(name_at).ok_or_else(|| format!("section '{name_at}' is missing"))?;
-    let values = ck.section(name).ok_or_else(|| format!("section '{name}' is missing"))?;
+fn scatter(table: &mut [u8], size: usize, ck: &Checkpoint, name_at: &str, name: &str) -> Result<(), RestoreError> {
+    let at = present(ck, name_at)?;
+    let values = present(ck, name)?;
     if at.len() % 4 != 0 || values.len() != at.len() / 4 * size {
-        return Err(format!("sections '{name_at}' and '{name}' do not match ({} and {} bytes)", at.len(), values.len()));
+        return Err(RestoreError::Inconsistent(format!("sections '{name_at}' and '{name}' do not match ({} and {} bytes)", at.len(), values.len())));
     }
     table.fill(0);
     let bytes = table;
     for (i, v) in at.chunks_exact(4).zip(values.chunks_exact(size)) {
         let i = u32::from_le_bytes(i.try_into().expect("4 bytes")) as usize;
-        let dst = bytes.get_mut(i * size..(i + 1) * size).ok_or_else(|| format!("section '{name_at}': index {i} outside the table"))?;
+        let dst = bytes.get_mut(i * size..(i + 1) * size).ok_or_else(|| RestoreError::Inconsistent(format!("section '{name_at}': index {i} outside the table")))?;
         dst.copy_from_slice(v);
     }
     Ok(())

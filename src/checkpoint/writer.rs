@@ -69,6 +69,16 @@ impl Staged {
     }
 }
 
+/// Why a checkpoint could not be queued.
+#[derive(Debug, thiserror::Error)]
+pub enum WriterError {
+    /// The writer thread has ended (after a panic).
+    #[error("the checkpoint writer has stopped")]
+    Stopped,
+    #[error("checkpoint staging holds {have} bytes, the state needs {need}")]
+    StagingTooSmall { have: usize, need: usize },
+}
+
 pub struct CheckpointWriter(Writer<Pool<u8>, Header, Event>);
 
 impl CheckpointWriter {
@@ -91,21 +101,21 @@ impl CheckpointWriter {
     /// Copy `sections` into the staging buffer (waiting for the previous checkpoint to be
     /// written if it is not yet) and queue the checkpoint. `header` is complete but for the
     /// sections, their checksums and the state hash, which the writer fills in.
-    pub fn submit(&mut self, header: Header, sections: &[Part]) -> Result<(), String> {
+    pub fn submit(&mut self, header: Header, sections: &[Part]) -> Result<(), WriterError> {
         let staged = self.stage(header, sections)?;
         self.submit_staged(staged)
     }
 
     /// Copy `sections` into the staging buffer (waiting for it as `submit` does) without
     /// queueing them.
-    pub fn stage(&mut self, mut header: Header, sections: &[Part]) -> Result<Staged, String> {
-        let mut staging = self.0.buffer().ok_or("the checkpoint writer has stopped")?;
+    pub fn stage(&mut self, mut header: Header, sections: &[Part]) -> Result<Staged, WriterError> {
+        let mut staging = self.0.buffer().ok_or(WriterError::Stopped)?;
         let lay = layout(sections.iter().map(|p| (p.name.as_str(), p.len)));
         let need = lay.last().map_or(0, |(_, o, b)| (o + b) as usize);
         if need > staging.len() {
             let have = staging.len();
             self.0.give_back(staging);
-            return Err(format!("checkpoint staging holds {have} bytes, the state needs {need}"));
+            return Err(WriterError::StagingTooSmall { have, need });
         }
         let buf = staging.as_mut_slice();
         for ((_, off, len), part) in lay.iter().zip(sections) {
@@ -116,9 +126,9 @@ impl CheckpointWriter {
     }
 
     /// Queue a staged checkpoint for writing.
-    pub fn submit_staged(&mut self, staged: Staged) -> Result<(), String> {
+    pub fn submit_staged(&mut self, staged: Staged) -> Result<(), WriterError> {
         if !self.0.submit(staged.staging, staged.header) {
-            return Err("the checkpoint writer has stopped".to_string());
+            return Err(WriterError::Stopped);
         }
         Ok(())
     }

@@ -1,6 +1,7 @@
 //! The `[checkpoint]` table.
 
 use serde::Deserialize;
+use crate::invalid::Invalid;
 
 /// `[checkpoint]`: when checkpoints are written and how many are kept.
 #[derive(Clone, Debug, Deserialize)]
@@ -39,15 +40,15 @@ impl Default for CheckpointConfig {
 }
 
 impl CheckpointConfig {
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), Invalid> {
         if !(self.wall_interval > 0.0) {
-            return Err(format!("checkpoint.wall_interval must be > 0 seconds, got {}", self.wall_interval));
+            return Err(Invalid(format!("checkpoint.wall_interval must be > 0 seconds, got {}", self.wall_interval)));
         }
         if self.step_interval == Some(0) {
-            return Err("checkpoint.step_interval must be >= 1".into());
+            return Err(Invalid("checkpoint.step_interval must be >= 1".into()));
         }
         if self.keep == 0 {
-            return Err("checkpoint.keep must be >= 1".into());
+            return Err(Invalid("checkpoint.keep must be >= 1".into()));
         }
         Ok(())
     }

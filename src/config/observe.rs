@@ -3,6 +3,7 @@
 use crate::failure::FailureConfig;
 use serde::Deserialize;
 use std::path::PathBuf;
+use crate::invalid::Invalid;
 
 /// The `[observe]` table.
 #[derive(Clone, Debug, Deserialize)]
@@ -34,13 +35,13 @@ pub struct ObserveConfig {
 }
 
 impl ObserveConfig {
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), Invalid> {
         if self.stations.iter().any(|x| !x.is_finite()) {
-            return Err("observe.stations must be finite x positions".into());
+            return Err(Invalid("observe.stations must be finite x positions".into()));
         }
         if let Some(s) = self.slab {
             if !(s > 0.0 && s.is_finite()) {
-                return Err(format!("observe.slab must be > 0, got {s}"));
+                return Err(Invalid(format!("observe.slab must be > 0, got {s}")));
             }
         }
         self.failure.validate()

@@ -1,6 +1,7 @@
 //! The `[sleep]` table: when material at rest sleeps and what wakes it (`sleep.rs` has the rules).
 
 use serde::Deserialize;
+use crate::invalid::Invalid;
 
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -124,7 +125,7 @@ fn default_load_floor() -> f64 {
 }
 
 impl SleepConfig {
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), Invalid> {
         for (k, v) in [
             ("sleep.speed", self.speed),
             ("sleep.strain_rate", self.strain_rate),
@@ -135,26 +136,26 @@ impl SleepConfig {
             ("sleep.load_floor", self.load_floor),
         ] {
             if !(v >= 0.0 && v.is_finite()) {
-                return Err(format!("{k} must be >= 0, got {v}"));
+                return Err(Invalid(format!("{k} must be >= 0, got {v}")));
             }
         }
         if !(self.arrive_speed >= self.wake_speed) {
-            return Err(format!(
+            return Err(Invalid(format!(
                 "sleep.arrive_speed must be >= sleep.wake_speed ({}) (inf: material above wakes by its load alone), got {}",
                 self.wake_speed, self.arrive_speed
-            ));
+            )));
         }
         if !(self.load_fraction > 0.0 && self.load_fraction <= 1.0) {
-            return Err(format!("sleep.load_fraction must be in (0, 1], got {}", self.load_fraction));
+            return Err(Invalid(format!("sleep.load_fraction must be in (0, 1], got {}", self.load_fraction)));
         }
         if self.wake_speed < self.speed {
-            return Err(format!(
+            return Err(Invalid(format!(
                 "sleep.wake_speed ({}) must be >= sleep.speed ({}), or blocks would wake at rest",
                 self.wake_speed, self.speed
-            ));
+            )));
         }
         if self.check_interval == 0 {
-            return Err("sleep.check_interval must be >= 1".into());
+            return Err(Invalid("sleep.check_interval must be >= 1".into()));
         }
         Ok(())
     }

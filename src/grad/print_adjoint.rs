@@ -84,7 +84,7 @@ impl PrintParams {
         for (key, value) in keys {
             let h = REL_STEP * value.abs().max(1e-3);
             let plan = |v: f64| -> Result<EmissionPlan, String> {
-                let tp = set(cfg, key, v)?.toolpath(&sc.base_dir)?;
+                let tp = set(cfg, key, v)?.toolpath(&sc.base_dir).map_err(|e| e.to_string())?;
                 Ok(EmissionPlan { toolpath: Arc::new(tp), ..base.clone() })
             };
             items.push(Item { h, plus: plan(value + h)?, minus: plan(value - h)?, bar: 0.0 });

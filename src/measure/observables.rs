@@ -24,7 +24,7 @@ pub const RHEOMETER_OBSERVABLES: &[&str] = &["stress"];
 /// runs, against the run's end.
 pub fn check_coordinates(o: &Observable, simulation: bool) -> Result<(), String> {
     if crate::failure::OBSERVABLES.contains(&o.name.as_str()) {
-        crate::failure::check_observable(&o.name, o.at)
+        crate::failure::check_observable(&o.name, o.at).map_err(String::from)
     } else if front::OBSERVABLES.contains(&o.name.as_str()) {
         front::check_observable(o)
     } else if simulation {

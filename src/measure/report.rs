@@ -254,7 +254,7 @@ fn plot_model_vs_data(path: &Path, rows: &[Row], observable: &str) -> Result<(),
         "experiment (1 = first in the data)".to_string()
     };
     let title = format!("{observable}: measured (filled, +- uncertainty) and model (hollow)");
-    plot_measured_model(path, &title, &x_desc, observable, &groups)
+    Ok(plot_measured_model(path, &title, &x_desc, observable, &groups)?)
 }
 
 /// z against one covariate, a series per observable.

@@ -4,7 +4,7 @@
 //! plotting needs no system fonts and building needs no fontconfig headers.
 
 use std::ops::Range;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use plotters::coord::types::RangedCoordf64;
@@ -17,17 +17,41 @@ static FONT: &[u8] = include_bytes!("../../fixtures/fonts/DejaVuSans.ttf");
 const FAMILY: &str = "sans-serif";
 
 const SIZE: (u32, u32) = (900, 500);
+
+/// Why a plot was not written.
+#[derive(Clone, Debug, thiserror::Error)]
+pub enum PlotError {
+    #[error("embedded font DejaVuSans.ttf could not be parsed")]
+    Font,
+    #[error("{}: plot file name must end in .png", path.display())]
+    NotPng { path: PathBuf },
+    /// Drawing or writing the PNG failed (plotters' message).
+    #[error("{}: {message}", path.display())]
+    Draw { path: PathBuf, message: String },
+}
+
+/// Where a caller still reports errors as text, the message as it was.
+impl From<PlotError> for String {
+    fn from(e: PlotError) -> String {
+        e.to_string()
+    }
+}
+
+/// The drawing error `e` of the plot at `path`.
+fn draw_error(path: &Path) -> impl Fn(&dyn std::fmt::Display) -> PlotError + '_ {
+    move |e| PlotError::Draw { path: path.to_path_buf(), message: e.to_string() }
+}
 const MARGIN: u32 = 15;
 const X_LABEL_AREA: u32 = 45;
 const Y_LABEL_AREA: u32 = 60;
 
 /// Registers the embedded font once per process; plotters looks fonts up by family name.
-fn ensure_font() -> Result<(), String> {
-    static REGISTERED: OnceLock<Result<(), String>> = OnceLock::new();
+fn ensure_font() -> Result<(), PlotError> {
+    static REGISTERED: OnceLock<Result<(), PlotError>> = OnceLock::new();
     REGISTERED
         .get_or_init(|| {
             register_font(FAMILY, FontStyle::Normal, FONT)
-                .map_err(|_| "embedded font DejaVuSans.ttf could not be parsed".to_string())
+                .map_err(|_| PlotError::Font)
         })
         .clone()
 }
@@ -45,18 +69,15 @@ pub fn plot_cross_section(
     title: &str,
     sections: &[(String, Vec<[f64; 2]>)],
     measured: Option<&[[f64; 2]]>,
-) -> Result<(), String> {
+) -> Result<(), PlotError> {
     let is_png = path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("png"));
     if !is_png {
-        return Err(format!(
-            "{}: plot file name must end in .png",
-            path.display()
-        ));
+        return Err(PlotError::NotPng { path: path.to_path_buf() });
     }
     ensure_font()?;
-    let err = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
+    let err = draw_error(path);
 
     let to_mm = |pts: &[[f64; 2]]| -> Vec<(f64, f64)> {
         pts.iter()
@@ -140,6 +161,7 @@ pub fn plot_cross_section(
 /// Plots series of (x, y) points to a PNG of 900 x 500 pixels, as lines with markers (`lines`)
 /// or markers only; axes fitted to the data (5 % padding), non-finite points skipped.
 pub fn plot_xy(path: &Path, title: &str, x_desc: &str, y_desc: &str, series: &[(String, Vec<[f64; 2]>)], lines: bool) -> Result<(), String> {
+    // text errors until its callers in the measurement loop take PlotError
     ensure_font()?;
     let err = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
     let (xr, yr) = fitted_ranges(series.iter().flat_map(|(_, p)| p.iter().copied()));
@@ -176,9 +198,9 @@ pub struct MeasuredPoint {
 /// colour, the measurements as filled markers with +- uncertainty bars and the model as hollow
 /// markers joined in order of x. Axes fitted to the bars and the model (5 % padding); points with
 /// a non-finite coordinate skipped.
-pub fn plot_measured_model(path: &Path, title: &str, x_desc: &str, y_desc: &str, groups: &[(String, Vec<MeasuredPoint>)]) -> Result<(), String> {
+pub fn plot_measured_model(path: &Path, title: &str, x_desc: &str, y_desc: &str, groups: &[(String, Vec<MeasuredPoint>)]) -> Result<(), PlotError> {
     ensure_font()?;
-    let err = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
+    let err = draw_error(path);
     let usable = |p: &&MeasuredPoint| p.x.is_finite() && p.measured.is_finite() && p.uncertainty.is_finite() && p.model.is_finite();
     let extent = groups
         .iter()
@@ -238,16 +260,16 @@ fn fitted_ranges(points: impl Iterator<Item = [f64; 2]>) -> (Range<f64>, Range<f
 }
 
 type XyChart<'a, 'b> = ChartContext<'a, BitMapBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
-type PlotError<'b> = DrawingAreaErrorKind<<BitMapBackend<'b> as DrawingBackend>::ErrorType>;
+type DrawError<'b> = DrawingAreaErrorKind<<BitMapBackend<'b> as DrawingBackend>::ErrorType>;
 
 /// The axes and grid of an x-y plot in `body`.
-fn xy_chart<'a, 'b>(body: &'a DrawingArea<BitMapBackend<'b>, Shift>, xr: Range<f64>, yr: Range<f64>, x_desc: &str, y_desc: &str) -> Result<XyChart<'a, 'b>, PlotError<'b>> {
+fn xy_chart<'a, 'b>(body: &'a DrawingArea<BitMapBackend<'b>, Shift>, xr: Range<f64>, yr: Range<f64>, x_desc: &str, y_desc: &str) -> Result<XyChart<'a, 'b>, DrawError<'b>> {
     let mut chart = ChartBuilder::on(body).margin(MARGIN).x_label_area_size(X_LABEL_AREA).y_label_area_size(Y_LABEL_AREA).build_cartesian_2d(xr, yr)?;
     chart.configure_mesh().x_desc(x_desc).y_desc(y_desc).label_style((FAMILY, 14)).axis_desc_style((FAMILY, 16)).draw()?;
     Ok(chart)
 }
 
-fn draw_legend<'a, 'b: 'a>(chart: &mut XyChart<'a, 'b>) -> Result<(), PlotError<'b>> {
+fn draw_legend<'a, 'b: 'a>(chart: &mut XyChart<'a, 'b>) -> Result<(), DrawError<'b>> {
     chart
         .configure_series_labels()
         .label_font((FAMILY, 14))
@@ -381,10 +403,10 @@ mod tests {
             vec![[0.0, 0.0], [f64::NAN, 1.0], [0.01, 0.01]],
         )];
         let e = plot_cross_section(&dir.path().join("x.jpg"), "t", &s, None).unwrap_err();
-        assert!(e.contains(".png"), "{e}");
+        assert!(e.to_string().contains(".png"), "{e}");
         let e =
             plot_cross_section(&dir.path().join("no/such/dir/x.png"), "t", &s, None).unwrap_err();
-        assert!(e.contains("x.png"), "{e}");
+        assert!(e.to_string().contains("x.png"), "{e}");
     }
 
     #[test]

@@ -23,6 +23,7 @@ use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use toolpath::{Segment, Toolpath};
+use crate::invalid::Invalid;
 
 /// The `[print]` table.
 #[derive(Clone, Debug, Deserialize)]
@@ -97,50 +98,64 @@ pub enum Emission {
     Interval,
 }
 
+/// Why the print cannot be set up: a value its check refuses, a G-code file that cannot be read
+/// or parsed, or a toolpath that does not chain.
+#[derive(Debug, thiserror::Error)]
+pub enum PrintError {
+    #[error(transparent)]
+    Invalid(#[from] Invalid),
+    #[error("print.gcode {}: {source}", path.display())]
+    Read { path: PathBuf, source: std::io::Error },
+    #[error("{}: {source}", path.display())]
+    Gcode { path: PathBuf, source: gcode::GcodeError },
+    #[error(transparent)]
+    Toolpath(#[from] toolpath::ToolpathError),
+}
+
 impl PrintConfig {
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), Invalid> {
         self.nozzle.validate()?;
         if let Some(h) = self.tube_height {
             if !(h > 0.0 && h.is_finite()) {
-                return Err(format!("print.tube_height must be > 0, got {h}"));
+                return Err(Invalid(format!("print.tube_height must be > 0, got {h}")));
             }
         }
         if let Some(d) = self.transition {
             if !(d > 0.0 && d.is_finite()) {
-                return Err(format!("print.transition must be > 0, got {d}"));
+                return Err(Invalid(format!("print.transition must be > 0, got {d}")));
             }
         }
         if !(1..=4).contains(&self.particles_per_cell_axis) {
-            return Err(format!("print.particles_per_cell_axis must be 1..=4, got {}", self.particles_per_cell_axis));
+            return Err(Invalid(format!("print.particles_per_cell_axis must be 1..=4, got {}", self.particles_per_cell_axis)));
         }
         match (&self.gcode, self.path.is_empty()) {
-            (Some(_), false) => return Err("print: give either print.path or print.gcode, not both".into()),
-            (None, true) => return Err("print: no toolpath; give print.path segments or print.gcode".into()),
-            (None, false) if self.start.is_none() => return Err("print.start (outlet position at t = 0) is missing".into()),
+            (Some(_), false) => return Err(Invalid("print: give either print.path or print.gcode, not both".into())),
+            (None, true) => return Err(Invalid("print: no toolpath; give print.path segments or print.gcode".into())),
+            (None, false) if self.start.is_none() => return Err(Invalid("print.start (outlet position at t = 0) is missing".into())),
             _ => {}
         }
         if self.queue == 0 {
-            return Err("print.queue must be >= 1".into());
+            return Err(Invalid("print.queue must be >= 1".into()));
         }
         if !(self.extrusion_factor.is_finite() && self.extrusion_factor > 0.0) {
-            return Err(format!("print.extrusion_factor must be finite and > 0, got {}", self.extrusion_factor));
+            return Err(Invalid(format!("print.extrusion_factor must be finite and > 0, got {}", self.extrusion_factor)));
         }
         if !self.z_offset.is_finite() {
-            return Err(format!("print.z_offset must be finite, got {}", self.z_offset));
+            return Err(Invalid(format!("print.z_offset must be finite, got {}", self.z_offset)));
         }
         Ok(())
     }
 
     /// Build the toolpath (reading the G-code file relative to `base_dir`), with the extrusion
     /// factor and the Z offset applied.
-    pub fn toolpath(&self, base_dir: &Path) -> Result<Toolpath, String> {
+    pub fn toolpath(&self, base_dir: &Path) -> Result<Toolpath, PrintError> {
         let commanded = match &self.gcode {
             Some(file) => {
                 let path = base_dir.join(file);
-                let text = std::fs::read_to_string(&path).map_err(|e| format!("print.gcode {}: {e}", path.display()))?;
-                gcode::parse_gcode(&text, &self.gcode_options).map_err(|e| format!("{}: {e}", path.display()))?
+                let text = std::fs::read_to_string(&path).map_err(|source| PrintError::Read { path: path.clone(), source })?;
+                gcode::parse_gcode(&text, &self.gcode_options).map_err(|source| PrintError::Gcode { path, source })?
             }
-            None => Toolpath::from_segments(self.start.unwrap_or_default(), &self.path).map_err(|e| e.to_string())?,
+            None => Toolpath::from_segments(self.start.unwrap_or_default(), &self.path)?,
         };
         if self.extrusion_factor == 1.0 && self.z_offset == 0.0 {
             return Ok(commanded);
@@ -156,7 +171,7 @@ impl PrintConfig {
                 toolpath::Move { from: shift(m.from), to: shift(m.to), extrusion_speed: self.extrusion_factor * m.extrusion_speed, ..m.clone() }
             })
             .collect();
-        Toolpath::from_moves(delivered).map_err(|e| e.to_string())
+        Ok(Toolpath::from_moves(delivered)?)
     }
 }
 
@@ -247,14 +262,14 @@ impl SyncEmission {
 }
 
 impl Printer {
-    pub fn new(cfg: &PrintConfig, dx: f64, domain: ([f64; 3], [f64; 3]), base_dir: &Path) -> Result<Printer, String> {
+    pub fn new(cfg: &PrintConfig, dx: f64, domain: ([f64; 3], [f64; 3]), base_dir: &Path) -> Result<Printer, PrintError> {
         cfg.validate()?;
         let toolpath = Arc::new(cfg.toolpath(base_dir)?);
         let ppc = cfg.particles_per_cell_axis;
         let h = dx / ppc as f64;
         let offsets = cfg.nozzle.lattice(h);
         if offsets.is_empty() {
-            return Err(format!("print.nozzle is smaller than one particle spacing ({h} m); refine simulation.dx"));
+            return Err(Invalid(format!("print.nozzle is smaller than one particle spacing ({h} m); refine simulation.dx")).into());
         }
         let particle_volume = cfg.nozzle.area() * h / offsets.len() as f64;
         let tube_height = cfg.tube_height.unwrap_or(2.0 * dx);

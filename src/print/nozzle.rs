@@ -2,6 +2,7 @@
 //! distance that feeds the nozzle indicator.
 
 use serde::Deserialize;
+use crate::invalid::Invalid;
 
 /// Outlet cross-section, centred on the nozzle axis (vertical).
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
@@ -53,13 +54,13 @@ impl NozzleShape {
         })
     }
 
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), Invalid> {
         match *self {
             NozzleShape::Circle { diameter } if !(diameter > 0.0 && diameter.is_finite()) => {
-                Err(format!("print.nozzle.diameter must be > 0, got {diameter}"))
+                Err(Invalid(format!("print.nozzle.diameter must be > 0, got {diameter}")))
             }
             NozzleShape::Rectangle { size } if !(size[0] > 0.0 && size[1] > 0.0 && size.iter().all(|s| s.is_finite())) => {
-                Err(format!("print.nozzle.size must be two positive lengths, got {size:?}"))
+                Err(Invalid(format!("print.nozzle.size must be two positive lengths, got {size:?}")))
             }
             _ => Ok(()),
         }

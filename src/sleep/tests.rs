@@ -128,20 +128,20 @@ fn the_load_keys_parse_with_their_defaults_and_validate() {
     for bad in [-1.0, f64::NAN, f64::INFINITY] {
         let cfg = SleepConfig { load_floor: bad, ..on.clone() };
         let e = cfg.validate().expect_err("an invalid floor passed");
-        assert!(e.contains("sleep.load_floor"), "{e}");
+        assert!(e.0.contains("sleep.load_floor"), "{e}");
     }
     let e = toml::from_str::<SleepConfig>("load_floor = nan").unwrap().validate().unwrap_err();
-    assert!(e.contains("sleep.load_floor"), "{e}");
+    assert!(e.0.contains("sleep.load_floor"), "{e}");
     for bad in [0.0, -0.5, 1.5, f64::NAN] {
         let cfg = SleepConfig { load_fraction: bad, ..on.clone() };
         let e = cfg.validate().expect_err("an invalid fraction passed");
-        assert!(e.contains("sleep.load_fraction"), "{e}");
+        assert!(e.0.contains("sleep.load_fraction"), "{e}");
     }
     assert!(SleepConfig { load_fraction: 1.0, ..on.clone() }.validate().is_ok());
     for bad in [1e-3, -1.0, f64::NAN] {
         let cfg = SleepConfig { arrive_speed: bad, ..on.clone() };
         let e = cfg.validate().expect_err("an invalid arrival speed passed");
-        assert!(e.contains("sleep.arrive_speed"), "{e}");
+        assert!(e.0.contains("sleep.arrive_speed"), "{e}");
     }
     let by_load_alone: SleepConfig = toml::from_str("wake_by_load = true\narrive_speed = inf").unwrap();
     assert!(by_load_alone.validate().is_ok() && by_load_alone.arrive_speed == f64::INFINITY);

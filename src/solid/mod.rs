@@ -30,6 +30,7 @@ use crate::print::toolpath::Toolpath;
 use glam::DVec3;
 use serde::Deserialize;
 use shape::{Sdf, ShapeConfig, ShapeContext};
+use crate::invalid::Invalid;
 
 /// The most solids a scenario may declare (a block's solids are a bit mask); more bodies fit
 /// as parts of a union.
@@ -86,19 +87,19 @@ struct Common {
 const COMMON_KEYS: [&str; 5] = ["name", "contact", "motion", "open_at", "transition"];
 
 impl TryFrom<toml::Table> for SolidConfig {
-    type Error = String;
-    fn try_from(mut t: toml::Table) -> Result<Self, String> {
+    type Error = Invalid;
+    fn try_from(mut t: toml::Table) -> Result<Self, Invalid> {
         let mut common = toml::Table::new();
         for k in COMMON_KEYS {
             if let Some(v) = t.remove(k) {
                 common.insert(k.to_string(), v);
             }
         }
-        let c: Common = common.try_into().map_err(|e: toml::de::Error| format!("solid: {}", e.message()))?;
+        let c: Common = common.try_into().map_err(|e: toml::de::Error| Invalid(format!("solid: {}", e.message())))?;
         if !t.contains_key("shape") {
-            return Err("solid: `shape` is missing (one of: box, cylinder, half_space, union, intersection, nozzle)".into());
+            return Err(Invalid("solid: `shape` is missing (one of: box, cylinder, half_space, union, intersection, nozzle)".into()));
         }
-        let shape: ShapeConfig = t.try_into().map_err(|e: toml::de::Error| format!("solid: {}", e.message()))?;
+        let shape: ShapeConfig = t.try_into().map_err(|e: toml::de::Error| Invalid(format!("solid: {}", e.message())))?;
         let nozzle = matches!(shape, ShapeConfig::Nozzle { .. });
         Ok(SolidConfig {
             contact: c.contact.unwrap_or(if nozzle { WallKind::FreeSlip } else { WallKind::NoSlip }),
@@ -114,36 +115,36 @@ impl TryFrom<toml::Table> for SolidConfig {
 /// Check the `[[solid]]` tables, naming the key (`solid[i].radius`, ...). `nozzle` is the
 /// print's (inner diameter, tube height) when it prints through a circular nozzle, and
 /// `printing` whether there is a `[print]` table at all.
-pub fn validate(solids: &[SolidConfig], printing: bool) -> Result<(), String> {
+pub fn validate(solids: &[SolidConfig], printing: bool) -> Result<(), Invalid> {
     if solids.len() > MAX_SOLIDS {
-        return Err(format!("solid: {} solids, more than the {MAX_SOLIDS} a scenario may declare; join some in a shape = \"union\"", solids.len()));
+        return Err(Invalid(format!("solid: {} solids, more than the {MAX_SOLIDS} a scenario may declare; join some in a shape = \"union\"", solids.len())));
     }
     for (i, s) in solids.iter().enumerate() {
         let key = format!("solid[{i}]");
         s.shape.validate(&key)?;
         if s.contact == WallKind::Symmetry {
-            return Err(format!("{key}.contact: a solid takes no_slip, free_slip or friction, not symmetry"));
+            return Err(Invalid(format!("{key}.contact: a solid takes no_slip, free_slip or friction, not symmetry")));
         }
         if let WallKind::Friction { mu } = s.contact {
             if !(mu >= 0.0 && mu.is_finite()) {
-                return Err(format!("{key}.contact.friction.mu must be >= 0, got {mu}"));
+                return Err(Invalid(format!("{key}.contact.friction.mu must be >= 0, got {mu}")));
             }
         }
         if let Some(t) = s.open_at {
             if !t.is_finite() {
-                return Err(format!("{key}.open_at must be a finite time, got {t}"));
+                return Err(Invalid(format!("{key}.open_at must be a finite time, got {t}")));
             }
         }
         if let Some(d) = s.transition {
             if !(d >= 0.0 && d.is_finite()) {
-                return Err(format!("{key}.transition must be >= 0, got {d}"));
+                return Err(Invalid(format!("{key}.transition must be >= 0, got {d}")));
             }
         }
         if matches!(s.shape, ShapeConfig::Nozzle { .. }) && s.motion != Motion::Nozzle {
-            return Err(format!("{key}: shape = \"nozzle\" moves with the nozzle; motion must be \"nozzle\""));
+            return Err(Invalid(format!("{key}: shape = \"nozzle\" moves with the nozzle; motion must be \"nozzle\"")));
         }
         if s.motion == Motion::Nozzle && !printing {
-            return Err(format!("{key}.motion = \"nozzle\" needs a [print] table"));
+            return Err(Invalid(format!("{key}.motion = \"nozzle\" needs a [print] table")));
         }
     }
     Ok(())

@@ -14,6 +14,7 @@ use super::nozzle_body::NozzleBody;
 use super::union::{Combination, Combine};
 use glam::DVec3;
 use serde::Deserialize;
+use crate::invalid::Invalid;
 
 /// A signed distance function with its derivatives, in the solid's own frame.
 pub trait Sdf: Send + Sync + std::fmt::Debug {
@@ -56,54 +57,54 @@ pub struct ShapeContext {
 
 impl ShapeConfig {
     /// Check the values, naming the key under `key` (e.g. `solid[2]`).
-    pub fn validate(&self, key: &str) -> Result<(), String> {
+    pub fn validate(&self, key: &str) -> Result<(), Invalid> {
         let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
         match self {
             ShapeConfig::Box { min, max } => {
                 if !finite(min) || !finite(max) {
-                    return Err(format!("{key}.min and {key}.max must be finite"));
+                    return Err(Invalid(format!("{key}.min and {key}.max must be finite")));
                 }
                 if (0..3).any(|a| !(max[a] > min[a])) {
-                    return Err(format!("{key}: box max must exceed min on every axis, got min {min:?}, max {max:?}"));
+                    return Err(Invalid(format!("{key}: box max must exceed min on every axis, got min {min:?}, max {max:?}")));
                 }
             }
             ShapeConfig::Cylinder { from, to, radius } => {
                 if !finite(from) || !finite(to) {
-                    return Err(format!("{key}.from and {key}.to must be finite"));
+                    return Err(Invalid(format!("{key}.from and {key}.to must be finite")));
                 }
                 if !(*radius > 0.0 && radius.is_finite()) {
-                    return Err(format!("{key}.radius must be > 0, got {radius}"));
+                    return Err(Invalid(format!("{key}.radius must be > 0, got {radius}")));
                 }
                 if DVec3::from(*from).distance(DVec3::from(*to)) <= 0.0 {
-                    return Err(format!("{key}: cylinder from and to must differ (they set the axis)"));
+                    return Err(Invalid(format!("{key}: cylinder from and to must differ (they set the axis)")));
                 }
             }
             ShapeConfig::HalfSpace { point, normal } => {
                 if !finite(point) || !finite(normal) {
-                    return Err(format!("{key}.point and {key}.normal must be finite"));
+                    return Err(Invalid(format!("{key}.point and {key}.normal must be finite")));
                 }
                 if DVec3::from(*normal).length() <= 0.0 {
-                    return Err(format!("{key}.normal must be a non-zero vector"));
+                    return Err(Invalid(format!("{key}.normal must be a non-zero vector")));
                 }
             }
             ShapeConfig::Union { parts } | ShapeConfig::Intersection { parts } => {
                 if parts.is_empty() {
-                    return Err(format!("{key}.parts is empty; give at least one shape"));
+                    return Err(Invalid(format!("{key}.parts is empty; give at least one shape")));
                 }
                 for (i, p) in parts.iter().enumerate() {
                     if matches!(p, ShapeConfig::Nozzle { .. }) {
-                        return Err(format!("{key}.parts[{i}]: the nozzle body cannot be part of a union or intersection"));
+                        return Err(Invalid(format!("{key}.parts[{i}]: the nozzle body cannot be part of a union or intersection")));
                     }
                     p.validate(&format!("{key}.parts[{i}]"))?;
                 }
             }
             ShapeConfig::Nozzle { outer_diameter, height } => {
                 if !(*outer_diameter > 0.0 && outer_diameter.is_finite()) {
-                    return Err(format!("{key}.outer_diameter must be > 0, got {outer_diameter}"));
+                    return Err(Invalid(format!("{key}.outer_diameter must be > 0, got {outer_diameter}")));
                 }
                 if let Some(h) = height {
                     if !(*h > 0.0 && h.is_finite()) {
-                        return Err(format!("{key}.height must be > 0, got {h}"));
+                        return Err(Invalid(format!("{key}.height must be > 0, got {h}")));
                     }
                 }
             }

@@ -54,6 +54,12 @@ pub enum SimError {
     Memory(#[from] MemoryError),
     #[error("{0}")]
     Setup(String),
+    /// A scenario value the solver's setup refuses (the material's parameters).
+    #[error(transparent)]
+    Invalid(#[from] crate::invalid::Invalid),
+    /// The print cannot be set up.
+    #[error(transparent)]
+    Print(#[from] crate::print::PrintError),
     #[error("blow-up at step {step} (t = {time:.6e} s): particle {index} (id {id}) has {field} = {value}; \
              try a smaller simulation.cfl or simulation.dt")]
     BlowUp { step: u64, time: f64, index: usize, id: u32, field: &'static str, value: String },

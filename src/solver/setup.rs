@@ -23,14 +23,14 @@ impl Simulation {
     /// initial particles.
     pub fn new(scenario: &Scenario) -> Result<Self, SimError> {
         scenario.validate().map_err(|e| SimError::Setup(e.to_string()))?;
-        let material = build_material(&scenario.material).map_err(SimError::Setup)?;
+        let material = build_material(&scenario.material)?;
         let geom = GridGeom::new(scenario.simulation.dx, scenario.domain.min, scenario.domain.max, scenario.domain.periodic);
         let state_len = material.state_names().len();
 
         let printer = match &scenario.print {
             Some(cfg) => {
                 let d = &scenario.domain;
-                Some(Printer::new(cfg, scenario.simulation.dx, (d.min, d.max), &scenario.base_dir).map_err(SimError::Setup)?)
+                Some(Printer::new(cfg, scenario.simulation.dx, (d.min, d.max), &scenario.base_dir)?)
             }
             None => None,
         };

@@ -1,0 +1,128 @@
+//! What is said about a scenario before it runs: a memory plan over budget even at its fewest
+//! particles, too many planned steps, and warnings about what its author may not expect.
+
+use crate::invalid::Invalid;
+use crate::memory::{fmt_bytes, parse_size};
+use crate::scenario::Scenario;
+use crate::solver::Simulation;
+
+/// Before anything is allocated or counted: refuse a scenario whose memory plan is over its
+/// budget even with the fewest particles its bodies can hold (a lower bound from each body's
+/// lattice, cheap at any resolution), so `check` and `run` answer at once where counting the
+/// particles one by one would take hours.
+pub fn preflight(sc: &Scenario) -> Result<(), Invalid> {
+    use crate::memory::MemoryPlan;
+    use crate::pools::Pools;
+    let budget = parse_size(&sc.memory.budget).map_err(|e| Invalid(format!("memory.budget: {e}")))?;
+    let state_len = crate::materials::build_material(&sc.material)?.state_names().len();
+    let fewest: f64 = sc.bodies.iter().map(|b| fewest_particles(sc, b)).sum();
+    let geom = crate::grid::GridGeom::new(sc.simulation.dx, sc.domain.min, sc.domain.max, sc.domain.periodic);
+    let capacity = crate::pools::Counts::capacity(fewest.min(1e15) as usize, sc.memory.max_blocks.unwrap_or(geom.table_len()).max(8));
+    let mut plan = MemoryPlan::default();
+    crate::particles::Particles::declared(state_len).plan_memory(&mut plan, &capacity);
+    crate::grid::Grid::declared(geom).plan_memory(&mut plan, &capacity);
+    if plan.total() > budget {
+        return Err(Invalid(format!(
+            "memory plan: the grid and the at least {fewest:.4e} particles of the bodies at dx = {} m need at least {}, over the budget of {} \
+             (raise [memory] budget, or lower resolution / max_blocks):\n{plan}",
+            sc.simulation.dx,
+            fmt_bytes(plan.total()),
+            fmt_bytes(budget)
+        )));
+    }
+    Ok(())
+}
+
+/// The fewest particles `body` holds: its lattice over the largest box inside it and the
+/// domain.
+fn fewest_particles(sc: &Scenario, body: &crate::scenario::Body) -> f64 {
+    use crate::scenario::Body;
+    let h = sc.simulation.dx / body.particles_per_cell_axis() as f64;
+    let (lo, hi) = match body {
+        Body::Box { min, max, .. } => (*min, *max),
+        Body::Frustum { base_center: c, bottom_radius, top_radius, height, .. } => {
+            let r = bottom_radius.min(*top_radius) / std::f64::consts::SQRT_2;
+            ([c[0] - r, c[1] - r, c[2]], [c[0] + r, c[1] + r, c[2] + height])
+        }
+    };
+    let d = &sc.domain;
+    (0..3).map(|a| ((hi[a].min(d.max[a]) - lo[a].max(d.min[a])) / h - 1.0).floor().max(0.0)).product()
+}
+
+/// What a scenario does that its author may not expect, said before it runs, one line each
+/// (`warning: ...` or `note: ...`): a wall moved to the nearest cell face, nothing to simulate,
+/// a body cut by the domain, bodies overlapping, what the G-code import skipped.
+pub fn scenario_warnings(sc: &Scenario, sim: &Simulation) -> Vec<String> {
+    use crate::solver::for_each_lattice_point;
+    let mut w = Vec::new();
+    let (d, dx) = (&sc.domain, sc.simulation.dx);
+    for a in 0..3 {
+        let cells = (d.max[a] - d.min[a]) / dx;
+        let n = cells.round();
+        if !d.periodic[a] && (cells - n).abs() > 1e-6 * n.max(1.0) {
+            w.push(format!(
+                "domain.max[{a}] = {} is not a whole number of cells of dx = {dx} from domain.min[{a}] = {} ({cells:.4} cells): \
+                 the wall is at {} ({n} cells)",
+                d.max[a],
+                d.min[a],
+                d.min[a] + n * dx
+            ));
+        }
+    }
+    // a printed section needs the nozzle resolved by enough cells
+    if let Some(r) = sc.print.as_ref().and_then(|p| p.nozzle.resolution_warning(dx, sc.simulation.j_bar)) {
+        w.push(r);
+    }
+    if sim.particles.n == 0 && sc.print.is_none() {
+        w.push(if sc.bodies.is_empty() {
+            "nothing to simulate: the scenario has no [[body]] and no [print]".to_string()
+        } else {
+            format!("nothing to simulate: the bodies hold no particle at dx = {dx} (each is smaller than a particle spacing, or dx exceeds the domain)")
+        });
+    }
+    if let Some(file) = sc.print.as_ref().and_then(|p| p.gcode.as_ref().map(|f| (f, &p.gcode_options))) {
+        let path = sc.base_dir.join(file.0);
+        let notes = std::fs::read_to_string(&path).ok().and_then(|t| crate::print::gcode::parse_gcode_with_notes(&t, file.1).ok().map(|(_, n)| n));
+        if let Some(n) = notes.filter(|n| !n.is_empty()) {
+            w.push(format!("note: {}: {n}", path.display()));
+        }
+    }
+    for (i, b) in sc.bodies.iter().enumerate() {
+        let (lo, hi) = b.bounds();
+        let cut: Vec<String> = (0..3)
+            .filter(|&a| lo[a] < d.min[a] - 1e-9 * dx || hi[a] > d.max[a] + 1e-9 * dx)
+            .map(|a| format!("axis {a}: [{}, {}] against the domain's [{}, {}]", lo[a], hi[a], d.min[a], d.max[a]))
+            .collect();
+        if !cut.is_empty() {
+            let mut n = 0usize;
+            for_each_lattice_point(sc, b, |_| n += 1);
+            w.push(format!("body[{i}] reaches outside the domain ({}): the part outside is cut off, {n} particles remain", cut.join("; ")));
+        }
+        for (j, other) in sc.bodies.iter().enumerate().take(i) {
+            let (olo, ohi) = other.bounds();
+            if (0..3).any(|a| hi[a] <= olo[a] || lo[a] >= ohi[a]) {
+                continue;
+            }
+            let mut n = 0usize;
+            for_each_lattice_point(sc, b, |p| n += other.contains(p) as usize);
+            if n > 0 {
+                w.push(format!("body[{i}] overlaps body[{j}]: {n} of its particles lie inside body[{j}], doubling the material there"));
+            }
+        }
+    }
+    w.into_iter().map(|x| if x.starts_with("note: ") { x } else { format!("warning: {x}") }).collect()
+}
+
+/// The steps the run needs at its first time step, refused over `MAX_STEPS`.
+pub fn planned_steps(sim: &Simulation, end: f64) -> Result<f64, Invalid> {
+    let (dt, limit) = sim.choose_dt(f64::INFINITY);
+    let steps = ((end - sim.time) / dt).max(0.0).ceil();
+    if steps > crate::scenario::MAX_STEPS {
+        return Err(Invalid(format!(
+            "the first time step, {dt:.3e} s (bound by {limit:?}), takes {steps:.3e} steps to simulation.end_time = {end} s, \
+             more than the {:e} a run may plan",
+            crate::scenario::MAX_STEPS
+        )));
+    }
+    Ok(steps)
+}
