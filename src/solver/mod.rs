@@ -57,12 +57,19 @@ pub enum SimError {
     /// A scenario value the solver's setup refuses (the material's parameters).
     #[error(transparent)]
     Invalid(#[from] crate::invalid::Invalid),
-    /// The print cannot be set up.
+    /// The print cannot be set up (boxed: a G-code error is large, and every step's `Result`
+    /// carries this type).
     #[error(transparent)]
-    Print(#[from] crate::print::PrintError),
+    Print(Box<crate::print::PrintError>),
     #[error("blow-up at step {step} (t = {time:.6e} s): particle {index} (id {id}) has {field} = {value}; \
              try a smaller simulation.cfl or simulation.dt")]
     BlowUp { step: u64, time: f64, index: usize, id: u32, field: &'static str, value: String },
+}
+
+impl From<crate::print::PrintError> for SimError {
+    fn from(e: crate::print::PrintError) -> SimError {
+        SimError::Print(Box::new(e))
+    }
 }
 
 /// Which bound set the time step.

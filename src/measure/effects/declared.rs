@@ -102,7 +102,7 @@ pub fn declare(name: &str, table: &toml::Table, material: &toml::Table, line_of:
     }
     let params = read_params(&here, table.get("params"))?;
     for p in &params {
-        let clash = if ["rest_time", "age"].contains(&p.name.as_str()) || covariates.iter().any(|c| *c == p.name) {
+        let clash = if ["rest_time", "age"].contains(&p.name.as_str()) || covariates.contains(&p.name) {
             Some("a covariate")
         } else if material.get(&p.name).and_then(crate::measure::observation::number).is_some() {
             Some("a number of [material]")
@@ -227,7 +227,7 @@ fn read_params(here: &str, v: Option<&toml::Value>) -> Result<Vec<Spec>, String>
         let null = num("null", None)?;
         let lower = num("min", Some(f64::NEG_INFINITY))?;
         let upper = num("max", Some(f64::INFINITY))?;
-        if !null.is_finite() || !(lower <= null && null <= upper) || lower >= upper {
+        if !(null.is_finite() && lower <= null && null <= upper) || lower >= upper {
             return Err(format!("{at}: needs a finite null within min < max (null {null}, min {lower}, max {upper})"));
         }
         let spread = upper - lower;
