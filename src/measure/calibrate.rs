@@ -10,10 +10,11 @@
 //! from an exact Jacobian ([`FitOptions::secant`]).
 //!
 //! Parameters move in units of their scale (an effect's typical magnitude, a material number's
-//! starting value), so the damping treats them alike. A parameter at a bound whose gradient
-//! Gauss-Newton step would cross it is held there for the step (an active set). Uncertainties are the square roots
-//! of the diagonal of (J^T J)^-1 of the standardised residuals at the optimum: with the data's
-//! uncertainties taken as given (not rescaled by the reduced chi^2, which is reported beside).
+//! starting value), so the damping treats them alike. A parameter at a bound whose Gauss-Newton
+//! step would cross it is held there for the step (an active set). Uncertainties are the square
+//! roots of the diagonal of (J^T J)^-1 of the standardised residuals at the optimum: with the
+//! data's uncertainties taken as given (not rescaled by the reduced chi^2, which is reported
+//! beside).
 
 use super::experiments::Experiments;
 use super::observation::Observation;
