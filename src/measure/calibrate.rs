@@ -73,6 +73,9 @@ pub struct Fit {
     /// was fitted): the curvature a one-step leave-one-out refit takes.
     #[serde(skip)]
     pub jacobian: Vec<Vec<f64>>,
+    /// Each model value's scatter at the optimum ([`Sensitivity::scatter`]).
+    #[serde(skip)]
+    pub scatter: Vec<f64>,
     /// The values and Jacobian the fit started from: where a fit from the same start (a
     /// likelihood ratio's, with an effect that leaves the model as it is) need not compute them.
     #[serde(skip)]
@@ -86,7 +89,8 @@ pub struct Fit {
 /// from the optimum raises chi^2 by 1, the reduced chi^2 scaling that deviation where the model
 /// misses the data by more than their uncertainty, so such a step moves the parameters by less
 /// than a tenth of their uncertainty, and further iterations (a Jacobian each) change nothing a
-/// user reads.
+/// user reads. Or by less than chi^2's own scatter ([`chi2_scatter`]), where the model's values
+/// are rough: a drop under it is no more a drop than a rise of that size is a rise.
 pub const CHI2_NEGLIGIBLE: f64 = 0.01;
 
 /// Where an exact Jacobian's undamped Gauss-Newton step predicts chi^2 to fall by less than this
@@ -108,6 +112,17 @@ pub const TRIES: usize = 12;
 /// delivers; a step the model refuses three times, the damping raised 16-fold, is not found by
 /// damping further, and the fit ends there.
 pub const SIMULATION_TRIES: usize = 3;
+
+/// The standard deviation of the difference of chi^2 at two points of a rough model (two
+/// trials, or a step's two ends, apart by more than the scale on which the roughness is
+/// correlated): each value's scatter s_i ([`Sensitivity::scatter`]) moves chi^2 by
+/// 2 z_i s_i / sigma_i to first order, independently, so each chi^2 scatters by
+/// 2 sqrt(sum z_i^2 s_i^2 / sigma_i^2), and a difference of two by sqrt(2) times that. 0 for a
+/// smooth model (no scatter estimated).
+pub fn chi2_scatter(z: &[f64], scatter: &[f64], data: &[Observation]) -> f64 {
+    let sum: f64 = z.iter().zip(scatter.iter().zip(data)).map(|(z, (s, o))| (z * s / o.uncertainty).powi(2)).sum();
+    2.0 * (2.0 * sum).sqrt()
+}
 
 /// Sum of the squared standardised residuals of `values` against `data`.
 pub fn chi2(values: &[f64], data: &[Observation]) -> f64 {
@@ -152,23 +167,27 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
         free = free_parameters(&jz, &z, &theta, &bounds);
         let cols: Vec<usize> = (0..n).filter(|&i| free[i]).collect();
         let birge = (c2 / m.saturating_sub(cols.len()).max(1) as f64).max(1.0);
-        let negligible = CHI2_NEGLIGIBLE * birge;
+        let scatter = chi2_scatter(&z, &s.scatter, data);
+        let negligible = (CHI2_NEGLIGIBLE * birge).max(scatter);
         let (a, g) = normal_equations(&jz, &z, &cols);
         let gauss_newton = if cols.is_empty() { 0.0 } else { predicted_drop(&a, &g) };
+        if opts.progress && exact && scatter > 0.0 {
+            eprintln!("  exact Jacobian: an undamped step predicts chi^2 = {:.6e} (reduced chi^2 {birge:.3}; chi^2 scatters by {scatter:.3e})", c2 - gauss_newton);
+        } else if opts.progress && exact && history.len() > 1 {
+            eprintln!("  exact Jacobian: an undamped step predicts chi^2 = {:.6e} (reduced chi^2 {birge:.3})", c2 - gauss_newton);
+        }
         let next = if gauss_newton < negligible {
             None
         } else {
             // one try on a secant Jacobian, which is then computed again, and near the optimum
-            let tries = if !exact || gauss_newton < CHI2_ROUGH * birge {
+            // (a promise under twice chi^2's scatter is near it)
+            let tries = if !exact || gauss_newton < (CHI2_ROUGH * birge).max(2.0 * scatter) {
                 1
             } else if simulated {
                 SIMULATION_TRIES
             } else {
                 TRIES
             };
-            if opts.progress && exact && history.len() > 1 {
-                eprintln!("  exact Jacobian: an undamped step predicts chi^2 = {:.6e} (reduced chi^2 {birge:.3})", c2 - gauss_newton);
-            }
             damped_step(&model, &theta, (&s, c2, negligible), (&a, &g), &cols, &mut lambda, names, &bounds, data, exps, opts, (secant, tries))?
         };
         let Some(next) = next else {
@@ -226,6 +245,7 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
         observations: m,
         model_values: s.values.clone(),
         jacobian: s.jacobian.expect("asked"),
+        scatter: s.scatter,
         at_start: first,
         model,
     })
@@ -320,7 +340,8 @@ fn damped_step(
             let at_trial = if secant {
                 let scale: Vec<f64> = bounds.iter().map(|b| b.scale).collect();
                 let jacobian = secant_update(at.jacobian.as_ref().expect("asked"), (theta, &trial), &scale, (&at.values, &tv));
-                Sensitivity { values: tv, jacobian: Some(jacobian) }
+                // the scatter is the model's near here, as the last exact Jacobian estimated it
+                Sensitivity { values: tv, jacobian: Some(jacobian), scatter: at.scatter.clone() }
             } else {
                 let Ok(at_trial) = opts.engine.jacobian_at(opts.jobs, &tm, data, exps, names, &tv)? else {
                     *lambda *= 4.0;
@@ -385,7 +406,11 @@ impl Fit {
     /// The values and Jacobian at the fit's end, for the observations `rows` (indices into its
     /// data): where a fit of a subset of the data starts from this one.
     pub fn at_end(&self, rows: &[usize]) -> Sensitivity {
-        Sensitivity { values: rows.iter().map(|&i| self.model_values[i]).collect(), jacobian: Some(rows.iter().map(|&i| self.jacobian[i].clone()).collect()) }
+        Sensitivity {
+            values: rows.iter().map(|&i| self.model_values[i]).collect(),
+            jacobian: Some(rows.iter().map(|&i| self.jacobian[i].clone()).collect()),
+            scatter: rows.iter().map(|&i| self.scatter[i]).collect(),
+        }
     }
 }
 

@@ -149,8 +149,9 @@ pub struct Computed {
 
 #[derive(serde::Serialize, serde::Deserialize)]
 pub enum Outcome {
-    /// A value per observable and, with names, a gradient row per observable.
-    Values { values: Vec<Exact>, jacobian: Option<Vec<Vec<Exact>>> },
+    /// A value per observable and, with names, a gradient row per observable and each value's
+    /// scatter ([`Sensitivity::scatter`]).
+    Values { values: Vec<Exact>, jacobian: Option<Vec<Vec<Exact>>>, scatter: Vec<Exact> },
     /// The model's failure, as the local evaluation reports it.
     Failed(String),
 }
@@ -319,17 +320,14 @@ fn read_result(path: &Path, job: &Job, id: &str) -> Result<Result<Vec<Valued>, S
     }
     Ok(match c.outcome {
         Outcome::Failed(e) => Err(e),
-        Outcome::Values { values, jacobian } => {
+        Outcome::Values { values, jacobian, scatter } => {
             let n = job.observables.len();
             let rows = jacobian.map(|j| j.iter().map(|r| plain(r)).collect::<Vec<_>>());
-            if values.len() != n || rows.as_ref().is_some_and(|r| r.len() != n) || rows.is_some() != job.names.is_some() {
+            if values.len() != n || scatter.len() != n || rows.as_ref().is_some_and(|r| r.len() != n) || rows.is_some() != job.names.is_some() {
                 return Err(format!("experiment '{id}': {} holds {} values for {n} observables: delete it to compute it again", path.display(), values.len()));
             }
-            let values = plain(&values);
-            Ok(match rows {
-                Some(r) => values.into_iter().zip(r).map(|(v, g)| (v, Some(g))).collect(),
-                None => values.into_iter().map(|v| (v, None)).collect(),
-            })
+            let mut rows = rows.map(Vec::into_iter);
+            Ok(plain(&values).into_iter().zip(plain(&scatter)).map(|(value, scatter)| Valued { value, gradient: rows.as_mut().map(|r| r.next().expect("a row per value")), scatter }).collect())
         }
     })
 }
@@ -358,13 +356,14 @@ pub fn evaluate(job_path: &Path, out: &Path) -> Result<String, String> {
     let obs: Vec<Observable> = job.observables.iter().map(|o| Observable::parse(o)).collect::<Result<_, _>>()?;
     let outcome = match sensitivity::one(&model, &exps, &id, &obs, job.names.as_deref(), job.threads) {
         Ok(per) => Outcome::Values {
-            values: exact(&per.iter().map(|(v, _)| *v).collect::<Vec<_>>()),
-            jacobian: job.names.as_ref().map(|_| per.iter().map(|(_, g)| exact(g.as_deref().unwrap_or_default())).collect()),
+            values: exact(&per.iter().map(|v| v.value).collect::<Vec<_>>()),
+            jacobian: job.names.as_ref().map(|_| per.iter().map(|v| exact(v.gradient.as_deref().unwrap_or_default())).collect()),
+            scatter: exact(&per.iter().map(|v| v.scatter).collect::<Vec<_>>()),
         },
         Err(e) => Outcome::Failed(e),
     };
     let line = match &outcome {
-        Outcome::Values { values, jacobian } => format!("experiment '{id}': {} values{} saved to {}", values.len(), if jacobian.is_some() { " and their gradients" } else { "" }, out.display()),
+        Outcome::Values { values, jacobian, .. } => format!("experiment '{id}': {} values{} saved to {}", values.len(), if jacobian.is_some() { " and their gradients" } else { "" }, out.display()),
         Outcome::Failed(e) => format!("experiment '{id}': the model fails here ({e}); saved as its result to {}", out.display()),
     };
     let c = Computed { experiment: id, observables: job.observables, names: job.names, provenance: job.provenance, outcome };

@@ -14,7 +14,7 @@ use super::runner::{experiment_keys, scenario_text};
 use std::path::Path;
 
 /// The layout of saved results and job files; raise it whenever they change meaning.
-pub const RESULT_FORMAT: u32 = 2;
+pub const RESULT_FORMAT: u32 = 3;
 
 /// The binary and result format a result was written by.
 pub fn format() -> String {

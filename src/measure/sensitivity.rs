@@ -34,6 +34,11 @@ use crate::grad::{driver, params, GradOptions, Objective};
 pub struct Sensitivity {
     pub values: Vec<f64>,
     pub jacobian: Option<Vec<Vec<f64>>>,
+    /// Each value's scatter: the standard deviation of its rough part in the parameters (a
+    /// section sampled by particles), where the central differences of its Jacobian estimated
+    /// it ([`central`]); 0 where nothing did (values alone, an adjoint, a rheometer's smooth
+    /// readings).
+    pub scatter: Vec<f64>,
 }
 
 /// Values of every observation under `model`, with their gradients in `names` when given;
@@ -83,13 +88,26 @@ fn one_known(model: &Model, exps: &Experiments, id: &str, wanted: &[Observable],
 pub fn assemble(data: &[Observation], wanted: &[(String, Vec<Observable>)], per: &[Vec<Valued>], names: Option<&[String]>) -> Sensitivity {
     let flat = ungroup(data, wanted, per);
     Sensitivity {
-        values: flat.iter().map(|(v, _)| *v).collect(),
-        jacobian: names.map(|_| flat.into_iter().map(|(_, g)| g.expect("asked")).collect()),
+        values: flat.iter().map(|v| v.value).collect(),
+        scatter: flat.iter().map(|v| v.scatter).collect(),
+        jacobian: names.map(|_| flat.into_iter().map(|v| v.gradient.expect("asked")).collect()),
     }
 }
 
-/// An observation's value and, when asked, its gradient.
-pub type Valued = (f64, Option<Vec<f64>>);
+/// An observation's value and, when asked, its gradient, with the value's scatter where the
+/// gradient's differences estimated it ([`Sensitivity::scatter`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Valued {
+    pub value: f64,
+    pub gradient: Option<Vec<f64>>,
+    pub scatter: f64,
+}
+
+impl Valued {
+    pub fn new(value: f64, gradient: Option<Vec<f64>>) -> Valued {
+        Valued { value, gradient, scatter: 0.0 }
+    }
+}
 
 /// Whether an observable's gradient comes from an adjoint; the others are differenced.
 pub fn has_adjoint(o: &Observable) -> bool {
@@ -169,21 +187,21 @@ fn simulated(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observ
     let from_the_adjoint: Vec<bool> = sides.iter().zip(&by_differences).map(|(s, &d)| s.is_some() && !d).collect();
     let adjoint: Vec<String> = names.iter().zip(&from_the_adjoint).filter(|(_, a)| **a).map(|(n, _)| n.clone()).collect();
     let at_model = match known {
-        Some(v) if adjoint.is_empty() => v.iter().map(|&v| (v, None)).collect(),
+        Some(v) if adjoint.is_empty() => v.iter().map(|&v| Valued::new(v, None)).collect(),
         _ => by_adjoint(model, exps, x, wanted, (!adjoint.is_empty()).then_some(&adjoint[..]), threads)?,
     };
-    let values: Vec<f64> = at_model.iter().map(|(v, _)| *v).collect();
-    let run = |m: &Model| Ok(by_adjoint(m, exps, x, wanted, None, threads)?.into_iter().map(|(v, _)| v).collect());
+    let values: Vec<f64> = at_model.iter().map(|v| v.value).collect();
+    let run = |m: &Model| Ok(by_adjoint(m, exps, x, wanted, None, threads)?.into_iter().map(|v| v.value).collect());
     let differenced: Vec<Option<Sides>> = sides.into_iter().zip(&by_differences).map(|(s, &d)| s.filter(|_| d)).collect();
-    let columns = central(&values, run, differenced)?;
+    let (columns, scatter) = central(&values, run, differenced)?;
     let mut from_adjoint = 0..adjoint.len();
     let picks: Vec<Option<usize>> = from_the_adjoint.iter().map(|&a| if a { from_adjoint.next() } else { None }).collect();
     Ok(at_model
         .into_iter()
-        .zip(columns)
-        .map(|((v, g), fd)| {
-            let row = picks.iter().zip(fd).map(|(k, d)| k.map_or(d, |k| g.as_ref().expect("asked")[k])).collect();
-            (v, Some(row))
+        .zip(columns.into_iter().zip(scatter))
+        .map(|(v, (fd, scatter))| {
+            let row = picks.iter().zip(fd).map(|(k, d)| k.map_or(d, |k| v.gradient.as_ref().expect("asked")[k])).collect();
+            Valued { value: v.value, gradient: Some(row), scatter }
         })
         .collect())
 }
@@ -214,7 +232,7 @@ fn differenced(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obse
         Some(v) => v.to_vec(),
         None => run(model)?,
     };
-    let Some(names) = names else { return Ok(values.into_iter().map(|v| (v, None)).collect()) };
+    let Some(names) = names else { return Ok(values.into_iter().map(|v| Valued::new(v, None)).collect()) };
     let keys = experiment_keys(model, x)?;
     let mut rows = vec![vec![0.0; names.len()]; wanted.len()];
     for (j, name) in names.iter().enumerate() {
@@ -247,7 +265,7 @@ fn differenced(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obse
             h = (GROWTH * h).min(widest);
         }
     }
-    Ok(values.into_iter().zip(rows).map(|(v, g)| (v, Some(g))).collect())
+    Ok(values.into_iter().zip(rows).map(|(v, g)| Valued::new(v, Some(g))).collect())
 }
 
 /// A parameter's two sides for a central difference ([`moves`]).
@@ -287,14 +305,29 @@ fn moves(model: &Model, x: &Experiment, keys: &Keys, name: &str, h: f64) -> Resu
 
 /// Each parameter's column (a row per value): `run` at its two sides, one-sided where a side
 /// stays at p (`values`, the run at the model) or fails to run (a printed line that breaks up
-/// there); 0 without sides.
-fn central(values: &[f64], run: impl Fn(&Model) -> Result<Vec<f64>, String>, sides: Vec<Option<Sides>>) -> Result<Vec<Vec<f64>>, String> {
+/// there); 0 without sides. With them, each value's scatter ([`Sensitivity::scatter`]): where a
+/// parameter ran both sides a step h away, the second difference v(p + h) + v(p - h) - 2 v(p)
+/// of values with independent scatter s has variance 6 s^2 (plus its curvature, h^2 v'', small
+/// at 3 % steps, which only makes the estimate cautious); the mean square over the parameters
+/// that ran both sides, over 6, estimates s^2.
+fn central(values: &[f64], run: impl Fn(&Model) -> Result<Vec<f64>, String>, sides: Vec<Option<Sides>>) -> Result<(Vec<Vec<f64>>, Vec<f64>), String> {
     let mut rows = vec![vec![0.0; sides.len()]; values.len()];
+    let mut second = vec![0.0; values.len()];
+    let mut both_sides = 0;
     for (j, s) in sides.into_iter().enumerate() {
         let Some(Sides { lo: (lo, m_lo), hi: (hi, m_hi), at, .. }) = s else { continue };
+        let symmetric = m_lo.is_some() && m_hi.is_some() && hi - at == at - lo;
         let side = |m: Option<Model>| m.map_or(Ok(values.to_vec()), |m| run(&m));
         let ((lo, v_lo), (hi, v_hi)) = match (side(m_lo), side(m_hi)) {
-            (Ok(a), Ok(b)) => ((lo, a), (hi, b)),
+            (Ok(a), Ok(b)) => {
+                if symmetric {
+                    both_sides += 1;
+                    for (d2, ((a, b), v)) in second.iter_mut().zip(a.iter().zip(&b).zip(values)) {
+                        *d2 += (a + b - 2.0 * v).powi(2);
+                    }
+                }
+                ((lo, a), (hi, b))
+            }
             (Err(_), Ok(b)) if hi != at => ((at, values.to_vec()), (hi, b)),
             (Ok(a), Err(_)) if lo != at => ((lo, a), (at, values.to_vec())),
             (Err(e), _) | (_, Err(e)) => return Err(e),
@@ -303,7 +336,8 @@ fn central(values: &[f64], run: impl Fn(&Model) -> Result<Vec<f64>, String>, sid
             row[j] = (b - a) / (hi - lo);
         }
     }
-    Ok(rows)
+    let scatter = second.into_iter().map(|d2| if both_sides == 0 { 0.0 } else { (d2 / (6 * both_sides) as f64).sqrt() }).collect();
+    Ok((rows, scatter))
 }
 
 fn by_adjoint(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>) -> Result<Vec<Valued>, String> {
@@ -343,21 +377,21 @@ fn by_adjoint(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obser
             let mut out: Vec<Option<Valued>> = vec![None; plans.len()];
             if names.is_none() {
                 for (&k, v) in shared.iter().zip(driver::forward_values(&whole, &seeds, threads)?) {
-                    out[k] = Some((v, None));
+                    out[k] = Some(Valued::new(v, None));
                 }
             } else {
                 for (&k, r) in shared.iter().zip(driver::gradients(&whole, &seeds, &placed, &opts)?) {
-                    out[k] = Some((r.value, Some(chain(wrt.iter().cloned().zip(r.gradient).collect())?)));
+                    out[k] = Some(Valued::new(r.value, Some(chain(wrt.iter().cloned().zip(r.gradient).collect())?)));
                 }
             }
             for (k, (t, obj)) in plans.iter().enumerate().filter(|(k, _)| steps[*k].is_none()) {
                 let sc = parse_scenario(&params::with_value(&text, "simulation.end_time", *t)?, &path)?;
                 out[k] = Some(if names.is_none() {
                     let steps = driver::count_steps(&driver::prepare(&sc, threads)?);
-                    (driver::forward_value(&sc, obj, threads, steps)?, None)
+                    Valued::new(driver::forward_value(&sc, obj, threads, steps)?, None)
                 } else {
                     let r = driver::gradient(&sc, obj, &placed, &opts)?;
-                    (r.value, Some(chain(wrt.iter().cloned().zip(r.gradient).collect())?))
+                    Valued::new(r.value, Some(chain(wrt.iter().cloned().zip(r.gradient).collect())?))
                 });
             }
             Ok(out.into_iter().map(|v| v.expect("every observation valued")).collect())
@@ -371,13 +405,13 @@ fn by_adjoint(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obser
                 .map(|o| {
                     let k = reading_index(o, &readings)?;
                     if names.is_none() {
-                        return Ok((readings[k].stress, None));
+                        return Ok(Valued::new(readings[k].stress, None));
                     }
                     let mut w = vec![0.0; readings.len()];
                     w[k] = 1.0;
                     let (_, g) = rh.gradient(&w)?;
                     let kb: Keys = material.param_names().iter().map(|n| format!("material.{n}")).zip(g).collect();
-                    Ok((readings[k].stress, Some(chain(kb)?)))
+                    Ok(Valued::new(readings[k].stress, Some(chain(kb)?)))
                 })
                 .collect()
         }
@@ -409,6 +443,46 @@ mod tests {
         assert_eq!(smooth_step(&m, "ageing.rate").unwrap(), 0.03 * scale);
     }
 
+    /// The scatter the central differences estimate is the standard deviation of values' rough
+    /// part (uniform noise of unit variance times s, independent from run to run), not their
+    /// slope; a curved smooth value scatters by its second difference over sqrt(6).
+    #[test]
+    fn central_differences_estimate_the_values_scatter() {
+        let m = Model::from_table(&MODEL.parse().unwrap()).unwrap();
+        let (name, p, h, s) = ("material.viscosity", 7.5, 0.225, 0.01);
+        let at = |v: f64| {
+            let mut m = m.clone();
+            m.set(name, v).unwrap();
+            Some(m)
+        };
+        let sides = || vec![Some(Sides { at: p, lo: (p - h, at(p - h)), hi: (p + h, at(p + h)), toolpath: false })];
+        // uniform on [-sqrt 3, sqrt 3] from a hash of the observation and the run
+        let noise = |i: u64, v: f64| {
+            let mut x = (i << 32) ^ v.to_bits();
+            x = (x ^ (x >> 30)).wrapping_mul(0xbf58476d1ce4e5b9);
+            x = (x ^ (x >> 27)).wrapping_mul(0x94d049bb133111eb);
+            x ^= x >> 31;
+            3f64.sqrt() * (2.0 * (x >> 11) as f64 / (1u64 << 53) as f64 - 1.0)
+        };
+        let n = 4000;
+        let rough = |m: &Model| -> Result<Vec<f64>, String> {
+            let v = m.get(name)?;
+            Ok((0..n).map(|i| (1.0 + i as f64) * v + s * noise(i, v)).collect())
+        };
+        let (columns, scatter) = central(&rough(&m).unwrap(), rough, sides()).unwrap();
+        let rms = (scatter.iter().map(|x| x * x).sum::<f64>() / n as f64).sqrt();
+        assert!((rms / s - 1.0).abs() < 0.05, "rms scatter {rms} against {s}");
+        assert!((columns[7][0] - 8.0).abs() < 2.0 * s / h, "slope {} against 8", columns[7][0]);
+        let smooth = |m: &Model| -> Result<Vec<f64>, String> { Ok(vec![3.0 * m.get(name)?, m.get(name)?.powi(2)]) };
+        let (_, scatter) = central(&smooth(&m).unwrap(), smooth, sides()).unwrap();
+        assert!(scatter[0] < 1e-12, "a line has no scatter: {}", scatter[0]);
+        assert!((scatter[1] - 2.0 * h * h / 6f64.sqrt()).abs() < 1e-9, "a parabola's: {}", scatter[1]);
+        // one-sided (a side at a bound) says nothing of the scatter
+        let one_sided = vec![Some(Sides { at: p, lo: (p, None), hi: (p + h, at(p + h)), toolpath: false })];
+        let (_, scatter) = central(&rough(&m).unwrap(), rough, one_sided).unwrap();
+        assert!(scatter.iter().all(|&x| x == 0.0));
+    }
+
     /// The differenced Jacobian is the adjoint's where the observable is linear in the
     /// parameters (a Bingham flow curve: tau0 + eta rate); a parameter that leaves the
     /// experiment's keys unchanged (ageing at age 0) has a zero column; an effect at its null on
@@ -423,23 +497,24 @@ mod tests {
         let names: Vec<String> = ["material.yield_stress", "material.viscosity", "ageing.rate"].map(String::from).to_vec();
         let fd = differenced(&m, &e, x, &wanted, Some(&names), None, None).unwrap();
         let adj = by_adjoint(&m, &e, x, &wanted, Some(&names), None).unwrap();
-        for ((v, g), (va, ga)) in fd.iter().zip(&adj) {
+        for (f, a) in fd.iter().zip(&adj) {
+            let (v, va) = (f.value, a.value);
             assert!((v - va).abs() <= 1e-9 * va.abs(), "{v} against {va}");
-            let (g, ga) = (g.as_ref().unwrap(), ga.as_ref().unwrap());
+            let (g, ga) = (f.gradient.as_ref().unwrap(), a.gradient.as_ref().unwrap());
             for (a, b) in g.iter().zip(ga) {
                 assert!((a - b).abs() <= 1e-6 * b.abs().max(1.0), "{g:?} against the adjoint's {ga:?}");
             }
             assert_eq!(g[2], 0.0);
         }
-        let values: Vec<f64> = fd.iter().map(|(v, _)| *v).collect();
+        let values: Vec<f64> = fd.iter().map(|v| v.value).collect();
         assert_eq!(differenced(&m, &e, x, &wanted, Some(&names), None, Some(&values)).unwrap(), fd);
         // at age 100 s ageing moves the yield stress: d stress / d rate = tau0 age, one-sided
         let aged: Experiments = toml::from_str(&EXPS.replace("observe = ", "age = 100.0\nobserve = ")).unwrap();
         let x = find(&aged, "flow").unwrap();
         let fd = differenced(&m, &aged, x, &wanted, Some(&names), None, None).unwrap();
         let adj = by_adjoint(&m, &aged, x, &wanted, Some(&names), None).unwrap();
-        for ((_, g), (_, ga)) in fd.iter().zip(&adj) {
-            let (g, ga) = (g.as_ref().unwrap(), ga.as_ref().unwrap());
+        for (f, a) in fd.iter().zip(&adj) {
+            let (g, ga) = (f.gradient.as_ref().unwrap(), a.gradient.as_ref().unwrap());
             assert!((g[2] / (630.0 * 100.0) - 1.0).abs() < 1e-6 && (g[2] / ga[2] - 1.0).abs() < 1e-6, "{g:?} against the adjoint's {ga:?}");
         }
     }
@@ -464,18 +539,19 @@ mod tests {
         let fd = experiment(&m, &e, x, &wanted, Some(&names), Some(1), None).unwrap();
         let adj = by_adjoint(&m, &e, x, &wanted, Some(&names), Some(1)).unwrap();
         // the values known (a calibration's accepted trial), the same Jacobian without their run
-        let values: Vec<f64> = fd.iter().map(|(v, _)| *v).collect();
+        let values: Vec<f64> = fd.iter().map(|v| v.value).collect();
         let known = experiment(&m, &e, x, &wanted, Some(&names), Some(1), Some(&values)).unwrap();
         assert_eq!(known, fd);
         let p: Vec<f64> = names.iter().map(|n| m.get(n).unwrap()).collect();
         let mut by_name = std::collections::BTreeMap::new();
-        for (o, ((v, g), (va, ga))) in wanted.iter().zip(fd.iter().zip(&adj)) {
-            assert_eq!(v, va, "{o:?}: the values come from the same runs");
-            let (g, ga) = (g.as_ref().unwrap(), ga.as_ref().unwrap());
+        for (o, (f, a)) in wanted.iter().zip(fd.iter().zip(&adj)) {
+            let v = f.value;
+            assert_eq!(v, a.value, "{o:?}: the values come from the same runs");
+            let (g, ga) = (f.gradient.as_ref().unwrap(), a.gradient.as_ref().unwrap());
             for j in 0..names.len() {
                 println!("{} {:?}: d / d ln {}: differences {:.4e}, adjoint {:.4e}", o.name, o.at2, names[j], g[j] * p[j], ga[j] * p[j]);
             }
-            by_name.insert(o.name.clone(), (*v, g.clone(), ga.clone()));
+            by_name.insert(o.name.clone(), (v, g.clone(), ga.clone()));
         }
         let (area, g, _) = &by_name["area"];
         println!("d ln area / d ln factor = {:.4}", g[2] * p[2] / area);
@@ -493,8 +569,8 @@ mod tests {
         assert!(!by_differences_is_cheaper(2 * 3, 1));
         let hybrid = experiment(&m, &e, x, &wanted[..1], Some(&more), Some(1), None).unwrap();
         let adj = by_adjoint(&m, &e, x, &wanted[..1], Some(&more[..3]), Some(1)).unwrap();
-        let (row, adj_row) = (hybrid[0].1.as_ref().unwrap(), adj[0].1.as_ref().unwrap());
+        let (row, adj_row) = (hybrid[0].gradient.as_ref().unwrap(), adj[0].gradient.as_ref().unwrap());
         assert_eq!(&row[..3], &adj_row[..], "the material's columns from the adjoint");
-        assert_eq!(row[3], fd[0].1.as_ref().unwrap()[2], "the extrusion factor's from differences");
+        assert_eq!(row[3], fd[0].gradient.as_ref().unwrap()[2], "the extrusion factor's from differences");
     }
 }

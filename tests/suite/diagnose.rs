@@ -326,8 +326,8 @@ fn a_failure_layers_column_resolves_its_staircase() {
     let wanted = [Observable::parse("failure_layer").unwrap(), Observable::parse("failure_time").unwrap()];
     let names = ["thixotropy.a_thix".to_string()];
     let got = sensitivity::one(&model, &exps, "mid", &wanted, Some(&names), Some(1)).unwrap();
-    let (layer, dlayer) = (got[0].0, got[0].1.as_ref().unwrap()[0]);
-    let dtime = got[1].1.as_ref().unwrap()[0];
+    let (layer, dlayer) = (got[0].value, got[0].gradient.as_ref().unwrap()[0]);
+    let dtime = got[1].gradient.as_ref().unwrap()[0];
     assert_eq!(layer, 4.0, "{got:?}");
     assert!(dlayer > 0.025 && dlayer < 0.2, "d failure_layer / d A_thix = {dlayer} (mean slope about 0.05): {got:?}");
     assert!(dtime > 0.0, "{got:?}");
