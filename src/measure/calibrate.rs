@@ -73,9 +73,12 @@ pub struct Fit {
     /// was fitted): the curvature a one-step leave-one-out refit takes.
     #[serde(skip)]
     pub jacobian: Vec<Vec<f64>>,
-    /// Each model value's scatter at the optimum ([`Sensitivity::scatter`]).
+    /// Each model value's scatter at the optimum, and each Jacobian entry's
+    /// ([`Sensitivity::scatter`], [`Sensitivity::jacobian_scatter`]).
     #[serde(skip)]
     pub scatter: Vec<f64>,
+    #[serde(skip)]
+    pub jacobian_scatter: Vec<Vec<f64>>,
     /// The values and Jacobian the fit started from: where a fit from the same start (a
     /// likelihood ratio's, with an effect that leaves the model as it is) need not compute them.
     #[serde(skip)]
@@ -122,6 +125,33 @@ pub const SIMULATION_TRIES: usize = 3;
 pub fn chi2_scatter(z: &[f64], scatter: &[f64], data: &[Observation]) -> f64 {
     let sum: f64 = z.iter().zip(scatter.iter().zip(data)).map(|(z, (s, o))| (z * s / o.uncertainty).powi(2)).sum();
     2.0 * (2.0 * sum).sqrt()
+}
+
+/// How many times the drop a Jacobian's own scatter promises ([`promised_by_scatter`]) a
+/// Gauss-Newton step must promise to be worth a trial: the scatter's promise is a sum of squares
+/// of as many terms as free parameters, its mean [`promised_by_scatter`], one of two parameters
+/// exceeding twice its mean one time in seven.
+pub const UNFOUNDED: f64 = 2.0;
+
+/// The drop an undamped Gauss-Newton step promises, on average, from the scatter of its
+/// Jacobian's entries alone (`jacobian_scatter`, [`Sensitivity::jacobian_scatter`]) at the
+/// optimum of a smooth model: the gradient g = J^T z then scatters by
+/// var g_k = sum_i (z_i dJ_ik)^2 (in standardised, scaled units), and the step's promise
+/// g^T A^+ g by sum_k (A^+)_kk var g_k. A difference over 3 % of two nearly collinear parameters
+/// (a yield stress and a viscosity seen through a strand's width and height) can promise tens
+/// where no step gives anything; 0 for an adjoint's Jacobian.
+pub fn promised_by_scatter(a: &Mat, z: &[f64], jacobian_scatter: &[Vec<f64>], data: &[Observation], scale: &[f64], cols: &[usize]) -> f64 {
+    if cols.is_empty() {
+        return 0.0;
+    }
+    let (inv, _) = pinv_sym(a, 1e-12);
+    cols.iter()
+        .enumerate()
+        .map(|(k, &c)| {
+            let var_g: f64 = z.iter().zip(jacobian_scatter.iter().zip(data)).map(|(z, (r, o))| (z * r[c] * scale[c] / o.uncertainty).powi(2)).sum();
+            inv[k][k] * var_g
+        })
+        .sum()
 }
 
 /// Sum of the squared standardised residuals of `values` against `data`.
@@ -171,24 +201,26 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
         let negligible = (CHI2_NEGLIGIBLE * birge).max(scatter);
         let (a, g) = normal_equations(&jz, &z, &cols);
         let gauss_newton = if cols.is_empty() { 0.0 } else { predicted_drop(&a, &g) };
+        let unfounded = UNFOUNDED * promised_by_scatter(&a, &z, s.jacobian_scatter.as_ref().expect("asked"), data, &scale, &cols);
+        let worth_a_try = negligible.max(unfounded);
         if opts.progress && exact && scatter > 0.0 {
-            eprintln!("  exact Jacobian: an undamped step predicts chi^2 = {:.6e} (reduced chi^2 {birge:.3}; chi^2 scatters by {scatter:.3e})", c2 - gauss_newton);
+            eprintln!("  exact Jacobian: an undamped step predicts chi^2 = {:.6e} (reduced chi^2 {birge:.3}; chi^2 scatters by {scatter:.3e}, the Jacobian's scatter promises {:.3e})", c2 - gauss_newton, unfounded / UNFOUNDED);
         } else if opts.progress && exact && history.len() > 1 {
             eprintln!("  exact Jacobian: an undamped step predicts chi^2 = {:.6e} (reduced chi^2 {birge:.3})", c2 - gauss_newton);
         }
-        let next = if gauss_newton < negligible {
+        let next = if gauss_newton < worth_a_try {
             None
         } else {
             // one try on a secant Jacobian, which is then computed again, and near the optimum
-            // (a promise under twice chi^2's scatter is near it)
-            let tries = if !exact || gauss_newton < (CHI2_ROUGH * birge).max(2.0 * scatter) {
+            // (a promise under twice what the scatter would make is near it)
+            let tries = if !exact || gauss_newton < (CHI2_ROUGH * birge).max(2.0 * worth_a_try) {
                 1
             } else if simulated {
                 SIMULATION_TRIES
             } else {
                 TRIES
             };
-            damped_step(&model, &theta, (&s, c2, negligible), (&a, &g), &cols, &mut lambda, names, &bounds, data, exps, opts, (secant, tries))?
+            damped_step(&model, &theta, (&s, c2, worth_a_try), (&a, &g), &cols, &mut lambda, names, &bounds, data, exps, opts, (secant, tries))?
         };
         let Some(next) = next else {
             if exact {
@@ -246,6 +278,7 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
         model_values: s.values.clone(),
         jacobian: s.jacobian.expect("asked"),
         scatter: s.scatter,
+        jacobian_scatter: s.jacobian_scatter.expect("asked"),
         at_start: first,
         model,
     })
@@ -341,7 +374,7 @@ fn damped_step(
                 let scale: Vec<f64> = bounds.iter().map(|b| b.scale).collect();
                 let jacobian = secant_update(at.jacobian.as_ref().expect("asked"), (theta, &trial), &scale, (&at.values, &tv));
                 // the scatter is the model's near here, as the last exact Jacobian estimated it
-                Sensitivity { values: tv, jacobian: Some(jacobian), scatter: at.scatter.clone() }
+                Sensitivity { values: tv, jacobian: Some(jacobian), scatter: at.scatter.clone(), jacobian_scatter: at.jacobian_scatter.clone() }
             } else {
                 let Ok(at_trial) = opts.engine.jacobian_at(opts.jobs, &tm, data, exps, names, &tv)? else {
                     *lambda *= 4.0;
@@ -410,6 +443,7 @@ impl Fit {
             values: rows.iter().map(|&i| self.model_values[i]).collect(),
             jacobian: Some(rows.iter().map(|&i| self.jacobian[i].clone()).collect()),
             scatter: rows.iter().map(|&i| self.scatter[i]).collect(),
+            jacobian_scatter: Some(rows.iter().map(|&i| self.jacobian_scatter[i].clone()).collect()),
         }
     }
 }
@@ -452,6 +486,7 @@ pub fn plot_convergence(f: &Fit, path: &std::path::Path) -> Result<(), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::measure::observation::Observable;
 
     const MODEL: &str = "[material]\nkind = \"bingham\"\ndensity = 2100.0\nbulk_modulus = 1e6\nviscosity = 7.5\nyield_stress = 630.0\n";
     const EXPS: &str = "[[experiment]]\nid = \"flow\"\nobserve = [\"stress@40\", \"stress@20\", \"stress@5\"]\n[experiment.protocol]\n[[experiment.protocol.phase]]\nkind = \"sweep\"\nrates = [40.0, 20.0, 5.0]\nhold = 0.5\n";
@@ -478,6 +513,37 @@ mod tests {
         }
         // the second value is linear: its row was right and stays so
         assert!((new[1][0] - 0.0).abs() < 1e-12 && (new[1][1] - 3.0).abs() < 1e-12, "{:?}", new[1]);
+    }
+
+    /// At the optimum of a linear model (z orthogonal to the Jacobian's columns) a Jacobian
+    /// whose entries scatter promises, on average over the scatter, the drop
+    /// [`promised_by_scatter`] says, though no step lowers chi^2.
+    #[test]
+    fn a_scattered_jacobian_promises_what_promised_by_scatter_says() {
+        use rand_distr::{Distribution, StandardNormal};
+        let mut rng = super::super::synth::noise_source(3);
+        let m = 40;
+        let truth: Vec<Vec<f64>> = (0..m).map(|i| vec![1.0 + 0.1 * i as f64, 1.1 + 0.1 * i as f64 + 0.02 * (i % 3) as f64]).collect();
+        // residuals at the optimum: the part of a draw the columns do not explain
+        let draw: Vec<f64> = (0..m).map(|_| { let n: f64 = StandardNormal.sample(&mut rng); 3.0 * n }).collect();
+        let (a, g) = normal_equations(&truth, &draw, &[0, 1]);
+        let step = gauss_newton_step(&a, &g, 1e-14);
+        let z: Vec<f64> = draw.iter().zip(&truth).map(|(d, r)| d + r[0] * step[0] + r[1] * step[1]).collect();
+        let (_, g) = normal_equations(&truth, &z, &[0, 1]);
+        assert!(g.iter().all(|g| g.abs() < 1e-9), "{g:?}");
+        let data: Vec<Observation> = (0..m).map(|_| Observation { experiment: "x".into(), observable: Observable::parse("width").unwrap(), value: 0.0, uncertainty: 1.0 }).collect();
+        let jacobian_scatter = vec![vec![0.02, 0.03]; m];
+        let (mut sum, mut said, draws) = (0.0, 0.0, 4000);
+        for _ in 0..draws {
+            let noisy: Vec<Vec<f64>> = truth.iter().zip(&jacobian_scatter).map(|(r, s)| r.iter().zip(s).map(|(v, s)| { let n: f64 = StandardNormal.sample(&mut rng); v + s * n }).collect()).collect();
+            let (a, g) = normal_equations(&noisy, &z, &[0, 1]);
+            sum += predicted_drop(&a, &g);
+            said += promised_by_scatter(&a, &z, &jacobian_scatter, &data, &[1.0, 1.0], &[0, 1]);
+        }
+        let (mean, said) = (sum / draws as f64, said / draws as f64);
+        println!("promised {mean} on average, {said} said");
+        assert!(mean > 1.0, "the scatter promises {mean}");
+        assert!((mean / said - 1.0).abs() < 0.15, "promised {mean} on average, {said} said");
     }
 
     #[test]

@@ -16,12 +16,13 @@ use super::observation::Observation;
 use super::runner::{find, group};
 
 /// The columns of `extra` (one value per observation of `data`) at `model`, given `jacobian`
-/// (a row per observation) in `fitted`: `Some` for each parameter whose key moves lie, in every
-/// experiment, in the span of the fitted parameters' (to round-off), `None` for the others.
-pub fn chained(model: &Model, data: &[Observation], exps: &Experiments, fitted: &[String], jacobian: &[Vec<f64>], extra: &[String]) -> Result<Vec<Option<Vec<f64>>>, String> {
+/// (a row per observation) in `fitted` and its entries' scatter: `Some` for each parameter whose
+/// key moves lie, in every experiment, in the span of the fitted parameters' (to round-off), with
+/// each entry's scatter (the fitted entries' combined, as independent), `None` for the others.
+pub fn chained(model: &Model, data: &[Observation], exps: &Experiments, fitted: &[String], (jacobian, jacobian_scatter): (&[Vec<f64>], &[Vec<f64>]), extra: &[String]) -> Result<Vec<Option<Chained>>, String> {
     let all: Vec<String> = fitted.iter().chain(extra).cloned().collect();
     let fcols: Vec<usize> = (0..fitted.len()).collect();
-    let mut columns: Vec<Option<Vec<f64>>> = vec![Some(vec![0.0; data.len()]); extra.len()];
+    let mut columns: Vec<Option<Chained>> = vec![Some(Chained { column: vec![0.0; data.len()], scatter: vec![0.0; data.len()] }); extra.len()];
     for (id, _) in group(data) {
         let x = find(exps, &id)?;
         let cov = x.covariates();
@@ -36,11 +37,19 @@ pub fn chained(model: &Model, data: &[Observation], exps: &Experiments, fitted: 
                 continue;
             };
             for &i in &rows {
-                col[i] = jacobian[i].iter().zip(&c).map(|(a, b)| a * b).sum();
+                col.column[i] = jacobian[i].iter().zip(&c).map(|(a, b)| a * b).sum();
+                col.scatter[i] = jacobian_scatter[i].iter().zip(&c).map(|(a, b)| (a * b).powi(2)).sum::<f64>().sqrt();
             }
         }
     }
     Ok(columns)
+}
+
+/// A column the chain rule gives, and its entries' scatter.
+#[derive(Clone, Debug)]
+pub struct Chained {
+    pub column: Vec<f64>,
+    pub scatter: Vec<f64>,
 }
 
 /// The coefficients c with `t` = sum_j c_j (column `cols[j]` of `tangents`), when `t` lies in
@@ -80,8 +89,9 @@ mod tests {
         let all: Vec<String> = fitted.iter().chain(&extra).cloned().collect();
         let exact = super::super::sensitivity::sensitivity(&model, &data, &exps, Some(&all), 1).unwrap().jacobian.unwrap();
         let fit_rows: Vec<Vec<f64>> = exact.iter().map(|r| r[..2].to_vec()).collect();
-        let cols = chained(&model, &data, &exps, &fitted, &fit_rows, &extra).unwrap();
-        let rate = cols[0].as_ref().expect("an ageing rate is spanned by the yield stress");
+        let no_scatter = vec![vec![0.0; 2]; fit_rows.len()];
+        let cols = chained(&model, &data, &exps, &fitted, (&fit_rows, &no_scatter), &extra).unwrap();
+        let rate = &cols[0].as_ref().expect("an ageing rate is spanned by the yield stress").column;
         assert!(rate.iter().any(|v| *v != 0.0), "{rate:?}");
         for (i, r) in exact.iter().enumerate() {
             assert!((rate[i] - r[2]).abs() <= 1e-9 * r[2].abs().max(1e-300), "row {i}: {} against the adjoint's {}", rate[i], r[2]);

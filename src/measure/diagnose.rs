@@ -282,7 +282,7 @@ fn base_fit(model: &Model, data: &[Observation], exps: &Experiments, fit: &[Stri
     let m = data.len();
     let v = opts.fit.engine.sensitivity(opts.fit.jobs, model, data, exps, None)??.values;
     let c2 = chi2(&v, data);
-    Ok(Fit { names: vec![], start: vec![], values: vec![], uncertainty: vec![], at_bound: vec![], influence: vec![], chi2_start: c2, chi2: c2, reduced_chi2: c2 / m as f64, history: vec![c2], converged: true, observations: m, model_values: v.clone(), jacobian: vec![], scatter: vec![0.0; m], at_start: Sensitivity { values: v, jacobian: Some(vec![]), scatter: vec![0.0; m] }, model: model.clone() })
+    Ok(Fit { names: vec![], start: vec![], values: vec![], uncertainty: vec![], at_bound: vec![], influence: vec![], chi2_start: c2, chi2: c2, reduced_chi2: c2 / m as f64, history: vec![c2], converged: true, observations: m, model_values: v.clone(), jacobian: vec![], scatter: vec![0.0; m], jacobian_scatter: vec![vec![]; m], at_start: Sensitivity { values: v, jacobian: Some(vec![]), scatter: vec![0.0; m], jacobian_scatter: Some(vec![vec![]; m]) }, model: model.clone() })
 }
 
 /// Values and Jacobian, in the base fit's parameters then `extra`, at `with`: the base fit's model
@@ -294,29 +294,40 @@ fn base_fit(model: &Model, data: &[Observation], exps: &Experiments, fit: &[Stri
 fn beside_base(base: &Fit, from_start: bool, with: &Model, extra: &[String], data: &[Observation], exps: &Experiments, opts: &DiagnoseOptions) -> Result<Sensitivity, String> {
     let (engine, jobs) = (&opts.fit.engine, opts.fit.jobs);
     let names: Vec<String> = base.names.iter().chain(extra).cloned().collect();
-    let (known, known_jacobian, known_scatter) = if from_start { (&base.at_start.values, base.at_start.jacobian.as_ref().expect("asked"), &base.at_start.scatter) } else { (&base.model_values, &base.jacobian, &base.scatter) };
+    let (known, known_jacobian, known_scatter, known_jacobian_scatter) = match from_start {
+        true => (&base.at_start.values, base.at_start.jacobian.as_ref().expect("asked"), &base.at_start.scatter, base.at_start.jacobian_scatter.as_ref().expect("asked")),
+        false => (&base.model_values, &base.jacobian, &base.scatter, &base.jacobian_scatter),
+    };
     let values = engine.sensitivity(jobs, with, data, exps, None)??.values;
     if values != *known || base.names.is_empty() || extra.is_empty() {
         return engine.jacobian_at(jobs, with, data, exps, &names, &values)?;
     }
     // an effect's columns the fitted parameters' give through the keys take no run
-    let chained = super::chain::chained(with, data, exps, &base.names, known_jacobian, extra)?;
+    let chained = super::chain::chained(with, data, exps, &base.names, (known_jacobian, known_jacobian_scatter), extra)?;
     let run: Vec<String> = extra.iter().zip(&chained).filter(|(_, c)| c.is_none()).map(|(n, _)| n.clone()).collect();
-    let (mut computed, scatter) = if run.is_empty() {
-        (vec![vec![]; data.len()], known_scatter.clone())
+    let (computed, computed_scatter, scatter) = if run.is_empty() {
+        (vec![vec![]; data.len()], vec![vec![]; data.len()], known_scatter.clone())
     } else {
         let s = engine.jacobian_at(jobs, with, data, exps, &run, &values)??;
         // the larger of the two estimates of the same scatter, to be cautious
-        (s.jacobian.expect("asked"), s.scatter.iter().zip(known_scatter).map(|(a, b)| a.max(*b)).collect())
+        let scatter = s.scatter.iter().zip(known_scatter).map(|(a, b)| a.max(*b)).collect();
+        (s.jacobian.expect("asked"), s.jacobian_scatter.expect("asked"), scatter)
     };
-    let jacobian = (0..data.len())
-        .map(|i| {
-            let mut next = computed[i].drain(..);
-            let added = chained.iter().map(|c| c.as_ref().map_or_else(|| next.next().expect("a computed column"), |c| c[i]));
-            known_jacobian[i].iter().copied().chain(added.collect::<Vec<_>>()).collect()
-        })
-        .collect();
-    Ok(Sensitivity { values, jacobian: Some(jacobian), scatter })
+    // the known columns, then each extra parameter's, chained or computed
+    let rows = |known: &[Vec<f64>], computed: Vec<Vec<f64>>, pick: fn(&super::chain::Chained) -> &Vec<f64>| -> Vec<Vec<f64>> {
+        computed
+            .into_iter()
+            .enumerate()
+            .map(|(i, computed)| {
+                let mut next = computed.into_iter();
+                let added: Vec<f64> = chained.iter().map(|c| c.as_ref().map_or_else(|| next.next().expect("a computed column"), |c| pick(c)[i])).collect();
+                known[i].iter().copied().chain(added).collect()
+            })
+            .collect()
+    };
+    let jacobian = rows(known_jacobian, computed, |c| &c.column);
+    let jacobian_scatter = rows(known_jacobian_scatter, computed_scatter, |c| &c.scatter);
+    Ok(Sensitivity { values, jacobian: Some(jacobian), scatter, jacobian_scatter: Some(jacobian_scatter) })
 }
 
 /// What the score tests leave: a candidate for each effect tested by its score, the effects
@@ -540,8 +551,9 @@ fn fit_and_check(
             // as this one is here: the same runs, unless an effect at its null moved a value
             None if scored.at_nulls.values == base.model_values => {
                 let cols: Vec<usize> = (0..fit.len()).chain(scored.columns.iter().find(|(e, _)| *e == c.effect).expect("a score-tested effect").1.iter().copied()).collect();
-                let jacobian = scored.at_nulls.jacobian.as_ref().expect("asked").iter().map(|r| cols.iter().map(|&k| r[k]).collect()).collect();
-                calibrate_from(&base.model.with_effect(effect), data, exps, &fnames, &opts.fit, Sensitivity { jacobian: Some(jacobian), ..scored.at_nulls.clone() })?
+                let pick = |m: &Option<Vec<Vec<f64>>>| Some(m.as_ref().expect("asked").iter().map(|r| cols.iter().map(|&k| r[k]).collect()).collect());
+                let (jacobian, jacobian_scatter) = (pick(&scored.at_nulls.jacobian), pick(&scored.at_nulls.jacobian_scatter));
+                calibrate_from(&base.model.with_effect(effect), data, exps, &fnames, &opts.fit, Sensitivity { jacobian, jacobian_scatter, ..scored.at_nulls.clone() })?
             }
             None => calibrate(&base.model.with_effect(effect), data, exps, &fnames, &opts.fit)?,
         };

@@ -149,9 +149,9 @@ pub struct Computed {
 
 #[derive(serde::Serialize, serde::Deserialize)]
 pub enum Outcome {
-    /// A value per observable and, with names, a gradient row per observable and each value's
-    /// scatter ([`Sensitivity::scatter`]).
-    Values { values: Vec<Exact>, jacobian: Option<Vec<Vec<Exact>>>, scatter: Vec<Exact> },
+    /// A value per observable and, with names, a gradient row per observable; the scatter of
+    /// each ([`Sensitivity::scatter`], [`Sensitivity::jacobian_scatter`]).
+    Values { values: Vec<Exact>, jacobian: Option<Vec<Vec<Exact>>>, scatter: Vec<Exact>, jacobian_scatter: Option<Vec<Vec<Exact>>> },
     /// The model's failure, as the local evaluation reports it.
     Failed(String),
 }
@@ -320,14 +320,20 @@ fn read_result(path: &Path, job: &Job, id: &str) -> Result<Result<Vec<Valued>, S
     }
     Ok(match c.outcome {
         Outcome::Failed(e) => Err(e),
-        Outcome::Values { values, jacobian, scatter } => {
+        Outcome::Values { values, jacobian, scatter, jacobian_scatter } => {
             let n = job.observables.len();
             let rows = jacobian.map(|j| j.iter().map(|r| plain(r)).collect::<Vec<_>>());
-            if values.len() != n || scatter.len() != n || rows.as_ref().is_some_and(|r| r.len() != n) || rows.is_some() != job.names.is_some() {
+            let row_scatter = jacobian_scatter.map(|j| j.iter().map(|r| plain(r)).collect::<Vec<_>>());
+            let shaped = |r: &Option<Vec<Vec<f64>>>| r.as_ref().is_none_or(|r| r.len() == n) && r.is_some() == job.names.is_some();
+            if values.len() != n || scatter.len() != n || !shaped(&rows) || !shaped(&row_scatter) {
                 return Err(format!("experiment '{id}': {} holds {} values for {n} observables: delete it to compute it again", path.display(), values.len()));
             }
-            let mut rows = rows.map(Vec::into_iter);
-            Ok(plain(&values).into_iter().zip(plain(&scatter)).map(|(value, scatter)| Valued { value, gradient: rows.as_mut().map(|r| r.next().expect("a row per value")), scatter }).collect())
+            let (mut rows, mut row_scatter) = (rows.map(Vec::into_iter), row_scatter.map(Vec::into_iter));
+            Ok(plain(&values)
+                .into_iter()
+                .zip(plain(&scatter))
+                .map(|(value, scatter)| Valued { value, gradient: rows.as_mut().and_then(Iterator::next), scatter, gradient_scatter: row_scatter.as_mut().and_then(Iterator::next) })
+                .collect())
         }
     })
 }
@@ -359,6 +365,7 @@ pub fn evaluate(job_path: &Path, out: &Path) -> Result<String, String> {
             values: exact(&per.iter().map(|v| v.value).collect::<Vec<_>>()),
             jacobian: job.names.as_ref().map(|_| per.iter().map(|v| exact(v.gradient.as_deref().unwrap_or_default())).collect()),
             scatter: exact(&per.iter().map(|v| v.scatter).collect::<Vec<_>>()),
+            jacobian_scatter: job.names.as_ref().map(|_| per.iter().map(|v| exact(v.gradient_scatter.as_deref().unwrap_or_default())).collect()),
         },
         Err(e) => Outcome::Failed(e),
     };

@@ -39,6 +39,10 @@ pub struct Sensitivity {
     /// it ([`central`]); 0 where nothing did (values alone, an adjoint, a rheometer's smooth
     /// readings).
     pub scatter: Vec<f64>,
+    /// With the Jacobian, each of its entries' scatter (one standard deviation, the same shape):
+    /// a central difference over a width w carries its values' scatter as s sqrt(2) / w; an
+    /// adjoint's entry has none.
+    pub jacobian_scatter: Option<Vec<Vec<f64>>>,
 }
 
 /// Values of every observation under `model`, with their gradients in `names` when given;
@@ -90,22 +94,27 @@ pub fn assemble(data: &[Observation], wanted: &[(String, Vec<Observable>)], per:
     Sensitivity {
         values: flat.iter().map(|v| v.value).collect(),
         scatter: flat.iter().map(|v| v.scatter).collect(),
+        jacobian_scatter: names.map(|_| flat.iter().map(|v| v.gradient_scatter.clone().expect("asked")).collect()),
         jacobian: names.map(|_| flat.into_iter().map(|v| v.gradient.expect("asked")).collect()),
     }
 }
 
-/// An observation's value and, when asked, its gradient, with the value's scatter where the
-/// gradient's differences estimated it ([`Sensitivity::scatter`]).
+/// An observation's value and, when asked, its gradient, with the scatter of each where the
+/// gradient's differences estimated it ([`Sensitivity::scatter`],
+/// [`Sensitivity::jacobian_scatter`]).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Valued {
     pub value: f64,
     pub gradient: Option<Vec<f64>>,
     pub scatter: f64,
+    pub gradient_scatter: Option<Vec<f64>>,
 }
 
 impl Valued {
+    /// A value and gradient without scatter (an adjoint's, a rheometer's).
     pub fn new(value: f64, gradient: Option<Vec<f64>>) -> Valued {
-        Valued { value, gradient, scatter: 0.0 }
+        let gradient_scatter = gradient.as_ref().map(|g| vec![0.0; g.len()]);
+        Valued { value, gradient, scatter: 0.0, gradient_scatter }
     }
 }
 
@@ -193,15 +202,16 @@ fn simulated(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observ
     let values: Vec<f64> = at_model.iter().map(|v| v.value).collect();
     let run = |m: &Model| Ok(by_adjoint(m, exps, x, wanted, None, threads)?.into_iter().map(|v| v.value).collect());
     let differenced: Vec<Option<Sides>> = sides.into_iter().zip(&by_differences).map(|(s, &d)| s.filter(|_| d)).collect();
-    let (columns, scatter) = central(&values, run, differenced)?;
+    let Central { columns, scatter, column_scatter } = central(&values, run, differenced)?;
     let mut from_adjoint = 0..adjoint.len();
     let picks: Vec<Option<usize>> = from_the_adjoint.iter().map(|&a| if a { from_adjoint.next() } else { None }).collect();
     Ok(at_model
         .into_iter()
-        .zip(columns.into_iter().zip(scatter))
-        .map(|(v, (fd, scatter))| {
+        .zip(columns.into_iter().zip(column_scatter).zip(scatter))
+        .map(|(v, ((fd, fd_scatter), scatter))| {
             let row = picks.iter().zip(fd).map(|(k, d)| k.map_or(d, |k| v.gradient.as_ref().expect("asked")[k])).collect();
-            Valued { value: v.value, gradient: Some(row), scatter }
+            let row_scatter = picks.iter().zip(fd_scatter).map(|(k, d)| if k.is_some() { 0.0 } else { d }).collect();
+            Valued { value: v.value, gradient: Some(row), scatter, gradient_scatter: Some(row_scatter) }
         })
         .collect())
 }
@@ -309,11 +319,13 @@ fn moves(model: &Model, x: &Experiment, keys: &Keys, name: &str, h: f64) -> Resu
 /// parameter ran both sides a step h away, the second difference v(p + h) + v(p - h) - 2 v(p)
 /// of values with independent scatter s has variance 6 s^2 (plus its curvature, h^2 v'', small
 /// at 3 % steps, which only makes the estimate cautious); the mean square over the parameters
-/// that ran both sides, over 6, estimates s^2.
-fn central(values: &[f64], run: impl Fn(&Model) -> Result<Vec<f64>, String>, sides: Vec<Option<Sides>>) -> Result<(Vec<Vec<f64>>, Vec<f64>), String> {
+/// that ran both sides, over 6, estimates s^2; and a column's entry, a difference over a width w,
+/// scatters by s sqrt(2) / w.
+fn central(values: &[f64], run: impl Fn(&Model) -> Result<Vec<f64>, String>, sides: Vec<Option<Sides>>) -> Result<Central, String> {
     let mut rows = vec![vec![0.0; sides.len()]; values.len()];
     let mut second = vec![0.0; values.len()];
     let mut both_sides = 0;
+    let mut widths = vec![f64::INFINITY; sides.len()];
     for (j, s) in sides.into_iter().enumerate() {
         let Some(Sides { lo: (lo, m_lo), hi: (hi, m_hi), at, .. }) = s else { continue };
         let symmetric = m_lo.is_some() && m_hi.is_some() && hi - at == at - lo;
@@ -335,9 +347,19 @@ fn central(values: &[f64], run: impl Fn(&Model) -> Result<Vec<f64>, String>, sid
         for (row, (a, b)) in rows.iter_mut().zip(v_lo.iter().zip(&v_hi)) {
             row[j] = (b - a) / (hi - lo);
         }
+        widths[j] = hi - lo;
     }
-    let scatter = second.into_iter().map(|d2| if both_sides == 0 { 0.0 } else { (d2 / (6 * both_sides) as f64).sqrt() }).collect();
-    Ok((rows, scatter))
+    let scatter: Vec<f64> = second.into_iter().map(|d2| if both_sides == 0 { 0.0 } else { (d2 / (6 * both_sides) as f64).sqrt() }).collect();
+    let column_scatter = scatter.iter().map(|s| widths.iter().map(|w| s * 2f64.sqrt() / w).collect()).collect();
+    Ok(Central { columns: rows, scatter, column_scatter })
+}
+
+/// What [`central`] gives: the columns (a row per value), each value's scatter, and each
+/// column entry's.
+struct Central {
+    columns: Vec<Vec<f64>>,
+    scatter: Vec<f64>,
+    column_scatter: Vec<Vec<f64>>,
 }
 
 fn by_adjoint(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>) -> Result<Vec<Valued>, String> {
@@ -469,18 +491,22 @@ mod tests {
             let v = m.get(name)?;
             Ok((0..n).map(|i| (1.0 + i as f64) * v + s * noise(i, v)).collect())
         };
-        let (columns, scatter) = central(&rough(&m).unwrap(), rough, sides()).unwrap();
-        let rms = (scatter.iter().map(|x| x * x).sum::<f64>() / n as f64).sqrt();
+        let c = central(&rough(&m).unwrap(), rough, sides()).unwrap();
+        let rms = (c.scatter.iter().map(|x| x * x).sum::<f64>() / n as f64).sqrt();
         assert!((rms / s - 1.0).abs() < 0.05, "rms scatter {rms} against {s}");
-        assert!((columns[7][0] - 8.0).abs() < 2.0 * s / h, "slope {} against 8", columns[7][0]);
+        // the slopes scatter about theirs by s / (sqrt(2) h), as each entry's scatter says
+        let (miss, said): (f64, f64) = (0..n as usize).map(|i| ((c.columns[i][0] - (1.0 + i as f64)).powi(2), c.column_scatter[i][0].powi(2))).fold((0.0, 0.0), |(a, b), (x, y)| (a + x, b + y));
+        let expected = s / (2f64.sqrt() * h);
+        assert!(((miss / n as f64).sqrt() / expected - 1.0).abs() < 0.05, "slopes miss by {} rms against {expected}", (miss / n as f64).sqrt());
+        assert!(((said / n as f64).sqrt() / expected - 1.0).abs() < 0.1, "slopes said to scatter by {} rms against {expected}", (said / n as f64).sqrt());
         let smooth = |m: &Model| -> Result<Vec<f64>, String> { Ok(vec![3.0 * m.get(name)?, m.get(name)?.powi(2)]) };
-        let (_, scatter) = central(&smooth(&m).unwrap(), smooth, sides()).unwrap();
-        assert!(scatter[0] < 1e-12, "a line has no scatter: {}", scatter[0]);
-        assert!((scatter[1] - 2.0 * h * h / 6f64.sqrt()).abs() < 1e-9, "a parabola's: {}", scatter[1]);
+        let c = central(&smooth(&m).unwrap(), smooth, sides()).unwrap();
+        assert!(c.scatter[0] < 1e-12, "a line has no scatter: {}", c.scatter[0]);
+        assert!((c.scatter[1] - 2.0 * h * h / 6f64.sqrt()).abs() < 1e-9, "a parabola's: {}", c.scatter[1]);
         // one-sided (a side at a bound) says nothing of the scatter
         let one_sided = vec![Some(Sides { at: p, lo: (p, None), hi: (p + h, at(p + h)), toolpath: false })];
-        let (_, scatter) = central(&rough(&m).unwrap(), rough, one_sided).unwrap();
-        assert!(scatter.iter().all(|&x| x == 0.0));
+        let c = central(&rough(&m).unwrap(), rough, one_sided).unwrap();
+        assert!(c.scatter.iter().all(|&x| x == 0.0) && c.column_scatter.iter().all(|r| r[0] == 0.0));
     }
 
     /// The differenced Jacobian is the adjoint's where the observable is linear in the
