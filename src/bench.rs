@@ -6,11 +6,22 @@
 //! dt = 0.0128 / G. strand's Newtonian fluid with zero viscosity and the linear EOS gives exactly
 //! that stress: V0 J sigma = V0 J K (1 - 1/J) = V0 K (J - 1).
 
-use crate::scenario::Scenario;
-use crate::solver::Simulation;
+use crate::scenario::{Scenario, ScenarioError};
+use crate::solver::{SimError, Simulation};
 use std::time::Instant;
 
-pub fn peer_scenario(particles: usize, grid: usize, threads: usize) -> Result<Scenario, String> {
+/// Why the peer scene cannot be built or run.
+#[derive(Debug, thiserror::Error)]
+pub enum BenchError {
+    #[error(transparent)]
+    Scenario(#[from] ScenarioError),
+    #[error(transparent)]
+    Sim(#[from] SimError),
+    #[error("{particles} particles at 8 per cell do not fit a {grid}^3 grid")]
+    TooManyParticles { particles: usize, grid: usize },
+}
+
+pub fn peer_scenario(particles: usize, grid: usize, threads: usize) -> Result<Scenario, BenchError> {
     let g = grid as f64;
     let dx = 1.0 / g;
     let text = format!(
@@ -46,7 +57,7 @@ max_particles = {particles}
         lo = 2.0 * dx,
         hi = 1.0 - 2.0 * dx,
     );
-    Scenario::parse(&text).map_err(|e| e.to_string())
+    Ok(Scenario::parse(&text)?)
 }
 
 /// A deterministic 64-bit generator (splitmix64) for the random particle cloud.
@@ -63,14 +74,14 @@ impl SplitMix {
 }
 
 /// Build the peer scene: particles uniformly at random in the corner cube, sorted by cell.
-pub fn peer_simulation(particles: usize, grid: usize, threads: usize) -> Result<Simulation, String> {
+pub fn peer_simulation(particles: usize, grid: usize, threads: usize) -> Result<Simulation, BenchError> {
     let sc = peer_scenario(particles, grid, threads)?;
-    let mut sim = Simulation::new(&sc).map_err(|e| e.to_string())?;
+    let mut sim = Simulation::new(&sc)?;
     let dx = 1.0 / grid as f64;
     let side = (particles as f64 / 8.0).cbrt() * dx;
     let lo = 3.0 * dx;
     if lo + side > 1.0 - 4.0 * dx {
-        return Err(format!("{particles} particles at 8 per cell do not fit a {grid}^3 grid"));
+        return Err(BenchError::TooManyParticles { particles, grid });
     }
     let mut rng = SplitMix(0);
     let mut pts: Vec<[f64; 3]> = (0..particles)
@@ -83,7 +94,7 @@ pub fn peer_simulation(particles: usize, grid: usize, threads: usize) -> Result<
     pts.sort_by_key(key);
     let vol = dx * dx * dx / 8.0;
     for p in pts {
-        sim.add_particle(p, [0.0; 3], vol).map_err(|e| e.to_string())?;
+        sim.add_particle(p, [0.0; 3], vol)?;
     }
     Ok(sim)
 }
@@ -114,18 +125,18 @@ pub fn run_bench(
     repeats: usize,
     threads: Option<usize>,
     json: bool,
-) -> Result<BenchResult, String> {
+) -> Result<BenchResult, BenchError> {
     let mut sim = peer_simulation(particles, grid, threads.unwrap_or(0))?;
     let dt = 0.0128 / grid as f64;
     for _ in 0..3 {
-        sim.advance(dt).map_err(|e| e.to_string())?;
+        sim.advance(dt)?;
     }
     sim.phase_seconds = [0.0; crate::solver::PHASES.len()];
     let mut runs = Vec::new();
     for _ in 0..repeats.max(1) {
         let t0 = Instant::now();
         for _ in 0..steps {
-            sim.advance(dt).map_err(|e| e.to_string())?;
+            sim.advance(dt)?;
         }
         runs.push(t0.elapsed().as_secs_f64());
     }

@@ -682,7 +682,14 @@ macro_rules! failure_from {
         }
     )*};
 }
-failure_from!(strand::checkpoint::NoCheckpoints, strand::invalid::Invalid);
+failure_from!(
+    strand::checkpoint::NoCheckpoints,
+    strand::invalid::Invalid,
+    strand::grad::GradError,
+    strand::grad::schedule::ScheduleError,
+    strand::verify::VerifyError,
+    strand::bench::BenchError,
+);
 
 /// Exit status 0 when the command succeeded, 1 when it ran but found a failure (a bad checkpoint,
 /// a failed verification case), else the failure's.

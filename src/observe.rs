@@ -13,7 +13,7 @@
 use std::collections::{BTreeMap, HashSet};
 use std::fmt::Write as _;
 use std::io::Write as _;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Particles as the observables see them.
 ///
@@ -431,13 +431,24 @@ pub fn write_profile_csv(path: &Path, sections: &[(f64, &CrossSection)]) -> std:
     f.flush()
 }
 
+/// Why measured profile points cannot be read: the file, or a line of it (1-based).
+#[derive(Debug, thiserror::Error)]
+pub enum PointsCsvError {
+    #[error("{}: {source}", path.display())]
+    Read { path: PathBuf, source: std::io::Error },
+    #[error("{}: no header `y,z` (file has no data lines)", path.display())]
+    NoHeader { path: PathBuf },
+    #[error("{}:{line}: {message}", path.display())]
+    Line { path: PathBuf, line: usize, message: String },
+}
+
 /// Reads measured profile points from a CSV file with header `y,z` (metres).
 ///
 /// Blank lines and lines starting with `#` are skipped anywhere. Every other line after the
 /// header must hold exactly two finite numbers. Errors name the file and the 1-based line.
-pub fn read_points_csv(path: &Path) -> Result<Vec<[f64; 2]>, String> {
-    let name = path.display();
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{name}: {e}"))?;
+pub fn read_points_csv(path: &Path) -> Result<Vec<[f64; 2]>, PointsCsvError> {
+    let text = std::fs::read_to_string(path).map_err(|source| PointsCsvError::Read { path: path.to_path_buf(), source })?;
+    let at = |line: usize, message: String| PointsCsvError::Line { path: path.to_path_buf(), line, message };
     let mut lines = text
         .lines()
         .enumerate()
@@ -446,27 +457,22 @@ pub fn read_points_csv(path: &Path) -> Result<Vec<[f64; 2]>, String> {
 
     match lines.next() {
         Some((_, l)) if l.split(',').map(str::trim).eq(["y", "z"]) => {}
-        Some((n, l)) => return Err(format!("{name}:{n}: expected header `y,z`, found `{l}`")),
-        None => return Err(format!("{name}: no header `y,z` (file has no data lines)")),
+        Some((n, l)) => return Err(at(n, format!("expected header `y,z`, found `{l}`"))),
+        None => return Err(PointsCsvError::NoHeader { path: path.to_path_buf() }),
     }
 
     let mut points = Vec::new();
     for (n, l) in lines {
         let fields: Vec<&str> = l.split(',').map(str::trim).collect();
         if fields.len() != 2 {
-            return Err(format!(
-                "{name}:{n}: expected 2 fields `y,z`, found {}",
-                fields.len()
-            ));
+            return Err(at(n, format!("expected 2 fields `y,z`, found {}", fields.len())));
         }
         let mut p = [0.0; 2];
         for (slot, (field, axis)) in p.iter_mut().zip(fields.iter().zip(["y", "z"])) {
             *slot = match field.parse::<f64>() {
                 Ok(v) if v.is_finite() => v,
                 _ => {
-                    return Err(format!(
-                        "{name}:{n}: {axis} `{field}` is not a finite number"
-                    ))
+                    return Err(at(n, format!("{axis} `{field}` is not a finite number")))
                 }
             };
         }
@@ -837,10 +843,10 @@ mod tests {
         ];
         for (text, want) in cases {
             std::fs::write(&path, text).unwrap();
-            let e = read_points_csv(&path).unwrap_err();
+            let e = read_points_csv(&path).unwrap_err().to_string();
             assert!(e.contains("bad.csv") && e.contains(want), "{text:?} -> {e}");
         }
-        let e = read_points_csv(&dir.path().join("missing.csv")).unwrap_err();
+        let e = read_points_csv(&dir.path().join("missing.csv")).unwrap_err().to_string();
         assert!(e.contains("missing.csv"), "{e}");
     }
 }

@@ -4,14 +4,38 @@
 pub use crate::config::ObserveConfig;
 use crate::failure::{Detector, Failure};
 use crate::observe::{self, Cloud, CrossSection, SECTION_CSV_HEADER};
-use crate::output::plot::plot_cross_section;
+use crate::observe::PointsCsvError;
+use crate::output::plot::{plot_cross_section, PlotError};
 use crate::scenario::Scenario;
-use crate::solver::Simulation;
+use crate::solver::{SimError, Simulation};
 use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-fn io(p: &Path) -> impl FnOnce(std::io::Error) -> String + '_ {
-    move |e| format!("{}: {e}", p.display())
+/// Why the observables cannot be taken or written.
+#[derive(Debug, thiserror::Error)]
+pub enum ReportError {
+    #[error(transparent)]
+    Sim(#[from] SimError),
+    /// `[observe] measured`: the measured profile points.
+    #[error(transparent)]
+    Measured(#[from] PointsCsvError),
+    #[error("a failure needs a print of two or more layers and [observe] stations (this one has {layers} layers)")]
+    NoFailureDetector { layers: usize },
+    #[error("{}: {source}", path.display())]
+    Io { path: PathBuf, source: std::io::Error },
+    #[error(transparent)]
+    Plot(#[from] PlotError),
+}
+
+/// Where a caller still reports errors as text, the message as it was.
+impl From<ReportError> for String {
+    fn from(e: ReportError) -> String {
+        e.to_string()
+    }
+}
+
+fn io(path: &Path) -> impl FnOnce(std::io::Error) -> ReportError + '_ {
+    move |source| ReportError::Io { path: path.to_path_buf(), source }
 }
 
 /// Observables of one output time.
@@ -47,12 +71,12 @@ pub struct Reporter {
 /// observed at every output (`[output] interval`) until the failure shows or the run ends. With
 /// the number of layers printed. The measurement loop's failure observables
 /// (`failure::observable`).
-pub fn failure_of(sc: &Scenario) -> Result<(Option<Failure>, usize), String> {
-    let mut sim = Simulation::new(sc).map_err(|e| e.to_string())?;
+pub fn failure_of(sc: &Scenario) -> Result<(Option<Failure>, usize), ReportError> {
+    let mut sim = Simulation::new(sc)?;
     let layers = sim.printer.as_ref().map_or(0, |p| p.toolpath.layers().len());
     let mut r = match Reporter::new(sc, &sim)? {
         Some(r) if r.detector.is_some() => r,
-        _ => return Err(format!("a failure needs a print of two or more layers and [observe] stations (this one has {layers} layers)")),
+        _ => return Err(ReportError::NoFailureDetector { layers }),
     };
     let (end, interval) = (sc.simulation.end_time, sc.output.interval);
     r.observe(&sim);
@@ -61,7 +85,7 @@ pub fn failure_of(sc: &Scenario) -> Result<(Option<Failure>, usize), String> {
         k += 1;
         let next = (k as f64 * interval).min(end);
         while sim.time < next * (1.0 - 1e-12) {
-            sim.step_until(next).map_err(|e| e.to_string())?;
+            sim.step_until(next)?;
         }
         r.observe(&sim);
     }
@@ -70,7 +94,7 @@ pub fn failure_of(sc: &Scenario) -> Result<(Option<Failure>, usize), String> {
 
 impl Reporter {
     /// None when the scenario observes nothing.
-    pub fn new(sc: &Scenario, sim: &Simulation) -> Result<Option<Reporter>, String> {
+    pub fn new(sc: &Scenario, sim: &Simulation) -> Result<Option<Reporter>, ReportError> {
         let Some(cfg) = sc.observe.clone() else { return Ok(None) };
         let dx = sc.simulation.dx;
         let base_z = cfg
@@ -157,7 +181,7 @@ impl Reporter {
     }
 
     /// Rewrite the CSV files and plots from the history.
-    pub fn write(&self, dir: &Path) -> Result<(), String> {
+    pub fn write(&self, dir: &Path) -> Result<(), ReportError> {
         if !self.cfg.stations.is_empty() {
             let path = dir.join("sections.csv");
             let mut f = std::io::BufWriter::new(std::fs::File::create(&path).map_err(io(&path))?);

@@ -320,6 +320,8 @@ pub enum RestoreError {
     /// Binning the restored particles failed.
     #[error(transparent)]
     Sim(#[from] SimError),
+    #[error(transparent)]
+    SleepState(#[from] crate::sleep::BadUnitState),
 }
 
 /// Refuse a checkpoint `sim` cannot take: another precision, material state, pool size, grid,
@@ -518,7 +520,7 @@ fn restore_sleep(sim: &mut Simulation, ck: &Checkpoint) -> Result<(), RestoreErr
         let size = pool.elem_bytes();
         scatter(pool.bytes_mut(), size, ck, &format!("{}_at", d.name), &d.name)?;
     }
-    sleep.restored().map_err(RestoreError::Inconsistent)?;
+    sleep.restored()?;
     if sleep.sleeping_units != h.sleeping_units as usize {
         return Err(RestoreError::Inconsistent(format!("the sleep table holds {} sleeping units, the header {}", sleep.sleeping_units, h.sleeping_units)));
     }

@@ -3,6 +3,7 @@
 
 use super::driver::{forward_value, GradResult};
 use super::objective::Objective;
+use super::GradError;
 use super::params::with_value;
 use crate::scenario::Scenario;
 
@@ -40,18 +41,18 @@ fn step_of(theta: f64, rel: f64) -> f64 {
     }
 }
 
-fn perturbed(sc: &Scenario, keys: &[String], values: &[f64]) -> Result<Scenario, String> {
+fn perturbed(sc: &Scenario, keys: &[String], values: &[f64]) -> Result<Scenario, GradError> {
     let mut text = sc.source.clone();
     for (k, v) in keys.iter().zip(values) {
         text = with_value(&text, k, *v)?;
     }
-    let mut p = Scenario::parse(&text).map_err(|e| e.to_string())?;
+    let mut p = Scenario::parse(&text)?;
     p.base_dir = sc.base_dir.clone();
     Ok(p)
 }
 
 /// Central differences at the relative steps `rel_steps` for every parameter, then the Taylor test.
-pub fn check(sc: &Scenario, objective: &Objective, r: &GradResult, threads: Option<usize>, rel_steps: &[f64]) -> Result<Check, String> {
+pub fn check(sc: &Scenario, objective: &Objective, r: &GradResult, threads: Option<usize>, rel_steps: &[f64]) -> Result<Check, GradError> {
     let value_at = |values: &[f64]| forward_value(&perturbed(sc, &r.params, values)?, objective, threads, r.steps);
     let t0 = std::time::Instant::now();
     let mut params = Vec::new();

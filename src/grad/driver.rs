@@ -14,6 +14,7 @@ use super::params::{resolve, Param};
 use super::schedule::{choose, Action, Budget, Kind, OnlineSchedule, Plan};
 use super::step_adjoint::StepAdjoint;
 use super::store::{DiskSlots, RamSlots, Store};
+use super::GradError;
 use crate::memory::{fmt_bytes, Backing, MemoryPlan};
 use crate::pools::Counts;
 use crate::scenario::Scenario;
@@ -65,19 +66,19 @@ pub struct GradResult {
 }
 
 /// A simulation set up for a gradient run (or for the forward runs that check one).
-pub fn prepare(sc: &Scenario, threads: Option<usize>) -> Result<Simulation, String> {
+pub fn prepare(sc: &Scenario, threads: Option<usize>) -> Result<Simulation, GradError> {
     if sc.sleep.is_some() {
-        return Err("strand grad needs every particle awake: remove [sleep] (sleeping is not differentiable)".into());
+        return Err(GradError::Unsupported("strand grad needs every particle awake: remove [sleep] (sleeping is not differentiable)".into()));
     }
     if sc.simulation.dt.is_none() {
-        return Err("strand grad needs a fixed time step: set simulation.dt (the gradient holds the step fixed so perturbed runs take the same steps)".into());
+        return Err(GradError::Unsupported("strand grad needs a fixed time step: set simulation.dt (the gradient holds the step fixed so perturbed runs take the same steps)".into()));
     }
     let mut sc = sc.clone();
     sc.checkpoint.enabled = false;
     if let Some(t) = threads {
         sc.simulation.threads = t;
     }
-    let mut sim = Simulation::new(&sc).map_err(|e| e.to_string())?;
+    let mut sim = Simulation::new(&sc)?;
     if let Some(p) = &mut sim.printer {
         // the stepper emits itself: a gradient run jumps back in time, which a queue filled
         // ahead by the emitter thread cannot follow
@@ -85,7 +86,7 @@ pub fn prepare(sc: &Scenario, threads: Option<usize>) -> Result<Simulation, Stri
         p.sync = Some(SyncEmission::new(&p.plan, 0));
     }
     // one sort by block up front (the step's binning then reorders nothing), then frozen
-    sim.freeze_order().map_err(|e| e.to_string())?;
+    sim.freeze_order()?;
     Ok(sim)
 }
 
@@ -102,10 +103,10 @@ pub fn count_steps(sim: &Simulation) -> u64 {
     n
 }
 
-fn advance_to_end(sim: &mut Simulation, steps: u64) -> Result<(), String> {
+fn advance_to_end(sim: &mut Simulation, steps: u64) -> Result<(), GradError> {
     let end = sim.scenario.simulation.end_time;
     for _ in 0..steps {
-        sim.step_until(end).map_err(|e| e.to_string())?;
+        sim.step_until(end)?;
     }
     Ok(())
 }
@@ -113,7 +114,7 @@ fn advance_to_end(sim: &mut Simulation, steps: u64) -> Result<(), String> {
 /// The objective after a forward run of `sc` over `steps` steps (what central differences
 /// evaluate: the step count of the differentiated run is held fixed, also when a stop condition
 /// chose it).
-pub fn forward_value(sc: &Scenario, objective: &Objective, threads: Option<usize>, steps: u64) -> Result<f64, String> {
+pub fn forward_value(sc: &Scenario, objective: &Objective, threads: Option<usize>, steps: u64) -> Result<f64, GradError> {
     let mut sim = prepare(sc, threads)?;
     advance_to_end(&mut sim, steps)?;
     objective.evaluate(&sim, &Frame::of(&sim), None)
@@ -145,7 +146,7 @@ pub fn step_at(sim: &Simulation, t: f64) -> Option<u64> {
 }
 
 /// The objectives after a forward run of `sc`, each taken after its step (`None`: the last).
-pub fn forward_values(sc: &Scenario, seeds: &[Seeded], threads: Option<usize>) -> Result<Vec<f64>, String> {
+pub fn forward_values(sc: &Scenario, seeds: &[Seeded], threads: Option<usize>) -> Result<Vec<f64>, GradError> {
     let mut sim = prepare(sc, threads)?;
     let end = sim.scenario.simulation.end_time;
     let n = count_steps(&sim);
@@ -154,7 +155,7 @@ pub fn forward_values(sc: &Scenario, seeds: &[Seeded], threads: Option<usize>) -
     let mut values = vec![f64::NAN; seeds.len()];
     for step in 0..=n {
         if step > 0 {
-            sim.step_until(end).map_err(|e| e.to_string())?;
+            sim.step_until(end)?;
         }
         for (k, s) in seeds.iter().enumerate().filter(|(k, _)| stops[*k] == step) {
             values[k] = s.objective.evaluate(&sim, &frame, None)?;
@@ -178,7 +179,7 @@ fn body_ids(sc: &Scenario) -> Vec<std::ops::Range<u32>> {
         .collect()
 }
 
-pub fn gradient(sc: &Scenario, objective: &Objective, wrt: &[String], opts: &GradOptions) -> Result<GradResult, String> {
+pub fn gradient(sc: &Scenario, objective: &Objective, wrt: &[String], opts: &GradOptions) -> Result<GradResult, GradError> {
     let mut r = gradients(sc, &[Seeded { objective: objective.clone(), step: None }], wrt, opts)?;
     Ok(r.remove(0))
 }
@@ -197,7 +198,7 @@ pub struct Seeded {
 /// objectives would take more than half of `opts.ram_bytes` (leaving too little for the
 /// checkpoints), the objectives are split into batches, one run each. Each result carries its
 /// run's costs.
-pub fn gradients(sc: &Scenario, seeds: &[Seeded], wrt: &[String], opts: &GradOptions) -> Result<Vec<GradResult>, String> {
+pub fn gradients(sc: &Scenario, seeds: &[Seeded], wrt: &[String], opts: &GradOptions) -> Result<Vec<GradResult>, GradError> {
     if seeds.is_empty() {
         return Ok(Vec::new());
     }
@@ -217,7 +218,7 @@ pub fn gradients(sc: &Scenario, seeds: &[Seeded], wrt: &[String], opts: &GradOpt
     Ok(out)
 }
 
-fn gradient_run(sc: &Scenario, seeds: &[Seeded], wrt: &[String], opts: &GradOptions) -> Result<Vec<GradResult>, String> {
+fn gradient_run(sc: &Scenario, seeds: &[Seeded], wrt: &[String], opts: &GradOptions) -> Result<Vec<GradResult>, GradError> {
     let wall = Instant::now();
     let sim = prepare(sc, opts.threads)?;
     let params: Vec<Param> = wrt.iter().map(|k| resolve(&sim, k)).collect::<Result<_, _>>()?;
@@ -229,10 +230,10 @@ fn gradient_run(sc: &Scenario, seeds: &[Seeded], wrt: &[String], opts: &GradOpti
     let prints = match &sim.printer {
         Some(p) => seeds.iter().map(|_| PrintParams::new(sc, &p.plan, &print_keys).map(Some)).collect::<Result<Vec<_>, _>>()?,
         None if print_keys.is_empty() => seeds.iter().map(|_| None).collect(),
-        None => return Err(format!("'{}': the scenario does not print", print_keys[0].0)),
+        None => return Err(GradError::Param(format!("'{}': the scenario does not print", print_keys[0].0))),
     };
     if opts.until_rest.is_some() && seeds.iter().any(|s| s.step.is_some()) {
-        return Err("a run stopped at rest takes its objectives at its last step".into());
+        return Err(GradError::Unsupported("a run stopped at rest takes its objectives at its last step".into()));
     }
     let memory = Memory::plan(&sim, seeds.len(), opts)?;
     let backing = Backing { dir: sc.memory.dir.clone() };
@@ -272,19 +273,14 @@ struct Memory {
 }
 
 impl Memory {
-    fn plan(sim: &Simulation, seeds: usize, opts: &GradOptions) -> Result<Memory, String> {
+    fn plan(sim: &Simulation, seeds: usize, opts: &GradOptions) -> Result<Memory, GradError> {
         let (cap, sl) = (sim.particles.capacity(), sim.particles.state_len);
         let mut grad_plan = MemoryPlan::default();
         StepAdjoint::plan(&mut grad_plan, &Counts::capacity(cap, sim.grid.max_blocks()), sl, seeds);
         let adjoint_bytes = grad_plan.total();
         let sbytes = state_bytes(&sim.particles) as u64;
         if opts.ram_bytes < adjoint_bytes {
-            return Err(format!(
-                "the gradient's RAM budget of {} does not hold its adjoint arrays ({}; one stored state is {}):\n{grad_plan}",
-                fmt_bytes(opts.ram_bytes),
-                fmt_bytes(adjoint_bytes),
-                fmt_bytes(sbytes)
-            ));
+            return Err(GradError::Budget { ram_bytes: opts.ram_bytes, adjoint_bytes, state_bytes: sbytes, plan: Box::new(grad_plan) });
         }
         let budget = Budget { state_bytes: sbytes, ram_bytes: opts.ram_bytes - adjoint_bytes, disk_bytes: opts.disk_bytes };
         Ok(Memory { adjoint_bytes, state_bytes: sbytes, budget })
@@ -300,18 +296,18 @@ struct RunShape {
 
 impl Executor<'_> {
     /// The run to its end time, reversed by the budget's schedule (or `opts.schedule`).
-    fn run_to_end(&mut self, opts: &GradOptions, memory: &Memory, backing: &Backing, n0: usize) -> Result<RunShape, String> {
+    fn run_to_end(&mut self, opts: &GradOptions, memory: &Memory, backing: &Backing, n0: usize) -> Result<RunShape, GradError> {
         let n_steps = count_steps(&self.sim);
         self.set_stops(n_steps)?;
         let plan = match opts.schedule {
             Some(Kind::TwoLevel { segment: 0 }) => Plan::two_level(n_steps),
-            Some(kind) => Plan::new(kind, n_steps).map_err(|e| e.to_string())?,
-            None => choose(n_steps, &memory.budget).map_err(|e| e.to_string())?,
+            Some(kind) => Plan::new(kind, n_steps)?,
+            None => choose(n_steps, &memory.budget)?,
         };
         let (ram_slots, disk_slots) = plan.peak_slots();
         let sbytes = memory.state_bytes as usize;
         self.store = Some(Store {
-            ram: RamSlots::new(ram_slots, sbytes, backing).map_err(|e| e.to_string())?,
+            ram: RamSlots::new(ram_slots, sbytes, backing)?,
             disk: if disk_slots > 0 { Some(DiskSlots::new(&opts.disk_dir, sbytes)?) } else { None },
         });
         if n_steps == 0 {
@@ -326,10 +322,10 @@ impl Executor<'_> {
     /// The run until the material released from rest comes to rest again (its speed, having
     /// exceeded `v_rest`, falls back below it) or the end time: its length is known only when it
     /// stops, so the online schedule, in RAM only.
-    fn run_until_rest(&mut self, v_rest: f64, memory: &Memory, backing: &Backing, n0: usize) -> Result<RunShape, String> {
+    fn run_until_rest(&mut self, v_rest: f64, memory: &Memory, backing: &Backing, n0: usize) -> Result<RunShape, GradError> {
         let slots = usize::try_from(memory.budget.ram_bytes / memory.state_bytes).unwrap_or(usize::MAX).min(1 << 20);
-        let mut online = OnlineSchedule::new(slots).map_err(|e| e.to_string())?;
-        self.store = Some(Store { ram: RamSlots::new(slots, memory.state_bytes as usize, backing).map_err(|e| e.to_string())?, disk: None });
+        let mut online = OnlineSchedule::new(slots)?;
+        self.store = Some(Store { ram: RamSlots::new(slots, memory.state_bytes as usize, backing)?, disk: None });
         let mut moved = false;
         while self.sim.time < self.end * (1.0 - 1e-12) {
             moved |= self.sim.vmax >= v_rest;
@@ -356,7 +352,7 @@ impl Executor<'_> {
 
     /// Each seed's value and gradient in `wrt` (at `values`), with the run's costs.
     #[allow(clippy::too_many_arguments)]
-    fn results(self, wrt: &[String], values: &[f64], params: &[Param], n0: usize, memory: &Memory, run: &RunShape, wall_s: f64) -> Result<Vec<GradResult>, String> {
+    fn results(self, wrt: &[String], values: &[f64], params: &[Param], n0: usize, memory: &Memory, run: &RunShape, wall_s: f64) -> Result<Vec<GradResult>, GradError> {
         let Executor { sim, adj, store, prints, values: seeded, forward_steps, forward_s, reverse_s, seeds, .. } = self;
         let disk_written_bytes = store.as_ref().and_then(|s| s.disk.as_ref()).map_or(0, |d| d.written);
         let reverse_phases_s = adj.phase_seconds();
@@ -366,7 +362,7 @@ impl Executor<'_> {
             .zip(prints)
             .zip(seeded)
             .map(|(((seed, a), print), value)| {
-                let value = value.ok_or("the schedule never reached the objective's step")?;
+                let value = value.ok_or(GradError::StepNotReached)?;
                 let mut gradient = assemble(&sim, n0, a, params);
                 if let Some(pp) = print {
                     let g = pp.gradient();
@@ -426,24 +422,24 @@ struct Executor<'a> {
 
 impl Executor<'_> {
     /// The run has `n_steps` steps: resolve and check each seed's step.
-    fn set_stops(&mut self, n_steps: u64) -> Result<(), String> {
+    fn set_stops(&mut self, n_steps: u64) -> Result<(), GradError> {
         self.stops = self.seeds.iter().map(|s| s.step.unwrap_or(n_steps)).collect();
         for (s, &k) in self.seeds.iter().zip(&self.stops) {
             if k > n_steps || (k == 0 && n_steps > 0) {
-                return Err(format!("objective {} at step {k} of a run of {n_steps} steps: it takes steps 1..={n_steps}", s.objective.name()));
+                return Err(GradError::Objective(format!("objective {} at step {k} of a run of {n_steps} steps: it takes steps 1..={n_steps}", s.objective.name())));
             }
         }
         Ok(())
     }
 
-    fn run(&mut self, action: Action) -> Result<(), String> {
-        let store = self.store.as_mut().ok_or("no checkpoint store")?;
+    fn run(&mut self, action: Action) -> Result<(), GradError> {
+        let store = self.store.as_mut().ok_or(GradError::NoStore)?;
         match action {
             Action::Advance { from, to } => {
                 debug_assert_eq!(self.sim.step, from);
                 let t = Instant::now();
                 for _ in from..to {
-                    self.sim.step_until(self.end).map_err(|e| e.to_string())?;
+                    self.sim.step_until(self.end)?;
                 }
                 self.forward_steps += to - from;
                 self.forward_s += t.elapsed().as_secs_f64();
@@ -474,7 +470,7 @@ impl Executor<'_> {
     }
 
     /// A run of no steps: the objectives of the initial state seed their adjoints directly.
-    fn seed_initial(&mut self, n0: usize) -> Result<(), String> {
+    fn seed_initial(&mut self, n0: usize) -> Result<(), GradError> {
         for (k, s) in self.seeds.iter().enumerate() {
             let a = &mut self.adj.seeds[k];
             let p = &mut a.next;

@@ -5,6 +5,7 @@
 
 pub mod check;
 pub mod driver;
+mod error;
 mod fields;
 pub mod objective;
 pub mod params;
@@ -14,4 +15,5 @@ mod step_adjoint;
 mod store;
 
 pub use driver::{gradient, GradOptions, GradResult};
+pub use error::GradError;
 pub use objective::Objective;

@@ -7,6 +7,7 @@
 //! extreme, and which particles fall into a slab or band, a profile's y bin or a printed layer,
 //! is held fixed (piecewise constant in the positions).
 
+use super::GradError;
 use crate::kernels::{Real, V3};
 use crate::solver::Simulation;
 
@@ -66,24 +67,24 @@ pub enum Objective {
 pub const NAMES: &str = "spread, width@X[,X...], height@X[,X...], level@X, area@X[,X...], profile@X:Y, layer_height@X:K, layer_width@X:K, total_height, front, vx_max, kinetic_energy, mean_z";
 
 impl std::str::FromStr for Objective {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Objective, String> {
+    type Err = GradError;
+    fn from_str(s: &str) -> Result<Objective, GradError> {
         let stations = |v: &str| {
             v.split(',')
-                .map(|x| x.trim().parse::<f64>().map_err(|_| format!("objective '{s}': the stations after '@' must be numbers in metres")))
-                .collect::<Result<Vec<f64>, String>>()
+                .map(|x| x.trim().parse::<f64>().map_err(|_| GradError::Objective(format!("objective '{s}': the stations after '@' must be numbers in metres"))))
+                .collect::<Result<Vec<f64>, GradError>>()
         };
         match s.split_once('@') {
             Some(("width", x)) => Ok(Objective::Width { stations: stations(x)? }),
             Some(("height", x)) => Ok(Objective::Height { stations: stations(x)? }),
             Some(("level", x)) => match stations(x)?[..] {
                 [station] => Ok(Objective::Level { station }),
-                _ => Err(format!("objective '{s}': level takes one station")),
+                _ => Err(GradError::Objective(format!("objective '{s}': level takes one station"))),
             },
             Some(("area", x)) => Ok(Objective::Area { stations: stations(x)? }),
             Some((name @ ("profile" | "layer_height" | "layer_width"), x)) => {
                 let what = if name == "profile" { "X:Y, the station x and the lateral position y in metres" } else { "X:K, the station x in metres and the layer K (1 = the bottom one)" };
-                let bad = || format!("objective '{s}': {name} takes {what}");
+                let bad = || GradError::Objective(format!("objective '{s}': {name} takes {what}"));
                 let (a, b) = x.split_once(':').ok_or_else(bad)?;
                 let station = a.trim().parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(bad)?;
                 if name == "profile" {
@@ -100,7 +101,7 @@ impl std::str::FromStr for Objective {
                 "vx_max" => Ok(Objective::VxMax),
                 "kinetic_energy" => Ok(Objective::KineticEnergy),
                 "mean_z" => Ok(Objective::MeanZ),
-                _ => Err(format!("unknown objective '{s}'; known: {NAMES}")),
+                _ => Err(GradError::Objective(format!("unknown objective '{s}'; known: {NAMES}"))),
             },
         }
     }
@@ -156,7 +157,7 @@ fn arg_max(n: usize, keep: impl Fn(usize) -> bool, key: impl Fn(usize) -> f64) -
 
 impl Objective {
     /// The objective on `sim`'s current state; with `seed`, also add its adjoint there.
-    pub fn evaluate(&self, sim: &Simulation, frame: &Frame, seed: Option<Seed>) -> Result<f64, String> {
+    pub fn evaluate(&self, sim: &Simulation, frame: &Frame, seed: Option<Seed>) -> Result<f64, GradError> {
         let at = State { sim, frame, scale: frame.dx as Real };
         match self {
             Objective::Spread => at.spread(seed),
@@ -211,7 +212,7 @@ impl State<'_> {
         self.sim.grid.geom.to_world(self.sim.particles.xg.as_slice()[i])
     }
 
-    fn spread(&self, seed: Option<Seed>) -> Result<f64, String> {
+    fn spread(&self, seed: Option<Seed>) -> Result<f64, GradError> {
         let (frame, n) = (self.frame, self.n());
         let band = |i: usize| self.world(i)[2] < frame.base_z + 2.0 * frame.spacing;
         let ext = |a: usize| {
@@ -220,7 +221,7 @@ impl State<'_> {
             hi.zip(lo)
         };
         let (Some((xh, xl)), Some((yh, yl))) = (ext(0), ext(1)) else {
-            return Err("objective spread: no particle lies within two spacings of the base".into());
+            return Err(GradError::Objective("objective spread: no particle lies within two spacings of the base".into()));
         };
         let d = |h: usize, l: usize, a: usize| self.world(h)[a] - self.world(l)[a] + frame.spacing;
         let value = 0.5 * (d(xh, xl, 0) + d(yh, yl, 1));
@@ -233,7 +234,7 @@ impl State<'_> {
         Ok(value)
     }
 
-    fn level(&self, station: f64, seed: Option<Seed>) -> Result<f64, String> {
+    fn level(&self, station: f64, seed: Option<Seed>) -> Result<f64, GradError> {
         let slab = |i: usize| (self.world(i)[0] - station).abs() <= 0.5 * self.frame.dx;
         if arg_max(self.n(), slab, |_| 0.0).is_none() {
             return Ok(0.0);
@@ -242,7 +243,7 @@ impl State<'_> {
         self.width_or_height(&height, &[station], false, seed)
     }
 
-    fn width_or_height(&self, what: &Objective, stations: &[f64], width: bool, mut seed: Option<Seed>) -> Result<f64, String> {
+    fn width_or_height(&self, what: &Objective, stations: &[f64], width: bool, mut seed: Option<Seed>) -> Result<f64, GradError> {
         let (frame, n, scale) = (self.frame, self.n(), self.scale);
         let mut total = 0.0;
         for &station in stations {
@@ -250,7 +251,7 @@ impl State<'_> {
             let top = arg_max(n, slab, |i| self.world(i)[2]);
             let (hi, lo) = (arg_max(n, slab, |i| self.world(i)[1]), arg_max(n, slab, |i| -self.world(i)[1]));
             let (Some(top), Some(hi), Some(lo)) = (top, hi, lo) else {
-                return Err(format!("objective {}: no particle within half a cell of x = {station} m", what.name()));
+                return Err(GradError::Objective(format!("objective {}: no particle within half a cell of x = {station} m", what.name())));
             };
             total += if !width {
                 self.world(top)[2] + 0.5 * frame.spacing - frame.base_z
@@ -298,10 +299,10 @@ impl State<'_> {
         total
     }
 
-    fn profile(&self, what: &Objective, station: f64, y: f64, seed: Option<Seed>) -> Result<f64, String> {
+    fn profile(&self, what: &Objective, station: f64, y: f64, seed: Option<Seed>) -> Result<f64, GradError> {
         let frame = self.frame;
         let h = frame.spacing;
-        let pts = section_points(self.sim, frame, station).ok_or_else(|| format!("objective {}: no particle within half a slab of x = {station} m", what.name()))?;
+        let pts = section_points(self.sim, frame, station).ok_or_else(|| GradError::Objective(format!("objective {}: no particle within half a slab of x = {station} m", what.name())))?;
         let py = |pt: &(usize, f64)| section_y(frame, self.world(pt.0)[1], pt.1);
         // the bins' origin: the lowest y (first on ties), and each bin's top particle
         let o = pts.iter().enumerate().fold(0, |b, (k, pt)| if py(pt) < py(&pts[b]) { k } else { b });
@@ -337,13 +338,13 @@ impl State<'_> {
     }
 
     /// A printed layer's thickness (`height`) or width at a station.
-    fn layer(&self, what: &Objective, station: f64, layer: usize, height: bool, seed: Option<Seed>) -> Result<f64, String> {
+    fn layer(&self, what: &Objective, station: f64, layer: usize, height: bool, seed: Option<Seed>) -> Result<f64, GradError> {
         let frame = self.frame;
-        let tops = layer_tops(self.sim).ok_or_else(|| format!("objective {}: the scenario prints no layers whose heights ascend (the toolpath's layer z, as layers.csv takes them)", what.name()))?;
+        let tops = layer_tops(self.sim).ok_or_else(|| GradError::Objective(format!("objective {}: the scenario prints no layers whose heights ascend (the toolpath's layer z, as layers.csv takes them)", what.name())))?;
         if layer == 0 || layer > tops.len() {
-            return Err(format!("objective {}: layer {layer} is not one of the toolpath's layers 1..={}", what.name(), tops.len()));
+            return Err(GradError::Objective(format!("objective {}: layer {layer} is not one of the toolpath's layers 1..={}", what.name(), tops.len())));
         }
-        let pts = section_points(self.sim, frame, station).ok_or_else(|| format!("objective {}: no particle within half a slab of x = {station} m", what.name()))?;
+        let pts = section_points(self.sim, frame, station).ok_or_else(|| GradError::Objective(format!("objective {}: no particle within half a slab of x = {station} m", what.name())))?;
         let k = layer - 1;
         let layer_of = |pt: &(usize, f64)| crate::observe::layer_of(&tops, self.world(pt.0)[2]);
         let mine: Vec<(usize, f64)> = pts.iter().copied().filter(|pt| layer_of(pt) == k).collect();
@@ -383,25 +384,25 @@ impl State<'_> {
         }
     }
 
-    fn total_height(&self, seed: Option<Seed>) -> Result<f64, String> {
-        let top = arg_max(self.n(), |_| true, |i| self.world(i)[2]).ok_or("objective total_height: no particles")?;
+    fn total_height(&self, seed: Option<Seed>) -> Result<f64, GradError> {
+        let top = arg_max(self.n(), |_| true, |i| self.world(i)[2]).ok_or_else(|| GradError::Objective("objective total_height: no particles".into()))?;
         if let Some(s) = seed {
             s.xg[top].z += self.scale;
         }
         Ok(self.world(top)[2] + 0.5 * self.frame.spacing - self.frame.base_z)
     }
 
-    fn front(&self, seed: Option<Seed>) -> Result<f64, String> {
-        let lead = arg_max(self.n(), |_| true, |i| self.world(i)[0]).ok_or("objective front: no particles")?;
+    fn front(&self, seed: Option<Seed>) -> Result<f64, GradError> {
+        let lead = arg_max(self.n(), |_| true, |i| self.world(i)[0]).ok_or_else(|| GradError::Objective("objective front: no particles".into()))?;
         if let Some(s) = seed {
             s.xg[lead].x += self.scale;
         }
         Ok(self.world(lead)[0] + 0.5 * self.frame.spacing)
     }
 
-    fn vx_max(&self, seed: Option<Seed>) -> Result<f64, String> {
+    fn vx_max(&self, seed: Option<Seed>) -> Result<f64, GradError> {
         let v = self.sim.particles.v.as_slice();
-        let i = arg_max(self.n(), |_| true, |i| v[i].x as f64).ok_or("objective vx_max: no particles")?;
+        let i = arg_max(self.n(), |_| true, |i| v[i].x as f64).ok_or_else(|| GradError::Objective("objective vx_max: no particles".into()))?;
         if let Some(s) = seed {
             s.v[i].x += 1.0;
         }
@@ -421,13 +422,13 @@ impl State<'_> {
         value
     }
 
-    fn mean_z(&self, seed: Option<Seed>) -> Result<f64, String> {
+    fn mean_z(&self, seed: Option<Seed>) -> Result<f64, GradError> {
         let p = &self.sim.particles;
         let base_z = self.frame.base_z;
         let (vol0, jv) = (p.vol0.as_slice(), p.j.as_slice());
         let w: f64 = (0..p.n).map(|i| (vol0[i] * jv[i]) as f64).sum();
         if w <= 0.0 {
-            return Err("objective mean_z: no particles".into());
+            return Err(GradError::Objective("objective mean_z: no particles".into()));
         }
         let wz: f64 = (0..p.n).map(|i| (vol0[i] * jv[i]) as f64 * (self.world(i)[2] - base_z)).sum();
         let value = wz / w;
@@ -557,9 +558,9 @@ mod tests {
             }
             assert!(interpolated > 100, "{interpolated} points between outline vertices");
             // no such layer, no material
-            let e = "layer_height@0.015:3".parse::<Objective>().unwrap().evaluate(&sim, &frame, None).unwrap_err();
+            let e = "layer_height@0.015:3".parse::<Objective>().unwrap().evaluate(&sim, &frame, None).unwrap_err().to_string();
             assert!(e.contains("layer 3") && e.contains("1..=2"), "{e}");
-            let e = "profile@0.05:0".parse::<Objective>().unwrap().evaluate(&sim, &frame, None).unwrap_err();
+            let e = "profile@0.05:0".parse::<Objective>().unwrap().evaluate(&sim, &frame, None).unwrap_err().to_string();
             assert!(e.contains("no particle"), "{e}");
         }
     }
@@ -602,9 +603,9 @@ budget = "16 MiB"
         let top = section.height;
         assert!((value(&sim, &frame, "level@0.025") - top).abs() <= 1e-12 && (value(&sim, &frame, "height@0.025") - top).abs() <= 1e-12);
         assert_eq!(value(&sim, &frame, "level@0.08"), 0.0);
-        assert!("height@0.08".parse::<Objective>().unwrap().evaluate(&sim, &frame, None).unwrap_err().contains("no particle"));
+        assert!("height@0.08".parse::<Objective>().unwrap().evaluate(&sim, &frame, None).unwrap_err().to_string().contains("no particle"));
         assert_eq!("level@0.025".parse::<Objective>().unwrap().name(), "level@0.025");
-        assert!("level@0.02,0.03".parse::<Objective>().unwrap_err().contains("one station"));
+        assert!("level@0.02,0.03".parse::<Objective>().unwrap_err().to_string().contains("one station"));
         for j in 0..100 {
             let y = 0.01 + 0.07 * (j as f64 + 0.5) / 100.0;
             let want = observe::profile_z_at(&section.profile, y).map_or(0.0, |z| z - frame.base_z);
@@ -642,7 +643,7 @@ budget = "16 MiB"
             ("layer_width@0.075:-1", "layer_width takes X:K"),
             ("profile", "unknown objective 'profile'"),
         ] {
-            let e = bad.parse::<Objective>().unwrap_err();
+            let e = bad.parse::<Objective>().unwrap_err().to_string();
             assert!(e.contains(want) && e.contains(bad), "{bad}: {e}");
         }
         for name in ["profile@X:Y", "layer_height@X:K", "layer_width@X:K"] {

@@ -3,6 +3,7 @@
 //! `boundary.z_min.friction.mu`, ...), so the same name reads, perturbs (for central
 //! differences) and reports a parameter.
 
+use super::GradError;
 use crate::kernels::boundary::WallKind;
 use crate::solver::Simulation;
 
@@ -74,7 +75,7 @@ pub fn known(sim: &Simulation) -> Vec<String> {
 }
 
 /// The parameter a key names, or an error listing the keys this scenario offers.
-pub fn resolve(sim: &Simulation, key: &str) -> Result<Param, String> {
+pub fn resolve(sim: &Simulation, key: &str) -> Result<Param, GradError> {
     let parts: Vec<&str> = key.split('.').collect();
     let p = match parts.as_slice() {
         ["material", "density"] => Some(Param::Density),
@@ -95,11 +96,11 @@ pub fn resolve(sim: &Simulation, key: &str) -> Result<Param, String> {
         }),
         _ => None,
     };
-    p.ok_or_else(|| format!("unknown parameter '{key}' for this scenario; known: {}", known(sim).join(", ")))
+    p.ok_or_else(|| GradError::Param(format!("unknown parameter '{key}' for this scenario; known: {}", known(sim).join(", "))))
 }
 
 /// Walk `key` in a TOML document: `x`/`y`/`z` and numbers index arrays.
-fn walk<'a>(doc: &'a mut toml::Value, key: &str) -> Result<&'a mut toml::Value, String> {
+fn walk<'a>(doc: &'a mut toml::Value, key: &str) -> Result<&'a mut toml::Value, GradError> {
     let mut at = doc;
     for part in key.split('.') {
         at = match at {
@@ -107,24 +108,24 @@ fn walk<'a>(doc: &'a mut toml::Value, key: &str) -> Result<&'a mut toml::Value, 
             toml::Value::Array(a) => part.parse::<usize>().ok().or_else(|| axis(part)).and_then(|i| a.get_mut(i)),
             _ => None,
         }
-        .ok_or_else(|| format!("the scenario has no value at '{key}' (set it explicitly to differentiate with respect to it)"))?;
+        .ok_or_else(|| GradError::Param(format!("the scenario has no value at '{key}' (set it explicitly to differentiate with respect to it)")))?;
     }
     Ok(at)
 }
 
 /// The value of `key` in the scenario text.
-pub fn value(source: &str, key: &str) -> Result<f64, String> {
-    let mut doc: toml::Value = toml::from_str(source).map_err(|e| e.to_string())?;
+pub fn value(source: &str, key: &str) -> Result<f64, GradError> {
+    let mut doc: toml::Value = toml::from_str(source)?;
     match walk(&mut doc, key)? {
         toml::Value::Float(f) => Ok(*f),
         toml::Value::Integer(i) => Ok(*i as f64),
-        other => Err(format!("'{key}' is {other}, not a number")),
+        other => Err(GradError::Param(format!("'{key}' is {other}, not a number"))),
     }
 }
 
 /// The scenario text with `key` set to `v`.
-pub fn with_value(source: &str, key: &str, v: f64) -> Result<String, String> {
-    let mut doc: toml::Value = toml::from_str(source).map_err(|e| e.to_string())?;
+pub fn with_value(source: &str, key: &str, v: f64) -> Result<String, GradError> {
+    let mut doc: toml::Value = toml::from_str(source)?;
     *walk(&mut doc, key)? = toml::Value::Float(v);
-    toml::to_string(&doc).map_err(|e| e.to_string())
+    Ok(toml::to_string(&doc)?)
 }

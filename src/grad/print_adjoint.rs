@@ -17,11 +17,12 @@
 //! adjoint. Discrete events are held fixed: which step a slab enters in, and which lattice
 //! points of the outlet lie inside the domain.
 
+use super::GradError;
 use crate::print::emitter::{EmissionPlan, Slab};
 use crate::print::toolpath::Segment;
 use crate::print::PrintConfig;
 use crate::scenario::Scenario;
-use crate::solver::ToolpathBar;
+use crate::solver::{AdjointError, ToolpathBar};
 use std::sync::Arc;
 
 /// Relative step of the central differences of the toolpath.
@@ -42,23 +43,23 @@ pub struct PrintParams {
 /// The `[print]` table with the toolpath parameter `key` set to `v`: a segment's value
 /// (`print.path.<i>.<field>`), or one acting on the whole toolpath (`print.extrusion_factor`,
 /// `print.z_offset`).
-fn set(cfg: &PrintConfig, key: &str, v: f64) -> Result<PrintConfig, String> {
+fn set(cfg: &PrintConfig, key: &str, v: f64) -> Result<PrintConfig, GradError> {
     let mut cfg = cfg.clone();
     match key {
         "print.extrusion_factor" => cfg.extrusion_factor = v,
         "print.z_offset" => cfg.z_offset = v,
         _ => {
-            let (index, field) = parse_key(key).ok_or_else(|| format!("'{key}' is not print.path.<i>.<speed|extrusion|duration>, print.extrusion_factor or print.z_offset"))?;
+            let (index, field) = parse_key(key).ok_or_else(|| GradError::Param(format!("'{key}' is not print.path.<i>.<speed|extrusion|duration>, print.extrusion_factor or print.z_offset")))?;
             if cfg.gcode.is_some() {
-                return Err(format!("'{key}': segment parameters are taken on print.path segments, not on G-code"));
+                return Err(GradError::Param(format!("'{key}': segment parameters are taken on print.path segments, not on G-code")));
             }
-            let seg = cfg.path.get_mut(index).ok_or_else(|| format!("print.path has no segment {index}"))?;
+            let seg = cfg.path.get_mut(index).ok_or_else(|| GradError::Param(format!("print.path has no segment {index}")))?;
             match (seg, field) {
                 (Segment::Print { speed, .. } | Segment::Travel { speed, .. }, "speed") => *speed = v,
                 (Segment::Layer { speed, .. }, "speed") => *speed = Some(v),
                 (Segment::Print { extrusion, .. }, "extrusion") => *extrusion = v,
                 (Segment::Pause { duration }, "duration") => *duration = v,
-                (seg, _) => return Err(format!("print.path.{index} is a {} segment without a differentiable '{field}'", seg.kind_name())),
+                (seg, _) => return Err(GradError::Param(format!("print.path.{index} is a {} segment without a differentiable '{field}'", seg.kind_name()))),
             }
         }
     }
@@ -78,13 +79,13 @@ fn slab(per: usize) -> Slab {
 
 impl PrintParams {
     /// The toolpath parameters among `keys` (others are skipped); `values` are their values.
-    pub fn new(sc: &Scenario, base: &EmissionPlan, keys: &[(String, f64)]) -> Result<PrintParams, String> {
-        let cfg = sc.print.as_ref().ok_or("toolpath parameters need a [print] table")?;
+    pub fn new(sc: &Scenario, base: &EmissionPlan, keys: &[(String, f64)]) -> Result<PrintParams, GradError> {
+        let cfg = sc.print.as_ref().ok_or_else(|| GradError::Param("toolpath parameters need a [print] table".into()))?;
         let mut items = Vec::new();
         for (key, value) in keys {
             let h = REL_STEP * value.abs().max(1e-3);
-            let plan = |v: f64| -> Result<EmissionPlan, String> {
-                let tp = set(cfg, key, v)?.toolpath(&sc.base_dir).map_err(|e| e.to_string())?;
+            let plan = |v: f64| -> Result<EmissionPlan, GradError> {
+                let tp = set(cfg, key, v)?.toolpath(&sc.base_dir)?;
                 Ok(EmissionPlan { toolpath: Arc::new(tp), ..base.clone() })
             };
             items.push(Item { h, plus: plan(value + h)?, minus: plan(value - h)?, bar: 0.0 });
@@ -123,7 +124,7 @@ impl PrintParams {
 
     /// Chain the adjoints of the particles slabs `first..` added at step time `t`: `x_bar` of
     /// their world positions, `v_bar` of their velocities, in the order they were added.
-    pub fn emission(&mut self, base: &EmissionPlan, first: u64, t: f64, x_bar: &[[f64; 3]], v_bar: &[[f64; 3]]) -> Result<(), String> {
+    pub fn emission(&mut self, base: &EmissionPlan, first: u64, t: f64, x_bar: &[[f64; 3]], v_bar: &[[f64; 3]]) -> Result<(), AdjointError> {
         let [s0, sp, sm] = &mut self.slabs;
         let (mut q, mut at) = (first, 0);
         while at < x_bar.len() {
@@ -133,7 +134,7 @@ impl PrintParams {
                 it.plus.fill_on(q, sp, s0.moves);
                 it.minus.fill_on(q, sm, s0.moves);
                 if sp.positions.len() != k || sm.positions.len() != k {
-                    return Err(format!("slab {q}: the toolpath parameters' perturbation changes how many of its particles lie inside the domain"));
+                    return Err(AdjointError::SlabCount { slab: q });
                 }
                 let (lp, lm) = (t - sp.due, t - sm.due);
                 for i in 0..k {
@@ -159,7 +160,7 @@ impl ToolpathBar for PrintParams {
     fn extruded(&mut self, k: usize, t: f64, length_bar: f64) {
         PrintParams::extruded(self, k, t, length_bar)
     }
-    fn emission(&mut self, plan: &EmissionPlan, first_slab: u64, t: f64, x_bar: &[[f64; 3]], v_bar: &[[f64; 3]]) -> Result<(), String> {
+    fn emission(&mut self, plan: &EmissionPlan, first_slab: u64, t: f64, x_bar: &[[f64; 3]], v_bar: &[[f64; 3]]) -> Result<(), AdjointError> {
         PrintParams::emission(self, plan, first_slab, t, x_bar, v_bar)
     }
 }

@@ -6,6 +6,7 @@
 
 use super::objective::{Frame, Objective, Seed};
 use super::print_adjoint::PrintParams;
+use super::GradError;
 use crate::memory::{Backing, MemoryError, MemoryPlan};
 use crate::pools::Counts;
 use crate::solver::{Adjoint, Simulation, Step, Tape, ToolpathBar, PHASES};
@@ -32,9 +33,9 @@ impl StepAdjoint {
         }
     }
 
-    pub fn new(sim: &Simulation, b: &Backing, seeds: usize) -> Result<StepAdjoint, String> {
+    pub fn new(sim: &Simulation, b: &Backing, seeds: usize) -> Result<StepAdjoint, GradError> {
         let tape = Tape::new(sim, b)?;
-        let seeds = (0..seeds).map(|k| Adjoint::new(sim, k, b)).collect::<Result<_, MemoryError>>().map_err(|e| e.to_string())?;
+        let seeds = (0..seeds).map(|k| Adjoint::new(sim, k, b)).collect::<Result<_, MemoryError>>()?;
         Ok(StepAdjoint { tape, seeds, phase_s: [0.0; 1 + PHASES.len()] })
     }
 
@@ -58,7 +59,7 @@ impl StepAdjoint {
         frame: &Frame,
         active: &[bool],
         prints: &mut [Option<PrintParams>],
-    ) -> Result<Vec<f64>, String> {
+    ) -> Result<Vec<f64>, GradError> {
         let mut clock = Instant::now();
         let (dt, _) = sim.choose_dt(until);
         let mut step = Step::new(sim, dt);
@@ -67,7 +68,7 @@ impl StepAdjoint {
                 self.tape.save(what, sim);
             }
             if phase.read_by_adjoints() || !objectives.is_empty() {
-                sim.run_phase(phase, &mut step).map_err(|e| e.to_string())?;
+                sim.run_phase(phase, &mut step)?;
             }
         }
         let n = sim.particles.n;

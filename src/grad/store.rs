@@ -6,6 +6,7 @@
 //! `restore` or `free` of a state still in flight waits for it. Two staging buffers circulate
 //! between the stepper and the writer, so a third store in a row waits for the first write.
 
+use super::error::{io_err, GradError};
 use super::fields::{load, save};
 use super::schedule::Tier;
 use crate::memory::{Backing, MemoryError, Pool};
@@ -25,24 +26,24 @@ impl RamSlots {
         Ok(RamSlots { pool: Pool::new("grad.ram_slots", slots * bytes, backing)?, bytes, held: vec![None; slots] })
     }
 
-    fn find(&self, step: u64) -> Result<usize, String> {
-        self.held.iter().position(|h| *h == Some(step)).ok_or_else(|| format!("no RAM checkpoint of step {step}"))
+    fn find(&self, step: u64) -> Result<usize, GradError> {
+        self.held.iter().position(|h| *h == Some(step)).ok_or(GradError::NoRamCheckpoint(step))
     }
 
-    fn store(&mut self, sim: &Simulation) -> Result<(), String> {
-        let k = self.held.iter().position(Option::is_none).ok_or("the RAM checkpoint slots are all taken")?;
+    fn store(&mut self, sim: &Simulation) -> Result<(), GradError> {
+        let k = self.held.iter().position(Option::is_none).ok_or(GradError::RamSlotsFull)?;
         save(sim, &mut self.pool.as_mut_slice()[k * self.bytes..(k + 1) * self.bytes]);
         self.held[k] = Some(sim.step);
         Ok(())
     }
 
-    fn restore(&self, sim: &mut Simulation, step: u64) -> Result<(), String> {
+    fn restore(&self, sim: &mut Simulation, step: u64) -> Result<(), GradError> {
         let k = self.find(step)?;
         load(sim, &self.pool.as_slice()[k * self.bytes..(k + 1) * self.bytes]);
         Ok(())
     }
 
-    fn free(&mut self, step: u64) -> Result<(), String> {
+    fn free(&mut self, step: u64) -> Result<(), GradError> {
         let k = self.find(step)?;
         self.held[k] = None;
         Ok(())
@@ -50,7 +51,7 @@ impl RamSlots {
 }
 
 /// Writes a state (the buffer) into the slot of its step (the job), reporting the step.
-type SlotWriter = Writer<Vec<u8>, u64, Result<u64, String>>;
+type SlotWriter = Writer<Vec<u8>, u64, Result<u64, GradError>>;
 
 pub struct DiskSlots {
     dir: PathBuf,
@@ -68,18 +69,18 @@ fn slot_path(dir: &Path, step: u64) -> PathBuf {
 }
 
 impl DiskSlots {
-    pub fn new(dir: &Path, bytes: usize) -> Result<DiskSlots, String> {
-        std::fs::create_dir_all(dir).map_err(|e| format!("gradient checkpoint folder {}: {e}", dir.display()))?;
+    pub fn new(dir: &Path, bytes: usize) -> Result<DiskSlots, GradError> {
+        std::fs::create_dir_all(dir).map_err(io_err("gradient checkpoint folder", dir))?;
         let wdir = dir.to_path_buf();
         let write = move |data: &Vec<u8>, &step: &u64| {
             let path = slot_path(&wdir, step);
-            std::fs::write(&path, data).map(|_| step).map_err(|e| format!("writing {}: {e}", path.display()))
+            std::fs::write(&path, data).map(|_| step).map_err(io_err("writing", &path))
         };
-        let writer = Writer::spawn("grad-writer", vec![vec![0u8; bytes]; 2], 4, write).map_err(|e| format!("starting the gradient checkpoint writer: {e}"))?;
+        let writer = Writer::spawn("grad-writer", vec![vec![0u8; bytes]; 2], 4, write).map_err(GradError::WriterStart)?;
         Ok(DiskSlots { dir: dir.to_path_buf(), bytes, writer: Some(writer), in_flight: Vec::new(), on_disk: Vec::new(), written: 0, read: 0 })
     }
 
-    fn settle(&mut self, r: Result<u64, String>) -> Result<(), String> {
+    fn settle(&mut self, r: Result<u64, GradError>) -> Result<(), GradError> {
         let step = r?;
         self.in_flight.retain(|&s| s != step);
         self.on_disk.push(step);
@@ -87,12 +88,12 @@ impl DiskSlots {
         Ok(())
     }
 
-    fn writer(&mut self) -> Result<&mut SlotWriter, String> {
-        self.writer.as_mut().ok_or_else(|| "the gradient checkpoint writer is closed".to_string())
+    fn writer(&mut self) -> Result<&mut SlotWriter, GradError> {
+        self.writer.as_mut().ok_or(GradError::WriterClosed)
     }
 
     /// Settle the writes that are done.
-    fn collect(&mut self) -> Result<(), String> {
+    fn collect(&mut self) -> Result<(), GradError> {
         while let Some(r) = self.writer()?.poll() {
             self.settle(r)?;
         }
@@ -100,46 +101,46 @@ impl DiskSlots {
     }
 
     /// Wait until `step` (if in flight) is on disk; collect any other finished writes.
-    fn wait_for(&mut self, step: u64) -> Result<(), String> {
+    fn wait_for(&mut self, step: u64) -> Result<(), GradError> {
         self.collect()?;
         while self.in_flight.contains(&step) {
-            let r = self.writer()?.wait().ok_or("the gradient checkpoint writer stopped")?;
+            let r = self.writer()?.wait().ok_or(GradError::WriterStopped)?;
             self.settle(r)?;
         }
         Ok(())
     }
 
-    fn store(&mut self, sim: &Simulation) -> Result<(), String> {
+    fn store(&mut self, sim: &Simulation) -> Result<(), GradError> {
         self.collect()?;
-        let mut data = self.writer()?.buffer().ok_or("the gradient checkpoint writer stopped")?;
+        let mut data = self.writer()?.buffer().ok_or(GradError::WriterStopped)?;
         save(sim, &mut data);
         self.in_flight.push(sim.step);
         if !self.writer()?.submit(data, sim.step) {
-            return Err("the gradient checkpoint writer stopped".to_string());
+            return Err(GradError::WriterStopped);
         }
         Ok(())
     }
 
-    fn restore(&mut self, sim: &mut Simulation, step: u64) -> Result<(), String> {
+    fn restore(&mut self, sim: &mut Simulation, step: u64) -> Result<(), GradError> {
         self.wait_for(step)?;
         let path = slot_path(&self.dir, step);
-        let file = std::fs::File::open(&path).map_err(|e| format!("reading {}: {e}", path.display()))?;
+        let file = std::fs::File::open(&path).map_err(io_err("reading", &path))?;
         // SAFETY: the file is ours, complete (its write was acknowledged) and not modified while
         // mapped.
-        let map = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| format!("mapping {}: {e}", path.display()))?;
+        let map = unsafe { memmap2::Mmap::map(&file) }.map_err(io_err("mapping", &path))?;
         if map.len() != self.bytes {
-            return Err(format!("{} has {} bytes, expected {}", path.display(), map.len(), self.bytes));
+            return Err(GradError::SlotSize { path, len: map.len(), expected: self.bytes });
         }
         load(sim, &map);
         self.read += self.bytes as u64;
         Ok(())
     }
 
-    fn free(&mut self, step: u64) -> Result<(), String> {
+    fn free(&mut self, step: u64) -> Result<(), GradError> {
         self.wait_for(step)?;
         self.on_disk.retain(|&s| s != step);
         let path = slot_path(&self.dir, step);
-        std::fs::remove_file(&path).map_err(|e| format!("removing {}: {e}", path.display()))
+        std::fs::remove_file(&path).map_err(io_err("removing", &path))
     }
 }
 
@@ -161,28 +162,28 @@ pub struct Store {
 }
 
 impl Store {
-    pub fn store(&mut self, sim: &Simulation, tier: Tier) -> Result<(), String> {
+    pub fn store(&mut self, sim: &Simulation, tier: Tier) -> Result<(), GradError> {
         match tier {
             Tier::Ram => self.ram.store(sim),
             Tier::Disk => self.disk_mut()?.store(sim),
         }
     }
 
-    pub fn restore(&mut self, sim: &mut Simulation, step: u64, tier: Tier) -> Result<(), String> {
+    pub fn restore(&mut self, sim: &mut Simulation, step: u64, tier: Tier) -> Result<(), GradError> {
         match tier {
             Tier::Ram => self.ram.restore(sim, step),
             Tier::Disk => self.disk_mut()?.restore(sim, step),
         }
     }
 
-    pub fn free(&mut self, step: u64, tier: Tier) -> Result<(), String> {
+    pub fn free(&mut self, step: u64, tier: Tier) -> Result<(), GradError> {
         match tier {
             Tier::Ram => self.ram.free(step),
             Tier::Disk => self.disk_mut()?.free(step),
         }
     }
 
-    fn disk_mut(&mut self) -> Result<&mut DiskSlots, String> {
-        self.disk.as_mut().ok_or_else(|| "the schedule uses disk checkpoints but no disk tier is set up".to_string())
+    fn disk_mut(&mut self) -> Result<&mut DiskSlots, GradError> {
+        self.disk.as_mut().ok_or(GradError::NoDiskTier)
     }
 }

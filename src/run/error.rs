@@ -11,8 +11,8 @@ pub enum RunError {
     Failed { source: SimError, snapshot: PathBuf },
     #[error("output {path}: {source}")]
     Io { path: PathBuf, source: std::io::Error },
-    #[error("{0}")]
-    Report(String),
+    #[error(transparent)]
+    Report(#[from] crate::report::ReportError),
     /// Resuming (or refusing to start over) failed.
     #[error("{0}")]
     Resume(String),

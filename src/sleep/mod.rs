@@ -100,6 +100,11 @@ use crate::pools::{map_pools, plan_pools, Counts, Per, PoolDecl, Pools, Role};
 use crate::particles::Particles;
 use units::{states, states_mut, valid_states};
 
+/// A restored `sleep.state` table holding a byte that is no [`UnitState`].
+#[derive(Debug, thiserror::Error)]
+#[error("section 'sleep.state' holds a value that is no unit state")]
+pub struct BadUnitState;
+
 /// Per-unit sleep bookkeeping, over the dense block table refined to units.
 pub struct Sleep {
     pub cfg: SleepConfig,
@@ -239,9 +244,9 @@ impl Sleep {
 
     /// Check and take in the tables a checkpoint restored (its [`Role::Sparse`] pools) and
     /// rebuild what follows from them.
-    pub fn restored(&mut self) -> Result<(), String> {
+    pub fn restored(&mut self) -> Result<(), BadUnitState> {
         if !valid_states(self.state.as_slice()) {
-            return Err("section 'sleep.state' holds a value that is no unit state".into());
+            return Err(BadUnitState);
         }
         self.recount();
         Ok(())

@@ -2,7 +2,7 @@
 //! hooks fill it), the adjoint arrays of one objective, and where the adjoints of the toolpath's
 //! closed forms go. The adjoint of each phase stands beside its forward, in the phase's file.
 
-use super::Simulation;
+use super::{AdjointError, Simulation};
 use crate::kernels::transfer::Node;
 use crate::kernels::{Real, M3, V3};
 use crate::memory::{Backing, MemoryError, MemoryPlan, Pool};
@@ -131,12 +131,12 @@ impl Tape {
 
     /// The tape for `sim`'s pools; fails for a material whose adjoint does not fit the fixed
     /// buffers (more than [`MAX_PARAMS`] parameters or [`MAX_STATE`] state values).
-    pub fn new(sim: &Simulation, b: &Backing) -> Result<Tape, String> {
+    pub fn new(sim: &Simulation, b: &Backing) -> Result<Tape, AdjointError> {
         if sim.material.param_names().len() > MAX_PARAMS || sim.particles.state_len > MAX_STATE {
-            return Err(format!("material {}: the gradient driver takes at most {MAX_PARAMS} parameters and {MAX_STATE} state values", sim.material.name()));
+            return Err(AdjointError::TooManyValues { material: sim.material.name().to_string() });
         }
         let mut tape = Tape::declared(sim.particles.state_len);
-        tape.map_pools(&capacity(sim), b).map_err(|e| e.to_string())?;
+        tape.map_pools(&capacity(sim), b)?;
         tape.chunks = vec![[0.0; MAX_PARAMS]; sim.particles.capacity().div_ceil(CHUNK)];
         Ok(tape)
     }
@@ -273,5 +273,5 @@ pub trait ToolpathBar {
     fn extruded(&mut self, k: usize, t: f64, length_bar: f64);
     /// Of the world positions and velocities of the particles slabs `first_slab..` added, in
     /// the order they were added.
-    fn emission(&mut self, plan: &EmissionPlan, first_slab: u64, t: f64, x_bar: &[[f64; 3]], v_bar: &[[f64; 3]]) -> Result<(), String>;
+    fn emission(&mut self, plan: &EmissionPlan, first_slab: u64, t: f64, x_bar: &[[f64; 3]], v_bar: &[[f64; 3]]) -> Result<(), AdjointError>;
 }

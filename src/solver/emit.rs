@@ -3,7 +3,7 @@
 
 use super::adjoint::{Adjoint, ToolpathBar, MAX_PARAMS};
 use super::step::Step;
-use super::{SimError, Simulation};
+use super::{AdjointError, SimError, Simulation};
 use crate::grid::GridGeom;
 use crate::kernels::material::Material;
 use crate::kernels::{Real, V3};
@@ -124,7 +124,7 @@ impl Simulation {
     /// adjoints are those of the emission, owed to the toolpath (handed to `toolpath`) and,
     /// through their initial state, the material; they did not exist before the step, so their
     /// adjoints end here.
-    pub(crate) fn emission_adjoint(&self, step: &Step, a: &mut Adjoint, toolpath: Option<&mut dyn ToolpathBar>) -> Result<(), String> {
+    pub(crate) fn emission_adjoint(&self, step: &Step, a: &mut Adjoint, toolpath: Option<&mut dyn ToolpathBar>) -> Result<(), AdjointError> {
         let p = &self.particles;
         let (first, n, sl) = (step.n_before, p.n, p.state_len);
         if n <= first {
@@ -134,7 +134,7 @@ impl Simulation {
             let inv_dx = 1.0 / self.scenario.simulation.dx;
             let x_bar: Vec<[f64; 3]> = a.cur.xg.as_slice()[first..n].iter().map(|b| [b.x as f64 * inv_dx, b.y as f64 * inv_dx, b.z as f64 * inv_dx]).collect();
             let v_bar: Vec<[f64; 3]> = a.cur.v.as_slice()[first..n].iter().map(|b| [b.x as f64, b.y as f64, b.z as f64]).collect();
-            let plan = &self.printer.as_ref().ok_or("emission without a printer")?.plan;
+            let plan = &self.printer.as_ref().ok_or(AdjointError::NoPrinter)?.plan;
             tb.emission(plan, step.first_slab, self.time, &x_bar, &v_bar)?;
         }
         let mut init = [0.0 as Real; MAX_PARAMS];

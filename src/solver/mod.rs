@@ -29,6 +29,7 @@ mod step;
 mod walls;
 
 pub use adjoint::{Adjoint, Fields, GridParamsBar, Saved, Tape, ToolpathBar};
+use adjoint::{MAX_PARAMS, MAX_STATE};
 pub(crate) use binning::Scratch;
 pub use bodies::{count_body_particles, for_each_lattice_point};
 pub(crate) use emit::note_newest;
@@ -64,6 +65,22 @@ pub enum SimError {
     #[error("blow-up at step {step} (t = {time:.6e} s): particle {index} (id {id}) has {field} = {value}; \
              try a smaller simulation.cfl or simulation.dt")]
     BlowUp { step: u64, time: f64, index: usize, id: u32, field: &'static str, value: String },
+}
+
+/// Why a step's adjoint cannot be taken: the material's adjoint does not fit the tape's fixed
+/// buffers, its pools cannot be mapped, or the toolpath's parameters do not chain through an
+/// emission.
+#[derive(Debug, thiserror::Error)]
+pub enum AdjointError {
+    #[error("material {material}: the gradient driver takes at most {MAX_PARAMS} parameters and {MAX_STATE} state values")]
+    TooManyValues { material: String },
+    #[error(transparent)]
+    Memory(#[from] MemoryError),
+    #[error("emission without a printer")]
+    NoPrinter,
+    /// A perturbed toolpath puts a different number of a slab's particles inside the domain.
+    #[error("slab {slab}: the toolpath parameters' perturbation changes how many of its particles lie inside the domain")]
+    SlabCount { slab: u64 },
 }
 
 impl From<crate::print::PrintError> for SimError {

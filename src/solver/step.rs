@@ -6,7 +6,7 @@
 //! (the compiler asks for the arms); its adjoint goes beside its forward, in the phase's file.
 
 use super::adjoint::{Adjoint, Saved, Tape, ToolpathBar};
-use super::{DtLimit, SimError, Simulation};
+use super::{AdjointError, DtLimit, SimError, Simulation};
 use crate::kernels::Real;
 use crate::print::NozzleDrive;
 
@@ -256,7 +256,7 @@ impl Simulation {
     /// The adjoint of one phase of `step` for one objective's adjoint `a`, after the step was
     /// recomputed into `tape` and the live state; `toolpath` takes the adjoints of the
     /// toolpath's closed forms. Gradient runs keep every particle awake, with the order frozen.
-    pub fn phase_adjoint(&mut self, phase: Phase, step: &Step, tape: &mut Tape, a: &mut Adjoint, toolpath: Option<&mut dyn ToolpathBar>) -> Result<(), String> {
+    pub fn phase_adjoint(&mut self, phase: Phase, step: &Step, tape: &mut Tape, a: &mut Adjoint, toolpath: Option<&mut dyn ToolpathBar>) -> Result<(), AdjointError> {
         let dt = step.dt as Real;
         match phase {
             Phase::Emit => self.emission_adjoint(step, a, toolpath)?,

@@ -1,6 +1,7 @@
 //! The verification cases. Each returns one or more rows of (measured error, tolerance).
 
 use super::analytic as an;
+use super::VerifyError;
 use crate::scenario::Scenario;
 use crate::solver::Simulation;
 
@@ -37,7 +38,7 @@ impl CaseResult {
     }
 }
 
-type Case = fn(bool, usize) -> Result<Vec<CaseResult>, String>;
+type Case = fn(bool, usize) -> Result<Vec<CaseResult>, VerifyError>;
 
 pub const CASES: &[(&str, Case)] = &[
     ("poiseuille_newtonian", poiseuille_newtonian),
@@ -58,12 +59,12 @@ pub const SLOW_CASES: &[(&str, Case)] = &[
     ("print_mass_balance_full_scaled", |_, t| super::print::mass_balance(super::print::MassBalance::FullScaled, t)),
 ];
 
-pub(super) fn sim_of(text: &str, threads: usize) -> Result<Simulation, String> {
-    let mut sc = Scenario::parse(text).map_err(|e| e.to_string())?;
+pub(super) fn sim_of(text: &str, threads: usize) -> Result<Simulation, VerifyError> {
+    let mut sc = Scenario::parse(text)?;
     sc.simulation.threads = threads;
     // verification steps the solver directly and writes no checkpoints
     sc.checkpoint.enabled = false;
-    Simulation::new(&sc).map_err(|e| e.to_string())
+    Ok(Simulation::new(&sc)?)
 }
 
 pub(crate) fn result(name: &str, metric: &str, error: f64, tol: f64, quick: bool, sim: &Simulation, notes: String) -> CaseResult {
@@ -83,9 +84,9 @@ pub(crate) fn result(name: &str, metric: &str, error: f64, tol: f64, quick: bool
     }
 }
 
-pub(super) fn run_to(sim: &mut Simulation, t: f64) -> Result<(), String> {
+pub(super) fn run_to(sim: &mut Simulation, t: f64) -> Result<(), VerifyError> {
     while sim.time < t * (1.0 - 1e-12) {
-        sim.step_until(t).map_err(|e| e.to_string())?;
+        sim.step_until(t)?;
     }
     Ok(())
 }
@@ -139,7 +140,7 @@ fn profile_error(sim: &Simulation, h: f64, scale: f64, reference: impl Fn(f64) -
 /// incompressible by symmetry, so the bulk modulus only sets the time step: it is taken for a
 /// Mach number of 0.01 (K = 10 Pa) rather than the paper's 1e5 Pa, whose 1e-5 s step would
 /// violate the acoustic CFL bound by a factor of 10 at this resolution.
-fn poiseuille_newtonian(quick: bool, threads: usize) -> Result<Vec<CaseResult>, String> {
+fn poiseuille_newtonian(quick: bool, threads: usize) -> Result<Vec<CaseResult>, VerifyError> {
     let (h, rho, mu, acc) = (1e-3, 1000.0, 1e-3, 8e-3);
     let (cells, end, tol) = if quick { (24, 0.5, 0.03) } else { (40, 1.0, 0.01) };
     let mat = format!("kind = \"newtonian\"\ndensity = {rho}\nbulk_modulus = 10.0\nviscosity = {mu}");
@@ -161,7 +162,7 @@ fn poiseuille_newtonian(quick: bool, threads: usize) -> Result<Vec<CaseResult>, 
 /// Paper 001 sec. 3.3: Bingham plane Poiseuille, H = 0.5 m, F = 2000 N/m3, eta = 30 Pa s,
 /// rho = 2000 kg/m3, tau0 = 10, 50, 100, 200 Pa, against the plug-flow solution (eqs. 48-50)
 /// after 10 s from rest (about six relaxation times rho H^2 / (pi^2 eta)).
-fn poiseuille_bingham(quick: bool, threads: usize, model: &str) -> Result<Vec<CaseResult>, String> {
+fn poiseuille_bingham(quick: bool, threads: usize, model: &str) -> Result<Vec<CaseResult>, VerifyError> {
     let (h, f, eta, rho) = (0.5, 2000.0, 30.0, 2000.0);
     let pr = model == "papanastasiou_roussel";
     // The regularised fluid's apparent viscosity eta + tau0 m sets an explicit step ~25x below
@@ -201,7 +202,7 @@ fn poiseuille_bingham(quick: bool, threads: usize, model: &str) -> Result<Vec<Ca
 /// A still water-like column 0.5 m deep, periodic sideways, damped by viscosity; the particle
 /// pressure, averaged over the last half of the run (several acoustic periods), against
 /// rho0 g (H0 - z0): the weight of the material above the particle's initial height.
-fn hydrostatic(quick: bool, threads: usize) -> Result<Vec<CaseResult>, String> {
+fn hydrostatic(quick: bool, threads: usize) -> Result<Vec<CaseResult>, VerifyError> {
     let (h, rho, g) = (0.5, 1000.0, 9.81);
     let (cells, end, tol) = if quick { (20, 1.0, 0.03) } else { (50, 2.0, 0.01) };
     let dx = h / cells as f64;
@@ -279,7 +280,7 @@ budget = "64 MiB"
 /// error, both resolutions) allows for the experiment's known lag: its gate took a finite time to
 /// open, and numerical studies commonly shift the data in time for it (Lethe adds 0.175 to T);
 /// no shift is applied here.
-fn dam_break(quick: bool, threads: usize) -> Result<Vec<CaseResult>, String> {
+fn dam_break(quick: bool, threads: usize) -> Result<Vec<CaseResult>, VerifyError> {
     let (a, g) = (0.1, 9.81);
     let (per_a, tol) = if quick { (10, 0.15) } else { (20, 0.15) };
     let dx = a / per_a as f64;
@@ -384,7 +385,7 @@ budget = "256 MiB"
 /// rho = 2300 kg/m3, E = 100 kPa, nu = 0.3, no-slip base; one quarter simulated between two
 /// symmetry planes. The EVP solid stops by itself; its final spread is compared with eq. 51.
 /// A second row shows the regularised fluid still spreading when the solid has stopped.
-fn slump(quick: bool, threads: usize) -> Result<Vec<CaseResult>, String> {
+fn slump(quick: bool, threads: usize) -> Result<Vec<CaseResult>, VerifyError> {
     let (rho, tau0, eta, g) = (2300.0, 50.0, 50.0, 9.81);
     let (e0, nu) = (100e3, 0.3);
     let k = e0 / (3.0 * (1.0 - 2.0 * nu));

@@ -6,9 +6,11 @@
 
 pub mod analytic;
 mod cases;
+mod error;
 mod print;
 
 pub use cases::{CaseResult, CASES, SLOW_CASES};
+pub use error::VerifyError;
 use std::time::Instant;
 
 /// Peak resident set size of this process (VmHWM), bytes.
@@ -20,7 +22,7 @@ pub fn peak_rss_bytes() -> Option<u64> {
 }
 
 /// Run the suite; returns whether every selected case passed.
-pub fn run_suite(quick: bool, json: bool, filter: Option<&str>, threads: Option<usize>) -> Result<bool, String> {
+pub fn run_suite(quick: bool, json: bool, filter: Option<&str>, threads: Option<usize>) -> Result<bool, VerifyError> {
     let mut results = Vec::new();
     let mut matched = 0;
     let slow = SLOW_CASES.iter().filter(|(name, _)| filter == Some(*name));
@@ -33,7 +35,7 @@ pub fn run_suite(quick: bool, json: bool, filter: Option<&str>, threads: Option<
         if !json {
             eprintln!("verify: running {name}{} ...", if quick { " (quick)" } else { "" });
         }
-        let mut rs = case(quick, threads.unwrap_or(0)).map_err(|e| format!("case {name}: {e}"))?;
+        let mut rs = case(quick, threads.unwrap_or(0)).map_err(|e| VerifyError::Case { name, source: Box::new(e) })?;
         let wall = t0.elapsed().as_secs_f64();
         for r in &mut rs {
             r.wall_s = wall;
@@ -50,7 +52,7 @@ pub fn run_suite(quick: bool, json: bool, filter: Option<&str>, threads: Option<
         results.extend(rs);
     }
     if matched == 0 {
-        return Err(format!("no verification case matches '{}'", filter.unwrap_or("")));
+        return Err(VerifyError::NoMatch(filter.unwrap_or("").to_string()));
     }
     let all = results.iter().all(|r| r.pass);
     if json {

@@ -2,6 +2,7 @@
 //! and the trends of paper 000's cases 1-5 (Table 4).
 
 use super::cases::{result, run_to, sim_of, CaseResult};
+use super::VerifyError;
 use crate::report::{Observation, Reporter};
 use crate::solver::Simulation;
 
@@ -22,17 +23,17 @@ pub const TABLE4: [(f64, f64, f64); 5] = [(30.0, 33.6, 12.5), (30.0, 38.2, 7.5),
 pub const NOZZLE_D: f64 = 0.025;
 
 /// Replace `from` by `to` in a scenario text, insisting that it occurs.
-fn edit(text: &str, from: &str, to: &str) -> Result<String, String> {
+fn edit(text: &str, from: &str, to: &str) -> Result<String, VerifyError> {
     if !text.contains(from) {
-        return Err(format!("fixture has no '{from}' to edit"));
+        return Err(VerifyError::Fixture(format!("fixture has no '{from}' to edit")));
     }
     Ok(text.replace(from, to))
 }
 
 /// Run a scenario to its end with observables; returns the final observation.
-fn run_observed(text: &str, threads: usize) -> Result<(Simulation, Observation, f64), String> {
+fn run_observed(text: &str, threads: usize) -> Result<(Simulation, Observation, f64), VerifyError> {
     let mut sim = sim_of(text, threads)?;
-    let mut rep = Reporter::new(&sim.scenario, &sim)?.ok_or("fixture observes nothing")?;
+    let mut rep = Reporter::new(&sim.scenario, &sim)?.ok_or_else(|| VerifyError::Fixture("fixture observes nothing".into()))?;
     let end = sim.scenario.simulation.end_time;
     let t0 = std::time::Instant::now();
     run_to(&mut sim, end)?;
@@ -54,7 +55,7 @@ pub enum MassBalance {
 /// Steady strand: the cross-section 100 mm into a 150 mm straight print (4 nozzle diameters from
 /// the start) carries U A / V. Quick: case 1 at 2.5 mm, 3 %. Full: the same at 1 mm, 1 % (slow:
 /// run it by name).
-pub fn mass_balance(which: MassBalance, threads: usize) -> Result<Vec<CaseResult>, String> {
+pub fn mass_balance(which: MassBalance, threads: usize) -> Result<Vec<CaseResult>, VerifyError> {
     let (text, tol, name) = match which {
         MassBalance::Full => (CASE1_FULL, 0.01, "print_mass_balance_full"),
         MassBalance::FullScaled => (CASE1_FULL_SCALED, 0.01, "print_mass_balance_full_scaled"),
@@ -64,7 +65,7 @@ pub fn mass_balance(which: MassBalance, threads: usize) -> Result<Vec<CaseResult
     let (v, u, _) = TABLE4[0];
     let exact = u / v * std::f64::consts::PI * NOZZLE_D * NOZZLE_D / 4.0;
     let (sim, obs, _) = run_observed(text, threads)?;
-    let s = obs.sections.iter().find(|s| (s.station - 0.1).abs() < 1e-9).ok_or("no section at x = 100 mm")?;
+    let s = obs.sections.iter().find(|s| (s.station - 0.1).abs() < 1e-9).ok_or_else(|| VerifyError::Fixture("no section at x = 100 mm".into()))?;
     let err = (s.area - exact).abs() / exact;
     let notes = format!(
         "area {:.1} mm^2 vs U A / V = {:.1} mm^2; width {:.2} mm, height {:.2} mm; upstream stations: {}",
@@ -79,7 +80,7 @@ pub fn mass_balance(which: MassBalance, threads: usize) -> Result<Vec<CaseResult
 
 /// Three printed layers with and without sleeping: widths and heights agree within 1 %
 /// (quick: one 5 mm-resolution two-layer print, 2 %).
-pub fn sleep_agreement(quick: bool, threads: usize) -> Result<Vec<CaseResult>, String> {
+pub fn sleep_agreement(quick: bool, threads: usize) -> Result<Vec<CaseResult>, VerifyError> {
     let (with, tol) = if quick {
         let t = THREE_LAYERS.replace("dx = 0.0025", "dx = 0.005").replace("end_time = 7.6", "end_time = 5.0");
         (t, 0.02)
@@ -115,11 +116,11 @@ pub fn sleep_agreement(quick: bool, threads: usize) -> Result<Vec<CaseResult>, S
 /// error is 0 when the trend holds and 1 when it does not; the widths are in the notes. To halve
 /// the cost the prints stop at 100 mm and the section is taken at 75 mm, where case 1's width is
 /// within 0.05 % of its value at 100 mm on the 150 mm print (its area within 0.6 %).
-pub fn cases_trend(quick: bool, threads: usize) -> Result<Vec<CaseResult>, String> {
+pub fn cases_trend(quick: bool, threads: usize) -> Result<Vec<CaseResult>, VerifyError> {
     if quick {
         return Ok(Vec::new()); // six 5-minute prints: full suite only
     }
-    let shorten = |text: &str, k: usize| -> Result<String, String> {
+    let shorten = |text: &str, k: usize| -> Result<String, VerifyError> {
         let (v, _, _) = TABLE4[k];
         let t = edit(text, "to = [0.15, 0.0,", "to = [0.1, 0.0,")?;
         let t = edit(&t, "stations = [0.05, 0.075, 0.1]", "stations = [0.075]")?;
@@ -151,7 +152,7 @@ pub fn cases_trend(quick: bool, threads: usize) -> Result<Vec<CaseResult>, Strin
     let (_, obs, _) = run_observed(&more_u, threads)?;
     let w_more = obs.sections[0].width;
     notes.push(format!("case 1 with U + 10 %: width {:.2} mm", w_more * 1e3));
-    let sim = last.ok_or("no case ran")?;
+    let sim = last.ok_or_else(|| VerifyError::Fixture("no case ran".into()))?;
     let falls = widths[0] > widths[2] && widths[2] > widths[4];
     let rises = w_more > widths[0];
     let n = notes.join("; ");

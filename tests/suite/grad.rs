@@ -178,8 +178,8 @@ fn bad_requests_name_the_problem() {
     let o = |text: &str, obj: &str, wrt: &[&str]| {
         let sc = Scenario::parse(text).unwrap();
         match obj.parse::<Objective>() {
-            Err(e) => e,
-            Ok(obj) => gradient(&sc, &obj, &keys(wrt), &opts(None, dir.path())).unwrap_err(),
+            Err(e) => e.to_string(),
+            Ok(obj) => gradient(&sc, &obj, &keys(wrt), &opts(None, dir.path())).unwrap_err().to_string(),
         }
     };
     let text = block("", "\"no_slip\"");
@@ -192,7 +192,7 @@ fn bad_requests_name_the_problem() {
     assert!(e.contains("unknown parameter"), "{e}");
     let sc = Scenario::parse(&text).unwrap();
     let tiny = GradOptions { ram_bytes: 1000, ..opts(None, dir.path()) };
-    let e = gradient(&sc, &"spread".parse().unwrap(), &keys(&["material.viscosity"]), &tiny).unwrap_err();
+    let e = gradient(&sc, &"spread".parse().unwrap(), &keys(&["material.viscosity"]), &tiny).unwrap_err().to_string();
     assert!(e.contains("RAM budget") && e.contains("grad.tape"), "{e}");
 }
 

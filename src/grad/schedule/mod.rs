@@ -99,8 +99,8 @@ pub enum Kind {
 impl Kind {
     /// `store-all`, `two-level` (segment ceil(sqrt N)) or `two-level:SEGMENT`, and
     /// `revolve:RAM_SLOTS,DISK_SLOTS`. A two-level segment of 0 means ceil(sqrt N).
-    pub fn parse(s: &str) -> Result<Kind, String> {
-        let bad = || format!("schedule '{s}': expected store-all, two-level[:SEGMENT] or revolve:RAM_SLOTS,DISK_SLOTS");
+    pub fn parse(s: &str) -> Result<Kind, ScheduleError> {
+        let bad = || ScheduleError::Unknown { name: s.to_string() };
         let num = |t: &str| t.trim().parse::<u64>().map_err(|_| bad());
         match s.split_once(':') {
             None if s == "store-all" => Ok(Kind::StoreAll),
@@ -128,6 +128,9 @@ pub enum ScheduleError {
     NoSlots { n_steps: u64 },
     #[error("a two-level schedule needs a segment of at least 1 step")]
     ZeroSegment,
+    /// A schedule name `Kind::parse` does not know.
+    #[error("schedule '{name}': expected store-all, two-level[:SEGMENT] or revolve:RAM_SLOTS,DISK_SLOTS")]
+    Unknown { name: String },
 }
 
 /// A schedule for a known number of steps, with its cost worked out in advance.
