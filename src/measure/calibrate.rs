@@ -127,10 +127,10 @@ pub fn chi2_scatter(z: &[f64], scatter: &[f64], data: &[Observation]) -> f64 {
     2.0 * (2.0 * sum).sqrt()
 }
 
-/// How many times the drop a Jacobian's own scatter promises ([`promised_by_scatter`]) a
-/// Gauss-Newton step must promise to be worth a trial: the scatter's promise is a sum of squares
-/// of as many terms as free parameters, its mean [`promised_by_scatter`], one of two parameters
-/// exceeding twice its mean one time in seven.
+/// How many times the drop a Jacobian's own scatter promises on average
+/// ([`promised_by_scatter`]) a Gauss-Newton step must promise to be worth a trial: that promise
+/// is a sum of squares, one a free parameter; for two it is exponential, above twice its mean
+/// one time in seven.
 pub const UNFOUNDED: f64 = 2.0;
 
 /// The drop an undamped Gauss-Newton step promises, on average, from the scatter of its
