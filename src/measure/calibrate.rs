@@ -112,9 +112,24 @@ pub const TRIES: usize = 12;
 /// [`TRIES`] where the campaign runs simulations, each trial a run of the campaign: a print's
 /// observables are sampled by particles and a profile point near a strand's edge jumps, so a
 /// Jacobian from differences over 3 % of each parameter can promise a fall that no step
-/// delivers; a step the model refuses three times, the damping raised 16-fold, is not found by
-/// damping further, and the fit ends there.
+/// delivers; a step the model refuses three times, the last about a fifth of the Gauss-Newton
+/// step ([`SIMULATION_DAMPING`]), is not found by damping further, and the fit ends there.
 pub const SIMULATION_TRIES: usize = 3;
+
+/// The least damping after a trial refused where the campaign runs simulations: a damping of
+/// lambda adds lambda A_kk to the normal matrix's diagonal, so at 1 the step is about half the
+/// Gauss-Newton step along each well-determined direction, and at 4 (the next refusal) a fifth.
+/// With only [`SIMULATION_TRIES`] trials, each must be a clearly shorter step than the last: the
+/// fourfold raise from 1e-3 alone leaves the step as long, and a step too long for the model's
+/// nonlinearity is refused three times.
+pub const SIMULATION_DAMPING: f64 = 1.0;
+
+/// The damping after a refused trial: fourfold, and at least [`SIMULATION_DAMPING`] where the
+/// campaign runs simulations.
+fn raised(lambda: f64, simulated: bool) -> f64 {
+    let fourfold = lambda * 4.0;
+    if simulated { fourfold.max(SIMULATION_DAMPING) } else { fourfold }
+}
 
 /// The standard deviation of the difference of chi^2 at two points of a rough model (two
 /// trials, or a step's two ends, apart by more than the scale on which the roughness is
@@ -220,7 +235,7 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
             } else {
                 TRIES
             };
-            damped_step(&model, &theta, (&s, c2, worth_a_try), (&a, &g), &cols, &mut lambda, names, &bounds, data, exps, opts, (secant, tries))?
+            damped_step(&model, &theta, (&s, c2, worth_a_try), (&a, &g), &cols, &mut lambda, names, &bounds, data, exps, opts, (secant, tries, simulated))?
         };
         let Some(next) = next else {
             if exact {
@@ -336,7 +351,7 @@ fn damped_step(
     data: &[Observation],
     exps: &Experiments,
     opts: &FitOptions,
-    (secant, tries): (bool, usize),
+    (secant, tries, simulated): (bool, usize, bool),
 ) -> Result<Option<Accepted>, String> {
     for _ in 0..tries {
         let mut damped: Mat = a.clone();
@@ -364,7 +379,7 @@ fn damped_step(
         let tv = match opts.engine.sensitivity(opts.jobs, &tm, data, exps, None)? {
             Ok(t) => t.values,
             Err(_) => {
-                *lambda *= 4.0;
+                *lambda = raised(*lambda, simulated);
                 continue;
             }
         };
@@ -377,7 +392,7 @@ fn damped_step(
                 Sensitivity { values: tv, jacobian: Some(jacobian), scatter: at.scatter.clone(), jacobian_scatter: at.jacobian_scatter.clone() }
             } else {
                 let Ok(at_trial) = opts.engine.jacobian_at(opts.jobs, &tm, data, exps, names, &tv)? else {
-                    *lambda *= 4.0;
+                    *lambda = raised(*lambda, simulated);
                     continue;
                 };
                 at_trial
@@ -386,9 +401,9 @@ fn damped_step(
             return Ok(Some(Accepted { theta: trial, model: tm, at: at_trial, chi2: tc2 }));
         }
         if opts.progress {
-            eprintln!("  trial refused: chi^2 = {tc2:.6e}, {:.3e} predicted (damping {lambda:.1e})", c2 - linear_drop);
+            eprintln!("  trial refused: chi^2 = {tc2:.6e}, {:.3e} predicted (damping {lambda:.1e}, the largest move {moved:.3} scales)", c2 - linear_drop);
         }
-        *lambda *= 4.0;
+        *lambda = raised(*lambda, simulated);
     }
     Ok(None)
 }

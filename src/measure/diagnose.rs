@@ -290,7 +290,8 @@ fn base_fit(model: &Model, data: &[Observation], exps: &Experiments, fit: &[Stri
 /// point's values (every added effect at its null, or a modulus at the stand-in the base model
 /// runs in its place), the fitted parameters' columns are the base fit's own there, `extra`'s
 /// follow from them where the keys allow ([`chained`](super::chain::chained)), and only the
-/// rest are computed, from those values; elsewhere every column is, from `with`'s values.
+/// rest are computed, from those values (taken without a run where `with` runs every experiment
+/// as that point does, [`runs_alike`]); elsewhere every column is, from `with`'s values.
 fn beside_base(base: &Fit, from_start: bool, with: &Model, extra: &[String], data: &[Observation], exps: &Experiments, opts: &DiagnoseOptions) -> Result<Sensitivity, String> {
     let (engine, jobs) = (&opts.fit.engine, opts.fit.jobs);
     let names: Vec<String> = base.names.iter().chain(extra).cloned().collect();
@@ -298,7 +299,8 @@ fn beside_base(base: &Fit, from_start: bool, with: &Model, extra: &[String], dat
         true => (&base.at_start.values, base.at_start.jacobian.as_ref().expect("asked"), &base.at_start.scatter, base.at_start.jacobian_scatter.as_ref().expect("asked")),
         false => (&base.model_values, &base.jacobian, &base.scatter, &base.jacobian_scatter),
     };
-    let values = engine.sensitivity(jobs, with, data, exps, None)??.values;
+    let known_at = if from_start { at_model(&base.model, &base.names, &base.start)? } else { base.model.clone() };
+    let values = if runs_alike(with, &known_at, data, exps)? { known.clone() } else { engine.sensitivity(jobs, with, data, exps, None)??.values };
     if values != *known || base.names.is_empty() || extra.is_empty() {
         return engine.jacobian_at(jobs, with, data, exps, &names, &values)?;
     }
@@ -433,12 +435,38 @@ fn score_tests(base: &Fit, data: &[Observation], exps: &Experiments, fit: &[Stri
     Ok(ScoreTests { candidates: cands, unreachable, inapplicable, at_nulls, columns })
 }
 
+/// `model` with the parameters `names` at `values`.
+fn at_model(model: &Model, names: &[String], values: &[f64]) -> Result<Model, String> {
+    let mut m = model.clone();
+    for (n, v) in names.iter().zip(values) {
+        m.set(n, *v)?;
+    }
+    Ok(m)
+}
+
+/// Whether `a` and `b` run every experiment of `data` alike: each is a simulation whose scenario
+/// is the same text under both (a run is a function of its scenario alone, bit for bit), so
+/// `b`'s values are `a`'s without a run (effects at their nulls whose keys leave every scenario
+/// as it was).
+fn runs_alike(a: &Model, b: &Model, data: &[Observation], exps: &Experiments) -> Result<bool, String> {
+    for (id, _) in super::runner::group(data) {
+        let x = super::runner::find(exps, &id)?;
+        let Some(scenario) = &x.scenario else { return Ok(false) };
+        let path = exps.base_dir.join(scenario);
+        let text = |m: &Model| super::runner::experiment_keys(m, x).and_then(|keys| super::runner::scenario_text(m, &keys, &path));
+        if text(a)? != text(b)? {
+            return Ok(false);
+        }
+    }
+    Ok(true)
+}
+
 /// The likelihood ratio of each effect whose null lies at infinity: the effect fitted from its
 /// start (a modulus: the base model's stand-in for the null, where the model is the base model),
-/// with the fitted parameters from the base fit's values (so a modulus's chi^2 starts at
-/// chi^2_base and the fit only lowers it), and, when that finds no significant drop, from the
-/// model's own: the base fit may have gone where the effect has no gradient (a yield stress
-/// fitted so low that every reading is past yield, where G drops out); the better of the two
+/// with the fitted parameters from the base fit's values (so a modulus's chi^2 starts at chi^2_base
+/// and the fit only lowers it), and, when that finds no significant drop and the base fit moved,
+/// from the model's own: the base fit may have gone where the effect has no gradient (a yield
+/// stress fitted so low that every reading is past yield, where G drops out); the better of the two
 /// fits counts. Returns the candidates and the fits a candidate's fit can take over.
 #[allow(clippy::too_many_arguments)]
 fn likelihood_ratio_tests(
@@ -460,7 +488,9 @@ fn likelihood_ratio_tests(
         let fnames = fit_names(fit, *e);
         let mut best: Option<Fit> = None;
         let mut screened: Option<f64> = None;
-        for from in if fit.is_empty() { vec![&base.model] } else { vec![&base.model, model] } {
+        // the model's own values are the base fit's when the fit stayed at its start
+        let moved = base.values != base.start;
+        for from in if fit.is_empty() || !moved { vec![&base.model] } else { vec![&base.model, model] } {
             if best.as_ref().is_some_and(|b| p_value(base.chi2 - b.chi2, e.params().len()) < opts.alpha) {
                 break;
             }
