@@ -223,12 +223,15 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
         } else if opts.progress && exact && history.len() > 1 {
             eprintln!("  exact Jacobian: an undamped step predicts chi^2 = {:.6e} (reduced chi^2 {birge:.3})", c2 - gauss_newton);
         }
+        // the optimum within reach of one step: the undamped step, from an exact Jacobian,
+        // promises less than the reduced chi^2 or twice what is worth a try
+        let near = exact && gauss_newton < (CHI2_ROUGH * birge).max(2.0 * worth_a_try);
         let next = if gauss_newton < worth_a_try {
             None
         } else {
             // one try on a secant Jacobian, which is then computed again, and near the optimum
             // (a promise under twice what the scatter would make is near it)
-            let tries = if !exact || gauss_newton < (CHI2_ROUGH * birge).max(2.0 * worth_a_try) {
+            let tries = if !exact || near {
                 1
             } else if simulated {
                 SIMULATION_TRIES
@@ -253,7 +256,9 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
             eprintln!("step {}: chi^2 = {c2:.6e} (damping {lambda:.1e}{}, {:.1} s into the fit)", history.len() - 1, if exact { "" } else { ", secant Jacobian" }, clock.elapsed().as_secs_f64());
         }
         if gain < opts.tolerance || drop < negligible {
-            if exact {
+            // a negligible drop from a step near the optimum is the optimum: a rough model
+            // accepts steps within its scatter as often as it refuses them, each a Jacobian
+            if exact || near {
                 converged = true;
                 break;
             }

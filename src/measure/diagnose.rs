@@ -34,7 +34,7 @@
 //! 4. When no effect is recommended and the base model does not fit (chi^2 beyond its `alpha`
 //!    quantile) the verdict is "unexplained", with the pattern of the residuals.
 
-use super::calibrate::{calibrate, calibrate_from, chi2, predicted_drop, standardised, Fit, FitOptions};
+use super::calibrate::{calibrate, calibrate_from, chi2, chi2_scatter, predicted_drop, standardised, Fit, FitOptions};
 use super::experiments::Experiments;
 use super::observation::Observation;
 use super::effects::{Covariates, Effect};
@@ -290,8 +290,7 @@ fn base_fit(model: &Model, data: &[Observation], exps: &Experiments, fit: &[Stri
 /// point's values (every added effect at its null, or a modulus at the stand-in the base model
 /// runs in its place), the fitted parameters' columns are the base fit's own there, `extra`'s
 /// follow from them where the keys allow ([`chained`](super::chain::chained)), and only the
-/// rest are computed, from those values (taken without a run where `with` runs every experiment
-/// as that point does, [`runs_alike`]); elsewhere every column is, from `with`'s values.
+/// rest are computed, from those values; elsewhere every column is, from `with`'s values.
 fn beside_base(base: &Fit, from_start: bool, with: &Model, extra: &[String], data: &[Observation], exps: &Experiments, opts: &DiagnoseOptions) -> Result<Sensitivity, String> {
     let (engine, jobs) = (&opts.fit.engine, opts.fit.jobs);
     let names: Vec<String> = base.names.iter().chain(extra).cloned().collect();
@@ -299,8 +298,7 @@ fn beside_base(base: &Fit, from_start: bool, with: &Model, extra: &[String], dat
         true => (&base.at_start.values, base.at_start.jacobian.as_ref().expect("asked"), &base.at_start.scatter, base.at_start.jacobian_scatter.as_ref().expect("asked")),
         false => (&base.model_values, &base.jacobian, &base.scatter, &base.jacobian_scatter),
     };
-    let known_at = if from_start { at_model(&base.model, &base.names, &base.start)? } else { base.model.clone() };
-    let values = if runs_alike(with, &known_at, data, exps)? { known.clone() } else { engine.sensitivity(jobs, with, data, exps, None)??.values };
+    let values = engine.sensitivity(jobs, with, data, exps, None)??.values;
     if values != *known || base.names.is_empty() || extra.is_empty() {
         return engine.jacobian_at(jobs, with, data, exps, &names, &values)?;
     }
@@ -433,32 +431,6 @@ fn score_tests(base: &Fit, data: &[Observation], exps: &Experiments, fit: &[Stri
     }
     let columns = absent.iter().map(|e| e.name()).zip(cols_of).collect();
     Ok(ScoreTests { candidates: cands, unreachable, inapplicable, at_nulls, columns })
-}
-
-/// `model` with the parameters `names` at `values`.
-fn at_model(model: &Model, names: &[String], values: &[f64]) -> Result<Model, String> {
-    let mut m = model.clone();
-    for (n, v) in names.iter().zip(values) {
-        m.set(n, *v)?;
-    }
-    Ok(m)
-}
-
-/// Whether `a` and `b` run every experiment of `data` alike: each is a simulation whose scenario
-/// is the same text under both (a run is a function of its scenario alone, bit for bit), so
-/// `b`'s values are `a`'s without a run (effects at their nulls whose keys leave every scenario
-/// as it was).
-fn runs_alike(a: &Model, b: &Model, data: &[Observation], exps: &Experiments) -> Result<bool, String> {
-    for (id, _) in super::runner::group(data) {
-        let x = super::runner::find(exps, &id)?;
-        let Some(scenario) = &x.scenario else { return Ok(false) };
-        let path = exps.base_dir.join(scenario);
-        let text = |m: &Model| super::runner::experiment_keys(m, x).and_then(|keys| super::runner::scenario_text(m, &keys, &path));
-        if text(a)? != text(b)? {
-            return Ok(false);
-        }
-    }
-    Ok(true)
 }
 
 /// The likelihood ratio of each effect whose null lies at infinity: the effect fitted from its
@@ -666,12 +638,12 @@ fn applicable(effect: &'static dyn Effect, model: &Model, data: &[Observation], 
 /// left-out experiment's rows taken out (bounds held as the fit held them, the step clamped to
 /// them). The left-out experiment alone is run at the stepped parameters, which keeps the model's
 /// nonlinearity in its chi^2, and that run checks the step as a trust region checks one: the step
-/// stands when the left-out experiment's chi^2 moves from the full fit's by what the
-/// linearisation that made the step predicts (within [`STEP_TRUST`] of the predicted move, or by
-/// less than [`STEP_NEGLIGIBLE`] either way). A step the check refuses (leaving one experiment out
-/// moves the fit far: an experiment that alone pins a parameter, correlated parameters of a
-/// nonlinear effect), whose linearisation then fails for the experiment that moved it, is
-/// replaced by a full refit started from the full fit. The check costs one run of each
+/// stands when the left-out experiment's chi^2 moves from the full fit's by what the linearisation
+/// that made the step predicts (within [`STEP_TRUST`] of the predicted move, or by less than
+/// [`STEP_NEGLIGIBLE`] or the model's own scatter either way). A step the check refuses (leaving
+/// one experiment out moves the fit far: an experiment that alone pins a parameter, correlated
+/// parameters of a nonlinear effect), whose linearisation then fails for the experiment that moved
+/// it, is replaced by a full refit started from the full fit. The check costs one run of each
 /// experiment in all, against a calibration each for refits. With `exact_refits` every experiment
 /// is left out of a full refit.
 fn leave_one_out(f: &Fit, data: &[Observation], exps: &Experiments, ids: &[String], opts: &DiagnoseOptions) -> Result<f64, String> {
@@ -710,8 +682,9 @@ fn rows_of(data: &[Observation], rows: &[usize]) -> Vec<Observation> {
 /// A step stands when the left-out experiment's chi^2 moves by its predicted move within this
 /// fraction of it: the trust-region ratio within 1 -/+ 0.25.
 const STEP_TRUST: f64 = 0.25;
-/// A change of chi^2 smaller than this is no change: a step that moves the left-out experiment's
-/// chi^2 by less, actual or predicted, stands.
+/// A change of chi^2 smaller than this, or than the left-out experiment's chi^2 scatter where the
+/// model is rough, is no change: a step that moves the left-out experiment's chi^2 by less,
+/// actual or predicted, stands.
 const STEP_NEGLIGIBLE: f64 = 0.1;
 
 /// One Gauss-Newton step without an experiment, and the left-out experiment's chi^2 at the full
@@ -720,6 +693,9 @@ struct Step {
     model: Model,
     chi2_left_out: f64,
     chi2_predicted: f64,
+    /// The scatter of a difference of two of the left-out experiment's chi^2 where the model is
+    /// rough ([`chi2_scatter`]): a move within it is no move.
+    chi2_scatter: f64,
 }
 
 impl Step {
@@ -727,7 +703,7 @@ impl Step {
     fn trusted(&self, chi2_actual: f64) -> bool {
         let predicted = self.chi2_predicted - self.chi2_left_out;
         let actual = chi2_actual - self.chi2_left_out;
-        (actual - predicted).abs() <= STEP_TRUST * predicted.abs() + STEP_NEGLIGIBLE
+        (actual - predicted).abs() <= STEP_TRUST * predicted.abs() + STEP_NEGLIGIBLE.max(self.chi2_scatter)
     }
 }
 
@@ -753,7 +729,9 @@ fn one_step_without(f: &Fit, data: &[Observation], (kept, left): (&[usize], &[us
     }
     let (z_left, jz_left) = pick(left);
     let linear: f64 = z_left.iter().zip(&jz_left).map(|(zi, row)| (zi + row.iter().zip(&taken).map(|(j, t)| j * t).sum::<f64>()).powi(2)).sum();
-    Ok(Step { model, chi2_left_out: z_left.iter().map(|zi| zi * zi).sum(), chi2_predicted: linear })
+    let scatter: Vec<f64> = left.iter().map(|&i| f.scatter[i]).collect();
+    let chi2_scatter = chi2_scatter(&z_left, &scatter, &rows_of(data, left));
+    Ok(Step { model, chi2_left_out: z_left.iter().map(|zi| zi * zi).sum(), chi2_predicted: linear, chi2_scatter })
 }
 
 /// Where an unexplained misfit lies: the largest residuals and the observables worst fitted
