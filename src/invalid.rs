@@ -5,10 +5,3 @@
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 #[error("{0}")]
 pub struct Invalid(pub String);
-
-/// Where a caller still reports errors as text, the message as it was.
-impl From<Invalid> for String {
-    fn from(e: Invalid) -> String {
-        e.0
-    }
-}

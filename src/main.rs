@@ -1,7 +1,7 @@
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 use std::process::ExitCode;
-use strand::measure::{experiments::Experiments, model::Model, observation::Observation, resolution::Counted};
+use strand::measure::{error::MeasureError, experiments::Experiments, model::Model, observation::Observation, resolution::Counted};
 use strand::run::{run_scenario, RunOptions};
 use strand::scenario::Scenario;
 
@@ -338,14 +338,14 @@ struct EngineArgs {
 }
 
 impl EngineArgs {
-    fn engine(&self) -> Result<strand::measure::engine::Engine, String> {
-        let exe = std::env::current_exe().map_err(|e| e.to_string())?;
+    fn engine(&self) -> Result<strand::measure::engine::Engine, Failure> {
+        let exe = std::env::current_exe()?;
         let threads = if self.job_threads == 0 { None } else { Some(self.job_threads) };
-        strand::measure::engine::Engine::new(&self.engine, self.engine_dir.as_deref(), &exe, threads)
+        Ok(strand::measure::engine::Engine::new(&self.engine, self.engine_dir.as_deref(), &exe, threads)?)
     }
 
     /// A fit's options on this engine, `jobs` experiments at a time, each step on stderr.
-    fn fit_options(&self, steps: &FitSteps, jobs: usize) -> Result<strand::measure::calibrate::FitOptions, String> {
+    fn fit_options(&self, steps: &FitSteps, jobs: usize) -> Result<strand::measure::calibrate::FitOptions, Failure> {
         let (max_iterations, secant) = (steps.max_iterations, !steps.jacobian_every_step);
         Ok(strand::measure::calibrate::FitOptions { max_iterations, jobs, engine: self.engine()?, progress: true, secant, ..Default::default() })
     }
@@ -353,10 +353,10 @@ impl EngineArgs {
 
 /// A fit's or a diagnosis's result on stdout: as JSON with the discretisation estimates, or as
 /// `text` after the estimates' `table`.
-fn print_result(json: bool, result: &impl serde::Serialize, disc: &Option<Counted>, table: impl Fn(&Counted) -> String, text: impl FnOnce() -> String) -> Result<(), String> {
+fn print_result(json: bool, result: &impl serde::Serialize, disc: &Option<Counted>, table: impl Fn(&Counted) -> String, text: impl FnOnce() -> String) -> Result<(), Failure> {
     use strand::measure::resolution;
     if json {
-        println!("{:#}", resolution::with_estimates(serde_json::to_value(result).map_err(|e| e.to_string())?, disc)?);
+        println!("{:#}", resolution::with_estimates(serde_json::to_value(result)?, disc)?);
     } else {
         if let Some(c) = disc {
             print!("{}", table(c));
@@ -367,7 +367,7 @@ fn print_result(json: bool, result: &impl serde::Serialize, disc: &Option<Counte
 }
 
 impl MeasureInputs {
-    fn load(&self) -> Result<(Model, Vec<Observation>, Experiments), String> {
+    fn load(&self) -> Result<(Model, Vec<Observation>, Experiments), MeasureError> {
         use strand::measure::observation::read_observations;
         Ok((Model::load(&self.model)?, read_observations(&self.data)?, Experiments::load(&self.experiments)?))
     }
@@ -375,7 +375,7 @@ impl MeasureInputs {
 
 /// Whether a file can be written at `path` (the option `what` names it), checked before a long
 /// computation whose result goes there. Leaves an existing file unchanged and no new one.
-fn check_writable(path: &std::path::Path, what: &str) -> Result<(), String> {
+fn check_writable(path: &std::path::Path, what: &str) -> Result<(), Failure> {
     let existed = path.exists();
     std::fs::OpenOptions::new()
         .append(true)
@@ -392,8 +392,8 @@ fn check_writable(path: &std::path::Path, what: &str) -> Result<(), String> {
 fn run(args: RunArgs) -> Result<bool, Failure> {
     let RunArgs { scenario, out, threads, quiet, json, resume, force, overwrite } = args;
     let sc = match &scenario {
-        Some(p) => Scenario::load(p).map_err(|e| e.to_string())?,
-        None => Scenario::parse(DEFAULT_SCENARIO).map_err(|e| e.to_string())?,
+        Some(p) => Scenario::load(p)?,
+        None => Scenario::parse(DEFAULT_SCENARIO)?,
     };
     let mut command = "strand run".to_string();
     if let Some(p) = &scenario {
@@ -429,10 +429,10 @@ fn run(args: RunArgs) -> Result<bool, Failure> {
 /// `strand check`: the scenario checked, its memory plan and time step printed.
 fn check(args: CheckArgs) -> Result<bool, Failure> {
     let CheckArgs { scenario } = args;
-    let sc = Scenario::load(&scenario).map_err(|e| e.to_string())?;
+    let sc = Scenario::load(&scenario)?;
     strand::run::preflight(&sc)?;
-    let mut sim = strand::solver::Simulation::new(&sc).map_err(|e| e.to_string())?;
-    strand::run::plan_checkpoint_staging(&mut sim).map_err(|e| e.to_string())?;
+    let mut sim = strand::solver::Simulation::new(&sc)?;
+    strand::run::plan_checkpoint_staging(&mut sim)?;
     for w in strand::run::scenario_warnings(&sc, &sim) {
         eprintln!("{w}");
     }
@@ -451,7 +451,7 @@ fn grad(args: GradArgs) -> Result<bool, Failure> {
     if let Some(v) = until_rest.filter(|v| !(v.is_finite() && *v > 0.0)) {
         return Err(format!("--until-rest: the speed must be finite and > 0 m/s (a speed the run can exceed and fall back below), got {v}").into());
     }
-    let sc = Scenario::load(&scenario).map_err(|e| e.to_string())?;
+    let sc = Scenario::load(&scenario)?;
     let objs: Vec<strand::grad::Objective> = objective.iter().map(|o| o.parse()).collect::<Result<_, _>>()?;
     let size = |s: &str, what: &str| strand::memory::parse_size(s).map_err(|e| format!("--{what}: {e}"));
     let opts = strand::grad::GradOptions {
@@ -489,7 +489,7 @@ fn compare(args: CompareArgs) -> Result<bool, Failure> {
     }
     let (m, d, e) = inputs.load()?;
     if let Some(dir) = &plan {
-        let exe = std::env::current_exe().map_err(|e| e.to_string())?;
+        let exe = std::env::current_exe()?;
         let n = jobs::plan(dir, &exe, &inputs.model, &inputs.data, &inputs.experiments, &d)?;
         eprintln!("{n} jobs in {0}/jobs.txt: `parallel < {0}/jobs.txt` or `sbatch {0}/slurm.sh`, then --collect {0}", dir.display());
         return Ok(true);
@@ -513,13 +513,13 @@ fn compare(args: CompareArgs) -> Result<bool, Failure> {
     };
     let trends = report.as_deref().map(|dir| folder::write(dir, &c, &e, &m)).transpose()?;
     if inputs.json {
-        let mut v = serde_json::to_value(&c).map_err(|e| e.to_string())?;
+        let mut v = serde_json::to_value(&c)?;
         if let Some((t, shapes)) = &trends {
-            v["trends"] = serde_json::to_value(t).map_err(|e| e.to_string())?;
-            v["shapes"] = serde_json::to_value(shapes).map_err(|e| e.to_string())?;
+            v["trends"] = serde_json::to_value(t)?;
+            v["shapes"] = serde_json::to_value(shapes)?;
         }
         if let Some(est) = &disc {
-            v["discretisation"] = serde_json::to_value(est).map_err(|e| e.to_string())?;
+            v["discretisation"] = serde_json::to_value(est)?;
         }
         println!("{v:#}");
     } else {
@@ -552,7 +552,7 @@ fn synth(args: SynthArgs) -> Result<bool, Failure> {
 
 /// The data with their discretisation errors counted (`[resolution]`), saying on stderr how long
 /// the finer runs took: part of a fit's or a diagnosis's cost.
-fn counted_data(m: &Model, d: Vec<Observation>, e: &Experiments, jobs: usize) -> Result<(Vec<Observation>, Option<Counted>), String> {
+fn counted_data(m: &Model, d: Vec<Observation>, e: &Experiments, jobs: usize) -> Result<(Vec<Observation>, Option<Counted>), MeasureError> {
     let clock = std::time::Instant::now();
     let counted = strand::measure::resolution::counted_data(m, d, e, jobs)?;
     if counted.1.is_some() {
@@ -598,7 +598,7 @@ fn diagnose(args: DiagnoseArgs) -> Result<bool, Failure> {
         let r = rounds::rounds(&m, &d, &e, &fit, &opts, rounds as usize)?;
         // the report first: a file that fails to write then loses nothing
         if inputs.json {
-            println!("{:#}", serde_json::to_value(&r).map_err(|e| e.to_string())?);
+            println!("{:#}", serde_json::to_value(&r)?);
         } else {
             print!("{}", rounds::report(&r));
         }
@@ -672,7 +672,8 @@ impl From<String> for Failure {
     }
 }
 
-/// The library's typed errors, as a command's failure with their message and exit status 2.
+/// The library's typed errors (and the system's, serde_json's), as a command's failure with their
+/// message and exit status 2.
 macro_rules! failure_from {
     ($($t:ty),* $(,)?) => {$(
         impl From<$t> for Failure {
@@ -689,6 +690,12 @@ failure_from!(
     strand::grad::schedule::ScheduleError,
     strand::verify::VerifyError,
     strand::bench::BenchError,
+    strand::measure::error::MeasureError,
+    strand::output::plot::PlotError,
+    strand::scenario::ScenarioError,
+    strand::solver::SimError,
+    serde_json::Error,
+    std::io::Error,
 );
 
 /// Exit status 0 when the command succeeded, 1 when it ran but found a failure (a bad checkpoint,

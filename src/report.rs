@@ -27,13 +27,6 @@ pub enum ReportError {
     Plot(#[from] PlotError),
 }
 
-/// Where a caller still reports errors as text, the message as it was.
-impl From<ReportError> for String {
-    fn from(e: ReportError) -> String {
-        e.to_string()
-    }
-}
-
 fn io(path: &Path) -> impl FnOnce(std::io::Error) -> ReportError + '_ {
     move |source| ReportError::Io { path: path.to_path_buf(), source }
 }

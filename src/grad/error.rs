@@ -83,13 +83,6 @@ impl From<PrintError> for GradError {
     }
 }
 
-/// Where a caller still reports errors as text, the message as it was.
-impl From<GradError> for String {
-    fn from(e: GradError) -> String {
-        e.to_string()
-    }
-}
-
 /// The I/O error `source` of `what` (creating, writing, ...) at `path`.
 pub(super) fn io_err<'a>(what: &'static str, path: &'a std::path::Path) -> impl FnOnce(std::io::Error) -> GradError + 'a {
     move |source| GradError::Io { what, path: path.to_path_buf(), source }

@@ -16,6 +16,7 @@
 //! data's uncertainties taken as given (not rescaled by the reduced chi^2, which is reported
 //! beside).
 
+use super::error::MeasureError;
 use super::experiments::Experiments;
 use super::observation::Observation;
 use super::linalg::{gauss_newton_step, normal_equations, pinv_sym, Mat};
@@ -175,7 +176,7 @@ pub fn chi2(values: &[f64], data: &[Observation]) -> f64 {
 }
 
 /// Fit `names` of `model` to `data`.
-pub fn calibrate(model: &Model, data: &[Observation], exps: &Experiments, names: &[String], opts: &FitOptions) -> Result<Fit, String> {
+pub fn calibrate(model: &Model, data: &[Observation], exps: &Experiments, names: &[String], opts: &FitOptions) -> Result<Fit, MeasureError> {
     check(model, names)?;
     let at_start = opts.engine.sensitivity(opts.jobs, model, data, exps, Some(names))??;
     calibrate_from(model, data, exps, names, opts, at_start)
@@ -183,7 +184,7 @@ pub fn calibrate(model: &Model, data: &[Observation], exps: &Experiments, names:
 
 /// [`calibrate`] from a start whose values and Jacobian in `names` are known: `at_start` is
 /// what the engine gives at `model` (a fit's own, or its rows for a subset of its data).
-pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, names: &[String], opts: &FitOptions, at_start: Sensitivity) -> Result<Fit, String> {
+pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, names: &[String], opts: &FitOptions, at_start: Sensitivity) -> Result<Fit, MeasureError> {
     let (bounds, start) = check(model, names)?;
     let scale: Vec<f64> = bounds.iter().map(|b| b.scale).collect();
     let mut theta = start.clone();
@@ -357,7 +358,7 @@ fn damped_step(
     exps: &Experiments,
     opts: &FitOptions,
     (secant, tries, simulated): (bool, usize, bool),
-) -> Result<Option<Accepted>, String> {
+) -> Result<Option<Accepted>, MeasureError> {
     for _ in 0..tries {
         let mut damped: Mat = a.clone();
         for (k, row) in damped.iter_mut().enumerate() {
@@ -443,14 +444,14 @@ pub fn predicted_drop(a: &Mat, g: &[f64]) -> f64 {
 }
 
 /// The parameters' bounds and starting values, checked: something to fit, each start finite.
-fn check(model: &Model, names: &[String]) -> Result<(Vec<Bounds>, Vec<f64>), String> {
+fn check(model: &Model, names: &[String]) -> Result<(Vec<Bounds>, Vec<f64>), MeasureError> {
     if names.is_empty() {
-        return Err("nothing to fit: name the parameters (--fit P1,P2,...)".into());
+        return Err(MeasureError::Fit("nothing to fit: name the parameters (--fit P1,P2,...)".into()));
     }
     let bounds: Vec<Bounds> = names.iter().map(|n| model.bounds(n)).collect::<Result<_, _>>()?;
     let start: Vec<f64> = names.iter().map(|n| model.get(n)).collect::<Result<_, _>>()?;
     if let Some((n, v)) = names.iter().zip(&start).find(|(_, v)| !v.is_finite()) {
-        return Err(format!("{n} starts at {v}, its null at infinity, where there is no gradient to move it by: give it a finite start in the model"));
+        return Err(MeasureError::Fit(format!("{n} starts at {v}, its null at infinity, where there is no gradient to move it by: give it a finite start in the model")));
     }
     Ok((bounds, start))
 }
@@ -498,7 +499,7 @@ pub fn report(f: &Fit) -> String {
 }
 
 /// chi^2 against iteration, as a PNG.
-pub fn plot_convergence(f: &Fit, path: &std::path::Path) -> Result<(), String> {
+pub fn plot_convergence(f: &Fit, path: &std::path::Path) -> Result<(), crate::output::plot::PlotError> {
     let pts: Vec<[f64; 2]> = f.history.iter().enumerate().map(|(i, c)| [i as f64, c.max(1e-300).log10()]).collect();
     crate::output::plot::plot_xy(path, "calibration: log10 chi^2 against accepted step", "accepted step", "log10 chi^2", &[("chi^2".to_string(), pts)], true)
 }

@@ -8,6 +8,7 @@
 //! key of its own (a thixotropic build-up rate, a flow index) or moves a print key is not
 //! spanned, and its column is computed.
 
+use super::error::MeasureError;
 use super::effects::Keys;
 use super::experiments::Experiments;
 use super::linalg::{gauss_newton_step, normal_equations};
@@ -19,7 +20,7 @@ use super::runner::{find, group};
 /// (a row per observation) in `fitted` and its entries' scatter: `Some` for each parameter whose
 /// key moves lie, in every experiment, in the span of the fitted parameters' (to round-off), with
 /// each entry's scatter (the fitted entries' combined, as independent), `None` for the others.
-pub fn chained(model: &Model, data: &[Observation], exps: &Experiments, fitted: &[String], (jacobian, jacobian_scatter): (&[Vec<f64>], &[Vec<f64>]), extra: &[String]) -> Result<Vec<Option<Chained>>, String> {
+pub fn chained(model: &Model, data: &[Observation], exps: &Experiments, fitted: &[String], (jacobian, jacobian_scatter): (&[Vec<f64>], &[Vec<f64>]), extra: &[String]) -> Result<Vec<Option<Chained>>, MeasureError> {
     let all: Vec<String> = fitted.iter().chain(extra).cloned().collect();
     let fcols: Vec<usize> = (0..fitted.len()).collect();
     let mut columns: Vec<Option<Chained>> = vec![Some(Chained { column: vec![0.0; data.len()], scatter: vec![0.0; data.len()] }); extra.len()];

@@ -2,6 +2,7 @@
 //! their summaries per experiment and per observable, and chi^2, the loss a calibration
 //! minimises. The model's values come from the runner (`runner.rs`).
 
+use super::error::MeasureError;
 use super::experiments::Experiments;
 use super::model::Model;
 use super::observation::{at_text, Observable, Observation};
@@ -85,7 +86,7 @@ fn summarise<'a>(rows: impl Iterator<Item = &'a Row>, key: impl Fn(&Row) -> Stri
 }
 
 /// Run every experiment the data name and compare.
-pub fn compare(model: &Model, data: &[Observation], exps: &Experiments, jobs: usize) -> Result<Comparison, String> {
+pub fn compare(model: &Model, data: &[Observation], exps: &Experiments, jobs: usize) -> Result<Comparison, MeasureError> {
     Ok(comparison(data, &model_values(model, data, exps, jobs)?))
 }
 

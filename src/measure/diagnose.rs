@@ -35,6 +35,7 @@
 //!    quantile) the verdict is "unexplained", with the pattern of the residuals.
 
 use super::calibrate::{calibrate, calibrate_from, chi2, chi2_scatter, predicted_drop, standardised, Fit, FitOptions};
+use super::error::{io_error, toml_error, MeasureError};
 use super::experiments::Experiments;
 use super::observation::Observation;
 use super::effects::{Covariates, Effect};
@@ -122,7 +123,7 @@ pub const LR_WORTH_FITTING: f64 = 1.0;
 
 /// chi^2's drop one undamped Gauss-Newton step from `f`'s end predicts: g^T (J^T J)^+ g, with J
 /// and the residuals standardised.
-fn gauss_newton_drop(f: &Fit, data: &[Observation]) -> Result<f64, String> {
+fn gauss_newton_drop(f: &Fit, data: &[Observation]) -> Result<f64, MeasureError> {
     let scale: Vec<f64> = f.names.iter().map(|n| f.model.bounds(n).map(|b| b.scale)).collect::<Result<_, _>>()?;
     let (z, jz) = standardised(&f.model_values, &f.jacobian, data, &scale);
     let (a, g) = normal_equations(&jz, &z, &(0..f.names.len()).collect::<Vec<_>>());
@@ -187,7 +188,7 @@ fn candidate(e: &dyn Effect, score: f64, dof: usize, p_value: f64, verdict: Stri
     Candidate { effect: e.name().into(), about: e.about().into(), rank: 0, test: test_of(e).into(), score, dof, p_value, fitted_chi2: None, error_ratio: None, fitted: vec![], loo_chi2_base: None, loo_chi2: None, verdict, recommended: false }
 }
 
-pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[String], opts: &DiagnoseOptions) -> Result<Diagnosis, String> {
+pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[String], opts: &DiagnoseOptions) -> Result<Diagnosis, MeasureError> {
     let m = data.len();
     let mut clock = Clock::new(opts.fit.progress);
     clock.say("the base model".into());
@@ -275,7 +276,7 @@ impl Clock {
 }
 
 /// The base model fitted in `fit` (or taken as it is when `fit` is empty).
-fn base_fit(model: &Model, data: &[Observation], exps: &Experiments, fit: &[String], opts: &DiagnoseOptions) -> Result<Fit, String> {
+fn base_fit(model: &Model, data: &[Observation], exps: &Experiments, fit: &[String], opts: &DiagnoseOptions) -> Result<Fit, MeasureError> {
     if !fit.is_empty() {
         return calibrate(model, data, exps, fit, &opts.fit);
     }
@@ -291,7 +292,7 @@ fn base_fit(model: &Model, data: &[Observation], exps: &Experiments, fit: &[Stri
 /// runs in its place), the fitted parameters' columns are the base fit's own there, `extra`'s
 /// follow from them where the keys allow ([`chained`](super::chain::chained)), and only the
 /// rest are computed, from those values; elsewhere every column is, from `with`'s values.
-fn beside_base(base: &Fit, from_start: bool, with: &Model, extra: &[String], data: &[Observation], exps: &Experiments, opts: &DiagnoseOptions) -> Result<Sensitivity, String> {
+fn beside_base(base: &Fit, from_start: bool, with: &Model, extra: &[String], data: &[Observation], exps: &Experiments, opts: &DiagnoseOptions) -> Result<Sensitivity, MeasureError> {
     let (engine, jobs) = (&opts.fit.engine, opts.fit.jobs);
     let names: Vec<String> = base.names.iter().chain(extra).cloned().collect();
     let (known, known_jacobian, known_scatter, known_jacobian_scatter) = match from_start {
@@ -345,7 +346,7 @@ struct ScoreTests {
 
 /// Every absent effect that can act on these experiments at its null, differentiated at once,
 /// and scored.
-fn score_tests(base: &Fit, data: &[Observation], exps: &Experiments, fit: &[String], opts: &DiagnoseOptions, clock: &Clock) -> Result<ScoreTests, String> {
+fn score_tests(base: &Fit, data: &[Observation], exps: &Experiments, fit: &[String], opts: &DiagnoseOptions, clock: &Clock) -> Result<ScoreTests, MeasureError> {
     let mut absent: Vec<&'static dyn Effect> = Vec::new();
     let mut unreachable: Vec<&'static dyn Effect> = Vec::new();
     let mut inapplicable: Vec<Candidate> = Vec::new();
@@ -450,7 +451,7 @@ fn likelihood_ratio_tests(
     unreachable: &[&'static dyn Effect],
     opts: &DiagnoseOptions,
     clock: &Clock,
-) -> Result<(Vec<Candidate>, std::collections::BTreeMap<String, Fit>), String> {
+) -> Result<(Vec<Candidate>, std::collections::BTreeMap<String, Fit>), MeasureError> {
     let m = data.len();
     let mut cands = Vec::new();
     let mut prefit: std::collections::BTreeMap<String, Fit> = Default::default();
@@ -527,7 +528,7 @@ fn fit_and_check(
     fit: &[String],
     opts: &DiagnoseOptions,
     clock: &mut Clock,
-) -> Result<Vec<Option<Model>>, String> {
+) -> Result<Vec<Option<Model>>, MeasureError> {
     let m = data.len();
     let ids: Vec<String> = super::runner::group(data).into_iter().map(|(id, _)| id).collect();
     let mut base_loo: Option<f64> = None;
@@ -591,7 +592,7 @@ fn fit_and_check(
 }
 
 /// The shapes of the base fit's residuals against every covariate (`residuals.rs`).
-fn residual_shapes(base: &Fit, data: &[Observation], exps: &Experiments, alpha: f64) -> Result<Vec<super::residuals::Shape>, String> {
+fn residual_shapes(base: &Fit, data: &[Observation], exps: &Experiments, alpha: f64) -> Result<Vec<super::residuals::Shape>, MeasureError> {
     let c = super::compare::comparison(data, &base.model_values);
     let covs = super::report::covariates(&c.rows, exps, &base.model)?;
     Ok(super::residuals::shapes(&c.rows, &covs, alpha))
@@ -618,15 +619,15 @@ fn choose(cands: &mut [Candidate]) -> Option<usize> {
 
 /// Whether `effect` can act on `model`'s keys and on every simulation experiment the data name,
 /// each run with `model`'s `[material]`.
-fn applicable(effect: &'static dyn Effect, model: &Model, data: &[Observation], exps: &Experiments) -> Result<(), String> {
-    model.with_effect(effect).keys(&Covariates::default()).map_err(|m| format!("in this model, {m}"))?;
+fn applicable(effect: &'static dyn Effect, model: &Model, data: &[Observation], exps: &Experiments) -> Result<(), MeasureError> {
+    model.with_effect(effect).keys(&Covariates::default()).map_err(|m| MeasureError::Effect(format!("in this model, {m}")))?;
     for (id, _) in super::runner::group(data) {
         if let Some(s) = exps.get(&id).and_then(|x| x.scenario.as_ref()) {
             let path = exps.base_dir.join(s);
-            let text = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
-            let mut doc: toml::Table = text.parse().map_err(|e| format!("{}: {e}", path.display()))?;
+            let text = std::fs::read_to_string(&path).map_err(io_error(&path))?;
+            let mut doc: toml::Table = text.parse().map_err(toml_error(&path))?;
             doc.insert("material".into(), toml::Value::Table(model.material.clone()));
-            effect.check_scenario(&doc).map_err(|m| format!("it {m} (experiment '{id}')"))?;
+            effect.check_scenario(&doc).map_err(|m| MeasureError::Effect(format!("it {m} (experiment '{id}')")))?;
         }
     }
     Ok(())
@@ -646,12 +647,12 @@ fn applicable(effect: &'static dyn Effect, model: &Model, data: &[Observation], 
 /// it, is replaced by a full refit started from the full fit. The check costs one run of each
 /// experiment in all, against a calibration each for refits. With `exact_refits` every experiment
 /// is left out of a full refit.
-fn leave_one_out(f: &Fit, data: &[Observation], exps: &Experiments, ids: &[String], opts: &DiagnoseOptions) -> Result<f64, String> {
+fn leave_one_out(f: &Fit, data: &[Observation], exps: &Experiments, ids: &[String], opts: &DiagnoseOptions) -> Result<f64, MeasureError> {
     let mut total = 0.0;
     for id in ids {
         let (kept, left): (Vec<usize>, Vec<usize>) = (0..data.len()).partition(|&i| data[i].experiment != *id);
         let test = rows_of(data, &left);
-        let predict = |model: &Model| -> Result<f64, String> { Ok(chi2(&opts.fit.engine.sensitivity(opts.fit.jobs, model, &test, exps, None)??.values, &test)) };
+        let predict = |model: &Model| -> Result<f64, MeasureError> { Ok(chi2(&opts.fit.engine.sensitivity(opts.fit.jobs, model, &test, exps, None)??.values, &test)) };
         total += if f.names.is_empty() {
             predict(&f.model)?
         } else if opts.exact_refits {
@@ -670,7 +671,7 @@ fn leave_one_out(f: &Fit, data: &[Observation], exps: &Experiments, ids: &[Strin
 }
 
 /// `f` refitted to the observations `kept` of its data, from its own values and Jacobian there.
-fn refit(f: &Fit, data: &[Observation], kept: &[usize], exps: &Experiments, opts: &DiagnoseOptions) -> Result<Model, String> {
+fn refit(f: &Fit, data: &[Observation], kept: &[usize], exps: &Experiments, opts: &DiagnoseOptions) -> Result<Model, MeasureError> {
     Ok(calibrate_from(&f.model, &rows_of(data, kept), exps, &f.names, &opts.fit, f.at_end(kept))?.model)
 }
 
@@ -710,7 +711,7 @@ impl Step {
 /// The fit `f` moved by one Gauss-Newton step on the chi^2 of the observations `kept` (indices
 /// into `data`), from `f`'s own values and Jacobian, with the left-out experiment's observations
 /// `left`.
-fn one_step_without(f: &Fit, data: &[Observation], (kept, left): (&[usize], &[usize])) -> Result<Step, String> {
+fn one_step_without(f: &Fit, data: &[Observation], (kept, left): (&[usize], &[usize])) -> Result<Step, MeasureError> {
     let bounds: Vec<_> = f.names.iter().map(|n| f.model.bounds(n)).collect::<Result<_, _>>()?;
     let scale: Vec<f64> = bounds.iter().map(|b| b.scale).collect();
     let (z, jz) = standardised(&f.model_values, &f.jacobian, data, &scale);

@@ -27,6 +27,7 @@
 //! model's hash), every number is saved exactly ([`Exact`]), and a run's result does not depend
 //! on its thread count.
 
+use super::error::{io_error, MeasureError};
 use super::experiments::{Experiment, Experiments};
 use super::model::Model;
 use super::observation::{Observable, Observation};
@@ -68,16 +69,16 @@ pub struct Scheduler {
 
 /// The model's answer for a campaign: the values (and Jacobian), or why the model cannot give
 /// them (calibrate rejects such a trial step). Distinct from the engine failing to run a job.
-pub type Answer = Result<Sensitivity, String>;
+pub type Answer = Result<Sensitivity, MeasureError>;
 
 impl Engine {
     /// `local`, a preset's name ([`PRESETS`]) or a command template, with the folder the jobs
     /// go in (created).
-    pub fn new(name: &str, dir: Option<&Path>, exe: &Path, threads: Option<usize>) -> Result<Engine, String> {
+    pub fn new(name: &str, dir: Option<&Path>, exe: &Path, threads: Option<usize>) -> Result<Engine, MeasureError> {
         if name == "local" {
             return match dir {
                 None => Ok(Engine::Local),
-                Some(d) => Err(format!("--engine-dir {} is the folder of a scheduler's jobs; the local engine runs in this process (name a scheduler with --engine)", d.display())),
+                Some(d) => Err(MeasureError::Engine(format!("--engine-dir {} is the folder of a scheduler's jobs; the local engine runs in this process (name a scheduler with --engine)", d.display()))),
             };
         }
         let template = match PRESETS.iter().find(|(n, _)| *n == name) {
@@ -85,22 +86,22 @@ impl Engine {
             None if name.contains("{jobs}") || name.contains("{task}") => name.to_string(),
             None => {
                 let names: Vec<&str> = PRESETS.iter().map(|(n, _)| *n).collect();
-                return Err(format!("--engine {name}: not an engine; give local, {}, or a command template naming {{jobs}} (the file of job commands) or {{task}} (a job array's task script)", names.join(", ")));
+                return Err(MeasureError::Engine(format!("--engine {name}: not an engine; give local, {}, or a command template naming {{jobs}} (the file of job commands) or {{task}} (a job array's task script)", names.join(", "))));
             }
         };
-        let dir = dir.ok_or_else(|| format!("--engine {name} needs --engine-dir DIR, a folder every job can read and write (the results are kept there)"))?;
+        let dir = dir.ok_or_else(|| MeasureError::Engine(format!("--engine {name} needs --engine-dir DIR, a folder every job can read and write (the results are kept there)")))?;
         for sub in ["jobs", "results", "logs", "batches"] {
-            std::fs::create_dir_all(dir.join(sub)).map_err(|e| format!("--engine-dir {}: {e}", dir.display()))?;
+            std::fs::create_dir_all(dir.join(sub)).map_err(|e| MeasureError::Io(e).within(format!("--engine-dir {}", dir.display())))?;
         }
-        let dir = std::path::absolute(dir).map_err(|e| format!("--engine-dir {}: {e}", dir.display()))?;
-        let exe = std::path::absolute(exe).map_err(|e| format!("{}: {e}", exe.display()))?;
+        let dir = std::path::absolute(dir).map_err(|e| MeasureError::Io(e).within(format!("--engine-dir {}", dir.display())))?;
+        let exe = std::path::absolute(exe).map_err(io_error(exe))?;
         Ok(Engine::Scheduler(Scheduler { template, dir, exe, threads }))
     }
 
     /// The values of every observation under `model`, with their gradients in `names` when
     /// given. `Err` is the engine failing (a job that left no result, named with its log);
     /// `Ok(Err)` the model's own failure, as a local run gives it.
-    pub fn sensitivity(&self, jobs: usize, model: &Model, data: &[Observation], exps: &Experiments, names: Option<&[String]>) -> Result<Answer, String> {
+    pub fn sensitivity(&self, jobs: usize, model: &Model, data: &[Observation], exps: &Experiments, names: Option<&[String]>) -> Result<Answer, MeasureError> {
         match self {
             Engine::Local => Ok(sensitivity::sensitivity(model, data, exps, names, jobs)),
             Engine::Scheduler(s) => s.sensitivity(model, data, exps, names),
@@ -110,7 +111,7 @@ impl Engine {
     /// The Jacobian in `names` at `model`, whose values the engine has just given (`values`: a
     /// calibration's accepted trial). Here the experiments differenced throughout take them
     /// instead of running them again; a scheduler's jobs compute them again, to the same bits.
-    pub fn jacobian_at(&self, jobs: usize, model: &Model, data: &[Observation], exps: &Experiments, names: &[String], values: &[f64]) -> Result<Answer, String> {
+    pub fn jacobian_at(&self, jobs: usize, model: &Model, data: &[Observation], exps: &Experiments, names: &[String], values: &[f64]) -> Result<Answer, MeasureError> {
         match self {
             Engine::Local => Ok(sensitivity::jacobian_at(model, data, exps, names, jobs, values)),
             Engine::Scheduler(s) => s.sensitivity(model, data, exps, Some(names)),
@@ -172,9 +173,9 @@ fn quote(p: &Path) -> String {
 }
 
 /// Write `text` to `path` whole or not at all (a job killed mid-write leaves no result).
-fn write_atomic(path: &Path, text: &str) -> Result<(), String> {
+fn write_atomic(path: &Path, text: &str) -> Result<(), MeasureError> {
     let tmp = path.with_extension(format!("tmp{}", std::process::id()));
-    std::fs::write(&tmp, text).and_then(|_| std::fs::rename(&tmp, path)).map_err(|e| format!("{}: {e}", path.display()))
+    std::fs::write(&tmp, text).and_then(|_| std::fs::rename(&tmp, path)).map_err(io_error(path))
 }
 
 /// The last lines of a log, for an error message; `none` when it is empty or absent.
@@ -189,11 +190,11 @@ fn tail(path: &Path, none: &str) -> String {
 }
 
 impl Scheduler {
-    fn sensitivity(&self, model: &Model, data: &[Observation], exps: &Experiments, names: Option<&[String]>) -> Result<Answer, String> {
+    fn sensitivity(&self, model: &Model, data: &[Observation], exps: &Experiments, names: Option<&[String]>) -> Result<Answer, MeasureError> {
         let wanted = group(data);
         // each experiment: its answer when known (collected, or the experiment is not in the
         // file), else the job that computes it
-        let mut answers: Vec<Option<Result<Vec<Valued>, String>>> = Vec::with_capacity(wanted.len());
+        let mut answers: Vec<Option<Result<Vec<Valued>, MeasureError>>> = Vec::with_capacity(wanted.len());
         let mut pending: Vec<(usize, String, Job)> = Vec::new();
         let mut collected = 0;
         for (k, (id, obs)) in wanted.iter().enumerate() {
@@ -212,7 +213,7 @@ impl Scheduler {
                 collected += 1;
                 continue;
             }
-            let text = serde_json::to_string_pretty(&job).map_err(|e| e.to_string())?;
+            let text = serde_json::to_string_pretty(&job)?;
             write_atomic(&self.dir.join("jobs").join(format!("{key}.json")), &text)?;
             answers.push(None);
             pending.push((k, key, job));
@@ -230,13 +231,13 @@ impl Scheduler {
         Ok(Ok(sensitivity::assemble(data, &wanted, &per, names)))
     }
 
-    fn job(&self, model: &Model, exps: &Experiments, x: &Experiment, obs: &[Observable], names: Option<&[String]>) -> Result<Job, String> {
+    fn job(&self, model: &Model, exps: &Experiments, x: &Experiment, obs: &[Observable], names: Option<&[String]>) -> Result<Job, MeasureError> {
         Ok(Job {
             provenance: Provenance::of(model, exps, x),
             model: model.to_toml(),
-            experiment: toml::to_string(x).map_err(|e| format!("experiment '{}': {e}", x.id))?,
+            experiment: toml::to_string(x).map_err(|e| MeasureError::from(e).within(format!("experiment '{}'", x.id)))?,
             // an experiments file named without a folder sits in the current one
-            base_dir: std::path::absolute(Path::new(".").join(&exps.base_dir)).map_err(|e| format!("{}: {e}", exps.base_dir.display()))?,
+            base_dir: std::path::absolute(Path::new(".").join(&exps.base_dir)).map_err(io_error(&exps.base_dir))?,
             observables: obs.iter().map(Observable::to_string).collect(),
             names: names.map(<[String]>::to_vec),
             units: model.units.clone(),
@@ -246,7 +247,7 @@ impl Scheduler {
 
     /// Write a batch of the `pending` jobs and run the scheduler's command on it; every job
     /// must leave its result, or the error names each one missing with its log.
-    fn submit(&self, wanted: &[(String, Vec<Observable>)], pending: &[(usize, String, Job)], collected: usize) -> Result<(), String> {
+    fn submit(&self, wanted: &[(String, Vec<Observable>)], pending: &[(usize, String, Job)], collected: usize) -> Result<(), MeasureError> {
         let batches = self.dir.join("batches");
         let mut number = 1;
         let lines_path = loop {
@@ -254,7 +255,7 @@ impl Scheduler {
             match std::fs::OpenOptions::new().write(true).create_new(true).open(&p) {
                 Ok(_) => break p,
                 Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => number += 1,
-                Err(e) => return Err(format!("{}: {e}", p.display())),
+                Err(e) => return Err(io_error(&p)(e)),
             }
         };
         let path = |sub: &str, key: &str, ext: &str| self.dir.join(sub).join(format!("{key}.{ext}"));
@@ -262,23 +263,23 @@ impl Scheduler {
         for (_, key, _) in pending {
             lines += &format!("{} evaluate {} --out {} >> {} 2>&1\n", quote(&self.exe), quote(&path("jobs", key, "json")), quote(&path("results", key, "json")), quote(&path("logs", key, "log")));
         }
-        std::fs::write(&lines_path, &lines).map_err(|e| format!("{}: {e}", lines_path.display()))?;
+        std::fs::write(&lines_path, &lines).map_err(io_error(&lines_path))?;
         let task = lines_path.with_extension("sh");
         let script = format!(
             "#!/bin/bash\n# Job K of batch {number:04}: bash {0} K, or a job array's task (K from the scheduler)\nk=${{1:-${{SLURM_ARRAY_TASK_ID:-${{HQ_TASK_ID:?no task index: give it as the first argument}}}}}}\nsed -n \"${{k}}p\" {1} | bash\n",
             quote(&task),
             quote(&lines_path)
         );
-        std::fs::write(&task, script).map_err(|e| format!("{}: {e}", task.display()))?;
+        std::fs::write(&task, script).map_err(io_error(&task))?;
         #[cfg(unix)]
         {
             use std::os::unix::fs::PermissionsExt;
-            std::fs::set_permissions(&task, std::fs::Permissions::from_mode(0o755)).map_err(|e| format!("{}: {e}", task.display()))?;
+            std::fs::set_permissions(&task, std::fs::Permissions::from_mode(0o755)).map_err(io_error(&task))?;
         }
         let command = self.template.replace("{jobs}", &quote(&lines_path)).replace("{task}", &quote(&task)).replace("{n}", &pending.len().to_string()).replace("{dir}", &quote(&self.dir));
         let log = lines_path.with_extension("log");
-        let out = std::fs::File::create(&log).map_err(|e| format!("{}: {e}", log.display()))?;
-        let err = out.try_clone().map_err(|e| e.to_string())?;
+        let out = std::fs::File::create(&log).map_err(io_error(&log))?;
+        let err = out.try_clone().map_err(MeasureError::Io)?;
         eprintln!("engine: batch {number:04}, {} jobs submitted ({collected} collected from earlier runs): {command}", pending.len());
         let status = std::process::Command::new("bash")
             .arg("-c")
@@ -287,7 +288,7 @@ impl Scheduler {
             .stdout(out)
             .stderr(err)
             .status()
-            .map_err(|e| format!("the engine's command could not start ({e}): {command}"))?;
+            .map_err(|source| MeasureError::EngineStart { command: command.clone(), source })?;
         let missing: Vec<String> = pending
             .iter()
             .filter(|(_, key, _)| !path("results", key, "json").exists())
@@ -296,7 +297,7 @@ impl Scheduler {
         if missing.is_empty() {
             return Ok(());
         }
-        Err(format!(
+        Err(MeasureError::Engine(format!(
             "the engine's command {} and {} of {} jobs left no result:\n{}\n  the command: {command}\n  its output: {}{}\nThe results computed are kept in {}: run the same command again to compute only what is missing.",
             status.code().map_or("was stopped by a signal".to_string(), |c| format!("exited with status {c}")),
             missing.len(),
@@ -305,28 +306,28 @@ impl Scheduler {
             log.display(),
             tail(&log, "empty"),
             self.dir.join("results").display()
-        ))
+        )))
     }
 }
 
 /// A result file of `job`, checked against it: the model's answer, or an error naming
 /// experiment `id` and what differs.
-fn read_result(path: &Path, job: &Job, id: &str) -> Result<Result<Vec<Valued>, String>, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("experiment '{id}': {}: {e}", path.display()))?;
-    let c: Computed = serde_json::from_str(&text).map_err(|e| format!("experiment '{id}': {} is not a result of this strand ({e}): delete it to compute it again", path.display()))?;
+fn read_result(path: &Path, job: &Job, id: &str) -> Result<Result<Vec<Valued>, MeasureError>, MeasureError> {
+    let text = std::fs::read_to_string(path).map_err(|e| io_error(path)(e).within(format!("experiment '{id}'")))?;
+    let c: Computed = serde_json::from_str(&text).map_err(|e| MeasureError::Engine(format!("experiment '{id}': {} is not a result of this strand ({e}): delete it to compute it again", path.display())))?;
     job.provenance.check(&c.provenance, id, path)?;
     if c.experiment != id || c.observables != job.observables || c.names != job.names {
-        return Err(format!("experiment '{id}': {} holds {} {:?} differentiated in {:?}, the campaign asks {:?} in {:?}: delete it to compute it again", path.display(), c.experiment, c.observables, c.names, job.observables, job.names));
+        return Err(MeasureError::Engine(format!("experiment '{id}': {} holds {} {:?} differentiated in {:?}, the campaign asks {:?} in {:?}: delete it to compute it again", path.display(), c.experiment, c.observables, c.names, job.observables, job.names)));
     }
     Ok(match c.outcome {
-        Outcome::Failed(e) => Err(e),
+        Outcome::Failed(e) => Err(MeasureError::InJob(e)),
         Outcome::Values { values, jacobian, scatter, jacobian_scatter } => {
             let n = job.observables.len();
             let rows = jacobian.map(|j| j.iter().map(|r| plain(r)).collect::<Vec<_>>());
             let row_scatter = jacobian_scatter.map(|j| j.iter().map(|r| plain(r)).collect::<Vec<_>>());
             let shaped = |r: &Option<Vec<Vec<f64>>>| r.as_ref().is_none_or(|r| r.len() == n) && r.is_some() == job.names.is_some();
             if values.len() != n || scatter.len() != n || !shaped(&rows) || !shaped(&row_scatter) {
-                return Err(format!("experiment '{id}': {} holds {} values for {n} observables: delete it to compute it again", path.display(), values.len()));
+                return Err(MeasureError::Engine(format!("experiment '{id}': {} holds {} values for {n} observables: delete it to compute it again", path.display(), values.len())));
             }
             let (mut rows, mut row_scatter) = (rows.map(Vec::into_iter), row_scatter.map(Vec::into_iter));
             Ok(plain(&values)
@@ -341,24 +342,24 @@ fn read_result(path: &Path, job: &Job, id: &str) -> Result<Result<Vec<Valued>, S
 /// The model of a job: exactly the numbers written, without the checks a model file read by a
 /// user gets (a trial model that will not build must fail in the evaluation, as it does
 /// locally, not here), with the units of the model it was planned from.
-fn job_model(job: &Job) -> Result<Model, String> {
-    let t: toml::Table = job.model.parse().map_err(|e| format!("the job's model: {e}"))?;
-    let mut model = Model::from_table_as_written(&t).map_err(|e| format!("the job's model: {e}"))?;
+fn job_model(job: &Job) -> Result<Model, MeasureError> {
+    let t: toml::Table = job.model.parse().map_err(|e| MeasureError::from(e).within("the job's model"))?;
+    let mut model = Model::from_table_as_written(&t).map_err(|e| e.within("the job's model"))?;
     model.units = job.units.clone();
     Ok(model)
 }
 
 /// `strand evaluate JOB --out RESULT`: compute one planned job and save its result; the line
 /// to print.
-pub fn evaluate(job_path: &Path, out: &Path) -> Result<String, String> {
-    let text = std::fs::read_to_string(job_path).map_err(|e| format!("{}: {e}", job_path.display()))?;
-    let job: Job = serde_json::from_str(&text).map_err(|e| format!("{}: not a job of this strand ({e})", job_path.display()))?;
-    let x: Experiment = toml::from_str(&job.experiment).map_err(|e| format!("{}: the experiment: {}", job_path.display(), e.message()))?;
+pub fn evaluate(job_path: &Path, out: &Path) -> Result<String, MeasureError> {
+    let text = std::fs::read_to_string(job_path).map_err(io_error(job_path))?;
+    let job: Job = serde_json::from_str(&text).map_err(|e| MeasureError::Engine(format!("{}: not a job of this strand ({e})", job_path.display())))?;
+    let x: Experiment = toml::from_str(&job.experiment).map_err(|e| MeasureError::Engine(format!("{}: the experiment: {}", job_path.display(), e.message())))?;
     let id = x.id.clone();
     let exps = Experiments { experiment: vec![x], base_dir: job.base_dir.clone(), resolution: None };
-    let model = job_model(&job).map_err(|e| format!("{}: {e}", job_path.display()))?;
+    let model = job_model(&job).map_err(|e| e.within(job_path.display()))?;
     // the files as they are now must be those the job was planned with
-    Provenance::of(&model, &exps, &exps.experiment[0]).check(&job.provenance, &id, job_path).map_err(|e| format!("{e}: the job was planned with other files or another strand; run the campaign again to plan it anew"))?;
+    Provenance::of(&model, &exps, &exps.experiment[0]).check(&job.provenance, &id, job_path).map_err(|e| MeasureError::Engine(format!("{e}: the job was planned with other files or another strand; run the campaign again to plan it anew")))?;
     let obs: Vec<Observable> = job.observables.iter().map(|o| Observable::parse(o)).collect::<Result<_, _>>()?;
     let outcome = match sensitivity::one(&model, &exps, &id, &obs, job.names.as_deref(), job.threads) {
         Ok(per) => Outcome::Values {
@@ -367,14 +368,14 @@ pub fn evaluate(job_path: &Path, out: &Path) -> Result<String, String> {
             scatter: exact(&per.iter().map(|v| v.scatter).collect::<Vec<_>>()),
             jacobian_scatter: job.names.as_ref().map(|_| per.iter().map(|v| exact(v.gradient_scatter.as_deref().unwrap_or_default())).collect()),
         },
-        Err(e) => Outcome::Failed(e),
+        Err(e) => Outcome::Failed(e.to_string()),
     };
     let line = match &outcome {
         Outcome::Values { values, jacobian, .. } => format!("experiment '{id}': {} values{} saved to {}", values.len(), if jacobian.is_some() { " and their gradients" } else { "" }, out.display()),
         Outcome::Failed(e) => format!("experiment '{id}': the model fails here ({e}); saved as its result to {}", out.display()),
     };
     let c = Computed { experiment: id, observables: job.observables, names: job.names, provenance: job.provenance, outcome };
-    write_atomic(out, &serde_json::to_string_pretty(&c).map_err(|e| e.to_string())?)?;
+    write_atomic(out, &serde_json::to_string_pretty(&c)?)?;
     Ok(line)
 }
 

@@ -17,6 +17,7 @@
 //! observe = ["stress@10", "stress@1"]
 //! ```
 
+use super::error::{io_error, MeasureError};
 use super::effects::Covariates;
 use super::observables::{self, RHEOMETER_OBSERVABLES, SIMULATION_OBSERVABLES};
 use super::observation::{number, Observable};
@@ -87,20 +88,20 @@ pub struct ResolutionTable {
 }
 
 impl ResolutionTable {
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), MeasureError> {
         for (k, v) in &self.fine {
             if number(v).is_none() {
-                return Err(format!("fine.\"{k}\" must be a number"));
+                return Err(MeasureError::Experiments(format!("fine.\"{k}\" must be a number")));
             }
         }
         match self.fine.get("simulation.dx").and_then(number) {
             Some(dx) if dx > 0.0 && dx.is_finite() => {}
-            Some(dx) => return Err(format!("fine.\"simulation.dx\" must be a cell size > 0, got {dx}")),
-            None => return Err("fine must set \"simulation.dx\", the finer run's cell size: fine = { \"simulation.dx\" = 0.002 }".into()),
+            Some(dx) => return Err(MeasureError::Experiments(format!("fine.\"simulation.dx\" must be a cell size > 0, got {dx}"))),
+            None => return Err(MeasureError::Experiments("fine must set \"simulation.dx\", the finer run's cell size: fine = { \"simulation.dx\" = 0.002 }".into())),
         }
         if let Some(p) = self.order {
             if !(p.is_finite() && p > 0.0 && p <= 8.0) {
-                return Err(format!("order must be an order of convergence in (0, 8], got {p}"));
+                return Err(MeasureError::Experiments(format!("order must be an order of convergence in (0, 8], got {p}")));
             }
         }
         Ok(())
@@ -114,51 +115,51 @@ impl Experiment {
 }
 
 impl Experiments {
-    pub fn load(path: &Path) -> Result<Experiments, String> {
-        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-        let mut e: Experiments = toml::from_str(&text).map_err(|e| format!("{}: {}", path.display(), e.message()))?;
+    pub fn load(path: &Path) -> Result<Experiments, MeasureError> {
+        let text = std::fs::read_to_string(path).map_err(io_error(path))?;
+        let mut e: Experiments = toml::from_str(&text).map_err(|e| MeasureError::Experiments(format!("{}: {}", path.display(), e.message())))?;
         e.base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-        e.validate().map_err(|m| format!("{}: {m}", path.display()))?;
+        e.validate().map_err(|m| m.within(path.display()))?;
         Ok(e)
     }
 
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), MeasureError> {
         if let Some(r) = &self.resolution {
-            r.validate().map_err(|e| format!("[resolution]: {e}"))?;
+            r.validate().map_err(|e| e.within("[resolution]"))?;
         }
         let mut seen = std::collections::HashSet::new();
         for (i, x) in self.experiment.iter().enumerate() {
             if !seen.insert(x.id.as_str()) {
-                return Err(format!("experiment.{i}: id '{}' is used twice", x.id));
+                return Err(MeasureError::Experiments(format!("experiment.{i}: id '{}' is used twice", x.id)));
             }
             let names = match (&x.scenario, &x.protocol) {
                 (Some(_), None) => SIMULATION_OBSERVABLES,
                 (None, Some(_)) => RHEOMETER_OBSERVABLES,
-                _ => return Err(format!("experiment '{}': give either scenario (a simulation) or protocol (a rheometer test)", x.id)),
+                _ => return Err(MeasureError::Experiments(format!("experiment '{}': give either scenario (a simulation) or protocol (a rheometer test)", x.id))),
             };
             for o in &x.observe {
-                let ob = Observable::parse(o).map_err(|e| format!("experiment '{}': observe {e}", x.id))?;
+                let ob = Observable::parse(o).map_err(|e| MeasureError::Experiments(format!("experiment '{}': observe {e}", x.id)))?;
                 if !names.contains(&ob.name.as_str()) {
-                    return Err(format!("experiment '{}': cannot observe '{}'; it can observe {}", x.id, ob.name, names.join(", ")));
+                    return Err(MeasureError::Experiments(format!("experiment '{}': cannot observe '{}'; it can observe {}", x.id, ob.name, names.join(", "))));
                 }
-                observables::check_coordinates(&ob, x.scenario.is_some()).map_err(|e| format!("experiment '{}': observe {e}", x.id))?;
+                observables::check_coordinates(&ob, x.scenario.is_some()).map_err(|e| MeasureError::Experiments(format!("experiment '{}': observe {e}", x.id)))?;
             }
             for (what, v) in [("rest_time", x.rest_time), ("age", x.age)] {
                 if !(v.is_finite() && v >= 0.0) {
-                    return Err(format!("experiment '{}': {what} must be >= 0 seconds, got {v}", x.id));
+                    return Err(MeasureError::Experiments(format!("experiment '{}': {what} must be >= 0 seconds, got {v}", x.id)));
                 }
             }
             for (name, v) in &x.covariates {
                 if ["rest_time", "age"].contains(&name.as_str()) {
-                    return Err(format!("experiment '{}': covariates.{name}: give {name} as its own key ({name} = ...)", x.id));
+                    return Err(MeasureError::Experiments(format!("experiment '{}': covariates.{name}: give {name} as its own key ({name} = ...)", x.id)));
                 }
                 if !v.is_finite() {
-                    return Err(format!("experiment '{}': covariates.{name} must be a finite number, got {v}", x.id));
+                    return Err(MeasureError::Experiments(format!("experiment '{}': covariates.{name} must be a finite number, got {v}", x.id)));
                 }
             }
             for (k, v) in &x.set {
                 if number(v).is_none() {
-                    return Err(format!("experiment '{}': set.{k} must be a number", x.id));
+                    return Err(MeasureError::Experiments(format!("experiment '{}': set.{k} must be a number", x.id)));
                 }
             }
         }
@@ -178,7 +179,7 @@ mod tests {
     fn experiments_are_checked() {
         let parse = |t: &str| -> Result<Experiments, String> {
             let e: Experiments = toml::from_str(t).map_err(|e| e.to_string())?;
-            e.validate().map(|_| e)
+            e.validate().map(|_| e).map_err(|e| e.to_string())
         };
         let ok = parse("[[experiment]]\nid = \"a\"\nscenario = \"s.toml\"\nobserve = [\"spread\", \"width@0.02\"]\nset = { \"material.yield_stress\" = 300.0 }\n").unwrap();
         assert_eq!(ok.experiment[0].observe.len(), 2);

@@ -11,6 +11,8 @@
 //! x^y ln x is 0 where x^y = 0 (an experiment at age 0 under `age^b`), and a constant exponent
 //! contributes no ln x term at all, so `(-2)^2` differentiates in x.
 
+use super::error::MeasureError;
+
 /// A parsed expression.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Expression {
@@ -71,7 +73,7 @@ enum Token {
     Close,
 }
 
-fn tokens(text: &str) -> Result<Vec<(Token, usize)>, String> {
+fn tokens(text: &str) -> Result<Vec<(Token, usize)>, MeasureError> {
     let chars: Vec<char> = text.chars().collect();
     let mut out = Vec::new();
     let mut i = 0;
@@ -100,7 +102,7 @@ fn tokens(text: &str) -> Result<Vec<(Token, usize)>, String> {
                 }
             }
             let s: String = chars[start..i].iter().collect();
-            let v = s.parse::<f64>().map_err(|_| format!("'{s}' is not a number (at character {})", start + 1))?;
+            let v = s.parse::<f64>().map_err(|_| MeasureError::Expression(format!("'{s}' is not a number (at character {})", start + 1)))?;
             out.push((Token::Number(v), start));
         } else if c.is_alphabetic() || c == '_' {
             while i < chars.len() && (chars[i].is_alphanumeric() || chars[i] == '_' || chars[i] == '.') {
@@ -112,7 +114,7 @@ fn tokens(text: &str) -> Result<Vec<(Token, usize)>, String> {
                 '+' | '-' | '*' | '/' | '^' => Token::Op(c),
                 '(' => Token::Open,
                 ')' => Token::Close,
-                _ => return Err(format!("unexpected '{c}' at character {}", i + 1)),
+                _ => return Err(MeasureError::Expression(format!("unexpected '{c}' at character {}", i + 1))),
             };
             out.push((t, start));
             i += 1;
@@ -140,7 +142,7 @@ impl Parser {
     }
 
     /// sum := product (('+' | '-') product)*
-    fn sum(&mut self) -> Result<Node, String> {
+    fn sum(&mut self) -> Result<Node, MeasureError> {
         let mut left = self.product()?;
         while let Some(Token::Op(c @ ('+' | '-'))) = self.peek().cloned() {
             self.at += 1;
@@ -151,7 +153,7 @@ impl Parser {
     }
 
     /// product := unary (('*' | '/') unary)*
-    fn product(&mut self) -> Result<Node, String> {
+    fn product(&mut self) -> Result<Node, MeasureError> {
         let mut left = self.unary()?;
         while let Some(Token::Op(c @ ('*' | '/'))) = self.peek().cloned() {
             self.at += 1;
@@ -162,7 +164,7 @@ impl Parser {
     }
 
     /// unary := ('-' | '+') unary | power
-    fn unary(&mut self) -> Result<Node, String> {
+    fn unary(&mut self) -> Result<Node, MeasureError> {
         match self.peek() {
             Some(Token::Op('-')) => {
                 self.at += 1;
@@ -177,7 +179,7 @@ impl Parser {
     }
 
     /// power := atom ('^' unary)?   (right-associative: a^b^c = a^(b^c); a^-b allowed)
-    fn power(&mut self) -> Result<Node, String> {
+    fn power(&mut self) -> Result<Node, MeasureError> {
         let base = self.atom()?;
         if let Some(Token::Op('^')) = self.peek() {
             self.at += 1;
@@ -187,7 +189,7 @@ impl Parser {
         Ok(base)
     }
 
-    fn atom(&mut self) -> Result<Node, String> {
+    fn atom(&mut self) -> Result<Node, MeasureError> {
         let here = self.where_();
         match self.tokens.get(self.at).map(|(t, _)| t.clone()) {
             Some(Token::Number(v)) => {
@@ -198,7 +200,7 @@ impl Parser {
                 self.at += 1;
                 if let Some(Token::Open) = self.peek() {
                     let f = FUNCTIONS.iter().find(|(n, _)| *n == name).map(|(_, f)| *f).ok_or_else(|| {
-                        format!("unknown function '{name}' {here}; known: {}", FUNCTIONS.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", "))
+                        MeasureError::Expression(format!("unknown function '{name}' {here}; known: {}", FUNCTIONS.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", ")))
                     })?;
                     self.at += 1;
                     let arg = self.sum()?;
@@ -220,18 +222,18 @@ impl Parser {
                 self.close()?;
                 Ok(inner)
             }
-            Some(t) => Err(format!("expected a number, a name or '(' {here}, found {}", describe(&t))),
-            None => Err("the expression ends where a number, a name or '(' should be".to_string()),
+            Some(t) => Err(MeasureError::Expression(format!("expected a number, a name or '(' {here}, found {}", describe(&t)))),
+            None => Err(MeasureError::Expression("the expression ends where a number, a name or '(' should be".to_string())),
         }
     }
 
-    fn close(&mut self) -> Result<(), String> {
+    fn close(&mut self) -> Result<(), MeasureError> {
         match self.peek() {
             Some(Token::Close) => {
                 self.at += 1;
                 Ok(())
             }
-            _ => Err(format!("expected ')' {}", self.where_())),
+            _ => Err(MeasureError::Expression(format!("expected ')' {}", self.where_()))),
         }
     }
 }
@@ -277,16 +279,16 @@ fn chain(a: f64, dx: f64) -> f64 {
 }
 
 impl Expression {
-    pub fn parse(text: &str) -> Result<Expression, String> {
+    pub fn parse(text: &str) -> Result<Expression, MeasureError> {
         let tokens = tokens(text)?;
         if tokens.is_empty() {
-            return Err("the expression is empty".into());
+            return Err(MeasureError::Expression("the expression is empty".into()));
         }
         let mut p = Parser { tokens, at: 0, symbols: Vec::new() };
         let root = p.sum()?;
         if p.at < p.tokens.len() {
             let t = p.tokens[p.at].0.clone();
-            return Err(format!("unexpected {} {}", describe(&t), p.where_()));
+            return Err(MeasureError::Expression(format!("unexpected {} {}", describe(&t), p.where_())));
         }
         Ok(Expression { text: text.to_string(), root, symbols: p.symbols })
     }
@@ -433,7 +435,7 @@ mod tests {
             ("expo(a)", "unknown function 'expo'"),
             ("1.2.3", "'1.2.3' is not a number"),
         ] {
-            let e = Expression::parse(text).unwrap_err();
+            let e = Expression::parse(text).unwrap_err().to_string();
             assert!(e.contains(want), "{text}: {e}");
         }
     }

@@ -19,6 +19,7 @@
 //! Jacobian columns by central differences (`sensitivity::has_adjoint`), as they do the failure
 //! observables'; `strand grad` refuses them (`observables::observable_plan`).
 
+use super::error::MeasureError;
 use super::observation::Observable;
 use crate::grad::objective::{Frame, Objective};
 use crate::solver::Simulation;
@@ -28,16 +29,16 @@ pub const OBSERVABLES: &[&str] = &["arrival", "stop_time"];
 
 /// Whether `o` is written as one of [`OBSERVABLES`] takes it: one coordinate, positive for
 /// `stop_time`'s tolerance.
-pub fn check_observable(o: &Observable) -> Result<(), String> {
+pub fn check_observable(o: &Observable) -> Result<(), MeasureError> {
     let what = match o.name.as_str() {
         "arrival" => "the station the front reaches: arrival@X (metres)",
         "stop_time" => "the distance the front may still move once stopped: stop_time@D (metres, > 0)",
-        other => return Err(format!("'{other}' is not a front-history observable ({})", OBSERVABLES.join(", "))),
+        other => return Err(MeasureError::Observable(format!("'{other}' is not a front-history observable ({})", OBSERVABLES.join(", ")))),
     };
     match (o.at, o.at2) {
-        (Some(_), Some(_)) => Err(format!("'{o}': {} takes one coordinate, {what}", o.name)),
-        (None, _) => Err(format!("'{}' needs {what}", o.name)),
-        (Some(d), None) if o.name == "stop_time" && d <= 0.0 => Err(format!("'{o}': the distance must be > 0 metres, got {d}")),
+        (Some(_), Some(_)) => Err(MeasureError::Observable(format!("'{o}': {} takes one coordinate, {what}", o.name))),
+        (None, _) => Err(MeasureError::Observable(format!("'{}' needs {what}", o.name))),
+        (Some(d), None) if o.name == "stop_time" && d <= 0.0 => Err(MeasureError::Observable(format!("'{o}': the distance must be > 0 metres, got {d}"))),
         (Some(_), None) => Ok(()),
     }
 }
@@ -50,14 +51,14 @@ pub struct FrontTrace {
 
 impl FrontTrace {
     /// A trace holding `sim`'s front now.
-    pub fn start(sim: &Simulation) -> Result<FrontTrace, String> {
+    pub fn start(sim: &Simulation) -> Result<FrontTrace, MeasureError> {
         let mut t = FrontTrace::default();
         t.record(sim)?;
         Ok(t)
     }
 
     /// Add `sim`'s front at its current time.
-    pub fn record(&mut self, sim: &Simulation) -> Result<(), String> {
+    pub fn record(&mut self, sim: &Simulation) -> Result<(), MeasureError> {
         let x = Objective::Front.evaluate(sim, &Frame::of(sim), None)?;
         self.push(sim.time, x);
         Ok(())
@@ -70,7 +71,7 @@ impl FrontTrace {
     }
 
     /// The value of observable `o` (one of [`OBSERVABLES`], checked) for this trace.
-    pub fn value(&self, o: &Observable) -> Result<f64, String> {
+    pub fn value(&self, o: &Observable) -> Result<f64, MeasureError> {
         check_observable(o)?;
         let at = o.at.expect("checked");
         match o.name.as_str() {
@@ -80,7 +81,7 @@ impl FrontTrace {
     }
 
     /// The first time the front reaches `x`; the last sample's time if it never does.
-    pub fn arrival(&self, x: f64) -> Result<f64, String> {
+    pub fn arrival(&self, x: f64) -> Result<f64, MeasureError> {
         let s = self.nonempty()?;
         let Some(k) = s.iter().position(|&(_, f)| f >= x) else {
             return Ok(s[s.len() - 1].0);
@@ -93,7 +94,7 @@ impl FrontTrace {
     }
 
     /// The first time after which the front stays within `tol` of its last sample.
-    pub fn stop_time(&self, tol: f64) -> Result<f64, String> {
+    pub fn stop_time(&self, tol: f64) -> Result<f64, MeasureError> {
         let s = self.nonempty()?;
         let end = s[s.len() - 1].1;
         Ok(match s.iter().rposition(|&(_, f)| (f - end).abs() > tol) {
@@ -102,9 +103,9 @@ impl FrontTrace {
         })
     }
 
-    fn nonempty(&self) -> Result<&[(f64, f64)], String> {
+    fn nonempty(&self) -> Result<&[(f64, f64)], MeasureError> {
         if self.samples.is_empty() {
-            return Err("the front was never recorded".into());
+            return Err(MeasureError::Front("the front was never recorded".into()));
         }
         Ok(&self.samples)
     }
@@ -142,7 +143,7 @@ mod tests {
         assert_eq!(t.stop_time(1.0).unwrap(), 0.0);
         // a front still moving at the end stops at the end
         assert_eq!(trace(&[(0.0, 0.0), (1.0, 0.1), (2.0, 0.2)]).stop_time(0.01).unwrap(), 2.0);
-        assert!(FrontTrace::default().stop_time(0.01).unwrap_err().contains("never recorded"));
+        assert!(FrontTrace::default().stop_time(0.01).unwrap_err().to_string().contains("never recorded"));
     }
 
     #[test]
@@ -151,7 +152,7 @@ mod tests {
         assert!(check_observable(&ob("arrival@0.7")).is_ok());
         assert!(check_observable(&ob("stop_time@0.005")).is_ok());
         for (bad, want) in [("arrival", "arrival@X"), ("arrival@0.7:1", "one coordinate"), ("stop_time", "stop_time@D"), ("stop_time@0", "> 0 metres"), ("stop_time@-0.01", "> 0 metres"), ("front@1", "not a front-history")] {
-            let e = check_observable(&ob(bad)).unwrap_err();
+            let e = check_observable(&ob(bad)).unwrap_err().to_string();
             assert!(e.contains(want), "{bad}: {e}");
         }
         let t = trace(&[(0.0, 0.1), (1.0, 0.3)]);

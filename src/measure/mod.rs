@@ -7,10 +7,11 @@
 //! error counted beside the measurement uncertainty (`resolution.rs`), gradients
 //! (`sensitivity.rs`), fitting a model (`calibrate.rs`) and finding the effect it lacks
 //! (`diagnose.rs`); where the experiments run (`engine.rs`: here, or as a scheduler's jobs) and
-//! what a saved result was computed from (`provenance.rs`).
+//! what a saved result was computed from (`provenance.rs`); why a step cannot be taken
+//! (`error.rs`).
 //!
-//! Imports point one way (no circle among these files, `tests/suite/architecture.rs`): `observation.rs`
-//! at the bottom; then the observables, the effects and the model; the experiments; the runner;
+//! Imports point one way (no circle among these files, `tests/suite/architecture.rs`): `error.rs` and
+//! `observation.rs` at the bottom; then the observables, the effects and the model; the experiments; the runner;
 //! comparison and synthesis; reports and residual shapes; and sensitivity, calibration, the
 //! engine, diagnosis and rounds on top.
 
@@ -20,6 +21,7 @@ pub mod compare;
 pub mod diagnose;
 pub mod effects;
 pub mod engine;
+pub mod error;
 pub mod experiments;
 pub mod expression;
 pub mod front;

@@ -21,6 +21,7 @@
 //! last. [`Model::keys_adjoint`]
 //! carries the keys' adjoints back to the parameters.
 
+use super::error::{io_error, toml_error, MeasureError};
 use super::effects::declared::{self, Declared};
 use super::effects::{self, Covariates, Effect, Keys};
 use std::path::{Path, PathBuf};
@@ -55,31 +56,31 @@ pub struct Bounds {
 }
 
 impl Model {
-    pub fn load(path: &Path) -> Result<Model, String> {
-        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-        let t: toml::Table = text.parse().map_err(|e| format!("{}: {e}", path.display()))?;
+    pub fn load(path: &Path) -> Result<Model, MeasureError> {
+        let text = std::fs::read_to_string(path).map_err(io_error(path))?;
+        let t: toml::Table = text.parse().map_err(toml_error(path))?;
         Model::from_source(&t, Some(&text))
             .map(|mut m| {
                 m.path = path.to_path_buf();
                 m
             })
-            .map_err(|e| format!("{}: {e}", path.display()))
+            .map_err(|e| e.within(path.display()))
     }
 
-    pub fn from_table(t: &toml::Table) -> Result<Model, String> {
+    pub fn from_table(t: &toml::Table) -> Result<Model, MeasureError> {
         Model::from_source(t, None)
     }
 
     /// The model of `t`, parsed from `text` when there is one (errors in a declared effect's
     /// expression then give its line), its parameters within their bounds and its material one
     /// that builds.
-    fn from_source(t: &toml::Table, text: Option<&str>) -> Result<Model, String> {
+    fn from_source(t: &toml::Table, text: Option<&str>) -> Result<Model, MeasureError> {
         let model = Model::parse(t, text)?;
         for n in model.param_names() {
             let (v, b) = (model.get(&n)?, model.bounds(&n)?);
             // an infinite null (elasticity's rigid G) is where the effect is off, so it may be written
             if !((v.is_finite() || v == model.null(&n)) && v >= b.lower && v <= b.upper) {
-                return Err(format!("{n} = {v} is outside [{}, {}]", b.lower, b.upper));
+                return Err(MeasureError::Model(format!("{n} = {v} is outside [{}, {}]", b.lower, b.upper)));
             }
         }
         crate::materials::build_material(&model.material)?;
@@ -89,25 +90,25 @@ impl Model {
     /// The model of `t` exactly as written, without the checks of [`Model::from_table`]: a
     /// trial model of a fit, saved as a job for an engine, must fail where its evaluation does,
     /// as it does locally.
-    pub fn from_table_as_written(t: &toml::Table) -> Result<Model, String> {
+    pub fn from_table_as_written(t: &toml::Table) -> Result<Model, MeasureError> {
         Model::parse(t, None)
     }
 
-    fn parse(t: &toml::Table, text: Option<&str>) -> Result<Model, String> {
+    fn parse(t: &toml::Table, text: Option<&str>) -> Result<Model, MeasureError> {
         // [rheometer] is `strand rheometer`'s protocol, which a model file may carry
         if let Some(k) = t.keys().find(|k| !["material", "effects", "rheometer"].contains(&k.as_str())) {
-            return Err(format!("unknown table '{k}' (a model has [material] and [effects.NAME])"));
+            return Err(MeasureError::Model(format!("unknown table '{k}' (a model has [material] and [effects.NAME])")));
         }
         let material = match t.get("material") {
             Some(toml::Value::Table(m)) => m.clone(),
-            _ => return Err("no [material] table".into()),
+            _ => return Err(MeasureError::Model("no [material] table".into())),
         };
         let units = material.iter().filter_map(|(k, v)| super::observation::number(v).filter(|x| x.is_finite() && *x != 0.0).map(|x| (k.clone(), x.abs()))).collect();
         let mut model = Model { material, effects: Vec::new(), declared: Vec::new(), path: PathBuf::new(), units };
         if let Some(e) = t.get("effects") {
-            let e = e.as_table().ok_or("effects must be a table of [effects.NAME] tables")?;
+            let e = e.as_table().ok_or_else(|| MeasureError::Model("effects must be a table of [effects.NAME] tables".into()))?;
             for (name, v) in e {
-                let v = v.as_table().ok_or_else(|| format!("effects.{name} must be a table"))?;
+                let v = v.as_table().ok_or_else(|| MeasureError::Model(format!("effects.{name} must be a table")))?;
                 if declared::is_declaration(v) {
                     let line_of = |key: &str| text.and_then(|text| expression_line(text, name, key));
                     let d = declared::declare(name, v, &model.material, &line_of)?;
@@ -122,9 +123,9 @@ impl Model {
                 let mut p: Vec<f64> = effect.params().iter().map(|s| s.null).collect();
                 for (k, x) in v {
                     let i = effect.params().iter().position(|s| s.name == k).ok_or_else(|| {
-                        format!("effects.{name}: unknown parameter '{k}'; it has {}", effect.params().iter().map(|s| s.name).collect::<Vec<_>>().join(", "))
+                        MeasureError::Model(format!("effects.{name}: unknown parameter '{k}'; it has {}", effect.params().iter().map(|s| s.name).collect::<Vec<_>>().join(", ")))
                     })?;
-                    p[i] = super::observation::number(x).ok_or_else(|| format!("effects.{name}.{k} must be a number"))?;
+                    p[i] = super::observation::number(x).ok_or_else(|| MeasureError::Model(format!("effects.{name}.{k} must be a number")))?;
                 }
                 model = model.with_effect(effect);
                 model.effects.iter_mut().find(|(e, _)| e.name() == name).expect("just added").1 = p;
@@ -158,7 +159,7 @@ impl Model {
     }
 
     /// An effect of the library or one the model file declares.
-    pub fn effect(&self, name: &str) -> Result<&'static dyn Effect, String> {
+    pub fn effect(&self, name: &str) -> Result<&'static dyn Effect, MeasureError> {
         match self.declared.iter().find(|d| d.name() == name) {
             Some(d) => Ok(*d),
             None => effects::find(name),
@@ -179,8 +180,8 @@ impl Model {
         n
     }
 
-    fn locate(&self, name: &str) -> Result<Slot, String> {
-        let unknown = || format!("unknown parameter '{name}'; the model has {}", self.param_names().join(", "));
+    fn locate(&self, name: &str) -> Result<Slot, MeasureError> {
+        let unknown = || MeasureError::Model(format!("unknown parameter '{name}'; the model has {}", self.param_names().join(", ")));
         let (head, key) = name.split_once('.').ok_or_else(unknown)?;
         if head == "material" {
             return match self.material.get(key).and_then(super::observation::number) {
@@ -189,22 +190,22 @@ impl Model {
             };
         }
         let e = self.effects.iter().position(|(e, _)| e.name() == head).ok_or_else(|| match self.effect(head) {
-            Ok(_) if self.declared.iter().any(|d| d.name() == head) => format!("'{name}': effect '{head}' is declared as a candidate, not in the model (remove its candidate = true)"),
-            Ok(_) => format!("'{name}': effect '{head}' is not in the model (add [effects.{head}])"),
+            Ok(_) if self.declared.iter().any(|d| d.name() == head) => MeasureError::Model(format!("'{name}': effect '{head}' is declared as a candidate, not in the model (remove its candidate = true)")),
+            Ok(_) => MeasureError::Model(format!("'{name}': effect '{head}' is not in the model (add [effects.{head}])")),
             Err(_) => unknown(),
         })?;
         let p = self.effects[e].0.params().iter().position(|s| s.name == key).ok_or_else(unknown)?;
         Ok(Slot::Effect(e, p))
     }
 
-    pub fn get(&self, name: &str) -> Result<f64, String> {
+    pub fn get(&self, name: &str) -> Result<f64, MeasureError> {
         Ok(match self.locate(name)? {
             Slot::Material(k) => super::observation::number(&self.material[&k]).expect("located"),
             Slot::Effect(e, p) => self.effects[e].1[p],
         })
     }
 
-    pub fn set(&mut self, name: &str, v: f64) -> Result<(), String> {
+    pub fn set(&mut self, name: &str, v: f64) -> Result<(), MeasureError> {
         match self.locate(name)? {
             Slot::Material(k) => {
                 self.material.insert(k, toml::Value::Float(v));
@@ -216,7 +217,7 @@ impl Model {
 
     /// Bounds of a parameter: an effect's own; a material number stays >= 0, and one that is
     /// positive stays positive (the materials reject a zero modulus or density).
-    pub fn bounds(&self, name: &str) -> Result<Bounds, String> {
+    pub fn bounds(&self, name: &str) -> Result<Bounds, MeasureError> {
         Ok(match self.locate(name)? {
             Slot::Material(_) => {
                 let v = self.get(name)?;
@@ -234,7 +235,7 @@ impl Model {
     /// simulation takes its step from the larger of this and the parameter's value: a material
     /// number a fit has taken towards 0 (a viscosity the data barely see, walked to its bound)
     /// is still differenced over a step that moves the model by more than particle noise.
-    pub fn unit(&self, name: &str) -> Result<f64, String> {
+    pub fn unit(&self, name: &str) -> Result<f64, MeasureError> {
         Ok(match self.locate(name)? {
             Slot::Material(k) => match self.units.get(&k) {
                 Some(&u) => u,
@@ -254,24 +255,24 @@ impl Model {
     }
 
     /// The scenario keys of one experiment (before its `set` overrides).
-    pub fn keys(&self, x: &Covariates) -> Result<Keys, String> {
+    pub fn keys(&self, x: &Covariates) -> Result<Keys, MeasureError> {
         self.keys_traced(x).map(|(keys, _)| keys)
     }
 
     /// The keys after every effect, and the keys before each effect (what its adjoint reads).
-    fn keys_traced(&self, x: &Covariates) -> Result<(Keys, Vec<Keys>), String> {
+    fn keys_traced(&self, x: &Covariates) -> Result<(Keys, Vec<Keys>), MeasureError> {
         let mut keys: Keys = self.material.iter().filter_map(|(k, v)| super::observation::number(v).map(|n| (format!("material.{k}"), n))).collect();
         let mut before = Vec::with_capacity(self.effects.len());
         for (e, p) in &self.effects {
             before.push(keys.clone());
-            e.apply(p, x, &mut keys).map_err(|m| format!("effect '{}': {m}", e.name()))?;
+            e.apply(p, x, &mut keys).map_err(|m| m.within(format!("effect '{}'", e.name())))?;
         }
         Ok((keys, before))
     }
 
     /// d(objective)/d(parameter) for `names`, given the adjoints of the keys [`Model::keys`]
     /// returned for covariates `x`.
-    pub fn keys_adjoint(&self, x: &Covariates, mut keys_bar: Keys, names: &[String]) -> Result<Vec<f64>, String> {
+    pub fn keys_adjoint(&self, x: &Covariates, mut keys_bar: Keys, names: &[String]) -> Result<Vec<f64>, MeasureError> {
         let (_, before) = self.keys_traced(x)?;
         let mut effect_bar: Vec<Vec<f64>> = self.effects.iter().map(|(_, p)| vec![0.0; p.len()]).collect();
         for (i, (e, p)) in self.effects.iter().enumerate().rev() {
@@ -335,7 +336,7 @@ fn expression_line(text: &str, effect: &str, key: &str) -> Option<usize> {
 /// Set `key` (dotted; numbers and x/y/z index arrays) in a TOML document to `v`, creating the
 /// tables on the way and replacing a non-table value with one (`z_min = "free_slip"` becomes
 /// `z_min = { friction = { mu = v } }`).
-pub fn set_path(doc: &mut toml::Table, key: &str, v: f64) -> Result<(), String> {
+pub fn set_path(doc: &mut toml::Table, key: &str, v: f64) -> Result<(), MeasureError> {
     let parts: Vec<&str> = key.split('.').collect();
     let mut at: &mut toml::Value = doc.entry(parts[0].to_string()).or_insert_with(|| toml::Value::Table(toml::Table::new()));
     if parts.len() == 1 {
@@ -347,7 +348,7 @@ pub fn set_path(doc: &mut toml::Table, key: &str, v: f64) -> Result<(), String> 
         if let toml::Value::Array(a) = at {
             let idx = part.parse::<usize>().ok().or_else(|| ["x", "y", "z"].iter().position(|x| x == part));
             let len = a.len();
-            at = idx.and_then(|j| a.get_mut(j)).ok_or_else(|| format!("'{key}': index '{part}' is not in an array of {len}"))?;
+            at = idx.and_then(|j| a.get_mut(j)).ok_or_else(|| MeasureError::Model(format!("'{key}': index '{part}' is not in an array of {len}")))?;
         } else {
             if !at.is_table() {
                 *at = toml::Value::Table(toml::Table::new());
@@ -382,10 +383,10 @@ mod tests {
             (M.replace("effects.thixotropy", "effects.thixo"), "unknown effect 'thixo'"),
             (M.replace("a_thix = 0.5", "a_thix = -0.5"), "thixotropy.a_thix = -0.5 is outside"),
         ] {
-            let e = Model::from_table(&bad.parse().unwrap()).unwrap_err();
+            let e = Model::from_table(&bad.parse().unwrap()).unwrap_err().to_string();
             assert!(e.contains(want), "{e}");
         }
-        let e = m.get("ageing.rate").unwrap_err();
+        let e = m.get("ageing.rate").unwrap_err().to_string();
         assert!(e.contains("not in the model"), "{e}");
     }
 
@@ -396,6 +397,6 @@ mod tests {
         set_path(&mut doc, "print.path.0.speed", 2.0).unwrap();
         assert_eq!(doc["boundary"]["z_min"]["friction"]["mu"].as_float(), Some(0.3));
         assert_eq!(doc["print"]["path"][0]["speed"].as_float(), Some(2.0));
-        assert!(set_path(&mut doc, "print.path.3.speed", 2.0).unwrap_err().contains("index '3'"));
+        assert!(set_path(&mut doc, "print.path.3.speed", 2.0).unwrap_err().to_string().contains("index '3'"));
     }
 }

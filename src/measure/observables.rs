@@ -10,6 +10,7 @@
 //! at which a print fails (`failure.rs`). `arrival@X` and `stop_time@D` are read from the flow
 //! front's history: the time it reaches x = X, and the time it stops (`front.rs`).
 
+use super::error::MeasureError;
 use super::front;
 use super::observation::Observable;
 use super::rheometer::Reading;
@@ -22,9 +23,9 @@ pub const RHEOMETER_OBSERVABLES: &[&str] = &["stress"];
 /// Whether `o` is written with the coordinates its observable takes, on a simulation
 /// (`simulation`) or a rheometer test. The time of one taken during the run is checked when it
 /// runs, against the run's end.
-pub fn check_coordinates(o: &Observable, simulation: bool) -> Result<(), String> {
+pub fn check_coordinates(o: &Observable, simulation: bool) -> Result<(), MeasureError> {
     if crate::failure::OBSERVABLES.contains(&o.name.as_str()) {
-        crate::failure::check_observable(&o.name, o.at).map_err(String::from)
+        crate::failure::check_observable(&o.name, o.at).map_err(MeasureError::from)
     } else if front::OBSERVABLES.contains(&o.name.as_str()) {
         front::check_observable(o)
     } else if simulation {
@@ -37,7 +38,7 @@ pub fn check_coordinates(o: &Observable, simulation: bool) -> Result<(), String>
 /// When (time) and what (objective) a simulation observable is: those of the whole material
 /// (spread, front, vx_max, kinetic_energy, mean_z) may be taken during the run, `@T`; a section's
 /// (width, height, area, profile, layers), whose `@` is a station, at its end `end`.
-pub fn observable_plan(o: &Observable, end: f64) -> Result<(f64, Objective), String> {
+pub fn observable_plan(o: &Observable, end: f64) -> Result<(f64, Objective), MeasureError> {
     let second = match o.name.as_str() {
         "profile" => Some("a station and a lateral position: profile@X:Y (metres)"),
         "layer_height" => Some("a station and a layer: layer_height@X:K (K = 1 the bottom layer)"),
@@ -45,19 +46,19 @@ pub fn observable_plan(o: &Observable, end: f64) -> Result<(f64, Objective), Str
         _ => None,
     };
     if o.at2.is_some() && second.is_none() && SIMULATION_OBSERVABLES.contains(&o.name.as_str()) {
-        return Err(format!("'{o}': {} takes one coordinate after '@', not two", o.name));
+        return Err(MeasureError::Observable(format!("'{o}': {} takes one coordinate after '@', not two", o.name)));
     }
-    let station = || o.at.ok_or_else(|| format!("'{}' needs a station: {}@X", o.name, o.name));
+    let station = || o.at.ok_or_else(|| MeasureError::Observable(format!("'{}' needs a station: {}@X", o.name, o.name)));
     let both = || match (o.at, o.at2, second) {
         (Some(x), Some(y), _) => Ok((x, y)),
-        (_, _, what) => Err(format!("'{o}' needs {}", what.unwrap_or("two coordinates"))),
+        (_, _, what) => Err(MeasureError::Observable(format!("'{o}' needs {}", what.unwrap_or("two coordinates")))),
     };
     let layer = || {
         let (x, k) = both()?;
         if k >= 1.0 && k.fract() == 0.0 && k <= u32::MAX as f64 {
             Ok((x, k as usize))
         } else {
-            Err(format!("'{o}': the layer must be a whole number from 1 (the bottom layer), got {k}"))
+            Err(MeasureError::Observable(format!("'{o}': the layer must be a whole number from 1 (the bottom layer), got {k}")))
         }
     };
     let (t, obj) = match o.name.as_str() {
@@ -82,32 +83,32 @@ pub fn observable_plan(o: &Observable, end: f64) -> Result<(f64, Objective), Str
         "vx_max" => (o.at.unwrap_or(end), Objective::VxMax),
         "kinetic_energy" => (o.at.unwrap_or(end), Objective::KineticEnergy),
         "mean_z" => (o.at.unwrap_or(end), Objective::MeanZ),
-        name if front::OBSERVABLES.contains(&name) => return Err(format!("'{o}' is read from the front's history over the run, not at one time: it has no adjoint")),
-        other => return Err(format!("a simulation cannot observe '{other}'")),
+        name if front::OBSERVABLES.contains(&name) => return Err(MeasureError::Observable(format!("'{o}' is read from the front's history over the run, not at one time: it has no adjoint"))),
+        other => return Err(MeasureError::Observable(format!("a simulation cannot observe '{other}'"))),
     };
     if !(0.0..=end).contains(&t) {
-        return Err(format!("'{o}': time {t} s is outside the run [0, {end}] s"));
+        return Err(MeasureError::Observable(format!("'{o}': time {t} s is outside the run [0, {end}] s")));
     }
     Ok((t, obj))
 }
 
 /// Which reading a rheometer observable is: the last one at its shear rate.
-pub fn reading_index(o: &Observable, readings: &[Reading]) -> Result<usize, String> {
+pub fn reading_index(o: &Observable, readings: &[Reading]) -> Result<usize, MeasureError> {
     let rate = reading_rate(o)?;
     readings.iter().rposition(|r| (r.rate - rate).abs() <= 1e-9 * rate.abs().max(1.0)).ok_or_else(|| {
-        format!("'{o}': the protocol records no reading at rate {rate} (it records {:?})", readings.iter().map(|r| r.rate).collect::<Vec<_>>())
+        MeasureError::Observable(format!("'{o}': the protocol records no reading at rate {rate} (it records {:?})", readings.iter().map(|r| r.rate).collect::<Vec<_>>()))
     })
 }
 
 /// The shear rate of a rheometer observable, `stress@RATE`.
-pub fn reading_rate(o: &Observable) -> Result<f64, String> {
+pub fn reading_rate(o: &Observable) -> Result<f64, MeasureError> {
     if !RHEOMETER_OBSERVABLES.contains(&o.name.as_str()) {
-        return Err(format!("a rheometer test cannot observe '{}'; it can observe {}", o.name, RHEOMETER_OBSERVABLES.join(", ")));
+        return Err(MeasureError::Observable(format!("a rheometer test cannot observe '{}'; it can observe {}", o.name, RHEOMETER_OBSERVABLES.join(", "))));
     }
     match (o.at, o.at2) {
         (Some(rate), None) => Ok(rate),
-        (Some(_), Some(_)) => Err(format!("'{o}': stress takes one coordinate, the shear rate: stress@RATE")),
-        (None, _) => Err("'stress' needs the shear rate: stress@RATE".into()),
+        (Some(_), Some(_)) => Err(MeasureError::Observable(format!("'{o}': stress takes one coordinate, the shear rate: stress@RATE"))),
+        (None, _) => Err(MeasureError::Observable("'stress' needs the shear rate: stress@RATE".into())),
     }
 }
 
@@ -120,10 +121,10 @@ mod tests {
     #[test]
     fn a_rheometer_observes_only_the_stress() {
         for name in ["banana@1", "strain@1", "spread@1", "spread"] {
-            let e = reading_rate(&Observable::parse(name).unwrap()).unwrap_err();
+            let e = reading_rate(&Observable::parse(name).unwrap()).unwrap_err().to_string();
             assert!(e.contains("rheometer test cannot observe") && e.contains("stress"), "{name}: {e}");
         }
-        assert_eq!(reading_rate(&Observable::parse("stress@2.5").unwrap()), Ok(2.5));
+        assert_eq!(reading_rate(&Observable::parse("stress@2.5").unwrap()).unwrap(), 2.5);
     }
 
     #[test]
@@ -136,19 +137,19 @@ mod tests {
         for s in ["profile@0.075:0.01", "layer_height@0.075:2", "layer_width@0.075:1", "height@0.075"] {
             assert_eq!(plan(s).unwrap().1.name(), s);
         }
-        let e = plan("layer_height@0.075:-2").unwrap_err();
+        let e = plan("layer_height@0.075:-2").unwrap_err().to_string();
         assert!(e.contains("'layer_height@0.075:-2'") && e.contains("whole number from 1"), "{e}");
-        let e = plan("profile").unwrap_err();
+        let e = plan("profile").unwrap_err().to_string();
         assert!(e.contains("profile@X:Y"), "{e}");
         // the whole material's observables at a time during the run, or at its end
         for name in ["spread", "front", "vx_max", "kinetic_energy", "mean_z"] {
             assert_eq!(plan(&format!("{name}@0.5")).unwrap().0, 0.5, "{name}");
             assert_eq!(plan(name).unwrap().0, 2.0, "{name}");
         }
-        assert!(plan("mean_z@3").unwrap_err().contains("outside the run"));
-        let e = plan("front@1:2").unwrap_err();
+        assert!(plan("mean_z@3").unwrap_err().to_string().contains("outside the run"));
+        let e = plan("front@1:2").unwrap_err().to_string();
         assert!(e.contains("front takes one coordinate"), "{e}");
-        let e = reading_rate(&Observable::parse("stress@1:2").unwrap()).unwrap_err();
+        let e = reading_rate(&Observable::parse("stress@1:2").unwrap()).unwrap_err().to_string();
         assert!(e.contains("stress@RATE"), "{e}");
     }
 

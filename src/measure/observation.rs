@@ -13,6 +13,7 @@
 //! (`observables.rs` says what each observable's coordinates are). This file is the bottom of the
 //! measurement loop: it imports nothing else of it.
 
+use super::error::{io_error, MeasureError};
 use std::path::Path;
 
 /// One measured value.
@@ -36,13 +37,13 @@ pub struct Observable {
 }
 
 /// `X` or `X:Y`, finite numbers, as the `at` of an observable; the error says what is wrong.
-pub fn parse_at(a: &str) -> Result<(f64, Option<f64>), String> {
-    let number = |v: &str| v.trim().parse::<f64>().ok().filter(|x| x.is_finite()).ok_or_else(|| format!("'{}' is not a number", v.trim()));
+pub fn parse_at(a: &str) -> Result<(f64, Option<f64>), MeasureError> {
+    let number = |v: &str| v.trim().parse::<f64>().ok().filter(|x| x.is_finite()).ok_or_else(|| MeasureError::Observable(format!("'{}' is not a number", v.trim())));
     let mut parts = a.split(':');
     let at = number(parts.next().unwrap_or(""))?;
     let at2 = parts.next().map(number).transpose()?;
     if parts.next().is_some() {
-        return Err(format!("'{}' has more than two coordinates (X or X:Y)", a.trim()));
+        return Err(MeasureError::Observable(format!("'{}' has more than two coordinates (X or X:Y)", a.trim())));
     }
     Ok((at, at2))
 }
@@ -58,16 +59,16 @@ pub fn at_text(at: Option<f64>, at2: Option<f64>) -> String {
 
 impl Observable {
     /// `name`, `name@X` or `name@X:Y`.
-    pub fn parse(s: &str) -> Result<Observable, String> {
+    pub fn parse(s: &str) -> Result<Observable, MeasureError> {
         let (name, at, at2) = match s.split_once('@') {
             Some((n, a)) => {
-                let (at, at2) = parse_at(a).map_err(|e| format!("'{s}': {e}"))?;
+                let (at, at2) = parse_at(a).map_err(|e| e.within(format!("'{s}'")))?;
                 (n.trim(), Some(at), at2)
             }
             None => (s.trim(), None, None),
         };
         if name.is_empty() {
-            return Err(format!("'{s}': no observable name before '@'"));
+            return Err(MeasureError::Observable(format!("'{s}': no observable name before '@'")));
         }
         Ok(Observable { name: name.to_string(), at, at2 })
     }
@@ -83,37 +84,37 @@ impl std::fmt::Display for Observable {
 }
 
 /// Read a measurements CSV; errors name the file and line.
-pub fn read_observations(path: &Path) -> Result<Vec<Observation>, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    parse_observations(&text).map_err(|e| format!("{}: {e}", path.display()))
+pub fn read_observations(path: &Path) -> Result<Vec<Observation>, MeasureError> {
+    let text = std::fs::read_to_string(path).map_err(io_error(path))?;
+    parse_observations(&text).map_err(|e| e.within(path.display()))
 }
 
-pub fn parse_observations(text: &str) -> Result<Vec<Observation>, String> {
+pub fn parse_observations(text: &str) -> Result<Vec<Observation>, MeasureError> {
     let mut rd = csv::ReaderBuilder::new().trim(csv::Trim::All).comment(Some(b'#')).from_reader(text.as_bytes());
-    let header: Vec<String> = rd.headers().map_err(|e| e.to_string())?.iter().map(str::to_string).collect();
+    let header: Vec<String> = rd.headers()?.iter().map(str::to_string).collect();
     let want = ["experiment", "observable", "at", "value", "uncertainty"];
-    let col = |name: &str| header.iter().position(|h| h == name).ok_or_else(|| format!("no '{name}' column (the columns are {})", want.join(",")));
+    let col = |name: &str| header.iter().position(|h| h == name).ok_or_else(|| MeasureError::Observations(format!("no '{name}' column (the columns are {})", want.join(","))));
     let idx: Vec<usize> = want.iter().map(|w| col(w)).collect::<Result<_, _>>()?;
     let mut out = Vec::new();
     for rec in rd.records() {
-        let rec = rec.map_err(|e| e.to_string())?;
+        let rec = rec?;
         let line = rec.position().map_or(0, |p| p.line());
         let field = |k: usize| rec.get(idx[k]).unwrap_or("");
-        let number = |k: usize| -> Result<f64, String> {
-            field(k).parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| format!("line {line}: {} '{}' is not a number", want[k], field(k)))
+        let number = |k: usize| -> Result<f64, MeasureError> {
+            field(k).parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| MeasureError::Observations(format!("line {line}: {} '{}' is not a number", want[k], field(k))))
         };
         let (at, at2) = if field(2).is_empty() {
             (None, None)
         } else {
-            let (a, b) = parse_at(field(2)).map_err(|e| format!("line {line}: at {e} (X, or X:Y for profile@X:Y and layer_height@X:K)"))?;
+            let (a, b) = parse_at(field(2)).map_err(|e| MeasureError::Observations(format!("line {line}: at {e} (X, or X:Y for profile@X:Y and layer_height@X:K)")))?;
             (Some(a), b)
         };
         let uncertainty = number(4)?;
         if uncertainty <= 0.0 {
-            return Err(format!("line {line}: uncertainty must be > 0, got {uncertainty}"));
+            return Err(MeasureError::Observations(format!("line {line}: uncertainty must be > 0, got {uncertainty}")));
         }
         if field(0).is_empty() || field(1).is_empty() {
-            return Err(format!("line {line}: experiment and observable must not be empty"));
+            return Err(MeasureError::Observations(format!("line {line}: experiment and observable must not be empty")));
         }
         out.push(Observation {
             experiment: field(0).to_string(),
@@ -123,21 +124,21 @@ pub fn parse_observations(text: &str) -> Result<Vec<Observation>, String> {
         });
     }
     if out.is_empty() {
-        return Err("no observations".into());
+        return Err(MeasureError::Observations("no observations".into()));
     }
     Ok(out)
 }
 
 /// Write observations as the tidy CSV `read_observations` reads.
-pub fn write_observations(path: &Path, obs: &[Observation]) -> Result<(), String> {
-    let mut w = csv::Writer::from_path(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let err = |e: csv::Error| format!("{}: {e}", path.display());
+pub fn write_observations(path: &Path, obs: &[Observation]) -> Result<(), MeasureError> {
+    let mut w = csv::Writer::from_path(path).map_err(|e| MeasureError::from(e).within(path.display()))?;
+    let err = |e: csv::Error| MeasureError::from(e).within(path.display());
     w.write_record(["experiment", "observable", "at", "value", "uncertainty"]).map_err(err)?;
     for o in obs {
         let at = at_text(o.observable.at, o.observable.at2);
         w.write_record([o.experiment.clone(), o.observable.name.clone(), at, format!("{:e}", o.value), format!("{:e}", o.uncertainty)]).map_err(err)?;
     }
-    w.flush().map_err(|e| format!("{}: {e}", path.display()))
+    w.flush().map_err(io_error(path))
 }
 
 /// A TOML number as f64 (integers too); None for anything else.
@@ -159,11 +160,11 @@ mod tests {
         let p = dir.path().join("d.csv");
         write_observations(&p, &obs).unwrap();
         assert_eq!(read_observations(&p).unwrap(), obs);
-        let e = parse_observations("experiment,observable,at,value,uncertainty\nA,spread,,0.5,0.01\nB,spread,,zero,0.01\n").unwrap_err();
+        let e = parse_observations("experiment,observable,at,value,uncertainty\nA,spread,,0.5,0.01\nB,spread,,zero,0.01\n").unwrap_err().to_string();
         assert!(e.contains("line 3") && e.contains("value 'zero'"), "{e}");
-        let e = parse_observations("experiment,observable,at,value,uncertainty\nA,spread,,0.5,0\n").unwrap_err();
+        let e = parse_observations("experiment,observable,at,value,uncertainty\nA,spread,,0.5,0\n").unwrap_err().to_string();
         assert!(e.contains("line 2") && e.contains("uncertainty"), "{e}");
-        let e = parse_observations("experiment,observable,value\nA,spread,0.5\n").unwrap_err();
+        let e = parse_observations("experiment,observable,value\nA,spread,0.5\n").unwrap_err().to_string();
         assert!(e.contains("no 'at' column"), "{e}");
     }
 
@@ -183,7 +184,7 @@ mod tests {
             ("width@inf", "'inf' is not a number"),
             ("@0.1", "no observable name"),
         ] {
-            let e = Observable::parse(bad).unwrap_err();
+            let e = Observable::parse(bad).unwrap_err().to_string();
             assert!(e.starts_with(&format!("'{bad}': ")) && e.contains(want), "{bad}: {e}");
         }
         // in the measurements CSV the at column holds X:Y
@@ -196,7 +197,7 @@ mod tests {
         write_observations(&p, &obs).unwrap();
         assert!(std::fs::read_to_string(&p).unwrap().contains("case1,profile,0.075:0.01,"));
         assert_eq!(read_observations(&p).unwrap(), obs);
-        let e = parse_observations("experiment,observable,at,value,uncertainty\ncase1,profile,0.075:y,0.012,5e-4\n").unwrap_err();
+        let e = parse_observations("experiment,observable,at,value,uncertainty\ncase1,profile,0.075:y,0.012,5e-4\n").unwrap_err().to_string();
         assert!(e.contains("line 2") && e.contains("at 'y' is not a number"), "{e}");
     }
 }

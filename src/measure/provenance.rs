@@ -8,6 +8,7 @@
 //! round-trip form (serde_json's `float_roundtrip` reads it back to the same bits), NaN and the
 //! infinities as strings, which JSON numbers cannot hold.
 
+use super::error::{io_error, MeasureError};
 use super::experiments::{Experiment, Experiments};
 use super::model::Model;
 use super::runner::{experiment_keys, scenario_text};
@@ -48,7 +49,7 @@ impl Provenance {
 
     /// `saved` (read from `file`) must be this provenance: the error names experiment `id` and
     /// every part that differs.
-    pub fn check(&self, saved: &Provenance, id: &str, file: &Path) -> Result<(), String> {
+    pub fn check(&self, saved: &Provenance, id: &str, file: &Path) -> Result<(), MeasureError> {
         let mut differ = Vec::new();
         if saved.format != self.format {
             differ.push(format!("another binary ({}; this is {})", saved.format, self.format));
@@ -61,7 +62,7 @@ impl Provenance {
         if differ.is_empty() {
             return Ok(());
         }
-        Err(format!("experiment '{id}': {} comes from {}; refusing it", file.display(), differ.join(" and ")))
+        Err(MeasureError::Provenance(format!("experiment '{id}': {} comes from {}; refusing it", file.display(), differ.join(" and "))))
     }
 }
 
@@ -79,10 +80,10 @@ fn resolved(model: &Model, exps: &Experiments, x: &Experiment) -> String {
         }
         (None, Some(toml::Value::String(file))) => {
             let p = exps.base_dir.join(file);
-            std::fs::read_to_string(&p).map_err(|e| format!("{}: {e}", p.display()))
+            std::fs::read_to_string(&p).map_err(io_error(&p))
         }
-        (None, Some(inline)) => toml::to_string(inline).map_err(|e| e.to_string()),
-        (None, None) => Err("neither scenario nor protocol".into()),
+        (None, Some(inline)) => toml::to_string(inline).map_err(MeasureError::from),
+        (None, None) => Err(MeasureError::Run("neither scenario nor protocol".into())),
     };
     r.unwrap_or_else(|e| format!("error: {e}"))
 }
@@ -194,23 +195,23 @@ mod tests {
 
         let mut other = model.clone();
         other.set("material.viscosity", 7.500000000000001).unwrap();
-        let e = base.check(&p(&other, &exps, "P"), "P", file).unwrap_err();
+        let e = base.check(&p(&other, &exps, "P"), "P", file).unwrap_err().to_string();
         // the model reaches a simulation's scenario too (its [material] is the model's)
         assert!(e.contains("experiment 'P'") && e.contains("another model") && e.contains("another scenario") && !e.contains("entry"), "{e}");
 
         std::fs::write(d.join("path.gcode"), "G1 X12 Y0 E1\n").unwrap();
-        let e = p(&model, &exps, "P").check(&base, "P", file).unwrap_err();
+        let e = p(&model, &exps, "P").check(&base, "P", file).unwrap_err().to_string();
         assert!(e.contains("another scenario") && !e.contains("another model"), "{e}");
 
         let rheo = p(&model, &exps, "R");
         std::fs::write(d.join("e.toml"), exps_text.replace("rate = 5.0", "rate = 5.5")).unwrap();
         let edited = Experiments::load(&d.join("e.toml")).unwrap();
-        let e = p(&model, &edited, "R").check(&rheo, "R", file).unwrap_err();
+        let e = p(&model, &edited, "R").check(&rheo, "R", file).unwrap_err().to_string();
         assert!(e.contains("experiment 'R'") && e.contains("another scenario") && e.contains("another experiments entry"), "{e}");
 
         let mut old = base.clone();
         old.format = "strand 0.0.9, result format 0".into();
-        let e = base.check(&old, "P", file).unwrap_err();
+        let e = base.check(&old, "P", file).unwrap_err().to_string();
         assert!(e.contains("another binary (strand 0.0.9"), "{e}");
     }
 }

@@ -6,6 +6,7 @@
 //! for thixotropy, age for ageing, a speed for a rate effect), so a strong correlation of z with a
 //! covariate points at what to add before `strand diagnose` is run.
 
+use super::error::{io_error, MeasureError};
 use super::compare::{Comparison, Row};
 use super::experiments::Experiments;
 use super::model::Model;
@@ -39,7 +40,7 @@ pub struct Trend {
 /// each observable, and every key an experiment `set`s. An experiment without such a key takes the
 /// value the model gives it, if any (a `material.*` key); a key only the scenario file holds has no
 /// value there, as the report does not read scenarios.
-pub fn covariates(rows: &[Row], exps: &Experiments, model: &Model) -> Result<Vec<Covariate>, String> {
+pub fn covariates(rows: &[Row], exps: &Experiments, model: &Model) -> Result<Vec<Covariate>, MeasureError> {
     let mut keys: HashMap<&str, super::effects::Keys> = HashMap::new();
     let mut set_names = BTreeSet::new();
     for r in rows {
@@ -49,7 +50,7 @@ pub fn covariates(rows: &[Row], exps: &Experiments, model: &Model) -> Result<Vec
             keys.insert(&r.experiment, experiment_keys(model, x)?);
         }
     }
-    let per_experiment = |f: &dyn Fn(&super::experiments::Experiment) -> f64| -> Result<Vec<Option<f64>>, String> {
+    let per_experiment = |f: &dyn Fn(&super::experiments::Experiment) -> f64| -> Result<Vec<Option<f64>>, MeasureError> {
         rows.iter().map(|r| find(exps, &r.experiment).map(|x| Some(f(x)))).collect()
     };
     let mut out = vec![
@@ -151,11 +152,11 @@ pub fn trends_text(trends: &[Trend]) -> String {
 
 /// Make `dir` a folder to write into: create it, or name a path that is there and is not one.
 /// Checked before the experiments run, so a bad path fails at once.
-pub fn prepare_dir(dir: &Path) -> Result<(), String> {
+pub fn prepare_dir(dir: &Path) -> Result<(), MeasureError> {
     if dir.exists() && !dir.is_dir() {
-        return Err(format!("--report {}: exists and is not a directory", dir.display()));
+        return Err(MeasureError::ReportNotAFolder { dir: dir.to_path_buf() });
     }
-    std::fs::create_dir_all(dir).map_err(|e| format!("--report {}: cannot create the directory: {e}", dir.display()))
+    std::fs::create_dir_all(dir).map_err(|source| MeasureError::ReportFolder { dir: dir.to_path_buf(), source })
 }
 
 /// Significance of the residual shapes the report names (`residuals.rs`), for all its tests
@@ -164,7 +165,7 @@ pub const SHAPES_ALPHA: f64 = 0.01;
 
 /// Write the report into `dir` (plots, `trends.csv`, `index.html`); the trends and the residual
 /// shapes it found.
-pub fn write(dir: &Path, c: &Comparison, exps: &Experiments, model: &Model) -> Result<(Vec<Trend>, Vec<Shape>), String> {
+pub fn write(dir: &Path, c: &Comparison, exps: &Experiments, model: &Model) -> Result<(Vec<Trend>, Vec<Shape>), MeasureError> {
     prepare_dir(dir)?;
     let covs = covariates(&c.rows, exps, model)?;
     let trends = trends(&c.rows, &covs);
@@ -185,7 +186,7 @@ pub fn write(dir: &Path, c: &Comparison, exps: &Experiments, model: &Model) -> R
     }
     write_trends_csv(&dir.join("trends.csv"), &trends)?;
     let index = dir.join("index.html");
-    std::fs::write(&index, html(c, &trends, &shapes, &fits, &residuals, model)).map_err(|e| format!("{}: {e}", index.display()))?;
+    std::fs::write(&index, html(c, &trends, &shapes, &fits, &residuals, model)).map_err(io_error(&index))?;
     Ok((trends, shapes))
 }
 
@@ -223,7 +224,7 @@ fn unique_name(taken: &mut HashSet<String>, stem: &str) -> String {
 /// every row has one, else against the experiment's place in the data, so that no row drops out.
 /// An observable with a second coordinate on every row (a profile's y, a layer) is plotted
 /// against that, a group per experiment and station.
-fn plot_model_vs_data(path: &Path, rows: &[Row], observable: &str) -> Result<(), String> {
+fn plot_model_vs_data(path: &Path, rows: &[Row], observable: &str) -> Result<(), MeasureError> {
     let rows: Vec<&Row> = rows.iter().filter(|r| r.observable == observable).collect();
     let by_at2 = rows.iter().all(|r| r.at.is_some() && r.at2.is_some());
     let by_at = rows.iter().all(|r| r.at.is_some());
@@ -258,23 +259,23 @@ fn plot_model_vs_data(path: &Path, rows: &[Row], observable: &str) -> Result<(),
 }
 
 /// z against one covariate, a series per observable.
-fn plot_residuals(path: &Path, rows: &[Row], cov: &Covariate) -> Result<(), String> {
+fn plot_residuals(path: &Path, rows: &[Row], cov: &Covariate) -> Result<(), MeasureError> {
     let series: Vec<(String, Vec<[f64; 2]>)> = observables(rows)
         .into_iter()
         .map(|o| (o.to_string(), rows.iter().zip(&cov.values).filter(|(r, _)| r.observable == o).filter_map(|(r, v)| v.map(|v| [v, r.z])).collect::<Vec<_>>()))
         .filter(|(_, pts)| !pts.is_empty())
         .collect();
-    plot_xy(path, &format!("z = (model - measured) / uncertainty against {}", cov.name), &cov.axis, "z", &series, false)
+    Ok(plot_xy(path, &format!("z = (model - measured) / uncertainty against {}", cov.name), &cov.axis, "z", &series, false)?)
 }
 
-fn write_trends_csv(path: &Path, trends: &[Trend]) -> Result<(), String> {
-    let err = |e: csv::Error| format!("{}: {e}", path.display());
+fn write_trends_csv(path: &Path, trends: &[Trend]) -> Result<(), MeasureError> {
+    let err = |e: csv::Error| MeasureError::from(e).within(path.display());
     let mut w = csv::Writer::from_path(path).map_err(err)?;
     w.write_record(["covariate", "n", "r", "slope", "trend"]).map_err(err)?;
     for t in trends {
         w.write_record([t.covariate.clone(), t.n.to_string(), format!("{:e}", t.r), format!("{:e}", t.slope), t.trend.to_string()]).map_err(err)?;
     }
-    w.flush().map_err(|e| format!("{}: {e}", path.display()))
+    w.flush().map_err(io_error(path))
 }
 
 /// Text for HTML content or a quoted attribute.
@@ -506,7 +507,7 @@ set = { "material.density" = 2000.0 }
         let csv = std::fs::read_to_string(out.join("trends.csv")).unwrap();
         assert!(csv.starts_with("covariate,n,r,slope,trend\n") && csv.lines().count() == 4, "{csv}");
         // a file where the folder should be is named
-        let e = write(&out.join("index.html"), &c, &exps, &model).unwrap_err();
+        let e = write(&out.join("index.html"), &c, &exps, &model).unwrap_err().to_string();
         assert!(e.contains("index.html") && e.contains("not a directory"), "{e}");
     }
 

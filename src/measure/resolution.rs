@@ -31,6 +31,7 @@
 //! The default order, [`DEFAULT_ORDER`], is measured on case 1 (BENCHMARKS.md,
 //! "Discretisation error").
 
+use super::error::MeasureError;
 use super::experiments::{Experiment, Experiments, ResolutionTable};
 use super::observation::{Observable, Observation};
 use super::runner::{evaluate, experiment_keys, find, group, job_threads, par_map_experiments, parse_scenario, scenario_text, ungroup};
@@ -93,7 +94,7 @@ fn finer(x: &Experiment, table: &ResolutionTable) -> Experiment {
 }
 
 /// The cell size experiment `x` runs at under `model`.
-fn cell_size(model: &Model, exps: &Experiments, x: &Experiment) -> Result<f64, String> {
+fn cell_size(model: &Model, exps: &Experiments, x: &Experiment) -> Result<f64, MeasureError> {
     let path = exps.base_dir.join(x.scenario.as_ref().expect("a simulation"));
     let keys = experiment_keys(model, x)?;
     Ok(parse_scenario(&scenario_text(model, &keys, &path)?, &path)?.simulation.dx)
@@ -102,13 +103,13 @@ fn cell_size(model: &Model, exps: &Experiments, x: &Experiment) -> Result<f64, S
 /// Each observation's discretisation error under `model` (None for a rheometer test), from the
 /// experiments' `[resolution]` table; None without one. `values`, when given, are the model's
 /// values of `data` already computed (compare's), which spares the runs at the model's cell size.
-pub fn estimate(model: &Model, data: &[Observation], exps: &Experiments, values: Option<&[f64]>, jobs: usize) -> Result<Option<Vec<Option<Estimate>>>, String> {
+pub fn estimate(model: &Model, data: &[Observation], exps: &Experiments, values: Option<&[f64]>, jobs: usize) -> Result<Option<Vec<Option<Estimate>>>, MeasureError> {
     let Some(table) = &exps.resolution else { return Ok(None) };
     let p = order(table);
     let wanted = group(data);
     let given: Option<Vec<Vec<f64>>> = values.map(|v| per_experiment(data, &wanted, v));
     let threads = job_threads(jobs);
-    let per = par_map_experiments(&wanted, jobs, |k| -> Result<Vec<Option<Estimate>>, String> {
+    let per = par_map_experiments(&wanted, jobs, |k| -> Result<Vec<Option<Estimate>>, MeasureError> {
         let (id, obs) = &wanted[k];
         let x = find(exps, id)?;
         if x.scenario.is_none() {
@@ -117,18 +118,18 @@ pub fn estimate(model: &Model, data: &[Observation], exps: &Experiments, values:
         let fine_x = finer(x, table);
         let (dx, fine_dx) = (cell_size(model, exps, x)?, cell_size(model, exps, &fine_x)?);
         if fine_dx >= dx {
-            return Err(format!("experiment '{id}': [resolution] fine.\"simulation.dx\" = {fine_dx} is not finer than the cell size the model runs it at, {dx}"));
+            return Err(MeasureError::Resolution(format!("experiment '{id}': [resolution] fine.\"simulation.dx\" = {fine_dx} is not finer than the cell size the model runs it at, {dx}")));
         }
         let coarse = match &given {
             Some(v) => v[k].clone(),
             None => evaluate(model, exps, x, obs, threads)?,
         };
-        let fine = evaluate(model, exps, &fine_x, obs, threads).map_err(|e| format!("{e} (the finer run of [resolution])"))?;
+        let fine = evaluate(model, exps, &fine_x, obs, threads).map_err(|e| MeasureError::FinerRun(Box::new(e)))?;
         obs.iter()
             .zip(coarse.iter().zip(&fine))
             .map(|(o, (&c, &f))| {
                 if !(c.is_finite() && f.is_finite()) {
-                    return Err(format!("experiment '{id}': {o} is {c} at dx = {dx} and {f} at dx = {fine_dx}: no discretisation error can be estimated"));
+                    return Err(MeasureError::Resolution(format!("experiment '{id}': {o} is {c} at dx = {dx} and {f} at dx = {fine_dx}: no discretisation error can be estimated")));
                 }
                 let r = richardson(c, f, dx / fine_dx, p);
                 Ok(Some(Estimate { experiment: id.clone(), observable: o.to_string(), dx, fine_dx, order: p, value: c, fine: f, extrapolated: r.extrapolated, error: r.error }))
@@ -177,7 +178,7 @@ pub struct Counted {
 
 /// What calibrate and diagnose fit: `data` with the discretisation errors at `model` counted
 /// ([`counted`]), and what was counted; `data` unchanged without `[resolution]`.
-pub fn counted_data(model: &Model, data: Vec<Observation>, exps: &Experiments, jobs: usize) -> Result<(Vec<Observation>, Option<Counted>), String> {
+pub fn counted_data(model: &Model, data: Vec<Observation>, exps: &Experiments, jobs: usize) -> Result<(Vec<Observation>, Option<Counted>), MeasureError> {
     if exps.resolution.is_none() {
         return Ok((data, None));
     }
@@ -188,9 +189,9 @@ pub fn counted_data(model: &Model, data: Vec<Observation>, exps: &Experiments, j
 
 /// A command's JSON with the estimates added as `discretisation` (one entry per observation,
 /// null for a rheometer test) when there are any.
-pub fn with_estimates(mut v: serde_json::Value, counted: &Option<Counted>) -> Result<serde_json::Value, String> {
+pub fn with_estimates(mut v: serde_json::Value, counted: &Option<Counted>) -> Result<serde_json::Value, MeasureError> {
     if let Some(c) = counted {
-        v["discretisation"] = serde_json::to_value(&c.estimates).map_err(|e| e.to_string())?;
+        v["discretisation"] = serde_json::to_value(&c.estimates)?;
     }
     Ok(v)
 }

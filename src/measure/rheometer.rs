@@ -13,6 +13,7 @@
 //! `init_state_adjoint`, giving d(sum_k w_k tau_k)/d(parameter) for every parameter the material
 //! names.
 
+use super::error::{io_error, toml_error, MeasureError};
 use crate::kernels::material::{Material, UpdateAdjoint};
 use crate::kernels::{Real, M3, V3};
 use serde::Deserialize;
@@ -99,23 +100,23 @@ fn shear(g: f64) -> M3 {
 
 impl<'a> Rheometer<'a> {
     /// Check the protocol (every phase named by its index on error) and lay out its steps.
-    pub fn new(material: &'a dyn Material, protocol: &Protocol) -> Result<Rheometer<'a>, String> {
-        let positive = |what: String, v: f64| if v.is_finite() && v > 0.0 { Ok(v) } else { Err(format!("{what} must be > 0, got {v}")) };
+    pub fn new(material: &'a dyn Material, protocol: &Protocol) -> Result<Rheometer<'a>, MeasureError> {
+        let positive = |what: String, v: f64| if v.is_finite() && v > 0.0 { Ok(v) } else { Err(MeasureError::Rheometer(format!("{what} must be > 0, got {v}"))) };
         positive("rheometer.dt".into(), protocol.dt)?;
         if protocol.phase.is_empty() {
-            return Err("rheometer: the protocol has no phase".into());
+            return Err(MeasureError::Rheometer("rheometer: the protocol has no phase".into()));
         }
         let mut holds = Vec::new();
         for (i, ph) in protocol.phase.iter().enumerate() {
             let key = |k: &str| format!("rheometer.phase.{i}.{k}");
             let step = |dt: &Option<f64>| positive(key("dt"), dt.unwrap_or(protocol.dt));
-            let steps = |duration: f64, dt: f64| -> Result<usize, String> {
+            let steps = |duration: f64, dt: f64| -> Result<usize, MeasureError> {
                 positive(key("duration"), duration)?;
                 let n = (duration / dt).round().max(1.0);
                 if n > MAX_STEPS as f64 {
-                    return Err(format!(
+                    return Err(MeasureError::Rheometer(format!(
                         "rheometer.phase.{i}: {duration} s at dt = {dt} s is {n:.3e} steps, more than the {MAX_STEPS} a protocol may take; raise its dt"
-                    ));
+                    )));
                 }
                 Ok(n as usize)
             };
@@ -126,20 +127,20 @@ impl<'a> Rheometer<'a> {
                 }
                 Phase::Shear { rate, duration, record, dt } => {
                     if !rate.is_finite() {
-                        return Err(format!("{} must be finite, got {rate}", key("rate")));
+                        return Err(MeasureError::Rheometer(format!("{} must be finite, got {rate}", key("rate"))));
                     }
                     let dt = step(dt)?;
                     holds.push(Hold { rate: *rate, dt, steps: steps(*duration, dt)?, record: *record });
                 }
                 Phase::Sweep { rates, hold, dt } => {
                     if rates.is_empty() {
-                        return Err(format!("{} is empty", key("rates")));
+                        return Err(MeasureError::Rheometer(format!("{} is empty", key("rates"))));
                     }
                     let dt = step(dt)?;
                     positive(key("hold"), *hold)?;
                     for (k, &rate) in rates.iter().enumerate() {
                         if !rate.is_finite() {
-                            return Err(format!("{}[{k}] must be finite, got {rate}", key("rates")));
+                            return Err(MeasureError::Rheometer(format!("{}[{k}] must be finite, got {rate}", key("rates"))));
                         }
                         holds.push(Hold { rate, dt, steps: steps(*hold, dt)?, record: true });
                     }
@@ -148,7 +149,7 @@ impl<'a> Rheometer<'a> {
         }
         let total: usize = holds.iter().map(|h| h.steps).sum();
         if total > MAX_STEPS {
-            return Err(format!("rheometer: the protocol takes {total} steps, more than the {MAX_STEPS} it may take; raise dt"));
+            return Err(MeasureError::Rheometer(format!("rheometer: the protocol takes {total} steps, more than the {MAX_STEPS} it may take; raise dt")));
         }
         Ok(Rheometer { material, holds })
     }
@@ -165,12 +166,12 @@ impl<'a> Rheometer<'a> {
 
     /// The readings, and d(sum_k weights_k stress_k)/d(parameter) for the material's
     /// `param_names`, in that order. `weights` has one entry per reading.
-    pub fn gradient(&self, weights: &[f64]) -> Result<(Vec<Reading>, Vec<f64>), String> {
+    pub fn gradient(&self, weights: &[f64]) -> Result<(Vec<Reading>, Vec<f64>), MeasureError> {
         let sl = self.material.state_names().len();
         let mut history = Vec::with_capacity(self.steps() * sl);
         let readings = self.forward(Some(&mut history));
         if weights.len() != readings.len() {
-            return Err(format!("rheometer: {} weights for {} readings", weights.len(), readings.len()));
+            return Err(MeasureError::Rheometer(format!("rheometer: {} weights for {} readings", weights.len(), readings.len())));
         }
         let np = self.material.param_names().len();
         let mut params_bar = vec![0.0 as Real; np];
@@ -225,26 +226,26 @@ impl<'a> Rheometer<'a> {
 /// `strand rheometer`: the `[material]` of the TOML file `model` under the `[rheometer]` protocol
 /// (its own table, or the file `protocol`); with `sensitivity`, each reading's derivative with
 /// respect to every material parameter. Returns the report (a table, or JSON).
-pub fn run_cli(model: &std::path::Path, protocol: Option<&std::path::Path>, sensitivity: bool, json: bool) -> Result<String, String> {
+pub fn run_cli(model: &std::path::Path, protocol: Option<&std::path::Path>, sensitivity: bool, json: bool) -> Result<String, MeasureError> {
     use std::fmt::Write as _;
-    let read = |p: &std::path::Path| -> Result<toml::Table, String> {
-        let text = std::fs::read_to_string(p).map_err(|e| format!("{}: {e}", p.display()))?;
-        text.parse::<toml::Table>().map_err(|e| format!("{}: {e}", p.display()))
+    let read = |p: &std::path::Path| -> Result<toml::Table, MeasureError> {
+        let text = std::fs::read_to_string(p).map_err(io_error(p))?;
+        text.parse::<toml::Table>().map_err(toml_error(p))
     };
     let table = read(model)?;
     let mat = match table.get("material") {
-        Some(toml::Value::Table(t)) => crate::materials::build_material(t).map_err(|e| format!("{}: {e}", model.display()))?,
-        _ => return Err(format!("{}: no [material] table", model.display())),
+        Some(toml::Value::Table(t)) => crate::materials::build_material(t).map_err(|e| MeasureError::from(e).within(model.display()))?,
+        _ => return Err(MeasureError::Rheometer(format!("{}: no [material] table", model.display()))),
     };
     let (source, proto) = match protocol {
         Some(p) => (p.to_path_buf(), toml::Value::Table(read(p)?)),
         None => match table.get("rheometer") {
             Some(v) => (model.to_path_buf(), v.clone()),
-            None => return Err(format!("{}: no [rheometer] table; give one or --protocol FILE", model.display())),
+            None => return Err(MeasureError::Rheometer(format!("{}: no [rheometer] table; give one or --protocol FILE", model.display()))),
         },
     };
-    let proto: Protocol = proto.try_into().map_err(|e: toml::de::Error| format!("{}: rheometer: {}", source.display(), e.message()))?;
-    let rh = Rheometer::new(&*mat, &proto).map_err(|e| format!("{}: {e}", source.display()))?;
+    let proto: Protocol = proto.try_into().map_err(|e: toml::de::Error| MeasureError::Rheometer(format!("{}: rheometer: {}", source.display(), e.message())))?;
+    let rh = Rheometer::new(&*mat, &proto).map_err(|e| e.within(source.display()))?;
     let readings = rh.run();
     let names = mat.param_names();
     let mut sens = Vec::new();
@@ -375,7 +376,7 @@ mod tests {
     #[test]
     fn bad_protocols_name_the_phase_and_key() {
         let m = material(BINGHAM);
-        let e = |text: &str| Rheometer::new(&*m, &protocol(text)).err().unwrap();
+        let e = |text: &str| Rheometer::new(&*m, &protocol(text)).err().unwrap().to_string();
         assert!(e("[[phase]]\nkind = \"rest\"\nduration = -1.0\n").contains("rheometer.phase.0.duration"));
         assert!(e("[[phase]]\nkind = \"rest\"\nduration = 1.0\n[[phase]]\nkind = \"sweep\"\nrates = []\nhold = 1.0\n").contains("rheometer.phase.1.rates"));
         assert!(e("dt = 0.0\n[[phase]]\nkind = \"rest\"\nduration = 1.0\n").contains("rheometer.dt"));

@@ -4,6 +4,7 @@
 //! verdict is not "add EFFECT") or N rounds have run. The error after each round is the
 //! chi^2 per observation of the model it leaves.
 
+use super::error::MeasureError;
 use super::experiments::Experiments;
 use super::observation::Observation;
 use super::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
@@ -38,7 +39,7 @@ pub struct Rounds {
     pub model: Model,
 }
 
-pub fn rounds(model: &Model, data: &[Observation], exps: &Experiments, fit: &[String], opts: &DiagnoseOptions, max_rounds: usize) -> Result<Rounds, String> {
+pub fn rounds(model: &Model, data: &[Observation], exps: &Experiments, fit: &[String], opts: &DiagnoseOptions, max_rounds: usize) -> Result<Rounds, MeasureError> {
     let n = data.len().max(1) as f64;
     let (mut model, mut fit) = (model.clone(), fit.to_vec());
     let mut out = Rounds { rounds: vec![], added: vec![], final_chi2: f64::NAN, final_chi2_per_observation: f64::NAN, complete: false, fit: vec![], model: model.clone() };

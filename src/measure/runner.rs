@@ -8,6 +8,7 @@
 //! runs once, producing every observable asked of it; experiments are independent jobs, run
 //! `jobs` at a time, and give the same numbers however many run together.
 
+use super::error::{io_error, toml_error, MeasureError};
 use super::effects::Keys;
 use super::experiments::{Experiment, Experiments};
 use super::front::FrontTrace;
@@ -23,7 +24,7 @@ use std::path::Path;
 
 /// The scenario keys experiment `x` runs with: the model's for its covariates, then its own
 /// `set` overrides.
-pub fn experiment_keys(model: &Model, x: &Experiment) -> Result<Keys, String> {
+pub fn experiment_keys(model: &Model, x: &Experiment) -> Result<Keys, MeasureError> {
     let mut keys = model.keys(&x.covariates())?;
     for (k, v) in &x.set {
         keys.insert(k.clone(), number(v));
@@ -38,7 +39,7 @@ fn number(v: &toml::Value) -> f64 {
 
 /// The model's values of `wanted` for experiment `x`; a simulation with `threads` threads (its
 /// scenario's when `None`).
-pub fn evaluate(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], threads: Option<usize>) -> Result<Vec<f64>, String> {
+pub fn evaluate(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], threads: Option<usize>) -> Result<Vec<f64>, MeasureError> {
     let r = experiment_keys(model, x).and_then(|keys| match (&x.scenario, &x.protocol) {
         (Some(s), _) => simulate(model, &keys, &exps.base_dir.join(s), wanted, threads),
         (None, Some(p)) => {
@@ -46,35 +47,35 @@ pub fn evaluate(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obs
             let readings = Rheometer::new(&*material, &proto)?.run();
             wanted.iter().map(|o| reading_index(o, &readings).map(|k| readings[k].stress)).collect()
         }
-        (None, None) => Err("neither scenario nor protocol".into()),
+        (None, None) => Err(MeasureError::Run("neither scenario nor protocol".into())),
     });
-    r.map_err(|e| format!("experiment '{}': {e}", x.id))
+    r.map_err(|e| e.within(format!("experiment '{}'", x.id)))
 }
 
 /// The scenario of a simulation experiment: the file's, with the model's `[material]` in place
 /// of its own and every key set.
-pub fn scenario_text(model: &Model, keys: &Keys, scenario: &Path) -> Result<String, String> {
-    let text = std::fs::read_to_string(scenario).map_err(|e| format!("{}: {e}", scenario.display()))?;
-    let mut doc: toml::Table = text.parse().map_err(|e| format!("{}: {e}", scenario.display()))?;
+pub fn scenario_text(model: &Model, keys: &Keys, scenario: &Path) -> Result<String, MeasureError> {
+    let text = std::fs::read_to_string(scenario).map_err(io_error(scenario))?;
+    let mut doc: toml::Table = text.parse().map_err(toml_error(scenario))?;
     doc.insert("material".into(), toml::Value::Table(model.material_for(keys)));
     for (e, _) in &model.effects {
-        e.check_scenario(&doc).map_err(|m| format!("effect '{}' {m} in {}", e.name(), scenario.display()))?;
+        e.check_scenario(&doc).map_err(|m| MeasureError::Effect(format!("effect '{}' {m} in {}", e.name(), scenario.display())))?;
     }
     for (k, v) in keys {
         let at = super::effects::placed(k, &doc);
-        set_path(&mut doc, &at, *v).map_err(|e| format!("set.{k}: {e}"))?;
+        set_path(&mut doc, &at, *v).map_err(|e| e.within(format!("set.{k}")))?;
     }
-    toml::to_string(&doc).map_err(|e| e.to_string())
+    Ok(toml::to_string(&doc)?)
 }
 
-pub fn parse_scenario(text: &str, scenario: &Path) -> Result<Scenario, String> {
-    let mut sc = Scenario::parse(text).map_err(|e| format!("{}: {e}", scenario.display()))?;
+pub fn parse_scenario(text: &str, scenario: &Path) -> Result<Scenario, MeasureError> {
+    let mut sc = Scenario::parse(text).map_err(|e| MeasureError::from(e).within(scenario.display()))?;
     sc.base_dir = scenario.parent().map(Path::to_path_buf).unwrap_or_default();
     sc.checkpoint.enabled = false;
     Ok(sc)
 }
 
-fn simulate(model: &Model, keys: &Keys, scenario: &Path, wanted: &[Observable], threads: Option<usize>) -> Result<Vec<f64>, String> {
+fn simulate(model: &Model, keys: &Keys, scenario: &Path, wanted: &[Observable], threads: Option<usize>) -> Result<Vec<f64>, MeasureError> {
     let mut sc = parse_scenario(&scenario_text(model, keys, scenario)?, scenario)?;
     if let Some(t) = threads {
         sc.simulation.threads = t;
@@ -97,7 +98,7 @@ fn simulate(model: &Model, keys: &Keys, scenario: &Path, wanted: &[Observable], 
     }
     let mut plan: Vec<(usize, f64, Objective)> = rest.iter().map(|&k| observable_plan(&wanted[k], end).map(|(t, o)| (k, t, o))).collect::<Result<_, _>>()?;
     plan.sort_by(|a, b| a.1.total_cmp(&b.1));
-    let mut sim = Simulation::new(&sc).map_err(|e| e.to_string())?;
+    let mut sim = Simulation::new(&sc)?;
     let mut trace = if history.is_empty() { None } else { Some(FrontTrace::start(&sim)?) };
     for (k, t, obj) in plan {
         step_to(&mut sim, t, trace.as_mut())?;
@@ -113,9 +114,9 @@ fn simulate(model: &Model, keys: &Keys, scenario: &Path, wanted: &[Observable], 
 }
 
 /// Step `sim` to time `t`, recording the front after each step into `trace` when given.
-fn step_to(sim: &mut Simulation, t: f64, mut trace: Option<&mut FrontTrace>) -> Result<(), String> {
+fn step_to(sim: &mut Simulation, t: f64, mut trace: Option<&mut FrontTrace>) -> Result<(), MeasureError> {
     while sim.time < t * (1.0 - 1e-12) {
-        sim.step_until(t).map_err(|e| e.to_string())?;
+        sim.step_until(t)?;
         if let Some(tr) = trace.as_mut() {
             tr.record(sim)?;
         }
@@ -125,7 +126,7 @@ fn step_to(sim: &mut Simulation, t: f64, mut trace: Option<&mut FrontTrace>) -> 
 
 /// The material of a rheometer experiment (the model's, with its `material.*` keys; walls and the
 /// printing process do not reach a rheometer) and its protocol.
-pub fn rheometer_setup(model: &Model, keys: &Keys, base: &Path, protocol: &toml::Value) -> Result<(Box<dyn Material>, Protocol), String> {
+pub fn rheometer_setup(model: &Model, keys: &Keys, base: &Path, protocol: &toml::Value) -> Result<(Box<dyn Material>, Protocol), MeasureError> {
     let mut mat = model.material_for(keys);
     for (k, v) in keys {
         match k.strip_prefix("material.") {
@@ -133,17 +134,17 @@ pub fn rheometer_setup(model: &Model, keys: &Keys, base: &Path, protocol: &toml:
                 mat.insert(key.to_string(), toml::Value::Float(*v));
             }
             None if k.starts_with("boundary.") || k.starts_with("print.") => {}
-            None => return Err(format!("set.{k}: a rheometer test takes material keys only")),
+            None => return Err(MeasureError::Run(format!("set.{k}: a rheometer test takes material keys only"))),
         }
     }
     let material = crate::materials::build_material(&mat)?;
     let proto: Protocol = match protocol {
         toml::Value::String(file) => {
             let p = base.join(file);
-            let text = std::fs::read_to_string(&p).map_err(|e| format!("{}: {e}", p.display()))?;
-            toml::from_str(&text).map_err(|e| format!("{}: {}", p.display(), e.message()))?
+            let text = std::fs::read_to_string(&p).map_err(io_error(&p))?;
+            toml::from_str(&text).map_err(|e| MeasureError::Run(format!("{}: {}", p.display(), e.message())))?
         }
-        v => v.clone().try_into().map_err(|e: toml::de::Error| format!("protocol: {}", e.message()))?,
+        v => v.clone().try_into().map_err(|e: toml::de::Error| MeasureError::Run(format!("protocol: {}", e.message())))?,
     };
     Ok((material, proto))
 }
@@ -161,7 +162,7 @@ pub fn group(data: &[Observation]) -> Vec<(String, Vec<Observable>)> {
 }
 
 /// The model's value of every observation, in the data's order.
-pub fn model_values(model: &Model, data: &[Observation], exps: &Experiments, jobs: usize) -> Result<Vec<f64>, String> {
+pub fn model_values(model: &Model, data: &[Observation], exps: &Experiments, jobs: usize) -> Result<Vec<f64>, MeasureError> {
     let wanted = group(data);
     let values = evaluate_all(model, exps, &wanted, jobs)?;
     Ok(ungroup(data, &wanted, &values))
@@ -180,7 +181,7 @@ pub fn ungroup<T: Clone>(data: &[Observation], wanted: &[(String, Vec<Observable
 }
 
 /// Evaluate each experiment's `wanted` observables, `jobs` experiments at a time.
-pub fn evaluate_all(model: &Model, exps: &Experiments, wanted: &[(String, Vec<Observable>)], jobs: usize) -> Result<Vec<Vec<f64>>, String> {
+pub fn evaluate_all(model: &Model, exps: &Experiments, wanted: &[(String, Vec<Observable>)], jobs: usize) -> Result<Vec<Vec<f64>>, MeasureError> {
     let threads = job_threads(jobs);
     par_map_experiments(wanted, jobs, |k| {
         let (id, obs) = &wanted[k];
@@ -197,8 +198,8 @@ pub fn job_threads(jobs: usize) -> Option<usize> {
 }
 
 /// Experiment `id`, or an error listing the ids there are.
-pub fn find<'a>(exps: &'a Experiments, id: &str) -> Result<&'a Experiment, String> {
-    exps.get(id).ok_or_else(|| format!("experiment '{id}' is not in the experiments file (it has {})", exps.experiment.iter().map(|e| e.id.as_str()).collect::<Vec<_>>().join(", ")))
+pub fn find<'a>(exps: &'a Experiments, id: &str) -> Result<&'a Experiment, MeasureError> {
+    exps.get(id).ok_or_else(|| MeasureError::Run(format!("experiment '{id}' is not in the experiments file (it has {})", exps.experiment.iter().map(|e| e.id.as_str()).collect::<Vec<_>>().join(", "))))
 }
 
 /// `f(k)` for each of the experiments `wanted` (`f(k)` runs `wanted[k]`) as independent jobs,
@@ -206,7 +207,7 @@ pub fn find<'a>(exps: &'a Experiments, id: &str) -> Result<&'a Experiment, Strin
 /// longest first by the seconds each took last in this process (those not yet run first, in their
 /// order), so that a long experiment does not start last while the other workers stand idle.
 /// The order is scheduling only: the results, and each job's threads, are the same in any order.
-pub fn par_map_experiments<T: Send>(wanted: &[(String, Vec<Observable>)], jobs: usize, f: impl Fn(usize) -> Result<T, String> + Sync) -> Result<Vec<T>, String> {
+pub fn par_map_experiments<T: Send>(wanted: &[(String, Vec<Observable>)], jobs: usize, f: impl Fn(usize) -> Result<T, MeasureError> + Sync) -> Result<Vec<T>, MeasureError> {
     let last: Vec<f64> = {
         let took = LAST_SECONDS.lock().unwrap_or_else(|e| e.into_inner());
         wanted.iter().map(|(id, _)| took.get(id).copied().unwrap_or(f64::INFINITY)).collect()
@@ -226,10 +227,10 @@ static LAST_SECONDS: std::sync::Mutex<std::collections::BTreeMap<String, f64>> =
 
 /// `f(k)` for every k of `order` as independent jobs, handed out in that order, `jobs` at a time;
 /// results in index order, the first error (by index) if any failed.
-fn in_order<T: Send>(order: &[usize], jobs: usize, f: impl Fn(usize) -> Result<T, String> + Sync) -> Result<Vec<T>, String> {
+fn in_order<T: Send>(order: &[usize], jobs: usize, f: impl Fn(usize) -> Result<T, MeasureError> + Sync) -> Result<Vec<T>, MeasureError> {
     let n = order.len();
     let next = std::sync::atomic::AtomicUsize::new(0);
-    let results: Vec<std::sync::Mutex<Option<Result<T, String>>>> = (0..n).map(|_| std::sync::Mutex::new(None)).collect();
+    let results: Vec<std::sync::Mutex<Option<Result<T, MeasureError>>>> = (0..n).map(|_| std::sync::Mutex::new(None)).collect();
     std::thread::scope(|s| {
         for _ in 0..jobs.clamp(1, n.max(1)) {
             s.spawn(|| loop {
@@ -255,10 +256,10 @@ mod tests {
     fn unknown_experiments_and_readings_are_named() {
         let (m, e) = setup();
         let data = vec![Observation { experiment: "nope".into(), observable: Observable::parse("stress@5").unwrap(), value: 1.0, uncertainty: 1.0 }];
-        let err = model_values(&m, &data, &e, 1).unwrap_err();
+        let err = model_values(&m, &data, &e, 1).unwrap_err().to_string();
         assert!(err.contains("'nope'") && err.contains("flow, weak"), "{err}");
         let data = vec![Observation { experiment: "flow".into(), observable: Observable::parse("stress@7").unwrap(), value: 1.0, uncertainty: 1.0 }];
-        let err = model_values(&m, &data, &e, 1).unwrap_err();
+        let err = model_values(&m, &data, &e, 1).unwrap_err().to_string();
         assert!(err.contains("flow") && err.contains("no reading at rate 7"), "{err}");
     }
 }

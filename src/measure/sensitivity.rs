@@ -19,6 +19,7 @@
 //! after the step of the whole run that reaches it (to the step control's rounding of 1e-9 dt),
 //! not from a run that ends there: the two differ by that rounding of the last step's length.
 
+use super::error::MeasureError;
 use super::experiments::{Experiment, Experiments};
 use super::observables::{observable_plan, reading_index};
 use super::observation::{Observable, Observation};
@@ -47,7 +48,7 @@ pub struct Sensitivity {
 
 /// Values of every observation under `model`, with their gradients in `names` when given;
 /// experiments run `jobs` at a time.
-pub fn sensitivity(model: &Model, data: &[Observation], exps: &Experiments, names: Option<&[String]>, jobs: usize) -> Result<Sensitivity, String> {
+pub fn sensitivity(model: &Model, data: &[Observation], exps: &Experiments, names: Option<&[String]>, jobs: usize) -> Result<Sensitivity, MeasureError> {
     campaign(model, data, exps, names, jobs, None)
 }
 
@@ -55,11 +56,11 @@ pub fn sensitivity(model: &Model, data: &[Observation], exps: &Experiments, name
 /// as [`sensitivity`] gives them there: a calibration's accepted trial). An experiment whose
 /// Jacobian is all central differences takes them instead of running the model again: one run
 /// of its 1 + 2 p.
-pub fn jacobian_at(model: &Model, data: &[Observation], exps: &Experiments, names: &[String], jobs: usize, values: &[f64]) -> Result<Sensitivity, String> {
+pub fn jacobian_at(model: &Model, data: &[Observation], exps: &Experiments, names: &[String], jobs: usize, values: &[f64]) -> Result<Sensitivity, MeasureError> {
     campaign(model, data, exps, Some(names), jobs, Some(values))
 }
 
-fn campaign(model: &Model, data: &[Observation], exps: &Experiments, names: Option<&[String]>, jobs: usize, known: Option<&[f64]>) -> Result<Sensitivity, String> {
+fn campaign(model: &Model, data: &[Observation], exps: &Experiments, names: Option<&[String]>, jobs: usize, known: Option<&[f64]>) -> Result<Sensitivity, MeasureError> {
     let wanted = group(data);
     // fewer experiments than jobs share the cores among those there are (a left-out experiment
     // run alone takes them all)
@@ -81,13 +82,13 @@ fn regroup(data: &[Observation], wanted: &[(String, Vec<Observable>)], values: &
 
 /// One experiment's values of `wanted` and, with `names`, their gradients: the unit of work
 /// [`sensitivity`] runs side by side and a scheduler's job runs alone (`engine.rs`).
-pub fn one(model: &Model, exps: &Experiments, id: &str, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>) -> Result<Vec<Valued>, String> {
+pub fn one(model: &Model, exps: &Experiments, id: &str, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>) -> Result<Vec<Valued>, MeasureError> {
     one_known(model, exps, id, wanted, names, threads, None)
 }
 
-fn one_known(model: &Model, exps: &Experiments, id: &str, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>, known: Option<&[f64]>) -> Result<Vec<Valued>, String> {
+fn one_known(model: &Model, exps: &Experiments, id: &str, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>, known: Option<&[f64]>) -> Result<Vec<Valued>, MeasureError> {
     let x = find(exps, id)?;
-    experiment(model, exps, x, wanted, names, threads, known).map_err(|e| format!("experiment '{id}': {e}"))
+    experiment(model, exps, x, wanted, names, threads, known).map_err(|e| e.within(format!("experiment '{id}'")))
 }
 
 /// The experiments' results ([`one`] each, in `wanted`'s order) in the data's order.
@@ -141,7 +142,7 @@ pub const DIFFERENCE_STEP_SMOOTH: f64 = 0.03;
 /// larger: 3 % of a viscosity fitted to 1e-5 Pa s moves the model by less than its particle
 /// noise, and a difference over it is that noise over a tiny step, a column 10^4 times the
 /// others that a Gauss-Newton step follows and the model then refuses.
-fn smooth_step(model: &Model, name: &str) -> Result<f64, String> {
+fn smooth_step(model: &Model, name: &str) -> Result<f64, MeasureError> {
     Ok(DIFFERENCE_STEP_SMOOTH * model.get(name)?.abs().max(model.unit(name)?))
 }
 
@@ -162,7 +163,7 @@ pub fn by_differences_is_cheaper(runs: usize, observations: usize) -> bool {
 
 /// One experiment's values of `wanted` and, with `names`, their gradients; `known`: its values at
 /// `model`, where the caller has them.
-fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>, known: Option<&[f64]>) -> Result<Vec<Valued>, String> {
+fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>, known: Option<&[f64]>) -> Result<Vec<Valued>, MeasureError> {
     let (adjoint, other): (Vec<usize>, Vec<usize>) = (0..wanted.len()).partition(|&k| has_adjoint(&wanted[k]));
     if other.is_empty() {
         return simulated(model, exps, x, wanted, names, threads, known);
@@ -187,7 +188,7 @@ fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obser
 /// material enters in, and a changed flow or speed changes that over a whole print: the
 /// extrusion factor's adjoint gets the sign of a line's width wrong) and, for a simulation, for
 /// every parameter when that costs less than the adjoint ([`by_differences_is_cheaper`]).
-fn simulated(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>, known: Option<&[f64]>) -> Result<Vec<Valued>, String> {
+fn simulated(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>, known: Option<&[f64]>) -> Result<Vec<Valued>, MeasureError> {
     let (Some(names), Some(_)) = (names, &x.scenario) else { return by_adjoint(model, exps, x, wanted, names, threads) };
     let keys = experiment_keys(model, x)?;
     let sides = names.iter().map(|n| smooth_step(model, n).and_then(|h| moves(model, x, &keys, n, h))).collect::<Result<Vec<_>, _>>()?;
@@ -235,7 +236,7 @@ fn simulated(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observ
 /// domain is refused). The difference is one-sided where p - h or p + h leaves the parameter's
 /// bounds (an effect at its null on its lower bound). A parameter that leaves this experiment's
 /// scenario keys as they are has a zero column without a run.
-fn differenced(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>, known: Option<&[f64]>) -> Result<Vec<Valued>, String> {
+fn differenced(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>, known: Option<&[f64]>) -> Result<Vec<Valued>, MeasureError> {
     const WIDEST: f64 = 0.4;
     const WIDEST_AT_NULL: f64 = 64.0;
     const GROWTH: f64 = 4.0;
@@ -300,11 +301,11 @@ impl Sides {
 /// `name` moved to p +- h, each side held within the parameter's bounds, with the models there
 /// (None for a side at p, or one that leaves this experiment's scenario keys as they are). None
 /// when neither side changes the experiment: its column is 0 without a run.
-fn moves(model: &Model, x: &Experiment, keys: &Keys, name: &str, h: f64) -> Result<Option<Sides>, String> {
+fn moves(model: &Model, x: &Experiment, keys: &Keys, name: &str, h: f64) -> Result<Option<Sides>, MeasureError> {
     let (p, b) = (model.get(name)?, model.bounds(name)?);
     let (lo, hi) = ((p - h).max(b.lower), (p + h).min(b.upper));
     let mut toolpath = false;
-    let mut moved = |v: f64| -> Result<Option<Model>, String> {
+    let mut moved = |v: f64| -> Result<Option<Model>, MeasureError> {
         let mut m = model.clone();
         m.set(name, v)?;
         let there = experiment_keys(&m, x)?;
@@ -323,7 +324,7 @@ fn moves(model: &Model, x: &Experiment, keys: &Keys, name: &str, h: f64) -> Resu
 /// at 3 % steps, which only makes the estimate cautious); the mean square over the parameters
 /// that ran both sides, over 6, estimates s^2; and a column's entry, a difference over a width w,
 /// scatters by s sqrt(2) / w.
-fn central(values: &[f64], run: impl Fn(&Model) -> Result<Vec<f64>, String>, sides: Vec<Option<Sides>>) -> Result<Central, String> {
+fn central(values: &[f64], run: impl Fn(&Model) -> Result<Vec<f64>, MeasureError>, sides: Vec<Option<Sides>>) -> Result<Central, MeasureError> {
     let mut rows = vec![vec![0.0; sides.len()]; values.len()];
     let mut second = vec![0.0; values.len()];
     let mut both_sides = 0;
@@ -364,10 +365,10 @@ struct Central {
     column_scatter: Vec<Vec<f64>>,
 }
 
-fn by_adjoint(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>) -> Result<Vec<Valued>, String> {
+fn by_adjoint(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>) -> Result<Vec<Valued>, MeasureError> {
     let keys = experiment_keys(model, x)?;
     // an override cuts the key from the model
-    let chain = |mut keys_bar: Keys| -> Result<Vec<f64>, String> {
+    let chain = |mut keys_bar: Keys| -> Result<Vec<f64>, MeasureError> {
         for k in x.set.keys() {
             keys_bar.remove(k);
         }
@@ -384,7 +385,7 @@ fn by_adjoint(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obser
             let (wrt, placed): (Vec<String>, Vec<String>) = match names {
                 Some(_) => {
                     let known = params::known(&driver::prepare(&whole, threads)?);
-                    let doc: toml::Table = text.parse().map_err(|e| format!("{e}"))?;
+                    let doc: toml::Table = text.parse()?;
                     keys.keys().filter(|k| !x.set.contains_key(*k)).map(|k| (k.clone(), super::effects::placed(k, &doc))).filter(|(_, p)| known.contains(p)).unzip()
                 }
                 None => (Vec::new(), Vec::new()),
@@ -439,7 +440,7 @@ fn by_adjoint(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obser
                 })
                 .collect()
         }
-        (None, None) => Err("neither scenario nor protocol".into()),
+        (None, None) => Err(MeasureError::Run("neither scenario nor protocol".into())),
     }
 }
 
@@ -489,7 +490,7 @@ mod tests {
             3f64.sqrt() * (2.0 * (x >> 11) as f64 / (1u64 << 53) as f64 - 1.0)
         };
         let n = 4000;
-        let rough = |m: &Model| -> Result<Vec<f64>, String> {
+        let rough = |m: &Model| -> Result<Vec<f64>, MeasureError> {
             let v = m.get(name)?;
             Ok((0..n).map(|i| (1.0 + i as f64) * v + s * noise(i, v)).collect())
         };
@@ -501,7 +502,7 @@ mod tests {
         let expected = s / (2f64.sqrt() * h);
         assert!(((miss / n as f64).sqrt() / expected - 1.0).abs() < 0.05, "slopes miss by {} rms against {expected}", (miss / n as f64).sqrt());
         assert!(((said / n as f64).sqrt() / expected - 1.0).abs() < 0.1, "slopes said to scatter by {} rms against {expected}", (said / n as f64).sqrt());
-        let smooth = |m: &Model| -> Result<Vec<f64>, String> { Ok(vec![3.0 * m.get(name)?, m.get(name)?.powi(2)]) };
+        let smooth = |m: &Model| -> Result<Vec<f64>, MeasureError> { Ok(vec![3.0 * m.get(name)?, m.get(name)?.powi(2)]) };
         let c = central(&smooth(&m).unwrap(), smooth, sides()).unwrap();
         assert!(c.scatter[0] < 1e-12, "a line has no scatter: {}", c.scatter[0]);
         assert!((c.scatter[1] - 2.0 * h * h / 6f64.sqrt()).abs() < 1e-9, "a parabola's: {}", c.scatter[1]);

@@ -1,6 +1,7 @@
 //! Measurements synthesised from a model (`strand synth`): every experiment's `observe` list run
 //! under the model, each value with seeded noise, so a seed gives the same data anywhere.
 
+use super::error::MeasureError;
 use super::experiments::Experiments;
 use super::model::Model;
 use super::observation::{Observable, Observation};
@@ -12,17 +13,17 @@ use rand_distr::{Distribution, StandardNormal};
 /// Measurements of every experiment's `observe` list under `model`, each value times
 /// (1 + noise N(0, 1)) from a seeded generator, with uncertainty noise |value| (at least 1e-6 of
 /// it, so z-scores stay finite without noise).
-pub fn synth(model: &Model, exps: &Experiments, noise: f64, seed: u64, jobs: usize) -> Result<Vec<Observation>, String> {
+pub fn synth(model: &Model, exps: &Experiments, noise: f64, seed: u64, jobs: usize) -> Result<Vec<Observation>, MeasureError> {
     if !(noise.is_finite() && noise >= 0.0) {
-        return Err(format!("--noise must be >= 0, got {noise}"));
+        return Err(MeasureError::Synth(format!("--noise must be >= 0, got {noise}")));
     }
     let wanted: Vec<(String, Vec<Observable>)> = exps
         .experiment
         .iter()
         .map(|x| Ok((x.id.clone(), x.observe.iter().map(|o| Observable::parse(o)).collect::<Result<Vec<_>, _>>()?)))
-        .collect::<Result<_, String>>()?;
+        .collect::<Result<_, MeasureError>>()?;
     if wanted.iter().all(|(_, o)| o.is_empty()) {
-        return Err("no experiment lists anything to observe (observe = [...])".into());
+        return Err(MeasureError::Synth("no experiment lists anything to observe (observe = [...])".into()));
     }
     let values = evaluate_all(model, exps, &wanted, jobs)?;
     let mut rng = noise_source(seed);

@@ -30,13 +30,6 @@ pub enum PlotError {
     Draw { path: PathBuf, message: String },
 }
 
-/// Where a caller still reports errors as text, the message as it was.
-impl From<PlotError> for String {
-    fn from(e: PlotError) -> String {
-        e.to_string()
-    }
-}
-
 /// The drawing error `e` of the plot at `path`.
 fn draw_error(path: &Path) -> impl Fn(&dyn std::fmt::Display) -> PlotError + '_ {
     move |e| PlotError::Draw { path: path.to_path_buf(), message: e.to_string() }
@@ -160,10 +153,9 @@ pub fn plot_cross_section(
 
 /// Plots series of (x, y) points to a PNG of 900 x 500 pixels, as lines with markers (`lines`)
 /// or markers only; axes fitted to the data (5 % padding), non-finite points skipped.
-pub fn plot_xy(path: &Path, title: &str, x_desc: &str, y_desc: &str, series: &[(String, Vec<[f64; 2]>)], lines: bool) -> Result<(), String> {
-    // text errors until its callers in the measurement loop take PlotError
+pub fn plot_xy(path: &Path, title: &str, x_desc: &str, y_desc: &str, series: &[(String, Vec<[f64; 2]>)], lines: bool) -> Result<(), PlotError> {
     ensure_font()?;
-    let err = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
+    let err = draw_error(path);
     let (xr, yr) = fitted_ranges(series.iter().flat_map(|(_, p)| p.iter().copied()));
     let root = BitMapBackend::new(path, SIZE).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(&e))?;

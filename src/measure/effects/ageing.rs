@@ -4,6 +4,7 @@
 //! test lasts seconds, ageing takes tens of minutes, so the yield stress is taken as constant
 //! over one test. Null: r = 0.
 
+use super::super::error::MeasureError;
 use super::{add_bar, bar, read, Covariates, Effect, Keys, ParamSpec};
 
 pub struct Ageing {
@@ -42,7 +43,7 @@ impl Effect for Ageing {
     fn params(&self) -> &'static [ParamSpec] {
         PARAMS
     }
-    fn apply(&self, p: &[f64], x: &Covariates, keys: &mut Keys) -> Result<(), String> {
+    fn apply(&self, p: &[f64], x: &Covariates, keys: &mut Keys) -> Result<(), MeasureError> {
         let tau0 = read(keys, self.name, "material.yield_stress")?;
         keys.insert("material.yield_stress".into(), tau0 * self.factor(p[0], x.age).0);
         Ok(())

@@ -25,6 +25,7 @@
 //! names and parameter specs, as the library's do, so each distinct declaration is kept once
 //! ([`intern`]) however often a model is loaded or cloned.
 
+use super::super::error::MeasureError;
 use super::{add_bar, bar, read, Covariates, Effect, Keys, ParamSpec};
 use crate::measure::expression::Expression;
 use std::sync::Mutex;
@@ -78,27 +79,27 @@ pub fn is_declaration(table: &toml::Table) -> bool {
 
 /// Read `[effects.NAME]`. `material` is the model's `[material]`, whose numbers bare names
 /// refer to; `line_of(key)` is the line of `sets.KEY` in the model file, when known.
-pub fn declare(name: &str, table: &toml::Table, material: &toml::Table, line_of: &dyn Fn(&str) -> Option<usize>) -> Result<Declaration, String> {
+pub fn declare(name: &str, table: &toml::Table, material: &toml::Table, line_of: &dyn Fn(&str) -> Option<usize>) -> Result<Declaration, MeasureError> {
     let here = format!("effects.{name}");
     if super::REGISTRY.iter().any(|e| e.name() == name) {
-        return Err(format!("{here}: '{name}' is an effect of the library; a declared effect (with `sets`) needs a name of its own"));
+        return Err(MeasureError::Effect(format!("{here}: '{name}' is an effect of the library; a declared effect (with `sets`) needs a name of its own")));
     }
     if name.contains('.') {
-        return Err(format!("{here}: a declared effect's name cannot contain '.'"));
+        return Err(MeasureError::Effect(format!("{here}: a declared effect's name cannot contain '.'")));
     }
     let about = match table.get("about") {
         None => format!("declared in the model file: {}", describe_sets(table)),
-        Some(v) => v.as_str().ok_or_else(|| format!("{here}.about must be a string"))?.to_string(),
+        Some(v) => v.as_str().ok_or_else(|| MeasureError::Effect(format!("{here}.about must be a string")))?.to_string(),
     };
     let covariates: Vec<String> = match table.get("covariates") {
         None => vec![],
         Some(v) => v
             .as_array()
             .and_then(|a| a.iter().map(|c| c.as_str().map(str::to_string)).collect::<Option<Vec<_>>>())
-            .ok_or_else(|| format!("{here}.covariates must be a list of names, e.g. covariates = [\"temperature\"]"))?,
+            .ok_or_else(|| MeasureError::Effect(format!("{here}.covariates must be a list of names, e.g. covariates = [\"temperature\"]")))?,
     };
     if let Some(c) = covariates.iter().find(|c| ["rest_time", "age"].contains(&c.as_str())) {
-        return Err(format!("{here}.covariates: '{c}' is always there; list only the covariates experiments declare"));
+        return Err(MeasureError::Effect(format!("{here}.covariates: '{c}' is always there; list only the covariates experiments declare")));
     }
     let params = read_params(&here, table.get("params"))?;
     for p in &params {
@@ -110,32 +111,32 @@ pub fn declare(name: &str, table: &toml::Table, material: &toml::Table, line_of:
             None
         };
         if let Some(what) = clash {
-            return Err(format!("{here}.params: parameter '{}' has the name of {what}; rename it", p.name));
+            return Err(MeasureError::Effect(format!("{here}.params: parameter '{}' has the name of {what}; rename it", p.name)));
         }
     }
-    let sets_table = table.get("sets").and_then(|s| s.as_table()).ok_or_else(|| format!("{here}.sets must be a table of KEY = \"expression\""))?;
+    let sets_table = table.get("sets").and_then(|s| s.as_table()).ok_or_else(|| MeasureError::Effect(format!("{here}.sets must be a table of KEY = \"expression\"")))?;
     if sets_table.is_empty() {
-        return Err(format!("{here}.sets sets nothing"));
+        return Err(MeasureError::Effect(format!("{here}.sets sets nothing")));
     }
     let mut sets = Vec::new();
     for (key, v) in sets_table {
         let line = line_of(key).map_or(String::new(), |l| format!(" (line {l})"));
-        let text = v.as_str().ok_or_else(|| format!("{here}.sets.\"{key}\"{line} must be an expression in a string"))?;
-        let expression = Expression::parse(text).map_err(|e| format!("{here}.sets.\"{key}\"{line}: in '{text}': {e}"))?;
+        let text = v.as_str().ok_or_else(|| MeasureError::Effect(format!("{here}.sets.\"{key}\"{line} must be an expression in a string")))?;
+        let expression = Expression::parse(text).map_err(|e| e.within(format!("{here}.sets.\"{key}\"{line}: in '{text}'")))?;
         let reads = expression
             .symbols()
             .iter()
             .map(|s| {
                 resolve(s, &params, &covariates, material).ok_or_else(|| {
-                    format!(
+                    MeasureError::Effect(format!(
                         "{here}.sets.\"{key}\"{line}: unknown symbol '{s}' in '{text}'; an expression reads the effect's parameters ({}), rest_time, age, the covariates it lists in `covariates` ({}), a key in full (material.KEY) or a number of [material] by name ({})",
                         names_or_none(params.iter().map(|p| p.name.as_str())),
                         names_or_none(covariates.iter().map(String::as_str)),
                         names_or_none(material.iter().filter(|(_, v)| crate::measure::observation::number(v).is_some()).map(|(k, _)| k.as_str())),
-                    )
+                    ))
                 })
             })
-            .collect::<Result<Vec<Read>, String>>()?;
+            .collect::<Result<Vec<Read>, MeasureError>>()?;
         sets.push(Assignment { key: key.clone(), expression, reads });
     }
     let mut values: Vec<f64> = params.iter().map(|p| p.null).collect();
@@ -145,13 +146,13 @@ pub fn declare(name: &str, table: &toml::Table, material: &toml::Table, line_of:
             continue;
         }
         if k == CANDIDATE {
-            candidate = v.as_bool().ok_or_else(|| format!("{here}.{CANDIDATE} must be true or false"))?;
+            candidate = v.as_bool().ok_or_else(|| MeasureError::Effect(format!("{here}.{CANDIDATE} must be true or false")))?;
             continue;
         }
         let i = params.iter().position(|p| p.name == *k).ok_or_else(|| {
-            format!("{here}: unknown key '{k}'; a declared effect has {}, {CANDIDATE}, and the values of its parameters ({})", DECLARATION.join(", "), names_or_none(params.iter().map(|p| p.name.as_str())))
+            MeasureError::Effect(format!("{here}: unknown key '{k}'; a declared effect has {}, {CANDIDATE}, and the values of its parameters ({})", DECLARATION.join(", "), names_or_none(params.iter().map(|p| p.name.as_str()))))
         })?;
-        values[i] = crate::measure::observation::number(v).ok_or_else(|| format!("{here}.{k} must be a number"))?;
+        values[i] = crate::measure::observation::number(v).ok_or_else(|| MeasureError::Effect(format!("{here}.{k} must be a number")))?;
     }
     let declaration: toml::Table = table.iter().filter(|(k, _)| DECLARATION.contains(&k.as_str())).map(|(k, v)| (k.clone(), v.clone())).collect();
     let effect = intern(name, about, params, sets, declaration);
@@ -203,46 +204,46 @@ struct Spec {
     unit: String,
 }
 
-fn read_params(here: &str, v: Option<&toml::Value>) -> Result<Vec<Spec>, String> {
-    let t = v.and_then(|v| v.as_table()).ok_or_else(|| format!("{here}.params must be a table of NAME = {{ null = ..., min = ..., max = ... }}"))?;
+fn read_params(here: &str, v: Option<&toml::Value>) -> Result<Vec<Spec>, MeasureError> {
+    let t = v.and_then(|v| v.as_table()).ok_or_else(|| MeasureError::Effect(format!("{here}.params must be a table of NAME = {{ null = ..., min = ..., max = ... }}")))?;
     if t.is_empty() {
-        return Err(format!("{here}.params: a declared effect needs a parameter"));
+        return Err(MeasureError::Effect(format!("{here}.params: a declared effect needs a parameter")));
     }
     let mut out = Vec::new();
     for (name, spec) in t {
         let at = format!("{here}.params.{name}");
         if name.contains('.') {
-            return Err(format!("{at}: a parameter's name cannot contain '.'"));
+            return Err(MeasureError::Effect(format!("{at}: a parameter's name cannot contain '.'")));
         }
-        let spec = spec.as_table().ok_or_else(|| format!("{at} must be {{ null = ..., min = ..., max = ... }}"))?;
+        let spec = spec.as_table().ok_or_else(|| MeasureError::Effect(format!("{at} must be {{ null = ..., min = ..., max = ... }}")))?;
         if let Some(k) = spec.keys().find(|k| !["null", "min", "max", "scale", "unit"].contains(&k.as_str())) {
-            return Err(format!("{at}: unknown key '{k}' (a parameter has null, min, max, scale, unit)"));
+            return Err(MeasureError::Effect(format!("{at}: unknown key '{k}' (a parameter has null, min, max, scale, unit)")));
         }
-        let num = |k: &str, default: Option<f64>| -> Result<f64, String> {
+        let num = |k: &str, default: Option<f64>| -> Result<f64, MeasureError> {
             match spec.get(k) {
-                Some(v) => crate::measure::observation::number(v).ok_or_else(|| format!("{at}.{k} must be a number")),
-                None => default.ok_or_else(|| format!("{at}: give {k}")),
+                Some(v) => crate::measure::observation::number(v).ok_or_else(|| MeasureError::Effect(format!("{at}.{k} must be a number"))),
+                None => default.ok_or_else(|| MeasureError::Effect(format!("{at}: give {k}"))),
             }
         };
         let null = num("null", None)?;
         let lower = num("min", Some(f64::NEG_INFINITY))?;
         let upper = num("max", Some(f64::INFINITY))?;
         if !(null.is_finite() && lower <= null && null <= upper) || lower >= upper {
-            return Err(format!("{at}: needs a finite null within min < max (null {null}, min {lower}, max {upper})"));
+            return Err(MeasureError::Effect(format!("{at}: needs a finite null within min < max (null {null}, min {lower}, max {upper})")));
         }
         let spread = upper - lower;
         let scale = match spec.get("scale") {
             Some(_) => num("scale", None)?,
             None if spread.is_finite() => spread / 10.0,
             None if null != 0.0 => null.abs(),
-            None => return Err(format!("{at}: give scale (a typical magnitude, the fit's unit step): its bounds are open and its null is 0")),
+            None => return Err(MeasureError::Effect(format!("{at}: give scale (a typical magnitude, the fit's unit step): its bounds are open and its null is 0"))),
         };
         if !(scale.is_finite() && scale > 0.0) {
-            return Err(format!("{at}.scale must be > 0, got {scale}"));
+            return Err(MeasureError::Effect(format!("{at}.scale must be > 0, got {scale}")));
         }
         let unit = match spec.get("unit") {
             None => "-",
-            Some(u) => u.as_str().ok_or_else(|| format!("{at}.unit must be a string"))?,
+            Some(u) => u.as_str().ok_or_else(|| MeasureError::Effect(format!("{at}.unit must be a string")))?,
         };
         out.push(Spec { name: name.clone(), null, lower, upper, scale, unit: unit.to_string() });
     }
@@ -281,14 +282,14 @@ impl Declared {
         t
     }
 
-    fn values(&self, a: &Assignment, p: &[f64], x: &Covariates, keys: &Keys) -> Result<Vec<f64>, String> {
+    fn values(&self, a: &Assignment, p: &[f64], x: &Covariates, keys: &Keys) -> Result<Vec<f64>, MeasureError> {
         a.reads
             .iter()
             .map(|r| match r {
                 Read::Param(i) => Ok(p[*i]),
                 Read::RestTime => Ok(x.rest_time),
                 Read::Age => Ok(x.age),
-                Read::Covariate(c) => x.declared.get(c).copied().ok_or_else(|| format!("effect '{}' reads the covariate '{c}', which the experiment does not declare (covariates = {{ {c} = ... }})", self.name)),
+                Read::Covariate(c) => x.declared.get(c).copied().ok_or_else(|| MeasureError::Effect(format!("effect '{}' reads the covariate '{c}', which the experiment does not declare (covariates = {{ {c} = ... }})", self.name))),
                 Read::Key(k) => read(keys, self.name, k),
             })
             .collect()
@@ -296,7 +297,7 @@ impl Declared {
 
     /// Refuse a declaration that does not vanish at its null: each key it sets that the
     /// material gives must come back unchanged, at a few values of the covariates.
-    fn check_null(&self, material: &toml::Table) -> Result<(), String> {
+    fn check_null(&self, material: &toml::Table) -> Result<(), MeasureError> {
         let keys: Keys = material.iter().filter_map(|(k, v)| crate::measure::observation::number(v).map(|n| (format!("material.{k}"), n))).collect();
         let null: Vec<f64> = self.params.iter().map(|s| s.null).collect();
         for (rest_time, age, c) in [(0.0, 0.0, 0.0), (240.0, 1800.0, 1.0), (600.0, 7200.0, 25.0)] {
@@ -313,13 +314,13 @@ impl Declared {
                 let after = a.expression.eval(&values);
                 if !((after - before).abs() <= 1e-12 * before.abs().max(1e-300)) {
                     let at: Vec<String> = self.params.iter().map(|s| format!("{} = {}", s.name, s.null)).collect();
-                    return Err(format!(
+                    return Err(MeasureError::Effect(format!(
                         "effects.{}: at its null ({}) '{}' gives {} = {after}, not the material's {before} (rest_time {rest_time}, age {age}): an effect must vanish at its null",
                         self.name,
                         at.join(", "),
                         a.expression.text(),
                         a.key
-                    ));
+                    )));
                 }
             }
         }
@@ -337,7 +338,7 @@ impl Effect for Declared {
     fn params(&self) -> &'static [ParamSpec] {
         self.params
     }
-    fn apply(&self, p: &[f64], x: &Covariates, keys: &mut Keys) -> Result<(), String> {
+    fn apply(&self, p: &[f64], x: &Covariates, keys: &mut Keys) -> Result<(), MeasureError> {
         let out: Vec<f64> = self.sets.iter().map(|a| self.values(a, p, x, keys).map(|v| a.expression.eval(&v))).collect::<Result<_, _>>()?;
         for (a, v) in self.sets.iter().zip(out) {
             keys.insert(a.key.clone(), v);
@@ -378,7 +379,7 @@ mod tests {
 
     const MATERIAL: &str = "kind = \"evp_bingham\"\ndensity = 2300.0\nbulk_modulus = 1e6\npoisson_ratio = 0.3\nviscosity = 20.0\nyield_stress = 100.0\n";
 
-    fn parse(effect: &str) -> Result<Declaration, String> {
+    fn parse(effect: &str) -> Result<Declaration, MeasureError> {
         let t: toml::Table = effect.parse().unwrap();
         let (name, table) = t["effects"].as_table().unwrap().iter().next().unwrap();
         declare(name, table.as_table().unwrap(), &MATERIAL.parse().unwrap(), &|_| Some(7))
@@ -405,7 +406,7 @@ mod tests {
 
     #[test]
     fn bad_declarations_name_the_symbol_the_expression_and_the_line() {
-        let e = parse(&EXAMPLES[0].replace("age^b", "agee^b")).unwrap_err();
+        let e = parse(&EXAMPLES[0].replace("age^b", "agee^b")).unwrap_err().to_string();
         assert!(e.contains("unknown symbol 'agee'") && e.contains("'yield_stress * (1 + a * agee^b)'") && e.contains("(line 7)"), "{e}");
         assert!(e.contains("parameters (a, b)") && e.contains("yield_stress"), "{e}");
         for (bad, want) in [
@@ -418,13 +419,13 @@ mod tests {
             (EXAMPLES[0].replace("b = {", "viscosity = {").replace("age^b", "age^viscosity"), "parameter 'viscosity' has the name of a number of [material]"),
             (EXAMPLES[0].replace("min = 0, max = 1e-2", "min = 0"), "give scale"),
         ] {
-            let e = parse(&bad).unwrap_err();
+            let e = parse(&bad).unwrap_err().to_string();
             assert!(e.contains(want), "{bad}: {e}");
         }
         // a covariate the experiment does not give is named when the effect runs
         let d = parse(EXAMPLES[1]).unwrap();
         let mut keys: Keys = [("material.viscosity".to_string(), 20.0)].into_iter().collect();
-        let e = d.effect.apply(&[0.01], &Covariates::default(), &mut keys).unwrap_err();
+        let e = d.effect.apply(&[0.01], &Covariates::default(), &mut keys).unwrap_err().to_string();
         assert!(e.contains("covariate 'temperature'") && e.contains("hot_thinning"), "{e}");
     }
 }

@@ -12,6 +12,7 @@
 //! out at G_M = 0, where it changes nothing: an experiment's keys then do not move with t_M, and
 //! its Jacobian column is 0 without the runs central differences would take.
 
+use super::super::error::MeasureError;
 use super::{bar, Covariates, Effect, Keys, ParamSpec};
 
 pub struct Maxwell;
@@ -34,7 +35,7 @@ impl Effect for Maxwell {
     fn params(&self) -> &'static [ParamSpec] {
         PARAMS
     }
-    fn apply(&self, p: &[f64], _: &Covariates, keys: &mut Keys) -> Result<(), String> {
+    fn apply(&self, p: &[f64], _: &Covariates, keys: &mut Keys) -> Result<(), MeasureError> {
         keys.insert(MODULUS.into(), p[0]);
         if p[0] != 0.0 {
             keys.insert(TIME.into(), p[1]);
@@ -49,13 +50,13 @@ impl Effect for Maxwell {
         keys_bar.insert(TIME.into(), 0.0);
     }
     /// `scenario` is the experiment's scenario with the model's `[material]` in place.
-    fn check_scenario(&self, scenario: &toml::Table) -> Result<(), String> {
+    fn check_scenario(&self, scenario: &toml::Table) -> Result<(), MeasureError> {
         match scenario.get("material").and_then(|m| m.get("kind")).and_then(|k| k.as_str()) {
             Some("evp_bingham") => Ok(()),
-            other => Err(format!(
+            other => Err(MeasureError::Effect(format!(
                 "needs material.kind = \"evp_bingham\" (the material with a Maxwell branch), and it is {}",
                 other.map_or("not set".to_string(), |k| format!("\"{k}\""))
-            )),
+            ))),
         }
     }
 }
@@ -69,9 +70,9 @@ mod tests {
     fn it_needs_the_evp_material_and_its_keys_give_the_material_the_branch() {
         let doc = |kind: &str| -> toml::Table { format!("[material]\nkind = \"{kind}\"\n").parse().unwrap() };
         assert!(Maxwell.check_scenario(&doc("evp_bingham")).is_ok());
-        let e = Maxwell.check_scenario(&doc("bingham")).unwrap_err();
+        let e = Maxwell.check_scenario(&doc("bingham")).unwrap_err().to_string();
         assert!(e.contains("evp_bingham") && e.contains("\"bingham\""), "{e}");
-        assert!(Maxwell.check_scenario(&toml::Table::new()).unwrap_err().contains("not set"));
+        assert!(Maxwell.check_scenario(&toml::Table::new()).unwrap_err().to_string().contains("not set"));
         // the model's keys make the material: the branch on, or at its null with its state
         let base = "[material]\nkind = \"evp_bingham\"\ndensity = 2300.0\nbulk_modulus = 1e6\nshear_modulus = 1e5\nviscosity = 20.0\nyield_stress = 100.0\n";
         for (effect, g_m) in [("[effects.maxwell]\nmodulus = 50.0\ntime = 0.3\n", 50.0), ("[effects.maxwell]\n", 0.0)] {

@@ -8,6 +8,7 @@
 //! observation with respect to an effect's parameters. Adding an effect is one file here and one
 //! line in [`REGISTRY`]; `every_effect_adjoint_agrees_with_central_differences` tests it.
 
+use super::error::MeasureError;
 use std::collections::BTreeMap;
 
 pub mod ageing;
@@ -55,13 +56,13 @@ pub trait Effect: Sync {
     fn about(&self) -> &'static str;
     fn params(&self) -> &'static [ParamSpec];
     /// Set the keys this effect governs, from its parameters `p` (in `params()` order).
-    fn apply(&self, p: &[f64], x: &Covariates, keys: &mut Keys) -> Result<(), String>;
+    fn apply(&self, p: &[f64], x: &Covariates, keys: &mut Keys) -> Result<(), MeasureError>;
     /// Given the keys before `apply` and the adjoints of the keys after it (`keys_bar`, a key
     /// absent = 0), leave in `keys_bar` the adjoints of the keys before it, and add to `p_bar`.
     fn apply_adjoint(&self, p: &[f64], x: &Covariates, keys_in: &Keys, keys_bar: &mut Keys, p_bar: &mut [f64]);
     /// Whether the effect can act on a simulation experiment's scenario (its TOML document with
     /// the model's `[material]` in place, before the keys are set): an error says why not.
-    fn check_scenario(&self, _scenario: &toml::Table) -> Result<(), String> {
+    fn check_scenario(&self, _scenario: &toml::Table) -> Result<(), MeasureError> {
         Ok(())
     }
     /// Whether the null lies at infinity, where no finite parameter puts it and no gradient can
@@ -77,7 +78,7 @@ pub trait Effect: Sync {
     /// model's own finite G or K, which the solver runs in the rigid null's place), so chi^2
     /// starts at the base model's and the fit only lowers it; where no finite value does that (no
     /// finite mu is a no-slip floor), a value the effect typically takes.
-    fn lr_start(&self, _keys: &Keys) -> Result<Vec<f64>, String> {
+    fn lr_start(&self, _keys: &Keys) -> Result<Vec<f64>, MeasureError> {
         Ok(self.params().iter().map(|s| s.null).collect())
     }
 }
@@ -98,21 +99,21 @@ pub const REGISTRY: &[&dyn Effect] = &[
     &process::Process::STANDOFF_OFFSET,
 ];
 
-pub fn find(name: &str) -> Result<&'static dyn Effect, String> {
+pub fn find(name: &str) -> Result<&'static dyn Effect, MeasureError> {
     REGISTRY.iter().copied().find(|e| e.name() == name).ok_or_else(|| {
-        format!("unknown effect '{name}'; known: {}", REGISTRY.iter().map(|e| e.name()).collect::<Vec<_>>().join(", "))
+        MeasureError::Effect(format!("unknown effect '{name}'; known: {}", REGISTRY.iter().map(|e| e.name()).collect::<Vec<_>>().join(", ")))
     })
 }
 
 /// A key an effect reads, or an error naming what the model lacks.
-pub fn read(keys: &Keys, effect: &str, key: &str) -> Result<f64, String> {
-    keys.get(key).copied().ok_or_else(|| format!("effect '{effect}' needs {key}, which the model does not set"))
+pub fn read(keys: &Keys, effect: &str, key: &str) -> Result<f64, MeasureError> {
+    keys.get(key).copied().ok_or_else(|| MeasureError::Effect(format!("effect '{effect}' needs {key}, which the model does not set")))
 }
 
 /// The model's shear modulus G: its `shear_modulus`, or G = 3 K (1 - 2 nu) / (2 (1 + nu)) from
 /// `poisson_ratio` nu and `bulk_modulus` K (as the material computes it); or an error naming
 /// what the model lacks.
-pub fn shear_modulus(keys: &Keys, effect: &str) -> Result<f64, String> {
+pub fn shear_modulus(keys: &Keys, effect: &str) -> Result<f64, MeasureError> {
     match keys.get(POISSON_RATIO) {
         Some(&nu) => Ok(crate::kernels::material::eos::shear_modulus_of(read(keys, effect, BULK_MODULUS)?, None, Some(nu))),
         None => read(keys, effect, SHEAR_MODULUS),

@@ -20,6 +20,7 @@
 //! the material computes from nu), and then sets its own. At the stand-in the material is the
 //! base model's to the bit.
 
+use super::super::error::MeasureError;
 use crate::kernels::material::eos::shear_modulus_of_partials;
 use super::{bar, read, shear_modulus, Covariates, Effect, Keys, ParamSpec, BULK_MODULUS, POISSON_RATIO, SHEAR_MODULUS};
 
@@ -57,7 +58,7 @@ impl Effect for Modulus {
     fn params(&self) -> &'static [ParamSpec] {
         self.params
     }
-    fn apply(&self, p: &[f64], _: &Covariates, keys: &mut Keys) -> Result<(), String> {
+    fn apply(&self, p: &[f64], _: &Covariates, keys: &mut Keys) -> Result<(), MeasureError> {
         // read at the null too, so a model that cannot take the effect is told before a fit
         let g = shear_modulus(keys, self.name)?;
         if p[0].is_finite() {
@@ -89,7 +90,7 @@ impl Effect for Modulus {
     fn null_at_infinity(&self) -> bool {
         true
     }
-    fn lr_start(&self, keys: &Keys) -> Result<Vec<f64>, String> {
+    fn lr_start(&self, keys: &Keys) -> Result<Vec<f64>, MeasureError> {
         let g = shear_modulus(keys, self.name)?;
         Ok(vec![if self.key == SHEAR_MODULUS { g } else { read(keys, self.name, self.key)? }])
     }

@@ -12,6 +12,7 @@
 //!
 //! A test that prints nothing (a slump, a rheometer) is not reached.
 
+use super::super::error::MeasureError;
 use super::{Covariates, Effect, Keys, ParamSpec};
 
 pub struct Process {
@@ -52,7 +53,7 @@ impl Effect for Process {
     fn params(&self) -> &'static [ParamSpec] {
         self.params
     }
-    fn apply(&self, p: &[f64], _: &Covariates, keys: &mut Keys) -> Result<(), String> {
+    fn apply(&self, p: &[f64], _: &Covariates, keys: &mut Keys) -> Result<(), MeasureError> {
         keys.insert(self.key(), p[0]);
         Ok(())
     }
@@ -60,13 +61,13 @@ impl Effect for Process {
         p_bar[0] += keys_bar.remove(&self.key()).unwrap_or(0.0);
     }
     /// It prints, and leaves the field at the effect's null, which the effect replaces.
-    fn check_scenario(&self, scenario: &toml::Table) -> Result<(), String> {
-        let print = scenario.get("print").ok_or("acts on the printing process, and this scenario prints nothing (no [print])")?;
+    fn check_scenario(&self, scenario: &toml::Table) -> Result<(), MeasureError> {
+        let print = scenario.get("print").ok_or_else(|| MeasureError::Effect("acts on the printing process, and this scenario prints nothing (no [print])".into()))?;
         let null = self.params[0].null;
         match print.get(self.field).map(super::super::observation::number) {
             None => Ok(()),
             Some(Some(v)) if v == null => Ok(()),
-            Some(v) => Err(format!("needs print.{} at its null {null}, and the scenario sets {}", self.field, v.map_or("a non-number".to_string(), |v| v.to_string()))),
+            Some(v) => Err(MeasureError::Effect(format!("needs print.{} at its null {null}, and the scenario sets {}", self.field, v.map_or("a non-number".to_string(), |v| v.to_string())))),
         }
     }
 }
@@ -80,9 +81,9 @@ mod tests {
         let check = |e: &Process, doc: &str| e.check_scenario(&doc.parse().unwrap());
         for e in [&Process::EXTRUSION_FACTOR, &Process::STANDOFF_OFFSET] {
             assert!(check(e, "[print]\nqueue = 4\n").is_ok());
-            assert!(check(e, "[boundary]\n").unwrap_err().contains("prints nothing"));
+            assert!(check(e, "[boundary]\n").unwrap_err().to_string().contains("prints nothing"));
             let bad = format!("[print]\n{} = 0.5\n", e.field);
-            assert!(check(e, &bad).unwrap_err().contains(&format!("print.{} at its null", e.field)));
+            assert!(check(e, &bad).unwrap_err().to_string().contains(&format!("print.{} at its null", e.field)));
         }
     }
 }

@@ -7,6 +7,7 @@
 //! Null: n = 1, the Bingham law. The key is set even then, so the adjoint gives the derivative
 //! in n at the null (the score test's).
 
+use super::super::error::MeasureError;
 use super::{bar, Covariates, Effect, Keys, ParamSpec};
 
 pub struct ShearThinning;
@@ -25,7 +26,7 @@ impl Effect for ShearThinning {
     fn params(&self) -> &'static [ParamSpec] {
         PARAMS
     }
-    fn apply(&self, p: &[f64], _: &Covariates, keys: &mut Keys) -> Result<(), String> {
+    fn apply(&self, p: &[f64], _: &Covariates, keys: &mut Keys) -> Result<(), MeasureError> {
         keys.insert(KEY.into(), p[0]);
         Ok(())
     }
@@ -35,13 +36,13 @@ impl Effect for ShearThinning {
         keys_bar.insert(KEY.into(), 0.0);
     }
     /// `scenario` is the experiment's scenario with the model's `[material]` in place.
-    fn check_scenario(&self, scenario: &toml::Table) -> Result<(), String> {
+    fn check_scenario(&self, scenario: &toml::Table) -> Result<(), MeasureError> {
         match scenario.get("material").and_then(|m| m.get("kind")).and_then(|k| k.as_str()) {
             Some("bingham" | "papanastasiou_roussel" | "evp_bingham") => Ok(()),
-            other => Err(format!(
+            other => Err(MeasureError::Effect(format!(
                 "needs a Bingham-family material (material.kind = \"bingham\", \"papanastasiou_roussel\" or \"evp_bingham\"), and it is {}",
                 other.map_or("not set".to_string(), |k| format!("\"{k}\""))
-            )),
+            ))),
         }
     }
 }
@@ -58,7 +59,7 @@ mod tests {
         for kind in ["bingham", "papanastasiou_roussel", "evp_bingham"] {
             assert!(ShearThinning.check_scenario(&doc(kind)).is_ok(), "{kind}");
         }
-        let e = ShearThinning.check_scenario(&doc("newtonian")).unwrap_err();
+        let e = ShearThinning.check_scenario(&doc("newtonian")).unwrap_err().to_string();
         assert!(e.contains("Bingham-family") && e.contains("\"newtonian\""), "{e}");
     }
 

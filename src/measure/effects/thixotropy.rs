@@ -5,6 +5,7 @@
 //! tau0 + A_thix t_rest, Roussel's linear build-up). Null: A_thix = alpha = 0. Needs a material
 //! that carries lambda (evp_bingham, papanastasiou_roussel).
 
+use super::super::error::MeasureError;
 use super::{add_bar, bar, read, Covariates, Effect, Keys, ParamSpec};
 
 pub struct Thixotropy;
@@ -24,7 +25,7 @@ impl Effect for Thixotropy {
     fn params(&self) -> &'static [ParamSpec] {
         PARAMS
     }
-    fn apply(&self, p: &[f64], x: &Covariates, keys: &mut Keys) -> Result<(), String> {
+    fn apply(&self, p: &[f64], x: &Covariates, keys: &mut Keys) -> Result<(), MeasureError> {
         let tau0 = read(keys, self.name(), "material.yield_stress")?;
         let lambda0 = if p[0] > 0.0 { p[0] * x.rest_time / tau0 } else { 0.0 };
         keys.insert("material.a_thix".into(), p[0]);

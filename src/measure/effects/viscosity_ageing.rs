@@ -2,6 +2,7 @@
 //! eta (1 + r t), evaluated at the experiment's age (as `ageing` does for the yield stress).
 //! Null: r = 0. The README's worked example of adding an effect.
 
+use super::super::error::MeasureError;
 use super::{add_bar, bar, read, Covariates, Effect, Keys, ParamSpec};
 
 pub struct ViscosityAgeing;
@@ -20,7 +21,7 @@ impl Effect for ViscosityAgeing {
     fn params(&self) -> &'static [ParamSpec] {
         PARAMS
     }
-    fn apply(&self, p: &[f64], x: &Covariates, keys: &mut Keys) -> Result<(), String> {
+    fn apply(&self, p: &[f64], x: &Covariates, keys: &mut Keys) -> Result<(), MeasureError> {
         let eta = read(keys, self.name(), KEY)?;
         keys.insert(KEY.into(), eta * (1.0 + p[0] * x.age));
         Ok(())

@@ -7,6 +7,7 @@
 //! and diagnose tests the effect by the likelihood ratio, fitting mu from a typical value
 //! (`lr_start`). A rheometer test has no walls: the effect does not reach it.
 
+use super::super::error::MeasureError;
 use super::{Covariates, Effect, Keys, ParamSpec};
 
 pub struct WallFriction;
@@ -34,14 +35,14 @@ impl Effect for WallFriction {
     fn params(&self) -> &'static [ParamSpec] {
         PARAMS
     }
-    fn apply(&self, p: &[f64], _: &Covariates, keys: &mut Keys) -> Result<(), String> {
+    fn apply(&self, p: &[f64], _: &Covariates, keys: &mut Keys) -> Result<(), MeasureError> {
         // the key turns the scenario's no-slip floor into a friction wall (`set_path`)
         if p[0].is_finite() {
             keys.insert(KEY.into(), p[0]);
         }
         Ok(())
     }
-    fn check_scenario(&self, scenario: &toml::Table) -> Result<(), String> {
+    fn check_scenario(&self, scenario: &toml::Table) -> Result<(), MeasureError> {
         let boundary = scenario.get("boundary");
         let (name, floor) = match on_platform(scenario) {
             true => ("boundary.platform.kind", boundary.and_then(|b| b.get("platform")).and_then(|p| p.get("kind"))),
@@ -52,7 +53,7 @@ impl Effect for WallFriction {
             None => Ok(()),
             Some(toml::Value::String(k)) if k == "no_slip" => Ok(()),
             // a floor that slips or has its own friction is not this effect's null
-            Some(other) => Err(format!("needs a no-slip floor (its null), and {name} is {other}")),
+            Some(other) => Err(MeasureError::Effect(format!("needs a no-slip floor (its null), and {name} is {other}"))),
         }
     }
     fn apply_adjoint(&self, p: &[f64], _: &Covariates, _: &Keys, keys_bar: &mut Keys, p_bar: &mut [f64]) {
@@ -63,7 +64,7 @@ impl Effect for WallFriction {
     fn null_at_infinity(&self) -> bool {
         true
     }
-    fn lr_start(&self, _: &Keys) -> Result<Vec<f64>, String> {
+    fn lr_start(&self, _: &Keys) -> Result<Vec<f64>, MeasureError> {
         Ok(vec![PARAMS[0].scale])
     }
 }
@@ -86,7 +87,7 @@ mod tests {
             ("z_min = { friction = { mu = 0.3 } }\n", "mu = 0.3"),
             (slipping.as_str(), "boundary.platform.kind is \"free_slip\""),
         ] {
-            let e = check(floor).unwrap_err();
+            let e = check(floor).unwrap_err().to_string();
             assert!(e.contains(says), "{e}");
         }
         // the key lands on the floor, and a floor with friction is what the solver differentiates
