@@ -14,6 +14,7 @@
 
 pub mod cuboid;
 pub mod cylinder;
+pub mod error;
 pub mod half_space;
 pub mod nozzle_body;
 pub mod revolved;
@@ -193,7 +194,7 @@ impl Solids {
     /// Build the solids of a scenario (None when it has none), their pool declared but not mapped
     /// ([`Pools::map_pools`] maps it). `nozzle` is the printer's (inner diameter, tube height)
     /// for a circular nozzle.
-    pub fn declared(cfgs: &[SolidConfig], dx: f64, nozzle: Option<(f64, f64)>) -> Result<Option<Solids>, String> {
+    pub fn declared(cfgs: &[SolidConfig], dx: f64, nozzle: Option<(f64, f64)>) -> Result<Option<Solids>, Invalid> {
         if cfgs.is_empty() {
             return Ok(None);
         }
@@ -210,10 +211,10 @@ impl Solids {
     }
 
     /// [`Solids::declared`] with `max_blocks` grid slots, mapped.
-    pub fn new(cfgs: &[SolidConfig], dx: f64, nozzle: Option<(f64, f64)>, max_blocks: usize, backing: &Backing) -> Result<Option<Solids>, String> {
+    pub fn new(cfgs: &[SolidConfig], dx: f64, nozzle: Option<(f64, f64)>, max_blocks: usize, backing: &Backing) -> Result<Option<Solids>, error::SolidError> {
         let mut solids = Solids::declared(cfgs, dx, nozzle)?;
         if let Some(s) = &mut solids {
-            s.map_pools(&Counts::capacity(0, max_blocks), backing).map_err(|e| e.to_string())?;
+            s.map_pools(&Counts::capacity(0, max_blocks), backing)?;
         }
         Ok(solids)
     }

@@ -113,7 +113,7 @@ impl ShapeConfig {
     }
 
     /// The shape's distance function.
-    pub fn build(&self, key: &str, cx: &ShapeContext) -> Result<Box<dyn Sdf>, String> {
+    pub fn build(&self, key: &str, cx: &ShapeContext) -> Result<Box<dyn Sdf>, Invalid> {
         Ok(match self {
             ShapeConfig::Box { min, max } => Box::new(Cuboid::new(DVec3::from(*min), DVec3::from(*max))),
             ShapeConfig::Cylinder { from, to, radius } => Box::new(Cylinder::new(DVec3::from(*from), DVec3::from(*to), *radius)),
@@ -125,10 +125,10 @@ impl ShapeConfig {
             }
             ShapeConfig::Nozzle { outer_diameter, height } => {
                 let Some((inner, tube)) = cx.nozzle else {
-                    return Err(format!("{key}: shape = \"nozzle\" needs a [print] table with a circular nozzle"));
+                    return Err(Invalid(format!("{key}: shape = \"nozzle\" needs a [print] table with a circular nozzle")));
                 };
                 if *outer_diameter <= inner {
-                    return Err(format!("{key}.outer_diameter ({outer_diameter} m) must exceed the nozzle's diameter ({inner} m)"));
+                    return Err(Invalid(format!("{key}.outer_diameter ({outer_diameter} m) must exceed the nozzle's diameter ({inner} m)")));
                 }
                 Box::new(NozzleBody::new(inner / 2.0, outer_diameter / 2.0, height.unwrap_or(tube)))
             }
