@@ -125,7 +125,7 @@ pub fn parse_gcode_with_notes(text: &str, opts: &GcodeOptions) -> Result<(Toolpa
             *machine.notes.skipped.entry(name).or_default() += 1;
             continue;
         }
-        let words = tokenize(raw).map_err(|m| at_line(LineError::Malformed(m)))?;
+        let words = tokenize(raw).map_err(at_line)?;
         machine.execute(&words).map_err(at_line)?;
     }
     let notes = std::mem::take(&mut machine.notes);
@@ -204,7 +204,7 @@ struct Word {
 const KNOWN_LETTERS: &str = "GMTNXYZEFPS";
 
 /// Split a line into words, dropping `;` and `( )` comments and a `*` checksum.
-fn tokenize(raw: &str) -> Result<Vec<Word>, String> {
+fn tokenize(raw: &str) -> Result<Vec<Word>, LineError> {
     let mut code = Vec::new();
     let mut in_comment = false;
     for c in raw.chars() {
@@ -220,7 +220,7 @@ fn tokenize(raw: &str) -> Result<Vec<Word>, String> {
         }
     }
     if in_comment {
-        return Err("unclosed '(' comment".to_string());
+        return Err(LineError::Malformed("unclosed '(' comment".to_string()));
     }
     // '%' alone marks the start or end of a program on some controllers.
     if code.iter().collect::<String>().trim() == "%" {
@@ -235,7 +235,7 @@ fn tokenize(raw: &str) -> Result<Vec<Word>, String> {
             continue;
         }
         if !c.is_ascii_alphabetic() {
-            return Err(format!("unexpected character {c:?}"));
+            return Err(LineError::Malformed(format!("unexpected character {c:?}")));
         }
         let letter = c.to_ascii_uppercase();
         let start = i;
@@ -245,14 +245,14 @@ fn tokenize(raw: &str) -> Result<Vec<Word>, String> {
         let number: String = code[start..i].iter().collect();
         if number.is_empty() {
             let found: String = code[i..].iter().take_while(|c| !c.is_whitespace()).collect();
-            return Err(match found.is_empty() {
+            return Err(LineError::Malformed(match found.is_empty() {
                 true => format!("{letter} has no number"),
                 false => format!("{letter} must be followed by a number, found {found:?}"),
-            });
+            }));
         }
-        let value = parse_number(&number).ok_or_else(|| format!("bad number {number:?} after {letter}"))?;
+        let value = parse_number(&number).ok_or_else(|| LineError::Malformed(format!("bad number {number:?} after {letter}")))?;
         if words.iter().any(|w| w.letter == letter) {
-            return Err(format!("{letter} appears twice on the line"));
+            return Err(LineError::Malformed(format!("{letter} appears twice on the line")));
         }
         words.push(Word { letter, value, text: format!("{letter}{number}") });
     }
