@@ -25,7 +25,7 @@ pub fn dir_of(out: &Path) -> PathBuf {
 /// The newest checkpoint in `dir` that reads back intact, and a line for every problem met on
 /// the way (a newest checkpoint that is missing, corrupt or truncated). Corrupt files are
 /// renamed `*.corrupt`, kept for inspection but never tried again.
-pub fn newest_valid(dir: &Path) -> Result<(Checkpoint, Vec<String>), String> {
+pub fn newest_valid(dir: &Path) -> Result<(Checkpoint, Vec<String>), NoValidCheckpoint> {
     let mut notes = Vec::new();
     let all = writer::list(dir);
     if let Ok(latest) = std::fs::read_to_string(dir.join(writer::LATEST)) {
@@ -44,11 +44,16 @@ pub fn newest_valid(dir: &Path) -> Result<(Checkpoint, Vec<String>), String> {
             }
         }
     }
-    let mut msg = format!("no valid checkpoint in {}", dir.display());
-    for n in &notes {
-        msg += &format!("\n  {n}");
-    }
-    Err(msg)
+    Err(NoValidCheckpoint { dir: dir.to_path_buf(), notes })
+}
+
+/// No checkpoint in a run's folder reads back intact: the folder, and a line for every problem
+/// met on the way.
+#[derive(Debug, thiserror::Error)]
+#[error("no valid checkpoint in {}{}", dir.display(), notes.iter().map(|n| format!("\n  {n}")).collect::<String>())]
+pub struct NoValidCheckpoint {
+    pub dir: PathBuf,
+    pub notes: Vec<String>,
 }
 
 /// Keys whose change does not alter the computed state: they may differ on a resume.

@@ -21,7 +21,7 @@ pub(super) struct Resumed {
 /// (unless `opts.force`).
 pub(super) fn resume_checkpoint(sc: &Scenario, opts: &RunOptions) -> Result<Checkpoint, RunError> {
     let ckpt_dir = checkpoint::dir_of(&opts.out);
-    let (ck, notes) = checkpoint::newest_valid(&ckpt_dir).map_err(|e| RunError::Resume(no_checkpoint(&opts.out, &e, opts)))?;
+    let (ck, notes) = checkpoint::newest_valid(&ckpt_dir).map_err(|e| RunError::Resume(no_checkpoint(&opts.out, &e.to_string(), opts)))?;
     for n in notes {
         eprintln!("warning: {n}");
     }
