@@ -108,7 +108,7 @@ pub fn estimate(model: &Model, data: &[Observation], exps: &Experiments, values:
     let p = order(table);
     let wanted = group(data);
     let given: Option<Vec<Vec<f64>>> = values.map(|v| per_experiment(data, &wanted, v));
-    let threads = job_threads(jobs);
+    let threads = job_threads(jobs, wanted.len());
     let per = par_map_experiments(&wanted, jobs, |k| -> Result<Vec<Option<Estimate>>, MeasureError> {
         let (id, obs) = &wanted[k];
         let x = find(exps, id)?;

@@ -182,19 +182,22 @@ pub fn ungroup<T: Clone>(data: &[Observation], wanted: &[(String, Vec<Observable
 
 /// Evaluate each experiment's `wanted` observables, `jobs` experiments at a time.
 pub fn evaluate_all(model: &Model, exps: &Experiments, wanted: &[(String, Vec<Observable>)], jobs: usize) -> Result<Vec<Vec<f64>>, MeasureError> {
-    let threads = job_threads(jobs);
+    let threads = job_threads(jobs, wanted.len());
     par_map_experiments(wanted, jobs, |k| {
         let (id, obs) = &wanted[k];
         evaluate(model, exps, find(exps, id)?, obs, threads)
     })
 }
 
-/// Threads of each simulation when `jobs` run side by side: the cores shared out (at least one
+/// Threads of each simulation when up to `jobs` of `experiments` run side by side: the cores
+/// shared out among the jobs that run at once, at most one per experiment (at least one thread
 /// each), so the jobs' thread teams together do not outnumber the cores (teams beyond the cores
-/// wait on each other: system time, not work). `None` (the scenario's own) for one job.
-pub fn job_threads(jobs: usize) -> Option<usize> {
+/// wait on each other: system time, not work) and an experiment run alone takes them all.
+/// `None` (the scenario's own) for one job.
+pub fn job_threads(jobs: usize, experiments: usize) -> Option<usize> {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    (jobs > 1).then(|| (cores / jobs).max(1))
+    let side_by_side = jobs.min(experiments);
+    (side_by_side > 1).then(|| (cores / side_by_side).max(1))
 }
 
 /// Experiment `id`, or an error listing the ids there are.

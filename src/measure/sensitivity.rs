@@ -62,9 +62,7 @@ pub fn jacobian_at(model: &Model, data: &[Observation], exps: &Experiments, name
 
 fn campaign(model: &Model, data: &[Observation], exps: &Experiments, names: Option<&[String]>, jobs: usize, known: Option<&[f64]>) -> Result<Sensitivity, MeasureError> {
     let wanted = group(data);
-    // fewer experiments than jobs share the cores among those there are (a left-out experiment
-    // run alone takes them all)
-    let threads = job_threads(jobs.min(wanted.len()));
+    let threads = job_threads(jobs, wanted.len());
     let known = known.map(|v| regroup(data, &wanted, v));
     let per = par_map_experiments(&wanted, jobs, |k| one_known(model, exps, &wanted[k].0, &wanted[k].1, names, threads, known.as_ref().map(|v| &v[k][..])))?;
     Ok(assemble(data, &wanted, &per, names))
