@@ -3,7 +3,7 @@
 
 use crate::kernels::material::{
     bingham::Bingham, drucker_prager::DruckerPrager, evp_bingham::EvpBingham, newtonian::Newtonian,
-    papanastasiou_roussel::PapanastasiouRoussel, Material,
+    papanastasiou_roussel::PapanastasiouRoussel, Material, MaterialError,
 };
 use serde::de::DeserializeOwned;
 use crate::invalid::Invalid;
@@ -20,10 +20,10 @@ pub const REGISTRY: &[(&str, Builder)] = &[
 
 fn build<M: Material + DeserializeOwned + 'static>(
     t: toml::Table,
-    validate: fn(&M) -> Result<(), String>,
+    validate: fn(&M) -> Result<(), MaterialError>,
 ) -> Result<Box<dyn Material>, Invalid> {
     let m: M = t.try_into().map_err(|e: toml::de::Error| Invalid(format!("material: {}", e.message())))?;
-    validate(&m).map_err(Invalid)?;
+    validate(&m).map_err(|e| Invalid(e.to_string()))?;
     Ok(Box::new(m))
 }
 

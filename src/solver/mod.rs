@@ -53,8 +53,17 @@ pub const MAX_THREADS: usize = 64;
 pub enum SimError {
     #[error(transparent)]
     Memory(#[from] MemoryError),
-    #[error("{0}")]
-    Setup(String),
+    /// The scenario fails its own validation.
+    #[error(transparent)]
+    Scenario(#[from] crate::scenario::ScenarioError),
+    /// The folder the pools are mapped in cannot be created.
+    #[error("memory.dir {}: {source}", dir.display())]
+    MemoryDir { dir: std::path::PathBuf, source: std::io::Error },
+    /// `[memory] max_particles` is smaller than the initial bodies plus the whole print.
+    #[error("particle pool: the scenario needs {} particles ({initial} initial + {emitted} emitted by the whole print) \
+             but [memory] max_particles = {capacity}; raise it or leave it out to size the pool for the whole print",
+            initial + emitted)]
+    ParticlePool { initial: usize, emitted: usize, capacity: usize },
     /// A scenario value the solver's setup refuses (the material's parameters).
     #[error(transparent)]
     Invalid(#[from] crate::invalid::Invalid),

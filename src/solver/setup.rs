@@ -12,6 +12,7 @@ use crate::materials::build_material;
 use crate::memory::{parse_size, Backing, MemoryPlan};
 use crate::pools::{Counts, Pools};
 use crate::particles::Particles;
+use crate::invalid::Invalid;
 use crate::print::Printer;
 use crate::scenario::Scenario;
 use crate::sleep::Sleep;
@@ -22,7 +23,7 @@ impl Simulation {
     /// Size every pool from the scenario, check the budget, map the pools and create the
     /// initial particles.
     pub fn new(scenario: &Scenario) -> Result<Self, SimError> {
-        scenario.validate().map_err(|e| SimError::Setup(e.to_string()))?;
+        scenario.validate()?;
         let material = build_material(&scenario.material)?;
         let geom = GridGeom::new(scenario.simulation.dx, scenario.domain.min, scenario.domain.max, scenario.domain.periodic);
         let state_len = material.state_names().len();
@@ -71,7 +72,7 @@ impl Simulation {
         let backing = Backing { dir: scenario.memory.dir.clone() };
         if let Some(d) = &backing.dir {
             std::fs::create_dir_all(d)
-                .map_err(|e| SimError::Setup(format!("memory.dir {}: {e}", d.display())))?;
+                .map_err(|source| SimError::MemoryDir { dir: d.clone(), source })?;
         }
         particles.map_pools(&capacity, &backing)?;
         grid.map_pools(&capacity, &backing)?;
@@ -133,11 +134,7 @@ fn particle_capacity(scenario: &Scenario, printer: Option<&Printer>) -> Result<u
     let emitted = printer.map_or(0, |p| p.plan.total_particles() as usize);
     let cap = scenario.memory.max_particles.unwrap_or(initial + emitted).max(1);
     if initial + emitted > cap {
-        return Err(SimError::Setup(format!(
-            "particle pool: the scenario needs {} particles ({initial} initial + {emitted} emitted by the whole print) \
-             but [memory] max_particles = {cap}; raise it or leave it out to size the pool for the whole print",
-            initial + emitted
-        )));
+        return Err(SimError::ParticlePool { initial, emitted, capacity: cap });
     }
     Ok(cap)
 }
@@ -169,11 +166,11 @@ fn check_print_inside_domain(sc: &Scenario, p: &Printer) -> Result<(), SimError>
         let hi_need = if a == 2 { hi[a] + p.tube_height + feed } else { hi_need };
         if lo_need < sc.domain.min[a] - 1e-12 || hi_need > sc.domain.max[a] + 1e-12 {
             let what = if a == 2 && feed > 0.0 { "nozzle tube and the slab entering it" } else { "nozzle tube" };
-            return Err(SimError::Setup(format!(
+            return Err(SimError::Invalid(Invalid(format!(
                 "print: the {what} span [{lo_need:.4}, {hi_need:.4}] m on axis {a} along the toolpath, \
                  outside the domain [{}, {}]",
                 sc.domain.min[a], sc.domain.max[a]
-            )));
+            ))));
         }
     }
     Ok(())

@@ -25,7 +25,7 @@
 
 use serde::Deserialize;
 
-use crate::material::{default_flow_index, non_negative, positive, rate_power, Eos, Material, StabilityInfo, Thickening, UpdateAdjoint};
+use crate::material::{MaterialError, default_flow_index, non_negative, positive, rate_power, Eos, Material, StabilityInfo, Thickening, UpdateAdjoint};
 use crate::real::{ddot, dev, r, sym, trace, Real, M3, V3};
 
 #[derive(Clone, Debug, Deserialize)]
@@ -55,7 +55,7 @@ fn default_critical_shear_rate() -> f64 {
 }
 
 impl Bingham {
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), MaterialError> {
         positive("material.density", self.density)?;
         positive("material.bulk_modulus", self.bulk_modulus)?;
         non_negative("material.viscosity", self.viscosity)?;
@@ -228,7 +228,7 @@ mod tests {
         let mut m = concrete();
         m.critical_shear_rate = 0.0;
         assert_eq!(
-            m.validate().unwrap_err(),
+            m.validate().unwrap_err().to_string(),
             "material.critical_shear_rate must be > 0, got 0"
         );
         let mut m = concrete();
@@ -236,6 +236,7 @@ mod tests {
         assert!(m
             .validate()
             .unwrap_err()
+            .to_string()
             .starts_with("material.yield_stress"));
     }
 
@@ -281,7 +282,7 @@ mod tests {
             }
         }
         let bad = Bingham { flow_index: 0.0, ..concrete() };
-        assert_eq!(bad.validate().unwrap_err(), "material.flow_index must be > 0, got 0");
+        assert_eq!(bad.validate().unwrap_err().to_string(), "material.flow_index must be > 0, got 0");
     }
 
     #[test]

@@ -47,7 +47,7 @@
 use serde::Deserialize;
 
 use crate::material::eos::{resolve_shear_modulus, shear_modulus_of, shear_modulus_of_partials};
-use crate::material::{Material, StabilityInfo, UpdateAdjoint};
+use crate::material::{non_negative, positive, Material, MaterialError, StabilityInfo, UpdateAdjoint};
 use crate::real::{
     ddot, dev, jaumann_rotation, jaumann_rotation_adjoint, r, skew, sym, sym_from_slice, sym_from_slice_adjoint, sym_to_array,
     sym_to_array_adjoint, trace, Real, M3, V3,
@@ -98,19 +98,9 @@ fn cone_slope(angle_deg: f64) -> f64 {
 }
 
 impl DruckerPrager {
-    pub fn validate(&self) -> Result<(), String> {
-        if !(self.density.is_finite() && self.density > 0.0) {
-            return Err(format!(
-                "material.density must be > 0, got {}",
-                self.density
-            ));
-        }
-        if !(self.bulk_modulus.is_finite() && self.bulk_modulus > 0.0) {
-            return Err(format!(
-                "material.bulk_modulus must be > 0, got {}",
-                self.bulk_modulus
-            ));
-        }
+    pub fn validate(&self) -> Result<(), MaterialError> {
+        positive("material.density", self.density)?;
+        positive("material.bulk_modulus", self.bulk_modulus)?;
         resolve_shear_modulus(
             "material",
             self.bulk_modulus,
@@ -119,31 +109,28 @@ impl DruckerPrager {
         )?;
         let phi = self.friction_angle_deg;
         if !(phi.is_finite() && (0.0..90.0).contains(&phi)) {
-            return Err(format!(
-                "material.friction_angle_deg must be in [0, 90), got {phi}"
-            ));
+            return Err(MaterialError::out_of_range("material.friction_angle_deg", "in [0, 90)", phi));
         }
         let psi = self.dilatancy_angle_deg;
         if !(psi.is_finite() && psi >= 0.0 && psi <= phi) {
-            return Err(format!(
-                "material.dilatancy_angle_deg must be in [0, friction_angle_deg = {phi}], got {psi}"
+            return Err(MaterialError::out_of_range(
+                "material.dilatancy_angle_deg",
+                format!("in [0, friction_angle_deg = {phi}]"),
+                psi,
             ));
         }
-        if !(self.cohesion.is_finite() && self.cohesion >= 0.0) {
-            return Err(format!(
-                "material.cohesion must be >= 0, got {}",
-                self.cohesion
-            ));
-        }
+        non_negative("material.cohesion", self.cohesion)?;
         if phi == 0.0 && self.cohesion == 0.0 {
-            return Err("material: friction_angle_deg and cohesion are both 0, so the material has no shear strength".into());
+            return Err(MaterialError::NoShearStrength);
         }
         if let Some(t) = self.tension_cutoff {
             let apex = self.apex();
             // The relative slack admits a cutoff written as c cot(phi) computed another way.
             if !(t.is_finite() && t >= 0.0 && t <= apex * (1.0 + 1e-12)) {
-                return Err(format!(
-                    "material.tension_cutoff must be in [0, c cot(phi) = {apex}] (the cone apex), got {t}"
+                return Err(MaterialError::out_of_range(
+                    "material.tension_cutoff",
+                    format!("in [0, c cot(phi) = {apex}] (the cone apex)"),
+                    t,
                 ));
             }
         }
@@ -777,12 +764,13 @@ mod tests {
         assert!(bad
             .validate()
             .unwrap_err()
+            .to_string()
             .starts_with("material.dilatancy_angle_deg"));
         let bad = DruckerPrager {
             friction_angle_deg: 0.0,
             ..sand()
         };
-        assert!(bad.validate().unwrap_err().contains("no shear strength"));
+        assert!(bad.validate().unwrap_err().to_string().contains("no shear strength"));
         let bad = DruckerPrager {
             cohesion: 1e3,
             tension_cutoff: Some(2e3),
@@ -791,6 +779,7 @@ mod tests {
         assert!(bad
             .validate()
             .unwrap_err()
+            .to_string()
             .starts_with("material.tension_cutoff"));
         let bad = DruckerPrager {
             friction_angle_deg: 90.0,
@@ -799,6 +788,7 @@ mod tests {
         assert!(bad
             .validate()
             .unwrap_err()
+            .to_string()
             .starts_with("material.friction_angle_deg"));
         // phi = 0 with cohesion: von Mises with no tension limit.
         let vm = DruckerPrager {

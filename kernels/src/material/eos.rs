@@ -5,6 +5,7 @@
 //!
 //! Both have tangent bulk modulus K at J = 1; pressure is positive in compression.
 
+use crate::material::MaterialError;
 use crate::real::{r, Real};
 use serde::Deserialize;
 
@@ -64,14 +65,14 @@ impl Eos {
 impl Eos {
     /// Rejects parameter values that make the pressure meaningless; `key` is the table path used
     /// in the message (e.g. "material.eos").
-    pub fn validate(&self, key: &str) -> Result<(), String> {
+    pub fn validate(&self, key: &str) -> Result<(), MaterialError> {
         match *self {
             Eos::Linear => Ok(()),
             Eos::Tait { gamma } => {
                 if gamma.is_finite() && gamma > 0.0 {
                     Ok(())
                 } else {
-                    Err(format!("{key}.gamma must be > 0, got {gamma}"))
+                    Err(MaterialError::out_of_range(format!("{key}.gamma"), "> 0", gamma))
                 }
             }
         }
@@ -109,13 +110,13 @@ pub fn resolve_shear_modulus(
     bulk_modulus: f64,
     shear_modulus: Option<f64>,
     poisson_ratio: Option<f64>,
-) -> Result<f64, String> {
+) -> Result<f64, MaterialError> {
     match (shear_modulus, poisson_ratio) {
         (Some(g), None) => {
             if g.is_finite() && g > 0.0 {
                 Ok(g)
             } else {
-                Err(format!("{key}.shear_modulus must be > 0, got {g}"))
+                Err(MaterialError::out_of_range(format!("{key}.shear_modulus"), "> 0", g))
             }
         }
         (None, Some(nu)) => {
@@ -123,16 +124,10 @@ pub fn resolve_shear_modulus(
             if nu.is_finite() && nu > -1.0 && nu < 0.5 {
                 Ok(shear_modulus_of(bulk_modulus, None, Some(nu)))
             } else {
-                Err(format!(
-                    "{key}.poisson_ratio must be in (-1, 0.5), got {nu}"
-                ))
+                Err(MaterialError::out_of_range(format!("{key}.poisson_ratio"), "in (-1, 0.5)", nu))
             }
         }
-        (Some(_), Some(_)) => Err(format!(
-            "{key}: give either shear_modulus or poisson_ratio, not both"
-        )),
-        (None, None) => Err(format!(
-            "{key}: one of shear_modulus or poisson_ratio is required"
-        )),
+        (Some(_), Some(_)) => Err(MaterialError::BothGiven { table: key.into(), first: "shear_modulus", second: "poisson_ratio" }),
+        (None, None) => Err(MaterialError::NeitherGiven { table: key.into(), first: "shear_modulus", second: "poisson_ratio" }),
     }
 }

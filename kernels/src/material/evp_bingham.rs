@@ -75,7 +75,7 @@
 use serde::Deserialize;
 
 use crate::material::eos::{resolve_shear_modulus, shear_modulus_of, shear_modulus_of_partials};
-use crate::material::{default_flow_index, maxwell, non_negative, positive, Eos, Material, StabilityInfo, UpdateAdjoint};
+use crate::material::{MaterialError, default_flow_index, maxwell, non_negative, positive, Eos, Material, StabilityInfo, UpdateAdjoint};
 use crate::real::{
     ddot, dev, jaumann_rotation, jaumann_rotation_adjoint, r, skew, sym, sym_from_slice, sym_from_slice_adjoint,
     sym_to_array, sym_to_array_adjoint, Real, M3, V3,
@@ -133,7 +133,7 @@ const STATE_MAXWELL: [&str; 14] = [
 ];
 
 impl EvpBingham {
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), MaterialError> {
         positive("material.density", self.density)?;
         positive("material.bulk_modulus", self.bulk_modulus)?;
         resolve_shear_modulus(
@@ -154,10 +154,12 @@ impl EvpBingham {
         positive("material.maxwell_time", self.maxwell_time)?;
         positive("material.flow_index", self.flow_index)?;
         if self.a_thix > 0.0 && self.yield_stress == 0.0 {
-            return Err(
-                "material.yield_stress must be > 0 when material.a_thix > 0 (eq. 22 divides by it)"
-                    .into(),
-            );
+            return Err(MaterialError::Conditional {
+                key: "material.yield_stress",
+                rule: "must be > 0",
+                when: "material.a_thix > 0",
+                why: "eq. 22 divides by it",
+            });
         }
         self.eos.validate("material.eos")
     }
@@ -917,19 +919,19 @@ mod tests {
             poisson_ratio: Some(0.45),
             ..solid()
         };
-        assert!(both.validate().unwrap_err().contains("not both"));
+        assert!(both.validate().unwrap_err().to_string().contains("not both"));
         let none = EvpBingham {
             shear_modulus: None,
             ..solid()
         };
-        assert!(none.validate().unwrap_err().contains("required"));
+        assert!(none.validate().unwrap_err().to_string().contains("required"));
         let bad = EvpBingham {
             shear_modulus: None,
             poisson_ratio: Some(0.5),
             ..solid()
         };
         assert_eq!(
-            bad.validate().unwrap_err(),
+            bad.validate().unwrap_err().to_string(),
             "material.poisson_ratio must be in (-1, 0.5), got 0.5"
         );
         let bad = EvpBingham {
@@ -940,6 +942,7 @@ mod tests {
         assert!(bad
             .validate()
             .unwrap_err()
+            .to_string()
             .starts_with("material.yield_stress"));
         assert!(solid().validate().is_ok());
         let st = solid().stability();
@@ -1050,7 +1053,7 @@ mod tests {
             }
         }
         let bad = EvpBingham { flow_index: 0.0, ..solid() };
-        assert_eq!(bad.validate().unwrap_err(), "material.flow_index must be > 0, got 0");
+        assert_eq!(bad.validate().unwrap_err().to_string(), "material.flow_index must be > 0, got 0");
     }
 
     #[cfg(not(feature = "f32"))]
@@ -1269,9 +1272,9 @@ mod tests {
         assert!(m.validate().is_ok());
         assert_eq!(m.stability().shear_modulus, 1.0e6 + 300.0);
         let bad = EvpBingham { maxwell_modulus: Some(-1.0), ..solid() };
-        assert_eq!(bad.validate().unwrap_err(), "material.maxwell_modulus must be >= 0, got -1");
+        assert_eq!(bad.validate().unwrap_err().to_string(), "material.maxwell_modulus must be >= 0, got -1");
         let bad = EvpBingham { maxwell_time: 0.0, ..m.clone() };
-        assert_eq!(bad.validate().unwrap_err(), "material.maxwell_time must be > 0, got 0");
+        assert_eq!(bad.validate().unwrap_err().to_string(), "material.maxwell_time must be > 0, got 0");
         assert_eq!(&m.param_names()[7..], ["maxwell_modulus", "maxwell_time", "flow_index"]);
         assert_eq!(&m.state_names()[8..], ["sM_xx", "sM_yy", "sM_zz", "sM_xy", "sM_yz", "sM_xz"]);
         assert_eq!((solid().param_names().len(), solid().state_names().len()), (8, 8));

@@ -16,8 +16,10 @@ pub mod papanastasiou_roussel;
 pub mod evp_bingham;
 pub mod maxwell;
 pub mod drucker_prager;
+pub mod error;
 
 pub use eos::Eos;
+pub use error::MaterialError;
 
 /// Kinematics and invariants shared by the materials' tests.
 #[cfg(test)]
@@ -49,20 +51,20 @@ pub(crate) fn build_up_rate(a_thix: f64, yield_stress: f64) -> Real {
 }
 
 /// Validation helper: `v` must be finite and > 0; the message names the key.
-pub(crate) fn positive(key: &str, v: f64) -> Result<(), String> {
+pub(crate) fn positive(key: &'static str, v: f64) -> Result<(), MaterialError> {
     if v.is_finite() && v > 0.0 {
         Ok(())
     } else {
-        Err(format!("{key} must be > 0, got {v}"))
+        Err(MaterialError::out_of_range(key, "> 0", v))
     }
 }
 
 /// Validation helper: `v` must be finite and >= 0; the message names the key.
-pub(crate) fn non_negative(key: &str, v: f64) -> Result<(), String> {
+pub(crate) fn non_negative(key: &'static str, v: f64) -> Result<(), MaterialError> {
     if v.is_finite() && v >= 0.0 {
         Ok(())
     } else {
-        Err(format!("{key} must be >= 0, got {v}"))
+        Err(MaterialError::out_of_range(key, ">= 0", v))
     }
 }
 
@@ -98,6 +100,8 @@ pub struct Thickening {
 
 impl StabilityInfo {
     /// The largest viscosity at shear rates up to `max_rate` [Pa s].
+    // The casts are f32 -> f64 under the `f32` feature, where Real is f32.
+    #[allow(clippy::unnecessary_cast)]
     pub fn viscosity_up_to(&self, max_rate: f64) -> f64 {
         let base = self.max_viscosity as f64;
         match self.thickening {

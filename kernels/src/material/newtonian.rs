@@ -11,7 +11,7 @@
 
 use serde::Deserialize;
 
-use crate::material::{non_negative, positive, Eos, Material, StabilityInfo, UpdateAdjoint};
+use crate::material::{MaterialError, non_negative, positive, Eos, Material, StabilityInfo, UpdateAdjoint};
 use crate::real::{ddot, dev, r, sym, trace, Real, M3, V3};
 
 #[derive(Clone, Debug, Deserialize)]
@@ -28,7 +28,7 @@ pub struct Newtonian {
 }
 
 impl Newtonian {
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), MaterialError> {
         positive("material.density", self.density)?;
         positive("material.bulk_modulus", self.bulk_modulus)?;
         // mu = 0 is a legitimate inviscid (Euler) fluid.
@@ -176,15 +176,15 @@ mod tests {
         let mut m = water();
         m.viscosity = -1.0;
         assert_eq!(
-            m.validate().unwrap_err(),
+            m.validate().unwrap_err().to_string(),
             "material.viscosity must be >= 0, got -1"
         );
         let mut m = water();
         m.bulk_modulus = 0.0;
-        assert!(m.validate().unwrap_err().contains("material.bulk_modulus"));
+        assert!(m.validate().unwrap_err().to_string().contains("material.bulk_modulus"));
         let mut m = water();
         m.eos = Eos::Tait { gamma: -7.0 };
-        assert!(m.validate().unwrap_err().contains("material.eos.gamma"));
+        assert!(m.validate().unwrap_err().to_string().contains("material.eos.gamma"));
         assert!(water().validate().is_ok());
     }
 

@@ -36,7 +36,7 @@
 
 use serde::Deserialize;
 
-use crate::material::{default_flow_index, non_negative, positive, rate_power, Eos, Material, StabilityInfo, Thickening, UpdateAdjoint};
+use crate::material::{MaterialError, default_flow_index, non_negative, positive, rate_power, Eos, Material, StabilityInfo, Thickening, UpdateAdjoint};
 use crate::real::{ddot, dev, r, sym, trace, Real, M3, V3};
 
 #[derive(Clone, Debug, Deserialize)]
@@ -77,7 +77,7 @@ fn default_m() -> f64 {
 }
 
 impl PapanastasiouRoussel {
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), MaterialError> {
         positive("material.density", self.density)?;
         positive("material.bulk_modulus", self.bulk_modulus)?;
         non_negative("material.viscosity", self.viscosity)?;
@@ -88,21 +88,25 @@ impl PapanastasiouRoussel {
         non_negative("material.lambda0", self.lambda0)?;
         positive("material.flow_index", self.flow_index)?;
         if self.a_thix > 0.0 && self.yield_stress == 0.0 {
-            return Err(
-                "material.yield_stress must be > 0 when material.a_thix > 0 (eq. 12 divides by it)"
-                    .into(),
-            );
+            return Err(MaterialError::Conditional {
+                key: "material.yield_stress",
+                rule: "must be > 0",
+                when: "material.a_thix > 0",
+                why: "eq. 12 divides by it",
+            });
         }
         match self.lambda_max {
-            None if self.a_thix > 0.0 => Err(
-                "material.lambda_max is required when material.a_thix > 0: it caps the structural \
-                 build-up at rest, which would otherwise raise the apparent viscosity (and shrink \
-                 the stable time step) without bound"
-                    .into(),
-            ),
-            Some(lm) if !(lm.is_finite() && lm >= self.lambda0) => Err(format!(
-                "material.lambda_max must be finite and >= material.lambda0 ({}), got {lm}",
-                self.lambda0
+            None if self.a_thix > 0.0 => Err(MaterialError::Conditional {
+                key: "material.lambda_max",
+                rule: "is required",
+                when: "material.a_thix > 0",
+                why: "it caps the structural build-up at rest, which would otherwise raise the \
+                      apparent viscosity (and shrink the stable time step) without bound",
+            }),
+            Some(lm) if !(lm.is_finite() && lm >= self.lambda0) => Err(MaterialError::out_of_range(
+                "material.lambda_max",
+                format!("finite and >= material.lambda0 ({})", self.lambda0),
+                lm,
             )),
             _ => self.eos.validate("material.eos"),
         }
@@ -539,6 +543,7 @@ mod tests {
         assert!(m
             .validate()
             .unwrap_err()
+            .to_string()
             .starts_with("material.lambda_max is required"));
         m.lambda_max = Some(5.0);
         assert!(m.validate().is_ok());
@@ -546,16 +551,17 @@ mod tests {
         assert!(m
             .validate()
             .unwrap_err()
+            .to_string()
             .starts_with("material.lambda_max must be"));
         let mut m = mix();
         m.papanastasiou_m = 0.0;
         assert_eq!(
-            m.validate().unwrap_err(),
+            m.validate().unwrap_err().to_string(),
             "material.papanastasiou_m must be > 0, got 0"
         );
         let mut m = mix();
         m.alpha = -0.1;
-        assert!(m.validate().unwrap_err().starts_with("material.alpha"));
+        assert!(m.validate().unwrap_err().to_string().starts_with("material.alpha"));
     }
 
     #[test]
@@ -876,7 +882,7 @@ mod tests {
             }
         }
         let bad = PapanastasiouRoussel { flow_index: -0.5, ..mix() };
-        assert_eq!(bad.validate().unwrap_err(), "material.flow_index must be > 0, got -0.5");
+        assert_eq!(bad.validate().unwrap_err().to_string(), "material.flow_index must be > 0, got -0.5");
     }
 
     #[cfg(not(feature = "f32"))]
