@@ -40,11 +40,16 @@ pub struct FitOptions {
     /// simulation (module doc); a rheometer campaign's adjoints cost less than its runs and
     /// always give the Jacobian.
     pub secant: bool,
+    /// The fit stops on an exact Jacobian and reports its uncertainties from one. Off for a fit
+    /// that needs only its optimum (a leave-one-out refit, which predicts the left-out
+    /// experiment): a secant step's negligible drop then ends it, and no Jacobian is computed
+    /// at the end, each one 2 p runs of the campaign.
+    pub uncertainties: bool,
 }
 
 impl Default for FitOptions {
     fn default() -> FitOptions {
-        FitOptions { max_iterations: 30, tolerance: 1e-5, jobs: 1, engine: Engine::Local, progress: false, secant: true }
+        FitOptions { max_iterations: 30, tolerance: 1e-5, jobs: 1, engine: Engine::Local, progress: false, secant: true, uncertainties: true }
     }
 }
 
@@ -259,14 +264,14 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
         if gain < opts.tolerance || drop < negligible {
             // a negligible drop from a step near the optimum is the optimum: a rough model
             // accepts steps within its scatter as often as it refuses them, each a Jacobian
-            if exact || near {
+            if exact || near || !opts.uncertainties {
                 converged = true;
                 break;
             }
             (s, exact) = (exact_at(&model, &s)?, true);
         }
     }
-    if !exact {
+    if !exact && opts.uncertainties {
         s = exact_at(&model, &s)?;
     }
 

@@ -30,7 +30,9 @@
 //!    by a full refit where the check refuses it, or with `exact_refits` always a full refit;
 //!    [`leave_one_out`]), it must predict the left-out
 //!    experiments better than the base model refitted the same way, or it only overfits and is
-//!    not recommended.
+//!    not recommended. A candidate whose fitted chi^2 + 2 k (Akaike's criterion, k parameters
+//!    fitted) is no less than a recommended one's is not checked: leave-one-out's choice
+//!    follows that criterion asymptotically (Stone 1977), so it would not be chosen.
 //! 4. When no effect is recommended and the base model does not fit (chi^2 beyond its `alpha`
 //!    quantile) the verdict is "unexplained", with the pattern of the residuals.
 
@@ -532,6 +534,8 @@ fn fit_and_check(
     let m = data.len();
     let ids: Vec<String> = super::runner::group(data).into_iter().map(|(id, _)| id).collect();
     let mut base_loo: Option<f64> = None;
+    // the recommended candidate with the least chi^2 + 2 k so far
+    let mut leader: Option<(String, f64)> = None;
     let mut models: Vec<Option<Model>> = vec![None; cands.len()];
     let mut fitted = 0;
     for (ci, c) in cands.iter_mut().enumerate() {
@@ -565,8 +569,18 @@ fn fit_and_check(
         // a fit that moves the error by less than 1 % has not found anything, and is not
         // recommended whatever leaving experiments out would say
         let better = f.chi2 < 0.99 * base.chi2;
+        // Akaike's criterion, which leave-one-out's choice follows asymptotically (Stone 1977):
+        // a candidate that does not beat a recommended one's would not be chosen, and its
+        // leave-one-out (a refit per experiment where the one-step check refuses) is not run
+        let aic = f.chi2 + 2.0 * f.names.len() as f64;
+        let beaten = leader.as_ref().filter(|(_, best)| aic >= *best);
         if !better {
             c.verdict = "does not lower the error when fitted".to_string();
+        } else if let (Some((name, best)), true) = (beaten, opts.leave_one_out) {
+            c.verdict = format!(
+                "lowers the error (x {:.3}) but not chosen: chi^2 + 2 k {aic:.4e} against {name}'s {best:.4e} (Akaike), not checked by leave-one-out",
+                c.error_ratio.unwrap_or(1.0)
+            );
         } else if opts.leave_one_out && ids.len() >= 2 {
             if base_loo.is_none() {
                 base_loo = Some(leave_one_out(base, data, exps, &ids, opts)?);
@@ -576,6 +590,9 @@ fn fit_and_check(
             c.loo_chi2_base = base_loo;
             c.loo_chi2 = Some(loo);
             c.recommended = loo < 0.9 * base_loo.expect("set");
+            if c.recommended {
+                leader = Some((c.effect.clone(), aic));
+            }
             c.verdict = if c.recommended {
                 format!("recommended: error x {:.3}, left-out error x {:.3}", c.error_ratio.unwrap_or(1.0), loo / base_loo.expect("set").max(1e-300))
             } else {
@@ -670,9 +687,11 @@ fn leave_one_out(f: &Fit, data: &[Observation], exps: &Experiments, ids: &[Strin
     Ok(total)
 }
 
-/// `f` refitted to the observations `kept` of its data, from its own values and Jacobian there.
+/// `f` refitted to the observations `kept` of its data, from its own values and Jacobian there;
+/// only the optimum counts ([`FitOptions::uncertainties`] off).
 fn refit(f: &Fit, data: &[Observation], kept: &[usize], exps: &Experiments, opts: &DiagnoseOptions) -> Result<Model, MeasureError> {
-    Ok(calibrate_from(&f.model, &rows_of(data, kept), exps, &f.names, &opts.fit, f.at_end(kept))?.model)
+    let fit = FitOptions { uncertainties: false, ..opts.fit.clone() };
+    Ok(calibrate_from(&f.model, &rows_of(data, kept), exps, &f.names, &fit, f.at_end(kept))?.model)
 }
 
 /// The observations `rows` (indices into `data`), in their order.
