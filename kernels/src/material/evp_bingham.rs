@@ -154,11 +154,11 @@ impl EvpBingham {
         positive("material.maxwell_time", self.maxwell_time)?;
         positive("material.flow_index", self.flow_index)?;
         if self.a_thix > 0.0 && self.yield_stress == 0.0 {
-            return Err(MaterialError::Conditional {
+            return Err(MaterialError::OutOfRangeWhen {
                 key: "material.yield_stress",
-                rule: "must be > 0",
+                range: "> 0",
                 when: "material.a_thix > 0",
-                why: "eq. 22 divides by it",
+                reason: "eq. 22 divides by it",
             });
         }
         self.eos.validate("material.eos")

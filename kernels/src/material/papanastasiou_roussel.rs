@@ -88,19 +88,18 @@ impl PapanastasiouRoussel {
         non_negative("material.lambda0", self.lambda0)?;
         positive("material.flow_index", self.flow_index)?;
         if self.a_thix > 0.0 && self.yield_stress == 0.0 {
-            return Err(MaterialError::Conditional {
+            return Err(MaterialError::OutOfRangeWhen {
                 key: "material.yield_stress",
-                rule: "must be > 0",
+                range: "> 0",
                 when: "material.a_thix > 0",
-                why: "eq. 12 divides by it",
+                reason: "eq. 12 divides by it",
             });
         }
         match self.lambda_max {
-            None if self.a_thix > 0.0 => Err(MaterialError::Conditional {
+            None if self.a_thix > 0.0 => Err(MaterialError::RequiredWhen {
                 key: "material.lambda_max",
-                rule: "is required",
                 when: "material.a_thix > 0",
-                why: "it caps the structural build-up at rest, which would otherwise raise the \
+                reason: "it caps the structural build-up at rest, which would otherwise raise the \
                       apparent viscosity (and shrink the stable time step) without bound",
             }),
             Some(lm) if !(lm.is_finite() && lm >= self.lambda0) => Err(MaterialError::out_of_range(
@@ -540,11 +539,11 @@ mod tests {
         assert!(mix().validate().is_ok());
         let mut m = mix();
         m.a_thix = 0.5;
-        assert!(m
-            .validate()
-            .unwrap_err()
-            .to_string()
-            .starts_with("material.lambda_max is required"));
+        assert_eq!(
+            m.validate().unwrap_err().to_string(),
+            "material.lambda_max is required when material.a_thix > 0: it caps the structural build-up at rest, \
+             which would otherwise raise the apparent viscosity (and shrink the stable time step) without bound"
+        );
         m.lambda_max = Some(5.0);
         assert!(m.validate().is_ok());
         m.lambda0 = 6.0;
