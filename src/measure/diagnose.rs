@@ -534,7 +534,7 @@ fn fit_and_check(
     let m = data.len();
     let ids: Vec<String> = super::runner::group(data).into_iter().map(|(id, _)| id).collect();
     let mut base_loo: Option<f64> = None;
-    // the recommended candidate with the least chi^2 + 2 k so far
+    // the recommended candidate with the least chi^2 + 2 k so far (set only by leave-one-out)
     let mut leader: Option<(String, f64)> = None;
     let mut models: Vec<Option<Model>> = vec![None; cands.len()];
     let mut fitted = 0;
@@ -576,7 +576,7 @@ fn fit_and_check(
         let beaten = leader.as_ref().filter(|(_, best)| aic >= *best);
         if !better {
             c.verdict = "does not lower the error when fitted".to_string();
-        } else if let (Some((name, best)), true) = (beaten, opts.leave_one_out) {
+        } else if let Some((name, best)) = beaten {
             c.verdict = format!(
                 "lowers the error (x {:.3}) but not chosen: chi^2 + 2 k {aic:.4e} against {name}'s {best:.4e} (Akaike), not checked by leave-one-out",
                 c.error_ratio.unwrap_or(1.0)

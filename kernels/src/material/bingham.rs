@@ -25,7 +25,7 @@
 
 use serde::Deserialize;
 
-use crate::material::{MaterialError, default_flow_index, non_negative, positive, rate_power, Eos, Material, StabilityInfo, Thickening, UpdateAdjoint};
+use crate::material::{default_flow_index, non_negative, positive, rate_power, Eos, Material, MaterialError, StabilityInfo, Thickening, UpdateAdjoint};
 use crate::real::{ddot, dev, r, sym, trace, Real, M3, V3};
 
 #[derive(Clone, Debug, Deserialize)]

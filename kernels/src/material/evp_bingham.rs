@@ -75,7 +75,7 @@
 use serde::Deserialize;
 
 use crate::material::eos::{resolve_shear_modulus, shear_modulus_of, shear_modulus_of_partials};
-use crate::material::{MaterialError, default_flow_index, maxwell, non_negative, positive, Eos, Material, StabilityInfo, UpdateAdjoint};
+use crate::material::{default_flow_index, maxwell, non_negative, positive, Eos, Material, MaterialError, StabilityInfo, UpdateAdjoint};
 use crate::real::{
     ddot, dev, jaumann_rotation, jaumann_rotation_adjoint, r, skew, sym, sym_from_slice, sym_from_slice_adjoint,
     sym_to_array, sym_to_array_adjoint, Real, M3, V3,

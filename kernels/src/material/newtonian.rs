@@ -11,7 +11,7 @@
 
 use serde::Deserialize;
 
-use crate::material::{MaterialError, non_negative, positive, Eos, Material, StabilityInfo, UpdateAdjoint};
+use crate::material::{non_negative, positive, Eos, Material, MaterialError, StabilityInfo, UpdateAdjoint};
 use crate::real::{ddot, dev, r, sym, trace, Real, M3, V3};
 
 #[derive(Clone, Debug, Deserialize)]
