@@ -43,7 +43,7 @@ use super::observation::Observation;
 use super::effects::{Covariates, Effect};
 use super::linalg::{chi2_sf, gauss_newton_step, normal_equations, pinv_sym};
 use super::model::Model;
-use super::sensitivity::Sensitivity;
+use super::sensitivity::{Differences, Sensitivity};
 
 #[derive(Clone, Debug)]
 pub struct DiagnoseOptions {
@@ -293,7 +293,8 @@ fn base_fit(model: &Model, data: &[Observation], exps: &Experiments, fit: &[Stri
 /// point's values (every added effect at its null, or a modulus at the stand-in the base model
 /// runs in its place), the fitted parameters' columns are the base fit's own there, `extra`'s
 /// follow from them where the keys allow ([`chained`](super::chain::chained)), and only the
-/// rest are computed, from those values; elsewhere every column is, from `with`'s values.
+/// rest are computed, from those values, by one-sided differences (the scatter is the base
+/// fit's there: [`Differences::Forward`]); elsewhere every column is, from `with`'s values.
 fn beside_base(base: &Fit, from_start: bool, with: &Model, extra: &[String], data: &[Observation], exps: &Experiments, opts: &DiagnoseOptions) -> Result<Sensitivity, MeasureError> {
     let (engine, jobs) = (&opts.fit.engine, opts.fit.jobs);
     let names: Vec<String> = base.names.iter().chain(extra).cloned().collect();
@@ -303,7 +304,7 @@ fn beside_base(base: &Fit, from_start: bool, with: &Model, extra: &[String], dat
     };
     let values = engine.sensitivity(jobs, with, data, exps, None)??.values;
     if values != *known || base.names.is_empty() || extra.is_empty() {
-        return engine.jacobian_at(jobs, with, data, exps, &names, &values)?;
+        return engine.jacobian_at(jobs, with, data, exps, &names, (&values, &Differences::Central))?;
     }
     // an effect's columns the fitted parameters' give through the keys take no run
     let chained = super::chain::chained(with, data, exps, &base.names, (known_jacobian, known_jacobian_scatter), extra)?;
@@ -311,10 +312,9 @@ fn beside_base(base: &Fit, from_start: bool, with: &Model, extra: &[String], dat
     let (computed, computed_scatter, scatter) = if run.is_empty() {
         (vec![vec![]; data.len()], vec![vec![]; data.len()], known_scatter.clone())
     } else {
-        let s = engine.jacobian_at(jobs, with, data, exps, &run, &values)??;
-        // the larger of the two estimates of the same scatter, to be cautious
-        let scatter = s.scatter.iter().zip(known_scatter).map(|(a, b)| a.max(*b)).collect();
-        (s.jacobian.expect("asked"), s.jacobian_scatter.expect("asked"), scatter)
+        // one-sided: at the base fit's values, whose scatter its central differences estimated
+        let s = engine.jacobian_at(jobs, with, data, exps, &run, (&values, &Differences::Forward(known_scatter.clone())))??;
+        (s.jacobian.expect("asked"), s.jacobian_scatter.expect("asked"), known_scatter.clone())
     };
     // the known columns, then each extra parameter's, chained or computed
     let rows = |known: &[Vec<f64>], computed: Vec<Vec<f64>>, pick: fn(&super::chain::Chained) -> &Vec<f64>| -> Vec<Vec<f64>> {

@@ -33,7 +33,7 @@ use super::model::Model;
 use super::observation::{Observable, Observation};
 use super::provenance::{self, exact, plain, Exact, Provenance};
 use super::runner::{find, group};
-use super::sensitivity::{self, Sensitivity, Valued};
+use super::sensitivity::{self, Differences, Sensitivity, Valued};
 use std::path::{Path, PathBuf};
 
 /// The preset schedulers and their command templates: GNU parallel on this machine, a Slurm job
@@ -104,17 +104,21 @@ impl Engine {
     pub fn sensitivity(&self, jobs: usize, model: &Model, data: &[Observation], exps: &Experiments, names: Option<&[String]>) -> Result<Answer, MeasureError> {
         match self {
             Engine::Local => Ok(sensitivity::sensitivity(model, data, exps, names, jobs)),
-            Engine::Scheduler(s) => s.sensitivity(model, data, exps, names),
+            Engine::Scheduler(s) => s.sensitivity(model, data, exps, names, None),
         }
     }
 
     /// The Jacobian in `names` at `model`, whose values the engine has just given (`values`: a
-    /// calibration's accepted trial). Here the experiments differenced throughout take them
-    /// instead of running them again; a scheduler's jobs compute them again, to the same bits.
-    pub fn jacobian_at(&self, jobs: usize, model: &Model, data: &[Observation], exps: &Experiments, names: &[String], values: &[f64]) -> Result<Answer, MeasureError> {
+    /// calibration's accepted trial), its simulations differenced as `differences` says. Here
+    /// the experiments differenced throughout take the values instead of running them again; a
+    /// scheduler's jobs compute them again, to the same bits.
+    pub fn jacobian_at(&self, jobs: usize, model: &Model, data: &[Observation], exps: &Experiments, names: &[String], (values, differences): (&[f64], &Differences)) -> Result<Answer, MeasureError> {
         match self {
-            Engine::Local => Ok(sensitivity::jacobian_at(model, data, exps, names, jobs, values)),
-            Engine::Scheduler(s) => s.sensitivity(model, data, exps, Some(names)),
+            Engine::Local => Ok(sensitivity::jacobian_at(model, data, exps, names, jobs, values, differences)),
+            Engine::Scheduler(s) => s.sensitivity(model, data, exps, Some(names), match differences {
+                Differences::Central => None,
+                Differences::Forward(scatter) => Some(scatter),
+            }),
         }
     }
 }
@@ -136,6 +140,10 @@ pub struct Job {
     /// differences' steps.
     pub units: std::collections::BTreeMap<String, f64>,
     pub threads: Option<usize>,
+    /// The values' scatter, one per observable, where the differences are one-sided
+    /// ([`Differences::Forward`]); absent for central ones.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scatter: Option<Vec<Exact>>,
 }
 
 /// What a job computed.
@@ -162,7 +170,11 @@ impl Job {
     /// file name) and a hash of what the result depends on.
     fn key(&self, id: &str) -> String {
         let safe: String = id.chars().map(|c| if c.is_ascii_alphanumeric() || "-_.".contains(c) { c } else { '_' }).collect();
-        let what = serde_json::to_string(&(&self.provenance, &self.observables, &self.names, &self.units)).expect("serialises");
+        let what = match &self.scatter {
+            None => serde_json::to_string(&(&self.provenance, &self.observables, &self.names, &self.units)),
+            Some(s) => serde_json::to_string(&(&self.provenance, &self.observables, &self.names, &self.units, s)),
+        }
+        .expect("serialises");
         format!("{safe}-{}", &provenance::hash(&what)[..16])
     }
 }
@@ -190,8 +202,11 @@ fn tail(path: &Path, none: &str) -> String {
 }
 
 impl Scheduler {
-    fn sensitivity(&self, model: &Model, data: &[Observation], exps: &Experiments, names: Option<&[String]>) -> Result<Answer, MeasureError> {
+    /// As [`Engine::sensitivity`]; `scatter` (in the data's order) makes the differences
+    /// one-sided ([`Differences::Forward`]).
+    fn sensitivity(&self, model: &Model, data: &[Observation], exps: &Experiments, names: Option<&[String]>, scatter: Option<&[f64]>) -> Result<Answer, MeasureError> {
         let wanted = group(data);
+        let scatter = scatter.map(|s| sensitivity::regroup(data, &wanted, s));
         // each experiment: its answer when known (collected, or the experiment is not in the
         // file), else the job that computes it
         let mut answers: Vec<Option<Result<Vec<Valued>, MeasureError>>> = Vec::with_capacity(wanted.len());
@@ -205,7 +220,7 @@ impl Scheduler {
                     continue;
                 }
             };
-            let job = self.job(model, exps, x, obs, names)?;
+            let job = self.job(model, exps, x, obs, names, scatter.as_ref().map(|s| &s[k][..]))?;
             let key = job.key(id);
             let result = self.dir.join("results").join(format!("{key}.json"));
             if result.exists() {
@@ -231,7 +246,7 @@ impl Scheduler {
         Ok(Ok(sensitivity::assemble(data, &wanted, &per, names)))
     }
 
-    fn job(&self, model: &Model, exps: &Experiments, x: &Experiment, obs: &[Observable], names: Option<&[String]>) -> Result<Job, MeasureError> {
+    fn job(&self, model: &Model, exps: &Experiments, x: &Experiment, obs: &[Observable], names: Option<&[String]>, scatter: Option<&[f64]>) -> Result<Job, MeasureError> {
         Ok(Job {
             provenance: Provenance::of(model, exps, x),
             model: model.to_toml(),
@@ -242,6 +257,7 @@ impl Scheduler {
             names: names.map(<[String]>::to_vec),
             units: model.units.clone(),
             threads: self.threads,
+            scatter: scatter.map(exact),
         })
     }
 
@@ -361,7 +377,11 @@ pub fn evaluate(job_path: &Path, out: &Path) -> Result<String, MeasureError> {
     // the files as they are now must be those the job was planned with
     Provenance::of(&model, &exps, &exps.experiment[0]).check(&job.provenance, &id, job_path).map_err(|e| MeasureError::Engine(format!("{e}: the job was planned with other files or another strand; run the campaign again to plan it anew")))?;
     let obs: Vec<Observable> = job.observables.iter().map(|o| Observable::parse(o)).collect::<Result<_, _>>()?;
-    let outcome = match sensitivity::one(&model, &exps, &id, &obs, job.names.as_deref(), job.threads) {
+    if job.scatter.as_ref().is_some_and(|s| s.len() != obs.len()) {
+        return Err(MeasureError::Engine(format!("{}: {} scatters for {} observables: not a job of this strand", job_path.display(), job.scatter.as_ref().map_or(0, Vec::len), obs.len())));
+    }
+    let scatter = job.scatter.as_ref().map(|s| plain(s));
+    let outcome = match sensitivity::one(&model, &exps, &id, &obs, job.names.as_deref(), job.threads, scatter.as_deref()) {
         Ok(per) => Outcome::Values {
             values: exact(&per.iter().map(|v| v.value).collect::<Vec<_>>()),
             jacobian: job.names.as_ref().map(|_| per.iter().map(|v| exact(v.gradient.as_deref().unwrap_or_default())).collect()),
@@ -396,7 +416,7 @@ mod tests {
         let exps: Experiments = toml::from_str(EXPS).unwrap();
         let s = Scheduler { template: "true".into(), dir: PathBuf::from("unused"), exe: PathBuf::from("strand"), threads: None };
         let names = vec!["material.viscosity".to_string()];
-        let job = s.job(&model, &exps, &exps.experiment[0], &[Observable::parse("stress@20").unwrap()], Some(&names)).unwrap();
+        let job = s.job(&model, &exps, &exps.experiment[0], &[Observable::parse("stress@20").unwrap()], Some(&names), None).unwrap();
         let read: Job = serde_json::from_str(&serde_json::to_string(&job).unwrap()).unwrap();
         let there = job_model(&read).unwrap();
         assert_eq!(there.get("material.viscosity").unwrap(), 1e-5);
@@ -408,5 +428,10 @@ mod tests {
         let mut other = read;
         other.units.insert("viscosity".into(), 1.0);
         assert_ne!(other.key("flow"), job.key("flow"));
+        // one-sided differences carry the values' scatter, exactly, in the job and its key
+        let forward = s.job(&model, &exps, &exps.experiment[0], &[Observable::parse("stress@20").unwrap()], Some(&names), Some(&[0.1 + 0.2])).unwrap();
+        let read: Job = serde_json::from_str(&serde_json::to_string(&forward).unwrap()).unwrap();
+        assert_eq!(read.scatter.as_deref().map(plain), Some(vec![0.1 + 0.2]));
+        assert_ne!(forward.key("flow"), job.key("flow"));
     }
 }

@@ -46,31 +46,62 @@ pub struct Sensitivity {
     pub jacobian_scatter: Option<Vec<Vec<f64>>>,
 }
 
+/// How a simulation's Jacobian columns that stand in for its adjoint are differenced
+/// ([`DIFFERENCE_STEP_SMOOTH`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub enum Differences {
+    /// Both sides of each parameter, whose second differences also estimate each value's
+    /// scatter ([`central`]).
+    #[default]
+    Central,
+    /// One side (p + h, or p - h where p + h leaves the bounds): p runs against 2 p, first-order
+    /// accurate, for a point whose values' scatter is known (one per observation, in the data's
+    /// order: a fit's, near there): a leave-one-out refit, which only needs its optimum, or a
+    /// score test's direction at the nulls.
+    Forward(Vec<f64>),
+}
+
 /// Values of every observation under `model`, with their gradients in `names` when given;
 /// experiments run `jobs` at a time.
 pub fn sensitivity(model: &Model, data: &[Observation], exps: &Experiments, names: Option<&[String]>, jobs: usize) -> Result<Sensitivity, MeasureError> {
-    campaign(model, data, exps, names, jobs, None)
+    campaign(model, data, exps, names, jobs, None, &Differences::Central)
 }
 
 /// [`sensitivity`] in `names` at a model whose values are known (`values`, in the data's order,
 /// as [`sensitivity`] gives them there: a calibration's accepted trial). An experiment whose
-/// Jacobian is all central differences takes them instead of running the model again: one run
-/// of its 1 + 2 p.
-pub fn jacobian_at(model: &Model, data: &[Observation], exps: &Experiments, names: &[String], jobs: usize, values: &[f64]) -> Result<Sensitivity, MeasureError> {
-    campaign(model, data, exps, Some(names), jobs, Some(values))
+/// Jacobian is all differences takes them instead of running the model again: one run of its
+/// 1 + 2 p (or 1 + p, [`Differences::Forward`]).
+pub fn jacobian_at(model: &Model, data: &[Observation], exps: &Experiments, names: &[String], jobs: usize, values: &[f64], differences: &Differences) -> Result<Sensitivity, MeasureError> {
+    campaign(model, data, exps, Some(names), jobs, Some(values), differences)
 }
 
-fn campaign(model: &Model, data: &[Observation], exps: &Experiments, names: Option<&[String]>, jobs: usize, known: Option<&[f64]>) -> Result<Sensitivity, MeasureError> {
+fn campaign(model: &Model, data: &[Observation], exps: &Experiments, names: Option<&[String]>, jobs: usize, known: Option<&[f64]>, differences: &Differences) -> Result<Sensitivity, MeasureError> {
     let wanted = group(data);
     let threads = job_threads(jobs, wanted.len());
     let known = known.map(|v| regroup(data, &wanted, v));
-    let per = par_map_experiments(&wanted, jobs, |k| one_known(model, exps, &wanted[k].0, &wanted[k].1, names, threads, known.as_ref().map(|v| &v[k][..])))?;
+    let scatter = match differences {
+        Differences::Central => None,
+        Differences::Forward(s) => Some(regroup(data, &wanted, s)),
+    };
+    let per = par_map_experiments(&wanted, jobs, |k| {
+        let known = Known { values: known.as_ref().map(|v| &v[k][..]), scatter: scatter.as_ref().map(|s| &s[k][..]) };
+        one_known(model, exps, &wanted[k].0, &wanted[k].1, names, threads, known)
+    })?;
     Ok(assemble(data, &wanted, &per, names))
+}
+
+/// What the caller knows of one experiment at the model: its values (a trial just run), and its
+/// values' scatter, which makes its differences one-sided ([`Differences::Forward`]); each in
+/// the experiment's order of observables.
+#[derive(Clone, Copy, Default)]
+pub struct Known<'a> {
+    pub values: Option<&'a [f64]>,
+    pub scatter: Option<&'a [f64]>,
 }
 
 /// Values in the data's order grouped by experiment, as [`group`] orders them (the inverse of
 /// [`ungroup`]).
-fn regroup(data: &[Observation], wanted: &[(String, Vec<Observable>)], values: &[f64]) -> Vec<Vec<f64>> {
+pub fn regroup(data: &[Observation], wanted: &[(String, Vec<Observable>)], values: &[f64]) -> Vec<Vec<f64>> {
     let mut per = vec![Vec::new(); wanted.len()];
     for (o, v) in data.iter().zip(values) {
         per[wanted.iter().position(|(id, _)| *id == o.experiment).expect("grouped")].push(*v);
@@ -78,13 +109,14 @@ fn regroup(data: &[Observation], wanted: &[(String, Vec<Observable>)], values: &
     per
 }
 
-/// One experiment's values of `wanted` and, with `names`, their gradients: the unit of work
-/// [`sensitivity`] runs side by side and a scheduler's job runs alone (`engine.rs`).
-pub fn one(model: &Model, exps: &Experiments, id: &str, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>) -> Result<Vec<Valued>, MeasureError> {
-    one_known(model, exps, id, wanted, names, threads, None)
+/// One experiment's values of `wanted` and, with `names`, their gradients (one-sided where
+/// `scatter`, its values' known scatter, is given): the unit of work [`sensitivity`] runs side
+/// by side and a scheduler's job runs alone (`engine.rs`).
+pub fn one(model: &Model, exps: &Experiments, id: &str, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>, scatter: Option<&[f64]>) -> Result<Vec<Valued>, MeasureError> {
+    one_known(model, exps, id, wanted, names, threads, Known { values: None, scatter })
 }
 
-fn one_known(model: &Model, exps: &Experiments, id: &str, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>, known: Option<&[f64]>) -> Result<Vec<Valued>, MeasureError> {
+fn one_known(model: &Model, exps: &Experiments, id: &str, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>, known: Known) -> Result<Vec<Valued>, MeasureError> {
     let x = find(exps, id)?;
     experiment(model, exps, x, wanted, names, threads, known).map_err(|e| e.within(format!("experiment '{id}'")))
 }
@@ -160,20 +192,21 @@ pub fn by_differences_is_cheaper(runs: usize, observations: usize) -> bool {
 }
 
 /// One experiment's values of `wanted` and, with `names`, their gradients; `known`: its values at
-/// `model`, where the caller has them.
-fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>, known: Option<&[f64]>) -> Result<Vec<Valued>, MeasureError> {
+/// `model` and their scatter, where the caller has them.
+fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>, known: Known) -> Result<Vec<Valued>, MeasureError> {
     let (adjoint, other): (Vec<usize>, Vec<usize>) = (0..wanted.len()).partition(|&k| has_adjoint(&wanted[k]));
     if other.is_empty() {
         return simulated(model, exps, x, wanted, names, threads, known);
     }
     let pick = |ks: &[usize]| ks.iter().map(|&k| wanted[k].clone()).collect::<Vec<_>>();
-    let known_of = |ks: &[usize]| known.map(|v| ks.iter().map(|&k| v[k]).collect::<Vec<f64>>());
+    let part = |v: Option<&[f64]>, ks: &[usize]| v.map(|v| ks.iter().map(|&k| v[k]).collect::<Vec<f64>>());
     let mut out: Vec<Option<Valued>> = vec![None; wanted.len()];
-    for (&k, v) in other.iter().zip(differenced(model, exps, x, &pick(&other), names, threads, known_of(&other).as_deref())?) {
+    for (&k, v) in other.iter().zip(differenced(model, exps, x, &pick(&other), names, threads, part(known.values, &other).as_deref())?) {
         out[k] = Some(v);
     }
     if !adjoint.is_empty() {
-        for (&k, v) in adjoint.iter().zip(simulated(model, exps, x, &pick(&adjoint), names, threads, known_of(&adjoint).as_deref())?) {
+        let (values, scatter) = (part(known.values, &adjoint), part(known.scatter, &adjoint));
+        for (&k, v) in adjoint.iter().zip(simulated(model, exps, x, &pick(&adjoint), names, threads, Known { values: values.as_deref(), scatter: scatter.as_deref() })?) {
             out[k] = Some(v);
         }
     }
@@ -185,25 +218,27 @@ fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obser
 /// a parameter that moves the toolpath (the adjoint holds fixed which step each slab of
 /// material enters in, and a changed flow or speed changes that over a whole print: the
 /// extrusion factor's adjoint gets the sign of a line's width wrong) and, for a simulation, for
-/// every parameter when that costs less than the adjoint ([`by_differences_is_cheaper`]).
-fn simulated(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>, known: Option<&[f64]>) -> Result<Vec<Valued>, MeasureError> {
+/// every parameter when that costs less than the adjoint ([`by_differences_is_cheaper`]). With
+/// the values' scatter known, each difference is one-sided ([`Differences::Forward`]).
+fn simulated(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>, known: Known) -> Result<Vec<Valued>, MeasureError> {
     let (Some(names), Some(_)) = (names, &x.scenario) else { return by_adjoint(model, exps, x, wanted, names, threads) };
     let keys = experiment_keys(model, x)?;
-    let sides = names.iter().map(|n| smooth_step(model, n).and_then(|h| moves(model, x, &keys, n, h))).collect::<Result<Vec<_>, _>>()?;
+    let one_sided = known.scatter.is_some();
+    let sides = names.iter().map(|n| smooth_step(model, n).and_then(|h| moves(model, x, &keys, n, h)).map(|s| s.map(|s| if one_sided { s.one_side() } else { s }))).collect::<Result<Vec<_>, _>>()?;
     // the toolpath's parameters are differenced either way
     let all = by_differences_is_cheaper(sides.iter().flatten().filter(|s| !s.toolpath).map(Sides::runs).sum(), wanted.len());
     let by_differences: Vec<bool> = sides.iter().map(|s| s.as_ref().is_some_and(|s| all || s.toolpath)).collect();
     // a parameter that leaves the experiment as it is has a zero column, from neither
     let from_the_adjoint: Vec<bool> = sides.iter().zip(&by_differences).map(|(s, &d)| s.is_some() && !d).collect();
     let adjoint: Vec<String> = names.iter().zip(&from_the_adjoint).filter(|(_, a)| **a).map(|(n, _)| n.clone()).collect();
-    let at_model = match known {
+    let at_model = match known.values {
         Some(v) if adjoint.is_empty() => v.iter().map(|&v| Valued::new(v, None)).collect(),
         _ => by_adjoint(model, exps, x, wanted, (!adjoint.is_empty()).then_some(&adjoint[..]), threads)?,
     };
     let values: Vec<f64> = at_model.iter().map(|v| v.value).collect();
     let run = |m: &Model| Ok(by_adjoint(m, exps, x, wanted, None, threads)?.into_iter().map(|v| v.value).collect());
     let differenced: Vec<Option<Sides>> = sides.into_iter().zip(&by_differences).map(|(s, &d)| s.filter(|_| d)).collect();
-    let Central { columns, scatter, column_scatter } = central(&values, run, differenced)?;
+    let Central { columns, scatter, column_scatter } = central(&values, run, differenced, known.scatter)?;
     let mut from_adjoint = 0..adjoint.len();
     let picks: Vec<Option<usize>> = from_the_adjoint.iter().map(|&a| if a { from_adjoint.next() } else { None }).collect();
     Ok(at_model
@@ -294,6 +329,14 @@ impl Sides {
     fn runs(&self) -> usize {
         usize::from(self.lo.1.is_some()) + usize::from(self.hi.1.is_some())
     }
+
+    /// One side only: p + h, or p - h where p + h changes nothing (the upper bound).
+    fn one_side(self) -> Sides {
+        match self.hi.1 {
+            Some(_) => Sides { lo: (self.at, None), ..self },
+            None => self,
+        }
+    }
 }
 
 /// `name` moved to p +- h, each side held within the parameter's bounds, with the models there
@@ -320,9 +363,10 @@ fn moves(model: &Model, x: &Experiment, keys: &Keys, name: &str, h: f64) -> Resu
 /// parameter ran both sides a step h away, the second difference v(p + h) + v(p - h) - 2 v(p)
 /// of values with independent scatter s has variance 6 s^2 (plus its curvature, h^2 v'', small
 /// at 3 % steps, which only makes the estimate cautious); the mean square over the parameters
-/// that ran both sides, over 6, estimates s^2; and a column's entry, a difference over a width w,
-/// scatters by s sqrt(2) / w.
-fn central(values: &[f64], run: impl Fn(&Model) -> Result<Vec<f64>, MeasureError>, sides: Vec<Option<Sides>>) -> Result<Central, MeasureError> {
+/// that ran both sides, over 6, estimates s^2. `known`, the values' scatter where the caller
+/// knows it, is taken instead. A column's entry, a difference over a width w, scatters by
+/// s sqrt(2) / w.
+fn central(values: &[f64], run: impl Fn(&Model) -> Result<Vec<f64>, MeasureError>, sides: Vec<Option<Sides>>, known: Option<&[f64]>) -> Result<Central, MeasureError> {
     let mut rows = vec![vec![0.0; sides.len()]; values.len()];
     let mut second = vec![0.0; values.len()];
     let mut both_sides = 0;
@@ -350,7 +394,10 @@ fn central(values: &[f64], run: impl Fn(&Model) -> Result<Vec<f64>, MeasureError
         }
         widths[j] = hi - lo;
     }
-    let scatter: Vec<f64> = second.into_iter().map(|d2| if both_sides == 0 { 0.0 } else { (d2 / (6 * both_sides) as f64).sqrt() }).collect();
+    let scatter: Vec<f64> = match known {
+        Some(s) => s.to_vec(),
+        None => second.into_iter().map(|d2| if both_sides == 0 { 0.0 } else { (d2 / (6 * both_sides) as f64).sqrt() }).collect(),
+    };
     let column_scatter = scatter.iter().map(|s| widths.iter().map(|w| s * 2f64.sqrt() / w).collect()).collect();
     Ok(Central { columns: rows, scatter, column_scatter })
 }
@@ -492,7 +539,7 @@ mod tests {
             let v = m.get(name)?;
             Ok((0..n).map(|i| (1.0 + i as f64) * v + s * noise(i, v)).collect())
         };
-        let c = central(&rough(&m).unwrap(), rough, sides()).unwrap();
+        let c = central(&rough(&m).unwrap(), rough, sides(), None).unwrap();
         let rms = (c.scatter.iter().map(|x| x * x).sum::<f64>() / n as f64).sqrt();
         assert!((rms / s - 1.0).abs() < 0.05, "rms scatter {rms} against {s}");
         // the slopes scatter about theirs by s / (sqrt(2) h), as each entry's scatter says
@@ -501,13 +548,23 @@ mod tests {
         assert!(((miss / n as f64).sqrt() / expected - 1.0).abs() < 0.05, "slopes miss by {} rms against {expected}", (miss / n as f64).sqrt());
         assert!(((said / n as f64).sqrt() / expected - 1.0).abs() < 0.1, "slopes said to scatter by {} rms against {expected}", (said / n as f64).sqrt());
         let smooth = |m: &Model| -> Result<Vec<f64>, MeasureError> { Ok(vec![3.0 * m.get(name)?, m.get(name)?.powi(2)]) };
-        let c = central(&smooth(&m).unwrap(), smooth, sides()).unwrap();
+        let c = central(&smooth(&m).unwrap(), smooth, sides(), None).unwrap();
         assert!(c.scatter[0] < 1e-12, "a line has no scatter: {}", c.scatter[0]);
         assert!((c.scatter[1] - 2.0 * h * h / 6f64.sqrt()).abs() < 1e-9, "a parabola's: {}", c.scatter[1]);
         // one-sided (a side at a bound) says nothing of the scatter
         let one_sided = vec![Some(Sides { at: p, lo: (p, None), hi: (p + h, at(p + h)), toolpath: false })];
-        let c = central(&rough(&m).unwrap(), rough, one_sided).unwrap();
+        let c = central(&rough(&m).unwrap(), rough, one_sided, None).unwrap();
         assert!(c.scatter.iter().all(|&x| x == 0.0) && c.column_scatter.iter().all(|r| r[0] == 0.0));
+        // forward differences with the scatter known: the slopes scatter by s sqrt(2) / h, twice
+        // the central ones' over the same h, as each entry's scatter says
+        let forward = sides().into_iter().map(|s| s.map(Sides::one_side)).collect();
+        let known = vec![s; n as usize];
+        let c = central(&rough(&m).unwrap(), rough, forward, Some(&known)).unwrap();
+        assert_eq!(c.scatter, known);
+        let (miss, said): (f64, f64) = (0..n as usize).map(|i| ((c.columns[i][0] - (1.0 + i as f64)).powi(2), c.column_scatter[i][0].powi(2))).fold((0.0, 0.0), |(a, b), (x, y)| (a + x, b + y));
+        let expected = s * 2f64.sqrt() / h;
+        assert!(((miss / n as f64).sqrt() / expected - 1.0).abs() < 0.05, "forward slopes miss by {} rms against {expected}", (miss / n as f64).sqrt());
+        assert!(((said / n as f64).sqrt() / expected - 1.0).abs() < 1e-9, "forward slopes said to scatter by {} rms against {expected}", (said / n as f64).sqrt());
     }
 
     /// The differenced Jacobian is the adjoint's where the observable is linear in the
@@ -563,11 +620,11 @@ mod tests {
         let names: Vec<String> = ["material.yield_stress", "material.viscosity", "extrusion_factor.factor"].map(String::from).to_vec();
         // two material parameters; the extrusion factor's is differenced either way
         assert!(by_differences_is_cheaper(2 * 2, wanted.len()));
-        let fd = experiment(&m, &e, x, &wanted, Some(&names), Some(1), None).unwrap();
+        let fd = experiment(&m, &e, x, &wanted, Some(&names), Some(1), Known::default()).unwrap();
         let adj = by_adjoint(&m, &e, x, &wanted, Some(&names), Some(1)).unwrap();
         // the values known (a calibration's accepted trial), the same Jacobian without their run
         let values: Vec<f64> = fd.iter().map(|v| v.value).collect();
-        let known = experiment(&m, &e, x, &wanted, Some(&names), Some(1), Some(&values)).unwrap();
+        let known = experiment(&m, &e, x, &wanted, Some(&names), Some(1), Known { values: Some(&values), scatter: None }).unwrap();
         assert_eq!(known, fd);
         let p: Vec<f64> = names.iter().map(|n| m.get(n).unwrap()).collect();
         let mut by_name = std::collections::BTreeMap::new();
@@ -590,11 +647,29 @@ mod tests {
                 assert!((g[j] - ga[j]).abs() * p[j] <= 0.25 * big, "{o}: d / d {}: differences {} against the adjoint's {}", names[j], g[j], ga[j]);
             }
         }
+        // one-sided with the values' scatter known (a refit's): p runs, not 2 p, the columns the
+        // central ones to first order, the scatter the one given
+        let scatter: Vec<f64> = fd.iter().map(|v| v.scatter).collect();
+        let forward = experiment(&m, &e, x, &wanted, Some(&names), Some(1), Known { values: Some(&values), scatter: Some(&scatter) }).unwrap();
+        for ((o, f), (c, s)) in wanted.iter().zip(&forward).zip(fd.iter().zip(&scatter)) {
+            assert_eq!((f.value, f.scatter), (c.value, *s));
+            let (gf, gc) = (f.gradient.as_ref().unwrap(), c.gradient.as_ref().unwrap());
+            // within 3 standard deviations of the two differences' scatter, as each says it, and
+            // the width, the best resolved, within a quarter of its largest entry
+            let (sf, sc) = (f.gradient_scatter.as_ref().unwrap(), c.gradient_scatter.as_ref().unwrap());
+            let big = (0..names.len()).map(|j| (gc[j] * p[j]).abs()).fold(0.0, f64::max);
+            for j in 0..names.len() {
+                let apart = 3.0 * sf[j].hypot(sc[j]);
+                println!("{} {:?}: d / d ln {}: forward {:.4e}, central {:.4e}, 3 sigma {:.4e}", o.name, o.at2, names[j], gf[j] * p[j], gc[j] * p[j], apart * p[j]);
+                assert!((gf[j] - gc[j]).abs() <= apart, "{}: d / d {}: forward {} against central {}, 3 sigma {apart}", o.name, names[j], gf[j], gc[j]);
+                assert!(o.name != "width" || (gf[j] - gc[j]).abs() * p[j] <= 0.25 * big, "width: d / d {}: forward {} against central {}", names[j], gf[j], gc[j]);
+            }
+        }
         // with more parameters than differences pay for, the material's columns come from the
         // adjoint and the toolpath's from differences
         let more: Vec<String> = ["material.bulk_modulus"].map(String::from).into_iter().chain(names.iter().cloned()).collect();
         assert!(!by_differences_is_cheaper(2 * 3, 1));
-        let hybrid = experiment(&m, &e, x, &wanted[..1], Some(&more), Some(1), None).unwrap();
+        let hybrid = experiment(&m, &e, x, &wanted[..1], Some(&more), Some(1), Known::default()).unwrap();
         let adj = by_adjoint(&m, &e, x, &wanted[..1], Some(&more[..3]), Some(1)).unwrap();
         let (row, adj_row) = (hybrid[0].gradient.as_ref().unwrap(), adj[0].gradient.as_ref().unwrap());
         assert_eq!(&row[..3], &adj_row[..], "the material's columns from the adjoint");

@@ -330,7 +330,7 @@ fn a_failure_layers_column_resolves_its_staircase() {
     let model = Model::from_table(&text.parse().unwrap()).unwrap();
     let wanted = [Observable::parse("failure_layer").unwrap(), Observable::parse("failure_time").unwrap()];
     let names = ["thixotropy.a_thix".to_string()];
-    let got = sensitivity::one(&model, &exps, "mid", &wanted, Some(&names), Some(1)).unwrap();
+    let got = sensitivity::one(&model, &exps, "mid", &wanted, Some(&names), Some(1), None).unwrap();
     let (layer, dlayer) = (got[0].value, got[0].gradient.as_ref().unwrap()[0]);
     let dtime = got[1].gradient.as_ref().unwrap()[0];
     assert_eq!(layer, 4.0, "{got:?}");
