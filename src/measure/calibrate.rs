@@ -42,18 +42,9 @@ pub struct FitOptions {
     pub secant: bool,
     /// The fit stops on an exact Jacobian and reports its uncertainties from one. Off for a fit
     /// that needs only its optimum (a leave-one-out refit, which predicts the left-out
-    /// experiment): a secant step's negligible drop then ends it, no Jacobian is computed at the
-    /// end, and a simulation's Jacobians are one-sided differences, p runs of the campaign
-    /// against 2 p, the values' scatter taken from the last central ones
-    /// ([`Differences::Forward`]).
+    /// experiment): a secant step's negligible drop then ends it, and no Jacobian is computed
+    /// at the end, each one 2 p runs of the campaign.
     pub uncertainties: bool,
-}
-
-impl FitOptions {
-    /// How a Jacobian near `at` is differenced ([`FitOptions::uncertainties`]).
-    fn differences(&self, at: &Sensitivity) -> Differences {
-        if self.uncertainties { Differences::Central } else { Differences::Forward(at.scatter.clone()) }
-    }
 }
 
 impl Default for FitOptions {
@@ -221,7 +212,7 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
     let secant = opts.secant && simulated;
     // whether `s`'s Jacobian is the engine's, not a secant update: a fit stops on an exact one
     let mut exact = true;
-    let exact_at = |m: &Model, s: &Sensitivity| opts.engine.jacobian_at(opts.jobs, m, data, exps, names, (&s.values, &opts.differences(s)))?;
+    let exact_at = |m: &Model, s: &Sensitivity| opts.engine.jacobian_at(opts.jobs, m, data, exps, names, (&s.values, &Differences::Central))?;
     while history.len() <= opts.max_iterations {
         let (z, jz) = standardised(&s.values, s.jacobian.as_ref().expect("asked"), data, &scale);
         free = free_parameters(&jz, &z, &theta, &bounds);
@@ -414,7 +405,7 @@ fn damped_step(
                 // the scatter is the model's near here, as the last exact Jacobian estimated it
                 Sensitivity { values: tv, jacobian: Some(jacobian), scatter: at.scatter.clone(), jacobian_scatter: at.jacobian_scatter.clone() }
             } else {
-                let Ok(at_trial) = opts.engine.jacobian_at(opts.jobs, &tm, data, exps, names, (&tv, &opts.differences(at)))? else {
+                let Ok(at_trial) = opts.engine.jacobian_at(opts.jobs, &tm, data, exps, names, (&tv, &Differences::Central))? else {
                     *lambda = raised(*lambda, simulated);
                     continue;
                 };

@@ -5,10 +5,10 @@
 //! (`compare.rs`) or synthesising them (`synth.rs`), the comparison as a folder of plots and
 //! trends (`report.rs`) and the shapes of its residuals (`residuals.rs`), the discretisation
 //! error counted beside the measurement uncertainty (`resolution.rs`), gradients
-//! (`sensitivity.rs`), fitting a model (`calibrate.rs`) and finding the effect it lacks
-//! (`diagnose.rs`); where the experiments run (`engine.rs`: here, or as a scheduler's jobs) and
-//! what a saved result was computed from (`provenance.rs`); why a step cannot be taken
-//! (`error.rs`).
+//! (`sensitivity.rs`; idle workers lent to the experiments still running, `spare.rs`), fitting
+//! a model (`calibrate.rs`) and finding the effect it lacks (`diagnose.rs`); where the
+//! experiments run (`engine.rs`: here, or as a scheduler's jobs) and what a saved result was
+//! computed from (`provenance.rs`); why a step cannot be taken (`error.rs`).
 //!
 //! Imports point one way (no circle among these files, `tests/suite/architecture.rs`): `error.rs` and
 //! `observation.rs` at the bottom; then the observables, the effects and the model; the experiments; the runner;
@@ -38,4 +38,5 @@ pub mod rheometer;
 pub mod rounds;
 pub mod runner;
 pub mod sensitivity;
+pub mod spare;
 pub mod synth;

@@ -109,7 +109,7 @@ pub fn estimate(model: &Model, data: &[Observation], exps: &Experiments, values:
     let wanted = group(data);
     let given: Option<Vec<Vec<f64>>> = values.map(|v| per_experiment(data, &wanted, v));
     let threads = job_threads(jobs, wanted.len());
-    let per = par_map_experiments(&wanted, jobs, |k| -> Result<Vec<Option<Estimate>>, MeasureError> {
+    let per = par_map_experiments(&wanted, jobs, |k, spare| -> Result<Vec<Option<Estimate>>, MeasureError> {
         let (id, obs) = &wanted[k];
         let x = find(exps, id)?;
         if x.scenario.is_none() {
@@ -120,11 +120,14 @@ pub fn estimate(model: &Model, data: &[Observation], exps: &Experiments, values:
         if fine_dx >= dx {
             return Err(MeasureError::Resolution(format!("experiment '{id}': [resolution] fine.\"simulation.dx\" = {fine_dx} is not finer than the cell size the model runs it at, {dx}")));
         }
+        // the two runs side by side where the campaign has a spare worker, the longer first
+        let runs: Vec<&Experiment> = if given.is_some() { vec![&fine_x] } else { vec![&fine_x, x] };
+        let mut ran = spare.map(runs.len(), |i| evaluate(model, exps, runs[i], obs, threads));
         let coarse = match &given {
             Some(v) => v[k].clone(),
-            None => evaluate(model, exps, x, obs, threads)?,
+            None => ran.pop().expect("ran")?,
         };
-        let fine = evaluate(model, exps, &fine_x, obs, threads).map_err(|e| MeasureError::FinerRun(Box::new(e)))?;
+        let fine = ran.pop().expect("ran").map_err(|e| MeasureError::FinerRun(Box::new(e)))?;
         obs.iter()
             .zip(coarse.iter().zip(&fine))
             .map(|(o, (&c, &f))| {

@@ -16,6 +16,7 @@ use super::model::{set_path, Model};
 use super::observables::{observable_plan, reading_index};
 use super::observation::{Observable, Observation};
 use super::rheometer::{Protocol, Rheometer};
+use super::spare::Spare;
 use crate::grad::objective::{Frame, Objective};
 use crate::kernels::material::Material;
 use crate::scenario::Scenario;
@@ -183,7 +184,7 @@ pub fn ungroup<T: Clone>(data: &[Observation], wanted: &[(String, Vec<Observable
 /// Evaluate each experiment's `wanted` observables, `jobs` experiments at a time.
 pub fn evaluate_all(model: &Model, exps: &Experiments, wanted: &[(String, Vec<Observable>)], jobs: usize) -> Result<Vec<Vec<f64>>, MeasureError> {
     let threads = job_threads(jobs, wanted.len());
-    par_map_experiments(wanted, jobs, |k| {
+    par_map_experiments(wanted, jobs, |k, _| {
         let (id, obs) = &wanted[k];
         evaluate(model, exps, find(exps, id)?, obs, threads)
     })
@@ -210,16 +211,20 @@ pub fn find<'a>(exps: &'a Experiments, id: &str) -> Result<&'a Experiment, Measu
 /// longest first by the seconds each took last in this process (those not yet run first, in their
 /// order), so that a long experiment does not start last while the other workers stand idle.
 /// The order is scheduling only: the results, and each job's threads, are the same in any order.
-pub fn par_map_experiments<T: Send>(wanted: &[(String, Vec<Observable>)], jobs: usize, f: impl Fn(usize) -> Result<T, MeasureError> + Sync) -> Result<Vec<T>, MeasureError> {
+/// A worker left without an experiment joins the runs of those still running that go through
+/// the [`Spare`] `f` is given.
+pub fn par_map_experiments<T: Send>(wanted: &[(String, Vec<Observable>)], jobs: usize, f: impl Fn(usize, &Spare) -> Result<T, MeasureError> + Sync) -> Result<Vec<T>, MeasureError> {
     let last: Vec<f64> = {
         let took = LAST_SECONDS.lock().unwrap_or_else(|e| e.into_inner());
         wanted.iter().map(|(id, _)| took.get(id).copied().unwrap_or(f64::INFINITY)).collect()
     };
     let mut order: Vec<usize> = (0..wanted.len()).collect();
     order.sort_by(|&a, &b| last[b].total_cmp(&last[a]).then(a.cmp(&b)));
-    in_order(&order, jobs, |k| {
+    let workers = jobs.clamp(1, order.len().max(1));
+    let spare = Spare::new(workers);
+    in_order(&order, workers, &spare, |k| {
         let t = std::time::Instant::now();
-        let r = f(k);
+        let r = f(k, &spare);
         LAST_SECONDS.lock().unwrap_or_else(|e| e.into_inner()).insert(wanted[k].0.clone(), t.elapsed().as_secs_f64());
         r
     })
@@ -228,22 +233,26 @@ pub fn par_map_experiments<T: Send>(wanted: &[(String, Vec<Observable>)], jobs: 
 /// Seconds each experiment's last job took in this process ([`par_map_experiments`]).
 static LAST_SECONDS: std::sync::Mutex<std::collections::BTreeMap<String, f64>> = std::sync::Mutex::new(std::collections::BTreeMap::new());
 
-/// `f(k)` for every k of `order` as independent jobs, handed out in that order, `jobs` at a time;
-/// results in index order, the first error (by index) if any failed.
-fn in_order<T: Send>(order: &[usize], jobs: usize, f: impl Fn(usize) -> Result<T, MeasureError> + Sync) -> Result<Vec<T>, MeasureError> {
+/// `f(k)` for every k of `order` as independent jobs, handed out in that order by `workers`
+/// threads, each of which leaves its slot to `spare` when none is left; results in index order,
+/// the first error (by index) if any failed.
+fn in_order<T: Send>(order: &[usize], workers: usize, spare: &Spare, f: impl Fn(usize) -> Result<T, MeasureError> + Sync) -> Result<Vec<T>, MeasureError> {
     let n = order.len();
     let next = std::sync::atomic::AtomicUsize::new(0);
     let results: Vec<std::sync::Mutex<Option<Result<T, MeasureError>>>> = (0..n).map(|_| std::sync::Mutex::new(None)).collect();
     std::thread::scope(|s| {
-        for _ in 0..jobs.clamp(1, n.max(1)) {
-            s.spawn(|| loop {
-                let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                if i >= n {
-                    break;
+        for _ in 0..workers {
+            s.spawn(|| {
+                loop {
+                    let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                    if i >= n {
+                        break;
+                    }
+                    let k = order[i];
+                    let r = f(k);
+                    *results[k].lock().unwrap() = Some(r);
                 }
-                let k = order[i];
-                let r = f(k);
-                *results[k].lock().unwrap() = Some(r);
+                spare.leave();
             });
         }
     });

@@ -24,6 +24,7 @@ use super::experiments::{Experiment, Experiments};
 use super::observables::{observable_plan, reading_index};
 use super::observation::{Observable, Observation};
 use super::runner::{experiment_keys, find, group, job_threads, par_map_experiments, parse_scenario, rheometer_setup, scenario_text, ungroup};
+use super::spare::Spare;
 use super::effects::Keys;
 use super::model::Model;
 use super::rheometer::Rheometer;
@@ -55,9 +56,10 @@ pub enum Differences {
     #[default]
     Central,
     /// One side (p + h, or p - h where p + h leaves the bounds): p runs against 2 p, first-order
-    /// accurate, for a point whose values' scatter is known (one per observation, in the data's
-    /// order: a fit's, near there): a leave-one-out refit, which only needs its optimum, or a
-    /// score test's direction at the nulls.
+    /// accurate, at a point whose values' scatter central differences there have estimated (one
+    /// per observation, in the data's order): more columns at a fit's optimum, such as the
+    /// effects' at the base fit's values. Not for a fit's own Jacobians: a scatter carried to
+    /// another point can be several times that point's own (docs/gradient_cost.md).
     Forward(Vec<f64>),
 }
 
@@ -83,20 +85,22 @@ fn campaign(model: &Model, data: &[Observation], exps: &Experiments, names: Opti
         Differences::Central => None,
         Differences::Forward(s) => Some(regroup(data, &wanted, s)),
     };
-    let per = par_map_experiments(&wanted, jobs, |k| {
-        let known = Known { values: known.as_ref().map(|v| &v[k][..]), scatter: scatter.as_ref().map(|s| &s[k][..]) };
-        one_known(model, exps, &wanted[k].0, &wanted[k].1, names, threads, known)
+    let per = par_map_experiments(&wanted, jobs, |k, spare| {
+        let given = Given { values: known.as_ref().map(|v| &v[k][..]), scatter: scatter.as_ref().map(|s| &s[k][..]), spare: Some(spare) };
+        one_given(model, exps, &wanted[k].0, &wanted[k].1, names, threads, given)
     })?;
     Ok(assemble(data, &wanted, &per, names))
 }
 
-/// What the caller knows of one experiment at the model: its values (a trial just run), and its
-/// values' scatter, which makes its differences one-sided ([`Differences::Forward`]); each in
-/// the experiment's order of observables.
+/// What the caller gives one experiment's evaluation: its values at the model where known (a
+/// trial just run), its values' scatter, which makes its differences one-sided
+/// ([`Differences::Forward`]), each in the experiment's order of observables; and the campaign's
+/// idle workers, which its independent runs may use.
 #[derive(Clone, Copy, Default)]
-pub struct Known<'a> {
+pub struct Given<'a> {
     pub values: Option<&'a [f64]>,
     pub scatter: Option<&'a [f64]>,
+    pub spare: Option<&'a Spare>,
 }
 
 /// Values in the data's order grouped by experiment, as [`group`] orders them (the inverse of
@@ -113,12 +117,12 @@ pub fn regroup(data: &[Observation], wanted: &[(String, Vec<Observable>)], value
 /// `scatter`, its values' known scatter, is given): the unit of work [`sensitivity`] runs side
 /// by side and a scheduler's job runs alone (`engine.rs`).
 pub fn one(model: &Model, exps: &Experiments, id: &str, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>, scatter: Option<&[f64]>) -> Result<Vec<Valued>, MeasureError> {
-    one_known(model, exps, id, wanted, names, threads, Known { values: None, scatter })
+    one_given(model, exps, id, wanted, names, threads, Given { scatter, ..Given::default() })
 }
 
-fn one_known(model: &Model, exps: &Experiments, id: &str, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>, known: Known) -> Result<Vec<Valued>, MeasureError> {
+fn one_given(model: &Model, exps: &Experiments, id: &str, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>, given: Given) -> Result<Vec<Valued>, MeasureError> {
     let x = find(exps, id)?;
-    experiment(model, exps, x, wanted, names, threads, known).map_err(|e| e.within(format!("experiment '{id}'")))
+    experiment(model, exps, x, wanted, names, threads, given).map_err(|e| e.within(format!("experiment '{id}'")))
 }
 
 /// The experiments' results ([`one`] each, in `wanted`'s order) in the data's order.
@@ -191,22 +195,22 @@ pub fn by_differences_is_cheaper(runs: usize, observations: usize) -> bool {
     ((1 + runs) as f64) < ADJOINT_SHARED_RUNS + ADJOINT_RUNS_PER_OBSERVATION * observations as f64
 }
 
-/// One experiment's values of `wanted` and, with `names`, their gradients; `known`: its values at
-/// `model` and their scatter, where the caller has them.
-fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>, known: Known) -> Result<Vec<Valued>, MeasureError> {
+/// One experiment's values of `wanted` and, with `names`, their gradients; `given`: what the
+/// caller has of it ([`Given`]).
+fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>, given: Given) -> Result<Vec<Valued>, MeasureError> {
     let (adjoint, other): (Vec<usize>, Vec<usize>) = (0..wanted.len()).partition(|&k| has_adjoint(&wanted[k]));
     if other.is_empty() {
-        return simulated(model, exps, x, wanted, names, threads, known);
+        return simulated(model, exps, x, wanted, names, threads, given);
     }
     let pick = |ks: &[usize]| ks.iter().map(|&k| wanted[k].clone()).collect::<Vec<_>>();
     let part = |v: Option<&[f64]>, ks: &[usize]| v.map(|v| ks.iter().map(|&k| v[k]).collect::<Vec<f64>>());
     let mut out: Vec<Option<Valued>> = vec![None; wanted.len()];
-    for (&k, v) in other.iter().zip(differenced(model, exps, x, &pick(&other), names, threads, part(known.values, &other).as_deref())?) {
+    for (&k, v) in other.iter().zip(differenced(model, exps, x, &pick(&other), names, threads, part(given.values, &other).as_deref())?) {
         out[k] = Some(v);
     }
     if !adjoint.is_empty() {
-        let (values, scatter) = (part(known.values, &adjoint), part(known.scatter, &adjoint));
-        for (&k, v) in adjoint.iter().zip(simulated(model, exps, x, &pick(&adjoint), names, threads, Known { values: values.as_deref(), scatter: scatter.as_deref() })?) {
+        let (values, scatter) = (part(given.values, &adjoint), part(given.scatter, &adjoint));
+        for (&k, v) in adjoint.iter().zip(simulated(model, exps, x, &pick(&adjoint), names, threads, Given { values: values.as_deref(), scatter: scatter.as_deref(), spare: given.spare })?) {
             out[k] = Some(v);
         }
     }
@@ -220,10 +224,10 @@ fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obser
 /// extrusion factor's adjoint gets the sign of a line's width wrong) and, for a simulation, for
 /// every parameter when that costs less than the adjoint ([`by_differences_is_cheaper`]). With
 /// the values' scatter known, each difference is one-sided ([`Differences::Forward`]).
-fn simulated(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>, known: Known) -> Result<Vec<Valued>, MeasureError> {
+fn simulated(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>, given: Given) -> Result<Vec<Valued>, MeasureError> {
     let (Some(names), Some(_)) = (names, &x.scenario) else { return by_adjoint(model, exps, x, wanted, names, threads) };
     let keys = experiment_keys(model, x)?;
-    let one_sided = known.scatter.is_some();
+    let one_sided = given.scatter.is_some();
     let sides = names.iter().map(|n| smooth_step(model, n).and_then(|h| moves(model, x, &keys, n, h)).map(|s| s.map(|s| if one_sided { s.one_side() } else { s }))).collect::<Result<Vec<_>, _>>()?;
     // the toolpath's parameters are differenced either way
     let all = by_differences_is_cheaper(sides.iter().flatten().filter(|s| !s.toolpath).map(Sides::runs).sum(), wanted.len());
@@ -231,14 +235,14 @@ fn simulated(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observ
     // a parameter that leaves the experiment as it is has a zero column, from neither
     let from_the_adjoint: Vec<bool> = sides.iter().zip(&by_differences).map(|(s, &d)| s.is_some() && !d).collect();
     let adjoint: Vec<String> = names.iter().zip(&from_the_adjoint).filter(|(_, a)| **a).map(|(n, _)| n.clone()).collect();
-    let at_model = match known.values {
+    let at_model = match given.values {
         Some(v) if adjoint.is_empty() => v.iter().map(|&v| Valued::new(v, None)).collect(),
         _ => by_adjoint(model, exps, x, wanted, (!adjoint.is_empty()).then_some(&adjoint[..]), threads)?,
     };
     let values: Vec<f64> = at_model.iter().map(|v| v.value).collect();
     let run = |m: &Model| Ok(by_adjoint(m, exps, x, wanted, None, threads)?.into_iter().map(|v| v.value).collect());
     let differenced: Vec<Option<Sides>> = sides.into_iter().zip(&by_differences).map(|(s, &d)| s.filter(|_| d)).collect();
-    let Central { columns, scatter, column_scatter } = central(&values, run, differenced, known.scatter)?;
+    let Central { columns, scatter, column_scatter } = central(&values, run, differenced, (given.scatter, given.spare))?;
     let mut from_adjoint = 0..adjoint.len();
     let picks: Vec<Option<usize>> = from_the_adjoint.iter().map(|&a| if a { from_adjoint.next() } else { None }).collect();
     Ok(at_model
@@ -365,8 +369,16 @@ fn moves(model: &Model, x: &Experiment, keys: &Keys, name: &str, h: f64) -> Resu
 /// at 3 % steps, which only makes the estimate cautious); the mean square over the parameters
 /// that ran both sides, over 6, estimates s^2. `known`, the values' scatter where the caller
 /// knows it, is taken instead. A column's entry, a difference over a width w, scatters by
-/// s sqrt(2) / w.
-fn central(values: &[f64], run: impl Fn(&Model) -> Result<Vec<f64>, MeasureError>, sides: Vec<Option<Sides>>, known: Option<&[f64]>) -> Result<Central, MeasureError> {
+/// s sqrt(2) / w. The sides' runs, independent of each other, share the campaign's `spare`
+/// workers.
+fn central(values: &[f64], run: impl Fn(&Model) -> Result<Vec<f64>, MeasureError> + Sync, sides: Vec<Option<Sides>>, (known, spare): (Option<&[f64]>, Option<&Spare>)) -> Result<Central, MeasureError> {
+    // every side that moves, low before high, parameter by parameter
+    let moved: Vec<&Model> = sides.iter().flatten().flat_map(|s| [s.lo.1.as_ref(), s.hi.1.as_ref()]).flatten().collect();
+    let ran = match spare {
+        Some(spare) => spare.map(moved.len(), |i| run(moved[i])),
+        None => moved.iter().map(|m| run(m)).collect(),
+    };
+    let mut ran = ran.into_iter();
     let mut rows = vec![vec![0.0; sides.len()]; values.len()];
     let mut second = vec![0.0; values.len()];
     let mut both_sides = 0;
@@ -374,8 +386,9 @@ fn central(values: &[f64], run: impl Fn(&Model) -> Result<Vec<f64>, MeasureError
     for (j, s) in sides.into_iter().enumerate() {
         let Some(Sides { lo: (lo, m_lo), hi: (hi, m_hi), at, .. }) = s else { continue };
         let symmetric = m_lo.is_some() && m_hi.is_some() && hi - at == at - lo;
-        let side = |m: Option<Model>| m.map_or(Ok(values.to_vec()), |m| run(&m));
-        let ((lo, v_lo), (hi, v_hi)) = match (side(m_lo), side(m_hi)) {
+        let mut side = |m: Option<Model>| m.map_or(Ok(values.to_vec()), |_| ran.next().expect("every moved side ran"));
+        let (v_lo, v_hi) = (side(m_lo), side(m_hi));
+        let ((lo, v_lo), (hi, v_hi)) = match (v_lo, v_hi) {
             (Ok(a), Ok(b)) => {
                 if symmetric {
                     both_sides += 1;
@@ -539,7 +552,7 @@ mod tests {
             let v = m.get(name)?;
             Ok((0..n).map(|i| (1.0 + i as f64) * v + s * noise(i, v)).collect())
         };
-        let c = central(&rough(&m).unwrap(), rough, sides(), None).unwrap();
+        let c = central(&rough(&m).unwrap(), rough, sides(), (None, None)).unwrap();
         let rms = (c.scatter.iter().map(|x| x * x).sum::<f64>() / n as f64).sqrt();
         assert!((rms / s - 1.0).abs() < 0.05, "rms scatter {rms} against {s}");
         // the slopes scatter about theirs by s / (sqrt(2) h), as each entry's scatter says
@@ -548,18 +561,18 @@ mod tests {
         assert!(((miss / n as f64).sqrt() / expected - 1.0).abs() < 0.05, "slopes miss by {} rms against {expected}", (miss / n as f64).sqrt());
         assert!(((said / n as f64).sqrt() / expected - 1.0).abs() < 0.1, "slopes said to scatter by {} rms against {expected}", (said / n as f64).sqrt());
         let smooth = |m: &Model| -> Result<Vec<f64>, MeasureError> { Ok(vec![3.0 * m.get(name)?, m.get(name)?.powi(2)]) };
-        let c = central(&smooth(&m).unwrap(), smooth, sides(), None).unwrap();
+        let c = central(&smooth(&m).unwrap(), smooth, sides(), (None, None)).unwrap();
         assert!(c.scatter[0] < 1e-12, "a line has no scatter: {}", c.scatter[0]);
         assert!((c.scatter[1] - 2.0 * h * h / 6f64.sqrt()).abs() < 1e-9, "a parabola's: {}", c.scatter[1]);
         // one-sided (a side at a bound) says nothing of the scatter
         let one_sided = vec![Some(Sides { at: p, lo: (p, None), hi: (p + h, at(p + h)), toolpath: false })];
-        let c = central(&rough(&m).unwrap(), rough, one_sided, None).unwrap();
+        let c = central(&rough(&m).unwrap(), rough, one_sided, (None, None)).unwrap();
         assert!(c.scatter.iter().all(|&x| x == 0.0) && c.column_scatter.iter().all(|r| r[0] == 0.0));
         // forward differences with the scatter known: the slopes scatter by s sqrt(2) / h, twice
         // the central ones' over the same h, as each entry's scatter says
         let forward = sides().into_iter().map(|s| s.map(Sides::one_side)).collect();
         let known = vec![s; n as usize];
-        let c = central(&rough(&m).unwrap(), rough, forward, Some(&known)).unwrap();
+        let c = central(&rough(&m).unwrap(), rough, forward, (Some(&known), None)).unwrap();
         assert_eq!(c.scatter, known);
         let (miss, said): (f64, f64) = (0..n as usize).map(|i| ((c.columns[i][0] - (1.0 + i as f64)).powi(2), c.column_scatter[i][0].powi(2))).fold((0.0, 0.0), |(a, b), (x, y)| (a + x, b + y));
         let expected = s * 2f64.sqrt() / h;
@@ -620,11 +633,11 @@ mod tests {
         let names: Vec<String> = ["material.yield_stress", "material.viscosity", "extrusion_factor.factor"].map(String::from).to_vec();
         // two material parameters; the extrusion factor's is differenced either way
         assert!(by_differences_is_cheaper(2 * 2, wanted.len()));
-        let fd = experiment(&m, &e, x, &wanted, Some(&names), Some(1), Known::default()).unwrap();
+        let fd = experiment(&m, &e, x, &wanted, Some(&names), Some(1), Given::default()).unwrap();
         let adj = by_adjoint(&m, &e, x, &wanted, Some(&names), Some(1)).unwrap();
         // the values known (a calibration's accepted trial), the same Jacobian without their run
         let values: Vec<f64> = fd.iter().map(|v| v.value).collect();
-        let known = experiment(&m, &e, x, &wanted, Some(&names), Some(1), Known { values: Some(&values), scatter: None }).unwrap();
+        let known = experiment(&m, &e, x, &wanted, Some(&names), Some(1), Given { values: Some(&values), ..Given::default() }).unwrap();
         assert_eq!(known, fd);
         let p: Vec<f64> = names.iter().map(|n| m.get(n).unwrap()).collect();
         let mut by_name = std::collections::BTreeMap::new();
@@ -647,10 +660,10 @@ mod tests {
                 assert!((g[j] - ga[j]).abs() * p[j] <= 0.25 * big, "{o}: d / d {}: differences {} against the adjoint's {}", names[j], g[j], ga[j]);
             }
         }
-        // one-sided with the values' scatter known (a refit's): p runs, not 2 p, the columns the
-        // central ones to first order, the scatter the one given
+        // one-sided with the values' scatter known: p runs, not 2 p, the columns the central
+        // ones to first order, the scatter the one given
         let scatter: Vec<f64> = fd.iter().map(|v| v.scatter).collect();
-        let forward = experiment(&m, &e, x, &wanted, Some(&names), Some(1), Known { values: Some(&values), scatter: Some(&scatter) }).unwrap();
+        let forward = experiment(&m, &e, x, &wanted, Some(&names), Some(1), Given { values: Some(&values), scatter: Some(&scatter), spare: None }).unwrap();
         for ((o, f), (c, s)) in wanted.iter().zip(&forward).zip(fd.iter().zip(&scatter)) {
             assert_eq!((f.value, f.scatter), (c.value, *s));
             let (gf, gc) = (f.gradient.as_ref().unwrap(), c.gradient.as_ref().unwrap());
@@ -669,7 +682,7 @@ mod tests {
         // adjoint and the toolpath's from differences
         let more: Vec<String> = ["material.bulk_modulus"].map(String::from).into_iter().chain(names.iter().cloned()).collect();
         assert!(!by_differences_is_cheaper(2 * 3, 1));
-        let hybrid = experiment(&m, &e, x, &wanted[..1], Some(&more), Some(1), Known::default()).unwrap();
+        let hybrid = experiment(&m, &e, x, &wanted[..1], Some(&more), Some(1), Given::default()).unwrap();
         let adj = by_adjoint(&m, &e, x, &wanted[..1], Some(&more[..3]), Some(1)).unwrap();
         let (row, adj_row) = (hybrid[0].gradient.as_ref().unwrap(), adj[0].gradient.as_ref().unwrap());
         assert_eq!(&row[..3], &adj_row[..], "the material's columns from the adjoint");
