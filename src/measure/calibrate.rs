@@ -111,6 +111,10 @@ pub const CHI2_NEGLIGIBLE: f64 = 0.01;
 /// of the campaign each.
 pub const CHI2_ROUGH: f64 = 1.0;
 
+/// The damping of a fit's first step, and of the first on each exact Jacobian computed after
+/// secant steps: nearly undamped.
+pub const DAMPING: f64 = 1e-3;
+
 /// The trials a step on an exact Jacobian gets, the damping raised fourfold after each refused
 /// one.
 pub const TRIES: usize = 12;
@@ -205,7 +209,7 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
     }
     let chi2_start = c2;
     let mut history = vec![c2];
-    let mut lambda = 1e-3;
+    let mut lambda = DAMPING;
     let mut converged = false;
     let mut free = vec![true; n];
     let simulated = runs_simulations(data, exps);
@@ -251,7 +255,9 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
                 converged = true;
                 break;
             }
-            (s, exact) = (exact_at(&model, &s)?, true);
+            // a new Jacobian, whose first step is undamped: the damping a secant Jacobian's
+            // refused trial raised was that Jacobian's
+            (s, exact, lambda) = (exact_at(&model, &s)?, true, DAMPING);
             continue;
         };
         let drop = c2 - next.chi2;
@@ -268,7 +274,7 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
                 converged = true;
                 break;
             }
-            (s, exact) = (exact_at(&model, &s)?, true);
+            (s, exact, lambda) = (exact_at(&model, &s)?, true, DAMPING);
         }
     }
     if !exact && opts.uncertainties {
