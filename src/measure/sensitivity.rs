@@ -97,10 +97,10 @@ fn campaign(model: &Model, data: &[Observation], exps: &Experiments, names: Opti
 /// ([`Differences::Forward`]), each in the experiment's order of observables; and the campaign's
 /// idle workers, which its independent runs may use.
 #[derive(Clone, Copy, Default)]
-pub struct Given<'a> {
-    pub values: Option<&'a [f64]>,
-    pub scatter: Option<&'a [f64]>,
-    pub spare: Option<&'a Spare>,
+struct Given<'a> {
+    values: Option<&'a [f64]>,
+    scatter: Option<&'a [f64]>,
+    spare: Option<&'a Spare>,
 }
 
 /// Values in the data's order grouped by experiment, as [`group`] orders them (the inverse of
@@ -227,8 +227,11 @@ fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obser
 fn simulated(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>, given: Given) -> Result<Vec<Valued>, MeasureError> {
     let (Some(names), Some(_)) = (names, &x.scenario) else { return by_adjoint(model, exps, x, wanted, names, threads) };
     let keys = experiment_keys(model, x)?;
-    let one_sided = given.scatter.is_some();
-    let sides = names.iter().map(|n| smooth_step(model, n).and_then(|h| moves(model, x, &keys, n, h)).map(|s| s.map(|s| if one_sided { s.one_side() } else { s }))).collect::<Result<Vec<_>, _>>()?;
+    let sides = names.iter().map(|n| smooth_step(model, n).and_then(|h| moves(model, x, &keys, n, h))).collect::<Result<Vec<_>, _>>()?;
+    let sides: Vec<Option<Sides>> = match given.scatter {
+        Some(_) => sides.into_iter().map(|s| s.map(Sides::one_side)).collect(),
+        None => sides,
+    };
     // the toolpath's parameters are differenced either way
     let all = by_differences_is_cheaper(sides.iter().flatten().filter(|s| !s.toolpath).map(Sides::runs).sum(), wanted.len());
     let by_differences: Vec<bool> = sides.iter().map(|s| s.as_ref().is_some_and(|s| all || s.toolpath)).collect();
