@@ -253,6 +253,38 @@ fn print_width_gradients_with_the_smooth_nozzle_match_central_differences() {
     assert!(best_agreement(&c.params[2]) <= 1e-5, "{:?}", c.params[2]);
 }
 
+/// The nozzle's body carried over the strand (issue 30): a 30 mm flat end in the outlet plane,
+/// no-slip, on tiny_print's strand. Its contact's adjoint, with the outlet's position and the
+/// nozzle's speed through it, reaches the toolpath: mean z's and the kinetic energy's gradients
+/// agree with central differences and pass the Taylor test, and the body changes both the values
+/// and the gradients (it is in the derivative, not beside it). No-slip: a free-slip body's
+/// normal, inside it, jumps where the nearest face changes (docs/solids.md, "Gradients").
+#[test]
+fn print_gradients_through_the_nozzle_body_match_central_differences_and_the_taylor_test() {
+    let body = "[[solid]]\nshape = \"nozzle\"\nouter_diameter = 0.03\ncontact = \"no_slip\"\n[memory]";
+    let bare = Scenario::parse(&tiny_print("")).unwrap();
+    let sc = Scenario::parse(&tiny_print("").replace("[memory]", body)).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let wrt = keys(&["print.path.0.speed", "print.path.0.extrusion", "material.viscosity"]);
+    for name in ["mean_z", "kinetic_energy"] {
+        let obj: Objective = name.parse().unwrap();
+        let r = gradient(&sc, &obj, &wrt, &opts(None, dir.path())).unwrap();
+        let without = gradient(&bare, &obj, &wrt, &opts(None, dir.path())).unwrap();
+        println!("{name}: with the body {:.6e} {:?}, without {:.6e} {:?}", r.value, r.gradient, without.value, without.gradient);
+        assert!((r.value - without.value).abs() > 1e-3 * without.value.abs(), "{name}: the body does not act: {} against {}", r.value, without.value);
+        let c = check(&sc, &obj, &r, None, &REL_STEPS).unwrap();
+        for (p, g) in c.params.iter().zip(&without.gradient) {
+            println!("{name}: d/d {} = {:.6e}, central differences {:?}", p.param, p.adjoint, p.central);
+            // the extrusion speed also moves when each slab of material begins to enter
+            let within = if p.param.ends_with("extrusion") { 1e-3 } else { 1e-4 };
+            assert!(best_agreement(p) <= within, "{name}: d/d {}: {p:?}", p.param);
+            assert!((p.adjoint - g).abs() > 0.01 * p.adjoint.abs(), "{name}: d/d {}: the body leaves the gradient as it is without it ({g:.6e})", p.param);
+        }
+        println!("{name}: Taylor slope {:.3} {:?}", c.taylor_slope, c.taylor);
+        assert!((c.taylor_slope - 2.0).abs() <= 0.3, "{name}: Taylor slope {:.3}: {:?}", c.taylor_slope, c.taylor);
+    }
+}
+
 #[test]
 fn the_hard_nozzle_indicator_gives_a_wrong_printing_speed_gradient() {
     // paper 000 Table 6: with the plain `if`, the nozzle position drops out of the derivative.
