@@ -5,7 +5,7 @@ OUT ?= out
 TARGET_DIR := $(if $(CARGO_TARGET_DIR),$(CARGO_TARGET_DIR),target)
 STRAND := $(TARGET_DIR)/release/strand
 
-.PHONY: run test fuzz verify verify-quick bench bench-peer bench-restart bench-kernels bench-case1 bench-layers bench-layers-dwell bench-failure bench-convergence bench-nozzle-cells bench-nozzle-body bench-lbox bench-print-diagnose lbox build fmt clippy clean
+.PHONY: run test fuzz verify verify-quick bench bench-peer bench-restart bench-kernels bench-case1 bench-layers bench-layers-dwell bench-failure bench-convergence bench-nozzle-cells bench-nozzle-body bench-lbox bench-vfunnel bench-print-diagnose lbox build fmt clippy clean
 
 build:
 	$(CARGO) build --release
@@ -113,6 +113,12 @@ bench-print-diagnose: build
 # model or comparison already in $(OUT)/lbox is not repeated.
 bench-lbox: build
 	python3 bench/lbox.py --out $(OUT)/lbox --jobs 2
+
+# Paper 001's V-funnel under 001's own parameters (Table 4): Mix-A and Mix-B after 0, 240 and
+# 600 s of rest at 1 cm cells, the times 50, 90 and 99 % of the mass has passed the outlet beside
+# 001's flow times (fixtures/measure/vfunnel/, bench/vfunnel.py; BENCHMARKS.md "V-funnel").
+bench-vfunnel: build
+	python3 bench/vfunnel.py --out $(OUT)/vfunnel --jobs 2
 
 # Paper 001's L-box (Sec. 4.2), Mix-A and Mix-B after no rest, at 10 mm cells (96,000 particles;
 # about 46,000 and 132,000 steps).

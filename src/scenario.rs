@@ -4,6 +4,7 @@
 use crate::config::{CheckpointConfig, DiskFullPolicy, ObserveConfig, PrintConfig, SleepConfig};
 use crate::kernels::boundary::WallKind;
 use crate::memory::parse_size;
+use crate::solid::shape::{Sdf, ShapeConfig, ShapeContext};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use crate::invalid::Invalid;
@@ -198,6 +199,23 @@ pub enum Body {
         #[serde(default)]
         velocity: [f64; 3],
     },
+    /// The region in any of `parts`, shapes as `[[solid]]` takes them (boxes, cylinders,
+    /// half-spaces, unions, intersections; `solids.md`): a funnel's fill, a mould's.
+    Union {
+        parts: Vec<ShapeConfig>,
+        #[serde(default = "default_ppc")]
+        particles_per_cell_axis: u32,
+        #[serde(default)]
+        velocity: [f64; 3],
+    },
+    /// The region in all of `parts` (a box cut by inclined half-spaces: a hopper's fill).
+    Intersection {
+        parts: Vec<ShapeConfig>,
+        #[serde(default = "default_ppc")]
+        particles_per_cell_axis: u32,
+        #[serde(default)]
+        velocity: [f64; 3],
+    },
 }
 
 fn default_ppc() -> u32 {
@@ -207,15 +225,30 @@ fn default_ppc() -> u32 {
 impl Body {
     pub fn particles_per_cell_axis(&self) -> u32 {
         match self {
-            Body::Box { particles_per_cell_axis, .. } | Body::Frustum { particles_per_cell_axis, .. } => {
-                *particles_per_cell_axis
-            }
+            Body::Box { particles_per_cell_axis, .. }
+            | Body::Frustum { particles_per_cell_axis, .. }
+            | Body::Union { particles_per_cell_axis, .. }
+            | Body::Intersection { particles_per_cell_axis, .. } => *particles_per_cell_axis,
         }
     }
     pub fn velocity(&self) -> [f64; 3] {
         match self {
-            Body::Box { velocity, .. } | Body::Frustum { velocity, .. } => *velocity,
+            Body::Box { velocity, .. } | Body::Frustum { velocity, .. } | Body::Union { velocity, .. } | Body::Intersection { velocity, .. } => *velocity,
         }
+    }
+    /// The shape of a union or intersection body, as a solid's shape.
+    fn region(&self) -> Option<ShapeConfig> {
+        match self {
+            Body::Union { parts, .. } => Some(ShapeConfig::Union { parts: parts.clone() }),
+            Body::Intersection { parts, .. } => Some(ShapeConfig::Intersection { parts: parts.clone() }),
+            Body::Box { .. } | Body::Frustum { .. } => None,
+        }
+    }
+    /// The signed distance of a union or intersection body (checked by `validate`: it builds,
+    /// and is bounded).
+    fn distance(&self) -> Option<Box<dyn Sdf>> {
+        let cx = ShapeContext { nozzle: None };
+        self.region().map(|r| r.build("body", &cx).expect("a body's region is checked before it is filled"))
     }
     /// Bounding box of the shape.
     pub fn bounds(&self) -> ([f64; 3], [f64; 3]) {
@@ -225,13 +258,20 @@ impl Body {
                 let r = bottom_radius.max(*top_radius);
                 ([c[0] - r, c[1] - r, c[2]], [c[0] + r, c[1] + r, c[2] + height])
             }
+            Body::Union { .. } | Body::Intersection { .. } => {
+                let (lo, hi) = self.distance().and_then(|d| d.bounds()).expect("a body's region is checked to be bounded");
+                (lo.to_array(), hi.to_array())
+            }
         }
     }
-    /// Whether a point lies inside the shape.
-    pub fn contains(&self, p: [f64; 3]) -> bool {
-        match self {
-            Body::Box { min, max, .. } => (0..3).all(|a| p[a] >= min[a] && p[a] < max[a]),
-            Body::Frustum { base_center: c, bottom_radius, top_radius, height, .. } => {
+    /// The test of whether a point lies inside the shape (built once: a region's distance
+    /// function is assembled from its parts).
+    pub fn inside(&self) -> impl Fn([f64; 3]) -> bool + '_ {
+        let region = self.distance();
+        move |p: [f64; 3]| match (&region, self) {
+            (Some(d), _) => d.distance(glam::DVec3::from(p)) < 0.0,
+            (None, Body::Box { min, max, .. }) => (0..3).all(|a| p[a] >= min[a] && p[a] < max[a]),
+            (None, Body::Frustum { base_center: c, bottom_radius, top_radius, height, .. }) => {
                 let h = p[2] - c[2];
                 if !(0.0..*height).contains(&h) {
                     return false;
@@ -240,6 +280,7 @@ impl Body {
                 let (dx, dy) = (p[0] - c[0], p[1] - c[1]);
                 dx * dx + dy * dy < r * r
             }
+            (None, Body::Union { .. } | Body::Intersection { .. }) => unreachable!("a region has its distance"),
         }
     }
 }
@@ -470,6 +511,14 @@ fn check_body(i: usize, b: &Body, domain: &Domain) -> Result<(), Invalid> {
     if ppc == 0 || ppc > 4 {
         return Err(Invalid(format!("body[{i}].particles_per_cell_axis must be 1..=4, got {ppc}")));
     }
+    if let Some(region) = b.region() {
+        let key = format!("body[{i}]");
+        region.validate(&key)?;
+        let built = region.build(&key, &ShapeContext { nozzle: None })?;
+        if built.bounds().is_none() {
+            return Err(Invalid(format!("body[{i}] is unbounded (a half-space, or a union with one): intersect it with a box")));
+        }
+    }
     let (lo, hi) = b.bounds();
     if lo.iter().chain(hi.iter()).chain(b.velocity().iter()).any(|v| !v.is_finite()) {
         return Err(Invalid(format!("body[{i}]: its position, size and velocity must be finite")));
@@ -485,6 +534,7 @@ fn check_body(i: usize, b: &Body, domain: &Domain) -> Result<(), Invalid> {
                 return Err(Invalid(format!("body[{i}]: frustum radii must be >= 0 (bottom > 0) and height > 0")));
             }
         }
+        Body::Union { .. } | Body::Intersection { .. } => {}
     }
     for a in 0..3 {
         if hi[a] <= domain.min[a] || lo[a] >= domain.max[a] {

@@ -25,9 +25,10 @@ pub enum MeasureError {
     /// A declared effect's expression that does not parse.
     #[error("{0}")]
     Expression(String),
-    /// The flow front's history, which cannot give an observable (never recorded, never reached).
+    /// A run's recorded history (the flow front's, the mass passed below a plane), which cannot
+    /// give an observable (never recorded, a plane not recorded).
     #[error("{0}")]
-    Front(String),
+    History(String),
     /// An effect that cannot be declared or applied, or a scenario without its null.
     #[error("{0}")]
     Effect(String),

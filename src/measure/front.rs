@@ -105,7 +105,7 @@ impl FrontTrace {
 
     fn nonempty(&self) -> Result<&[(f64, f64)], MeasureError> {
         if self.samples.is_empty() {
-            return Err(MeasureError::Front("the front was never recorded".into()));
+            return Err(MeasureError::History("the front was never recorded".into()));
         }
         Ok(&self.samples)
     }

@@ -8,16 +8,19 @@
 //! outline (`profile@0.075:0.01`), `layer_height` and `layer_width` the layer, 1 = the bottom one
 //! (`layer_height@0.075:2`). `failure_layer` and `failure_time` take no `at`: the layer and time
 //! at which a print fails (`failure.rs`). `arrival@X` and `stop_time@D` are read from the flow
-//! front's history: the time it reaches x = X, and the time it stops (`front.rs`).
+//! front's history: the time it reaches x = X, and the time it stops (`front.rs`). `passed@Z:F`
+//! is read from the history of the mass below z = Z: the time the fraction F of it has passed
+//! (`passing.rs`).
 
 use super::error::MeasureError;
 use super::front;
+use super::passing;
 use super::observation::Observable;
 use super::rheometer::Reading;
 use crate::grad::objective::Objective;
 
 /// Observables a simulation experiment can produce, and those of a rheometer experiment.
-pub const SIMULATION_OBSERVABLES: &[&str] = &["spread", "front", "width", "height", "level", "area", "profile", "layer_height", "layer_width", "vx_max", "kinetic_energy", "mean_z", "failure_layer", "failure_time", "arrival", "stop_time"];
+pub const SIMULATION_OBSERVABLES: &[&str] = &["spread", "front", "width", "height", "level", "area", "profile", "layer_height", "layer_width", "vx_max", "kinetic_energy", "mean_z", "failure_layer", "failure_time", "arrival", "stop_time", "passed"];
 pub const RHEOMETER_OBSERVABLES: &[&str] = &["stress"];
 
 /// Whether `o` is written with the coordinates its observable takes, on a simulation
@@ -28,6 +31,8 @@ pub fn check_coordinates(o: &Observable, simulation: bool) -> Result<(), Measure
         crate::failure::check_observable(&o.name, o.at).map_err(MeasureError::from)
     } else if front::OBSERVABLES.contains(&o.name.as_str()) {
         front::check_observable(o)
+    } else if passing::OBSERVABLES.contains(&o.name.as_str()) {
+        passing::check_observable(o)
     } else if simulation {
         observable_plan(o, f64::INFINITY).map(|_| ())
     } else {
@@ -84,6 +89,7 @@ pub fn observable_plan(o: &Observable, end: f64) -> Result<(f64, Objective), Mea
         "kinetic_energy" => (o.at.unwrap_or(end), Objective::KineticEnergy),
         "mean_z" => (o.at.unwrap_or(end), Objective::MeanZ),
         name if front::OBSERVABLES.contains(&name) => return Err(MeasureError::Observable(format!("'{o}' is read from the front's history over the run, not at one time: it has no adjoint"))),
+        name if passing::OBSERVABLES.contains(&name) => return Err(MeasureError::Observable(format!("'{o}' is read from the history of the mass below a plane over the run, not at one time: it has no adjoint"))),
         other => return Err(MeasureError::Observable(format!("a simulation cannot observe '{other}'"))),
     };
     if !(0.0..=end).contains(&t) {

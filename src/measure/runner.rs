@@ -12,6 +12,7 @@ use super::error::{io_error, toml_error, MeasureError};
 use super::effects::Keys;
 use super::experiments::{Experiment, Experiments};
 use super::front::FrontTrace;
+use super::passing::PassingTrace;
 use super::model::{set_path, Model};
 use super::observables::{observable_plan, reading_index};
 use super::observation::{Observable, Observation};
@@ -91,34 +92,61 @@ fn simulate(model: &Model, keys: &Keys, scenario: &Path, wanted: &[Observable], 
             values[k] = crate::failure::observable(&wanted[k].name, failure.as_ref(), layers, end)?;
         }
     }
-    // the front's arrival and stop: its history over the whole run (`front.rs`)
-    let history: Vec<usize> = (0..wanted.len()).filter(|&k| super::front::OBSERVABLES.contains(&wanted[k].name.as_str())).collect();
-    let rest: Vec<usize> = (0..wanted.len()).filter(|k| !failing.contains(k) && !history.contains(k)).collect();
-    if rest.is_empty() && history.is_empty() {
+    // the front's arrival and stop, the mass passed below a plane: histories over the whole run
+    // (`front.rs`, `passing.rs`)
+    let of = |names: &[&str]| -> Vec<usize> { (0..wanted.len()).filter(|&k| names.contains(&wanted[k].name.as_str())).collect() };
+    let (fronts, passed) = (of(super::front::OBSERVABLES), of(super::passing::OBSERVABLES));
+    let rest: Vec<usize> = (0..wanted.len()).filter(|k| !failing.contains(k) && !fronts.contains(k) && !passed.contains(k)).collect();
+    if rest.is_empty() && fronts.is_empty() && passed.is_empty() {
         return Ok(values);
     }
     let mut plan: Vec<(usize, f64, Objective)> = rest.iter().map(|&k| observable_plan(&wanted[k], end).map(|(t, o)| (k, t, o))).collect::<Result<_, _>>()?;
     plan.sort_by(|a, b| a.1.total_cmp(&b.1));
     let mut sim = Simulation::new(&sc)?;
-    let mut trace = if history.is_empty() { None } else { Some(FrontTrace::start(&sim)?) };
+    let planes: Vec<f64> = passed.iter().filter_map(|&k| wanted[k].at).fold(Vec::new(), |mut v, z| {
+        if !v.contains(&z) {
+            v.push(z);
+        }
+        v
+    });
+    let mut history = Histories {
+        front: if fronts.is_empty() { None } else { Some(FrontTrace::start(&sim)?) },
+        passing: if passed.is_empty() { None } else { Some(PassingTrace::start(&sim, planes)?) },
+    };
     for (k, t, obj) in plan {
-        step_to(&mut sim, t, trace.as_mut())?;
+        step_to(&mut sim, t, &mut history)?;
         values[k] = obj.evaluate(&sim, &Frame::of(&sim), None)?;
     }
-    if let Some(mut trace) = trace {
-        step_to(&mut sim, end, Some(&mut trace))?;
-        for k in history {
+    if !fronts.is_empty() || !passed.is_empty() {
+        step_to(&mut sim, end, &mut history)?;
+    }
+    if let Some(trace) = &history.front {
+        for &k in &fronts {
+            values[k] = trace.value(&wanted[k])?;
+        }
+    }
+    if let Some(trace) = &history.passing {
+        for &k in &passed {
             values[k] = trace.value(&wanted[k])?;
         }
     }
     Ok(values)
 }
 
-/// Step `sim` to time `t`, recording the front after each step into `trace` when given.
-fn step_to(sim: &mut Simulation, t: f64, mut trace: Option<&mut FrontTrace>) -> Result<(), MeasureError> {
+/// What a run records after every step for the observables read from its history.
+struct Histories {
+    front: Option<FrontTrace>,
+    passing: Option<PassingTrace>,
+}
+
+/// Step `sim` to time `t`, recording the histories after each step.
+fn step_to(sim: &mut Simulation, t: f64, history: &mut Histories) -> Result<(), MeasureError> {
     while sim.time < t * (1.0 - 1e-12) {
         sim.step_until(t)?;
-        if let Some(tr) = trace.as_mut() {
+        if let Some(tr) = history.front.as_mut() {
+            tr.record(sim)?;
+        }
+        if let Some(tr) = history.passing.as_mut() {
             tr.record(sim)?;
         }
     }

@@ -5,7 +5,8 @@
 //! effects backwards ([`Model::keys_adjoint`]).
 //!
 //! An observable without an adjoint (a print's failure layer and time, a flow front's arrival
-//! and stop times: piecewise constant in the parameters, see `failure.rs` and `front.rs`) gets
+//! and stop times, a discharge's passing time: piecewise constant in the parameters, see
+//! `failure.rs`, `front.rs` and `passing.rs`) gets
 //! its values from forward runs as `strand compare` runs them,
 //! and its Jacobian columns by central differences of forward runs ([`differenced`]).
 //!
@@ -157,7 +158,7 @@ impl Valued {
 
 /// Whether an observable's gradient comes from an adjoint; the others are differenced.
 pub fn has_adjoint(o: &Observable) -> bool {
-    ![crate::failure::OBSERVABLES, super::front::OBSERVABLES].concat().contains(&o.name.as_str())
+    ![crate::failure::OBSERVABLES, super::front::OBSERVABLES, super::passing::OBSERVABLES].concat().contains(&o.name.as_str())
 }
 
 /// The relative step [`differenced`] starts from: a tenth of the parameter (its scale, the

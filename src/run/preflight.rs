@@ -34,7 +34,7 @@ pub fn preflight(sc: &Scenario) -> Result<(), Invalid> {
 }
 
 /// The fewest particles `body` holds: its lattice over the largest box inside it and the
-/// domain.
+/// domain (a union's or intersection's: its lattice counted).
 fn fewest_particles(sc: &Scenario, body: &crate::scenario::Body) -> f64 {
     use crate::scenario::Body;
     let h = sc.simulation.dx / body.particles_per_cell_axis() as f64;
@@ -43,6 +43,11 @@ fn fewest_particles(sc: &Scenario, body: &crate::scenario::Body) -> f64 {
         Body::Frustum { base_center: c, bottom_radius, top_radius, height, .. } => {
             let r = bottom_radius.min(*top_radius) / std::f64::consts::SQRT_2;
             ([c[0] - r, c[1] - r, c[2]], [c[0] + r, c[1] + r, c[2] + height])
+        }
+        Body::Union { .. } | Body::Intersection { .. } => {
+            let mut n = 0usize;
+            crate::solver::for_each_lattice_point(sc, body, |_| n += 1);
+            return n as f64;
         }
     };
     let d = &sc.domain;
@@ -103,8 +108,8 @@ pub fn scenario_warnings(sc: &Scenario, sim: &Simulation) -> Vec<String> {
             if (0..3).any(|a| hi[a] <= olo[a] || lo[a] >= ohi[a]) {
                 continue;
             }
-            let mut n = 0usize;
-            for_each_lattice_point(sc, b, |p| n += other.contains(p) as usize);
+            let (mut n, contains) = (0usize, other.inside());
+            for_each_lattice_point(sc, b, |p| n += contains(p) as usize);
             if n > 0 {
                 w.push(format!("body[{i}] overlaps body[{j}]: {n} of its particles lie inside body[{j}], doubling the material there"));
             }

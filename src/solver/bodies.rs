@@ -38,6 +38,7 @@ pub fn for_each_lattice_point(sc: &Scenario, body: &Body, mut f: impl FnMut([f64
     let ppc = body.particles_per_cell_axis() as usize;
     let h = dx / ppc as f64;
     let (lo, hi) = body.bounds();
+    let contains = body.inside();
     let mut range = [(0i64, 0i64); 3];
     for a in 0..3 {
         let m = sc.domain.min[a];
@@ -52,7 +53,7 @@ pub fn for_each_lattice_point(sc: &Scenario, body: &Body, mut f: impl FnMut([f64
                     sc.domain.min[2] + (k as f64 + 0.5) * h,
                 ];
                 let inside = (0..3).all(|a| p[a] >= sc.domain.min[a] && p[a] <= sc.domain.max[a]);
-                if inside && body.contains(p) {
+                if inside && contains(p) {
                     f(p);
                 }
             }

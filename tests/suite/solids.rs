@@ -1,6 +1,7 @@
 //! Solid bodies (`[[solid]]`, issue 30): a column resting on a box carries its hydrostatic
 //! load, a block slides down an inclined wall at the Coulomb acceleration, a gate holds material
-//! until it opens, a reduced L-box flows past its rebars to the end, and bad input names its key.
+//! until it opens, a reduced L-box flows past its rebars to the end, a reduced V-funnel drains
+//! through its outlet (its fill a body made of the solids' shapes), and bad input names its key.
 
 use crate::common;
 
@@ -356,4 +357,69 @@ fn a_reduced_lbox_holds_at_the_gate_then_flows_to_the_end_held_back_by_the_rebar
     // the rebars (x = 0.125 m) hold the flow back, which still passes them
     assert!(rebars[1] < bare[1] - 0.1, "front at 0.8 s with rebars {} m, without {} m", rebars[1], bare[1]);
     assert!(rebars[2] > 0.25 && rebars[2] < bare[2], "final front with rebars {} m, without {} m", rebars[2], bare[2]);
+}
+
+/// A `[[body]]` built from the solids' shapes: the V-funnel fixture's fill (a union of a box and
+/// an intersection of a box and two half-spaces) holds the funnel's 10.52 L, and a body that is
+/// not bounded, or a bad part, is an error naming the key.
+#[test]
+fn a_union_or_intersection_body_fills_its_region_and_bad_ones_name_the_key() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let sc = Scenario::load(&root.join("fixtures/scenarios/vfunnel/vfunnel.toml")).unwrap();
+    let n = strand::solver::count_body_particles(&sc);
+    let volume = n as f64 * (sc.simulation.dx / 2.0).powi(3);
+    // the straight outlet 65 x 75 x 150 mm, the tapered part (515 + 65) / 2 x 75 x 450 mm
+    let funnel = 0.065 * 0.075 * 0.15 + 0.5 * (0.515 + 0.065) * 0.075 * 0.45;
+    eprintln!("V-funnel fill: {n} particles, {volume:.6e} m3 against {funnel:.6e}");
+    assert!((volume / funnel - 1.0).abs() < 0.02, "the fill holds {volume:.6e} m3, the funnel {funnel:.6e}");
+    let base = |body: &str| common::dam_break(1, "64 MiB", "").replace("[memory]", &format!("[[body]]\n{body}\n[memory]"));
+    for (body, key) in [
+        ("shape = \"union\"\nparts = [{ shape = \"half_space\", point = [0.1, 0.1, 0.1], normal = [0.0, 0.0, 1.0] }]", "body[1] is unbounded"),
+        ("shape = \"intersection\"\nparts = []", "body[1].parts is empty"),
+        ("shape = \"union\"\nparts = [{ shape = \"cylinder\", from = [0.1, 0.1, 0.1], to = [0.1, 0.1, 0.2], radius = 0.0 }]", "body[1].parts[0].radius"),
+        ("shape = \"union\"\nparts = [{ shape = \"box\", min = [0.1, 0.1, 0.1], max = [0.2, 0.2, 0.2] }]\nparticles_per_cell_axis = 9", "body[1].particles_per_cell_axis"),
+    ] {
+        let err = Scenario::parse(&base(body)).err().unwrap_or_else(|| panic!("accepted: {body}")).to_string();
+        assert!(err.contains(key), "{body}: error `{err}` does not name `{key}`");
+    }
+}
+
+/// Paper 001's V-funnel reduced (issue 30): the fixture at 18.75 mm cells (4 across its depth,
+/// 3.5 across its outlet), to 1.6 s (1.3 s after the gate opens), under Mix-A's parameters of 001's
+/// Table 4, with its walls' friction (0.3) and without, observed by `passed@0.3:F` (the time the
+/// fraction F of the mass has passed below the outlet). So coarse, the funnel drains slowly, held
+/// back by its walls (10 % in about 1 s; at 001's 10.7 mm cells, half in 1.26 s: BENCHMARKS.md
+/// "V-funnel").
+#[test]
+fn a_reduced_vfunnel_holds_at_its_gate_then_drains_faster_without_friction() {
+    use strand::measure::{experiments::Experiments, model::Model, observation::Observable, runner};
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut text = std::fs::read_to_string(root.join("fixtures/scenarios/vfunnel/vfunnel.toml")).unwrap();
+    for (from, to) in [("dx = 0.010714285714285714\n", "dx = 0.01875\n"), ("end_time = 3.3\n", "end_time = 1.6\n")] {
+        assert_eq!(text.matches(from).count(), 1, "the V-funnel fixture changed: '{from}'");
+        text = text.replace(from, to);
+    }
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("vfunnel.toml"), &text).unwrap();
+    let frictionless = ["boundary.x_min", "boundary.x_max", "boundary.y_min", "boundary.y_max", "boundary.z_min", "solid.0.contact", "solid.1.contact"]
+        .map(|k| format!("\"{k}.friction.mu\" = 0.0"))
+        .join(", ");
+    let experiments = format!("[[experiment]]\nid = \"mix_a\"\nscenario = \"vfunnel.toml\"\n\n[[experiment]]\nid = \"frictionless\"\nscenario = \"vfunnel.toml\"\nset = {{ {frictionless} }}\n");
+    std::fs::write(dir.path().join("experiments.toml"), experiments).unwrap();
+    let exps = Experiments::load(&dir.path().join("experiments.toml")).unwrap();
+    let model = Model::load(&root.join("fixtures/measure/vfunnel/mix_a_001.toml")).unwrap();
+    let obs: Vec<Observable> = ["passed@0.3:0.01", "passed@0.3:0.05", "passed@0.3:0.1"].iter().map(|s| Observable::parse(s).unwrap()).collect();
+    let wanted = [("mix_a".to_string(), obs.clone()), ("frictionless".to_string(), obs)];
+    let start = std::time::Instant::now();
+    let values = runner::evaluate_all(&model, &exps, &wanted, 2).unwrap();
+    eprintln!("two reduced V-funnels in {:.1} s: Mix-A {:?}, frictionless {:?}", start.elapsed().as_secs_f64(), values[0], values[1]);
+    for v in &values {
+        let [first, five, ten] = v[..] else { panic!("{v:?}") };
+        // the closed gate holds everything until 0.3 s; then the first 1 % passes within 0.1 s,
+        // and 10 % within the run
+        assert!((0.3..0.4).contains(&first), "1 % passed at {first} s (the gate opens at 0.3 s)");
+        assert!(first < five && five < ten && ten < 1.6, "1, 5 and 10 % passed at {first}, {five}, {ten} s (the run ends at 1.6 s)");
+    }
+    let (a, free) = (values[0][2] - 0.3, values[1][2] - 0.3);
+    assert!(a > 1.3 * free, "10 % passed {a:.3} s after the opening with the walls' friction, {free:.3} s without");
 }
