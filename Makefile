@@ -115,8 +115,8 @@ bench-lbox: build
 	python3 bench/lbox.py --out $(OUT)/lbox --jobs 2
 
 # Paper 001's V-funnel under 001's own parameters (Table 4): Mix-A and Mix-B after 0, 240 and
-# 600 s of rest at 1 cm cells, the times 50, 90 and 99 % of the mass has passed the outlet beside
-# 001's flow times (fixtures/measure/vfunnel/, bench/vfunnel.py; BENCHMARKS.md "V-funnel").
+# 600 s of rest at 001's 10.7 mm cells, the times 50, 90 and 99 % of the mass has passed the
+# outlet beside 001's flow times (fixtures/measure/vfunnel/, bench/vfunnel.py; BENCHMARKS.md "V-funnel").
 bench-vfunnel: build
 	python3 bench/vfunnel.py --out $(OUT)/vfunnel --jobs 2
 

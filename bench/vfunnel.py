@@ -3,7 +3,7 @@
 
 For Mix-A and Mix-B after 0, 240 and 600 s of rest (fixtures/measure/vfunnel/: Table 4's tau0,
 A_thix, alpha, eta and lambda0, friction 0.3 on every wall), `strand synth` (no noise) runs the
-V-funnel fixture at 1 cm cells and reads the times half, 90 % and 99 % of the mass has passed
+V-funnel fixture at 75/7 mm cells (001's 10.72 mm) and reads the times half, 90 % and 99 % of the mass has passed
 below the outlet. Prints one table row per mix and rest time beside 001's simulated flow times
 t_v (its elasto-viscoplastic and PR-Bingham models; 001 has no measured V-funnel times), all
 counted from the gate's opening (0.3 s into the run).
