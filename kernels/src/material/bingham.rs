@@ -259,6 +259,8 @@ mod tests {
     #[test]
     fn with_a_flow_index_the_flow_curve_is_herschel_bulkley_and_the_cap_regularises_it() {
         for n in [0.4 as Real, 0.6, 1.5] {
+            // Real is f32 under the `f32` feature, where the cast is needed
+            #[allow(clippy::unnecessary_cast)]
             let m = Bingham { flow_index: n as f64, ..concrete() };
             assert!(m.validate().is_ok());
             for g in [0.5 as Real, 3.0, 40.0] {

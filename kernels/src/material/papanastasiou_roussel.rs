@@ -857,6 +857,8 @@ mod tests {
     #[test]
     fn with_a_flow_index_the_flow_curve_is_herschel_bulkley_and_finite_at_rest() {
         for n in [0.4 as Real, 0.6, 1.5] {
+            // Real is f32 under the `f32` feature, where the cast is needed
+            #[allow(clippy::unnecessary_cast)]
             let m = PapanastasiouRoussel { flow_index: n as f64, papanastasiou_m: 100.0, ..mix() };
             assert!(m.validate().is_ok());
             // m g >= 50: (1 - exp(-m g))^(1-n) is 1 to round-off, so tau = tau0 + k g^n
