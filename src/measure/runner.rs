@@ -103,12 +103,10 @@ fn simulate(model: &Model, keys: &Keys, scenario: &Path, wanted: &[Observable], 
     let mut plan: Vec<(usize, f64, Objective)> = rest.iter().map(|&k| observable_plan(&wanted[k], end).map(|(t, o)| (k, t, o))).collect::<Result<_, _>>()?;
     plan.sort_by(|a, b| a.1.total_cmp(&b.1));
     let mut sim = Simulation::new(&sc)?;
-    let planes: Vec<f64> = passed.iter().filter_map(|&k| wanted[k].at).fold(Vec::new(), |mut v, z| {
-        if !v.contains(&z) {
-            v.push(z);
-        }
-        v
-    });
+    // each plane recorded once, however many fractions of it are observed
+    let mut planes: Vec<f64> = passed.iter().filter_map(|&k| wanted[k].at).collect();
+    planes.sort_by(f64::total_cmp);
+    planes.dedup();
     let mut history = Histories {
         front: if fronts.is_empty() { None } else { Some(FrontTrace::start(&sim)?) },
         passing: if passed.is_empty() { None } else { Some(PassingTrace::start(&sim, planes)?) },

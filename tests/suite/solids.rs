@@ -226,8 +226,7 @@ fn a_gate_holds_material_until_it_opens() {
 /// Bad `[[solid]]` input is an error naming the key.
 #[test]
 fn bad_solids_name_the_key() {
-    let base = |solid: &str| common::dam_break(1, "64 MiB", "").replace("[memory]", &format!("[[solid]]\n{solid}\n[memory]"));
-    for (solid, key) in [
+    refused_naming_the_key("solid", &[
         ("shape = \"cylinder\"\nfrom = [0.0, 0.0, 0.0]\nto = [0.1, 0.0, 0.0]\nradius = -0.01", "solid[0].radius"),
         ("shape = \"cylinder\"\nfrom = [0.0, 0.0, 0.0]\nto = [0.1, 0.0, 0.0]\nraduis = 0.01", "raduis"),
         ("shape = \"box\"\nmin = [0.0, 0.0, 0.0]\nmax = [0.1, 0.1, 0.1]\nopen_at = 1\ncontact = \"symmetry\"", "solid[0].contact"),
@@ -239,9 +238,15 @@ fn bad_solids_name_the_key() {
         ("shape = \"box\"\nmin = [0.0, 0.0, 0.0]\nmax = [0.1, 0.1, 0.1]\ncontact = { friction = { mu = -0.2 } }", "solid[0].contact.friction.mu"),
         ("shape = \"union\"\nparts = []", "solid[0].parts is empty"),
         ("shape = \"half_space\"\npoint = [0.0, 0.0, 0.0]\nnormal = [0.0, 0.0, 0.0]", "solid[0].normal"),
-    ] {
-        let err = Scenario::parse(&base(solid)).err().unwrap_or_else(|| panic!("accepted: {solid}")).to_string();
-        assert!(err.contains(key), "{solid}: error `{err}` does not name `{key}`");
+    ]);
+}
+
+/// Each case, a `[[table]]` added to the dam break, is refused by an error naming its key.
+fn refused_naming_the_key(table: &str, cases: &[(&str, &str)]) {
+    for (case, key) in cases {
+        let text = common::dam_break(1, "64 MiB", "").replace("[memory]", &format!("[[{table}]]\n{case}\n[memory]"));
+        let err = Scenario::parse(&text).err().unwrap_or_else(|| panic!("accepted: {case}")).to_string();
+        assert!(err.contains(key), "{case}: error `{err}` does not name `{key}`");
     }
 }
 
@@ -372,16 +377,12 @@ fn a_union_or_intersection_body_fills_its_region_and_bad_ones_name_the_key() {
     let funnel = 0.065 * 0.075 * 0.15 + 0.5 * (0.515 + 0.065) * 0.075 * 0.45;
     eprintln!("V-funnel fill: {n} particles, {volume:.6e} m3 against {funnel:.6e}");
     assert!((volume / funnel - 1.0).abs() < 0.02, "the fill holds {volume:.6e} m3, the funnel {funnel:.6e}");
-    let base = |body: &str| common::dam_break(1, "64 MiB", "").replace("[memory]", &format!("[[body]]\n{body}\n[memory]"));
-    for (body, key) in [
+    refused_naming_the_key("body", &[
         ("shape = \"union\"\nparts = [{ shape = \"half_space\", point = [0.1, 0.1, 0.1], normal = [0.0, 0.0, 1.0] }]", "body[1] is unbounded"),
         ("shape = \"intersection\"\nparts = []", "body[1].parts is empty"),
         ("shape = \"union\"\nparts = [{ shape = \"cylinder\", from = [0.1, 0.1, 0.1], to = [0.1, 0.1, 0.2], radius = 0.0 }]", "body[1].parts[0].radius"),
         ("shape = \"union\"\nparts = [{ shape = \"box\", min = [0.1, 0.1, 0.1], max = [0.2, 0.2, 0.2] }]\nparticles_per_cell_axis = 9", "body[1].particles_per_cell_axis"),
-    ] {
-        let err = Scenario::parse(&base(body)).err().unwrap_or_else(|| panic!("accepted: {body}")).to_string();
-        assert!(err.contains(key), "{body}: error `{err}` does not name `{key}`");
-    }
+    ]);
 }
 
 /// Paper 001's V-funnel reduced (issue 30): the fixture at 18.75 mm cells (4 across its depth,
