@@ -56,7 +56,8 @@ fn fewest_particles(sc: &Scenario, body: &crate::scenario::Body) -> f64 {
 
 /// What a scenario does that its author may not expect, said before it runs, one line each
 /// (`warning: ...` or `note: ...`): a wall moved to the nearest cell face, nothing to simulate,
-/// a body cut by the domain, bodies overlapping, what the G-code import skipped.
+/// a body cut by the domain, bodies overlapping, a solid that holds no grid node, what
+/// the G-code import skipped.
 pub fn scenario_warnings(sc: &Scenario, sim: &Simulation) -> Vec<String> {
     use crate::solver::for_each_lattice_point;
     let mut w = Vec::new();
@@ -77,6 +78,11 @@ pub fn scenario_warnings(sc: &Scenario, sim: &Simulation) -> Vec<String> {
     // a printed section needs the nozzle resolved by enough cells
     if let Some(r) = sc.print.as_ref().and_then(|p| p.nozzle.resolution_warning(dx, sc.simulation.j_bar)) {
         w.push(r);
+    }
+    // a solid that holds no node lets material through
+    for (name, most) in sim.solids.as_ref().map_or(Vec::new(), |z| z.held_at_no_node(&sim.grid.geom)) {
+        let seen = if most > 0.0 { format!("only its band's nodes take part of its condition (at most {most:.2}), so material seeps through it") } else { "the grid does not see it".to_string() };
+        w.push(format!("solid '{name}' holds no grid node at dx = {dx} (none lies on or inside it): {seen}; make it at least a cell thick or move a face onto a node plane"));
     }
     if sim.particles.n == 0 && sc.print.is_none() {
         w.push(if sc.bodies.is_empty() {

@@ -23,7 +23,7 @@ pub mod union;
 
 use crate::grid::GridGeom;
 use crate::kernels::boundary::WallKind;
-use crate::kernels::solid::{contact, contact_adjoint};
+use crate::kernels::solid::{contact, contact_adjoint, indicator};
 use crate::kernels::{Real, V3};
 use crate::memory::{Backing, Pool};
 use crate::pools::{Counts, Per, PoolDecl, Pools, Role};
@@ -163,6 +163,22 @@ pub struct Solid {
     delta: f64,
     /// The shape's bounds padded by the band, in its own frame (None: unbounded).
     reach: Option<(DVec3, DVec3)>,
+    /// Distances within this of 0 are on the surface [m]: a node on a face that lies on a node
+    /// plane is computed a rounding error off it, and the hard indicator must not flip on that.
+    on_surface: f64,
+}
+
+impl Solid {
+    /// The signed distance at `q` in the shape's frame, 0 within `on_surface` of the surface.
+    #[inline]
+    fn distance(&self, q: DVec3) -> f64 {
+        let phi = self.sdf.distance(q);
+        if phi.abs() <= self.on_surface {
+            0.0
+        } else {
+            phi
+        }
+    }
 }
 
 /// Where a solid is at one time.
@@ -203,9 +219,12 @@ impl Solids {
         for (i, c) in cfgs.iter().enumerate() {
             let key = format!("solid[{i}]");
             let sdf = c.shape.build(&key, &cx)?;
-            let delta = c.transition.unwrap_or(dx);
+            // the band lets a node's weight vary smoothly while the solid moves over the grid; a
+            // static solid's weights are constants of the node, where a band would only widen it
+            let delta = c.transition.unwrap_or(if c.motion == Motion::Static { 0.0 } else { dx });
             let reach = sdf.bounds().map(|(lo, hi)| (lo - DVec3::splat(delta), hi + DVec3::splat(delta)));
-            list.push(Solid { name: c.name.clone().unwrap_or(key), sdf, contact: c.contact, motion: c.motion, open_at: c.open_at, delta, reach });
+            let on_surface = 1e-6 * dx;
+            list.push(Solid { name: c.name.clone().unwrap_or(key), sdf, contact: c.contact, motion: c.motion, open_at: c.open_at, delta, reach, on_surface });
         }
         Ok(Some(Solids { force: vec![[0.0; 3]; list.len()], list, reactions: Pool::default() }))
     }
@@ -259,6 +278,40 @@ impl Solids {
 
     pub fn is_empty(&self) -> bool {
         self.list.is_empty()
+    }
+
+    /// The static solids no node of grid `geom` lies in (on or inside the surface), each with its
+    /// name and the largest weight a node of its band takes (0: the grid does not see it). Such a
+    /// solid, thinner than a cell and off the node planes, holds nothing fully: material seeps
+    /// through it in proportion to `1 - w`.
+    pub fn held_at_no_node(&self, geom: &GridGeom) -> Vec<(&str, f64)> {
+        let mut thin = Vec::new();
+        for s in self.list.iter().filter(|s| s.motion == Motion::Static) {
+            let Some((lo, hi)) = s.reach else { continue };
+            let mut range = [(0i32, 0i32); 3];
+            let tol = s.on_surface / geom.dx;
+            for a in 0..3 {
+                let first = ((lo[a] - geom.origin[a]) / geom.dx - tol).ceil().max(0.0);
+                let last = ((hi[a] - geom.origin[a]) / geom.dx + tol).floor().min(geom.cells[a] as f64);
+                range[a] = (first as i32, last as i32);
+            }
+            let mut most = 0.0f64;
+            'nodes: for i in range[0].0..=range[0].1 {
+                for j in range[1].0..=range[1].1 {
+                    for k in range[2].0..=range[2].1 {
+                        let phi = s.distance(DVec3::from(geom.node_position([i, j, k])));
+                        most = most.max(indicator(phi as Real, s.delta as Real).0 as f64);
+                        if most >= 1.0 {
+                            break 'nodes;
+                        }
+                    }
+                }
+            }
+            if most < 1.0 {
+                thin.push((s.name.as_str(), most));
+            }
+        }
+        thin
     }
 }
 
@@ -320,7 +373,7 @@ impl SolidsAt<'_> {
     fn near(&self, k: usize, x: DVec3) -> Option<(Real, V3, V3)> {
         let (s, p) = (&self.list[k], &self.place[k]);
         let q = x - p.offset;
-        let phi = s.sdf.distance(q);
+        let phi = s.distance(q);
         if phi >= s.delta && s.delta > 0.0 || phi > 0.0 && s.delta == 0.0 {
             return None;
         }

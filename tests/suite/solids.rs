@@ -241,6 +241,28 @@ fn bad_solids_name_the_key() {
     ]);
 }
 
+/// A static solid that holds no node (a plate thinner than a cell between node planes) is
+/// warned of before the run, naming it: unseen when hard, seeping with a band; a plate with a
+/// face on a node plane, or a cell thick, is not.
+#[test]
+fn a_solid_that_holds_no_grid_node_is_warned_of() {
+    // the dam break's cells are 2 cm: nodes at x = 0.20, 0.22, ...
+    let warnings = |plate: &str| {
+        let text = common::dam_break(1, "64 MiB", "").replace("[memory]", &format!("[[solid]]\nname = \"plate\"\nshape = \"box\"\n{plate}\n[memory]"));
+        let sc = Scenario::parse(&text).unwrap();
+        let sim = Simulation::new(&sc).unwrap();
+        strand::run::scenario_warnings(&sc, &sim).into_iter().filter(|w| w.contains("'plate'")).collect::<Vec<_>>()
+    };
+    let thin = "min = [0.205, -1.0, -1.0]\nmax = [0.215, 1.0, 1.0]";
+    let unseen = warnings(thin);
+    assert!(unseen.len() == 1 && unseen[0].contains("holds no grid node") && unseen[0].contains("does not see it"), "{unseen:?}");
+    let seeping = warnings(&format!("{thin}\ntransition = 0.02"));
+    assert!(seeping.len() == 1 && seeping[0].contains("seeps through it"), "{seeping:?}");
+    for held in ["min = [0.21, -1.0, -1.0]\nmax = [0.22, 1.0, 1.0]", "min = [0.205, -1.0, -1.0]\nmax = [0.225, 1.0, 1.0]"] {
+        assert!(warnings(held).is_empty(), "{held}: {:?}", warnings(held));
+    }
+}
+
 /// Each case, a `[[table]]` added to the dam break, is refused by an error naming its key.
 fn refused_naming_the_key(table: &str, cases: &[(&str, &str)]) {
     for (case, key) in cases {
@@ -255,8 +277,9 @@ fn grad_opts(dir: &std::path::Path) -> strand::grad::GradOptions {
 }
 
 /// Gradients through the grid update's adjoint with solids in the way: a Newtonian block thrown
-/// into a rebar (Coulomb friction) and against a sloped wall (free slip, in the band of its
-/// smoothed indicator) agrees with central differences.
+/// into a rebar (Coulomb friction) and against a sloped wall (free slip), both with a band of
+/// one cell (a static solid is hard by default) so nodes in the bands take part of the
+/// condition, agrees with central differences.
 #[test]
 fn gradients_through_solids_match_central_differences() {
     use strand::grad::check::{check, REL_STEPS};
@@ -287,11 +310,13 @@ from = [0.125, -0.1, 0.05]
 to = [0.125, 0.3, 0.05]
 radius = 0.011
 contact = { friction = { mu = 0.3 } }
+transition = 0.02
 [[solid]]
 shape = "half_space"
 point = [0.0, 0.0, 0.013]
 normal = [0.1, 0.05, 1.0]
 contact = "free_slip"
+transition = 0.02
 [memory]
 budget = "64 MiB"
 "#;
