@@ -172,12 +172,45 @@ impl Solid {
     /// The signed distance at `q` in the shape's frame, 0 within `on_surface` of the surface.
     #[inline]
     fn distance(&self, q: DVec3) -> f64 {
-        let phi = self.sdf.distance(q);
+        self.snapped(self.sdf.distance(q))
+    }
+
+    #[inline]
+    fn snapped(&self, phi: f64) -> f64 {
         if phi.abs() <= self.on_surface {
             0.0
         } else {
             phi
         }
+    }
+
+    /// The largest weight this solid's band gives a node of `geom` through shape `sdf` (the
+    /// solid's own or a part of it) with bounds `(lo, hi)`; 1 for a shape wholly outside the
+    /// domain, which has nothing to hold.
+    fn most_weight(&self, sdf: &dyn Sdf, (lo, hi): (DVec3, DVec3), geom: &GridGeom) -> f64 {
+        let (lo, hi) = (lo - DVec3::splat(self.delta), hi + DVec3::splat(self.delta));
+        let tol = self.on_surface / geom.dx;
+        let mut range = [(0i32, 0i32); 3];
+        for a in 0..3 {
+            let (lo, hi) = ((lo[a] - geom.origin[a]) / geom.dx, (hi[a] - geom.origin[a]) / geom.dx);
+            if hi < geom.lo[a] - tol || lo > geom.hi[a] + tol {
+                return 1.0;
+            }
+            range[a] = ((lo - tol).ceil().max(0.0) as i32, (hi + tol).floor().min(geom.cells[a] as f64) as i32);
+        }
+        let mut most = 0.0f64;
+        for i in range[0].0..=range[0].1 {
+            for j in range[1].0..=range[1].1 {
+                for k in range[2].0..=range[2].1 {
+                    let phi = self.snapped(sdf.distance(DVec3::from(geom.node_position([i, j, k]))));
+                    most = most.max(indicator(phi as Real, self.delta as Real).0 as f64);
+                    if most >= 1.0 {
+                        return most;
+                    }
+                }
+            }
+        }
+        most
     }
 }
 
@@ -280,35 +313,25 @@ impl Solids {
         self.list.is_empty()
     }
 
-    /// The static solids no node of grid `geom` lies in (on or inside the surface), each with its
-    /// name and the largest weight a node of its band takes (0: the grid does not see it). Such a
-    /// solid, thinner than a cell and off the node planes, holds nothing fully: material seeps
-    /// through it in proportion to `1 - w`.
-    pub fn held_at_no_node(&self, geom: &GridGeom) -> Vec<(&str, f64)> {
+    /// The static solids, or parts of a union, no node of grid `geom` lies in (on or inside the
+    /// surface), each named (`rebars`, `rebars.parts[1]`) with the largest weight a node of its
+    /// band takes (0: the grid does not see it). Such a body, thinner than a cell and off the
+    /// node planes, holds nothing fully: material seeps through it in proportion to `1 - w`.
+    pub fn held_at_no_node(&self, geom: &GridGeom) -> Vec<(String, f64)> {
         let mut thin = Vec::new();
         for s in self.list.iter().filter(|s| s.motion == Motion::Static) {
-            let Some((lo, hi)) = s.reach else { continue };
-            let mut range = [(0i32, 0i32); 3];
-            let tol = s.on_surface / geom.dx;
-            for a in 0..3 {
-                let first = ((lo[a] - geom.origin[a]) / geom.dx - tol).ceil().max(0.0);
-                let last = ((hi[a] - geom.origin[a]) / geom.dx + tol).floor().min(geom.cells[a] as f64);
-                range[a] = (first as i32, last as i32);
-            }
-            let mut most = 0.0f64;
-            'nodes: for i in range[0].0..=range[0].1 {
-                for j in range[1].0..=range[1].1 {
-                    for k in range[2].0..=range[2].1 {
-                        let phi = s.distance(DVec3::from(geom.node_position([i, j, k])));
-                        most = most.max(indicator(phi as Real, s.delta as Real).0 as f64);
-                        if most >= 1.0 {
-                            break 'nodes;
-                        }
-                    }
+            let parts = s.sdf.union_parts();
+            if parts.is_empty() {
+                let most = s.sdf.bounds().map_or(1.0, |b| s.most_weight(&*s.sdf, b, geom));
+                if most < 1.0 {
+                    thin.push((s.name.clone(), most));
                 }
             }
-            if most < 1.0 {
-                thin.push((s.name.as_str(), most));
+            for (i, part) in parts.iter().enumerate() {
+                let most = part.bounds().map_or(1.0, |b| s.most_weight(&**part, b, geom));
+                if most < 1.0 {
+                    thin.push((format!("{}.parts[{i}]", s.name), most));
+                }
             }
         }
         thin

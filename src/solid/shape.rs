@@ -25,6 +25,10 @@ pub trait Sdf: Send + Sync + std::fmt::Debug {
     fn hessian_times(&self, p: DVec3, u: DVec3) -> DVec3;
     /// Bounding box of the solid (None: unbounded, as a half-space).
     fn bounds(&self) -> Option<(DVec3, DVec3)>;
+    /// The parts of a union, each a body of its own on the grid (empty for any other shape).
+    fn union_parts(&self) -> &[Box<dyn Sdf>] {
+        &[]
+    }
 }
 
 /// The `shape` of a `[[solid]]` table (or of a part of a union).

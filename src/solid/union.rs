@@ -49,6 +49,12 @@ impl Sdf for Combination {
     fn hessian_times(&self, p: DVec3, u: DVec3) -> DVec3 {
         self.deciding(p).hessian_times(p, u)
     }
+    fn union_parts(&self) -> &[Box<dyn Sdf>] {
+        match self.how {
+            Combine::Union => &self.parts,
+            Combine::Intersection => &[],
+        }
+    }
     fn bounds(&self) -> Option<(DVec3, DVec3)> {
         let mut boxes = self.parts.iter().map(|s| s.bounds());
         match self.how {

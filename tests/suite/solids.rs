@@ -243,24 +243,32 @@ fn bad_solids_name_the_key() {
 
 /// A static solid that holds no node (a plate thinner than a cell between node planes) is
 /// warned of before the run, naming it: unseen when hard, seeping with a band; a plate with a
-/// face on a node plane, or a cell thick, is not.
+/// face on a node plane, or a cell thick, is not; of a union's parts, the one off the node lines
+/// is named.
 #[test]
 fn a_solid_that_holds_no_grid_node_is_warned_of() {
     // the dam break's cells are 2 cm: nodes at x = 0.20, 0.22, ...
     let warnings = |plate: &str| {
-        let text = common::dam_break(1, "64 MiB", "").replace("[memory]", &format!("[[solid]]\nname = \"plate\"\nshape = \"box\"\n{plate}\n[memory]"));
+        let text = common::dam_break(1, "64 MiB", "").replace("[memory]", &format!("[[solid]]\nname = \"plate\"\n{plate}\n[memory]"));
         let sc = Scenario::parse(&text).unwrap();
         let sim = Simulation::new(&sc).unwrap();
-        strand::run::scenario_warnings(&sc, &sim).into_iter().filter(|w| w.contains("'plate'")).collect::<Vec<_>>()
+        strand::run::scenario_warnings(&sc, &sim).into_iter().filter(|w| w.contains("solid 'plate")).collect::<Vec<_>>()
     };
-    let thin = "min = [0.205, -1.0, -1.0]\nmax = [0.215, 1.0, 1.0]";
+    let thin = "shape = \"box\"\nmin = [0.205, -1.0, -1.0]\nmax = [0.215, 1.0, 1.0]";
     let unseen = warnings(thin);
     assert!(unseen.len() == 1 && unseen[0].contains("holds no grid node") && unseen[0].contains("does not see it"), "{unseen:?}");
     let seeping = warnings(&format!("{thin}\ntransition = 0.02"));
     assert!(seeping.len() == 1 && seeping[0].contains("seeps through it"), "{seeping:?}");
-    for held in ["min = [0.21, -1.0, -1.0]\nmax = [0.22, 1.0, 1.0]", "min = [0.205, -1.0, -1.0]\nmax = [0.225, 1.0, 1.0]"] {
+    for held in ["shape = \"box\"\nmin = [0.21, -1.0, -1.0]\nmax = [0.22, 1.0, 1.0]", "shape = \"box\"\nmin = [0.205, -1.0, -1.0]\nmax = [0.225, 1.0, 1.0]"] {
         assert!(warnings(held).is_empty(), "{held}: {:?}", warnings(held));
     }
+    // each part of a union is a body of its own to the grid: three rods, one on a node line, one
+    // off the node lines, one above the domain (nothing to hold there)
+    let rods = "shape = \"union\"\nparts = [\n{ shape = \"cylinder\", from = [0.3, -1.0, 0.1], to = [0.3, 1.0, 0.1], radius = 0.004 },\n\
+                { shape = \"cylinder\", from = [0.35, -1.0, 0.11], to = [0.35, 1.0, 0.11], radius = 0.004 },\n\
+                { shape = \"cylinder\", from = [0.35, -1.0, 0.61], to = [0.35, 1.0, 0.61], radius = 0.004 },\n]";
+    let w = warnings(rods);
+    assert!(w.len() == 1 && w[0].contains("'plate.parts[1]'"), "{w:?}");
 }
 
 /// Each case, a `[[table]]` added to the dam break, is refused by an error naming its key.
