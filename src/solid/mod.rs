@@ -185,9 +185,10 @@ impl Solid {
     }
 
     /// The largest weight this solid's band gives a node of `geom` through shape `sdf` (the
-    /// solid's own or a part of it) with bounds `(lo, hi)`; 1 for a shape wholly outside the
-    /// domain, which has nothing to hold.
-    fn most_weight(&self, sdf: &dyn Sdf, (lo, hi): (DVec3, DVec3), geom: &GridGeom) -> f64 {
+    /// solid's own or a part of it); 1 for an unbounded shape or one wholly outside the domain,
+    /// which has nothing to hold.
+    fn most_weight(&self, sdf: &dyn Sdf, geom: &GridGeom) -> f64 {
+        let Some((lo, hi)) = sdf.bounds() else { return 1.0 };
         let (lo, hi) = (lo - DVec3::splat(self.delta), hi + DVec3::splat(self.delta));
         let tol = self.on_surface / geom.dx;
         let mut range = [(0i32, 0i32); 3];
@@ -321,16 +322,15 @@ impl Solids {
         let mut thin = Vec::new();
         for s in self.list.iter().filter(|s| s.motion == Motion::Static) {
             let parts = s.sdf.union_parts();
-            if parts.is_empty() {
-                let most = s.sdf.bounds().map_or(1.0, |b| s.most_weight(&*s.sdf, b, geom));
+            let bodies: Vec<(String, &dyn Sdf)> = if parts.is_empty() {
+                vec![(s.name.clone(), &*s.sdf)]
+            } else {
+                parts.iter().enumerate().map(|(i, p)| (format!("{}.parts[{i}]", s.name), &**p)).collect()
+            };
+            for (name, sdf) in bodies {
+                let most = s.most_weight(sdf, geom);
                 if most < 1.0 {
-                    thin.push((s.name.clone(), most));
-                }
-            }
-            for (i, part) in parts.iter().enumerate() {
-                let most = part.bounds().map_or(1.0, |b| s.most_weight(&**part, b, geom));
-                if most < 1.0 {
-                    thin.push((format!("{}.parts[{i}]", s.name), most));
+                    thin.push((name, most));
                 }
             }
         }
