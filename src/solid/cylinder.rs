@@ -1,15 +1,15 @@
 //! A cylinder of any axis: the centres of its end faces and its radius (a rebar, a pipe).
 
-use super::revolved::Revolved;
+use super::revolved::{Rectangle, Revolved};
 use glam::DVec3;
 
 pub struct Cylinder;
 
 impl Cylinder {
     #[allow(clippy::new_ret_no_self)]
-    pub fn new(from: DVec3, to: DVec3, radius: f64) -> Revolved {
+    pub fn new(from: DVec3, to: DVec3, radius: f64) -> Revolved<Rectangle> {
         let length = from.distance(to);
-        Revolved { origin: from, axis: (to - from) / length, centre: [0.0, 0.5 * length], half: [radius, 0.5 * length] }
+        Revolved { origin: from, axis: (to - from) / length, profile: Rectangle { centre: [0.0, 0.5 * length], half: [radius, 0.5 * length] } }
     }
 }
 

@@ -1,9 +1,9 @@
-//! Solid bodies inside the domain (`[[solid]]`): formwork, rebars, an L-box's gate, the
-//! nozzle's body.
+//! Solid bodies inside the domain (`[[solid]]`): formwork, rebars, an L-box's gate, a slump
+//! cone's mould, the nozzle's body.
 //!
 //! Each solid is a signed distance function ([`shape::Sdf`], one file per shape), a contact kind
-//! (no-slip, free-slip or Coulomb friction, `kernels::boundary::WallKind`), a motion (static, or
-//! carried by the nozzle's outlet) and, for a gate, the time it opens (is removed). The grid
+//! (no-slip, free-slip or Coulomb friction, `kernels::boundary::WallKind`), a motion (static,
+//! carried by the nozzle's outlet, or at a constant velocity) and, for a gate, the time it opens (is removed). The grid
 //! update applies every solid to the nodes of the blocks it reaches, after the domain walls,
 //! through the smoothed indicator of `kernels/src/solid.rs`; the momentum each solid removes is
 //! summed per block slot and reduced in slot order into the force the material exerts on it.
@@ -15,6 +15,7 @@
 pub mod cuboid;
 pub mod cylinder;
 pub mod error;
+pub mod frustum;
 pub mod half_space;
 pub mod nozzle_body;
 pub mod revolved;
@@ -38,7 +39,7 @@ use crate::invalid::Invalid;
 pub const MAX_SOLIDS: usize = 32;
 
 /// How a solid moves.
-#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq)]
 #[serde(rename_all = "snake_case")]
 pub enum Motion {
     #[default]
@@ -46,13 +47,16 @@ pub enum Motion {
     /// Carried by the nozzle: the shape's coordinates are relative to the outlet centre, and it
     /// moves at the nozzle's velocity (without the extrusion speed).
     Nozzle,
+    /// Translated at this constant velocity [m/s] from where it is declared at t = 0 (a slump
+    /// cone lifted off its concrete): `motion = { velocity = [0.0, 0.0, 0.15] }`.
+    Velocity([f64; 3]),
 }
 
 /// One `[[solid]]` table: `shape = "..."` with that shape's keys, and the keys below.
 ///
 /// ```toml
 /// [[solid]]
-/// shape = "cylinder"          # box, cylinder, half_space, union, intersection, nozzle
+/// shape = "cylinder"          # box, cylinder, frustum, half_space, union, intersection, difference, nozzle
 /// from = [0.2, 0.0, 0.05]
 /// to = [0.2, 0.2, 0.05]
 /// radius = 0.006
@@ -98,7 +102,7 @@ impl TryFrom<toml::Table> for SolidConfig {
         }
         let c: Common = common.try_into().map_err(|e: toml::de::Error| Invalid(format!("solid: {}", e.message())))?;
         if !t.contains_key("shape") {
-            return Err(Invalid("solid: `shape` is missing (one of: box, cylinder, half_space, union, intersection, nozzle)".into()));
+            return Err(Invalid("solid: `shape` is missing (one of: box, cylinder, frustum, half_space, union, intersection, difference, nozzle)".into()));
         }
         let shape: ShapeConfig = t.try_into().map_err(|e: toml::de::Error| Invalid(format!("solid: {}", e.message())))?;
         let nozzle = matches!(shape, ShapeConfig::Nozzle { .. });
@@ -139,6 +143,11 @@ pub fn validate(solids: &[SolidConfig], printing: bool) -> Result<(), Invalid> {
         if let Some(d) = s.transition {
             if !(d >= 0.0 && d.is_finite()) {
                 return Err(Invalid(format!("{key}.transition must be >= 0, got {d}")));
+            }
+        }
+        if let Motion::Velocity(v) = s.motion {
+            if !v.iter().all(|x| x.is_finite()) {
+                return Err(Invalid(format!("{key}.motion.velocity must be finite, got {v:?}")));
             }
         }
         if matches!(s.shape, ShapeConfig::Nozzle { .. }) && s.motion != Motion::Nozzle {
@@ -343,9 +352,16 @@ fn placements(list: &[Solid], t: f64, toolpath: Option<&Toolpath>) -> [Placement
     let nozzle = toolpath.map(|tp| tp.state_at(t));
     for (p, s) in place.iter_mut().zip(list) {
         p.present = s.open_at.is_none_or(|o| t < o);
-        if let (Motion::Nozzle, Some(n)) = (s.motion, &nozzle) {
-            p.offset = DVec3::from(n.position);
-            p.velocity = DVec3::from(n.velocity);
+        match (s.motion, &nozzle) {
+            (Motion::Nozzle, Some(n)) => {
+                p.offset = DVec3::from(n.position);
+                p.velocity = DVec3::from(n.velocity);
+            }
+            (Motion::Velocity(v), _) => {
+                p.velocity = DVec3::from(v);
+                p.offset = p.velocity * t;
+            }
+            _ => {}
         }
     }
     place

@@ -2,19 +2,21 @@
 //! outlet plane, standing `height` above it, in the frame of the outlet (z up). It moves with the
 //! nozzle; the tube's inside stays the driven flow of `print/`.
 
-use super::revolved::Revolved;
+use super::revolved::{Rectangle, Revolved};
 use glam::DVec3;
 
 pub struct NozzleBody;
 
 impl NozzleBody {
     #[allow(clippy::new_ret_no_self)]
-    pub fn new(inner_radius: f64, outer_radius: f64, height: f64) -> Revolved {
+    pub fn new(inner_radius: f64, outer_radius: f64, height: f64) -> Revolved<Rectangle> {
         Revolved {
             origin: DVec3::ZERO,
             axis: DVec3::Z,
-            centre: [0.5 * (inner_radius + outer_radius), 0.5 * height],
-            half: [0.5 * (outer_radius - inner_radius), 0.5 * height],
+            profile: Rectangle {
+                centre: [0.5 * (inner_radius + outer_radius), 0.5 * height],
+                half: [0.5 * (outer_radius - inner_radius), 0.5 * height],
+            },
         }
     }
 }

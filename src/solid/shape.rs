@@ -9,9 +9,10 @@
 
 use super::cuboid::Cuboid;
 use super::cylinder::Cylinder;
+use super::frustum::Frustum;
 use super::half_space::HalfSpace;
 use super::nozzle_body::NozzleBody;
-use super::union::{Combination, Combine};
+use super::union::{Combination, Combine, Complement};
 use glam::DVec3;
 use serde::Deserialize;
 use crate::invalid::Invalid;
@@ -39,6 +40,9 @@ pub enum ShapeConfig {
     Box { min: [f64; 3], max: [f64; 3] },
     /// Cylinder of any axis: the centres of its two end faces and its radius.
     Cylinder { from: [f64; 3], to: [f64; 3], radius: f64 },
+    /// A vertical frustum of a cone (z up) standing on `base_center`, as a `[[body]]` frustum: a
+    /// slump cone.
+    Frustum { base_center: [f64; 3], bottom_radius: f64, top_radius: f64, height: f64 },
     /// Everything on the side of the plane through `point` that `normal` points away from
     /// (`normal` points out of the solid, into the material); an inclined wall or floor.
     HalfSpace { point: [f64; 3], normal: [f64; 3] },
@@ -46,6 +50,8 @@ pub enum ShapeConfig {
     Union { parts: Vec<ShapeConfig> },
     /// A region in all of the parts (a wedge: two half-spaces).
     Intersection { parts: Vec<ShapeConfig> },
+    /// The region of `of` outside `minus` (a mould: a cylinder less the cone it holds).
+    Difference { of: Box<ShapeConfig>, minus: Box<ShapeConfig> },
     /// The nozzle's body, moving with the outlet: a tube of the outlet's inner diameter and this
     /// outer diameter whose flat end is the outlet plane, `height` tall (default: the driven
     /// tube's height). Only with `motion = "nozzle"` (the default for this shape).
@@ -83,6 +89,20 @@ impl ShapeConfig {
                     return Err(Invalid(format!("{key}: cylinder from and to must differ (they set the axis)")));
                 }
             }
+            ShapeConfig::Frustum { base_center, bottom_radius, top_radius, height } => {
+                if !finite(base_center) {
+                    return Err(Invalid(format!("{key}.base_center must be finite")));
+                }
+                if !(*bottom_radius > 0.0 && bottom_radius.is_finite()) {
+                    return Err(Invalid(format!("{key}.bottom_radius must be > 0, got {bottom_radius}")));
+                }
+                if !(*top_radius >= 0.0 && top_radius.is_finite()) {
+                    return Err(Invalid(format!("{key}.top_radius must be >= 0, got {top_radius}")));
+                }
+                if !(*height > 0.0 && height.is_finite()) {
+                    return Err(Invalid(format!("{key}.height must be > 0, got {height}")));
+                }
+            }
             ShapeConfig::HalfSpace { point, normal } => {
                 if !finite(point) || !finite(normal) {
                     return Err(Invalid(format!("{key}.point and {key}.normal must be finite")));
@@ -100,6 +120,14 @@ impl ShapeConfig {
                         return Err(Invalid(format!("{key}.parts[{i}]: the nozzle body cannot be part of a union or intersection")));
                     }
                     p.validate(&format!("{key}.parts[{i}]"))?;
+                }
+            }
+            ShapeConfig::Difference { of, minus } => {
+                for (name, p) in [("of", of), ("minus", minus)] {
+                    if matches!(**p, ShapeConfig::Nozzle { .. }) {
+                        return Err(Invalid(format!("{key}.{name}: the nozzle body cannot be part of a difference")));
+                    }
+                    p.validate(&format!("{key}.{name}"))?;
                 }
             }
             ShapeConfig::Nozzle { outer_diameter, height } => {
@@ -121,7 +149,12 @@ impl ShapeConfig {
         Ok(match self {
             ShapeConfig::Box { min, max } => Box::new(Cuboid::new(DVec3::from(*min), DVec3::from(*max))),
             ShapeConfig::Cylinder { from, to, radius } => Box::new(Cylinder::new(DVec3::from(*from), DVec3::from(*to), *radius)),
+            ShapeConfig::Frustum { base_center, bottom_radius, top_radius, height } => Box::new(Frustum::new(DVec3::from(*base_center), *bottom_radius, *top_radius, *height)),
             ShapeConfig::HalfSpace { point, normal } => Box::new(HalfSpace::new(DVec3::from(*point), DVec3::from(*normal))),
+            ShapeConfig::Difference { of, minus } => {
+                let (of, minus) = (of.build(&format!("{key}.of"), cx)?, minus.build(&format!("{key}.minus"), cx)?);
+                Box::new(Combination::new(Combine::Intersection, vec![of, Box::new(Complement(minus))]))
+            }
             ShapeConfig::Union { parts } | ShapeConfig::Intersection { parts } => {
                 let how = if matches!(self, ShapeConfig::Union { .. }) { Combine::Union } else { Combine::Intersection };
                 let built = parts.iter().enumerate().map(|(i, p)| p.build(&format!("{key}.parts[{i}]"), cx)).collect::<Result<Vec<_>, _>>()?;

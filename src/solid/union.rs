@@ -1,6 +1,7 @@
-//! Unions (min of the parts' distances) and intersections (max) of shapes: a reservoir's walls
-//! and its gate, three rebars, a wedge of two half-spaces. The result is exact near the surface,
-//! which is what the contact band reads.
+//! Unions (min of the parts' distances), intersections (max) and differences (the intersection
+//! with a complement, -phi) of shapes: a reservoir's walls and its gate, three rebars, a wedge of
+//! two half-spaces, a mould around a cone. The result is exact near the surface, which is what
+//! the contact band reads.
 
 use super::shape::Sdf;
 use glam::DVec3;
@@ -68,10 +69,31 @@ impl Sdf for Combination {
     }
 }
 
+/// Everything outside a shape: what a difference keeps of the space its `minus` takes.
+#[derive(Debug)]
+pub struct Complement(pub Box<dyn Sdf>);
+
+impl Sdf for Complement {
+    fn distance(&self, p: DVec3) -> f64 {
+        -self.0.distance(p)
+    }
+    fn gradient(&self, p: DVec3) -> DVec3 {
+        -self.0.gradient(p)
+    }
+    fn hessian_times(&self, p: DVec3, u: DVec3) -> DVec3 {
+        -self.0.hessian_times(p, u)
+    }
+    fn bounds(&self) -> Option<(DVec3, DVec3)> {
+        None
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::solid::cuboid::Cuboid;
+    use crate::solid::cylinder::Cylinder;
+    use crate::solid::frustum::Frustum;
     use crate::solid::half_space::HalfSpace;
     use crate::solid::shape::tests::check_derivatives;
 
@@ -93,5 +115,24 @@ mod tests {
         assert!(w.distance(DVec3::new(0.3, 0.0, 0.2)) > 0.0);
         assert!(w.bounds().is_none());
         check_derivatives(&w, &[DVec3::new(0.3, 0.0, 0.2), DVec3::new(0.6, 0.1, 0.1)]);
+    }
+
+    /// A mould: a cylinder with a cone taken out, bounded by the cylinder, its inner face the
+    /// cone's.
+    #[test]
+    fn a_difference_is_the_first_shape_outside_the_second() {
+        let mould = Combination::new(
+            Combine::Intersection,
+            vec![Box::new(Cylinder::new(DVec3::ZERO, DVec3::new(0.0, 0.0, 0.3), 0.2)), Box::new(Complement(Box::new(Frustum::new(DVec3::ZERO, 0.1, 0.05, 0.3))))],
+        );
+        assert!(mould.distance(DVec3::new(0.0, 0.0, 0.1)) > 0.05, "the cone's inside is not the mould's");
+        assert!((mould.distance(DVec3::new(0.15, 0.0, 0.1)) + 0.05).abs() < 1e-12, "in the wall, 5 cm from the outer face");
+        assert!((mould.distance(DVec3::new(0.0, 0.25, 0.1)) - 0.05).abs() < 1e-12);
+        let inner = Frustum::new(DVec3::ZERO, 0.1, 0.05, 0.3);
+        let p = DVec3::new(0.06, 0.03, 0.2);
+        assert_eq!(mould.distance(p), -inner.distance(p));
+        let (lo, hi) = mould.bounds().unwrap();
+        assert!(lo.abs_diff_eq(DVec3::new(-0.2, -0.2, 0.0), 1e-12) && hi.abs_diff_eq(DVec3::new(0.2, 0.2, 0.3), 1e-12));
+        check_derivatives(&mould, &[p, DVec3::new(0.0, 0.25, 0.1), DVec3::new(0.13, 0.02, 0.15), DVec3::new(0.05, -0.02, 0.33)]);
     }
 }
