@@ -3,7 +3,8 @@
 slump flow"; issue 30).
 
 For Mix-A and Mix-B (fixtures/measure/lbox/): `strand calibrate` fits the yield stress and
-A_thix to the mix's three slump flows (0, 240, 600 s of rest) and nothing else, then
+A_thix to the mix's three slump flows (0, 240, 600 s of rest; 001's test, the cone's mould lifted
+at 0.15 m/s) and nothing else, then
 `strand compare` runs the L-box after 0 and 600 s of rest under the calibrated model (the walls'
 friction as 001 took it: 0.25 for Mix-A, 0.45 for Mix-B) against 001's Table 3. Both at 2 cm
 cells (the experiments' `set`). Prints one table row per mix and rest time: measured, 001's own
