@@ -3,10 +3,11 @@
 //!
 //! Each solid is a signed distance function ([`shape::Sdf`], one file per shape), a contact kind
 //! (no-slip, free-slip or Coulomb friction, `kernels::boundary::WallKind`), a motion (static,
-//! carried by the nozzle's outlet, or at a constant velocity) and, for a gate, the time it opens (is removed). The grid
-//! update applies every solid to the nodes of the blocks it reaches, after the domain walls,
-//! through the smoothed indicator of `kernels/src/solid.rs`; the momentum each solid removes is
-//! summed per block slot and reduced in slot order into the force the material exerts on it.
+//! carried by the nozzle's outlet, or at a constant velocity) and, for a gate, the time it opens
+//! (is removed). The grid update applies every solid to the nodes of the blocks it reaches, after
+//! the domain walls, through the smoothed indicator of `kernels/src/solid.rs`; the momentum each
+//! solid removes is summed per block slot and reduced in slot order into the force the material
+//! exerts on it.
 //!
 //! Start-up builds everything (the shapes, a reaction pool of `max_blocks` slots per solid in the
 //! memory plan); the step allocates nothing. A scenario without solids builds nothing, maps no
