@@ -429,7 +429,7 @@ fn a_union_or_intersection_body_fills_its_region_and_bad_ones_name_the_key() {
 /// Table 4, with its walls' friction (0.3) and without, observed by `passed@0.3:F` (the time the
 /// fraction F of the mass has passed below the outlet). So coarse, the funnel drains slowly, held
 /// back by its walls (10 % in 0.44 s after the opening; at 001's 10.7 mm cells, BENCHMARKS.md
-/// "V-funnel", half passes in about 0.8 s).
+/// "V-funnel", half passes 0.71-0.86 s after the opening).
 #[test]
 fn a_reduced_vfunnel_holds_at_its_gate_then_drains_faster_without_friction() {
     use strand::measure::{experiments::Experiments, model::Model, observation::Observable, runner};
