@@ -198,8 +198,7 @@ impl Solid {
     /// solid's own or a part of it); 1 for an unbounded shape or one wholly outside the domain,
     /// which has nothing to hold.
     fn most_weight(&self, sdf: &dyn Sdf, geom: &GridGeom) -> f64 {
-        let Some((lo, hi)) = sdf.bounds() else { return 1.0 };
-        let (lo, hi) = (lo - DVec3::splat(self.delta), hi + DVec3::splat(self.delta));
+        let Some((lo, hi)) = padded(sdf, self.delta) else { return 1.0 };
         let tol = self.on_surface / geom.dx;
         let mut range = [(0i32, 0i32); 3];
         for a in 0..3 {
@@ -223,6 +222,11 @@ impl Solid {
         }
         most
     }
+}
+
+/// A shape's bounds padded by a band of width `delta` (None: unbounded): all its band reaches.
+fn padded(sdf: &dyn Sdf, delta: f64) -> Option<(DVec3, DVec3)> {
+    sdf.bounds().map(|(lo, hi)| (lo - DVec3::splat(delta), hi + DVec3::splat(delta)))
 }
 
 /// Where a solid is at one time.
@@ -266,7 +270,7 @@ impl Solids {
             // the band lets a node's weight vary smoothly while the solid moves over the grid; a
             // static solid's weights are constants of the node, where a band would only widen it
             let delta = c.transition.unwrap_or(if c.motion == Motion::Static { 0.0 } else { dx });
-            let reach = sdf.bounds().map(|(lo, hi)| (lo - DVec3::splat(delta), hi + DVec3::splat(delta)));
+            let reach = padded(&*sdf, delta);
             let on_surface = 1e-6 * dx;
             list.push(Solid { name: c.name.clone().unwrap_or(key), sdf, contact: c.contact, motion: c.motion, open_at: c.open_at, delta, reach, on_surface });
         }

@@ -82,9 +82,7 @@ impl ShapeConfig {
                 if !finite(from) || !finite(to) {
                     return Err(Invalid(format!("{key}.from and {key}.to must be finite")));
                 }
-                if !(*radius > 0.0 && radius.is_finite()) {
-                    return Err(Invalid(format!("{key}.radius must be > 0, got {radius}")));
-                }
+                positive(key, "radius", *radius)?;
                 if DVec3::from(*from).distance(DVec3::from(*to)) <= 0.0 {
                     return Err(Invalid(format!("{key}: cylinder from and to must differ (they set the axis)")));
                 }
@@ -93,15 +91,11 @@ impl ShapeConfig {
                 if !finite(base_center) {
                     return Err(Invalid(format!("{key}.base_center must be finite")));
                 }
-                if !(*bottom_radius > 0.0 && bottom_radius.is_finite()) {
-                    return Err(Invalid(format!("{key}.bottom_radius must be > 0, got {bottom_radius}")));
-                }
+                positive(key, "bottom_radius", *bottom_radius)?;
                 if !(*top_radius >= 0.0 && top_radius.is_finite()) {
                     return Err(Invalid(format!("{key}.top_radius must be >= 0, got {top_radius}")));
                 }
-                if !(*height > 0.0 && height.is_finite()) {
-                    return Err(Invalid(format!("{key}.height must be > 0, got {height}")));
-                }
+                positive(key, "height", *height)?;
             }
             ShapeConfig::HalfSpace { point, normal } => {
                 if !finite(point) || !finite(normal) {
@@ -116,32 +110,30 @@ impl ShapeConfig {
                     return Err(Invalid(format!("{key}.parts is empty; give at least one shape")));
                 }
                 for (i, p) in parts.iter().enumerate() {
-                    if matches!(p, ShapeConfig::Nozzle { .. }) {
-                        return Err(Invalid(format!("{key}.parts[{i}]: the nozzle body cannot be part of a union or intersection")));
-                    }
-                    p.validate(&format!("{key}.parts[{i}]"))?;
+                    p.validate_part(&format!("{key}.parts[{i}]"), "a union or intersection")?;
                 }
             }
             ShapeConfig::Difference { of, minus } => {
-                for (name, p) in [("of", of), ("minus", minus)] {
-                    if matches!(**p, ShapeConfig::Nozzle { .. }) {
-                        return Err(Invalid(format!("{key}.{name}: the nozzle body cannot be part of a difference")));
-                    }
-                    p.validate(&format!("{key}.{name}"))?;
-                }
+                of.validate_part(&format!("{key}.of"), "a difference")?;
+                minus.validate_part(&format!("{key}.minus"), "a difference")?;
             }
             ShapeConfig::Nozzle { outer_diameter, height } => {
-                if !(*outer_diameter > 0.0 && outer_diameter.is_finite()) {
-                    return Err(Invalid(format!("{key}.outer_diameter must be > 0, got {outer_diameter}")));
-                }
+                positive(key, "outer_diameter", *outer_diameter)?;
                 if let Some(h) = height {
-                    if !(*h > 0.0 && h.is_finite()) {
-                        return Err(Invalid(format!("{key}.height must be > 0, got {h}")));
-                    }
+                    positive(key, "height", *h)?;
                 }
             }
         }
         Ok(())
+    }
+
+    /// Check a part of a combination (`whole`, e.g. "a difference"): any shape but the nozzle
+    /// body, which moves with the nozzle.
+    fn validate_part(&self, key: &str, whole: &str) -> Result<(), Invalid> {
+        if matches!(self, ShapeConfig::Nozzle { .. }) {
+            return Err(Invalid(format!("{key}: the nozzle body cannot be part of {whole}")));
+        }
+        self.validate(key)
     }
 
     /// The shape's distance function.
@@ -170,6 +162,15 @@ impl ShapeConfig {
                 Box::new(NozzleBody::new(inner / 2.0, outer_diameter / 2.0, height.unwrap_or(tube)))
             }
         })
+    }
+}
+
+/// `key.name` must be a finite length > 0.
+fn positive(key: &str, name: &str, v: f64) -> Result<(), Invalid> {
+    if v > 0.0 && v.is_finite() {
+        Ok(())
+    } else {
+        Err(Invalid(format!("{key}.{name} must be > 0, got {v}")))
     }
 }
 
