@@ -45,11 +45,16 @@ pub struct FitOptions {
     /// experiment): a secant step's negligible drop then ends it, and no Jacobian is computed
     /// at the end, each one 2 p runs of the campaign.
     pub uncertainties: bool,
+    /// A stall the secant Jacobian declares (its undamped step promises nothing worth a run)
+    /// ends the fit, without the exact Jacobian that would check it: for a fit whose chi^2 only
+    /// screens (a candidate diagnose fits after a recommended one, finished where it comes close
+    /// to it), not for one whose optimum is reported.
+    pub stop_on_secant: bool,
 }
 
 impl Default for FitOptions {
     fn default() -> FitOptions {
-        FitOptions { max_iterations: 30, tolerance: 1e-5, jobs: 1, engine: Engine::Local, progress: false, secant: true, uncertainties: true }
+        FitOptions { max_iterations: 30, tolerance: 1e-5, jobs: 1, engine: Engine::Local, progress: false, secant: true, uncertainties: true, stop_on_secant: false }
     }
 }
 
@@ -251,7 +256,7 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
             damped_step(&model, &theta, (&s, c2, worth_a_try), (&a, &g), &cols, &mut lambda, names, &bounds, data, exps, opts, (secant, tries, simulated))?
         };
         let Some(next) = next else {
-            if exact {
+            if exact || opts.stop_on_secant {
                 converged = true;
                 break;
             }
@@ -314,6 +319,24 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
         at_start: first,
         model,
     })
+}
+
+/// A fit made for its optimum only ([`FitOptions::uncertainties`] off, perhaps
+/// [`FitOptions::stop_on_secant`] on), finished as `opts` asks:
+/// where its Jacobian at the end may be a secant update, the engine's exact one there, and the fit
+/// taken on from it until that Jacobian's stop holds (at once, where the secant fit had stopped
+/// at the optimum), so that its uncertainties, and a leave-one-out step on its curvature, come
+/// from an exact Jacobian as a fit made with uncertainties does. The fit keeps its start and
+/// history.
+pub fn finish(f: Fit, data: &[Observation], exps: &Experiments, opts: &FitOptions) -> Result<Fit, MeasureError> {
+    if !(opts.uncertainties && !opts.stop_on_secant && opts.secant && runs_simulations(data, exps)) {
+        return Ok(f);
+    }
+    let exact = opts.engine.jacobian_at(opts.jobs, &f.model, data, exps, &f.names, (&f.model_values, &Differences::Central))??;
+    let mut finished = calibrate_from(&f.model, data, exps, &f.names, opts, exact)?;
+    finished.history = f.history.iter().chain(&finished.history[1..]).copied().collect();
+    (finished.start, finished.chi2_start, finished.at_start) = (f.start, f.chi2_start, f.at_start);
+    Ok(finished)
 }
 
 /// Which parameters move: one is held at its bound when the Gauss-Newton step of the others and

@@ -32,11 +32,14 @@
 //!    experiments better than the base model refitted the same way, or it only overfits and is
 //!    not recommended. A candidate whose fitted chi^2 + 2 k (Akaike's criterion, k parameters
 //!    fitted) is no less than a recommended one's is not checked: leave-one-out's choice
-//!    follows that criterion asymptotically (Stone 1977), so it would not be chosen.
+//!    follows that criterion asymptotically (Stone 1977), so it would not be chosen. So a
+//!    candidate fitted after a recommended one is fitted to the optimum its secant Jacobian sees,
+//!    and finished on an exact Jacobian there ([`finish`]: its uncertainties, leave-one-out's
+//!    steps) only where it comes close to that criterion ([`SCREENED_MARGIN`]).
 //! 4. When no effect is recommended and the base model does not fit (chi^2 beyond its `alpha`
 //!    quantile) the verdict is "unexplained", with the pattern of the residuals.
 
-use super::calibrate::{calibrate, calibrate_from, chi2, chi2_scatter, predicted_drop, standardised, Fit, FitOptions};
+use super::calibrate::{calibrate, calibrate_from, chi2, chi2_scatter, finish, predicted_drop, standardised, Fit, FitOptions};
 use super::error::{io_error, toml_error, MeasureError};
 use super::experiments::Experiments;
 use super::observation::Observation;
@@ -122,6 +125,15 @@ pub struct Diagnosis {
 /// made. The others are reported from their start, unfitted: on a print campaign each fit is
 /// several minutes of CPU.
 pub const LR_WORTH_FITTING: f64 = 1.0;
+
+/// A candidate fitted after a recommended one stops where its secant Jacobian sees the optimum
+/// ([`FitOptions::stop_on_secant`]), and an exact Jacobian there may still find more: on the six
+/// prints of `make bench-print-diagnose`, extrusion_factor's fit stopped so at chi^2 1,004, where
+/// the exact Jacobian's undamped step promised 761 (a fall of 24 %, which that Jacobian's own
+/// scatter called noise). So one whose chi^2 + 2 k is under this many times the recommended
+/// one's is finished on an exact Jacobian ([`finish`]) before the two are compared; one beyond
+/// it is beaten.
+pub const SCREENED_MARGIN: f64 = 2.0;
 
 /// chi^2's drop one undamped Gauss-Newton step from `f`'s end predicts: g^T (J^T J)^+ g, with J
 /// and the residuals standardised.
@@ -288,21 +300,22 @@ fn base_fit(model: &Model, data: &[Observation], exps: &Experiments, fit: &[Stri
     Ok(Fit { names: vec![], start: vec![], values: vec![], uncertainty: vec![], at_bound: vec![], influence: vec![], chi2_start: c2, chi2: c2, reduced_chi2: c2 / m as f64, history: vec![c2], converged: true, observations: m, model_values: v.clone(), jacobian: vec![], scatter: vec![0.0; m], jacobian_scatter: vec![vec![]; m], at_start: Sensitivity { values: v, jacobian: Some(vec![]), scatter: vec![0.0; m], jacobian_scatter: Some(vec![vec![]; m]) }, model: model.clone() })
 }
 
-/// Values and Jacobian, in the base fit's parameters then `extra`, at `with`: the base fit's model
-/// (or the model it started from, `from_start`) with effects added. Where `with` gives that
-/// point's values (every added effect at its null, or a modulus at the stand-in the base model
-/// runs in its place), the fitted parameters' columns are the base fit's own there, `extra`'s
+/// Values and Jacobian, in the base fit's parameters then `extra`, at `with`: `from`, the base
+/// fit's model (or the model it started from, `from_start`), with effects added. Where `with`
+/// gives that point's values (every added effect at its null, or a modulus at the stand-in the
+/// base model runs in its place), the values are that point's (not run again where `with` runs
+/// every experiment as `from` does: [`same_runs`](super::runner::same_runs)), the fitted parameters' columns are the base fit's own there, `extra`'s
 /// follow from them where the keys allow ([`chained`](super::chain::chained)), and only the
 /// rest are computed, from those values, by one-sided differences (the scatter is the base
 /// fit's there: [`Differences::Forward`]); elsewhere every column is, from `with`'s values.
-fn beside_base(base: &Fit, from_start: bool, with: &Model, extra: &[String], data: &[Observation], exps: &Experiments, opts: &DiagnoseOptions) -> Result<Sensitivity, MeasureError> {
+fn beside_base(base: &Fit, (from, from_start): (&Model, bool), with: &Model, extra: &[String], data: &[Observation], exps: &Experiments, opts: &DiagnoseOptions) -> Result<Sensitivity, MeasureError> {
     let (engine, jobs) = (&opts.fit.engine, opts.fit.jobs);
     let names: Vec<String> = base.names.iter().chain(extra).cloned().collect();
     let (known, known_jacobian, known_scatter, known_jacobian_scatter) = match from_start {
         true => (&base.at_start.values, base.at_start.jacobian.as_ref().expect("asked"), &base.at_start.scatter, base.at_start.jacobian_scatter.as_ref().expect("asked")),
         false => (&base.model_values, &base.jacobian, &base.scatter, &base.jacobian_scatter),
     };
-    let values = engine.sensitivity(jobs, with, data, exps, None)??.values;
+    let values = if super::runner::same_runs(with, from, data, exps)? { known.clone() } else { engine.sensitivity(jobs, with, data, exps, None)??.values };
     if values != *known || base.names.is_empty() || extra.is_empty() {
         return engine.jacobian_at(jobs, with, data, exps, &names, (&values, &Differences::Central))?;
     }
@@ -370,7 +383,7 @@ fn score_tests(base: &Fit, data: &[Observation], exps: &Experiments, fit: &[Stri
         names.extend(e.params().iter().map(|s| format!("{}.{}", e.name(), s.name)));
     }
     clock.say(format!("score tests at the nulls of {}", absent.iter().map(|e| e.name()).collect::<Vec<_>>().join(", ")));
-    let at_nulls = beside_base(base, false, &aug, &names[fit.len()..], data, exps, opts)?;
+    let at_nulls = beside_base(base, (&base.model, false), &aug, &names[fit.len()..], data, exps, opts)?;
     let scale: Vec<f64> = names.iter().map(|n| aug.bounds(n).map(|b| b.scale)).collect::<Result<_, _>>()?;
     let (z, jz) = standardised(&at_nulls.values, at_nulls.jacobian.as_ref().expect("asked"), data, &scale);
     let fcols: Vec<usize> = (0..fit.len()).collect();
@@ -478,7 +491,7 @@ fn likelihood_ratio_tests(
             // (G where every reading is past yield) the fit would only refit the fitted
             // parameters; from the model's values, where they are elsewhere, it may have
             clock.say(format!("{}: its likelihood ratio, from {}", e.name(), if std::ptr::eq(from, model) { "the model's values" } else { "the base fit's values" }));
-            let start_values = beside_base(base, std::ptr::eq(from, model), &with, &fnames[fit.len()..], data, exps, opts)?;
+            let start_values = beside_base(base, (from, std::ptr::eq(from, model)), &with, &fnames[fit.len()..], data, exps, opts)?;
             let at_start = calibrate_from(&with, data, exps, &fnames, &FitOptions { max_iterations: 0, progress: false, ..opts.fit.clone() }, start_values.clone())?;
             let predicted = base.chi2 - at_start.chi2 + gauss_newton_drop(&at_start, data)?;
             let informed = at_start.influence[fit.len()..].iter().any(|&i| i);
@@ -552,6 +565,12 @@ fn fit_and_check(
         let fnames = fit_names(fit, effect);
         let _ = clock.lap();
         clock.say(format!("{}: fitted{}", c.effect, if opts.leave_one_out { ", then checked by leaving each experiment out" } else { "" }));
+        // after a recommended candidate, a fit made here needs its optimum first: only one that
+        // beats the leader's Akaike criterion is finished on an exact Jacobian (below); the
+        // others' would be 2 p runs of the campaign that nothing reads (a likelihood-ratio fit,
+        // made before, is finished already)
+        let lazy = leader.is_some() && !prefit.contains_key(&c.effect);
+        let fit_opts = FitOptions { uncertainties: opts.fit.uncertainties && !lazy, stop_on_secant: lazy, ..opts.fit.clone() };
         let f = match prefit.remove(&c.effect) {
             Some(f) => f,
             // from the score tests' Jacobian, taken where every absent effect is at its null,
@@ -560,9 +579,17 @@ fn fit_and_check(
                 let cols: Vec<usize> = (0..fit.len()).chain(scored.columns.iter().find(|(e, _)| *e == c.effect).expect("a score-tested effect").1.iter().copied()).collect();
                 let pick = |m: &Option<Vec<Vec<f64>>>| Some(m.as_ref().expect("asked").iter().map(|r| cols.iter().map(|&k| r[k]).collect()).collect());
                 let (jacobian, jacobian_scatter) = (pick(&scored.at_nulls.jacobian), pick(&scored.at_nulls.jacobian_scatter));
-                calibrate_from(&base.model.with_effect(effect), data, exps, &fnames, &opts.fit, Sensitivity { jacobian, jacobian_scatter, ..scored.at_nulls.clone() })?
+                calibrate_from(&base.model.with_effect(effect), data, exps, &fnames, &fit_opts, Sensitivity { jacobian, jacobian_scatter, ..scored.at_nulls.clone() })?
             }
-            None => calibrate(&base.model.with_effect(effect), data, exps, &fnames, &opts.fit)?,
+            None => calibrate(&base.model.with_effect(effect), data, exps, &fnames, &fit_opts)?,
+        };
+        let aic = |f: &Fit| f.chi2 + 2.0 * f.names.len() as f64;
+        let f = match &leader {
+            Some((name, best)) if lazy && f.chi2 < 0.99 * base.chi2 && aic(&f) < SCREENED_MARGIN * best => {
+                clock.say(format!("{}: within {SCREENED_MARGIN} times {name}'s Akaike criterion; finished on an exact Jacobian", c.effect));
+                finish(f, data, exps, &opts.fit)?
+            }
+            _ => f,
         };
         clock.timing.candidate_fits += clock.lap();
         c.record(&f, base.chi2, m);
@@ -572,7 +599,7 @@ fn fit_and_check(
         // Akaike's criterion, which leave-one-out's choice follows asymptotically (Stone 1977):
         // a candidate that does not beat a recommended one's would not be chosen, and its
         // leave-one-out (a refit per experiment where the one-step check refuses) is not run
-        let aic = f.chi2 + 2.0 * f.names.len() as f64;
+        let aic = aic(&f);
         let beaten = leader.as_ref().filter(|(_, best)| aic >= *best);
         if !better {
             c.verdict = "does not lower the error when fitted".to_string();

@@ -337,3 +337,42 @@ fn a_failure_layers_column_resolves_its_staircase() {
     assert!(dlayer > 0.025 && dlayer < 0.2, "d failure_layer / d A_thix = {dlayer} (mean slope about 0.05): {got:?}");
     assert!(dtime > 0.0, "{got:?}");
 }
+
+/// A fit made for the optimum its secant Jacobian sees (`uncertainties` off, `stop_on_secant`
+/// on: after a recommended candidate, diagnose fits the others so) and then finished stops on the engine's exact Jacobian at its end, as a
+/// fit made with uncertainties does: the small slumps (simulations, so secant steps), fitted
+/// from the base model away from their truth.
+#[test]
+fn a_fit_finished_on_an_exact_jacobian_ends_where_a_full_fit_does() {
+    use strand::measure::calibrate::{calibrate, finish, FitOptions};
+    use strand::measure::sensitivity::{jacobian_at, Differences};
+    use strand::measure::{experiments::Experiments, model::Model, synth::synth};
+    let d = measure_fixtures("slump");
+    let exps = Experiments::load(&d.join("experiments.toml")).unwrap();
+    // slump.toml's own material
+    let truth = "[material]\nkind = \"evp_bingham\"\ndensity = 2300.0\nbulk_modulus = 1.0e6\npoisson_ratio = 0.3\nviscosity = 20.0\nyield_stress = 60.0\n";
+    let truth = Model::from_table(&truth.parse().unwrap()).unwrap();
+    let data = synth(&truth, &exps, 0.003, 7, 2).unwrap();
+    let start = Model::load(&d.join("base.toml")).unwrap();
+    let names = ["material.yield_stress".to_string(), "material.viscosity".to_string()];
+    let opts = FitOptions { jobs: 2, ..FitOptions::default() };
+    let full = calibrate(&start, &data, &exps, &names, &opts).unwrap();
+    let lazy = calibrate(&start, &data, &exps, &names, &FitOptions { uncertainties: false, stop_on_secant: true, ..opts.clone() }).unwrap();
+    let finished = finish(lazy.clone(), &data, &exps, &opts).unwrap();
+    println!("full: {:?} +/- {:?}, chi^2 {} ({:?})", full.values, full.uncertainty, full.chi2, full.history);
+    println!("lazy: {:?}, chi^2 {} ({:?})", lazy.values, lazy.chi2, lazy.history);
+    println!("finished: {:?} +/- {:?}, chi^2 {} ({:?})", finished.values, finished.uncertainty, finished.chi2, finished.history);
+    // its Jacobian is the engine's at its values, to the bit
+    let exact = jacobian_at(&finished.model, &data, &exps, &names, 2, &finished.model_values, &Differences::Central).unwrap();
+    assert_eq!(Some(&finished.jacobian), exact.jacobian.as_ref());
+    // it keeps the lazy fit's start and history, and goes on only downhill
+    assert_eq!((finished.start.clone(), finished.chi2_start), (lazy.start.clone(), lazy.chi2_start));
+    assert_eq!(finished.history[..lazy.history.len()], lazy.history[..]);
+    assert!(finished.chi2 <= lazy.chi2, "{} against {}", finished.chi2, lazy.chi2);
+    // and it ends where the full fit ends, within its uncertainties, which are the full fit's
+    for i in 0..names.len() {
+        let (u, v) = (finished.uncertainty[i], full.uncertainty[i]);
+        assert!(u.is_finite() && u > 0.0 && (u / v - 1.0).abs() < 0.2, "{}: {u} against {v}", names[i]);
+        assert!((finished.values[i] - full.values[i]).abs() < 2.0 * v, "{}: {} against {} +/- {v}", names[i], finished.values[i], full.values[i]);
+    }
+}
