@@ -301,13 +301,14 @@ fn base_fit(model: &Model, data: &[Observation], exps: &Experiments, fit: &[Stri
 }
 
 /// Values and Jacobian, in the base fit's parameters then `extra`, at `with`: `from`, the base
-/// fit's model (or the model it started from, `from_start`), with effects added. Where `with`
-/// gives that point's values (every added effect at its null, or a modulus at the stand-in the
-/// base model runs in its place), the values are that point's (not run again where `with` runs
-/// every experiment as `from` does: [`same_runs`](super::runner::same_runs)), the fitted parameters' columns are the base fit's own there, `extra`'s
-/// follow from them where the keys allow ([`chained`](super::chain::chained)), and only the
-/// rest are computed, from those values, by one-sided differences (the scatter is the base
-/// fit's there: [`Differences::Forward`]); elsewhere every column is, from `with`'s values.
+/// fit's model (or the model it started from, `from_start`), with effects added; not run for its
+/// values where it runs every experiment as `from` does ([`same_runs`](super::runner::same_runs)).
+/// Where `with` gives that point's values (every added effect at its null, or a modulus at the
+/// stand-in the base model runs in its place), the fitted parameters' columns are the base fit's
+/// own there, `extra`'s follow from them where the keys allow
+/// ([`chained`](super::chain::chained)), and only the rest are computed, from those values, by
+/// one-sided differences (the scatter is the base fit's there: [`Differences::Forward`]);
+/// elsewhere every column is, from `with`'s values.
 fn beside_base(base: &Fit, (from, from_start): (&Model, bool), with: &Model, extra: &[String], data: &[Observation], exps: &Experiments, opts: &DiagnoseOptions) -> Result<Sensitivity, MeasureError> {
     let (engine, jobs) = (&opts.fit.engine, opts.fit.jobs);
     let names: Vec<String> = base.names.iter().chain(extra).cloned().collect();
@@ -566,9 +567,9 @@ fn fit_and_check(
         let _ = clock.lap();
         clock.say(format!("{}: fitted{}", c.effect, if opts.leave_one_out { ", then checked by leaving each experiment out" } else { "" }));
         // after a recommended candidate, a fit made here needs its optimum first: only one that
-        // beats the leader's Akaike criterion is finished on an exact Jacobian (below); the
-        // others' would be 2 p runs of the campaign that nothing reads (a likelihood-ratio fit,
-        // made before, is finished already)
+        // comes close to the leader's Akaike criterion is finished on an exact Jacobian (below);
+        // the others' would be 2 p runs of the campaign that nothing reads (a likelihood-ratio
+        // fit, made before, is finished already)
         let lazy = leader.is_some() && !prefit.contains_key(&c.effect);
         let fit_opts = FitOptions { uncertainties: opts.fit.uncertainties && !lazy, stop_on_secant: lazy, ..opts.fit.clone() };
         let f = match prefit.remove(&c.effect) {
