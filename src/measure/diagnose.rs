@@ -300,23 +300,21 @@ fn base_fit(model: &Model, data: &[Observation], exps: &Experiments, fit: &[Stri
     Ok(Fit { names: vec![], start: vec![], values: vec![], uncertainty: vec![], at_bound: vec![], influence: vec![], chi2_start: c2, chi2: c2, reduced_chi2: c2 / m as f64, history: vec![c2], converged: true, observations: m, model_values: v.clone(), jacobian: vec![], scatter: vec![0.0; m], jacobian_scatter: vec![vec![]; m], at_start: Sensitivity { values: v, jacobian: Some(vec![]), scatter: vec![0.0; m], jacobian_scatter: Some(vec![vec![]; m]) }, model: model.clone() })
 }
 
-/// Values and Jacobian, in the base fit's parameters then `extra`, at `with`: `from`, the base
-/// fit's model (or the model it started from, `from_start`), with effects added; not run for its
-/// values where it runs every experiment as `from` does ([`same_runs`](super::runner::same_runs)).
-/// Where `with` gives that point's values (every added effect at its null, or a modulus at the
-/// stand-in the base model runs in its place), the fitted parameters' columns are the base fit's
-/// own there, `extra`'s follow from them where the keys allow
-/// ([`chained`](super::chain::chained)), and only the rest are computed, from those values, by
-/// one-sided differences (the scatter is the base fit's there: [`Differences::Forward`]);
-/// elsewhere every column is, from `with`'s values.
-fn beside_base(base: &Fit, (from, from_start): (&Model, bool), with: &Model, extra: &[String], data: &[Observation], exps: &Experiments, opts: &DiagnoseOptions) -> Result<Sensitivity, MeasureError> {
+/// Values and Jacobian, in the base fit's parameters then `extra`, at `with`: the base fit's model
+/// (or the model it started from, `from_start`) with effects added. Where `with` gives that
+/// point's values (every added effect at its null, or a modulus at the stand-in the base model
+/// runs in its place), the fitted parameters' columns are the base fit's own there, `extra`'s
+/// follow from them where the keys allow ([`chained`](super::chain::chained)), and only the
+/// rest are computed, from those values, by one-sided differences (the scatter is the base
+/// fit's there: [`Differences::Forward`]); elsewhere every column is, from `with`'s values.
+fn beside_base(base: &Fit, from_start: bool, with: &Model, extra: &[String], data: &[Observation], exps: &Experiments, opts: &DiagnoseOptions) -> Result<Sensitivity, MeasureError> {
     let (engine, jobs) = (&opts.fit.engine, opts.fit.jobs);
     let names: Vec<String> = base.names.iter().chain(extra).cloned().collect();
     let (known, known_jacobian, known_scatter, known_jacobian_scatter) = match from_start {
         true => (&base.at_start.values, base.at_start.jacobian.as_ref().expect("asked"), &base.at_start.scatter, base.at_start.jacobian_scatter.as_ref().expect("asked")),
         false => (&base.model_values, &base.jacobian, &base.scatter, &base.jacobian_scatter),
     };
-    let values = if super::runner::same_runs(with, from, data, exps)? { known.clone() } else { engine.sensitivity(jobs, with, data, exps, None)??.values };
+    let values = engine.sensitivity(jobs, with, data, exps, None)??.values;
     if values != *known || base.names.is_empty() || extra.is_empty() {
         return engine.jacobian_at(jobs, with, data, exps, &names, (&values, &Differences::Central))?;
     }
@@ -384,7 +382,7 @@ fn score_tests(base: &Fit, data: &[Observation], exps: &Experiments, fit: &[Stri
         names.extend(e.params().iter().map(|s| format!("{}.{}", e.name(), s.name)));
     }
     clock.say(format!("score tests at the nulls of {}", absent.iter().map(|e| e.name()).collect::<Vec<_>>().join(", ")));
-    let at_nulls = beside_base(base, (&base.model, false), &aug, &names[fit.len()..], data, exps, opts)?;
+    let at_nulls = beside_base(base, false, &aug, &names[fit.len()..], data, exps, opts)?;
     let scale: Vec<f64> = names.iter().map(|n| aug.bounds(n).map(|b| b.scale)).collect::<Result<_, _>>()?;
     let (z, jz) = standardised(&at_nulls.values, at_nulls.jacobian.as_ref().expect("asked"), data, &scale);
     let fcols: Vec<usize> = (0..fit.len()).collect();
@@ -492,7 +490,7 @@ fn likelihood_ratio_tests(
             // (G where every reading is past yield) the fit would only refit the fitted
             // parameters; from the model's values, where they are elsewhere, it may have
             clock.say(format!("{}: its likelihood ratio, from {}", e.name(), if std::ptr::eq(from, model) { "the model's values" } else { "the base fit's values" }));
-            let start_values = beside_base(base, (from, std::ptr::eq(from, model)), &with, &fnames[fit.len()..], data, exps, opts)?;
+            let start_values = beside_base(base, std::ptr::eq(from, model), &with, &fnames[fit.len()..], data, exps, opts)?;
             let at_start = calibrate_from(&with, data, exps, &fnames, &FitOptions { max_iterations: 0, progress: false, ..opts.fit.clone() }, start_values.clone())?;
             let predicted = base.chi2 - at_start.chi2 + gauss_newton_drop(&at_start, data)?;
             let informed = at_start.influence[fit.len()..].iter().any(|&i| i);

@@ -34,20 +34,6 @@ pub fn experiment_keys(model: &Model, x: &Experiment) -> Result<Keys, MeasureErr
     Ok(keys)
 }
 
-/// Whether `a` and `b` run every experiment `data` observes alike: the same keys and the same
-/// `[material]`, so the same scenario or rheometer test, and (runs being deterministic) the same
-/// values to the bit.
-pub fn same_runs(a: &Model, b: &Model, data: &[Observation], exps: &Experiments) -> Result<bool, MeasureError> {
-    for (id, _) in group(data) {
-        let x = find(exps, &id)?;
-        let (ka, kb) = (experiment_keys(a, x)?, experiment_keys(b, x)?);
-        if ka != kb || a.material_for(&ka) != b.material_for(&kb) {
-            return Ok(false);
-        }
-    }
-    Ok(true)
-}
-
 /// An override's value (validated as a number when the experiments were loaded).
 fn number(v: &toml::Value) -> f64 {
     super::observation::number(v).unwrap_or(f64::NAN)
