@@ -322,12 +322,11 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
 }
 
 /// A fit made for its optimum only ([`FitOptions::uncertainties`] off, perhaps
-/// [`FitOptions::stop_on_secant`] on), finished as `opts` asks:
-/// where its Jacobian at the end may be a secant update, the engine's exact one there, and the fit
-/// taken on from it until that Jacobian's stop holds (at once, where the secant fit had stopped
-/// at the optimum), so that its uncertainties, and a leave-one-out step on its curvature, come
-/// from an exact Jacobian as a fit made with uncertainties does. The fit keeps its start and
-/// history.
+/// [`FitOptions::stop_on_secant`] on), finished as `opts` asks: where its Jacobian at the end may
+/// be a secant update, the engine's exact one there, and the fit taken on from it until that
+/// Jacobian's stop holds (at once, where the secant fit had stopped at the optimum), so that its
+/// uncertainties, and a leave-one-out step on its curvature, come from an exact Jacobian as a
+/// fit made with uncertainties does. The fit keeps its start and history.
 pub fn finish(f: Fit, data: &[Observation], exps: &Experiments, opts: &FitOptions) -> Result<Fit, MeasureError> {
     if !(opts.uncertainties && !opts.stop_on_secant && opts.secant && runs_simulations(data, exps)) {
         return Ok(f);

@@ -339,9 +339,9 @@ fn a_failure_layers_column_resolves_its_staircase() {
 }
 
 /// A fit made for the optimum its secant Jacobian sees (`uncertainties` off, `stop_on_secant`
-/// on: after a recommended candidate, diagnose fits the others so) and then finished stops on the engine's exact Jacobian at its end, as a
-/// fit made with uncertainties does: the small slumps (simulations, so secant steps), fitted
-/// from the base model away from their truth.
+/// on: after a recommended candidate, diagnose fits the others so) and then finished stops on
+/// the engine's exact Jacobian at its end, as a fit made with uncertainties does: the small
+/// slumps (simulations, so secant steps), fitted from the base model away from their truth.
 #[test]
 fn a_fit_finished_on_an_exact_jacobian_ends_where_a_full_fit_does() {
     use strand::measure::calibrate::{calibrate, finish, FitOptions};
@@ -362,17 +362,19 @@ fn a_fit_finished_on_an_exact_jacobian_ends_where_a_full_fit_does() {
     println!("full: {:?} +/- {:?}, chi^2 {} ({:?})", full.values, full.uncertainty, full.chi2, full.history);
     println!("lazy: {:?}, chi^2 {} ({:?})", lazy.values, lazy.chi2, lazy.history);
     println!("finished: {:?} +/- {:?}, chi^2 {} ({:?})", finished.values, finished.uncertainty, finished.chi2, finished.history);
-    // its Jacobian is the engine's at its values, to the bit
-    let exact = jacobian_at(&finished.model, &data, &exps, &names, 2, &finished.model_values, &Differences::Central).unwrap();
-    assert_eq!(Some(&finished.jacobian), exact.jacobian.as_ref());
+    // the lazy fit ends on a secant Jacobian, the finished one on the engine's at its values, to
+    // the bit
+    let exact_at = |f: &strand::measure::calibrate::Fit| jacobian_at(&f.model, &data, &exps, &names, 2, &f.model_values, &Differences::Central).unwrap().jacobian.unwrap();
+    assert_ne!(lazy.jacobian, exact_at(&lazy), "the lazy fit ended on an exact Jacobian: nothing to finish");
+    assert_eq!(finished.jacobian, exact_at(&finished));
     // it keeps the lazy fit's start and history, and goes on only downhill
     assert_eq!((finished.start.clone(), finished.chi2_start), (lazy.start.clone(), lazy.chi2_start));
     assert_eq!(finished.history[..lazy.history.len()], lazy.history[..]);
     assert!(finished.chi2 <= lazy.chi2, "{} against {}", finished.chi2, lazy.chi2);
     // and it ends where the full fit ends, within its uncertainties, which are the full fit's
-    for i in 0..names.len() {
+    for (i, name) in names.iter().enumerate() {
         let (u, v) = (finished.uncertainty[i], full.uncertainty[i]);
-        assert!(u.is_finite() && u > 0.0 && (u / v - 1.0).abs() < 0.2, "{}: {u} against {v}", names[i]);
-        assert!((finished.values[i] - full.values[i]).abs() < 2.0 * v, "{}: {} against {} +/- {v}", names[i], finished.values[i], full.values[i]);
+        assert!(u.is_finite() && u > 0.0 && (u / v - 1.0).abs() < 0.2, "{name}: {u} against {v}");
+        assert!((finished.values[i] - full.values[i]).abs() < 2.0 * v, "{name}: {} against {} +/- {v}", finished.values[i], full.values[i]);
     }
 }
