@@ -352,9 +352,23 @@ budget = "64 MiB"
 /// plane y = 0.1 m through the middle rebar as a symmetry wall), to 2.3 s (2 s after the gate
 /// opens), run as `strand compare` experiments under Mix-A's uncalibrated model: with its rebars,
 /// and with them removed at the start (`open_at = 0`), where the flow reaches the end.
+/// The experiments `experiments` (an experiments file's text, written into `dir`, scenarios
+/// relative to it) evaluated under the model file `model` (relative to the repository), two at a
+/// time, their time said on stderr as `what`: the reduced experiments' runs.
+fn evaluate_reduced(dir: &std::path::Path, experiments: &str, model: &str, wanted: &[(String, Vec<strand::measure::observation::Observable>)], what: &str) -> Vec<Vec<f64>> {
+    use strand::measure::{experiments::Experiments, model::Model, runner};
+    std::fs::write(dir.join("experiments.toml"), experiments).unwrap();
+    let exps = Experiments::load(&dir.join("experiments.toml")).unwrap();
+    let model = Model::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(model)).unwrap();
+    let start = std::time::Instant::now();
+    let values = runner::evaluate_all(&model, &exps, wanted, 2).unwrap();
+    eprintln!("{what} in {:.1} s: {values:?}", start.elapsed().as_secs_f64());
+    values
+}
+
 #[test]
 fn a_reduced_lbox_holds_at_the_gate_then_flows_to_the_end_held_back_by_the_rebars() {
-    use strand::measure::{experiments::Experiments, model::Model, observation::Observable, runner};
+    use strand::measure::observation::Observable;
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut text = std::fs::read_to_string(root.join("fixtures/scenarios/lbox/lbox_mix_a.toml")).unwrap();
     for (from, to) in [
@@ -370,17 +384,12 @@ fn a_reduced_lbox_holds_at_the_gate_then_flows_to_the_end_held_back_by_the_rebar
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(dir.path().join("lbox.toml"), &text).unwrap();
     let experiments = "[[experiment]]\nid = \"rebars\"\nscenario = \"lbox.toml\"\n\n[[experiment]]\nid = \"bare\"\nscenario = \"lbox.toml\"\nset = { \"solid.2.open_at\" = 0.0 }\n";
-    std::fs::write(dir.path().join("experiments.toml"), experiments).unwrap();
-    let exps = Experiments::load(&dir.path().join("experiments.toml")).unwrap();
-    let model = Model::load(&root.join("fixtures/measure/lbox/mix_a.toml")).unwrap();
     let obs = |names: &[&str]| names.iter().map(|s| Observable::parse(s).unwrap()).collect::<Vec<_>>();
     let wanted = [
         ("rebars".to_string(), obs(&["front@0.29", "front@0.8", "front"])),
         ("bare".to_string(), obs(&["front@0.29", "front@0.8", "front", "arrival@0.69", "height@0.69", "stop_time@0.005"])),
     ];
-    let start = std::time::Instant::now();
-    let values = runner::evaluate_all(&model, &exps, &wanted, 2).unwrap();
-    eprintln!("two reduced L-boxes in {:.1} s: with rebars {:?}, without {:?}", start.elapsed().as_secs_f64(), values[0], values[1]);
+    let values = evaluate_reduced(dir.path(), experiments, "fixtures/measure/lbox/mix_a.toml", &wanted, "two reduced L-boxes (with rebars, without)");
     let (rebars, bare) = (&values[0], &values[1]);
     // the closed gate (x >= 0.1) holds the column: the front stays within 2 mm of the reservoir's
     // 0.1 m (the column settles elastically against it)
@@ -432,7 +441,7 @@ fn a_union_or_intersection_body_fills_its_region_and_bad_ones_name_the_key() {
 /// "V-funnel", half passes 0.71-0.86 s after the opening).
 #[test]
 fn a_reduced_vfunnel_holds_at_its_gate_then_drains_faster_without_friction() {
-    use strand::measure::{experiments::Experiments, model::Model, observation::Observable, runner};
+    use strand::measure::observation::Observable;
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut text = std::fs::read_to_string(root.join("fixtures/scenarios/vfunnel/vfunnel.toml")).unwrap();
     for (from, to) in [("dx = 0.010714285714285714\n", "dx = 0.01875\n"), ("end_time = 3.3\n", "end_time = 1.2\n")] {
@@ -445,14 +454,9 @@ fn a_reduced_vfunnel_holds_at_its_gate_then_drains_faster_without_friction() {
         .map(|k| format!("\"{k}.friction.mu\" = 0.0"))
         .join(", ");
     let experiments = format!("[[experiment]]\nid = \"mix_a\"\nscenario = \"vfunnel.toml\"\n\n[[experiment]]\nid = \"frictionless\"\nscenario = \"vfunnel.toml\"\nset = {{ {frictionless} }}\n");
-    std::fs::write(dir.path().join("experiments.toml"), experiments).unwrap();
-    let exps = Experiments::load(&dir.path().join("experiments.toml")).unwrap();
-    let model = Model::load(&root.join("fixtures/measure/vfunnel/mix_a_001.toml")).unwrap();
     let obs: Vec<Observable> = ["passed@0.3:0.01", "passed@0.3:0.05", "passed@0.3:0.1"].iter().map(|s| Observable::parse(s).unwrap()).collect();
     let wanted = [("mix_a".to_string(), obs.clone()), ("frictionless".to_string(), obs)];
-    let start = std::time::Instant::now();
-    let values = runner::evaluate_all(&model, &exps, &wanted, 2).unwrap();
-    eprintln!("two reduced V-funnels in {:.1} s: Mix-A {:?}, frictionless {:?}", start.elapsed().as_secs_f64(), values[0], values[1]);
+    let values = evaluate_reduced(dir.path(), &experiments, "fixtures/measure/vfunnel/mix_a_001.toml", &wanted, "two reduced V-funnels (Mix-A, frictionless)");
     for v in &values {
         let [first, five, ten] = v[..] else { panic!("{v:?}") };
         // the closed gate holds everything until 0.3 s; then the first 1 % passes within 0.1 s,
@@ -471,20 +475,15 @@ fn a_reduced_vfunnel_holds_at_its_gate_then_drains_faster_without_friction() {
 /// and, started without the dam-break's jolt, it spreads less.
 #[test]
 fn a_lifted_mould_holds_the_cone_then_lets_it_slump_less_far_than_a_release() {
-    use strand::measure::{experiments::Experiments, model::Model, observation::Observable, runner};
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
-    let dir = root.join("fixtures/measure/slump_flow");
+    use strand::measure::observation::Observable;
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/measure/slump_flow");
     let experiments = "[[experiment]]\nid = \"lifted\"\nscenario = \"slump_cone_lifted.toml\"\n\n\
                        [[experiment]]\nid = \"released\"\nscenario = \"slump_flow.toml\"\nset = { \"simulation.end_time\" = 1.6 }\n";
     let tmp = tempfile::tempdir().unwrap();
-    std::fs::write(tmp.path().join("experiments.toml"), experiments.replace("scenario = \"", &format!("scenario = \"{}/", dir.display()))).unwrap();
-    let exps = Experiments::load(&tmp.path().join("experiments.toml")).unwrap();
-    let model = Model::load(&root.join("fixtures/measure/lbox/mix_a.toml")).unwrap();
+    let experiments = experiments.replace("scenario = \"", &format!("scenario = \"{}/", dir.display()));
     let obs: Vec<Observable> = ["spread@0.1", "spread@0.3", "spread"].iter().map(|s| Observable::parse(s).unwrap()).collect();
     let wanted = [("lifted".to_string(), obs.clone()), ("released".to_string(), obs)];
-    let start = std::time::Instant::now();
-    let values = runner::evaluate_all(&model, &exps, &wanted, 2).unwrap();
-    eprintln!("lifted and released slumps in {:.1} s: lifted {:?}, released {:?}", start.elapsed().as_secs_f64(), values[0], values[1]);
+    let values = evaluate_reduced(tmp.path(), &experiments, "fixtures/measure/lbox/mix_a.toml", &wanted, "lifted and released slumps");
     let (lifted, released) = (&values[0], &values[1]);
     // after 0.1 s the mould's foot is 15 mm up: what left the cone is a thin rim
     assert!(lifted[0] < 0.2 + 0.03, "spread at 0.1 s: lifted {} m (the base is 0.2 m)", lifted[0]);
