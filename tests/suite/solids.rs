@@ -348,10 +348,6 @@ budget = "64 MiB"
     }
 }
 
-/// Paper 001's L-box reduced (issue 30): Mix-A's fixture at 2 cm cells, half its width (the
-/// plane y = 0.1 m through the middle rebar as a symmetry wall), to 2.3 s (2 s after the gate
-/// opens), run as `strand compare` experiments under Mix-A's uncalibrated model: with its rebars,
-/// and with them removed at the start (`open_at = 0`), where the flow reaches the end.
 /// The experiments `experiments` (an experiments file's text, written into `dir`, scenarios
 /// relative to it) evaluated under the model file `model` (relative to the repository), two at a
 /// time, their time said on stderr as `what`: the reduced experiments' runs.
@@ -366,6 +362,10 @@ fn evaluate_reduced(dir: &std::path::Path, experiments: &str, model: &str, wante
     values
 }
 
+/// Paper 001's L-box reduced (issue 30): Mix-A's fixture at 2 cm cells, half its width (the
+/// plane y = 0.1 m through the middle rebar as a symmetry wall), to 2.3 s (2 s after the gate
+/// opens), run as `strand compare` experiments under Mix-A's uncalibrated model: with its rebars,
+/// and with them removed at the start (`open_at = 0`), where the flow reaches the end.
 #[test]
 fn a_reduced_lbox_holds_at_the_gate_then_flows_to_the_end_held_back_by_the_rebars() {
     use strand::measure::observation::Observable;
