@@ -571,7 +571,11 @@ fn calibrate(args: CalibrateArgs) -> Result<bool, Failure> {
     check_writable(&out, "--out")?;
     check_writable(&plot, "--plot")?;
     let (d, disc) = counted_data(&m, d0, &e, inputs.jobs)?;
-    let f = calibrate::calibrate(&m, &d, &e, &fit, &engine.fit_options(&fit_steps, inputs.jobs)?)?;
+    let opts = engine.fit_options(&fit_steps, inputs.jobs)?;
+    let f = match &disc {
+        Some(c) => calibrate::calibrate_at(&m, &c.start_values, &d, &e, &fit, &opts)?,
+        None => calibrate::calibrate(&m, &d, &e, &fit, &opts)?,
+    };
     // the fitted values first: a file that fails to write then loses nothing
     print_result(inputs.json, &f, &disc, |c| resolution::report(&c.data, &c.estimates, &f.model_values, "fitted"), || calibrate::report(&f))?;
     std::fs::write(&out, f.model.to_toml()).map_err(|e| format!("--out {}: {e}", out.display()))?;
@@ -595,7 +599,7 @@ fn diagnose(args: DiagnoseArgs) -> Result<bool, Failure> {
     let opts = diagnose::DiagnoseOptions { fit: engine.fit_options(&fit_steps, inputs.jobs)?, alpha, leave_one_out: !no_loo, exact_refits: loo_refits, max_fitted: max_fitted as usize };
     if rounds > 1 {
         use strand::measure::rounds;
-        let r = rounds::rounds(&m, &d, &e, &fit, &opts, rounds as usize)?;
+        let r = rounds::rounds(&m, &d, &e, &fit, &opts, rounds as usize, disc.as_ref().map(|c| &c.start_values[..]))?;
         // the report first: a file that fails to write then loses nothing
         if inputs.json {
             println!("{:#}", serde_json::to_value(&r)?);
@@ -608,7 +612,7 @@ fn diagnose(args: DiagnoseArgs) -> Result<bool, Failure> {
         }
         return Ok(true);
     }
-    let r = diagnose::diagnose(&m, &d, &e, &fit, &opts)?;
+    let r = diagnose::diagnose(&m, &d, &e, &fit, &opts, disc.as_ref().map(|c| &c.start_values[..]))?;
     // the report first: a file that fails to write then loses nothing
     print_result(inputs.json, &r, &disc, |c| resolution::report(&c.data, &c.estimates, &c.start_values, "start"), || diagnose::report(&r))?;
     if let (Some(out), Some(best)) = (&out, &r.recommended_model) {

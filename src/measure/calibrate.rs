@@ -196,6 +196,15 @@ pub fn calibrate(model: &Model, data: &[Observation], exps: &Experiments, names:
     calibrate_from(model, data, exps, names, opts, at_start)
 }
 
+/// [`calibrate`] from a model whose values of `data` are known, as the engine gives them (the
+/// discretisation error's runs at the model, [`counted_data`](super::resolution::counted_data)):
+/// the start's Jacobian runs only its differences.
+pub fn calibrate_at(model: &Model, values: &[f64], data: &[Observation], exps: &Experiments, names: &[String], opts: &FitOptions) -> Result<Fit, MeasureError> {
+    check(model, names)?;
+    let at_start = opts.engine.jacobian_at(opts.jobs, model, data, exps, names, (values, &Differences::Central))??;
+    calibrate_from(model, data, exps, names, opts, at_start)
+}
+
 /// [`calibrate`] from a start whose values and Jacobian in `names` are known: `at_start` is
 /// what the engine gives at `model` (a fit's own, or its rows for a subset of its data).
 pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, names: &[String], opts: &FitOptions, at_start: Sensitivity) -> Result<Fit, MeasureError> {

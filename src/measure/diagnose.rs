@@ -39,7 +39,7 @@
 //! 4. When no effect is recommended and the base model does not fit (chi^2 beyond its `alpha`
 //!    quantile) the verdict is "unexplained", with the pattern of the residuals.
 
-use super::calibrate::{calibrate, calibrate_from, chi2, chi2_scatter, finish, predicted_drop, standardised, Fit, FitOptions};
+use super::calibrate::{calibrate, calibrate_at, calibrate_from, chi2, chi2_scatter, finish, predicted_drop, standardised, Fit, FitOptions};
 use super::error::{io_error, toml_error, MeasureError};
 use super::experiments::Experiments;
 use super::observation::Observation;
@@ -202,11 +202,13 @@ fn candidate(e: &dyn Effect, score: f64, dof: usize, p_value: f64, verdict: Stri
     Candidate { effect: e.name().into(), about: e.about().into(), rank: 0, test: test_of(e).into(), score, dof, p_value, fitted_chi2: None, error_ratio: None, fitted: vec![], loo_chi2_base: None, loo_chi2: None, verdict, recommended: false }
 }
 
-pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[String], opts: &DiagnoseOptions) -> Result<Diagnosis, MeasureError> {
+/// Which effect `model` lacks, to explain `data` once `fit` is refitted (module doc); `at_model`:
+/// the model's values of `data` where they are known, as the engine gives them.
+pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[String], opts: &DiagnoseOptions, at_model: Option<&[f64]>) -> Result<Diagnosis, MeasureError> {
     let m = data.len();
     let mut clock = Clock::new(opts.fit.progress);
     clock.say("the base model".into());
-    let base = base_fit(model, data, exps, fit, opts)?;
+    let base = base_fit(model, at_model, data, exps, fit, opts)?;
     let base_p_value = chi2_sf(base.chi2, m.saturating_sub(fit.len()).max(1));
     clock.timing.base_fit = clock.lap();
     let mut scored = score_tests(&base, data, exps, fit, opts, &clock)?;
@@ -289,13 +291,20 @@ impl Clock {
     }
 }
 
-/// The base model fitted in `fit` (or taken as it is when `fit` is empty).
-fn base_fit(model: &Model, data: &[Observation], exps: &Experiments, fit: &[String], opts: &DiagnoseOptions) -> Result<Fit, MeasureError> {
+/// The base model fitted in `fit` (or taken as it is when `fit` is empty), from its values
+/// `at_model` where they are known.
+fn base_fit(model: &Model, at_model: Option<&[f64]>, data: &[Observation], exps: &Experiments, fit: &[String], opts: &DiagnoseOptions) -> Result<Fit, MeasureError> {
     if !fit.is_empty() {
-        return calibrate(model, data, exps, fit, &opts.fit);
+        return match at_model {
+            Some(v) => calibrate_at(model, v, data, exps, fit, &opts.fit),
+            None => calibrate(model, data, exps, fit, &opts.fit),
+        };
     }
     let m = data.len();
-    let v = opts.fit.engine.sensitivity(opts.fit.jobs, model, data, exps, None)??.values;
+    let v = match at_model {
+        Some(v) => v.to_vec(),
+        None => opts.fit.engine.sensitivity(opts.fit.jobs, model, data, exps, None)??.values,
+    };
     let c2 = chi2(&v, data);
     Ok(Fit { names: vec![], start: vec![], values: vec![], uncertainty: vec![], at_bound: vec![], influence: vec![], chi2_start: c2, chi2: c2, reduced_chi2: c2 / m as f64, history: vec![c2], converged: true, observations: m, model_values: v.clone(), jacobian: vec![], scatter: vec![0.0; m], jacobian_scatter: vec![vec![]; m], at_start: Sensitivity { values: v, jacobian: Some(vec![]), scatter: vec![0.0; m], jacobian_scatter: Some(vec![vec![]; m]) }, model: model.clone() })
 }
@@ -307,14 +316,16 @@ fn base_fit(model: &Model, data: &[Observation], exps: &Experiments, fit: &[Stri
 /// follow from them where the keys allow ([`chained`](super::chain::chained)), and only the
 /// rest are computed, from those values, by one-sided differences (the scatter is the base
 /// fit's there: [`Differences::Forward`]); elsewhere every column is, from `with`'s values.
-fn beside_base(base: &Fit, from_start: bool, with: &Model, extra: &[String], data: &[Observation], exps: &Experiments, opts: &DiagnoseOptions) -> Result<Sensitivity, MeasureError> {
+/// `with`'s values are that point's without a run where every added effect is at a start that
+/// `runs_as_model` ([`Effect::start_runs_as_model`]); otherwise they are run, and compared.
+fn beside_base(base: &Fit, (from_start, runs_as_model): (bool, bool), with: &Model, extra: &[String], data: &[Observation], exps: &Experiments, opts: &DiagnoseOptions) -> Result<Sensitivity, MeasureError> {
     let (engine, jobs) = (&opts.fit.engine, opts.fit.jobs);
     let names: Vec<String> = base.names.iter().chain(extra).cloned().collect();
     let (known, known_jacobian, known_scatter, known_jacobian_scatter) = match from_start {
         true => (&base.at_start.values, base.at_start.jacobian.as_ref().expect("asked"), &base.at_start.scatter, base.at_start.jacobian_scatter.as_ref().expect("asked")),
         false => (&base.model_values, &base.jacobian, &base.scatter, &base.jacobian_scatter),
     };
-    let values = engine.sensitivity(jobs, with, data, exps, None)??.values;
+    let values = if runs_as_model { known.clone() } else { engine.sensitivity(jobs, with, data, exps, None)??.values };
     if values != *known || base.names.is_empty() || extra.is_empty() {
         return engine.jacobian_at(jobs, with, data, exps, &names, (&values, &Differences::Central))?;
     }
@@ -382,7 +393,7 @@ fn score_tests(base: &Fit, data: &[Observation], exps: &Experiments, fit: &[Stri
         names.extend(e.params().iter().map(|s| format!("{}.{}", e.name(), s.name)));
     }
     clock.say(format!("score tests at the nulls of {}", absent.iter().map(|e| e.name()).collect::<Vec<_>>().join(", ")));
-    let at_nulls = beside_base(base, false, &aug, &names[fit.len()..], data, exps, opts)?;
+    let at_nulls = beside_base(base, (false, absent.iter().all(|e| e.start_runs_as_model())), &aug, &names[fit.len()..], data, exps, opts)?;
     let scale: Vec<f64> = names.iter().map(|n| aug.bounds(n).map(|b| b.scale)).collect::<Result<_, _>>()?;
     let (z, jz) = standardised(&at_nulls.values, at_nulls.jacobian.as_ref().expect("asked"), data, &scale);
     let fcols: Vec<usize> = (0..fit.len()).collect();
@@ -490,7 +501,7 @@ fn likelihood_ratio_tests(
             // (G where every reading is past yield) the fit would only refit the fitted
             // parameters; from the model's values, where they are elsewhere, it may have
             clock.say(format!("{}: its likelihood ratio, from {}", e.name(), if std::ptr::eq(from, model) { "the model's values" } else { "the base fit's values" }));
-            let start_values = beside_base(base, std::ptr::eq(from, model), &with, &fnames[fit.len()..], data, exps, opts)?;
+            let start_values = beside_base(base, (std::ptr::eq(from, model), e.start_runs_as_model()), &with, &fnames[fit.len()..], data, exps, opts)?;
             let at_start = calibrate_from(&with, data, exps, &fnames, &FitOptions { max_iterations: 0, progress: false, ..opts.fit.clone() }, start_values.clone())?;
             let predicted = base.chi2 - at_start.chi2 + gauss_newton_drop(&at_start, data)?;
             let informed = at_start.influence[fit.len()..].iter().any(|&i| i);

@@ -172,7 +172,8 @@ pub fn counted(data: &[Observation], estimates: &[Option<Estimate>]) -> Vec<Obse
         .collect()
 }
 
-/// The data as measured, their discretisation errors, and the start model's values of them.
+/// The data as measured, their discretisation errors, and the start model's values of them (as
+/// a fit runs them: [`counted_data`]).
 pub struct Counted {
     pub data: Vec<Observation>,
     pub estimates: Vec<Option<Estimate>>,
@@ -180,12 +181,14 @@ pub struct Counted {
 }
 
 /// What calibrate and diagnose fit: `data` with the discretisation errors at `model` counted
-/// ([`counted`]), and what was counted; `data` unchanged without `[resolution]`.
+/// ([`counted`]), and what was counted; `data` unchanged without `[resolution]`. The model's own
+/// runs are a fit's (fixed step, every particle awake: [`sensitivity`](super::sensitivity)), so
+/// the fit from this model takes their values as its start's.
 pub fn counted_data(model: &Model, data: Vec<Observation>, exps: &Experiments, jobs: usize) -> Result<(Vec<Observation>, Option<Counted>), MeasureError> {
     if exps.resolution.is_none() {
         return Ok((data, None));
     }
-    let start_values = super::runner::model_values(model, &data, exps, jobs)?;
+    let start_values = super::sensitivity::sensitivity(model, &data, exps, None, jobs)?.values;
     let estimates = estimate(model, &data, exps, Some(&start_values), jobs)?.expect("a [resolution] table");
     Ok((counted(&data, &estimates), Some(Counted { data, estimates, start_values })))
 }

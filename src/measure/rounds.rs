@@ -39,12 +39,15 @@ pub struct Rounds {
     pub model: Model,
 }
 
-pub fn rounds(model: &Model, data: &[Observation], exps: &Experiments, fit: &[String], opts: &DiagnoseOptions, max_rounds: usize) -> Result<Rounds, MeasureError> {
+/// Diagnose rounds from `model`, each adding the effect the last recommended, until none is or
+/// `max_rounds` have run; `at_model`: `model`'s values of `data` where known ([`diagnose`]).
+pub fn rounds(model: &Model, data: &[Observation], exps: &Experiments, fit: &[String], opts: &DiagnoseOptions, max_rounds: usize, at_model: Option<&[f64]>) -> Result<Rounds, MeasureError> {
     let n = data.len().max(1) as f64;
     let (mut model, mut fit) = (model.clone(), fit.to_vec());
     let mut out = Rounds { rounds: vec![], added: vec![], final_chi2: f64::NAN, final_chi2_per_observation: f64::NAN, complete: false, fit: vec![], model: model.clone() };
     for round in 1..=max_rounds.max(1) {
-        let d = diagnose(&model, data, exps, &fit, opts)?;
+        // the model's values are known in the first round only
+        let d = diagnose(&model, data, exps, &fit, opts, at_model.filter(|_| round == 1))?;
         let before = d.base_chi2;
         let chosen = d.recommended.as_ref().and_then(|e| d.candidates.iter().find(|c| c.effect == *e));
         let (added, after, next) = match (chosen, &d.recommended_model) {

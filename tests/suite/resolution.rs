@@ -1,6 +1,7 @@
 //! The discretisation error through `strand compare` (`src/measure/resolution.rs`): the small
 //! slump of `fixtures/measure/slump/` at 4 cm cells measured by its own 2 cm run, with and
-//! without the experiments' `[resolution]` table, and bad tables named.
+//! without the experiments' `[resolution]` table, and bad tables named; and a fit that starts
+//! from the estimate's runs at the model.
 
 use std::path::Path;
 use crate::common::{strand_in};
@@ -86,4 +87,32 @@ fn measurements_of_the_finer_run_are_explained_by_the_estimated_discretisation_e
         assert_eq!(code, 2, "{table}: {err}");
         assert!(err.contains(want), "{table}: {err}");
     }
+}
+
+/// The estimate's runs at the model are a fit's runs (fixed step, all awake): a fit started from
+/// their values (`calibrate_at`, as calibrate and diagnose start) is the fit that runs its start
+/// itself, bit for bit, and one started from other values is not.
+#[test]
+fn a_fit_from_the_estimates_runs_is_the_fit_that_runs_its_start() {
+    use strand::measure::calibrate::{calibrate, calibrate_at, Fit, FitOptions};
+    use strand::measure::{experiments::Experiments, model::Model, resolution::counted_data, synth::synth};
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::copy(Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/measure/slump/slump.toml"), d.join("slump.toml")).unwrap();
+    std::fs::write(d.join("counted.toml"), format!("{EXPERIMENTS}\n[resolution]\nfine = {{ \"simulation.dx\" = 0.02 }}\norder = 1.0\n")).unwrap();
+    let exps = Experiments::load(&d.join("counted.toml")).unwrap();
+    let truth = Model::from_table(&MODEL.parse().unwrap()).unwrap();
+    let start = Model::from_table(&MODEL.replace("viscosity = 50.0", "viscosity = 35.0").replace("yield_stress = 100.0", "yield_stress = 130.0").parse().unwrap()).unwrap();
+    let (data, counted) = counted_data(&start, synth(&truth, &exps, 0.01, 3, 2).unwrap(), &exps, 2).unwrap();
+    let at_model = counted.expect("a [resolution] table").start_values;
+    let names = ["material.yield_stress".to_string(), "material.viscosity".to_string()];
+    let opts = FitOptions { jobs: 2, ..FitOptions::default() };
+    let itself = calibrate(&start, &data, &exps, &names, &opts).unwrap();
+    let from_runs = calibrate_at(&start, &at_model, &data, &exps, &names, &opts).unwrap();
+    let what = |f: &Fit| (f.at_start.values.clone(), f.at_start.jacobian.clone(), f.history.clone(), f.values.clone(), f.model_values.clone(), f.jacobian.clone(), f.uncertainty.clone());
+    assert!(itself.history.len() > 1, "the fit took a step: {:?}", itself.history);
+    assert_eq!(what(&from_runs), what(&itself));
+    // the values given are the ones taken
+    let shifted: Vec<f64> = at_model.iter().map(|v| v * 1.001).collect();
+    assert_ne!(calibrate_at(&start, &shifted, &data, &exps, &names, &FitOptions { max_iterations: 0, ..opts }).unwrap().at_start.values, itself.at_start.values);
 }

@@ -81,6 +81,16 @@ pub trait Effect: Sync {
     fn lr_start(&self, _keys: &Keys) -> Result<Vec<f64>, MeasureError> {
         Ok(self.params().iter().map(|s| s.null).collect())
     }
+    /// Whether a model with this effect at its start (its null; [`Effect::lr_start`] for a null
+    /// at infinity) runs as the model without it, to the bit, wherever the effect can act: the
+    /// keys it leaves may differ (a rate of 0 written out, G in place of the Poisson ratio that
+    /// gives it), the run does not. Diagnose then takes the model's own values there instead of
+    /// running it again. True of an effect whose null is finite and of the moduli's stand-ins
+    /// (test `every_effect_at_its_start_runs_as_the_model_without_it`); not of a finite floor
+    /// friction, nor of a declared effect, whose keys no test sees.
+    fn start_runs_as_model(&self) -> bool {
+        !self.null_at_infinity()
+    }
 }
 
 /// Every effect of the library, in the order they apply; effects declared in a model file
@@ -224,6 +234,64 @@ mod tests {
                 let fd = (j(&p, &a) - j(&p, &b)) / (2.0 * h);
                 assert!((bar(&kb, k) - fd).abs() <= 1e-6 * fd.abs().max(1.0), "{}: d/d{k}: adjoint {} vs {fd}", e.name(), bar(&kb, k));
             }
+        }
+    }
+
+    /// Every effect that says its start runs as the model without it
+    /// ([`Effect::start_runs_as_model`]) does, on the print campaign's line (shortened; material,
+    /// boundary and print keys all in play), from a model with a Poisson ratio and one with G,
+    /// alone and all at once: every particle's position, velocity, J and stress, all an
+    /// observable reads, are the same bits (the material's state may hold more: a Maxwell branch
+    /// at G_M = 0 carries its stress, 0). A finite floor friction, which does not say so, is seen
+    /// to change the run.
+    #[test]
+    fn every_effect_at_its_start_runs_as_the_model_without_it() {
+        use crate::measure::model::Model;
+        use crate::measure::runner::{parse_scenario, scenario_text};
+        let line = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/measure/print/line.toml");
+        let dir = tempfile::tempdir().unwrap();
+        let short = dir.path().join("line.toml");
+        let text = std::fs::read_to_string(&line).unwrap();
+        assert!(text.contains("end_time = 0.9"));
+        std::fs::write(&short, text.replace("end_time = 0.9", "end_time = 0.3")).unwrap();
+        let x = covariates();
+        let hash = |m: &Model| -> Vec<u64> {
+            let mut sc = parse_scenario(&scenario_text(m, &m.keys(&x).unwrap(), &short).unwrap(), &short).unwrap();
+            sc.simulation.threads = 1;
+            let mut sim = crate::solver::Simulation::new(&sc).unwrap();
+            let end = sc.simulation.end_time;
+            while sim.time < end * (1.0 - 1e-12) {
+                sim.step_until(end).unwrap();
+            }
+            let p = &sim.particles;
+            let n = p.n;
+            let vectors = p.xg.as_slice()[..n].iter().chain(&p.v.as_slice()[..n]).flat_map(|v| v.to_array());
+            let stress = p.stress.as_slice()[..n].iter().flat_map(|s| s.to_cols_array());
+            vectors.chain(stress).chain(p.j.as_slice()[..n].iter().copied()).map(|x| (x as f64).to_bits()).collect()
+        };
+        let at_start = |m: &Model, e: &'static dyn Effect| -> Model {
+            let start = e.lr_start(&m.keys(&x).unwrap()).unwrap();
+            let mut with = m.with_effect(e);
+            for (s, v) in e.params().iter().zip(start) {
+                with.set(&format!("{}.{}", e.name(), s.name), v).unwrap();
+            }
+            with
+        };
+        let material = "[material]\nkind = \"evp_bingham\"\ndensity = 2100.0\nbulk_modulus = 5.0e4\nviscosity = 20.0\nyield_stress = 100.0\n";
+        for g in ["poisson_ratio = 0.3", "shear_modulus = 2.3e4"] {
+            let base = Model::from_table(&format!("{material}{g}\n").parse().unwrap()).unwrap();
+            let own = hash(&base);
+            let mut all = base.clone();
+            for &e in REGISTRY {
+                let with = at_start(&base, e);
+                if e.start_runs_as_model() {
+                    assert_eq!(hash(&with), own, "{} at its start, from {g}", e.name());
+                    all = at_start(&all, e);
+                } else {
+                    assert_ne!(hash(&with), own, "{} at its start, from {g}", e.name());
+                }
+            }
+            assert_eq!(hash(&all), own, "every effect at its start at once, from {g}");
         }
     }
 

@@ -94,6 +94,11 @@ impl Effect for Modulus {
         let g = shear_modulus(keys, self.name)?;
         Ok(vec![if self.key == SHEAR_MODULUS { g } else { read(keys, self.name, self.key)? }])
     }
+    /// The stand-in is the material's own modulus, G as it computes it from nu where the model
+    /// gives nu (module doc).
+    fn start_runs_as_model(&self) -> bool {
+        true
+    }
 }
 
 #[cfg(test)]

@@ -4,6 +4,10 @@
 //! after its rest time, lambda0 = A_thix t_rest / tau0 (so the yield stress at the start is
 //! tau0 + A_thix t_rest, Roussel's linear build-up). Null: A_thix = alpha = 0. Needs a material
 //! that carries lambda (evp_bingham, papanastasiou_roussel).
+//!
+//! At A_thix = 0 no structure builds (lambda0 = 0 too) and alpha has none to break: alpha is left
+//! out of the keys, so its column there is 0 without a run. Written out, it would move a run in
+//! its last bits only (the return map's quadratic carries alpha even where lambda = 0).
 
 use super::super::error::MeasureError;
 use super::{add_bar, bar, read, Covariates, Effect, Keys, ParamSpec};
@@ -29,7 +33,9 @@ impl Effect for Thixotropy {
         let tau0 = read(keys, self.name(), "material.yield_stress")?;
         let lambda0 = if p[0] > 0.0 { p[0] * x.rest_time / tau0 } else { 0.0 };
         keys.insert("material.a_thix".into(), p[0]);
-        keys.insert("material.alpha".into(), p[1]);
+        if p[0] > 0.0 {
+            keys.insert("material.alpha".into(), p[1]);
+        }
         keys.insert("material.lambda0".into(), lambda0);
         Ok(())
     }
@@ -37,11 +43,14 @@ impl Effect for Thixotropy {
         let tau0 = keys_in["material.yield_stress"];
         let l_bar = bar(keys_bar, "material.lambda0");
         p_bar[0] += bar(keys_bar, "material.a_thix") + l_bar * x.rest_time / tau0;
-        p_bar[1] += bar(keys_bar, "material.alpha");
         add_bar(keys_bar, "material.yield_stress", -l_bar * p[0] * x.rest_time / (tau0 * tau0));
-        // the material's own values are overwritten
-        for k in ["material.a_thix", "material.alpha", "material.lambda0"] {
+        // the material's own values are overwritten (alpha only where it was written)
+        for k in ["material.a_thix", "material.lambda0"] {
             keys_bar.insert(k.into(), 0.0);
+        }
+        if p[0] > 0.0 {
+            p_bar[1] += bar(keys_bar, "material.alpha");
+            keys_bar.insert("material.alpha".into(), 0.0);
         }
     }
 }
