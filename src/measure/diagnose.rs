@@ -460,8 +460,8 @@ fn score_tests(base: &Fit, data: &[Observation], exps: &Experiments, fit: &[Stri
 }
 
 /// The likelihood ratio of each effect whose null lies at infinity: the effect fitted from its
-/// start (a modulus: the base model's stand-in for the null, where the model is the base model),
-/// with the fitted parameters from the base fit's values (so a modulus's chi^2 starts at chi^2_base
+/// start (a modulus: the stand-in for the null of the model it starts from, where that model
+/// is the base model), with the fitted parameters from the base fit's values (so a modulus's chi^2 starts at chi^2_base
 /// and the fit only lowers it), and, when that finds no significant drop and the base fit moved,
 /// from the model's own: the base fit may have gone where the effect has no gradient (a yield
 /// stress fitted so low that every reading is past yield, where G drops out); the better of the two
@@ -480,9 +480,7 @@ fn likelihood_ratio_tests(
     let m = data.len();
     let mut cands = Vec::new();
     let mut prefit: std::collections::BTreeMap<String, Fit> = Default::default();
-    let base_keys = base.model.keys(&Covariates::default())?;
     for e in unreachable {
-        let start = e.lr_start(&base_keys)?;
         let fnames = fit_names(fit, *e);
         let mut best: Option<Fit> = None;
         let mut screened: Option<f64> = None;
@@ -492,6 +490,9 @@ fn likelihood_ratio_tests(
             if best.as_ref().is_some_and(|b| p_value(base.chi2 - b.chi2, e.params().len()) < opts.alpha) {
                 break;
             }
+            // a modulus's stand-in is the G or K of the model it starts from, which runs as that
+            // model does
+            let start = e.lr_start(&from.keys(&Covariates::default())?)?;
             let mut with = from.with_effect(*e);
             for (n, v) in fnames[fit.len()..].iter().zip(&start) {
                 with.set(n, *v)?;
