@@ -227,7 +227,7 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
     let mut converged = false;
     let mut free = vec![true; n];
     let simulated = runs_simulations(data, exps);
-    let secant = opts.secant && simulated;
+    let secant = on_secants(opts, data, exps);
     // whether `s`'s Jacobian is the engine's, not a secant update: a fit stops on an exact one
     let mut exact = true;
     let exact_at = |m: &Model, s: &Sensitivity| opts.engine.jacobian_at(opts.jobs, m, data, exps, names, (&s.values, &Differences::Central))?;
@@ -337,7 +337,7 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
 /// uncertainties, and a leave-one-out step on its curvature, come from an exact Jacobian as a
 /// fit made with uncertainties does. The fit keeps its start and history.
 pub fn finish(f: Fit, data: &[Observation], exps: &Experiments, opts: &FitOptions) -> Result<Fit, MeasureError> {
-    if !(opts.uncertainties && !opts.stop_on_secant && opts.secant && runs_simulations(data, exps)) {
+    if !(opts.uncertainties && !opts.stop_on_secant && on_secants(opts, data, exps)) {
         return Ok(f);
     }
     let exact = opts.engine.jacobian_at(opts.jobs, &f.model, data, exps, &f.names, (&f.model_values, &Differences::Central))??;
@@ -479,6 +479,12 @@ fn secant_update(jac: &[Vec<f64>], (from, to): (&[f64], &[f64]), scale: &[f64], 
 /// comes from its adjoint at less than a run's cost).
 fn runs_simulations(data: &[Observation], exps: &Experiments) -> bool {
     super::runner::group(data).iter().any(|(id, _)| exps.get(id).is_some_and(|x| x.scenario.is_some()))
+}
+
+/// Whether a fit of `data` steps on secant Jacobians: asked to ([`FitOptions::secant`]), where
+/// its campaign runs simulations.
+fn on_secants(opts: &FitOptions, data: &[Observation], exps: &Experiments) -> bool {
+    opts.secant && runs_simulations(data, exps)
 }
 
 /// chi^2's drop one undamped Gauss-Newton step predicts, g^T A^+ g, from the normal equations
