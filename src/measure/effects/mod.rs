@@ -6,7 +6,8 @@
 //! and the experiment's covariates (rest time, age), and [`Effect::apply_adjoint`] carries the
 //! keys' adjoints back to those parameters, so the solver's adjoint gives the gradient of any
 //! observation with respect to an effect's parameters. Adding an effect is one file here and one
-//! line in [`REGISTRY`]; `every_effect_adjoint_agrees_with_central_differences` tests it.
+//! line in [`REGISTRY`]; `every_effect_adjoint_agrees_with_central_differences` and
+//! `every_effect_at_its_start_runs_as_the_model_without_it` test it.
 
 use super::error::MeasureError;
 use std::collections::BTreeMap;
