@@ -571,11 +571,7 @@ fn calibrate(args: CalibrateArgs) -> Result<bool, Failure> {
     check_writable(&out, "--out")?;
     check_writable(&plot, "--plot")?;
     let (d, disc) = counted_data(&m, d0, &e, inputs.jobs)?;
-    let opts = engine.fit_options(&fit_steps, inputs.jobs)?;
-    let f = match &disc {
-        Some(c) => calibrate::calibrate_at(&m, &c.start_values, &d, &e, &fit, &opts)?,
-        None => calibrate::calibrate(&m, &d, &e, &fit, &opts)?,
-    };
+    let f = calibrate::calibrate_at(&m, disc.as_ref().map(|c| &c.start_values[..]), &d, &e, &fit, &engine.fit_options(&fit_steps, inputs.jobs)?)?;
     // the fitted values first: a file that fails to write then loses nothing
     print_result(inputs.json, &f, &disc, |c| resolution::report(&c.data, &c.estimates, &f.model_values, "fitted"), || calibrate::report(&f))?;
     std::fs::write(&out, f.model.to_toml()).map_err(|e| format!("--out {}: {e}", out.display()))?;

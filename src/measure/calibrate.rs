@@ -191,17 +191,19 @@ pub fn chi2(values: &[f64], data: &[Observation]) -> f64 {
 
 /// Fit `names` of `model` to `data`.
 pub fn calibrate(model: &Model, data: &[Observation], exps: &Experiments, names: &[String], opts: &FitOptions) -> Result<Fit, MeasureError> {
-    check(model, names)?;
-    let at_start = opts.engine.sensitivity(opts.jobs, model, data, exps, Some(names))??;
-    calibrate_from(model, data, exps, names, opts, at_start)
+    calibrate_at(model, None, data, exps, names, opts)
 }
 
-/// [`calibrate`] from a model whose values of `data` are known, as the engine gives them (the
-/// discretisation error's runs at the model, [`counted_data`](super::resolution::counted_data)):
-/// the start's Jacobian runs only its differences.
-pub fn calibrate_at(model: &Model, values: &[f64], data: &[Observation], exps: &Experiments, names: &[String], opts: &FitOptions) -> Result<Fit, MeasureError> {
+/// [`calibrate`] from a model whose values of `data` may be known (`values`), as the engine
+/// gives them (the discretisation error's runs at the model,
+/// [`counted_data`](super::resolution::counted_data)): then the start's Jacobian runs only its
+/// differences.
+pub fn calibrate_at(model: &Model, values: Option<&[f64]>, data: &[Observation], exps: &Experiments, names: &[String], opts: &FitOptions) -> Result<Fit, MeasureError> {
     check(model, names)?;
-    let at_start = opts.engine.jacobian_at(opts.jobs, model, data, exps, names, (values, &Differences::Central))??;
+    let at_start = match values {
+        Some(v) => opts.engine.jacobian_at(opts.jobs, model, data, exps, names, (v, &Differences::Central))??,
+        None => opts.engine.sensitivity(opts.jobs, model, data, exps, Some(names))??,
+    };
     calibrate_from(model, data, exps, names, opts, at_start)
 }
 

@@ -295,10 +295,7 @@ impl Clock {
 /// `at_model` where they are known.
 fn base_fit(model: &Model, at_model: Option<&[f64]>, data: &[Observation], exps: &Experiments, fit: &[String], opts: &DiagnoseOptions) -> Result<Fit, MeasureError> {
     if !fit.is_empty() {
-        return match at_model {
-            Some(v) => calibrate_at(model, v, data, exps, fit, &opts.fit),
-            None => calibrate(model, data, exps, fit, &opts.fit),
-        };
+        return calibrate_at(model, at_model, data, exps, fit, &opts.fit);
     }
     let m = data.len();
     let v = match at_model {
@@ -460,9 +457,9 @@ fn score_tests(base: &Fit, data: &[Observation], exps: &Experiments, fit: &[Stri
 }
 
 /// The likelihood ratio of each effect whose null lies at infinity: the effect fitted from its
-/// start (a modulus: the stand-in for the null of the model it starts from, where that model
-/// is the base model), with the fitted parameters from the base fit's values (so a modulus's chi^2 starts at chi^2_base
-/// and the fit only lowers it), and, when that finds no significant drop and the base fit moved,
+/// start (a modulus: the stand-in for the null of the model it starts from, where that model is
+/// the base model), with the fitted parameters from the base fit's values (so a modulus's chi^2
+/// starts at chi^2_base and the fit only lowers it), and, when that finds no significant drop and the base fit moved,
 /// from the model's own: the base fit may have gone where the effect has no gradient (a yield
 /// stress fitted so low that every reading is past yield, where G drops out); the better of the two
 /// fits counts. Returns the candidates and the fits a candidate's fit can take over.

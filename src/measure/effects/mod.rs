@@ -256,7 +256,7 @@ mod tests {
         assert!(text.contains("end_time = 0.9"));
         std::fs::write(&short, text.replace("end_time = 0.9", "end_time = 0.3")).unwrap();
         let x = covariates();
-        let hash = |m: &Model| -> Vec<u64> {
+        let state = |m: &Model| -> Vec<u64> {
             let mut sc = parse_scenario(&scenario_text(m, &m.keys(&x).unwrap(), &short).unwrap(), &short).unwrap();
             sc.simulation.threads = 1;
             let mut sim = crate::solver::Simulation::new(&sc).unwrap();
@@ -281,18 +281,18 @@ mod tests {
         let material = "[material]\nkind = \"evp_bingham\"\ndensity = 2100.0\nbulk_modulus = 5.0e4\nviscosity = 20.0\nyield_stress = 100.0\n";
         for g in ["poisson_ratio = 0.3", "shear_modulus = 2.3e4"] {
             let base = Model::from_table(&format!("{material}{g}\n").parse().unwrap()).unwrap();
-            let own = hash(&base);
+            let own = state(&base);
             let mut all = base.clone();
             for &e in REGISTRY {
                 let with = at_start(&base, e);
                 if e.start_runs_as_model() {
-                    assert_eq!(hash(&with), own, "{} at its start, from {g}", e.name());
+                    assert_eq!(state(&with), own, "{} at its start, from {g}", e.name());
                     all = at_start(&all, e);
                 } else {
-                    assert_ne!(hash(&with), own, "{} at its start, from {g}", e.name());
+                    assert_ne!(state(&with), own, "{} at its start, from {g}", e.name());
                 }
             }
-            assert_eq!(hash(&all), own, "every effect at its start at once, from {g}");
+            assert_eq!(state(&all), own, "every effect at its start at once, from {g}");
         }
     }
 
