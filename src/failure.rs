@@ -32,6 +32,20 @@
 //! plastic-collapse criterion's onset, docs/failure.md). The threshold depends on the cell size
 //! (a width is resolved to a fraction of a cell), so it has no default.
 //!
+//! A slender wall buckles: its top swings sideways, out of the plane of the path, long before it
+//! has sunk by much (a tilt of the top by an angle theta lowers it only by about theta^2 / 2 of
+//! its height). The print has also failed when the top at a station stands more than `sway`
+//! (default half the nozzle's width) to the side of where the nozzle laid it: the next layer
+//! would then be laid half beside the one below. The top's lateral position is the mean y of
+//! the section's outline within one layer height of its highest point, against the y at which
+//! the last print move over the station crossed it (the toolpath's own offsets, such as a
+//! scenario's imperfection, are not a failure).
+//!
+//! Every failure is named by its mode: buckling when the sideways rule found it, or when the
+//! top stood at least `sway / 2` to the side when another rule fired; plastic collapse
+//! otherwise (a yielding bottom squashes the section about its middle, leaving the top where
+//! it was laid).
+//!
 //! The failure layer is the layer being printed (or the last one started) when the sinking
 //! began (when the nozzle passed the station, for spreading): 1 is the first layer. The
 //! detector is a pure function of the observation history, so a resumed run finds the same
@@ -62,6 +76,10 @@ pub struct FailureConfig {
     /// an earlier layer); default: no spreading rule.
     #[serde(default)]
     pub spread: Option<f64>,
+    /// Sideways offset [m] of the top at a station from where the nozzle laid it, past which
+    /// the print has failed by buckling; default half the nozzle's width.
+    #[serde(default)]
+    pub sway: Option<f64>,
     /// End the run this long after the failure time [s]; default: run to `end_time`.
     #[serde(default)]
     pub stop_after: Option<f64>,
@@ -69,7 +87,7 @@ pub struct FailureConfig {
 
 impl Default for FailureConfig {
     fn default() -> Self {
-        FailureConfig { sink_rate: None, window: default_window(), lost: None, spread: None, stop_after: None }
+        FailureConfig { sink_rate: None, window: default_window(), lost: None, spread: None, sway: None, stop_after: None }
     }
 }
 
@@ -84,7 +102,7 @@ impl FailureConfig {
                 return Err(Invalid(format!("observe.failure.sink_rate must be > 0 m/s, got {r}")));
             }
         }
-        for (name, v) in [("lost", self.lost), ("spread", self.spread)] {
+        for (name, v) in [("lost", self.lost), ("spread", self.spread), ("sway", self.sway)] {
             if let Some(l) = v {
                 if !(l > 0.0 && l.is_finite()) {
                     return Err(Invalid(format!("observe.failure.{name} must be > 0 m, got {l}")));
@@ -103,6 +121,39 @@ impl FailureConfig {
     }
 }
 
+/// How a print failed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FailureMode {
+    /// The bottom yielded under the weight above: the top sank or the section spread.
+    PlasticCollapse,
+    /// The wall swung out of its plane: the top moved sideways.
+    Buckling,
+}
+
+impl FailureMode {
+    pub fn name(self) -> &'static str {
+        match self {
+            FailureMode::PlasticCollapse => "plastic collapse",
+            FailureMode::Buckling => "buckling",
+        }
+    }
+}
+
+/// Which of the detector's rules found the failure.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FailureRule {
+    /// The top sank faster than `sink_rate` for `window`.
+    Sinking,
+    /// The top lost `lost` against the nominal height.
+    Lost,
+    /// The section's width grew by more than `spread` over a layer.
+    Spread,
+    /// The top stood more than `sway` to the side of where it was laid.
+    Sway,
+}
+
 /// Where and when a print failed.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Failure {
@@ -116,6 +167,12 @@ pub struct Failure {
     pub height: f64,
     /// The sinking speed threshold used [m/s].
     pub sink_rate: f64,
+    /// Buckling or plastic collapse.
+    pub mode: FailureMode,
+    /// The rule that found it.
+    pub rule: FailureRule,
+    /// The top's sideways offset from where it was laid, at the output that found it [m].
+    pub sway: f64,
 }
 
 /// Finds the failure of a multi-layer print in its observation history.
@@ -133,6 +190,10 @@ pub struct Detector {
     lost: f64,
     /// Width growth over a layer past which the print has failed [m], if that rule is on.
     spread: Option<f64>,
+    /// Sideways offset of the top past which the print has failed by buckling [m].
+    sway: f64,
+    /// Mean layer height [m]: the band below the top whose outline gives its lateral position.
+    layer_height: f64,
 }
 
 impl Detector {
@@ -157,6 +218,8 @@ impl Detector {
             clearance: 3.0 * nozzle_half_x,
             lost: cfg.lost.unwrap_or(h),
             spread: cfg.spread,
+            sway: cfg.sway.unwrap_or(nozzle_half_x),
+            layer_height: h,
         })
     }
 
@@ -181,6 +244,39 @@ impl Detector {
         top - self.base
     }
 
+    /// The y at which the latest print move over the plane x = `station` crossed it by `t`
+    /// (None before the first): where the nozzle laid the top there.
+    fn laid_y_at(&self, station: f64, t: f64) -> Option<f64> {
+        let mut laid: Option<(f64, f64)> = None;
+        for m in self.toolpath.moves().iter().filter(|m| m.kind == MoveKind::Print && m.t0 <= t) {
+            let (x0, x1) = (m.from[0], m.to[0]);
+            if (x0.min(x1)..=x0.max(x1)).contains(&station) {
+                let f = if x1 != x0 { (station - x0) / (x1 - x0) } else { 0.0 };
+                if m.t0 + f * m.duration() <= t && laid.is_none_or(|(z, _)| m.to[2] >= z) {
+                    laid = Some((m.to[2], m.from[1] + f * (m.to[1] - m.from[1])));
+                }
+            }
+        }
+        laid.map(|l| l.1)
+    }
+
+    /// The top's sideways offset at a section: the mean y of its outline's points within one
+    /// layer height of the highest, less where the nozzle laid it.
+    fn sway_of(&self, s: &CrossSection, time: f64) -> f64 {
+        let Some(laid) = self.laid_y_at(s.station, time) else { return 0.0 };
+        let top = s.profile.iter().map(|p| p[1]).fold(f64::NEG_INFINITY, f64::max);
+        let (mut sum, mut n) = (0.0, 0usize);
+        for p in s.profile.iter().filter(|p| p[1] >= top - self.layer_height) {
+            sum += p[0];
+            n += 1;
+        }
+        if n == 0 {
+            0.0
+        } else {
+            sum / n as f64 - laid
+        }
+    }
+
     /// The first failure in an observation history: `at(o)` gives an output's time and its
     /// cross-sections (one per station, in the same order at every output).
     pub fn detect<O>(&self, history: &[O], at: impl Fn(&O) -> (f64, &[CrossSection])) -> Option<Failure> {
@@ -191,6 +287,8 @@ impl Detector {
             let mut prev: Option<(f64, f64)> = None;
             let mut start: Option<f64> = None;
             let mut spreading = Spreading::default();
+            // the top's sideways offset at the latest output with the nozzle away
+            let mut sway = 0.0;
             let mut found = |f: Failure| {
                 if first.is_none_or(|g| f.time < g.time) {
                     first = Some(f);
@@ -202,7 +300,7 @@ impl Detector {
                 let x = self.toolpath.state_at(time).position[0];
                 if (x - s.station).abs() < self.clearance {
                     if let Some(t) = self.spread.and_then(|limit| spreading.pass(time, limit)) {
-                        found(self.failure(t, s.station));
+                        found(self.failure(t, s.station, FailureRule::Spread, sway));
                         break;
                     }
                     (prev, start) = (None, None);
@@ -213,15 +311,20 @@ impl Detector {
                     continue;
                 }
                 spreading.away = Some(s.width);
+                sway = self.sway_of(s, time);
+                if sway.abs() >= self.sway {
+                    found(self.failure(time, s.station, FailureRule::Sway, sway));
+                    break;
+                }
                 if self.nominal_at(s.station, time) - s.height >= self.lost {
-                    found(self.failure(time, s.station));
+                    found(self.failure(time, s.station, FailureRule::Lost, sway));
                     break;
                 }
                 if let Some((t0, h0)) = prev {
                     if (h0 - s.height) > self.sink_rate * (time - t0) {
                         let t_start = *start.get_or_insert(t0);
                         if time - t_start >= self.window * (1.0 - 1e-9) {
-                            found(self.failure(t_start, s.station));
+                            found(self.failure(t_start, s.station, FailureRule::Sinking, sway));
                             break;
                         }
                     } else {
@@ -234,9 +337,14 @@ impl Detector {
         first
     }
 
-    fn failure(&self, time: f64, station: f64) -> Failure {
+    fn failure(&self, time: f64, station: f64, rule: FailureRule, sway: f64) -> Failure {
         let layer = self.layer_at(time);
-        Failure { layer, time, station, height: self.layers[layer - 1].0 - self.base, sink_rate: self.sink_rate }
+        let mode = if rule == FailureRule::Sway || sway.abs() >= 0.5 * self.sway {
+            FailureMode::Buckling
+        } else {
+            FailureMode::PlasticCollapse
+        };
+        Failure { layer, time, station, height: self.layers[layer - 1].0 - self.base, sink_rate: self.sink_rate, mode, rule, sway }
     }
 }
 
@@ -422,6 +530,72 @@ mod tests {
         // rule: the first layers spread under the squeeze of the next
         let always = |t: f64| if passed(t) < 1.0 { 0.0 } else { 0.02 + 3e-3 * passed(t) };
         assert_eq!(d.detect(&spreading_history(|t| 0.01 * passed(t), always), |o| (o.0, &o.1[..])), None);
+    }
+
+    /// A section 20 mm wide standing `height` tall, its top centred on `top_y` (a tilted
+    /// wall: the outline's top band over to one side).
+    fn leaning(time: f64, height: f64, top_y: f64) -> (f64, Vec<CrossSection>) {
+        let (t, mut sec) = obs(time, 0.05, height, 0.02);
+        let sec0 = &mut sec[0];
+        if height > 0.0 {
+            // a body 20 mm wide on y = 0, and its top layer shifted to top_y
+            sec0.profile = vec![[-0.01, 0.0], [-0.01, height - 0.012], [0.01, height - 0.012], [0.01, 0.0]];
+            sec0.profile.splice(2..2, [[top_y - 0.01, height], [top_y, height], [top_y + 0.01, height]]);
+            sec0.profile.sort_by(|a, b| a[0].total_cmp(&b[0]));
+        }
+        (t, sec)
+    }
+
+    #[test]
+    fn a_top_that_swings_sideways_has_failed_by_buckling() {
+        let d = Detector::new(&FailureConfig::default(), wall(6), 0.005).unwrap();
+        // the top rises a layer per layer, and from t = 7 s (layer 4) swings sideways at 4 mm/s:
+        // it passes the default 5 mm (half the 10 mm nozzle) 1.25 s later, long before the
+        // height it loses (second order in the tilt) counts
+        let history: Vec<_> = (0..=300)
+            .map(|i| 0.05 * i as f64)
+            .map(|t| leaning(t, 0.01 * passed(t), 0.004 * (t - 7.0).max(0.0)))
+            .collect();
+        let f = d.detect(&history, |o| (o.0, &o.1[..])).expect("fails");
+        assert_eq!((f.mode, f.rule, f.layer), (FailureMode::Buckling, FailureRule::Sway, 4), "{f:?}");
+        assert!((f.time - 8.25).abs() <= 0.05 + 1e-9 && f.sway >= 0.005, "{f:?}");
+        // a wider limit leaves it standing; a top that stays where it was laid does not fail
+        let wide = Detector::new(&FailureConfig { sway: Some(0.05), ..FailureConfig::default() }, wall(6), 0.005).unwrap();
+        assert_eq!(wide.detect(&history, |o| (o.0, &o.1[..])), None);
+        let upright: Vec<_> = (0..=300).map(|i| 0.05 * i as f64).map(|t| leaning(t, 0.01 * passed(t), 0.0)).collect();
+        assert_eq!(d.detect(&upright, |o| (o.0, &o.1[..])), None);
+    }
+
+    #[test]
+    fn a_top_laid_off_line_by_the_toolpath_is_not_a_sway() {
+        // the toolpath itself leans 2 mm a layer (an imperfection): the top follows it
+        let mut segs = Vec::new();
+        for k in 0..6 {
+            let x = if k % 2 == 0 { 0.1 } else { 0.0 };
+            let y = 0.002 * (k + 1) as f64;
+            segs.push(Segment::Print { to: [x, y, 0.01 * (k + 1) as f64], speed: 0.05, extrusion: 0.05 });
+            if k + 1 < 6 {
+                segs.push(Segment::Travel { to: [x, y + 0.002, 0.01 * (k + 2) as f64], speed: 0.05 });
+            }
+        }
+        let path = Arc::new(Toolpath::from_segments([0.0, 0.002, 0.01], &segs).unwrap());
+        let d = Detector::new(&FailureConfig::default(), path.clone(), 0.005).unwrap();
+        let layers = path.layers();
+        let laid = |t: f64| {
+            // each layer is laid at y = 2 mm per layer; the station x = 0.05 is crossed halfway
+            let k = layers.iter().filter(|l| l.1 + 0.5 * (l.2 - l.1) <= t).count();
+            (k as f64, 0.002 * k as f64)
+        };
+        let history: Vec<_> = (0..=300).map(|i| 0.05 * i as f64).map(|t| leaning(t, 0.01 * laid(t).0, laid(t).1)).collect();
+        assert_eq!(d.detect(&history, |o| (o.0, &o.1[..])), None, "{:?}", d.layers);
+    }
+
+    #[test]
+    fn a_collapse_is_named_so() {
+        let d = Detector::new(&FailureConfig::default(), wall(4), 0.005).unwrap();
+        let h = |t: f64| 0.01 * passed(t) - 0.01 * (t - 5.8).max(0.0);
+        let f = detect(&d, h).expect("fails");
+        assert_eq!((f.mode, f.rule), (FailureMode::PlasticCollapse, FailureRule::Sinking));
     }
 
     #[test]

@@ -324,13 +324,20 @@ impl<'a> Run<'a> {
         let wall = self.outputs.start.elapsed().as_secs_f64();
         let failure = self.outputs.reporter.as_ref().and_then(|r| r.failure);
         if let Some(f) = failure {
+            use crate::failure::FailureRule;
+            let how = match f.rule {
+                FailureRule::Sinking => format!("the top sinking faster than {:.2} mm/s", f.sink_rate * 1e3),
+                FailureRule::Lost => "the top a layer short of the nominal".to_string(),
+                FailureRule::Spread => "the section spreading".to_string(),
+                FailureRule::Sway => format!("the top {:.1} mm to the side of where it was laid", f.sway * 1e3),
+            };
             opts.say(format!(
-                "the print failed in layer {} at t = {:.3} s (nominal height {:.1} mm; top at x = {} m sinking faster than {:.2} mm/s)",
+                "the print failed by {} in layer {} at t = {:.3} s (nominal height {:.1} mm; at x = {} m, {how})",
+                f.mode.name(),
                 f.layer,
                 f.time,
                 f.height * 1e3,
                 f.station,
-                f.sink_rate * 1e3
             ));
         }
         opts.say(format!(
