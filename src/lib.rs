@@ -12,6 +12,7 @@ pub use strand_kernels as kernels;
 pub use strand_kernels::{Real, M3, V3};
 
 pub mod bench;
+pub mod buckling;
 pub mod checkpoint;
 pub mod config;
 pub mod disk;
