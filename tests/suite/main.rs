@@ -3,6 +3,7 @@
 //! global allocator.
 
 mod architecture;
+mod buckling;
 mod cli;
 mod common;
 mod diagnose;
