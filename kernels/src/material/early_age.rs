@@ -264,10 +264,10 @@ impl EarlyAgeSolid {
             return Err(MaterialError::out_of_range("material.cohesion (with its rates)", format!(">= 0 {span}"), c_min));
         }
         let (phi_min, phi_max) = (phi.min_over(a0, a1), phi.max_over(a0, a1));
-        if !(phi_min >= 0.0) {
+        if phi_min.is_nan() || phi_min < 0.0 {
             return Err(MaterialError::out_of_range("material.friction_angle_deg (with its rates)", format!(">= 0 {span}"), phi_min));
         }
-        if !(phi_max < 90.0) {
+        if phi_max.is_nan() || phi_max >= 90.0 {
             return Err(MaterialError::out_of_range("material.friction_angle_deg (with its rates)", format!("< 90 {span}"), phi_max));
         }
         let psi = self.dilatancy_angle_deg;
