@@ -425,6 +425,8 @@ impl Material for EarlyAgeSolid {
 }
 
 #[cfg(test)]
+// `as f64` / `as Real` are real conversions in the f32 build
+#[allow(clippy::unnecessary_cast)]
 mod tests {
     use super::*;
     use crate::material::drucker_prager::DruckerPrager;
