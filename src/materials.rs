@@ -2,7 +2,7 @@
 //! `kernels/src/material/` and one line here.
 
 use crate::kernels::material::{
-    bingham::Bingham, drucker_prager::DruckerPrager, evp_bingham::EvpBingham, newtonian::Newtonian,
+    bingham::Bingham, drucker_prager::DruckerPrager, early_age::EarlyAgeSolid, evp_bingham::EvpBingham, newtonian::Newtonian,
     papanastasiou_roussel::PapanastasiouRoussel, Material, MaterialError,
 };
 use serde::de::DeserializeOwned;
@@ -16,6 +16,7 @@ pub const REGISTRY: &[(&str, Builder)] = &[
     ("papanastasiou_roussel", |t| build::<PapanastasiouRoussel>(t, PapanastasiouRoussel::validate)),
     ("evp_bingham", |t| build::<EvpBingham>(t, EvpBingham::validate)),
     ("drucker_prager", |t| build::<DruckerPrager>(t, DruckerPrager::validate)),
+    ("early_age_solid", |t| build::<EarlyAgeSolid>(t, EarlyAgeSolid::validate)),
 ];
 
 fn build<M: Material + DeserializeOwned + 'static>(
@@ -59,6 +60,10 @@ mod tests {
             ),
             ("evp_bingham", "density = 2100.0\nbulk_modulus = 1e6\npoisson_ratio = 0.3\nviscosity = 7.5\nyield_stress = 630.0\na_thix = 0.5\nalpha = 0.01"),
             ("drucker_prager", "density = 2000.0\nbulk_modulus = 1e6\npoisson_ratio = 0.3\nfriction_angle_deg = 30.0\ncohesion = 100.0"),
+            (
+                "early_age_solid",
+                "density = 2070.0\npoisson_ratio = 0.3\nyoungs_modulus = 78e3\nyoungs_modulus_rate = 20.0\ncohesion = 100.0\ncohesion_rate = 0.5\ncohesion_late_rate = 2.0\ncohesion_transition_age = 0.02\nfriction_angle_deg = 20.0\nage_at_start = 600.0",
+            ),
         ];
         assert_eq!(all.len(), REGISTRY.len(), "every registered material needs an example here");
         all
@@ -90,7 +95,7 @@ mod tests {
             }
             let mut stress = vec![M3::ZERO; n];
             let dt = 1e-3 as Real;
-            let stress_is_state = matches!(kind, "evp_bingham" | "drucker_prager");
+            let stress_is_state = matches!(kind, "evp_bingham" | "drucker_prager" | "early_age_solid");
             for step in 0..40 {
                 // strong random flow (yielding, plastic branches), then every fourth step at rest
                 let rest = step % 4 == 3;

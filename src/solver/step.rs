@@ -153,7 +153,8 @@ impl Simulation {
         let (mut dt, mut limit) = match s.dt {
             Some(dt) => (dt, DtLimit::Fixed),
             None => {
-                let st = self.material.stability();
+                // the moduli at the oldest age any particle can have during this step
+                let st = self.material.stability_at(self.time);
                 let rho = st.density as f64;
                 let c = ((st.bulk_modulus as f64 + 4.0 / 3.0 * st.shear_modulus as f64) / rho).sqrt();
                 let dt_wave = s.cfl * s.dx / (c + self.vmax);

@@ -79,22 +79,118 @@ pub struct DruckerPrager {
     pub tension_cutoff: Option<f64>,
 }
 
-/// Constants of the return map, derived once per batch.
+/// Constants of the return map, derived once per batch (per particle for a material whose
+/// parameters change from particle to particle, `early_age.rs`).
 #[derive(Clone, Copy, Debug)]
-struct Consts {
-    k: Real,
-    g: Real,
-    q_phi: Real,
-    k_phi: Real,
-    q_psi: Real,
-    sigma_t: Real,
-    tau_p: Real,
-    alpha_p: Real,
+pub(crate) struct Consts {
+    pub(crate) k: Real,
+    pub(crate) g: Real,
+    pub(crate) q_phi: Real,
+    pub(crate) k_phi: Real,
+    pub(crate) q_psi: Real,
+    pub(crate) sigma_t: Real,
+    pub(crate) tau_p: Real,
+    pub(crate) alpha_p: Real,
 }
 
 fn cone_slope(angle_deg: f64) -> f64 {
     let s = angle_deg.to_radians().sin();
     6.0 * s / (3f64.sqrt() * (3.0 + s))
+}
+
+/// Mean stress of the cone apex, k_phi / q_phi = c cot(phi); infinite for phi = 0.
+pub(crate) fn apex(cohesion: f64, friction_angle_deg: f64) -> f64 {
+    let phi = friction_angle_deg.to_radians();
+    if phi > 0.0 {
+        cohesion * phi.cos() / phi.sin()
+    } else {
+        f64::INFINITY
+    }
+}
+
+/// What the return map's [`Consts`] are made of, in the scenario's f64: the elastic moduli, the
+/// Mohr-Coulomb angles and cohesion, and the tension cutoff (`None`: the apex c cot(phi)). The
+/// constants and their adjoint are built from it, so a material whose moduli or strength vary
+/// (with age, `early_age.rs`) reuses this return map on constants of its own.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Cone {
+    pub(crate) k: f64,
+    pub(crate) g: f64,
+    pub(crate) phi_deg: f64,
+    pub(crate) psi_deg: f64,
+    pub(crate) cohesion: f64,
+    pub(crate) cutoff: Option<f64>,
+}
+
+impl Cone {
+    pub(crate) fn consts(&self) -> Consts {
+        let s = self.phi_deg.to_radians().sin();
+        let q_phi = cone_slope(self.phi_deg);
+        let k_phi = 6.0 * self.cohesion * self.phi_deg.to_radians().cos()
+            / (3f64.sqrt() * (3.0 + s));
+        let sigma_t = self.cutoff.unwrap_or_else(|| apex(self.cohesion, self.phi_deg));
+        // q_phi = 0 has an infinite default cutoff; the corner shear stress is then just k_phi.
+        // The floor absorbs the slack validate() allows above the apex.
+        let tau_p = if q_phi > 0.0 {
+            (k_phi - q_phi * sigma_t).max(0.0)
+        } else {
+            k_phi
+        };
+        Consts {
+            k: r(self.k),
+            g: r(self.g),
+            q_phi: r(q_phi),
+            k_phi: r(k_phi),
+            q_psi: r(cone_slope(self.psi_deg)),
+            sigma_t: r(sigma_t),
+            tau_p: r(tau_p),
+            alpha_p: r((1.0 + q_phi * q_phi).sqrt() - q_phi),
+        }
+    }
+
+    /// Chain the adjoints of the constants `[K, G, q_phi, k_phi, q_psi, sigma_t, tau_P]` to the
+    /// inputs: returns the adjoints of `[k, g, phi_deg, psi_deg, cohesion, cutoff]` (that of
+    /// `cutoff` 0 when it is `None`, the apex's going to cohesion and phi).
+    pub(crate) fn adjoint(&self, bar: [Real; 7]) -> [f64; 6] {
+        // a real conversion in the f32 build
+        #[allow(clippy::unnecessary_cast)]
+        let [k_bar, g_bar, q_phi_bar, mut k_phi_bar, q_psi_bar, mut sigma_t_bar, tau_p_bar] = bar.map(|b| b as f64);
+        let mut q_phi_bar = q_phi_bar;
+        let to_rad = std::f64::consts::PI / 180.0;
+        let phi = self.phi_deg.to_radians();
+        let (sp, cp) = (phi.sin(), phi.cos());
+        let q_phi = cone_slope(self.phi_deg);
+        let k_phi = 6.0 * self.cohesion * cp / (3f64.sqrt() * (3.0 + sp));
+        let sigma_t = self.cutoff.unwrap_or_else(|| apex(self.cohesion, self.phi_deg));
+        // tau_P = max(k_phi - q_phi sigma_t, 0), or k_phi without friction
+        if q_phi > 0.0 {
+            if k_phi - q_phi * sigma_t > 0.0 {
+                k_phi_bar += tau_p_bar;
+                q_phi_bar -= tau_p_bar * sigma_t;
+                sigma_t_bar -= tau_p_bar * q_phi;
+            }
+        } else {
+            k_phi_bar += tau_p_bar;
+        }
+        // d cone_slope / d angle_deg, with s = sin(angle): 18 / (sqrt3 (3 + s)^2) cos(angle) pi/180
+        let slope_rate = |deg: f64| {
+            let a = deg.to_radians();
+            18.0 / (3f64.sqrt() * (3.0 + a.sin()).powi(2)) * a.cos() * to_rad
+        };
+        let mut phi_bar = q_phi_bar * slope_rate(self.phi_deg);
+        let mut c_bar = k_phi_bar * 6.0 * cp / (3f64.sqrt() * (3.0 + sp));
+        phi_bar += k_phi_bar * 6.0 * self.cohesion / 3f64.sqrt() * (-sp * (3.0 + sp) - cp * cp) / (3.0 + sp).powi(2) * to_rad;
+        let psi_bar = q_psi_bar * slope_rate(self.psi_deg);
+        let mut cut_bar = 0.0;
+        if self.cutoff.is_some() {
+            cut_bar = sigma_t_bar;
+        } else if sp > 0.0 {
+            // apex = c cot(phi)
+            c_bar += sigma_t_bar * cp / sp;
+            phi_bar -= sigma_t_bar * self.cohesion / (sp * sp) * to_rad;
+        }
+        [k_bar, g_bar, phi_bar, psi_bar, c_bar, cut_bar]
+    }
 }
 
 impl DruckerPrager {
@@ -145,79 +241,28 @@ impl DruckerPrager {
 
     /// Mean stress of the cone apex, k_phi / q_phi = c cot(phi); infinite for phi = 0.
     fn apex(&self) -> f64 {
-        let phi = self.friction_angle_deg.to_radians();
-        if phi > 0.0 {
-            self.cohesion * phi.cos() / phi.sin()
-        } else {
-            f64::INFINITY
+        apex(self.cohesion, self.friction_angle_deg)
+    }
+
+    fn cone(&self) -> Cone {
+        Cone {
+            k: self.bulk_modulus,
+            g: self.shear_modulus(),
+            phi_deg: self.friction_angle_deg,
+            psi_deg: self.dilatancy_angle_deg,
+            cohesion: self.cohesion,
+            cutoff: self.tension_cutoff,
         }
     }
 
     fn consts(&self) -> Consts {
-        let s = self.friction_angle_deg.to_radians().sin();
-        let q_phi = cone_slope(self.friction_angle_deg);
-        let k_phi = 6.0 * self.cohesion * self.friction_angle_deg.to_radians().cos()
-            / (3f64.sqrt() * (3.0 + s));
-        let sigma_t = self.tension_cutoff.unwrap_or_else(|| self.apex());
-        // q_phi = 0 has an infinite default cutoff; the corner shear stress is then just k_phi.
-        // The floor absorbs the slack validate() allows above the apex.
-        let tau_p = if q_phi > 0.0 {
-            (k_phi - q_phi * sigma_t).max(0.0)
-        } else {
-            k_phi
-        };
-        Consts {
-            k: r(self.bulk_modulus),
-            g: r(self.shear_modulus()),
-            q_phi: r(q_phi),
-            k_phi: r(k_phi),
-            q_psi: r(cone_slope(self.dilatancy_angle_deg)),
-            sigma_t: r(sigma_t),
-            tau_p: r(tau_p),
-            alpha_p: r((1.0 + q_phi * q_phi).sqrt() - q_phi),
-        }
+        self.cone().consts()
     }
 
     /// Chain the adjoints of the constants `[K, G, q_phi, k_phi, q_psi, sigma_t, tau_P]` to the
     /// parameters in `param_names` order.
     fn consts_adjoint(&self, bar: [Real; 7], params_bar: &mut [Real]) {
-        // a real conversion in the f32 build
-        #[allow(clippy::unnecessary_cast)]
-        let [k_bar, g_bar, q_phi_bar, mut k_phi_bar, q_psi_bar, mut sigma_t_bar, tau_p_bar] = bar.map(|b| b as f64);
-        let mut q_phi_bar = q_phi_bar;
-        let to_rad = std::f64::consts::PI / 180.0;
-        let phi = self.friction_angle_deg.to_radians();
-        let (sp, cp) = (phi.sin(), phi.cos());
-        let q_phi = cone_slope(self.friction_angle_deg);
-        let k_phi = 6.0 * self.cohesion * cp / (3f64.sqrt() * (3.0 + sp));
-        let sigma_t = self.tension_cutoff.unwrap_or_else(|| self.apex());
-        // tau_P = max(k_phi - q_phi sigma_t, 0), or k_phi without friction
-        if q_phi > 0.0 {
-            if k_phi - q_phi * sigma_t > 0.0 {
-                k_phi_bar += tau_p_bar;
-                q_phi_bar -= tau_p_bar * sigma_t;
-                sigma_t_bar -= tau_p_bar * q_phi;
-            }
-        } else {
-            k_phi_bar += tau_p_bar;
-        }
-        // d cone_slope / d angle_deg, with s = sin(angle): 18 / (sqrt3 (3 + s)^2) cos(angle) pi/180
-        let slope_rate = |deg: f64| {
-            let a = deg.to_radians();
-            18.0 / (3f64.sqrt() * (3.0 + a.sin()).powi(2)) * a.cos() * to_rad
-        };
-        let mut phi_bar = q_phi_bar * slope_rate(self.friction_angle_deg);
-        let mut c_bar = k_phi_bar * 6.0 * cp / (3f64.sqrt() * (3.0 + sp));
-        phi_bar += k_phi_bar * 6.0 * self.cohesion / 3f64.sqrt() * (-sp * (3.0 + sp) - cp * cp) / (3.0 + sp).powi(2) * to_rad;
-        let psi_bar = q_psi_bar * slope_rate(self.dilatancy_angle_deg);
-        let mut cut_bar = 0.0;
-        if self.tension_cutoff.is_some() {
-            cut_bar = sigma_t_bar;
-        } else if sp > 0.0 {
-            // apex = c cot(phi)
-            c_bar += sigma_t_bar * cp / sp;
-            phi_bar -= sigma_t_bar * self.cohesion / (sp * sp) * to_rad;
-        }
+        let [k_bar, g_bar, phi_bar, psi_bar, c_bar, cut_bar] = self.cone().adjoint(bar);
         let (k_total, second) = match (self.shear_modulus, self.poisson_ratio) {
             (None, Some(nu)) => {
                 let (dg_dk, dg_dnu) = shear_modulus_of_partials(self.bulk_modulus, nu);
@@ -229,68 +274,203 @@ impl DruckerPrager {
             params_bar[i] += v as Real;
         }
     }
+}
 
-    /// The hypoelastic trial stress of step 1, and the rotation it used.
-    #[inline]
-    fn trial(c: &Consts, grad_v: &M3, dt: Real, sigma_old: &M3) -> (M3, M3) {
-        let d = sym(grad_v);
-        let rot = jaumann_rotation(&skew(grad_v), dt);
-        // sym() keeps the round-off asymmetry of the product out of the returned stress.
-        let sigma_tr = sym(&(rot * *sigma_old * rot.transpose()))
-            + dev(&d) * (r(2.0) * c.g * dt)
-            + M3::from_diagonal(V3::splat(c.k * trace(&d) * dt));
-        (sigma_tr, rot)
-    }
+/// The hypoelastic trial stress of step 1, and the rotation it used.
+#[inline]
+pub(crate) fn trial(c: &Consts, grad_v: &M3, dt: Real, sigma_old: &M3) -> (M3, M3) {
+    let d = sym(grad_v);
+    let rot = jaumann_rotation(&skew(grad_v), dt);
+    // sym() keeps the round-off asymmetry of the product out of the returned stress.
+    let sigma_tr = sym(&(rot * *sigma_old * rot.transpose()))
+        + dev(&d) * (r(2.0) * c.g * dt)
+        + M3::from_diagonal(V3::splat(c.k * trace(&d) * dt));
+    (sigma_tr, rot)
+}
 
-    #[inline]
-    fn step(&self, c: &Consts, grad_v: &M3, dt: Real, state: &mut [Real]) -> M3 {
-        let (sigma_tr, _) = Self::trial(c, grad_v, dt, &sym_from_slice(&state[..6]));
+/// One step of the return map on a state whose first 7 reals are the stress (6) and eps_p,
+/// updated in place; returns the new stress.
+#[inline]
+pub(crate) fn return_map(c: &Consts, grad_v: &M3, dt: Real, state: &mut [Real]) -> M3 {
+    let (sigma_tr, _) = trial(c, grad_v, dt, &sym_from_slice(&state[..6]));
 
-        let sm_tr = trace(&sigma_tr) / r(3.0);
-        let s_tr = dev(&sigma_tr);
-        let tau_tr = (r(0.5) * ddot(&s_tr, &s_tr)).sqrt();
-        let f_s = tau_tr + c.q_phi * sm_tr - c.k_phi;
-        let f_t = sm_tr - c.sigma_t;
+    let sm_tr = trace(&sigma_tr) / r(3.0);
+    let s_tr = dev(&sigma_tr);
+    let tau_tr = (r(0.5) * ddot(&s_tr, &s_tr)).sqrt();
+    let f_s = tau_tr + c.q_phi * sm_tr - c.k_phi;
+    let f_t = sm_tr - c.sigma_t;
 
-        let shear_return = || {
-            let dl = f_s / (c.g + c.k * c.q_phi * c.q_psi);
-            let sm = sm_tr - c.k * c.q_psi * dl;
-            (sm, c.k_phi - c.q_phi * sm)
-        };
-        let (sm, tau) = if f_t < r(0.0) {
-            if f_s <= r(0.0) {
-                state[..6].copy_from_slice(&sym_to_array(&sigma_tr));
-                return sigma_tr;
-            }
-            shear_return()
-        } else if tau_tr - c.tau_p - c.alpha_p * f_t > r(0.0) {
-            let (sm, tau) = shear_return();
-            if sm > c.sigma_t {
-                (c.sigma_t, c.tau_p)
-            } else {
-                (sm, tau)
-            }
+    let shear_return = || {
+        let dl = f_s / (c.g + c.k * c.q_phi * c.q_psi);
+        let sm = sm_tr - c.k * c.q_psi * dl;
+        (sm, c.k_phi - c.q_phi * sm)
+    };
+    let (sm, tau) = if f_t < r(0.0) {
+        if f_s <= r(0.0) {
+            state[..6].copy_from_slice(&sym_to_array(&sigma_tr));
+            return sigma_tr;
+        }
+        shear_return()
+    } else if tau_tr - c.tau_p - c.alpha_p * f_t > r(0.0) {
+        let (sm, tau) = shear_return();
+        if sm > c.sigma_t {
+            (c.sigma_t, c.tau_p)
         } else {
-            (c.sigma_t, tau_tr.min(c.tau_p))
-        };
+            (sm, tau)
+        }
+    } else {
+        (c.sigma_t, tau_tr.min(c.tau_p))
+    };
 
-        // tau < tau_tr on every plastic branch, so tau_tr > 0 whenever the ratio is needed.
-        let s = if tau < tau_tr {
-            s_tr * (tau / tau_tr)
-        } else {
-            s_tr
-        };
-        let sigma = s + M3::from_diagonal(V3::splat(sm));
+    // tau < tau_tr on every plastic branch, so tau_tr > 0 whenever the ratio is needed.
+    let s = if tau < tau_tr {
+        s_tr * (tau / tau_tr)
+    } else {
+        s_tr
+    };
+    let sigma = s + M3::from_diagonal(V3::splat(sm));
 
-        let dtau = tau_tr - tau;
-        let dsm = sm_tr - sm;
-        let deps = (r(2.0 / 3.0)
-            * (dtau * dtau / (r(2.0) * c.g * c.g) + dsm * dsm / (r(3.0) * c.k * c.k)))
-            .sqrt();
-        state[..6].copy_from_slice(&sym_to_array(&sigma));
-        state[6] += deps;
-        sigma
+    let dtau = tau_tr - tau;
+    let dsm = sm_tr - sm;
+    let deps = (r(2.0 / 3.0)
+        * (dtau * dtau / (r(2.0) * c.g * c.g) + dsm * dsm / (r(3.0) * c.k * c.k)))
+        .sqrt();
+    state[..6].copy_from_slice(&sym_to_array(&sigma));
+    state[6] += deps;
+    sigma
+}
+
+/// Adjoint of [`return_map`] with the constants held: accumulates the adjoints of L and of the
+/// state before the step (its first 7 reals) into `out` and returns the adjoints of the constants
+/// `[K, G, q_phi, k_phi, q_psi, sigma_t, tau_P]` (for [`Cone::adjoint`]). The zone (elastic,
+/// shear, tension, corner) and the `min`/`max` of the return are the branch held fixed;
+/// `alpha_P` only selects the zone.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn return_map_adjoint(c: &Consts, grad_v: &M3, dt: Real, state_in: &[Real], stress_bar: &M3, state_out_bar: &[Real], out: &mut UpdateAdjoint) -> [Real; 7] {
+    // forward, as in `return_map`
+    let d = sym(grad_v);
+    let w = skew(grad_v);
+    let sigma_old = sym_from_slice(&state_in[..6]);
+    let (sigma_tr, rot) = trial(c, grad_v, dt, &sigma_old);
+    let sm_tr = trace(&sigma_tr) / r(3.0);
+    let s_tr = dev(&sigma_tr);
+    let tau_tr = (r(0.5) * ddot(&s_tr, &s_tr)).sqrt();
+    let f_s = tau_tr + c.q_phi * sm_tr - c.k_phi;
+    let f_t = sm_tr - c.sigma_t;
+    let den = c.g + c.k * c.q_phi * c.q_psi;
+    let dl = f_s / den;
+    let sm_shear = sm_tr - c.k * c.q_psi * dl;
+    #[derive(PartialEq)]
+    enum Zone {
+        Elastic,
+        Shear,
+        Corner,
+        Tension,
     }
+    let zone = if f_t < r(0.0) {
+        if f_s <= r(0.0) {
+            Zone::Elastic
+        } else {
+            Zone::Shear
+        }
+    } else if tau_tr - c.tau_p - c.alpha_p * f_t > r(0.0) {
+        if sm_shear > c.sigma_t {
+            Zone::Corner
+        } else {
+            Zone::Shear
+        }
+    } else {
+        Zone::Tension
+    };
+    let (sm, tau) = match zone {
+        Zone::Elastic => (sm_tr, tau_tr),
+        Zone::Shear => (sm_shear, c.k_phi - c.q_phi * sm_shear),
+        Zone::Corner => (c.sigma_t, c.tau_p),
+        Zone::Tension => (c.sigma_t, tau_tr.min(c.tau_p)),
+    };
+
+    // adjoints of the constants
+    let (mut k_bar, mut g_bar, mut q_phi_bar, mut k_phi_bar, mut q_psi_bar, mut sigma_t_bar, mut tau_p_bar) =
+        (r(0.0), r(0.0), r(0.0), r(0.0), r(0.0), r(0.0), r(0.0));
+    let sigma_bar = *stress_bar + sym_to_array_adjoint(&state_out_bar[..6]);
+    out.state_bar[6] += state_out_bar[6];
+    let mut sigma_tr_bar = sigma_bar;
+    if zone != Zone::Elastic {
+        let mut sm_bar = trace(&sigma_bar);
+        let mut tau_bar = r(0.0);
+        let mut tau_tr_bar = r(0.0);
+        let mut sm_tr_bar = r(0.0);
+        let mut s_tr_bar = sigma_bar;
+        if tau < tau_tr {
+            s_tr_bar = sigma_bar * (tau / tau_tr);
+            let ratio_bar = ddot(&sigma_bar, &s_tr);
+            tau_bar += ratio_bar / tau_tr;
+            tau_tr_bar -= ratio_bar * tau / (tau_tr * tau_tr);
+        }
+        // eps_p += sqrt(2/3 (dtau^2 / (2 G^2) + dsm^2 / (3 K^2)))
+        let (dtau, dsm) = (tau_tr - tau, sm_tr - sm);
+        let e = r(2.0 / 3.0) * (dtau * dtau / (r(2.0) * c.g * c.g) + dsm * dsm / (r(3.0) * c.k * c.k));
+        if e > r(0.0) {
+            let e_bar = state_out_bar[6] / (r(2.0) * e.sqrt());
+            let dtau_bar = e_bar * r(2.0 / 3.0) * dtau / (c.g * c.g);
+            let dsm_bar = e_bar * r(2.0 / 3.0) * r(2.0) * dsm / (r(3.0) * c.k * c.k);
+            g_bar -= e_bar * r(2.0 / 3.0) * dtau * dtau / (c.g * c.g * c.g);
+            k_bar -= e_bar * r(2.0 / 3.0) * r(2.0) * dsm * dsm / (r(3.0) * c.k * c.k * c.k);
+            tau_tr_bar += dtau_bar;
+            tau_bar -= dtau_bar;
+            sm_tr_bar += dsm_bar;
+            sm_bar -= dsm_bar;
+        }
+        match zone {
+            Zone::Shear => {
+                // tau = k_phi - q_phi sm; sm = sm_tr - K q_psi dl; dl = f_s / den
+                k_phi_bar += tau_bar;
+                q_phi_bar -= tau_bar * sm;
+                sm_bar -= tau_bar * c.q_phi;
+                sm_tr_bar += sm_bar;
+                k_bar -= sm_bar * c.q_psi * dl;
+                q_psi_bar -= sm_bar * c.k * dl;
+                let dl_bar = -sm_bar * c.k * c.q_psi;
+                let f_s_bar = dl_bar / den;
+                let den_bar = -dl_bar * dl / den;
+                g_bar += den_bar;
+                k_bar += den_bar * c.q_phi * c.q_psi;
+                q_phi_bar += den_bar * c.k * c.q_psi;
+                q_psi_bar += den_bar * c.k * c.q_phi;
+                tau_tr_bar += f_s_bar;
+                q_phi_bar += f_s_bar * sm_tr;
+                sm_tr_bar += f_s_bar * c.q_phi;
+                k_phi_bar -= f_s_bar;
+            }
+            Zone::Corner => {
+                sigma_t_bar += sm_bar;
+                tau_p_bar += tau_bar;
+            }
+            Zone::Tension => {
+                sigma_t_bar += sm_bar;
+                if tau_tr <= c.tau_p {
+                    tau_tr_bar += tau_bar;
+                } else {
+                    tau_p_bar += tau_bar;
+                }
+            }
+            Zone::Elastic => unreachable!(),
+        }
+        // tau_tr = sqrt(s_tr : s_tr / 2), s_tr = dev(sigma_tr), sm_tr = tr(sigma_tr) / 3
+        if tau_tr > r(0.0) {
+            s_tr_bar += s_tr * (r(0.5) * tau_tr_bar / tau_tr);
+        }
+        sigma_tr_bar = dev(&s_tr_bar) + M3::from_diagonal(V3::splat(sm_tr_bar / r(3.0)));
+    }
+    // sigma_tr = sym(R sigma R^T) + 2 G dt dev(d) + K dt tr(d) I
+    let a_bar = sym(&sigma_tr_bar);
+    let d_bar = dev(&sigma_tr_bar) * (r(2.0) * c.g * dt) + M3::from_diagonal(V3::splat(c.k * dt * trace(&sigma_tr_bar)));
+    g_bar += r(2.0) * dt * ddot(&sigma_tr_bar, &dev(&d));
+    k_bar += dt * trace(&d) * trace(&sigma_tr_bar);
+    let rot_bar = a_bar * rot * sigma_old * r(2.0);
+    *out.grad_v_bar += sym(&d_bar) + skew(&jaumann_rotation_adjoint(&w, dt, &rot_bar));
+    sym_from_slice_adjoint(&(rot.transpose() * a_bar * rot), &mut out.state_bar[..6]);
+    [k_bar, g_bar, q_phi_bar, k_phi_bar, q_psi_bar, sigma_t_bar, tau_p_bar]
 }
 
 impl Material for DruckerPrager {
@@ -310,7 +490,7 @@ impl Material for DruckerPrager {
 
     #[inline]
     fn update(&self, grad_v: &M3, _j: Real, dt: Real, state: &mut [Real]) -> M3 {
-        self.step(&self.consts(), grad_v, dt, state)
+        return_map(&self.consts(), grad_v, dt, state)
     }
 
     /// Same as the default, with the trigonometry of the constants done once per batch.
@@ -324,7 +504,7 @@ impl Material for DruckerPrager {
     ) {
         let c = self.consts();
         for (p, (l, out)) in grad_v.iter().zip(stress.iter_mut()).enumerate() {
-            *out = self.step(&c, l, dt, &mut state[p * 7..(p + 1) * 7]);
+            *out = return_map(&c, l, dt, &mut state[p * 7..(p + 1) * 7]);
         }
     }
 
@@ -339,135 +519,12 @@ impl Material for DruckerPrager {
         }
     }
 
-    /// The zone (elastic, shear, tension, corner) and the `min`/`max` of the return are the
-    /// branch held fixed; `alpha_P` only selects the zone.
+    /// [`return_map_adjoint`] on this material's constants, chained to its parameters.
     fn update_adjoint(&self, grad_v: &M3, _j: Real, dt: Real, state_in: &[Real], stress_bar: &M3, state_out_bar: &[Real], out: &mut UpdateAdjoint) {
-        let c = self.consts();
-        // forward, as in `step`
-        let d = sym(grad_v);
-        let w = skew(grad_v);
-        let sigma_old = sym_from_slice(&state_in[..6]);
-        let (sigma_tr, rot) = Self::trial(&c, grad_v, dt, &sigma_old);
-        let sm_tr = trace(&sigma_tr) / r(3.0);
-        let s_tr = dev(&sigma_tr);
-        let tau_tr = (r(0.5) * ddot(&s_tr, &s_tr)).sqrt();
-        let f_s = tau_tr + c.q_phi * sm_tr - c.k_phi;
-        let f_t = sm_tr - c.sigma_t;
-        let den = c.g + c.k * c.q_phi * c.q_psi;
-        let dl = f_s / den;
-        let sm_shear = sm_tr - c.k * c.q_psi * dl;
-        #[derive(PartialEq)]
-        enum Zone {
-            Elastic,
-            Shear,
-            Corner,
-            Tension,
-        }
-        let zone = if f_t < r(0.0) {
-            if f_s <= r(0.0) {
-                Zone::Elastic
-            } else {
-                Zone::Shear
-            }
-        } else if tau_tr - c.tau_p - c.alpha_p * f_t > r(0.0) {
-            if sm_shear > c.sigma_t {
-                Zone::Corner
-            } else {
-                Zone::Shear
-            }
-        } else {
-            Zone::Tension
-        };
-        let (sm, tau) = match zone {
-            Zone::Elastic => (sm_tr, tau_tr),
-            Zone::Shear => (sm_shear, c.k_phi - c.q_phi * sm_shear),
-            Zone::Corner => (c.sigma_t, c.tau_p),
-            Zone::Tension => (c.sigma_t, tau_tr.min(c.tau_p)),
-        };
-
-        // adjoints of the constants
-        let (mut k_bar, mut g_bar, mut q_phi_bar, mut k_phi_bar, mut q_psi_bar, mut sigma_t_bar, mut tau_p_bar) =
-            (r(0.0), r(0.0), r(0.0), r(0.0), r(0.0), r(0.0), r(0.0));
-        let sigma_bar = *stress_bar + sym_to_array_adjoint(&state_out_bar[..6]);
-        out.state_bar[6] += state_out_bar[6];
-        let mut sigma_tr_bar = sigma_bar;
-        if zone != Zone::Elastic {
-            let mut sm_bar = trace(&sigma_bar);
-            let mut tau_bar = r(0.0);
-            let mut tau_tr_bar = r(0.0);
-            let mut sm_tr_bar = r(0.0);
-            let mut s_tr_bar = sigma_bar;
-            if tau < tau_tr {
-                s_tr_bar = sigma_bar * (tau / tau_tr);
-                let ratio_bar = ddot(&sigma_bar, &s_tr);
-                tau_bar += ratio_bar / tau_tr;
-                tau_tr_bar -= ratio_bar * tau / (tau_tr * tau_tr);
-            }
-            // eps_p += sqrt(2/3 (dtau^2 / (2 G^2) + dsm^2 / (3 K^2)))
-            let (dtau, dsm) = (tau_tr - tau, sm_tr - sm);
-            let e = r(2.0 / 3.0) * (dtau * dtau / (r(2.0) * c.g * c.g) + dsm * dsm / (r(3.0) * c.k * c.k));
-            if e > r(0.0) {
-                let e_bar = state_out_bar[6] / (r(2.0) * e.sqrt());
-                let dtau_bar = e_bar * r(2.0 / 3.0) * dtau / (c.g * c.g);
-                let dsm_bar = e_bar * r(2.0 / 3.0) * r(2.0) * dsm / (r(3.0) * c.k * c.k);
-                g_bar -= e_bar * r(2.0 / 3.0) * dtau * dtau / (c.g * c.g * c.g);
-                k_bar -= e_bar * r(2.0 / 3.0) * r(2.0) * dsm * dsm / (r(3.0) * c.k * c.k * c.k);
-                tau_tr_bar += dtau_bar;
-                tau_bar -= dtau_bar;
-                sm_tr_bar += dsm_bar;
-                sm_bar -= dsm_bar;
-            }
-            match zone {
-                Zone::Shear => {
-                    // tau = k_phi - q_phi sm; sm = sm_tr - K q_psi dl; dl = f_s / den
-                    k_phi_bar += tau_bar;
-                    q_phi_bar -= tau_bar * sm;
-                    sm_bar -= tau_bar * c.q_phi;
-                    sm_tr_bar += sm_bar;
-                    k_bar -= sm_bar * c.q_psi * dl;
-                    q_psi_bar -= sm_bar * c.k * dl;
-                    let dl_bar = -sm_bar * c.k * c.q_psi;
-                    let f_s_bar = dl_bar / den;
-                    let den_bar = -dl_bar * dl / den;
-                    g_bar += den_bar;
-                    k_bar += den_bar * c.q_phi * c.q_psi;
-                    q_phi_bar += den_bar * c.k * c.q_psi;
-                    q_psi_bar += den_bar * c.k * c.q_phi;
-                    tau_tr_bar += f_s_bar;
-                    q_phi_bar += f_s_bar * sm_tr;
-                    sm_tr_bar += f_s_bar * c.q_phi;
-                    k_phi_bar -= f_s_bar;
-                }
-                Zone::Corner => {
-                    sigma_t_bar += sm_bar;
-                    tau_p_bar += tau_bar;
-                }
-                Zone::Tension => {
-                    sigma_t_bar += sm_bar;
-                    if tau_tr <= c.tau_p {
-                        tau_tr_bar += tau_bar;
-                    } else {
-                        tau_p_bar += tau_bar;
-                    }
-                }
-                Zone::Elastic => unreachable!(),
-            }
-            // tau_tr = sqrt(s_tr : s_tr / 2), s_tr = dev(sigma_tr), sm_tr = tr(sigma_tr) / 3
-            if tau_tr > r(0.0) {
-                s_tr_bar += s_tr * (r(0.5) * tau_tr_bar / tau_tr);
-            }
-            sigma_tr_bar = dev(&s_tr_bar) + M3::from_diagonal(V3::splat(sm_tr_bar / r(3.0)));
-        }
-        // sigma_tr = sym(R sigma R^T) + 2 G dt dev(d) + K dt tr(d) I
-        let a_bar = sym(&sigma_tr_bar);
-        let d_bar = dev(&sigma_tr_bar) * (r(2.0) * c.g * dt) + M3::from_diagonal(V3::splat(c.k * dt * trace(&sigma_tr_bar)));
-        g_bar += r(2.0) * dt * ddot(&sigma_tr_bar, &dev(&d));
-        k_bar += dt * trace(&d) * trace(&sigma_tr_bar);
-        let rot_bar = a_bar * rot * sigma_old * r(2.0);
-        *out.grad_v_bar += sym(&d_bar) + skew(&jaumann_rotation_adjoint(&w, dt, &rot_bar));
-        sym_from_slice_adjoint(&(rot.transpose() * a_bar * rot), &mut out.state_bar[..6]);
-        self.consts_adjoint([k_bar, g_bar, q_phi_bar, k_phi_bar, q_psi_bar, sigma_t_bar, tau_p_bar], out.params_bar);
+        let bar = return_map_adjoint(&self.consts(), grad_v, dt, state_in, stress_bar, state_out_bar, out);
+        self.consts_adjoint(bar, out.params_bar);
     }
+
 
     fn stress_at_rest(&self, state: &[Real], _j: Real) -> M3 {
         // the full Cauchy stress is the state (the pressure is not an EOS of J)

@@ -16,6 +16,8 @@ pub mod papanastasiou_roussel;
 pub mod evp_bingham;
 pub mod maxwell;
 pub mod drucker_prager;
+pub mod age_law;
+pub mod early_age;
 pub mod error;
 
 pub use eos::Eos;
@@ -194,6 +196,14 @@ pub trait Material: Send + Sync + std::fmt::Debug {
 
     /// Data for the automatic time step.
     fn stability(&self) -> StabilityInfo;
+
+    /// Data for the automatic time step of the step starting at simulation time `time` [s]: a
+    /// material whose stiffness changes with the particles' age (`early_age_solid`) bounds it
+    /// over every age a particle can have by then (at most the mix's age at the start plus
+    /// `time`). Materials whose moduli do not age keep the default, [`Material::stability`].
+    fn stability_at(&self, _time: f64) -> StabilityInfo {
+        self.stability()
+    }
 
     /// The parameters gradients are taken with respect to, named by their scenario key under
     /// `[material]` (e.g. `"yield_stress"`), in the order [`Material::update_adjoint`] fills
