@@ -340,8 +340,9 @@ impl<'a> Run<'a> {
         let inertia = self.outputs.inertia;
         if inertia.mass_scaling > 1.0 {
             opts.say(format!(
-                "mass scaling {}: kinetic energy at most {:.2} % of the external work (t = {:.4} s{}), Froude-like s v^2/(g h) at most {:.3}",
+                "mass scaling {}: kinetic energy at most {:.2} % of the external work from t = {:.3} s on (at t = {:.4} s{}), Froude-like s v^2/(g h) at most {:.3}",
                 inertia.mass_scaling,
+                inertia.from,
                 100.0 * inertia.peak_kinetic_to_external,
                 inertia.peak_time,
                 if failure.is_some() { ", before the failure" } else { "" },
