@@ -387,7 +387,7 @@ fn scaled_wall_failure(s: f64) -> (strand::failure::Failure, u64, f64) {
 /// layer 5 both, at 6.02 s against 6.96 s), in at least 4 times fewer steps (wave-limited steps
 /// sqrt(16) = 4 times longer; measured 9,817 against 43,648 steps to the end, 0.5 s after the
 /// failure). The test can fail: inertia does change the result at absurd factors (checked by
-/// hand with bench/mass_scaling.py at 5 mm: s = 25 and 100 fail in layer 4, s = ABSURD_NOTE).
+/// hand with bench/mass_scaling.py at 5 mm: s = 25 and 100 fail in layer 4, s = 10,000 fails in layer 3, two layers early).
 #[test]
 fn a_mass_scaled_wall_fails_at_the_same_layer_in_fewer_steps() {
     let real = std::thread::spawn(|| scaled_wall_failure(1.0));
