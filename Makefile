@@ -5,7 +5,7 @@ OUT ?= out
 TARGET_DIR := $(if $(CARGO_TARGET_DIR),$(CARGO_TARGET_DIR),target)
 STRAND := $(TARGET_DIR)/release/strand
 
-.PHONY: run test fuzz verify verify-quick bench bench-peer bench-restart bench-kernels bench-case1 bench-layers bench-layers-dwell bench-failure bench-convergence bench-nozzle-cells bench-nozzle-body bench-lbox bench-vfunnel bench-print-diagnose lbox build fmt clippy clean
+.PHONY: run test fuzz verify verify-quick bench bench-peer bench-restart bench-kernels bench-case1 bench-layers bench-layers-dwell bench-failure bench-mass-scaling bench-convergence bench-nozzle-cells bench-nozzle-body bench-lbox bench-vfunnel bench-print-diagnose lbox build fmt clippy clean
 
 build:
 	$(CARGO) build --release
@@ -77,6 +77,13 @@ bench-layers-dwell: build
 # add --side-by-side for the fastest rate with the speed rule, the old sleeping default, too).
 bench-failure: build
 	python3 bench/failure_heights.py --strand $(STRAND) --out $(OUT)/failure --layers 12
+
+# Mass scaling's speed-up on a wall printed to failure (docs/scenario.md "Mass scaling"): the
+# test suite's tiny wall at 2.5 mm cells, s = 1 and 16 run in turn on one thread; steps, awake
+# particle-steps, CPU s, failure layers and the peak kinetic-to-external ratio (the report of
+# the mass-scaling commit; a few CPU minutes).
+bench-mass-scaling: build
+	python3 bench/mass_scaling.py --strand $(STRAND) --out $(OUT)/mass_scaling --dx 0.0025 --scales 1,16
 
 # Case 1's section at five cell sizes (5 to 2 mm, 5 to 12.5 cells per nozzle diameter), its
 # observed order of convergence and Richardson extrapolation (BENCHMARKS.md "Discretisation

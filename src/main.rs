@@ -420,6 +420,8 @@ fn run(args: RunArgs) -> Result<bool, Failure> {
             "last_observation": r.observations.last(),
             "failure": r.failure,
             "awake_particle_steps": r.awake_particle_steps,
+            "external_work": r.external_work,
+            "inertia": r.inertia,
         });
         println!("{summary:#}");
     }

@@ -87,6 +87,12 @@ pub struct Simulation {
     /// visited through an index permutation).
     #[serde(default = "default_reorder")]
     pub reorder_interval: u64,
+    /// Mass (inertia) scaling s >= 1 for quasi-static prints (docs/scenario.md "Mass
+    /// scaling"): the grid update divides every force's impulse by s, as if the material's
+    /// inertia were s times its mass, while weights, stresses, time and every rate stay real.
+    /// The automatic step grows as sqrt(s) (wave) and s (viscous). 1 (the default) is off.
+    #[serde(default = "default_mass_scaling")]
+    pub mass_scaling: f64,
 }
 
 fn default_cfl() -> f64 {
@@ -100,6 +106,9 @@ fn default_flip() -> f64 {
 }
 fn default_reorder() -> u64 {
     16
+}
+fn default_mass_scaling() -> f64 {
+    1.0
 }
 
 #[derive(Clone, Debug, Deserialize)]
@@ -449,6 +458,13 @@ fn check_simulation(s: &Simulation) -> Result<(), Invalid> {
     }
     if s.reorder_interval == 0 {
         return Err(Invalid("simulation.reorder_interval must be >= 1".into()));
+    }
+    // s < 1 would make the material lighter than it is, which no quasi-static argument allows
+    if !(s.mass_scaling.is_finite() && s.mass_scaling >= 1.0) {
+        return Err(Invalid(format!(
+            "simulation.mass_scaling must be a finite factor >= 1 (1 = real inertia), got {}",
+            s.mass_scaling
+        )));
     }
     if s.gravity.iter().chain(s.body_force.iter()).any(|g| !g.is_finite()) {
         return Err(Invalid("simulation.gravity and simulation.body_force must be finite".into()));

@@ -257,6 +257,9 @@ pub struct Progress {
     pub pvd: Vec<(f64, String)>,
     /// Observables at each output so far.
     pub observations: Vec<crate::report::Observation>,
+    /// `Simulation::external_work` at the step's start (absent in older checkpoints: 0).
+    #[serde(default)]
+    pub external_work: f64,
 }
 
 /// The header of a checkpoint of `sim` in the middle of a step of length `dt` (bound by
@@ -287,7 +290,7 @@ pub fn header(sim: &Simulation, dt: f64, limit: DtLimit, outputs: u64, progress:
         mass_xxh3: checksum(bytes(&p.mass.as_slice()[..n])),
         vol0_xxh3: checksum(bytes(&p.vol0.as_slice()[..n])),
         outputs,
-        progress_json: serde_json::to_string(progress).unwrap_or_default(),
+        progress_json: serde_json::to_string(&Progress { external_work: sim.external_work, ..progress.clone() }).unwrap_or_default(),
         state_hash: state_hash(sim.step, sim.time, &sections),
         written_unix: std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs()),
         sections,
@@ -388,6 +391,8 @@ pub fn restore(sim: &mut Simulation, ck: &Checkpoint) -> Result<(f64, DtLimit), 
     restore_particles(sim, ck, &at, asleep, &masses)?;
     sim.step = h.step;
     sim.time = h.time;
+    // the external work done so far, which no section holds (the run's progress carries it)
+    sim.external_work = serde_json::from_str::<Progress>(&h.progress_json).map_or(0.0, |p| p.external_work);
     restart_printer(sim, h);
     // every particle: the rebuilt masses of a sleeping slab's particles are full ones
     sim.newest_masses(0);

@@ -66,6 +66,10 @@ pub struct RunSummary {
     pub last_checkpoint: Option<PathBuf>,
     /// The print's failure (`failure.rs`), when it failed.
     pub failure: Option<crate::failure::Failure>,
+    /// The inertia mass scaling adds (`outputs.rs`): peaks over this run's outputs.
+    pub inertia: outputs::Inertia,
+    /// Work of gravity and the body force on the material since t = 0 [J].
+    pub external_work: f64,
 }
 
 impl RunOptions {
@@ -340,6 +344,18 @@ impl<'a> Run<'a> {
                 f.station,
             ));
         }
+        let inertia = self.outputs.inertia;
+        if inertia.mass_scaling > 1.0 {
+            opts.say(format!(
+                "mass scaling {}: kinetic energy at most {:.2} % of the external work from t = {:.3} s on (at t = {:.4} s{}), Froude-like s v^2/(g h) at most {:.3}",
+                inertia.mass_scaling,
+                inertia.from,
+                100.0 * inertia.peak_kinetic_to_external,
+                inertia.peak_time,
+                if failure.is_some() { ", before the failure" } else { "" },
+                inertia.peak_froude
+            ));
+        }
         opts.say(format!(
             "done: {} steps to t = {:.4} s in {:.1} s ({:.0} steps/s), {} particles{}, peak memory {}; output in {}",
             sim.step,
@@ -363,6 +379,8 @@ impl<'a> Run<'a> {
             resumed_from: self.resumed_from.take(),
             last_checkpoint: self.ckpts.take().and_then(|c| c.last_good.map(|g| g.0)),
             failure,
+            inertia,
+            external_work: sim.external_work,
         })
     }
 

@@ -128,5 +128,7 @@ fn finished_run(sim: &mut Simulation, ck: &Checkpoint, dt: f64, csv: &Path, end:
         resumed_from: Some(ck.path.clone()),
         last_checkpoint: Some(ck.path.clone()),
         failure: None,
+        inertia: super::outputs::Inertia { mass_scaling: sim.scenario.simulation.mass_scaling, ..Default::default() },
+        external_work: sim.external_work,
     }))
 }

@@ -156,6 +156,10 @@ pub struct Simulation {
     /// Awake particles summed over the steps taken: the work the step loops did, a cost
     /// measure no other job on the machine can distort.
     pub awake_particle_steps: u64,
+    /// Work done on the material by gravity and the body force since t = 0 [J], on the true
+    /// masses (mass scaling leaves the weight real): the external work the kinetic energy of
+    /// the scaled inertia is judged against (`run/outputs.rs`). Carried by restart checkpoints.
+    pub external_work: f64,
     /// Keep the pool order fixed (no reordering by block): the gradient driver indexes its
     /// adjoint arrays by pool position, which must then mean the same particle in every step.
     pub frozen_order: bool,

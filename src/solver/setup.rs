@@ -113,6 +113,7 @@ impl Simulation {
             printer,
             sleep,
             awake_particle_steps: 0,
+            external_work: 0.0,
             frozen_order: false,
             solids,
         };

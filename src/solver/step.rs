@@ -155,7 +155,10 @@ impl Simulation {
             None => {
                 // the moduli at the oldest age any particle can have during this step
                 let st = self.material.stability_at(self.time);
-                let rho = st.density as f64;
+                // mass scaling: the inertia is that of a density s rho (the stresses and
+                // viscosity stay real), so the wave speed falls as 1 / sqrt(s) and the viscous
+                // bound rho dx^2 / 2 mu grows as s; a fixed `dt` stays the user's
+                let rho = st.density as f64 * s.mass_scaling;
                 let c = ((st.bulk_modulus as f64 + 4.0 / 3.0 * st.shear_modulus as f64) / rho).sqrt();
                 let dt_wave = s.cfl * s.dx / (c + self.vmax);
                 // a shear-thickening material's viscosity grows with the rate: bound the rate
@@ -183,6 +186,18 @@ impl Simulation {
         (dt, limit)
     }
 
+    /// The impulse step of a step of length `dt`: dt / s with s = `simulation.mass_scaling`.
+    /// Mass scaling gives every node an inertia s m while its weight and the stresses on it
+    /// stay real, so v_new = v_old + (f_internal / m + g) dt / s: P2G's stress impulse and the
+    /// grid update's gravity impulse are taken over dt / s (with APIC P2G folds the stress
+    /// impulse into the node momentum, so the factor has to enter there, not after). A held
+    /// node's or a solid's reaction, the momentum removed over dt / s, is then s m dv / dt, the
+    /// true force. Everything else (G2P's advection, the material update, the age clock, the
+    /// nozzle) takes the real dt. With s = 1, dt / 1 is dt exactly: runs are bit-identical.
+    pub fn impulse_dt(&self, dt: f64) -> Real {
+        (dt / self.scenario.simulation.mass_scaling) as Real
+    }
+
     /// Advance by one step, not going past time `until`.
     pub fn step_until(&mut self, until: f64) -> Result<(), SimError> {
         let (dt, limit) = self.choose_dt(until);
@@ -208,6 +223,7 @@ impl Simulation {
     /// back by a checkpoint restore): G2P and what follows it; then the clock moves on.
     pub fn finish_step(&mut self, dt: f64) -> Result<(), SimError> {
         self.run_timed(&PHASES[SECOND_HALF..], &mut Step::new(self, dt))?;
+        self.accumulate_external_work(dt);
         self.step += 1;
         self.time += dt;
         Ok(())
@@ -226,6 +242,7 @@ impl Simulation {
     /// Run one phase of `step`.
     pub fn run_phase(&mut self, phase: Phase, step: &mut Step) -> Result<(), SimError> {
         let dt = step.dt as Real;
+        let di = self.impulse_dt(step.dt);
         match phase {
             Phase::Emit => {
                 (step.n_before, step.first_slab) = (self.particles.n, self.printer.as_ref().map_or(0, |p| p.emitted()));
@@ -240,8 +257,8 @@ impl Simulation {
             }
             Phase::NewestMasses => self.newest_masses(self.particles.n_sleep),
             Phase::ClearGrid => self.clear_grid(),
-            Phase::P2g => self.p2g(dt),
-            Phase::GridUpdate => self.grid_update(dt, step.drive.as_ref()),
+            Phase::P2g => self.p2g(di),
+            Phase::GridUpdate => self.grid_update(di, step.drive.as_ref()),
             Phase::Loads => {
                 if let Some(sl) = &mut self.sleep {
                     sl.take_loads(&self.grid, step.dt, self.step, self.time + step.dt, &*self.material);
@@ -259,17 +276,36 @@ impl Simulation {
     /// toolpath's closed forms. Gradient runs keep every particle awake, with the order frozen.
     pub fn phase_adjoint(&mut self, phase: Phase, step: &Step, tape: &mut Tape, a: &mut Adjoint, toolpath: Option<&mut dyn ToolpathBar>) -> Result<(), AdjointError> {
         let dt = step.dt as Real;
+        // the forward's impulse step: the adjoints carry the same mass scaling
+        let di = self.impulse_dt(step.dt);
         match phase {
             Phase::Emit => self.emission_adjoint(step, a, toolpath)?,
             Phase::NewestMasses => self.newest_masses_adjoint(a, toolpath),
-            Phase::P2g => self.p2g_adjoint(tape, a, dt),
-            Phase::GridUpdate => self.grid_update_adjoint(step.drive.as_ref(), tape, a, dt, toolpath),
+            Phase::P2g => self.p2g_adjoint(tape, a, di),
+            Phase::GridUpdate => self.grid_update_adjoint(step.drive.as_ref(), tape, a, di, toolpath),
             Phase::G2p => self.g2p_adjoint(tape, a, dt),
             Phase::FollowFeed => self.follow_feed_adjoint(a, dt),
             Phase::Materials => self.materials_adjoint(tape, a, dt),
             Phase::Sleep | Phase::Bin | Phase::Reorder | Phase::ClearGrid | Phase::Loads => {}
         }
         Ok(())
+    }
+
+    /// Add the step's work of gravity and the body force on the true masses to
+    /// `external_work`: dt sum_p m_p a . v_p over the awake particles with the velocities G2P
+    /// just gave them (the ones the positions moved with; sleeping particles are at rest). A
+    /// serial sum in pool order: the same for any thread count, no allocation, a few flops per
+    /// awake particle against the hundreds of the transfers. It reads the state and never
+    /// writes it, so the state (and its hash) is unchanged.
+    fn accumulate_external_work(&mut self, dt: f64) {
+        let p = &self.particles;
+        let a = [self.accel.x as f64, self.accel.y as f64, self.accel.z as f64];
+        let (v, m) = (&p.v.as_slice()[p.n_sleep..p.n], &p.mass.as_slice()[p.n_sleep..p.n]);
+        let mut power = 0.0;
+        for (v, &m) in v.iter().zip(m) {
+            power += m as f64 * (a[0] * v.x as f64 + a[1] * v.y as f64 + a[2] * v.z as f64);
+        }
+        self.external_work += dt * power;
     }
 
     /// Sleeping units fall asleep and wake; returns whether particles moved between the awake

@@ -115,6 +115,24 @@ fn whole_run_gradient_matches_central_differences_and_the_taylor_test() {
     }
 }
 
+/// With mass scaling the adjoint carries the forward's factor (P2G's stress impulse and the grid
+/// update's gravity and body-force impulses over dt / s): the block's gradients still agree
+/// with central differences to 1e-6 at s = 4.
+#[test]
+fn a_mass_scaled_gradient_matches_central_differences() {
+    let sc = Scenario::parse(&block("j_bar = false\nmass_scaling = 4.0", "{ friction = { mu = 0.3 } }")).unwrap();
+    let wrt = keys(&["material.viscosity", "material.bulk_modulus", "simulation.body_force.x", "simulation.gravity.z", "body.0.velocity.x"]);
+    let dir = tempfile::tempdir().unwrap();
+    let obj: Objective = "mean_z".parse().unwrap();
+    let r = gradient(&sc, &obj, &wrt, &opts(None, dir.path())).unwrap();
+    let c = check(&sc, &obj, &r, None, &REL_STEPS).unwrap();
+    for p in &c.params {
+        let best = best_agreement(p);
+        println!("s = 4: d mean_z / d {} = {:.6e}, central differences {:?}", p.param, p.adjoint, p.central);
+        assert!(best <= 1e-6, "s = 4: d/d {}: adjoint {:.9e}, central differences {:?}", p.param, p.adjoint, p.central);
+    }
+}
+
 #[test]
 fn poiseuille_centre_speed_derivative_matches_the_closed_form() {
     // Steady plane Poiseuille flow: v_max = F H^2 / (8 eta), so dv_max/dF = H^2 / (8 eta)

@@ -216,6 +216,12 @@ fn check_says_what_a_scenario_does_and_refuses_runaways() {
     assert!(err.contains("domain.min[0] and domain.max[0] must be finite"), "{err}");
     let (_, err, _) = check("inf_end.toml", replace("end_time = 0.05", "end_time = inf"));
     assert!(err.contains("simulation.end_time must be a finite time, got inf"), "{err}");
+    // mass scaling: a factor >= 1, finite
+    for bad in ["0.5", "nan", "inf"] {
+        let (code, err, _) = check("mass_scaling.toml", replace("threads = 1", &format!("threads = 1\nmass_scaling = {bad}")));
+        assert_eq!(code, Some(2), "{bad}: {err}");
+        assert!(err.contains("simulation.mass_scaling must be a finite factor >= 1"), "{bad}: {err}");
+    }
 }
 
 /// Finding 10: nonsense grad options are refused before anything runs.
