@@ -38,6 +38,9 @@ pub const CENTER_ABS_TOL: f64 = 5e-5;
 /// ... or by this fraction of the radius: the larger of the two is accepted (as LinuxCNC does,
 /// so that I/J rounded to a few decimals by a slicer are accepted, a wrong centre is not).
 pub const CENTER_REL_TOL: f64 = 1e-3;
+/// Most chords one arc may become: a bound on memory against a mistyped radius or turn count
+/// (a full circle of 100 km radius is about 3e6 chords).
+pub const MAX_CHORDS: usize = 1_000_000;
 
 /// Which way the nozzle turns, seen from above (+z).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Deserialize)]
@@ -127,7 +130,13 @@ impl Arc {
             Sense::Ccw => sweep,
             Sense::Cw => -sweep,
         };
-        Ok(Arc { center, r0, r1, theta0, sweep, start, end })
+        let arc = Arc { center, r0, r1, theta0, sweep, start, end };
+        let n = arc.chord_count();
+        if n > MAX_CHORDS {
+            let input = if turns > 0 { ArcInput::Turns } else { ArcInput::Center };
+            return err(input, format!("a radius of {r0} m turning {} rad needs {n} chords, more than {MAX_CHORDS}", sweep.abs()));
+        }
+        Ok(arc)
     }
 
     /// The arc of signed radius `radius` from `start` to `end` turning `sense`, as G-code's R:
@@ -316,6 +325,9 @@ mod tests {
         assert_eq!(e(Arc::with_center(o, o, [f64::INFINITY, 0.0], Sense::Cw, 1)).input, ArcInput::Center);
         assert_eq!(e(Arc::with_center([1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0], Sense::Cw, 0)).input, ArcInput::Turns);
         assert_eq!(e(Arc::with_center([1.0, 0.0, 0.0], [f64::NAN, 0.0, 0.0], [0.0, 0.0], Sense::Cw, 0)).input, ArcInput::To);
+        let many = e(Arc::with_center([1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0], Sense::Cw, 100_000));
+        assert!(many.input == ArcInput::Turns && many.message.contains("chords"), "{many:?}");
+        assert_eq!(e(Arc::with_radius(o, [1.0, 0.0, 0.0], -1e9, Sense::Cw)).input, ArcInput::Center);
         // within the tolerance the radius varies from start to end, and the chain ends exactly
         let arc = Arc::with_center([1.0, 0.0, 0.0], [-1.0004, 0.0, 0.0], [0.0, 0.0], Sense::Ccw, 0).unwrap();
         assert_eq!(*arc.points().last().unwrap(), [-1.0004, 0.0, 0.0]);
