@@ -64,7 +64,10 @@ pub fn known(sim: &Simulation) -> Vec<String> {
         for (i, seg) in p.path.iter().enumerate() {
             use crate::print::toolpath::Segment;
             let fields: &[&str] = match seg {
+                // an arc of travel (extrusion 0) has no extrusion to vary: it would turn into a print
                 Segment::Print { .. } => &["speed", "extrusion"],
+                Segment::Arc { extrusion, .. } if *extrusion > 0.0 => &["speed", "extrusion"],
+                Segment::Arc { .. } => &["speed"],
                 Segment::Travel { .. } | Segment::Layer { .. } => &["speed"],
                 Segment::Pause { .. } => &["duration"],
             };

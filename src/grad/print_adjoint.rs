@@ -55,9 +55,9 @@ fn set(cfg: &PrintConfig, key: &str, v: f64) -> Result<PrintConfig, GradError> {
             }
             let seg = cfg.path.get_mut(index).ok_or_else(|| GradError::Param(format!("print.path has no segment {index}")))?;
             match (seg, field) {
-                (Segment::Print { speed, .. } | Segment::Travel { speed, .. }, "speed") => *speed = v,
+                (Segment::Print { speed, .. } | Segment::Travel { speed, .. } | Segment::Arc { speed, .. }, "speed") => *speed = v,
                 (Segment::Layer { speed, .. }, "speed") => *speed = Some(v),
-                (Segment::Print { extrusion, .. }, "extrusion") => *extrusion = v,
+                (Segment::Print { extrusion, .. } | Segment::Arc { extrusion, .. }, "extrusion") => *extrusion = v,
                 (Segment::Pause { duration }, "duration") => *duration = v,
                 (seg, _) => return Err(GradError::Param(format!("print.path.{index} is a {} segment without a differentiable '{field}'", seg.kind_name()))),
             }

@@ -1,6 +1,8 @@
 //! G-code import into a toolpath.
 //!
-//! Accepts the subset a printer needs for straight moves: G0/G1 (X Y Z E F), G4 dwell, G90/G91,
+//! Accepts the subset a printer needs: straight moves G0/G1 (X Y Z E F), arcs G2 (clockwise) and
+//! G3 (counter-clockwise) in the XY plane (G17) with I/J (the centre's offset from the start) or
+//! R (the radius; R < 0: the arc over half a turn) and an optional helical Z, G4 dwell, G90/G91,
 //! M82/M83, G92, G21, and the flow and feed overrides M221/M220. Slicers also write commands
 //! that set the machine's state without moving the nozzle or changing the material laid down:
 //! temperatures, fans, messages, steppers, motion limits, firmware macros (`PRINT_START`) and
@@ -18,6 +20,7 @@
 //! One command per line; a word is a letter followed directly by a number without exponent
 //! (`G1X10E.5` is fine, `X 10` is not).
 
+use super::arc::{Arc, ArcInput, Sense};
 use super::toolpath::{Move, MoveKind, Toolpath, ToolpathError};
 
 /// How G-code numbers map to the world. In scenario TOML this is `[print.gcode_options]`.
@@ -201,7 +204,7 @@ struct Word {
 }
 
 /// Letters of the supported commands and their parameters; others are "unknown words".
-const KNOWN_LETTERS: &str = "GMTNXYZEFPS";
+const KNOWN_LETTERS: &str = "GMTNXYZEFPSIJKR";
 
 /// Split a line into words, dropping `;` and `( )` comments and a `*` checksum.
 fn tokenize(raw: &str) -> Result<Vec<Word>, LineError> {
@@ -346,6 +349,12 @@ impl<'a> Machine<'a> {
                 check_params(&cmd.text, &params, "XYZEF")?;
                 self.linear_move(&cmd.text, code == 0, &params)
             }
+            ('G', 2 | 3) => {
+                check_params(&cmd.text, &params, "XYZEFIJR")?;
+                self.arc_move(if code == 2 { Sense::Cw } else { Sense::Ccw }, &params)
+            }
+            ('G', 17) => check_params(&cmd.text, &params, ""),
+            ('G', 18 | 19) => unsupported("arcs only in the XY plane (G17)"),
             ('G', 4) => {
                 check_params(&cmd.text, &params, "PS")?;
                 self.dwell(&params)
@@ -403,29 +412,15 @@ impl<'a> Machine<'a> {
 
     /// G0/G1. `rapid` (G0) never extrudes.
     fn linear_move(&mut self, cmd: &str, rapid: bool, params: &[&Word]) -> Result<(), LineError> {
-        if let Some(f) = value_of(params, 'F') {
-            if !(f > 0.0) {
-                return Err(LineError::Malformed(format!("feed rate F{f} must be > 0")));
-            }
-            self.feed = f;
+        self.set_feed(params)?;
+        let target = self.target(params);
+        if rapid && value_of(params, 'E').is_some() {
+            return Err(LineError::Unsupported {
+                word: format!("{cmd} E"),
+                reason: "a rapid move cannot extrude; use G1".to_string(),
+            });
         }
-        let mut target = self.machine;
-        for (axis, letter) in ['X', 'Y', 'Z'].into_iter().enumerate() {
-            if let Some(v) = value_of(params, letter) {
-                target[axis] = if self.absolute_xyz { v + self.offset[axis] } else { self.machine[axis] + v };
-            }
-        }
-        let mut de = 0.0;
-        if let Some(e) = value_of(params, 'E') {
-            if rapid {
-                return Err(LineError::Unsupported {
-                    word: format!("{cmd} E"),
-                    reason: "a rapid move cannot extrude; use G1".to_string(),
-                });
-            }
-            de = if self.absolute_e { e - self.e } else { e };
-            self.e = if self.absolute_e { e } else { self.e + e };
-        }
+        let de = self.advance_e(params);
         let dist = (0..3).map(|i| (target[i] - self.machine[i]).powi(2)).sum::<f64>().sqrt();
         if dist == 0.0 {
             if de != 0.0 {
@@ -442,7 +437,94 @@ impl<'a> Machine<'a> {
             }
             return Ok(()); // a move to where the nozzle is: nothing moves
         }
-        let duration = dist / (self.feed * self.feed_factor / 60.0);
+        let duration = self.duration_of(dist);
+        let (u, kind) = self.extrusion_over(de, duration);
+        let to = self.world_of(target);
+        self.push(duration, to, u, kind)?;
+        self.machine = target;
+        Ok(())
+    }
+
+    /// G2 (clockwise) / G3 (counter-clockwise) in the XY plane: to X Y (Z: a helix) round the
+    /// centre at the start plus I, J, or of radius R (R < 0: the arc over half a turn). With I/J
+    /// an end equal to the start in X, Y is a full circle. As G1: F sets the feed, which the
+    /// nozzle keeps along the arc, and a net advance of E is extruded evenly over the arc's length.
+    /// The arc becomes chords as a scenario `arc` does ([`Arc`]).
+    fn arc_move(&mut self, sense: Sense, params: &[&Word]) -> Result<(), LineError> {
+        self.set_feed(params)?;
+        let target = self.target(params);
+        let (from, to) = (self.world, self.world_of(target));
+        let arc = match (value_of(params, 'I'), value_of(params, 'J'), value_of(params, 'R')) {
+            (None, None, None) => return Err(LineError::Malformed("an arc needs I/J (the centre's offset from the start) or R (the radius)".into())),
+            (Some(_), _, Some(_)) | (_, Some(_), Some(_)) => return Err(LineError::Malformed("an arc takes I/J or R, not both".into())),
+            (None, None, Some(r)) => Arc::with_radius(from, to, self.opts.unit * r, sense),
+            (i, j, None) => {
+                // I/J are offsets from the start whatever G90/G91 (the standard, G91.1); a missing one is 0
+                let center = [from[0] + self.opts.unit * i.unwrap_or(0.0), from[1] + self.opts.unit * j.unwrap_or(0.0)];
+                let turns = u32::from(target[0] == self.machine[0] && target[1] == self.machine[1]);
+                Arc::with_center(from, to, center, sense, turns)
+            }
+        }
+        .map_err(|e| {
+            let word = match e.input {
+                ArcInput::Center | ArcInput::Turns => "I/J",
+                ArcInput::Radius => "R",
+                ArcInput::To => "X/Y",
+            };
+            LineError::Malformed(format!("arc {word}: {} (world metres)", e.message))
+        })?;
+        let de = self.advance_e(params);
+        let duration = self.duration_of(arc.length() / self.opts.unit);
+        let (u, kind) = self.extrusion_over(de, duration);
+        let chords = arc.timed_points(self.t, duration).map_err(LineError::Malformed)?;
+        for (t1, p) in chords {
+            self.moves.push(Move { t0: self.t, t1, from: self.world, to: p, extrusion_speed: u, kind });
+            (self.t, self.world) = (t1, p);
+        }
+        self.machine = target;
+        Ok(())
+    }
+
+    /// F: the feed rate from this move on.
+    fn set_feed(&mut self, params: &[&Word]) -> Result<(), LineError> {
+        if let Some(f) = value_of(params, 'F') {
+            if !(f > 0.0) {
+                return Err(LineError::Malformed(format!("feed rate F{f} must be > 0")));
+            }
+            self.feed = f;
+        }
+        Ok(())
+    }
+
+    /// The machine position X Y Z name, in the file's absolute or relative mode.
+    fn target(&self, params: &[&Word]) -> [f64; 3] {
+        let mut target = self.machine;
+        for (axis, letter) in ['X', 'Y', 'Z'].into_iter().enumerate() {
+            if let Some(v) = value_of(params, letter) {
+                target[axis] = if self.absolute_xyz { v + self.offset[axis] } else { self.machine[axis] + v };
+            }
+        }
+        target
+    }
+
+    /// Advance E by the move's E word, in the file's E mode; the advance (0 without E).
+    fn advance_e(&mut self, params: &[&Word]) -> f64 {
+        let Some(e) = value_of(params, 'E') else {
+            return 0.0;
+        };
+        let de = if self.absolute_e { e - self.e } else { e };
+        self.e = if self.absolute_e { e } else { self.e + e };
+        de
+    }
+
+    /// Duration of a move of `dist` G-code units at the current feed [s].
+    fn duration_of(&self, dist: f64) -> f64 {
+        dist / (self.feed * self.feed_factor / 60.0)
+    }
+
+    /// Extrusion speed and kind of a moving move advancing E by `de` over `duration`; keeps
+    /// track of what was retracted.
+    fn extrusion_over(&mut self, de: f64, duration: f64) -> (f64, MoveKind) {
         // Only a net advance of E deposits material; a retraction while moving is a travel.
         let u = if de > 0.0 { de * self.flow * self.opts.e_unit / duration } else { 0.0 };
         if de > 0.0 {
@@ -450,11 +532,12 @@ impl<'a> Machine<'a> {
         } else {
             self.retracted -= de; // retracted while moving (a wipe), restored in place later
         }
-        let kind = if u > 0.0 { MoveKind::Print } else { MoveKind::Travel };
-        let to = std::array::from_fn(|i| self.opts.origin[i] + self.opts.unit * target[i]);
-        self.push(duration, to, u, kind)?;
-        self.machine = target;
-        Ok(())
+        (u, if u > 0.0 { MoveKind::Print } else { MoveKind::Travel })
+    }
+
+    /// World position [m] of machine coordinates.
+    fn world_of(&self, target: [f64; 3]) -> [f64; 3] {
+        std::array::from_fn(|i| self.opts.origin[i] + self.opts.unit * target[i])
     }
 
     /// G4 P<milliseconds> or G4 S<seconds>.
@@ -637,7 +720,8 @@ G4 S0.25
         for (line, word) in [
             ("G20", "G20"),
             ("T1", "T1"),
-            ("G2 X10 Y0 I5 J0", "G2"),
+            ("G18", "G18"),
+            ("G1 X5\nG19", "G19"),
             ("g92.1", "G92.1"),
             ("G1 X5\nG28", "G28"),
             ("M3 S1000", "M3"),
@@ -716,6 +800,65 @@ G4 S0.25
             }
         }
         assert_eq!(error("G1 X1\nG1 X1 X2\n").to_string(), "gcode line 2: X appears twice on the line (\"G1 X1 X2\")");
+    }
+
+    /// The circle of radius 10 mm about (10, 0) mm from the origin, in each G2/G3 form; the
+    /// chords' ends lie on it and E is laid over the arc's length at the feed.
+    #[test]
+    fn arcs_in_every_form_give_the_same_circle() {
+        let forms = [
+            "G2 X0 Y0 I10 J0 E20 F600",              // one full clockwise turn, I/J
+            "G3 X0 Y0 I10 J0 E20 F600",              // counter-clockwise
+            "G2 X20 Y0 R10 E10 F600\nG2 X0 Y0 R10 E10", // two half circles, R form
+            "G91\nG3 X20 Y0 R-10 E10 F600\nG3 X-20 Y0 I-10 E10", // relative end points, long-arc R
+        ];
+        let length = std::f64::consts::TAU * 10.0; // mm
+        for form in forms {
+            let p = parse(&format!("G21\nM83\n{form}\n"));
+            let m = p.moves();
+            assert!(m.len() >= 72, "{form}: {} chords", m.len());
+            for mv in m {
+                let r = (mv.to[0] - 0.01).hypot(mv.to[1]);
+                assert!((r - 0.01).abs() < 1e-15, "{form}: {mv:?}");
+                assert_eq!(mv.kind, MoveKind::Print);
+                assert!(close(mv.extrusion_speed, 0.02 / (length / 10.0)), "{form}: {mv:?}");
+            }
+            assert!(close(p.end_time(), length / 10.0), "{form}: {}", p.end_time()); // 600 mm/min
+            assert!(close(p.total_extruded_length(), 0.02), "{form}");
+            assert_eq!(m.last().unwrap().to, [0.0; 3]);
+            // G2 turns clockwise seen from above: from the circle's leftmost point it goes to +y
+            let first_y = m[0].to[1];
+            assert!(if form.contains("G2") { first_y > 0.0 } else { first_y < 0.0 }, "{form}");
+        }
+        // a helix: one turn rising 5 mm, travel (no E)
+        let p = parse("G3 X0 Y0 Z5 I10 F600\n");
+        assert!(close(p.end_time(), length.hypot(5.0) / 10.0) && p.moves().iter().all(|m| m.kind == MoveKind::Travel));
+        assert!(close(p.moves().last().unwrap().to[2], 0.005));
+        // the quarter from (0, 0) to (10, 10) about (10, 0), clockwise, I/J and R agree
+        let (a, b) = (parse("G2 X10 Y10 I10 J0\n"), parse("G2 X10 Y10 R10\n"));
+        assert_eq!(a.moves().len(), b.moves().len());
+        assert!(a.moves().iter().zip(b.moves()).all(|(m, n)| close3(m.to, n.to) && close(m.t1, n.t1)));
+    }
+
+    #[test]
+    fn arc_errors_name_the_line() {
+        for (line, needle) in [
+            ("G2 X10 Y0 R4", "arc R: |0.004| is less than half the chord"),
+            ("G2 X10 Y0 I3 J0", "arc I/J: [0.003, 0.0] is not equidistant"),
+            ("G2 X10 Y0", "needs I/J"),
+            ("G2 X10 Y0 I5 R5", "not both"),
+            ("G2 X0 Y0 R5", "full circle needs the centre form"),
+            ("G2 X0 Y0 I0 J0", "zero radius"),
+            ("G2 X10 Y0 I5 K1", "G2 does not take K1"),
+        ] {
+            match error(&format!("G21\n; setup\n{line}\n")) {
+                GcodeError::Malformed { line: 3, message, .. } => assert!(message.contains(needle), "{line}: {message}"),
+                e => panic!("{line}: expected Malformed at line 3, got {e}"),
+            }
+        }
+        let msg = error("G1 X1\nG18\n").to_string();
+        assert!(msg.starts_with("gcode line 2: unsupported command G18") && msg.contains("XY plane (G17)"), "{msg}");
+        assert!(parse("G17\nG2 X10 Y0 R5\n").moves().len() > 1);
     }
 
     #[test]

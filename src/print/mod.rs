@@ -8,8 +8,10 @@
 //! adding U only to the topmost node, and it fixes the flux through the outlet at A U whatever
 //! the resolution. A node's weight is the indicator of 000 eqs. 23-24 (or the hard `if`).
 
+pub mod arc;
 pub mod emitter;
 pub mod gcode;
+pub mod imperfection;
 pub mod newest;
 pub mod nozzle;
 pub mod toolpath;
@@ -67,6 +69,10 @@ pub struct PrintConfig {
     /// printer really holds against the one commanded); default 0.
     #[serde(default)]
     pub z_offset: f64,
+    /// A horizontal offset of the nozzle growing with its height (see `print::imperfection`), to
+    /// make a print buckle one chosen way; default none.
+    #[serde(default)]
+    pub imperfection: Option<imperfection::Imperfection>,
     /// Slab buffers the emitter may prepare ahead of the stepper.
     #[serde(default = "default_queue")]
     pub queue: usize,
@@ -143,11 +149,14 @@ impl PrintConfig {
         if !self.z_offset.is_finite() {
             return Err(Invalid(format!("print.z_offset must be finite, got {}", self.z_offset)));
         }
+        if let Some(imp) = &self.imperfection {
+            imp.validate()?;
+        }
         Ok(())
     }
 
-    /// Build the toolpath (reading the G-code file relative to `base_dir`), with the extrusion
-    /// factor and the Z offset applied.
+    /// Build the toolpath (reading the G-code file relative to `base_dir`), with the
+    /// imperfection (from the commanded heights), the extrusion factor and the Z offset applied.
     pub fn toolpath(&self, base_dir: &Path) -> Result<Toolpath, PrintError> {
         let commanded = match &self.gcode {
             Some(file) => {
@@ -156,6 +165,10 @@ impl PrintConfig {
                 gcode::parse_gcode(&text, &self.gcode_options).map_err(|source| PrintError::Gcode { path, source })?
             }
             None => Toolpath::from_segments(self.start.unwrap_or_default(), &self.path)?,
+        };
+        let commanded = match &self.imperfection {
+            Some(imp) => imp.apply(commanded)?,
+            None => commanded,
         };
         if self.extrusion_factor == 1.0 && self.z_offset == 0.0 {
             return Ok(commanded);

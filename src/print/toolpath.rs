@@ -5,6 +5,7 @@
 //! constant per interval makes the extruded length piecewise linear, so it and its inverse are
 //! exact, and lets gradients be taken per interval later. Units are SI throughout.
 
+use super::arc::{Arc, ArcInput, Sense};
 use serde::{Deserialize, Serialize};
 
 /// Nozzle speed of a `layer` segment when no earlier segment moved the nozzle [m/s].
@@ -83,6 +84,14 @@ pub struct NozzleState {
 /// kind = "travel"
 /// to = [0.0, 0.0, 0.02]
 /// speed = 0.1
+/// [[print.path]]     # one turn round (0.1, 0), rising a layer: a spiral layer change
+/// kind = "arc"
+/// to = [0.0, 0.0, 0.03]
+/// center = [0.1, 0.0]  # or radius = r (R of G-code; < 0: the long way; not for full turns)
+/// sense = "ccw"      # seen from above; or "cw"
+/// turns = 1          # whole turns besides the part from the start to `to`; default 0
+/// speed = 0.05
+/// extrusion = 0.1    # 0: an arc of travel
 /// ```
 #[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
@@ -101,6 +110,23 @@ pub enum Segment {
         #[serde(default)]
         speed: Option<f64>,
     },
+    /// Arc (helix if `to`'s z differs from the start's) about a vertical axis, turning `sense`
+    /// seen from above, to `to` [m], given by its `center` [x, y] or its signed `radius` [m] (as
+    /// G-code's R: < 0 takes the arc over half a turn), plus `turns` whole turns (centre form
+    /// only; `to` equal to the start in x, y with turns = 1 is a full circle). Covered at `speed`
+    /// along the arc, extruding at `extrusion` (0: a travel). Becomes chords, see `print::arc`.
+    Arc {
+        to: [f64; 3],
+        #[serde(default)]
+        center: Option<[f64; 2]>,
+        #[serde(default)]
+        radius: Option<f64>,
+        sense: Sense,
+        #[serde(default)]
+        turns: Option<u32>,
+        speed: f64,
+        extrusion: f64,
+    },
 }
 
 impl Segment {
@@ -111,6 +137,7 @@ impl Segment {
             Segment::Travel { .. } => "travel",
             Segment::Pause { .. } => "pause",
             Segment::Layer { .. } => "layer",
+            Segment::Arc { .. } => "arc",
         }
     }
 }
@@ -161,6 +188,23 @@ impl Toolpath {
                     let to = [pos[0], pos[1], pos[2] + dz];
                     let speed = speed.or(last_speed).unwrap_or(DEFAULT_LAYER_SPEED);
                     (to, "dz", speed, 0.0, MoveKind::Travel)
+                }
+                Segment::Arc { to, center, radius, sense, turns, speed, extrusion } => {
+                    let arc = arc_segment(pos, to, center, radius, sense, turns).map_err(|(key, message)| bad(key, message))?;
+                    if !(speed.is_finite() && speed > 0.0) {
+                        return Err(bad("speed", format!("speed = {speed} must be finite and > 0")));
+                    }
+                    if !(extrusion.is_finite() && extrusion >= 0.0) {
+                        return Err(bad("extrusion", format!("extrusion = {extrusion} must be finite and >= 0")));
+                    }
+                    let move_kind = if extrusion > 0.0 { MoveKind::Print } else { MoveKind::Travel };
+                    let chords = arc.timed_points(t, arc.length() / speed).map_err(|m| bad("speed", format!("speed = {speed}: {m}")))?;
+                    for (t1, p) in chords {
+                        moves.push(Move { t0: t, t1, from: pos, to: p, extrusion_speed: extrusion, kind: move_kind });
+                        (pos, t) = (p, t1);
+                    }
+                    last_speed = Some(speed);
+                    continue;
                 }
                 Segment::Pause { duration } => {
                     if !(duration.is_finite() && duration > 0.0) {
@@ -388,6 +432,33 @@ impl Toolpath {
     fn interval_index(&self, t: f64) -> usize {
         self.moves.partition_point(|m| m.t0 <= t).saturating_sub(1)
     }
+}
+
+/// The arc of an `arc` segment starting at `pos`, or the TOML key at fault and why.
+fn arc_segment(
+    pos: [f64; 3],
+    to: [f64; 3],
+    center: Option<[f64; 2]>,
+    radius: Option<f64>,
+    sense: Sense,
+    turns: Option<u32>,
+) -> Result<Arc, (&'static str, String)> {
+    let arc = match (center, radius) {
+        (Some(c), None) => Arc::with_center(pos, to, c, sense, turns.unwrap_or(0)),
+        (None, Some(r)) if turns.is_none() => Arc::with_radius(pos, to, r, sense),
+        (None, Some(_)) => return Err(("turns", "turns: needs the centre form (center = [x, y]), not radius".into())),
+        (Some(_), Some(_)) => return Err(("radius", "radius: give center or radius, not both".into())),
+        (None, None) => return Err(("center", "center: an arc needs center = [x, y] or radius".into())),
+    };
+    arc.map_err(|e| {
+        let key = match e.input {
+            ArcInput::Center => "center",
+            ArcInput::Radius => "radius",
+            ArcInput::To => "to",
+            ArcInput::Turns => "turns",
+        };
+        (key, format!("{key}: {}", e.message))
+    })
 }
 
 fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
@@ -654,6 +725,51 @@ mod tests {
         );
         assert_eq!(error_of(vec![a, m(1.0, 2.0, [1.0, 0.0, 0.0], [2.0, 0.0, 0.0], 0.0, MoveKind::Pause)]).0, 1);
         assert_eq!(Toolpath::from_moves(vec![]), Err(ToolpathError::Empty));
+    }
+
+    #[test]
+    fn arc_segments_become_timed_chords_and_errors_name_the_key() {
+        // a quarter circle of radius 1 about the origin at speed pi/2 takes 1 s, then a travel arc
+        let arc = |to: [f64; 3], center, radius, sense, turns, speed, extrusion| Segment::Arc { to, center, radius, sense, turns, speed, extrusion };
+        let segs = [
+            arc([0.0, 1.0, 0.0], Some([0.0, 0.0]), None, Sense::Ccw, None, std::f64::consts::FRAC_PI_2, 2.0),
+            arc([1.0, 0.0, 0.5], None, Some(1.0), Sense::Cw, None, 1.0, 0.0),
+        ];
+        let p = Toolpath::from_segments([1.0, 0.0, 0.0], &segs).unwrap();
+        let quarter: Vec<&Move> = p.moves().iter().filter(|m| m.kind == MoveKind::Print).collect();
+        // radius 1: the sagitta bound holds, 2 acos(1 - 5e-5) a chord
+        assert_eq!(quarter.len(), (std::f64::consts::FRAC_PI_2 / (2.0 * (1.0 - 5e-5f64).acos())).ceil() as usize);
+        assert_eq!(quarter.last().unwrap().t1, 1.0);
+        assert_eq!(p.total_extruded_length(), 2.0);
+        assert_eq!(p.moves().last().unwrap().to, [1.0, 0.0, 0.5]);
+        assert!(p.moves()[quarter.len()..].iter().all(|m| m.kind == MoveKind::Travel && m.extrusion_speed == 0.0));
+        assert!((p.end_time() - 1.0 - std::f64::consts::FRAC_PI_2.hypot(0.5)).abs() < 1e-15);
+        let ok = print([1.0, 0.0, 0.0], 1.0, 1.0);
+        for (seg, want_key, needle) in [
+            (arc([3.0, 0.0, 0.0], None, Some(0.5), Sense::Cw, None, 1.0, 1.0), "radius", "half the chord"),
+            (arc([3.0, 0.0, 0.0], None, Some(0.0), Sense::Cw, None, 1.0, 1.0), "radius", "non-zero"),
+            (arc([3.0, 0.0, 0.0], Some([1.5, 0.0]), None, Sense::Cw, None, 1.0, 1.0), "center", "equidistant"),
+            (arc([3.0, 0.0, 0.0], Some([2.0, 0.0]), Some(1.0), Sense::Cw, None, 1.0, 1.0), "radius", "not both"),
+            (arc([3.0, 0.0, 0.0], None, None, Sense::Cw, None, 1.0, 1.0), "center", "needs"),
+            (arc([3.0, 0.0, 0.0], None, Some(1.0), Sense::Cw, Some(1), 1.0, 1.0), "turns", "centre form"),
+            (arc([1.0, 0.0, 0.0], Some([2.0, 0.0]), None, Sense::Cw, None, 1.0, 1.0), "turns", "full circle"),
+            (arc([1.0, 0.0, 0.0], None, Some(1.0), Sense::Cw, None, 1.0, 1.0), "to", "centre form"),
+            (arc([f64::NAN, 0.0, 0.0], Some([2.0, 0.0]), None, Sense::Cw, None, 1.0, 1.0), "to", "finite"),
+            (arc([3.0, 0.0, 0.0], Some([2.0, 0.0]), None, Sense::Cw, None, -1.0, 1.0), "speed", "speed"),
+            (arc([3.0, 0.0, 0.0], Some([2.0, 0.0]), None, Sense::Cw, None, 1.0, f64::NAN), "extrusion", "extrusion"),
+        ] {
+            let (index, key, msg) = segment_error(&[ok.clone(), seg]);
+            assert_eq!((index, key), (1, want_key), "{msg}");
+            assert!(msg.starts_with(&format!("arc path[1]: {want_key}")) && msg.contains(needle), "{msg}");
+        }
+        // from TOML: an unknown sense is refused
+        let text = "[print]\nstart = [0.1, 0.0, 0.01]\n[[print.path]]\nkind = \"arc\"\nto = [0.1, 0.0, 0.02]\ncenter = [0.0, 0.0]\nturns = 1\nsense = \"ccw\"\nspeed = 0.05\nextrusion = 0.05\n";
+        let s: Scenario = toml::from_str(text).unwrap();
+        let p = Toolpath::from_segments(s.print.start, &s.print.path).unwrap();
+        assert_eq!(p.moves().last().unwrap().to, [0.1, 0.0, 0.02]);
+        assert_eq!(p.layers().len(), p.moves().len()); // a spiral: every chord its own height
+        let e = toml::from_str::<Scenario>(&text.replace("\"ccw\"", "\"clockwise\"")).err().unwrap().to_string();
+        assert!(e.contains("clockwise") && e.contains("cw"), "{e}");
     }
 
     #[derive(Deserialize)]

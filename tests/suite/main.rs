@@ -12,6 +12,7 @@ mod grad;
 mod measure;
 mod measure_report;
 mod print;
+mod print_arcs;
 mod print_campaign;
 mod resolution;
 mod resume;
