@@ -5,7 +5,7 @@ OUT ?= out
 TARGET_DIR := $(if $(CARGO_TARGET_DIR),$(CARGO_TARGET_DIR),target)
 STRAND := $(TARGET_DIR)/release/strand
 
-.PHONY: run test fuzz verify verify-quick bench bench-peer bench-restart bench-kernels bench-case1 bench-layers bench-layers-dwell bench-failure bench-mass-scaling bench-convergence bench-nozzle-cells bench-nozzle-body bench-lbox bench-vfunnel bench-print-diagnose lbox build fmt clippy clean
+.PHONY: run test fuzz verify verify-quick bench bench-peer bench-restart bench-kernels bench-case1 bench-layers bench-layers-dwell bench-failure bench-mass-scaling bench-cylinder bench-convergence bench-nozzle-cells bench-nozzle-body bench-lbox bench-vfunnel bench-print-diagnose lbox build fmt clippy clean
 
 build:
 	$(CARGO) build --release
@@ -84,6 +84,15 @@ bench-failure: build
 # the mass-scaling commit; a few CPU minutes).
 bench-mass-scaling: build
 	python3 bench/mass_scaling.py --strand $(STRAND) --out $(OUT)/mass_scaling --dx 0.0025 --scales 1,16
+
+# The printed cylinder of Wolfs, Bos & Salet (2018) to failure: a quarter of the 500 mm cylinder
+# (symmetry planes), layers of 40 x 10 mm every 18.85 s, early_age_solid with the paper's E(t);
+# strand's failure layer and mode against the five measured (25-31), CPU time and peak memory
+# (bench/cylinder.py; BENCHMARKS.md "A printed cylinder"). CYLINDER_ARGS picks the cells and
+# the mass scaling, e.g. CYLINDER_ARGS="--dx 0.005 --mass-scaling 100".
+CYLINDER_ARGS ?= --dx 0.005 --mass-scaling 100
+bench-cylinder: build
+	python3 bench/cylinder.py --strand $(STRAND) --out $(OUT)/cylinder $(CYLINDER_ARGS)
 
 # Case 1's section at five cell sizes (5 to 2 mm, 5 to 12.5 cells per nozzle diameter), its
 # observed order of convergence and Richardson extrapolation (BENCHMARKS.md "Discretisation
