@@ -88,7 +88,7 @@ bench-mass-scaling: build
 # The printed cylinder of Wolfs, Bos & Salet (2018) to failure: a quarter of the 500 mm cylinder
 # (symmetry planes), layers of 40 x 10 mm every 18.85 s, early_age_solid with the paper's E(t);
 # strand's failure layer and mode against the five measured (25-31), CPU time and peak memory
-# (bench/cylinder.py; BENCHMARKS.md "A printed cylinder"). CYLINDER_ARGS picks the cells and
+# (bench/cylinder.py; not yet predicted: see the script's doc). CYLINDER_ARGS picks the cells and
 # the mass scaling, e.g. CYLINDER_ARGS="--dx 0.005 --mass-scaling 100".
 CYLINDER_ARGS ?= --dx 0.005 --mass-scaling 100
 bench-cylinder: build
