@@ -2,8 +2,10 @@
 //! the Mohr-Coulomb-matched Drucker-Prager cone with tension cutoff of `drucker_prager.rs`, whose
 //! return map (and its adjoint) it runs on constants built per particle from the particle's age.
 //!
-//! The age a of a particle [s] is the time since it left the nozzle (its creation) plus the mix's
-//! age when the print started, `age_at_start`. The Young's modulus E, the cohesion c and the
+//! The age a of a particle [s] is the time since its creation plus the mix's age when the print
+//! started, `age_at_start`. A printed particle is created where it enters the nozzle's tube, so
+//! the time it spends in the tube (tube height over extrusion speed while printing, and all of a
+//! pause) counts: not yet the time since it left the outlet. The Young's modulus E, the cohesion c and the
 //! friction angle phi each follow an [`AgeLaw`] of a, linear (p0 + r a) or bilinear (a slow early
 //! rate up to a transition age, a faster one beyond; Kruger et al.); the Poisson ratio nu is
 //! constant, so K = E / (3 (1 - 2 nu)) and G = 3 K (1 - 2 nu) / (2 (1 + nu)) = E / (2 (1 + nu))
