@@ -19,9 +19,13 @@ blow-up at the second layer's start (t = 19.04 s with `--mass-scaling 10`, 19.16
 plug of early-age solid left in the nozzle's tube at the end of the first layer, aged through the
 pause with the nozzle, is dragged along by the next pass (the particles that fail are those
 created last in layer 1, 14.5 s old, stretched to J = 2.2 beside material crushed to J < 0). At
-10 mm cells a layer is one cell high and the next pass drags the layer below. What is missing:
-a particle's age counted from when it leaves the outlet rather than from its creation, and a
-fresh, flowable state for material still in the tube.
+10 mm cells a layer is one cell high and the next pass drags the layer below. Without the pauses
+(the quarter arcs back to back, 5 mm, s = 10) the second layer starts, the third blows up at
+t = 10.05 s, and the first layer's bead at x = 50 mm stands 21 mm high and 46 mm wide against the
+nominal 10 x 40 mm: the solid at age 0 (c = 1.4 kPa, E = 78 kPa) is not squeezed into the layer's
+shape, and the next pass runs into it. What is missing: a fresh, flowable state for material in
+the tube and under the nozzle (the bead must take the layer's shape), and a particle's age
+counted from when it leaves the outlet rather than from its creation.
 
 Usage:
     cylinder.py [--strand PATH] [--out DIR] [--dx 0.005] [--layers 40] [--mass-scaling 100]
