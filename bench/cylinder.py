@@ -17,9 +17,9 @@ at 5 mm cells stop at the turn of a layer on a symmetry plane: t = 19.04 s (`--m
 and 19.16 s (100) at the second layer's start, and without the pauses (quarter arcs back to back,
 s = 10) at 10.05 s, the third layer's start, or at 4.81 s, the first layer's end, with a cohesion
 of 50 Pa growing 300 Pa/s for 4.5 s. A circle meets each plane through its axis at right angles,
-so at the end of every quarter arc the nozzle drives material head-on into the symmetry plane,
-where its mirror image drives the same material back: the particles there are crushed to J < 0
-(read from failed_state.vtu). The full cylinder has no such plane, at four times the particles.
+so at either end of a quarter arc the nozzle moves at right angles to a symmetry plane, into it
+or away from it, while its mirror image moves the opposite way: the material between is crushed
+(J < 0) or torn (J = 2.2 beside it, read from failed_state.vtu). The full cylinder has no such plane, at four times the particles.
 Between the turns the print runs: after two layers (t = 8 s, no pauses) the section at
 x = 50 mm stands 23.3 mm high (nominal 20) and 62 mm wide (the plane cuts the 40 mm wall at
 11.5 deg: 41 mm). At 10 mm cells a layer is one cell high and the next pass drags the layer below.
