@@ -290,7 +290,7 @@ pub fn header(sim: &Simulation, dt: f64, limit: DtLimit, outputs: u64, progress:
         mass_xxh3: checksum(bytes(&p.mass.as_slice()[..n])),
         vol0_xxh3: checksum(bytes(&p.vol0.as_slice()[..n])),
         outputs,
-        progress_json: serde_json::to_string(&Progress { external_work: sim.external_work, ..progress.clone() }).unwrap_or_default(),
+        progress_json: serde_json::to_string(progress).unwrap_or_default(),
         state_hash: state_hash(sim.step, sim.time, &sections),
         written_unix: std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs()),
         sections,

@@ -55,7 +55,7 @@ impl Checkpoints {
 
     /// Queue a checkpoint of `sim`, in the middle of a step of length `dt`.
     pub(super) fn submit(&mut self, sim: &Simulation, dt: f64, limit: DtLimit, out: &Outputs) -> Result<(), RunError> {
-        let header = state::header(sim, dt, limit, out.k_out, &out.progress(), Vec::new());
+        let header = state::header(sim, dt, limit, out.k_out, &out.progress(sim), Vec::new());
         self.writer.submit(header, &state::sections(sim))?;
         self.last_wall = Instant::now();
         self.last_step = sim.step;
@@ -65,7 +65,7 @@ impl Checkpoints {
 
     /// Copy the middle of a step ending on an output, in case the run stops after the output.
     pub(super) fn stage(&mut self, sim: &Simulation, dt: f64, limit: DtLimit, out: &Outputs) -> Result<(), RunError> {
-        let header = state::header(sim, dt, limit, out.k_out, &out.progress(), Vec::new());
+        let header = state::header(sim, dt, limit, out.k_out, &out.progress(sim), Vec::new());
         self.staged = Some(self.writer.stage(header, &state::sections(sim))?);
         Ok(())
     }

@@ -379,8 +379,14 @@ impl Outputs<'_> {
         }
     }
 
-    pub(super) fn progress(&self) -> state::Progress {
-        state::Progress { pvd: self.pvd.clone(), observations: self.reporter.as_ref().map(|r| r.history.clone()).unwrap_or_default(), external_work: 0.0 }
+    /// What a checkpoint of `sim` carries beside its pools: the outputs so far and the external
+    /// work, which no pool holds.
+    pub(super) fn progress(&self, sim: &Simulation) -> state::Progress {
+        state::Progress {
+            pvd: self.pvd.clone(),
+            observations: self.reporter.as_ref().map(|r| r.history.clone()).unwrap_or_default(),
+            external_work: sim.external_work,
+        }
     }
 }
 
