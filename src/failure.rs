@@ -228,25 +228,10 @@ impl Detector {
         self.layers.iter().filter(|l| l.1 <= t).count().max(1)
     }
 
-    /// Nominal height above the base of the layers the nozzle has printed over the plane
-    /// x = `station` by `t` (0 before the first).
-    fn nominal_at(&self, station: f64, t: f64) -> f64 {
-        let mut top = self.base;
-        for m in self.toolpath.moves().iter().filter(|m| m.kind == MoveKind::Print && m.t0 <= t) {
-            let (x0, x1) = (m.from[0], m.to[0]);
-            if (x0.min(x1)..=x0.max(x1)).contains(&station) {
-                let crossed = if x1 != x0 { m.t0 + (station - x0) / (x1 - x0) * m.duration() } else { m.t0 };
-                if crossed <= t {
-                    top = top.max(m.to[2]);
-                }
-            }
-        }
-        top - self.base
-    }
-
-    /// The y at which the latest print move over the plane x = `station` crossed it by `t`
-    /// (None before the first): where the nozzle laid the top there.
-    fn laid_y_at(&self, station: f64, t: f64) -> Option<f64> {
+    /// The highest print move the nozzle has laid over the plane x = `station` by `t` (the latest
+    /// of equal heights): its height and the y at which it crossed the plane; None before the
+    /// first. The nominal top there, and where the nozzle laid it.
+    fn laid_at(&self, station: f64, t: f64) -> Option<(f64, f64)> {
         let mut laid: Option<(f64, f64)> = None;
         for m in self.toolpath.moves().iter().filter(|m| m.kind == MoveKind::Print && m.t0 <= t) {
             let (x0, x1) = (m.from[0], m.to[0]);
@@ -257,13 +242,19 @@ impl Detector {
                 }
             }
         }
-        laid.map(|l| l.1)
+        laid
+    }
+
+    /// Nominal height above the base of the layers laid over a station ([`Detector::laid_at`];
+    /// 0 before the first).
+    fn nominal(&self, laid: Option<(f64, f64)>) -> f64 {
+        laid.map_or(0.0, |(z, _)| z.max(self.base) - self.base)
     }
 
     /// The top's sideways offset at a section: the mean y of its outline's points within one
-    /// layer height of the highest, less where the nozzle laid it.
-    fn sway_of(&self, s: &CrossSection, time: f64) -> f64 {
-        let Some(laid) = self.laid_y_at(s.station, time) else { return 0.0 };
+    /// layer height of the highest, less where the nozzle laid it (0 before it laid any).
+    fn sway_of(&self, s: &CrossSection, laid: Option<(f64, f64)>) -> f64 {
+        let Some((_, laid)) = laid else { return 0.0 };
         let top = s.profile.iter().map(|p| p[1]).fold(f64::NEG_INFINITY, f64::max);
         let (mut sum, mut n) = (0.0, 0usize);
         for p in s.profile.iter().filter(|p| p[1] >= top - self.layer_height) {
@@ -311,12 +302,13 @@ impl Detector {
                     continue;
                 }
                 spreading.away = Some(s.width);
-                sway = self.sway_of(s, time);
+                let laid = self.laid_at(s.station, time);
+                sway = self.sway_of(s, laid);
                 if sway.abs() >= self.sway {
                     found(self.failure(time, s.station, FailureRule::Sway, sway));
                     break;
                 }
-                if self.nominal_at(s.station, time) - s.height >= self.lost {
+                if self.nominal(laid) - s.height >= self.lost {
                     found(self.failure(time, s.station, FailureRule::Lost, sway));
                     break;
                 }
