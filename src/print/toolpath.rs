@@ -191,12 +191,7 @@ impl Toolpath {
                 }
                 Segment::Arc { to, center, radius, sense, turns, speed, extrusion } => {
                     let arc = arc_segment(pos, to, center, radius, sense, turns).map_err(|(key, message)| bad(key, message))?;
-                    if !(speed.is_finite() && speed > 0.0) {
-                        return Err(bad("speed", format!("speed = {speed} must be finite and > 0")));
-                    }
-                    if !(extrusion.is_finite() && extrusion >= 0.0) {
-                        return Err(bad("extrusion", format!("extrusion = {extrusion} must be finite and >= 0")));
-                    }
+                    check_rates(speed, extrusion).map_err(|(key, message)| bad(key, message))?;
                     let move_kind = if extrusion > 0.0 { MoveKind::Print } else { MoveKind::Travel };
                     let chords = arc.timed_points(t, arc.length() / speed).map_err(|m| bad("speed", format!("speed = {speed}: {m}")))?;
                     for (t1, p) in chords {
@@ -219,12 +214,7 @@ impl Toolpath {
                     continue;
                 }
             };
-            if !(speed.is_finite() && speed > 0.0) {
-                return Err(bad("speed", format!("speed = {speed} must be finite and > 0")));
-            }
-            if !(extrusion.is_finite() && extrusion >= 0.0) {
-                return Err(bad("extrusion", format!("extrusion = {extrusion} must be finite and >= 0")));
-            }
+            check_rates(speed, extrusion).map_err(|(key, message)| bad(key, message))?;
             if !to.iter().all(|v| v.is_finite()) {
                 return Err(bad("to", format!("to = {to:?} must be finite")));
             }
@@ -432,6 +422,18 @@ impl Toolpath {
     fn interval_index(&self, t: f64) -> usize {
         self.moves.partition_point(|m| m.t0 <= t).saturating_sub(1)
     }
+}
+
+/// A moving segment's nozzle speed (> 0) and extrusion speed (>= 0), or the TOML key at fault
+/// and why.
+fn check_rates(speed: f64, extrusion: f64) -> Result<(), (&'static str, String)> {
+    if !(speed.is_finite() && speed > 0.0) {
+        return Err(("speed", format!("speed = {speed} must be finite and > 0")));
+    }
+    if !(extrusion.is_finite() && extrusion >= 0.0) {
+        return Err(("extrusion", format!("extrusion = {extrusion} must be finite and >= 0")));
+    }
+    Ok(())
 }
 
 /// The arc of an `arc` segment starting at `pos`, or the TOML key at fault and why.
