@@ -194,11 +194,15 @@ pub struct Detector {
     sway: f64,
     /// Mean layer height [m]: the band below the top whose outline gives its lateral position.
     layer_height: f64,
+    /// `[observe] y_range`: the sections see only this band of y, so only the moves that cross a
+    /// station inside it lay their material, and only a nozzle inside it (within `clearance`)
+    /// is near.
+    y_range: Option<[f64; 2]>,
 }
 
 impl Detector {
     /// None for a print of fewer than two layers (a layer's own slump is no failure).
-    pub fn new(cfg: &FailureConfig, toolpath: Arc<Toolpath>, nozzle_half_x: f64) -> Option<Detector> {
+    pub fn new(cfg: &FailureConfig, toolpath: Arc<Toolpath>, nozzle_half_x: f64, y_range: Option<[f64; 2]>) -> Option<Detector> {
         let layers = toolpath.layers();
         let n = layers.len();
         if n < 2 {
@@ -220,6 +224,7 @@ impl Detector {
             spread: cfg.spread,
             sway: cfg.sway.unwrap_or(nozzle_half_x),
             layer_height: h,
+            y_range,
         })
     }
 
@@ -237,12 +242,18 @@ impl Detector {
             let (x0, x1) = (m.from[0], m.to[0]);
             if (x0.min(x1)..=x0.max(x1)).contains(&station) {
                 let f = if x1 != x0 { (station - x0) / (x1 - x0) } else { 0.0 };
-                if m.t0 + f * m.duration() <= t && laid.is_none_or(|(z, _)| m.to[2] >= z) {
-                    laid = Some((m.to[2], m.from[1] + f * (m.to[1] - m.from[1])));
+                let y = m.from[1] + f * (m.to[1] - m.from[1]);
+                if m.t0 + f * m.duration() <= t && self.in_range(y, 0.0) && laid.is_none_or(|(z, _)| m.to[2] >= z) {
+                    laid = Some((m.to[2], y));
                 }
             }
         }
         laid
+    }
+
+    /// Whether `y` lies in the observed band of y widened by `margin` (always without a band).
+    fn in_range(&self, y: f64, margin: f64) -> bool {
+        self.y_range.is_none_or(|[lo, hi]| (lo - margin..=hi + margin).contains(&y))
     }
 
     /// Nominal height above the base of the layers laid over a station ([`Detector::laid_at`];
@@ -288,8 +299,8 @@ impl Detector {
             for o in history {
                 let (time, sections) = at(o);
                 let Some(s) = sections.get(k) else { break };
-                let x = self.toolpath.state_at(time).position[0];
-                if (x - s.station).abs() < self.clearance {
+                let nozzle = self.toolpath.state_at(time).position;
+                if (nozzle[0] - s.station).abs() < self.clearance && self.in_range(nozzle[1], self.clearance) {
                     if let Some(t) = self.spread.and_then(|limit| spreading.pass(time, limit)) {
                         found(self.failure(t, s.station, FailureRule::Spread, sway));
                         break;
@@ -455,7 +466,7 @@ mod tests {
 
     #[test]
     fn a_standing_print_does_not_fail() {
-        let d = Detector::new(&FailureConfig::default(), wall(4), 0.005).unwrap();
+        let d = Detector::new(&FailureConfig::default(), wall(4), 0.005, None).unwrap();
         // each layer adds 10 mm as the nozzle passes, then settles 0.5 mm over half a second
         let h = |t: f64| {
             let k = passed(t);
@@ -467,7 +478,7 @@ mod tests {
 
     #[test]
     fn a_sinking_top_fails_at_the_layer_it_began_in() {
-        let d = Detector::new(&FailureConfig::default(), wall(4), 0.005).unwrap();
+        let d = Detector::new(&FailureConfig::default(), wall(4), 0.005, None).unwrap();
         // build rate 10 mm per 2.2 s = 4.5 mm/s; from t = 5.8 s (layer 3, after the nozzle
         // passed the station) the top sinks at 10 mm/s
         let h = |t: f64| 0.01 * passed(t) - 0.01 * (t - 5.8).max(0.0);
@@ -478,14 +489,14 @@ mod tests {
         // a sinking rate just under the threshold is no collapse (only the height it loses
         // over time, with the layer-height test off here)
         let slow = |t: f64| 0.01 * passed(t) - 0.004 * (t - 5.8).max(0.0);
-        let rate_only = Detector::new(&FailureConfig { lost: Some(1.0), ..FailureConfig::default() }, wall(4), 0.005).unwrap();
+        let rate_only = Detector::new(&FailureConfig { lost: Some(1.0), ..FailureConfig::default() }, wall(4), 0.005, None).unwrap();
         assert_eq!(detect(&rate_only, slow), None);
         assert!(detect(&d, slow).is_some_and(|f| f.time > 7.0), "10 mm lost at 4 mm/s");
     }
 
     #[test]
     fn a_top_that_lost_a_layer_against_the_nominal_has_failed() {
-        let d = Detector::new(&FailureConfig::default(), wall(4), 0.005).unwrap();
+        let d = Detector::new(&FailureConfig::default(), wall(4), 0.005, None).unwrap();
         // each layer adds only 6 mm of its 10 at the station (the stack spreads under it): the
         // top is 12 mm short after the third layer, once its settling has passed 10 mm
         let h = |t: f64| {
@@ -502,7 +513,7 @@ mod tests {
     #[test]
     fn a_wall_whose_width_grows_after_standing_has_failed_by_spreading() {
         let spreading = FailureConfig { spread: Some(0.0015), ..FailureConfig::default() };
-        let d = Detector::new(&spreading, wall(6), 0.005).unwrap();
+        let d = Detector::new(&spreading, wall(6), 0.005, None).unwrap();
         // the top rises a full layer per layer (no sinking, nothing lost); the width grows 3 mm
         // under the second layer's squeeze, stands (0.5 mm a layer) under the third and fourth,
         // and grows 3 mm a layer from the fifth on: the bottom yielded under the fifth
@@ -514,9 +525,9 @@ mod tests {
         assert_eq!(f.layer, 5, "{f:?}");
         assert!((f.time - 9.5).abs() <= 0.05 + 1e-9, "{f:?}");
         // without the rule, or with a limit over the growth, the wall stands
-        let off = Detector::new(&FailureConfig::default(), wall(6), 0.005).unwrap();
+        let off = Detector::new(&FailureConfig::default(), wall(6), 0.005, None).unwrap();
         assert_eq!(off.detect(&spreading_history(|t| 0.01 * passed(t), width), |o| (o.0, &o.1[..])), None);
-        let wide = Detector::new(&FailureConfig { spread: Some(0.004), ..FailureConfig::default() }, wall(6), 0.005).unwrap();
+        let wide = Detector::new(&FailureConfig { spread: Some(0.004), ..FailureConfig::default() }, wall(6), 0.005, None).unwrap();
         assert_eq!(wide.detect(&spreading_history(|t| 0.01 * passed(t), width), |o| (o.0, &o.1[..])), None);
         // a wall that spreads from its first layers on, never standing, has not failed by this
         // rule: the first layers spread under the squeeze of the next
@@ -540,7 +551,7 @@ mod tests {
 
     #[test]
     fn a_top_that_swings_sideways_has_failed_by_buckling() {
-        let d = Detector::new(&FailureConfig::default(), wall(6), 0.005).unwrap();
+        let d = Detector::new(&FailureConfig::default(), wall(6), 0.005, None).unwrap();
         // the top rises a layer per layer, and from t = 7 s (layer 4) swings sideways at 4 mm/s:
         // it passes the default 5 mm (half the 10 mm nozzle) 1.25 s later, long before the
         // height it loses (second order in the tilt) counts
@@ -552,7 +563,7 @@ mod tests {
         assert_eq!((f.mode, f.rule, f.layer), (FailureMode::Buckling, FailureRule::Sway, 4), "{f:?}");
         assert!((f.time - 8.25).abs() <= 0.05 + 1e-9 && f.sway >= 0.005, "{f:?}");
         // a wider limit leaves it standing; a top that stays where it was laid does not fail
-        let wide = Detector::new(&FailureConfig { sway: Some(0.05), ..FailureConfig::default() }, wall(6), 0.005).unwrap();
+        let wide = Detector::new(&FailureConfig { sway: Some(0.05), ..FailureConfig::default() }, wall(6), 0.005, None).unwrap();
         assert_eq!(wide.detect(&history, |o| (o.0, &o.1[..])), None);
         let upright: Vec<_> = (0..=300).map(|i| 0.05 * i as f64).map(|t| leaning(t, 0.01 * passed(t), 0.0)).collect();
         assert_eq!(d.detect(&upright, |o| (o.0, &o.1[..])), None);
@@ -571,7 +582,7 @@ mod tests {
             }
         }
         let path = Arc::new(Toolpath::from_segments([0.0, 0.002, 0.01], &segs).unwrap());
-        let d = Detector::new(&FailureConfig::default(), path.clone(), 0.005).unwrap();
+        let d = Detector::new(&FailureConfig::default(), path.clone(), 0.005, None).unwrap();
         let layers = path.layers();
         let laid = |t: f64| {
             // each layer is laid at y = 2 mm per layer; the station x = 0.05 is crossed halfway
@@ -583,8 +594,34 @@ mod tests {
     }
 
     #[test]
+    fn on_a_ring_the_y_range_picks_the_crossing_the_section_sees() {
+        use crate::print::arc::Sense;
+        let mut segs = Vec::new();
+        for k in 0..3 {
+            let z = 0.01 * (k + 1) as f64;
+            segs.push(Segment::Arc { to: [0.1, 0.0, z], center: Some([0.0, 0.0]), radius: None, sense: Sense::Ccw, turns: Some(1), speed: 0.05, extrusion: 0.05 });
+            if k + 1 < 3 {
+                segs.push(Segment::Layer { dz: 0.01, speed: Some(0.05) });
+            }
+        }
+        let path = Arc::new(Toolpath::from_segments([0.1, 0.0, 0.01], &segs).unwrap());
+        let end = path.moves().last().unwrap().t1;
+        let laid = |range| Detector::new(&FailureConfig::default(), path.clone(), 0.005, range).unwrap().laid_at(0.0, end);
+        // the plane x = 0 cuts the ring at y = 0.1 (a quarter turn in) and y = -0.1
+        let (z, y) = laid(Some([0.05, 0.15])).unwrap();
+        assert!((z - 0.03).abs() < 1e-12 && (y - 0.1).abs() < 1e-3, "{z} {y}");
+        let (z, y) = laid(Some([-0.15, -0.05])).unwrap();
+        assert!((z - 0.03).abs() < 1e-12 && (y + 0.1).abs() < 1e-3, "{z} {y}");
+        assert_eq!(laid(Some([0.2, 0.3])), None);
+        // a quarter turn into the first ring only the upper crossing is laid
+        let quarter = path.moves()[0].t0 + 0.25 * 2.0 * std::f64::consts::PI * 0.1 / 0.05 + 1e-3;
+        let d = Detector::new(&FailureConfig::default(), path.clone(), 0.005, Some([-0.15, -0.05])).unwrap();
+        assert_eq!(d.laid_at(0.0, quarter), None);
+    }
+
+    #[test]
     fn a_collapse_is_named_so() {
-        let d = Detector::new(&FailureConfig::default(), wall(4), 0.005).unwrap();
+        let d = Detector::new(&FailureConfig::default(), wall(4), 0.005, None).unwrap();
         let h = |t: f64| 0.01 * passed(t) - 0.01 * (t - 5.8).max(0.0);
         let f = detect(&d, h).expect("fails");
         assert_eq!((f.mode, f.rule), (FailureMode::PlasticCollapse, FailureRule::Sinking));
@@ -592,7 +629,7 @@ mod tests {
 
     #[test]
     fn the_nozzle_passing_the_station_is_not_a_failure() {
-        let d = Detector::new(&FailureConfig::default(), wall(4), 0.005).unwrap();
+        let d = Detector::new(&FailureConfig::default(), wall(4), 0.005, None).unwrap();
         // the tube's material stands 20 mm above the top while the nozzle is over the station,
         // and leaves with it
         let h = |t: f64| {
@@ -604,7 +641,7 @@ mod tests {
 
     #[test]
     fn one_layer_has_no_detector_and_bad_config_is_refused() {
-        assert!(Detector::new(&FailureConfig::default(), wall(1), 0.005).is_none());
+        assert!(Detector::new(&FailureConfig::default(), wall(1), 0.005, None).is_none());
         let bad = FailureConfig { window: 0.0, ..FailureConfig::default() };
         assert!(bad.validate().unwrap_err().0.contains("window"));
         let bad = FailureConfig { sink_rate: Some(-1.0), ..FailureConfig::default() };

@@ -106,7 +106,9 @@ impl Reporter {
         };
         let cap = sim.particles.capacity() * if cfg.mirror_y.is_some() { 2 } else { 1 };
         let detector = match &sim.printer {
-            Some(p) if !cfg.stations.is_empty() => Detector::new(&cfg.failure, p.toolpath.clone(), p.shape.half_extent()[0]),
+            Some(p) if !cfg.stations.is_empty() => {
+                Detector::new(&cfg.failure, p.toolpath.clone(), p.shape.half_extent()[0], cfg.y_range)
+            }
             _ => None,
         };
         Ok(Some(Reporter {
@@ -153,6 +155,18 @@ impl Reporter {
                 self.pos.push([x[0], 2.0 * y0 - x[1], x[2]]);
                 self.vol.push(self.vol[i]);
             }
+        }
+        if let Some([lo, hi]) = self.cfg.y_range {
+            let mut kept = 0;
+            for i in 0..self.pos.len() {
+                if (lo..=hi).contains(&self.pos[i][1]) {
+                    self.pos[kept] = self.pos[i];
+                    self.vol[kept] = self.vol[i];
+                    kept += 1;
+                }
+            }
+            self.pos.truncate(kept);
+            self.vol.truncate(kept);
         }
         let cloud = Cloud { pos: &self.pos, vol: &self.vol, spacing: self.spacing };
         let sections: Vec<CrossSection> =

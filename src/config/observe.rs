@@ -28,6 +28,11 @@ pub struct ObserveConfig {
     /// wall): observables see the material together with its mirror image.
     #[serde(default)]
     pub mirror_y: Option<f64>,
+    /// The observables see only the particles with `y_range[0] <= y <= y_range[1]` [m]: on a
+    /// closed toolpath (a cylinder) the plane of a station cuts the wall twice, and the range
+    /// keeps one crossing. Applied after `mirror_y`.
+    #[serde(default)]
+    pub y_range: Option<[f64; 2]>,
     /// Failure detection of a multi-layer print (`failure.rs`): on whenever a print of two or
     /// more layers has stations; this table sets its threshold and can end the run after it.
     #[serde(default)]
@@ -42,6 +47,11 @@ impl ObserveConfig {
         if let Some(s) = self.slab {
             if !(s > 0.0 && s.is_finite()) {
                 return Err(Invalid(format!("observe.slab must be > 0, got {s}")));
+            }
+        }
+        if let Some([lo, hi]) = self.y_range {
+            if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+                return Err(Invalid(format!("observe.y_range must be [low, high] with finite low < high [m], got [{lo}, {hi}]")));
             }
         }
         self.failure.validate()

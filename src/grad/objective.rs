@@ -127,6 +127,8 @@ pub struct Frame {
     pub mirror_y: Option<f64>,
     /// `[observe] slab`: knot spacing of the area's B-spline in x (default one cell).
     pub slab: f64,
+    /// `[observe] y_range`, which the objectives refuse (they see every particle).
+    pub y_range: Option<[f64; 2]>,
 }
 
 impl Frame {
@@ -139,7 +141,8 @@ impl Frame {
         let obs = sc.observe.as_ref();
         // as the run's reporter: `[observe] base_z`, else the platform top, else the domain floor
         let base_z = obs.and_then(|o| o.base_z).or(sc.boundary.platform.as_ref().map(|p| p.z)).unwrap_or(sc.domain.min[2]);
-        Frame { dx, spacing: dx / ppc as f64, base_z, mirror_y: obs.and_then(|o| o.mirror_y), slab: obs.and_then(|o| o.slab).unwrap_or(dx) }
+        let (mirror_y, y_range) = (obs.and_then(|o| o.mirror_y), obs.and_then(|o| o.y_range));
+        Frame { dx, spacing: dx / ppc as f64, base_z, mirror_y, slab: obs.and_then(|o| o.slab).unwrap_or(dx), y_range }
     }
 }
 
@@ -158,6 +161,13 @@ fn arg_max(n: usize, keep: impl Fn(usize) -> bool, key: impl Fn(usize) -> f64) -
 impl Objective {
     /// The objective on `sim`'s current state; with `seed`, also add its adjoint there.
     pub fn evaluate(&self, sim: &Simulation, frame: &Frame, seed: Option<Seed>) -> Result<f64, GradError> {
+        if let Some([lo, hi]) = frame.y_range {
+            return Err(GradError::Objective(format!(
+                "objective {}: [observe] y_range = [{lo}, {hi}] limits the run's observables, not the gradient objectives, \
+                 which see every particle: remove it to differentiate or fit",
+                self.name()
+            )));
+        }
         let at = State { sim, frame, scale: frame.dx as Real };
         match self {
             Objective::Spread => at.spread(seed),
