@@ -7,6 +7,7 @@
 
 use super::arc::{Arc, ArcInput, Sense};
 use serde::{Deserialize, Serialize};
+use std::f64::consts::PI;
 
 /// Nozzle speed of a `layer` segment when no earlier segment moved the nozzle [m/s].
 const DEFAULT_LAYER_SPEED: f64 = 0.05;
@@ -382,14 +383,44 @@ impl Toolpath {
     /// Layers as (z, t_start, t_end): consecutive print moves whose end heights agree within
     /// 1e-9 m form one layer, spanning the first one's start to the last one's end. In time
     /// order; returning to an earlier height later starts a new entry.
+    ///
+    /// A spiral (the continuous layer change: print moves that rise and follow each other
+    /// without a break) is cut into one layer per turn: a layer ends where its heading has
+    /// turned through a whole turn, so a circle's helix, or a square's, gives one layer per
+    /// loop; z is the height at the turn's end.
     pub fn layers(&self) -> Vec<(f64, f64, f64)> {
         let mut layers: Vec<(f64, f64, f64)> = Vec::new();
+        // the previous print move, and the heading turned since the current layer began (a
+        // spiral's layer), None while the layer is flat
+        let mut prev: Option<&Move> = None;
+        let mut turned: Option<f64> = None;
         for m in self.moves.iter().filter(|m| m.kind == MoveKind::Print) {
             let z = m.to[2];
-            match layers.last_mut() {
-                Some(layer) if (layer.0 - z).abs() < LAYER_Z_TOL => layer.2 = m.t1,
-                _ => layers.push((z, m.t0, m.t1)),
+            let rises = m.to[2] - m.from[2] >= LAYER_Z_TOL;
+            let after = prev.filter(|p| p.to == m.from && p.t1 == m.t0);
+            // a spiral's next move: the heading turned since its layer began, this move's turn
+            // included
+            let spiral = match (turned, after) {
+                (Some(angle), Some(p)) if rises => Some(angle + heading_change(p, m)),
+                _ => None,
+            };
+            match (layers.last_mut(), spiral) {
+                (Some(layer), Some(angle)) if angle.abs() < 2.0 * PI * (1.0 - 1e-9) => {
+                    turned = Some(angle);
+                    (layer.0, layer.2) = (z, m.t1);
+                }
+                (Some(layer), None) if turned.is_none() && !rises && (layer.0 - z).abs() < LAYER_Z_TOL => layer.2 = m.t1,
+                _ => {
+                    layers.push((z, m.t0, m.t1));
+                    // a loop completed: the next layer carries what this move turned past it,
+                    // so that layers stay in step with the turns over many loops
+                    turned = match spiral {
+                        Some(angle) => Some(angle - 2.0 * PI * angle.signum()),
+                        None => rises.then_some(0.0),
+                    };
+                }
             }
+            prev = Some(m);
         }
         layers
     }
@@ -465,6 +496,16 @@ fn arc_segment(
 
 fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
     ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2) + (b[2] - a[2]).powi(2)).sqrt()
+}
+
+/// The signed angle from `a`'s horizontal heading to `b`'s, in (-pi, pi] (0 if either has none).
+fn heading_change(a: &Move, b: &Move) -> f64 {
+    let (ax, ay) = (a.to[0] - a.from[0], a.to[1] - a.from[1]);
+    let (bx, by) = (b.to[0] - b.from[0], b.to[1] - b.from[1]);
+    if (ax == 0.0 && ay == 0.0) || (bx == 0.0 && by == 0.0) {
+        return 0.0;
+    }
+    (ax * by - ay * bx).atan2(ax * bx + ay * by)
 }
 
 #[cfg(test)]
@@ -636,6 +677,41 @@ mod tests {
     }
 
     #[test]
+    fn a_spiral_is_one_layer_per_turn() {
+        // a flat ring at z = 0.01, then a helix of three turns rising 10 mm a turn
+        let circle = |z, turns| Segment::Arc { to: [0.1, 0.0, z], center: Some([0.0, 0.0]), radius: None, sense: Sense::Ccw, turns: Some(turns), speed: 0.05, extrusion: 0.05 };
+        let (ring, helix) = (circle(0.01, 1), circle(0.04, 3));
+        let p = Toolpath::from_segments([0.1, 0.0, 0.01], &[ring, helix]).unwrap();
+        let layers = p.layers();
+        let turn = 2.0 * PI * 0.1 / 0.05;
+        assert_eq!(layers.len(), 4, "{layers:?}");
+        for (k, l) in layers.iter().enumerate() {
+            // each turn's chords (a turn need not end on a chord's end: within one chord, at
+            // most 5 degrees): its end height and its time span
+            let chord = 5.0 / 360.0;
+            assert!((l.0 - 0.01 * (k + 1) as f64).abs() <= 0.01 * chord, "{k}: {l:?}");
+            assert!((l.2 - l.1 - turn).abs() <= 2.0 * chord * turn, "{k}: {l:?}");
+        }
+        // the turns stay in step: the last ends with the helix
+        assert_eq!(layers[3].2, p.end_time());
+        // a square spiral (vase mode): four rising sides a loop, two loops
+        let side = |x: f64, y: f64, z: f64| print([x, y, z], 0.05, 0.05);
+        let square: Vec<Segment> = (0..8)
+            .map(|i| {
+                let z = 0.01 + 0.0025 * (i + 1) as f64;
+                match i % 4 {
+                    0 => side(0.1, 0.0, z),
+                    1 => side(0.1, 0.1, z),
+                    2 => side(0.0, 0.1, z),
+                    _ => side(0.0, 0.0, z),
+                }
+            })
+            .collect();
+        let layers = Toolpath::from_segments([0.0, 0.0, 0.01], &square).unwrap().layers();
+        assert_eq!(layers.iter().map(|l| l.0).collect::<Vec<_>>(), vec![0.02, 0.03], "{layers:?}");
+    }
+
+    #[test]
     fn layer_speed_defaults() {
         let p = Toolpath::from_segments([0.0; 3], &[Segment::Layer { dz: 0.1, speed: None }]).unwrap();
         assert_eq!(p.end_time(), 2.0); // 0.1 m at 0.05 m/s
@@ -769,7 +845,7 @@ mod tests {
         let s: Scenario = toml::from_str(text).unwrap();
         let p = Toolpath::from_segments(s.print.start, &s.print.path).unwrap();
         assert_eq!(p.moves().last().unwrap().to, [0.1, 0.0, 0.02]);
-        assert_eq!(p.layers().len(), p.moves().len()); // a spiral: every chord its own height
+        assert_eq!(p.layers().len(), 1); // a spiral of one turn: one layer
         let e = toml::from_str::<Scenario>(&text.replace("\"ccw\"", "\"clockwise\"")).err().unwrap().to_string();
         assert!(e.contains("clockwise") && e.contains("cw"), "{e}");
     }
