@@ -13,11 +13,13 @@ its material has the real age. (A quarter model with symmetry planes is unsound 
 meets every plane through its axis at right angles, so at each end of a quarter arc the nozzle
 and its mirror image crush or tear the material between them.)
 
-Status: see BENCHMARKS.md "The printed cylinder".
+Status: not yet a prediction (BENCHMARKS.md "The printed cylinder"). At 5 mm cells each layer
+costs 100-200 CPU s more than the one before: an elastic wall under a new layer deforms down to
+its base, so sleeping (rightly) wakes it all; 30 layers are many CPU hours.
 
 Usage:
     cylinder.py [--strand PATH] [--out DIR] [--dx 0.005] [--layers 40] [--mass-scaling 100]
-                [--threads 2] [--write FILE]
+                [--threads 2] [--no-sleep] [--write FILE]
 """
 import argparse
 import json
