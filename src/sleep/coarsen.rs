@@ -169,7 +169,7 @@ fn merge(p: &mut Particles, group: impl Iterator<Item = usize> + Clone, material
         *dst = (s / vol) as Real;
     }
     p.id.as_mut_slice()[first] = id;
-    super::put_at_rest(p, first, material);
+    super::at_rest::put_at_rest(p, first, material);
 }
 
 /// Squeeze the `removed` particles marked [`GONE`] out of `from..p.n_sleep` (keeping the order

@@ -75,10 +75,11 @@
 //! (`coarsen.rs`), so what the next layer wakes costs less.
 //!
 //! Files: `units.rs` (the unit lattice and a unit's state), `holds.rs` (the nodes sleeping units
-//! hold), `passes.rs` (the wake and sleep passes of each step), `loads.rs` (the wake test on
-//! load), `coarsen.rs` (merging), this file (the tables, their memory plan, and what a
-//! checkpoint stores of them).
+//! hold), `at_rest.rs` (a particle put at rest), `passes.rs` (the wake and sleep passes of each
+//! step), `loads.rs` (the wake test on load), `coarsen.rs` (merging), this file (the tables,
+//! their memory plan, and what a checkpoint stores of them).
 
+mod at_rest;
 mod coarsen;
 mod holds;
 mod loads;
@@ -88,16 +89,14 @@ mod units;
 mod tests;
 
 pub use crate::config::SleepConfig;
+pub use at_rest::put_at_rest;
 pub use coarsen::Coarsen;
 pub use holds::{BlockHolds, Holds};
 pub use units::{unit_in_block, UnitActivity, UnitState, EMPTY_UNIT, UNITS, UNIT_CELLS};
 
 use crate::grid::{GridGeom, NODES_PER_BLOCK};
-use crate::kernels::material::Material;
-use crate::kernels::{M3, V3};
 use crate::memory::{Backing, MemoryError, MemoryPlan, Pool};
 use crate::pools::{map_pools, plan_pools, Counts, Per, PoolDecl, Pools, Role};
-use crate::particles::Particles;
 use units::{states, states_mut, valid_states};
 
 /// A restored `sleep.state` table holding a byte that is no [`UnitState`].
@@ -293,13 +292,3 @@ impl Sleep {
 
 }
 
-/// Put particle `i` at rest: zero velocity and velocity gradient, and the stress its material
-/// has at rest with its state and J (see the module notes: what a sleeping particle holds
-/// besides its state and J is rebuilt, not stored).
-pub fn put_at_rest(p: &mut Particles, i: usize, material: &dyn Material) {
-    let sl = p.state_len;
-    p.v.as_mut_slice()[i] = V3::ZERO;
-    p.c.as_mut_slice()[i] = M3::ZERO;
-    let state = &p.state.as_slice()[i * sl..(i + 1) * sl];
-    p.stress.as_mut_slice()[i] = material.stress_at_rest(state, p.j.as_slice()[i]);
-}

@@ -3,7 +3,8 @@
 //! sleeping prefix of the pool.
 
 use super::units::{neighbours, on_side, particle_unit, states_mut, unit_in_table, unit_index, unit_of_point, wrap_unit, UnitState, EMPTY_UNIT, UNITS};
-use super::{put_at_rest, Sleep, SleepConfig};
+use super::at_rest::put_at_rest;
+use super::{Sleep, SleepConfig};
 use crate::grid::{Grid, EMPTY};
 use crate::kernels::material::Material;
 use crate::kernels::Real;

@@ -7,6 +7,8 @@ use super::*;
 use crate::grid::Grid;
 use crate::kernels::transfer::BLOCK_EDGE;
 use crate::kernels::Real;
+use crate::kernels::material::Material;
+use crate::particles::Particles;
 
 fn geom(periodic: [bool; 3]) -> GridGeom {
     let nb = [3, 2, 4];

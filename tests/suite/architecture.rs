@@ -3,7 +3,9 @@
 //! excluded) and asserts there is no circle
 //! - among the top-level modules of `src/` (a folder or a file directly under `src/` is one
 //!   node), and
-//! - among the files of the folders listed in [`FOLDERS_WITHOUT_CIRCLES`] (a file is one node).
+//! - among the files of the folders listed in [`FOLDERS_WITHOUT_CIRCLES`] (a file is one node;
+//!   a folder's `mod.rs` naming its own files counts, `use child::item` as much as
+//!   `crate::folder::child::item`), apart from the [`KNOWN_CIRCLES`] still to be broken.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -29,9 +31,12 @@ fn rust_files(dir: &Path, out: &mut Vec<String>) {
 
 /// The code of a file without comments and without its unit tests.
 fn code(text: &str) -> String {
+    // unit tests in a file of their own (`mod tests;`) are left out by their declaration; inline
+    // ones (`mod tests {`) run to the end of the file
+    let text = text.replace("#[cfg(test)]\nmod tests;", "");
     let body = match text.find("#[cfg(test)]\nmod tests") {
         Some(i) => &text[..i],
-        None => text,
+        None => &text[..],
     };
     body.lines().map(|l| l.find("//").map_or(l, |i| &l[..i])).collect::<Vec<_>>().join("\n")
 }
@@ -87,14 +92,29 @@ fn path_tree(s: &[u8], i: usize, prefix: &[String], out: &mut Vec<Vec<String>>) 
     }
 }
 
-/// The `crate::` and `super::` paths of a file's code, each as its segments after `crate`, with
-/// `super` resolved against the file's own module path.
+/// The child modules a file declares (`mod name;` or `pub mod name;`, not inline `mod name { }`).
+fn child_modules(code: &str) -> BTreeSet<String> {
+    let mut out = BTreeSet::new();
+    for line in code.lines() {
+        let l = line.trim();
+        let l = l.strip_prefix("pub(crate) ").or_else(|| l.strip_prefix("pub ")).unwrap_or(l);
+        if let Some(name) = l.strip_prefix("mod ").and_then(|r| r.strip_suffix(';')) {
+            out.insert(name.trim().to_string());
+        }
+    }
+    out
+}
+
+/// The `crate::`, `super::` and `self::` paths of a file's code, and the paths through the child
+/// modules it declares (`child::item`, as a `mod.rs` names its own files), each as its segments
+/// after `crate`, resolved against the file's own module path.
 fn paths(file: &str, code: &str) -> Vec<Vec<String>> {
     // the module path of the file: a/b.rs -> [a, b]; a/mod.rs -> [a]
     let mut module: Vec<String> = file.trim_end_matches(".rs").split('/').map(String::from).collect();
     if module.last().is_some_and(|m| m == "mod" || m == "lib" || m == "main") {
         module.pop();
     }
+    let children = child_modules(code);
     let s = code.as_bytes();
     let mut out = Vec::new();
     let mut i = 0;
@@ -110,6 +130,15 @@ fn paths(file: &str, code: &str) -> Vec<Vec<String>> {
                 j += 7;
             }
             i = path_tree(s, j, &base, &mut out);
+        } else if boundary && s[i..].starts_with(b"self::") {
+            i = path_tree(s, i + 6, &module, &mut out);
+        } else if boundary && (s[i].is_ascii_alphabetic() || s[i] == b'_') {
+            let (id, j) = ident_at(s, i);
+            if children.contains(&id) && s[j..].starts_with(b"::") {
+                i = path_tree(s, i, &module, &mut out);
+            } else {
+                i = j;
+            }
         } else {
             i += 1;
         }
@@ -242,11 +271,28 @@ fn no_circle_spans_more_than_one_folder() {
     assert!(c.is_empty(), "import circles among the top-level modules of src/: {c:?}");
 }
 
+/// Circles the code still has, each to be broken rather than grown (issue 54): the solver's
+/// `Simulation` is declared in `solver/mod.rs`, holds the phases' types as fields, and each
+/// phase's file adds its methods to it. A circle found inside one of these passes; any other,
+/// or one reaching further, fails.
+const KNOWN_CIRCLES: &[&[&str]] = &[&[
+    "solver/adjoint.rs",
+    "solver/binning.rs",
+    "solver/bodies.rs",
+    "solver/emit.rs",
+    "solver/mod.rs",
+    "solver/step.rs",
+    "solver/walls.rs",
+]];
+
 #[test]
 fn no_circle_inside_the_core_folders() {
     for folder in FOLDERS_WITHOUT_CIRCLES {
-        let c = circles_in_folder(folder);
-        assert!(c.is_empty(), "import circles among the files of src/{folder}/: {c:?}");
+        let new: Vec<Vec<String>> = circles_in_folder(folder)
+            .into_iter()
+            .filter(|c| !KNOWN_CIRCLES.iter().any(|k| c.iter().all(|f| k.contains(&f.as_str()))))
+            .collect();
+        assert!(new.is_empty(), "import circles among the files of src/{folder}/: {new:?}");
     }
 }
 
@@ -297,4 +343,14 @@ fn the_graph_sees_imports_and_circles() {
     assert!(nested.contains(&vec!["checkpoint".into(), "format".into(), "checksum".into()]), "{nested:?}");
     assert!(nested.contains(&vec!["checkpoint".into(), "writer".into(), "Part".into()]), "{nested:?}");
     assert!(nested.contains(&vec!["sleep".into(), "UNITS".into()]), "{nested:?}");
+    // a mod.rs naming its own children, bare or through self::, imports them
+    let own = paths("sleep/mod.rs", "mod coarsen;\npub mod units;\nuse coarsen::Coarsen;\nlet u = self::units::UNITS;\nlet c = coarsen::f();");
+    assert!(own.contains(&vec!["sleep".into(), "coarsen".into(), "Coarsen".into()]), "{own:?}");
+    assert!(own.contains(&vec!["sleep".into(), "units".into(), "UNITS".into()]), "{own:?}");
+    assert!(own.contains(&vec!["sleep".into(), "coarsen".into(), "f".into()]), "{own:?}");
+    // and a circle through a folder's mod.rs is one
+    let mut through_mod = BTreeMap::new();
+    through_mod.insert("sleep/mod.rs".to_string(), BTreeSet::from(["sleep/coarsen.rs".to_string()]));
+    through_mod.insert("sleep/coarsen.rs".to_string(), BTreeSet::from(["sleep/mod.rs".to_string()]));
+    assert_eq!(circles(&grouped(&through_mod, |f| Some(f.to_string()))).len(), 1);
 }

@@ -5,7 +5,7 @@
 //! over one test. Null: r = 0.
 
 use super::super::error::MeasureError;
-use super::{add_bar, bar, read, Covariates, Effect, Keys, ParamSpec};
+use super::effect::{add_bar, bar, read, Covariates, Effect, Keys, ParamSpec};
 
 pub struct Ageing {
     name: &'static str,

@@ -26,7 +26,7 @@
 //! ([`intern`]) however often a model is loaded or cloned.
 
 use super::super::error::MeasureError;
-use super::{add_bar, bar, read, Covariates, Effect, Keys, ParamSpec};
+use super::effect::{add_bar, bar, read, Covariates, Effect, Keys, ParamSpec};
 use crate::measure::expression::Expression;
 use std::sync::Mutex;
 

@@ -13,7 +13,7 @@
 //! its Jacobian column is 0 without the runs central differences would take.
 
 use super::super::error::MeasureError;
-use super::{bar, Covariates, Effect, Keys, ParamSpec};
+use super::effect::{bar, Covariates, Effect, Keys, ParamSpec};
 
 pub struct Maxwell;
 

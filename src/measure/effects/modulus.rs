@@ -22,7 +22,7 @@
 
 use super::super::error::MeasureError;
 use crate::kernels::material::eos::shear_modulus_of_partials;
-use super::{bar, read, shear_modulus, Covariates, Effect, Keys, ParamSpec, BULK_MODULUS, POISSON_RATIO, SHEAR_MODULUS};
+use super::effect::{bar, read, shear_modulus, Covariates, Effect, Keys, ParamSpec, BULK_MODULUS, POISSON_RATIO, SHEAR_MODULUS};
 
 pub struct Modulus {
     name: &'static str,

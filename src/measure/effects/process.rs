@@ -13,7 +13,7 @@
 //! A test that prints nothing (a slump, a rheometer) is not reached.
 
 use super::super::error::MeasureError;
-use super::{Covariates, Effect, Keys, ParamSpec};
+use super::effect::{Covariates, Effect, Keys, ParamSpec};
 
 pub struct Process {
     name: &'static str,

@@ -8,7 +8,7 @@
 //! in n at the null (the score test's).
 
 use super::super::error::MeasureError;
-use super::{bar, Covariates, Effect, Keys, ParamSpec};
+use super::effect::{bar, Covariates, Effect, Keys, ParamSpec};
 
 pub struct ShearThinning;
 

@@ -10,7 +10,7 @@
 //! its last bits only (the return map's quadratic carries alpha even where lambda = 0).
 
 use super::super::error::MeasureError;
-use super::{add_bar, bar, read, Covariates, Effect, Keys, ParamSpec};
+use super::effect::{add_bar, bar, read, Covariates, Effect, Keys, ParamSpec};
 
 pub struct Thixotropy;
 

@@ -3,7 +3,7 @@
 //! Null: r = 0. The README's worked example of adding an effect.
 
 use super::super::error::MeasureError;
-use super::{add_bar, bar, read, Covariates, Effect, Keys, ParamSpec};
+use super::effect::{add_bar, bar, read, Covariates, Effect, Keys, ParamSpec};
 
 pub struct ViscosityAgeing;
 

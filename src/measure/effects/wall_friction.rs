@@ -8,7 +8,7 @@
 //! (`lr_start`). A rheometer test has no walls: the effect does not reach it.
 
 use super::super::error::MeasureError;
-use super::{Covariates, Effect, Keys, ParamSpec};
+use super::effect::{Covariates, Effect, Keys, ParamSpec};
 
 pub struct WallFriction;
 
