@@ -540,13 +540,14 @@ impl<'a> Machine<'a> {
         std::array::from_fn(|i| self.opts.origin[i] + self.opts.unit * target[i])
     }
 
-    /// G4 P<milliseconds> or G4 S<seconds>.
+    /// G4 P<milliseconds> or G4 S<seconds>. A bare G4 (PrusaSlicer writes it to wait for the
+    /// planned moves to finish) waits for nothing: strand's moves end when they are due.
     fn dwell(&mut self, params: &[&Word]) -> Result<(), LineError> {
         let seconds = match (value_of(params, 'P'), value_of(params, 'S')) {
             (Some(ms), None) => ms * 1e-3,
             (None, Some(s)) => s,
             (Some(_), Some(_)) => return Err(LineError::Malformed("G4 takes P (ms) or S (s), not both".to_string())),
-            (None, None) => return Err(LineError::Malformed("G4 needs P (ms) or S (s)".to_string())),
+            (None, None) => 0.0,
         };
         if seconds < 0.0 {
             return Err(LineError::Malformed(format!("negative dwell of {seconds} s")));
@@ -637,6 +638,7 @@ G4 P500 ; let it set
 G0 Z20 ; layer change at the modal 100 mm/s
 G1 X0 E25 F3000 ; second layer back at 50 mm/s
 G4 S0.25
+G4 ; bare: wait for the moves to finish, no dwell
 ";
         let p = parse(text);
         let m = p.moves();
@@ -784,7 +786,6 @@ G4 S0.25
             ("G1 X- ", "bad number \"-\""),
             ("G1 X1e", "E has no number"),
             ("G1 X10 F0", "feed rate F0 must be > 0"),
-            ("G4", "G4 needs P"),
             ("G4 P1 S1", "not both"),
             ("G4 P-5", "negative dwell"),
             ("G1 (open comment X1", "unclosed"),
