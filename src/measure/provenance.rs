@@ -95,11 +95,13 @@ fn gcode_of(text: &str, scenario: &Path) -> String {
         Ok(d) => d,
         Err(_) => return String::new(),
     };
-    match doc.get("print").and_then(|p| p.get("gcode")).and_then(|g| g.as_str()) {
-        Some(file) => {
+    // the toolpath file, G-code or a point list
+    let key = ["gcode", "points"].into_iter().find(|k| doc.get("print").and_then(|p| p.get(k)).is_some());
+    match key.and_then(|k| doc.get("print").and_then(|p| p.get(k)).and_then(|g| g.as_str()).map(|f| (k, f))) {
+        Some((key, file)) => {
             let p = scenario.parent().unwrap_or(Path::new("")).join(file);
             let body = std::fs::read_to_string(&p).unwrap_or_else(|e| format!("error: {e}"));
-            format!("\n# print.gcode {file}\n{body}")
+            format!("\n# print.{key} {file}\n{body}")
         }
         None => String::new(),
     }
