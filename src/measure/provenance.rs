@@ -205,6 +205,15 @@ mod tests {
         let e = p(&model, &exps, "P").check(&base, "P", file).unwrap_err().to_string();
         assert!(e.contains("another scenario") && !e.contains("another model"), "{e}");
 
+        // a point list is hashed as a G-code file is
+        std::fs::write(d.join("s.toml"), scenario.replace("gcode = \"path.gcode\"", "points = \"path.csv\"")).unwrap();
+        std::fs::write(d.join("path.csv"), "x, y, z, speed, flow\n0, 0, 0, 1, 0\n0.1, 0, 0, 1, 1e-5\n").unwrap();
+        let points = p(&model, &exps, "P");
+        std::fs::write(d.join("path.csv"), "x, y, z, speed, flow\n0, 0, 0, 1, 0\n0.12, 0, 0, 1, 1e-5\n").unwrap();
+        let e = p(&model, &exps, "P").check(&points, "P", file).unwrap_err().to_string();
+        assert!(e.contains("another scenario"), "{e}");
+        std::fs::write(d.join("s.toml"), scenario).unwrap();
+
         let rheo = p(&model, &exps, "R");
         std::fs::write(d.join("e.toml"), exps_text.replace("rate = 5.0", "rate = 5.5")).unwrap();
         let edited = Experiments::load(&d.join("e.toml")).unwrap();
