@@ -50,8 +50,8 @@ fn set(cfg: &PrintConfig, key: &str, v: f64) -> Result<PrintConfig, GradError> {
         "print.z_offset" => cfg.z_offset = v,
         _ => {
             let (index, field) = parse_key(key).ok_or_else(|| GradError::Param(format!("'{key}' is not print.path.<i>.<speed|extrusion|duration>, print.extrusion_factor or print.z_offset")))?;
-            if cfg.gcode.is_some() {
-                return Err(GradError::Param(format!("'{key}': segment parameters are taken on print.path segments, not on G-code")));
+            if cfg.gcode.is_some() || cfg.points.is_some() {
+                return Err(GradError::Param(format!("'{key}': segment parameters are taken on print.path segments, not on G-code or a point list")));
             }
             let seg = cfg.path.get_mut(index).ok_or_else(|| GradError::Param(format!("print.path has no segment {index}")))?;
             match (seg, field) {

@@ -95,11 +95,13 @@ fn gcode_of(text: &str, scenario: &Path) -> String {
         Ok(d) => d,
         Err(_) => return String::new(),
     };
-    match doc.get("print").and_then(|p| p.get("gcode")).and_then(|g| g.as_str()) {
-        Some(file) => {
+    // the toolpath file, G-code or a point list
+    let key = ["gcode", "points"].into_iter().find(|k| doc.get("print").and_then(|p| p.get(k)).is_some());
+    match key.and_then(|k| doc.get("print").and_then(|p| p.get(k)).and_then(|g| g.as_str()).map(|f| (k, f))) {
+        Some((key, file)) => {
             let p = scenario.parent().unwrap_or(Path::new("")).join(file);
             let body = std::fs::read_to_string(&p).unwrap_or_else(|e| format!("error: {e}"));
-            format!("\n# print.gcode {file}\n{body}")
+            format!("\n# print.{key} {file}\n{body}")
         }
         None => String::new(),
     }
@@ -202,6 +204,15 @@ mod tests {
         std::fs::write(d.join("path.gcode"), "G1 X12 Y0 E1\n").unwrap();
         let e = p(&model, &exps, "P").check(&base, "P", file).unwrap_err().to_string();
         assert!(e.contains("another scenario") && !e.contains("another model"), "{e}");
+
+        // a point list is hashed as a G-code file is
+        std::fs::write(d.join("s.toml"), scenario.replace("gcode = \"path.gcode\"", "points = \"path.csv\"")).unwrap();
+        std::fs::write(d.join("path.csv"), "x, y, z, speed, flow\n0, 0, 0, 1, 0\n0.1, 0, 0, 1, 1e-5\n").unwrap();
+        let points = p(&model, &exps, "P");
+        std::fs::write(d.join("path.csv"), "x, y, z, speed, flow\n0, 0, 0, 1, 0\n0.12, 0, 0, 1, 1e-5\n").unwrap();
+        let e = p(&model, &exps, "P").check(&points, "P", file).unwrap_err().to_string();
+        assert!(e.contains("another scenario"), "{e}");
+        std::fs::write(d.join("s.toml"), scenario).unwrap();
 
         let rheo = p(&model, &exps, "R");
         std::fs::write(d.join("e.toml"), exps_text.replace("rate = 5.0", "rate = 5.5")).unwrap();

@@ -11,9 +11,12 @@
 pub mod arc;
 pub mod emitter;
 pub mod gcode;
+pub mod gcode_dialect;
 pub mod imperfection;
 pub mod newest;
 pub mod nozzle;
+pub mod points;
+pub mod pump;
 pub mod toolpath;
 
 use crate::kernels::nozzle::Indicator;
@@ -61,6 +64,10 @@ pub struct PrintConfig {
     pub gcode: Option<PathBuf>,
     #[serde(default)]
     pub gcode_options: gcode::GcodeOptions,
+    /// Point-list toolpath file (CSV `x, y, z, speed, flow` in SI units, relative to the
+    /// scenario file, see `print::points`), instead of `path`: a robot's export.
+    #[serde(default)]
+    pub points: Option<PathBuf>,
     /// Delivered over commanded flow: every print move's extrusion speed is this times the
     /// toolpath's (a pump or a flow multiplier off by some percent); default 1.
     #[serde(default = "one")]
@@ -110,10 +117,12 @@ pub enum Emission {
 pub enum PrintError {
     #[error(transparent)]
     Invalid(#[from] Invalid),
-    #[error("print.gcode {}: {source}", path.display())]
-    Read { path: PathBuf, source: std::io::Error },
+    #[error("print.{key} {}: {source}", path.display())]
+    Read { key: &'static str, path: PathBuf, source: std::io::Error },
     #[error("{}: {source}", path.display())]
     Gcode { path: PathBuf, source: gcode::GcodeError },
+    #[error("{}: {source}", path.display())]
+    Points { path: PathBuf, source: points::PointsError },
     #[error(transparent)]
     Toolpath(#[from] toolpath::ToolpathError),
 }
@@ -134,11 +143,15 @@ impl PrintConfig {
         if !(1..=4).contains(&self.particles_per_cell_axis) {
             return Err(Invalid(format!("print.particles_per_cell_axis must be 1..=4, got {}", self.particles_per_cell_axis)));
         }
-        match (&self.gcode, self.path.is_empty()) {
-            (Some(_), false) => return Err(Invalid("print: give either print.path or print.gcode, not both".into())),
-            (None, true) => return Err(Invalid("print: no toolpath; give print.path segments or print.gcode".into())),
-            (None, false) if self.start.is_none() => return Err(Invalid("print.start (outlet position at t = 0) is missing".into())),
-            _ => {}
+        let given: Vec<&str> = [("print.path", !self.path.is_empty()), ("print.gcode", self.gcode.is_some()), ("print.points", self.points.is_some())]
+            .into_iter()
+            .filter_map(|(key, given)| given.then_some(key))
+            .collect();
+        match given[..] {
+            [] => return Err(Invalid("print: no toolpath; give print.path segments, print.gcode or print.points".into())),
+            ["print.path"] if self.start.is_none() => return Err(Invalid("print.start (outlet position at t = 0) is missing".into())),
+            [_] => {}
+            _ => return Err(Invalid(format!("print: give one toolpath, not {}", given.join(" and ")))),
         }
         if self.queue == 0 {
             return Err(Invalid("print.queue must be >= 1".into()));
@@ -158,13 +171,20 @@ impl PrintConfig {
     /// Build the toolpath (reading the G-code file relative to `base_dir`), with the
     /// imperfection (from the commanded heights), the extrusion factor and the Z offset applied.
     pub fn toolpath(&self, base_dir: &Path) -> Result<Toolpath, PrintError> {
-        let commanded = match &self.gcode {
-            Some(file) => {
-                let path = base_dir.join(file);
-                let text = std::fs::read_to_string(&path).map_err(|source| PrintError::Read { path: path.clone(), source })?;
-                gcode::parse_gcode(&text, &self.gcode_options).map_err(|source| PrintError::Gcode { path, source })?
+        let read = |key, file: &PathBuf| {
+            let path = base_dir.join(file);
+            std::fs::read_to_string(&path).map(|text| (text, path.clone())).map_err(|source| PrintError::Read { key, path, source })
+        };
+        let commanded = match (&self.gcode, &self.points) {
+            (Some(file), _) => {
+                let (text, path) = read("gcode", file)?;
+                gcode::parse_gcode_for_outlet(&text, &self.gcode_options, self.nozzle.area()).map(|(p, _)| p).map_err(|source| PrintError::Gcode { path, source })?
             }
-            None => Toolpath::from_segments(self.start.unwrap_or_default(), &self.path)?,
+            (None, Some(file)) => {
+                let (text, path) = read("points", file)?;
+                points::parse_points(&text, self.nozzle.area()).map_err(|source| PrintError::Points { path, source })?
+            }
+            (None, None) => Toolpath::from_segments(self.start.unwrap_or_default(), &self.path)?,
         };
         let commanded = match &self.imperfection {
             Some(imp) => imp.apply(commanded)?,

@@ -91,11 +91,14 @@ pub fn scenario_warnings(sc: &Scenario, sim: &Simulation) -> Vec<String> {
             format!("nothing to simulate: the bodies hold no particle at dx = {dx} (each is smaller than a particle spacing, or dx exceeds the domain)")
         });
     }
-    if let Some(file) = sc.print.as_ref().and_then(|p| p.gcode.as_ref().map(|f| (f, &p.gcode_options))) {
-        let path = sc.base_dir.join(file.0);
-        let notes = std::fs::read_to_string(&path).ok().and_then(|t| crate::print::gcode::parse_gcode_with_notes(&t, file.1).ok().map(|(_, n)| n));
-        if let Some(n) = notes.filter(|n| !n.is_empty()) {
-            w.push(format!("note: {}: {n}", path.display()));
+    if let Some((file, p)) = sc.print.as_ref().and_then(|p| p.gcode.as_ref().map(|f| (f, p))) {
+        let path = sc.base_dir.join(file);
+        let notes = std::fs::read_to_string(&path).ok().and_then(|t| crate::print::gcode::parse_gcode_for_outlet(&t, &p.gcode_options, p.nozzle.area()).ok().map(|(_, n)| n));
+        if let Some(n) = notes {
+            if !n.is_empty() {
+                w.push(format!("note: {}: {n}", path.display()));
+            }
+            w.extend(n.warnings.iter().map(|x| format!("{}: {x}", path.display())));
         }
     }
     for (i, b) in sc.bodies.iter().enumerate() {

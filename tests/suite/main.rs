@@ -13,6 +13,7 @@ mod measure;
 mod measure_report;
 mod print;
 mod print_arcs;
+mod print_dialects;
 mod print_campaign;
 mod resolution;
 mod resume;
