@@ -437,7 +437,7 @@ fn run(args: RunArgs) -> Result<bool, Failure> {
 fn check(args: CheckArgs) -> Result<bool, Failure> {
     let CheckArgs { scenario } = args;
     let sc = Scenario::load(&scenario)?;
-    // Simulation::new plans the memory before it allocates (run::preflight)
+    // Simulation::new plans the memory before it allocates (solver::preflight)
     let mut sim = strand::solver::Simulation::new(&sc)?;
     strand::run::plan_checkpoint_staging(&mut sim)?;
     for w in strand::run::scenario_warnings(&sc, &sim) {

@@ -4,9 +4,10 @@
 //! experiment's `set` overrides and, for `[resolution]`, once more at the finer cells. Any of those
 //! runs may be over the scenario's `[memory] budget` (a `set = { "simulation.dx" = 1e-5 }` asks
 //! for terabytes), and a run found over it only when it starts may come after hours of others. So
-//! each scenario is built and its memory planned (`solver::preflight`, the lower bound every simulation's setup
-//! checks) up front, and the finer cells are checked to be finer, before the first run: the
-//! refusal names the experiment, its `set`, and `[resolution] fine` when it was the finer run.
+//! each scenario is built and its memory planned (`solver::preflight`, the lower bound every
+//! simulation's setup checks) up front, and the finer cells are checked to be finer, before the
+//! first run: the refusal names the experiment, its `set`, and `[resolution] fine` when it was
+//! the finer run.
 //! `Simulation::new` plans again, so a path that misses this still refuses before it allocates.
 
 use super::error::MeasureError;
