@@ -1,7 +1,8 @@
 # strand — the two commands a new machine needs are `make run` and `make test`.
 CARGO ?= cargo
 OUT ?= out
-# cargo's own output folder: CARGO_TARGET_DIR when set (as on many Rust developers' machines)
+# cargo's own output folder: CARGO_TARGET_DIR when set (as on many Rust developers' machines);
+# every target that runs the binary runs $(STRAND), and bench/compare.sh reads CARGO_TARGET_DIR
 TARGET_DIR := $(if $(CARGO_TARGET_DIR),$(CARGO_TARGET_DIR),target)
 STRAND := $(TARGET_DIR)/release/strand
 
@@ -45,7 +46,7 @@ verify-quick: build
 bench: bench-peer bench-restart bench-kernels
 
 bench-peer:
-	bash bench/compare.sh
+	CARGO_TARGET_DIR=$(TARGET_DIR) bash bench/compare.sh
 
 bench-restart:
 	$(CARGO) test --release --test suite -- resume::the_evp_print_restart_state --nocapture 2>&1 | grep -E "B/particle|test result"
@@ -100,21 +101,21 @@ bench-cylinder: build
 # estimated at 2.5x that). Add 1 to the sizes for the 1 mm row (about 2 CPU hours). A run already
 # in $(OUT)/convergence is not repeated.
 bench-convergence: build
-	python3 bench/convergence.py --out $(OUT)/convergence 5 4 3.125 2.5 2
+	python3 bench/convergence.py --strand $(STRAND) --out $(OUT)/convergence 5 4 3.125 2.5 2
 
 # The cells a nozzle diameter needs: the 16 mm line at 3 (J-bar only), 4, 5, 6 and 8 cells per diameter, yield
 # stress 163 and 312 Pa, as printed (J-bar, sleeping) and as calibrate and diagnose run it
 # (J-bar off, no sleeping) (BENCHMARKS.md "Discretisation error"; about 15 CPU minutes).
 bench-nozzle-cells: build
-	python3 bench/nozzle_cells.py --out $(OUT)/nozzle_cells 3 4 5 6 8
-	python3 bench/nozzle_cells.py --as-fitted --out $(OUT)/nozzle_cells_fitted 4 5 6 8
+	python3 bench/nozzle_cells.py --strand $(STRAND) --out $(OUT)/nozzle_cells 3 4 5 6 8
+	python3 bench/nozzle_cells.py --strand $(STRAND) --as-fitted --out $(OUT)/nozzle_cells_fitted 4 5 6 8
 
 # Paper 000's cases 1-5 at 5 and 2.5 mm cells, each without and with the nozzle's body (a 35 mm
 # outer diameter, flat end at the outlet; docs/solids.md): width, height and area at x = 100 mm
 # (one thread per run; estimated at about 40 CPU minutes from the cases' single runs). A run
 # already in $(OUT)/nozzle_body is not repeated.
 bench-nozzle-body: build
-	python3 bench/nozzle_body.py --out $(OUT)/nozzle_body 5 2.5
+	python3 bench/nozzle_body.py --strand $(STRAND) --out $(OUT)/nozzle_body 5 2.5
 
 # A six-print campaign's diagnosis at 8 cells per nozzle diameter (the issue's target: 30
 # minutes on 2 cores): fixtures/measure/print/'s four lines and two walls at 1.5 mm cells against
@@ -128,13 +129,13 @@ bench-print-diagnose: build
 # at 2 cm cells (fixtures/measure/lbox/, bench/lbox.py; BENCHMARKS.md "L-box"). A calibrated
 # model or comparison already in $(OUT)/lbox is not repeated.
 bench-lbox: build
-	python3 bench/lbox.py --out $(OUT)/lbox --jobs 2
+	python3 bench/lbox.py --strand $(STRAND) --out $(OUT)/lbox --jobs 2
 
 # Paper 001's V-funnel under 001's own parameters (Table 4): Mix-A and Mix-B after 0, 240 and
 # 600 s of rest at 001's 10.7 mm cells, the times 50, 90 and 99 % of the mass has passed the
 # outlet beside 001's flow times (fixtures/measure/vfunnel/, bench/vfunnel.py; BENCHMARKS.md "V-funnel").
 bench-vfunnel: build
-	python3 bench/vfunnel.py --out $(OUT)/vfunnel --jobs 2
+	python3 bench/vfunnel.py --strand $(STRAND) --out $(OUT)/vfunnel --jobs 2
 
 # Paper 001's L-box (Sec. 4.2), Mix-A and Mix-B after no rest, at 10 mm cells (96,000 particles;
 # about 46,000 and 132,000 steps).

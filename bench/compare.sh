@@ -3,7 +3,7 @@
 # 262,144 particles, dt = 2e-4), f64 and f32, 1 and 2 threads. This VM's speed drifts by up to 2x
 # from minute to minute (CPU steal), so each configuration alternates strand and Taichi ROUNDS
 # times and reports the medians and ranges; the ratio compares runs made side by side.
-# Nothing else should run meanwhile (2 cores). Logs: target/bench/.
+# Nothing else should run meanwhile (2 cores). Logs: $CARGO_TARGET_DIR/bench/ (target/bench/ when unset).
 #   bash bench/compare.sh                      # full table (about 10 minutes)
 #   ROUNDS=1 PARTICLES=65536 GRID=32 bash bench/compare.sh
 set -euo pipefail
@@ -13,18 +13,20 @@ G=${GRID:-64}
 S=${STEPS:-30}
 R=${REPEATS:-3}
 ROUNDS=${ROUNDS:-3}
-LOG=target/bench
+# cargo's output folder: CARGO_TARGET_DIR when set, as cargo itself reads it
+TARGET=${CARGO_TARGET_DIR:-target}
+LOG=$TARGET/bench
 mkdir -p "$LOG"
 cargo build --release --quiet
-cargo build --release --quiet --features f32 --target-dir target/f32
+cargo build --release --quiet --features f32 --target-dir "$TARGET/f32"
 rate() { sed -n 's/.*particle_steps_per_s=\([0-9.e+]*\).*/\1/p' "$1" | tail -n 1; }
 median() { sort -g | awk '{a[NR]=$1} END {print a[int((NR+1)/2)]}'; }
 range() { sort -g | awk 'NR==1{lo=$1} {hi=$1} END {printf "%.3g-%.3g", lo, hi}'; }
 echo "| dtype | threads | strand M p-s/s (median, range) | Taichi M p-s/s (median, range) | strand / Taichi (median of paired ratios) |"
 echo "|---|---|---|---|---|"
 for dtype in f64 f32; do
-  bin=./target/release/strand
-  [ "$dtype" = f32 ] && bin=./target/f32/release/strand
+  bin=$TARGET/release/strand
+  [ "$dtype" = f32 ] && bin=$TARGET/f32/release/strand
   for t in 2 1; do
     s_rates=(); t_rates=(); ratios=()
     for k in $(seq 1 "$ROUNDS"); do

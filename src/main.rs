@@ -1,6 +1,7 @@
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 use std::process::ExitCode;
+use strand::measure::preflight::{plan_experiments, Planned};
 use strand::measure::{error::MeasureError, experiments::Experiments, model::Model, observation::Observation, resolution::Counted};
 use strand::run::{run_scenario, RunOptions};
 use strand::scenario::Scenario;
@@ -367,9 +368,13 @@ fn print_result(json: bool, result: &impl serde::Serialize, disc: &Option<Counte
 }
 
 impl MeasureInputs {
-    fn load(&self) -> Result<(Model, Vec<Observation>, Experiments), MeasureError> {
+    /// The model, the data and the experiments, with every simulation the data's experiments
+    /// will run planned (memory, `[resolution]`'s finer cells) before any runs.
+    fn load(&self) -> Result<(Model, Vec<Observation>, Experiments, Planned), MeasureError> {
         use strand::measure::observation::read_observations;
-        Ok((Model::load(&self.model)?, read_observations(&self.data)?, Experiments::load(&self.experiments)?))
+        let (m, d, e) = (Model::load(&self.model)?, read_observations(&self.data)?, Experiments::load(&self.experiments)?);
+        let planned = plan_experiments(&m, &e, strand::measure::runner::group(&d).iter().map(|(id, _)| id.as_str()))?;
+        Ok((m, d, e, planned))
     }
 }
 
@@ -432,7 +437,7 @@ fn run(args: RunArgs) -> Result<bool, Failure> {
 fn check(args: CheckArgs) -> Result<bool, Failure> {
     let CheckArgs { scenario } = args;
     let sc = Scenario::load(&scenario)?;
-    strand::run::preflight(&sc)?;
+    // Simulation::new plans the memory before it allocates (solver::preflight)
     let mut sim = strand::solver::Simulation::new(&sc)?;
     strand::run::plan_checkpoint_staging(&mut sim)?;
     for w in strand::run::scenario_warnings(&sc, &sim) {
@@ -489,7 +494,7 @@ fn compare(args: CompareArgs) -> Result<bool, Failure> {
     if let Some(dir) = &report {
         folder::prepare_dir(dir)?;
     }
-    let (m, d, e) = inputs.load()?;
+    let (m, d, e, _) = inputs.load()?;
     if let Some(dir) = &plan {
         let exe = std::env::current_exe()?;
         let n = jobs::plan(dir, &exe, &inputs.model, &inputs.data, &inputs.experiments, &d)?;
@@ -546,6 +551,7 @@ fn synth(args: SynthArgs) -> Result<bool, Failure> {
     use strand::measure::{experiments::Experiments, model::Model, observation::write_observations, synth::synth};
     let m = Model::load(&model)?;
     let e = Experiments::load(&experiments)?;
+    plan_experiments(&m, &e, e.experiment.iter().map(|x| x.id.as_str()))?;
     let obs = synth(&m, &e, noise, seed, jobs)?;
     write_observations(&out, &obs)?;
     eprintln!("{} observations of {} experiments written to {}", obs.len(), e.experiment.len(), out.display());
@@ -567,7 +573,10 @@ fn counted_data(m: &Model, d: Vec<Observation>, e: &Experiments, jobs: usize) ->
 fn calibrate(args: CalibrateArgs) -> Result<bool, Failure> {
     let CalibrateArgs { inputs, fit, out, plot, fit_steps, engine } = args;
     use strand::measure::{calibrate, resolution};
-    let (m, d0, e) = inputs.load()?;
+    let (m, d0, e, planned) = inputs.load()?;
+    if let Some(w) = resolution::uncounted_warning(&planned.prints, &e) {
+        eprintln!("{w}");
+    }
     let out = out.unwrap_or_else(|| inputs.model.with_extension("calibrated.toml"));
     let plot = plot.unwrap_or_else(|| out.with_extension("png"));
     check_writable(&out, "--out")?;
@@ -589,7 +598,10 @@ fn diagnose(args: DiagnoseArgs) -> Result<bool, Failure> {
     if !(alpha > 0.0 && alpha < 1.0) {
         return Err(format!("--alpha must be in (0, 1), got {alpha}").into());
     }
-    let (m, d0, e) = inputs.load()?;
+    let (m, d0, e, planned) = inputs.load()?;
+    if let Some(w) = resolution::uncounted_warning(&planned.prints, &e) {
+        eprintln!("{w}");
+    }
     if let Some(out) = &out {
         check_writable(out, "--out")?;
     }

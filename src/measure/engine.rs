@@ -376,6 +376,8 @@ pub fn evaluate(job_path: &Path, out: &Path) -> Result<String, MeasureError> {
     let model = job_model(&job).map_err(|e| e.within(job_path.display()))?;
     // the files as they are now must be those the job was planned with
     Provenance::of(&model, &exps, &exps.experiment[0]).check(&job.provenance, &id, job_path).map_err(|e| MeasureError::Engine(format!("{e}: the job was planned with other files or another strand; run the campaign again to plan it anew")))?;
+    // the experiment's memory planned before it runs: over the budget is the job's error, not a result
+    super::preflight::plan_experiments(&model, &exps, [id.as_str()])?;
     let obs: Vec<Observable> = job.observables.iter().map(|o| Observable::parse(o)).collect::<Result<_, _>>()?;
     if job.scatter.as_ref().is_some_and(|s| s.len() != obs.len()) {
         return Err(MeasureError::Engine(format!("{}: {} scatters for {} observables: not a job of this strand", job_path.display(), job.scatter.as_ref().map_or(0, Vec::len), obs.len())));

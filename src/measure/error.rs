@@ -49,6 +49,10 @@ pub enum MeasureError {
     /// A saved result whose inputs differ from the current ones.
     #[error("{0}")]
     Provenance(String),
+    /// An experiment's simulation over its memory budget, refused before any experiment runs
+    /// (`preflight.rs`).
+    #[error("{0}")]
+    Memory(String),
     /// The discretisation error of `[resolution]`'s finer run, which cannot be estimated.
     #[error("{0}")]
     Resolution(String),

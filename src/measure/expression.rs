@@ -123,10 +123,17 @@ fn tokens(text: &str) -> Result<Vec<(Token, usize)>, MeasureError> {
     Ok(out)
 }
 
+/// The deepest an expression may nest (parentheses, calls, signs and exponents, each a level):
+/// the parser, the evaluation and the tree's drop recurse once per level, and 10,000 levels
+/// overflow the stack. A physical law needs a handful.
+pub const MAX_DEPTH: usize = 64;
+
 struct Parser {
     tokens: Vec<(Token, usize)>,
     at: usize,
     symbols: Vec<String>,
+    /// The levels `unary` is nested in now: every nesting passes through it.
+    depth: usize,
 }
 
 impl Parser {
@@ -163,8 +170,18 @@ impl Parser {
         Ok(left)
     }
 
-    /// unary := ('-' | '+') unary | power
+    /// unary := ('-' | '+') unary | power, at most [`MAX_DEPTH`] levels deep.
     fn unary(&mut self) -> Result<Node, MeasureError> {
+        if self.depth == MAX_DEPTH {
+            return Err(MeasureError::Expression(format!("the expression nests deeper than {MAX_DEPTH} levels (parentheses, calls, signs, exponents) {}", self.where_())));
+        }
+        self.depth += 1;
+        let node = self.unary_level();
+        self.depth -= 1;
+        node
+    }
+
+    fn unary_level(&mut self) -> Result<Node, MeasureError> {
         match self.peek() {
             Some(Token::Op('-')) => {
                 self.at += 1;
@@ -284,7 +301,7 @@ impl Expression {
         if tokens.is_empty() {
             return Err(MeasureError::Expression("the expression is empty".into()));
         }
-        let mut p = Parser { tokens, at: 0, symbols: Vec::new() };
+        let mut p = Parser { tokens, at: 0, symbols: Vec::new(), depth: 0 };
         let root = p.sum()?;
         if p.at < p.tokens.len() {
             let t = p.tokens[p.at].0.clone();
@@ -372,6 +389,19 @@ fn eval(node: &Node, x: &[f64]) -> Dual {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Issue 53 finding 1: 10,000 nested parentheses (or signs, or exponents) overflowed the
+    /// stack; past MAX_DEPTH they are an error saying so, and a law as deep as the limit parses.
+    #[test]
+    fn an_expression_nested_too_deep_is_an_error_not_a_stack_overflow() {
+        let n = 10_000;
+        for text in [format!("{}x{}", "(".repeat(n), ")".repeat(n)), format!("{}x", "-".repeat(n)), format!("x{}", "^x".repeat(n)), format!("{}x{}", "exp(".repeat(n), ")".repeat(n))] {
+            let e = Expression::parse(&text).unwrap_err().to_string();
+            assert!(e.contains(&format!("nests deeper than {MAX_DEPTH} levels")), "{e}");
+        }
+        let deep = format!("{}x{}", "(".repeat(MAX_DEPTH - 1), ")".repeat(MAX_DEPTH - 1));
+        assert_eq!(Expression::parse(&deep).unwrap().eval(&[2.5]), 2.5);
+    }
 
     /// Every derivative against central differences, at a point where each symbol matters.
     #[test]

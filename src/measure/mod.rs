@@ -32,6 +32,7 @@ pub mod observables;
 pub mod observation;
 pub mod passing;
 pub mod plan;
+pub mod preflight;
 pub mod provenance;
 pub mod report;
 pub mod residuals;

@@ -266,6 +266,11 @@ impl Model {
         for (e, p) in &self.effects {
             before.push(keys.clone());
             e.apply(p, x, &mut keys).map_err(|m| m.within(format!("effect '{}'", e.name())))?;
+            // a value an effect made not finite is the effect's fault, named here rather than
+            // as a bad material value later
+            if let Some((k, v)) = keys.iter().find(|(k, v)| !v.is_finite() && before.last().and_then(|b| b.get(k.as_str())).is_none_or(|w| w.is_finite())) {
+                return Err(MeasureError::Effect(format!("effect '{}' gives {k} = {v}, not a finite number (its parameters {p:?})", e.name())));
+            }
         }
         Ok((keys, before))
     }

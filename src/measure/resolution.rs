@@ -193,6 +193,22 @@ pub fn counted_data(model: &Model, data: Vec<Observation>, exps: &Experiments, j
     Ok((counted(&data, &estimates), Some(Counted { data, estimates, start_values })))
 }
 
+/// The warning calibrate and diagnose give once when print experiments run without a
+/// `[resolution]` table: a printed section's cell-size error is then not counted, and a fit or
+/// a diagnosis reads it as the material's (on six lines at 2.5 mm cells against 2 mm data, the
+/// true material alone misses by rms z 8.2 under 2 % noise). None when there is nothing to say.
+pub fn uncounted_warning(prints: &[String], exps: &Experiments) -> Option<String> {
+    if prints.is_empty() || exps.resolution.is_some() {
+        return None;
+    }
+    Some(format!(
+        "warning: the print experiments ({}) run without a [resolution] table, so the cell size's discretisation error \
+         is not counted: a misfit it causes is read as the material's. Count it with a finer run of every experiment \
+         in the experiments file, e.g. [resolution] fine = {{ \"simulation.dx\" = <a finer cell> }} (docs/discretisation.md)",
+        prints.join(", ")
+    ))
+}
+
 /// A command's JSON with the estimates added as `discretisation` (one entry per observation,
 /// null for a rheometer test) when there are any.
 pub fn with_estimates(mut v: serde_json::Value, counted: &Option<Counted>) -> Result<serde_json::Value, MeasureError> {

@@ -15,7 +15,8 @@ pub use checkpoints::plan_checkpoint_staging;
 pub use error::RunError;
 use error::io_err;
 pub use outputs::{process_cpu_seconds, write_snapshot, Globals, GLOBALS_HEADER};
-pub use preflight::{planned_steps, preflight, scenario_warnings};
+pub use crate::solver::preflight;
+pub use preflight::{planned_steps, scenario_warnings};
 
 use crate::checkpoint::state;
 use crate::memory::fmt_bytes;
@@ -132,6 +133,8 @@ impl<'a> Run<'a> {
         if let Some(t) = opts.threads {
             sc.simulation.threads = t;
         }
+        // refused over the budget before the output folder is touched
+        preflight(&sc).map_err(|e| RunError::Sim(SimError::Invalid(e)))?;
         std::fs::create_dir_all(&opts.out).map_err(io_err(&opts.out))?;
         let resume_from = if opts.resume {
             Some(resume_checkpoint(&sc, opts)?)
@@ -139,7 +142,6 @@ impl<'a> Run<'a> {
             clear_previous_run(&opts.out, &sc, opts)?;
             None
         };
-        preflight(&sc).map_err(|e| RunError::Sim(SimError::Invalid(e)))?;
         let mut sim = Simulation::new(&sc)?;
         plan_checkpoint_staging(&mut sim)?;
         for w in scenario_warnings(&sc, &sim) {

@@ -1,58 +1,10 @@
-//! What is said about a scenario before it runs: a memory plan over budget even at its fewest
-//! particles, too many planned steps, and warnings about what its author may not expect.
+//! What is said about a scenario before it runs: too many planned steps, and warnings about what
+//! its author may not expect. (Its memory plan's lower bound, checked before anything is
+//! allocated, is `solver::preflight`, which every simulation's setup calls.)
 
 use crate::invalid::Invalid;
-use crate::memory::{fmt_bytes, parse_size};
 use crate::scenario::Scenario;
 use crate::solver::Simulation;
-
-/// Before anything is allocated or counted: refuse a scenario whose memory plan is over its
-/// budget even with the fewest particles its bodies can hold (a lower bound from each body's
-/// lattice, cheap at any resolution), so `check` and `run` answer at once where counting the
-/// particles one by one would take hours.
-pub fn preflight(sc: &Scenario) -> Result<(), Invalid> {
-    use crate::memory::MemoryPlan;
-    use crate::pools::Pools;
-    let budget = parse_size(&sc.memory.budget).map_err(|e| Invalid(format!("memory.budget: {e}")))?;
-    let state_len = crate::materials::build_material(&sc.material)?.state_names().len();
-    let fewest: f64 = sc.bodies.iter().map(|b| fewest_particles(sc, b)).sum();
-    let geom = crate::grid::GridGeom::new(sc.simulation.dx, sc.domain.min, sc.domain.max, sc.domain.periodic);
-    let capacity = crate::pools::Counts::capacity(fewest.min(1e15) as usize, sc.memory.max_blocks.unwrap_or(geom.table_len()).max(8));
-    let mut plan = MemoryPlan::default();
-    crate::particles::Particles::declared(state_len).plan_memory(&mut plan, &capacity);
-    crate::grid::Grid::declared(geom).plan_memory(&mut plan, &capacity);
-    if plan.total() > budget {
-        return Err(Invalid(format!(
-            "memory plan: the grid and the at least {fewest:.4e} particles of the bodies at dx = {} m need at least {}, over the budget of {} \
-             (raise [memory] budget, or lower resolution / max_blocks):\n{plan}",
-            sc.simulation.dx,
-            fmt_bytes(plan.total()),
-            fmt_bytes(budget)
-        )));
-    }
-    Ok(())
-}
-
-/// The fewest particles `body` holds: its lattice over the largest box inside it and the
-/// domain (a union's or intersection's: its lattice counted).
-fn fewest_particles(sc: &Scenario, body: &crate::scenario::Body) -> f64 {
-    use crate::scenario::Body;
-    let h = sc.simulation.dx / body.particles_per_cell_axis() as f64;
-    let (lo, hi) = match body {
-        Body::Box { min, max, .. } => (*min, *max),
-        Body::Frustum { base_center: c, bottom_radius, top_radius, height, .. } => {
-            let r = bottom_radius.min(*top_radius) / std::f64::consts::SQRT_2;
-            ([c[0] - r, c[1] - r, c[2]], [c[0] + r, c[1] + r, c[2] + height])
-        }
-        Body::Union { .. } | Body::Intersection { .. } => {
-            let mut n = 0usize;
-            crate::solver::for_each_lattice_point(sc, body, |_| n += 1);
-            return n as f64;
-        }
-    };
-    let d = &sc.domain;
-    (0..3).map(|a| ((hi[a].min(d.max[a]) - lo[a].max(d.min[a])) / h - 1.0).floor().max(0.0)).product()
-}
 
 /// What a scenario does that its author may not expect, said before it runs, one line each
 /// (`warning: ...` or `note: ...`): a wall moved to the nearest cell face, nothing to simulate,
@@ -78,6 +30,14 @@ pub fn scenario_warnings(sc: &Scenario, sim: &Simulation) -> Vec<String> {
     // a printed section needs the nozzle resolved by enough cells
     if let Some(r) = sc.print.as_ref().and_then(|p| p.nozzle.resolution_warning(dx, sc.simulation.j_bar)) {
         w.push(r);
+    }
+    // a solid outside the domain touches nothing: most often its coordinates are in mm
+    for (name, lo, hi) in sim.solids.as_ref().map_or(Vec::new(), |z| z.wholly_outside(d.min, d.max)) {
+        w.push(format!(
+            "solid '{name}' lies wholly outside the domain (its bounds [{:.4}, {:.4}, {:.4}] to [{:.4}, {:.4}, {:.4}] against the domain's {:?} to {:?}): \
+             it touches nothing; lengths are in metres (were they written in mm?)",
+            lo.x, lo.y, lo.z, hi.x, hi.y, hi.z, d.min, d.max
+        ));
     }
     // a solid that holds no node lets material through
     for (name, most) in sim.solids.as_ref().map_or(Vec::new(), |z| z.held_at_no_node(&sim.grid.geom)) {

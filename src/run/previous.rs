@@ -66,7 +66,8 @@ pub(super) fn clear_previous_run(out: &Path, sc: &Scenario, opts: &RunOptions) -
             out.display()
         )));
     };
-    let end = Scenario::parse(&ck.header.scenario_text).map_or(f64::INFINITY, |s| s.simulation.end_time);
+    let then = Scenario::parse(&ck.header.scenario_text).ok();
+    let end = then.as_ref().map_or(f64::INFINITY, |s| s.simulation.end_time);
     // the checkpoint is inside a step: the run had finished if that step reaches the end
     if ck.header.time + ck.header.dt < end * (1.0 - 1e-12) {
         return Err(RunError::Resume(format!(
@@ -86,5 +87,33 @@ pub(super) fn clear_previous_run(out: &Path, sc: &Scenario, opts: &RunOptions) -
             out.display()
         )));
     }
+    let lost = then.as_ref().map_or(Vec::new(), |then| not_written_again(then, sc));
+    if !lost.is_empty() {
+        return Err(RunError::Resume(format!(
+            "{} holds a finished run of this scenario (t = {end} s) that this run would not write again: {}\n  \
+             choose another --out, or start over (deleting that run's files) with: {start_over}",
+            out.display(),
+            lost.join("; ")
+        )));
+    }
     remove_previous_run(out)
+}
+
+/// What of a finished run of the same scenario (`then`) a fresh run of `now` would delete and
+/// not write again (the keys scenario_differences leaves free: the end time, whether snapshots
+/// and checkpoints are written). A run that writes at least as much replaces it with the same
+/// results; one that writes less would lose them silently.
+fn not_written_again(then: &Scenario, now: &Scenario) -> Vec<String> {
+    let mut lost = Vec::new();
+    let (t0, t1) = (then.simulation.end_time, now.simulation.end_time);
+    if t1 < t0 {
+        lost.push(format!("it ends at simulation.end_time = {t1} s, before that run's {t0} s, so the outputs and checkpoints after {t1} s would be lost"));
+    }
+    if then.output.vtu && !now.output.vtu {
+        lost.push("output.vtu = false, so that run's VTU snapshots and particles.pvd would be lost".to_string());
+    }
+    if then.checkpoint.enabled && !now.checkpoint.enabled {
+        lost.push("checkpoint.enabled = false, so that run's checkpoints would be lost".to_string());
+    }
+    lost
 }

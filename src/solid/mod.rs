@@ -101,7 +101,7 @@ impl TryFrom<toml::Table> for SolidConfig {
                 common.insert(k.to_string(), v);
             }
         }
-        let c: Common = common.try_into().map_err(|e: toml::de::Error| Invalid(format!("solid: {}", e.message())))?;
+        let c: Common = common.clone().try_into().map_err(|e: toml::de::Error| Invalid(format!("solid: {}: {}", failing_key(&common), e.message())))?;
         if !t.contains_key("shape") {
             return Err(Invalid("solid: `shape` is missing (one of: box, cylinder, frustum, half_space, union, intersection, difference, nozzle)".into()));
         }
@@ -116,6 +116,23 @@ impl TryFrom<toml::Table> for SolidConfig {
             transition: c.transition,
         })
     }
+}
+
+/// The key path of `common` that does not deserialise, tried one key at a time: `motion.velocity`
+/// for `motion = { velocity = [0.0, 0.15] }`, where serde's message names only the shape it
+/// expected.
+fn failing_key(common: &toml::Table) -> String {
+    for (k, v) in common {
+        let alone: toml::Table = std::iter::once((k.clone(), v.clone())).collect();
+        if alone.try_into::<Common>().is_err() {
+            // a one-key table (motion = { velocity = ... }) is named down to that key
+            return match v.as_table().filter(|t| t.len() == 1).and_then(|t| t.keys().next()) {
+                Some(inner) => format!("{k}.{inner}"),
+                None => k.clone(),
+            };
+        }
+    }
+    COMMON_KEYS.join(", ")
 }
 
 /// Check the `[[solid]]` tables, naming the key (`solid[i].radius`, ...). `nozzle` is the
@@ -139,6 +156,10 @@ pub fn validate(solids: &[SolidConfig], printing: bool) -> Result<(), Invalid> {
         if let Some(t) = s.open_at {
             if !t.is_finite() {
                 return Err(Invalid(format!("{key}.open_at must be a finite time, got {t}")));
+            }
+            // the solid is present while t < open_at: before 0 it would never exist
+            if t < 0.0 {
+                return Err(Invalid(format!("{key}.open_at must be a time >= 0 s (the solid is removed then; 0 removes it at the start), got {t}: a negative time removes it before the run begins")));
             }
         }
         if let Some(d) = s.transition {
@@ -275,6 +296,17 @@ impl Solids {
             list.push(Solid { name: c.name.clone().unwrap_or(key), sdf, contact: c.contact, motion: c.motion, open_at: c.open_at, delta, reach, on_surface });
         }
         Ok(Some(Solids { force: vec![[0.0; 3]; list.len()], list, reactions: Pool::default() }))
+    }
+
+    /// The static solids that lie wholly outside the box `lo`..`hi` (the domain), with their
+    /// bounds: they touch nothing, most often a shape written in mm where strand reads m.
+    pub fn wholly_outside(&self, lo: [f64; 3], hi: [f64; 3]) -> Vec<(String, DVec3, DVec3)> {
+        self.list
+            .iter()
+            .filter(|s| s.motion == Motion::Static)
+            .filter_map(|s| s.sdf.bounds().map(|(a, b)| (s.name.clone(), a, b)))
+            .filter(|(_, a, b)| (0..3).any(|k| b[k] < lo[k] || a[k] > hi[k]))
+            .collect()
     }
 
     /// [`Solids::declared`] with `max_blocks` grid slots, mapped.

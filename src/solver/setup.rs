@@ -21,9 +21,13 @@ use std::sync::atomic::AtomicU64;
 
 impl Simulation {
     /// Size every pool from the scenario, check the budget, map the pools and create the
-    /// initial particles.
+    /// initial particles. Every command that builds a simulation comes through here, so none
+    /// allocates before the memory plan's lower bound ([`super::preflight`]) is checked.
     pub fn new(scenario: &Scenario) -> Result<Self, SimError> {
         scenario.validate()?;
+        // the memory plan's lower bound first: counting the particles of a scenario far over its
+        // budget one by one, or building its print, would take hours or the machine's memory
+        super::preflight(scenario)?;
         let material = build_material(&scenario.material)?;
         let geom = GridGeom::new(scenario.simulation.dx, scenario.domain.min, scenario.domain.max, scenario.domain.periodic);
         let state_len = material.state_names().len();

@@ -243,7 +243,26 @@ fn bad_solids_name_the_key() {
         ("shape = \"difference\"\nof = { shape = \"box\", min = [0.0, 0.0, 0.0], max = [0.1, 0.1, 0.1] }\nminus = { shape = \"cylinder\", from = [0.0, 0.0, 0.0], to = [0.0, 0.0, 0.1], radius = -1.0 }", "solid[0].minus.radius"),
         ("shape = \"box\"\nmin = [0.0, 0.0, 0.0]\nmax = [0.1, 0.1, 0.1]\nmotion = { velocity = [0.0, 0.0, nan] }", "solid[0].motion.velocity"),
         ("shape = \"box\"\nmin = [0.0, 0.0, 0.0]\nmax = [0.1, 0.1, 0.1]\nmotion = { speed = 1.0 }", "speed"),
+        // issue 53 findings 3 and 4: a velocity of two components named by its key path (serde
+        // named only the array's length), a gate opened before the run began refused
+        ("shape = \"box\"\nmin = [0.0, 0.0, 0.0]\nmax = [0.1, 0.1, 0.1]\nmotion = { velocity = [0.0, 0.15] }", "motion.velocity: invalid length 2"),
+        ("shape = \"box\"\nmin = [0.0, 0.0, 0.0]\nmax = [0.1, 0.1, 0.1]\nopen_at = -1.0", "solid[0].open_at must be a time >= 0"),
     ]);
+}
+
+/// Issue 53 finding 5: a static solid wholly outside the domain (a cylinder written in mm) is
+/// warned of, naming it and hinting at the unit; one inside the domain is not.
+#[test]
+fn a_solid_wholly_outside_the_domain_is_warned_of() {
+    let warnings = |solid: &str| {
+        let text = common::dam_break(1, "64 MiB", "").replace("[memory]", &format!("[[solid]]\nname = \"rod\"\n{solid}\n[memory]"));
+        let sc = Scenario::parse(&text).unwrap();
+        let sim = Simulation::new(&sc).unwrap();
+        strand::run::scenario_warnings(&sc, &sim).into_iter().filter(|w| w.contains("wholly outside")).collect::<Vec<_>>()
+    };
+    let w = warnings("shape = \"cylinder\"\nfrom = [100.0, 0.0, 150.0]\nto = [100.0, 0.16, 150.0]\nradius = 10.0");
+    assert!(w.len() == 1 && w[0].contains("solid 'rod'") && w[0].contains("mm"), "{w:?}");
+    assert!(warnings("shape = \"cylinder\"\nfrom = [0.4, 0.0, 0.1]\nto = [0.4, 0.16, 0.1]\nradius = 0.01").is_empty());
 }
 
 /// A static solid that holds no node (a plate thinner than a cell between node planes) is

@@ -328,6 +328,18 @@ impl Declared {
     }
 }
 
+/// Assignment `a`'s value at `values`, refused when it is not a finite number (a division by
+/// zero, an overflow, a root of a negative): named by its expression and the values it read,
+/// where the material's own check would only see a bad `material.*` value.
+fn finite(a: &Assignment, values: &[f64]) -> Result<f64, MeasureError> {
+    let v = a.expression.eval(values);
+    if v.is_finite() {
+        return Ok(v);
+    }
+    let at: Vec<String> = a.expression.symbols().iter().zip(values).map(|(s, x)| format!("{s} = {x}")).collect();
+    Err(MeasureError::Effect(format!("'{}' gives {} = {v}, not a finite number (at {})", a.expression.text(), a.key, at.join(", "))))
+}
+
 impl Effect for Declared {
     fn name(&self) -> &'static str {
         self.name
@@ -339,7 +351,7 @@ impl Effect for Declared {
         self.params
     }
     fn apply(&self, p: &[f64], x: &Covariates, keys: &mut Keys) -> Result<(), MeasureError> {
-        let out: Vec<f64> = self.sets.iter().map(|a| self.values(a, p, x, keys).map(|v| a.expression.eval(&v))).collect::<Result<_, _>>()?;
+        let out: Vec<f64> = self.sets.iter().map(|a| self.values(a, p, x, keys).and_then(|v| finite(a, &v))).collect::<Result<_, _>>()?;
         for (a, v) in self.sets.iter().zip(out) {
             keys.insert(a.key.clone(), v);
         }
