@@ -58,7 +58,7 @@ fn fewest_particles(sc: &Scenario, body: &crate::scenario::Body) -> f64 {
         }
         Body::Union { .. } | Body::Intersection { .. } => {
             let mut n = 0usize;
-            super::for_each_lattice_point(sc, body, |_| n += 1);
+            super::bodies::for_each_lattice_point(sc, body, |_| n += 1);
             return n as f64;
         }
     };

@@ -281,6 +281,7 @@ const KNOWN_CIRCLES: &[&[&str]] = &[&[
     "solver/bodies.rs",
     "solver/emit.rs",
     "solver/mod.rs",
+    "solver/preflight.rs",
     "solver/step.rs",
     "solver/walls.rs",
 ]];

@@ -34,8 +34,11 @@ fn from_file(key: &str, file: &str, options: &str) -> String {
     format!("{key} = {:?}\n{options}", root().join("fixtures").join(file).to_str().unwrap())
 }
 
-/// Moves that deposit, as (from, to, duration, U), and the dwells' durations.
-fn prints_and_dwells(p: &Toolpath) -> (Vec<([f64; 3], [f64; 3], f64, f64)>, Vec<f64>) {
+/// A move that deposits: (from, to, duration, U).
+type PrintMove = ([f64; 3], [f64; 3], f64, f64);
+
+/// Moves that deposit, and the dwells' durations.
+fn prints_and_dwells(p: &Toolpath) -> (Vec<PrintMove>, Vec<f64>) {
     let prints = p.moves().iter().filter(|m| m.kind == MoveKind::Print).map(|m| (m.from, m.to, m.duration(), m.extrusion_speed)).collect();
     let dwells = p.moves().iter().filter(|m| m.kind == MoveKind::Pause).map(|m| m.duration()).collect();
     (prints, dwells)
