@@ -436,4 +436,31 @@ mod tests {
         assert_eq!(read.scatter.as_deref().map(plain), Some(vec![0.1 + 0.2]));
         assert_ne!(forward.key("flow"), job.key("flow"));
     }
+
+    /// Issue 53: a job whose experiment is over the memory budget is refused by `evaluate`
+    /// before it allocates, naming the experiment, and leaves no result to be collected.
+    #[test]
+    fn evaluate_refuses_a_job_over_the_budget_before_it_runs() {
+        let dir = tempfile::tempdir().unwrap();
+        let slump = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/measure/slump/slump.toml");
+        std::fs::copy(&slump, dir.path().join("slump.toml")).unwrap();
+        let text = "[[experiment]]\nid = \"SF\"\nscenario = \"slump.toml\"\nobserve = [\"spread\"]\n\
+                    set = { \"simulation.dx\" = 1e-5, \"simulation.end_time\" = 0.1 }\n";
+        let mut exps: Experiments = toml::from_str(text).unwrap();
+        exps.base_dir = dir.path().to_path_buf();
+        let model = Model::from_table(&MODEL.parse().unwrap()).unwrap();
+        let s = Scheduler { template: "true".into(), dir: dir.path().join("jobs"), exe: PathBuf::from("strand"), threads: None };
+        let job = s.job(&model, &exps, &exps.experiment[0], &[Observable::parse("spread").unwrap()], None, None).unwrap();
+        let (job_path, out) = (dir.path().join("SF.json"), dir.path().join("SF.result.json"));
+        std::fs::write(&job_path, serde_json::to_string(&job).unwrap()).unwrap();
+        let clock = std::time::Instant::now();
+        let err = evaluate(&job_path, &out).unwrap_err().to_string();
+        assert!(clock.elapsed() < std::time::Duration::from_secs(5), "took {:?}", clock.elapsed());
+        assert!(err.contains("over the budget of") && err.contains("need at least") && err.contains("experiment 'SF'"), "{err}");
+        assert!(!out.exists(), "a refused job must leave no result");
+        // the same job at the fixture's own cell size is planned and passes the refusal
+        let fits: Experiments = toml::from_str(&text.replace("1e-5", "0.02")).unwrap();
+        let fits = Experiments { base_dir: dir.path().to_path_buf(), ..fits };
+        assert!(super::super::preflight::plan_experiments(&model, &fits, ["SF"]).is_ok());
+    }
 }
