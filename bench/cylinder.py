@@ -90,7 +90,7 @@ SOURCES = """\
 # {stop:.1f} s after the failure."""
 
 
-def scenario(dx, layers, s, amp=0.001, sleep=True):
+def scenario(dx, layers, s, amp=0.001, sleep=True, deposit="laid"):
     nozzle_d = 0.04
     extrusion = SPEED * WIDTH * HEIGHT / (math.pi * nozzle_d ** 2 / 4.0)
     c_over_e = cohesion_per_modulus()
@@ -105,12 +105,13 @@ def scenario(dx, layers, s, amp=0.001, sleep=True):
     period = 2.0 * math.pi * RADIUS / SPEED + HEIGHT / rise
     end = layers * period
     stop = 2.0 * period
-    args = f" --dx {dx} --layers {layers} --mass-scaling {s}" + ("" if sleep else " --no-sleep")
+    args = f" --dx {dx} --layers {layers} --mass-scaling {s} --deposit {deposit}" + ("" if sleep else " --no-sleep")
     head = SOURCES.format(args=args, phi=PHI, ratio=STRAIN_AT_STRENGTH, c_over_e=c_over_e, c0=c_over_e * E0,
                           c_rate=c_over_e * E_RATE, amp_mm=amp * 1e3, s=s, stop=stop)
     top = HEIGHT * layers + 0.1
     half = RADIUS + 0.05
     sleep_table = "\n[sleep]\n" if sleep else ""
+    deposit_table = f'{{ kind = "laid", width = {WIDTH}, height = {HEIGHT} }}' if deposit == "laid" else '{ kind = "extruded" }'
     return f"""{head}
 name = "cylinder-wolfs2018"
 
@@ -140,6 +141,7 @@ friction_angle_deg = {PHI}
 
 [print]
 nozzle = {{ shape = "circle", diameter = {nozzle_d} }}
+deposit = {deposit_table}
 start = [{RADIUS}, 0.0, {HEIGHT}]
 imperfection = {{ amplitude = {amp}, height = 0.3, shape = "lean", direction = "radial", center = [0.0, 0.0], waves = 2 }}
 path = [
@@ -169,9 +171,11 @@ def main():
     ap.add_argument("--mass-scaling", type=float, default=100.0)
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--no-sleep", action="store_true", help="keep all material awake")
+    ap.add_argument("--deposit", choices=["laid", "extruded"], default="laid",
+                    help="lay each layer at rest in its 40 x 10 mm section (the paper's activation model), or extrude it")
     ap.add_argument("--write", help="only write the scenario to this file")
     a = ap.parse_args()
-    text = scenario(a.dx, a.layers, a.mass_scaling, sleep=not a.no_sleep)
+    text = scenario(a.dx, a.layers, a.mass_scaling, sleep=not a.no_sleep, deposit=a.deposit)
     if a.write:
         with open(a.write, "w") as f:
             f.write(text)

@@ -83,6 +83,9 @@ impl PrintParams {
         let cfg = sc.print.as_ref().ok_or_else(|| GradError::Param("toolpath parameters need a [print] table".into()))?;
         let mut items = Vec::new();
         for (key, value) in keys {
+            if base.laid.is_some() {
+                return Err(GradError::Param(format!("{key}: a laid deposit (print.deposit) adds whole columns, a staircase in the toolpath's parameters; differentiate an extruded one")));
+            }
             let h = REL_STEP * value.abs().max(1e-3);
             let plan = |v: f64| -> Result<EmissionPlan, GradError> {
                 let tp = set(cfg, key, v)?.toolpath(&sc.base_dir)?;

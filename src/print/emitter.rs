@@ -21,6 +21,7 @@
 //! Slab buffers are allocated once and circulate between a `full` and a `free` queue, so the
 //! steady state allocates nothing; the contents depend only on the toolpath, never on timing.
 
+use super::laid::LaidLattice;
 use super::toolpath::Toolpath;
 use crossbeam::channel::{bounded, Receiver, Sender};
 use std::sync::Arc;
@@ -43,6 +44,9 @@ pub struct EmissionPlan {
     pub domain: ([f64; 3], [f64; 3]),
     /// Slabs enter with the fraction of their mass extruded so far (continuous emission).
     pub partial: bool,
+    /// A laid deposit instead (`print::laid`): its column lattice and the pushed length each
+    /// column holds; a slab is then one column.
+    pub laid: Option<(Arc<LaidLattice>, f64)>,
 }
 
 impl EmissionPlan {
@@ -53,6 +57,9 @@ impl EmissionPlan {
 
     /// Number of slabs the whole toolpath emits.
     pub fn slabs(&self) -> u64 {
+        if let Some((_, per_column)) = &self.laid {
+            return (self.toolpath.total_extruded_length() / per_column + 1e-9).floor() as u64;
+        }
         let pushed = (self.toolpath.total_extruded_length() + self.tube_height) / self.slab_thickness();
         if self.partial {
             // every slab that has started entering, the last one possibly in part
@@ -73,6 +80,9 @@ impl EmissionPlan {
     }
 
     pub fn particles_per_slab(&self) -> usize {
+        if let Some((lattice, _)) = &self.laid {
+            return lattice.particles();
+        }
         self.offsets.len() * self.group as usize
     }
 
@@ -107,6 +117,13 @@ impl EmissionPlan {
     /// Slab `q`'s positions at its due time, each handed to `put`; returns the due time, the
     /// moves that set it (see `Slab::moves`) and the particles' velocity.
     fn layout(&self, q: u64, branch: Option<(Option<usize>, usize)>, mut put: impl FnMut([f64; 3])) -> (f64, (Option<usize>, usize), [f64; 3]) {
+        if let Some((lattice, per_column)) = &self.laid {
+            let inside = |x: &[f64; 3]| (0..3).all(|a| x[a] >= self.domain.0[a] && x[a] <= self.domain.1[a]);
+            let due = lattice.layout(&self.toolpath, q, *per_column, |x| if inside(&x) { put(x) });
+            let need = (q + 1) as f64 * per_column;
+            let extruding = self.toolpath.move_extruding(need).flatten();
+            return (due, (extruding, self.toolpath.state_at(due).interval), [0.0; 3]);
+        }
         let h = self.spacing;
         let slab = self.slab_thickness();
         // a partial slab is added one slab thickness earlier, still above the tube

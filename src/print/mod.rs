@@ -13,6 +13,7 @@ pub mod emitter;
 pub mod gcode;
 pub mod gcode_dialect;
 pub mod imperfection;
+pub mod laid;
 pub mod newest;
 pub mod nozzle;
 pub mod points;
@@ -80,6 +81,10 @@ pub struct PrintConfig {
     /// make a print buckle one chosen way; default none.
     #[serde(default)]
     pub imperfection: Option<imperfection::Imperfection>,
+    /// How material enters: "extruded" through the nozzle's tube (the default), or "laid" at
+    /// rest in a nominal section as the nozzle passes (`print::laid`).
+    #[serde(default)]
+    pub deposit: Deposit,
     /// Slab buffers the emitter may prepare ahead of the stepper.
     #[serde(default = "default_queue")]
     pub queue: usize,
@@ -109,6 +114,24 @@ pub enum Emission {
     #[default]
     Continuous,
     Interval,
+}
+
+/// `[print] deposit`: `{ kind = "extruded" }` (the default) or `{ kind = "laid", width, height }`.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum Deposit {
+    #[default]
+    Extruded,
+    Laid(laid::LaidSection),
+}
+
+impl Deposit {
+    pub fn laid(&self) -> Option<&laid::LaidSection> {
+        match self {
+            Deposit::Laid(s) => Some(s),
+            Deposit::Extruded => None,
+        }
+    }
 }
 
 /// Why the print cannot be set up: a value its check refuses, a G-code file that cannot be read
@@ -164,6 +187,12 @@ impl PrintConfig {
         }
         if let Some(imp) = &self.imperfection {
             imp.validate()?;
+        }
+        if let Some(l) = self.deposit.laid() {
+            l.validate()?;
+            if self.emission == Emission::Interval {
+                return Err(Invalid("print.emission = \"interval\" is a rule of extruded deposits; a laid deposit adds whole columns".into()));
+            }
         }
         Ok(())
     }
@@ -300,12 +329,6 @@ impl Printer {
         let toolpath = Arc::new(cfg.toolpath(base_dir)?);
         let ppc = cfg.particles_per_cell_axis;
         let h = dx / ppc as f64;
-        let offsets = cfg.nozzle.lattice(h);
-        if offsets.is_empty() {
-            return Err(Invalid(format!("print.nozzle is smaller than one particle spacing ({h} m); refine simulation.dx")).into());
-        }
-        let particle_volume = cfg.nozzle.area() * h / offsets.len() as f64;
-        let tube_height = cfg.tube_height.unwrap_or(2.0 * dx);
         let indicator = match cfg.indicator {
             IndicatorKind::Hard => Indicator::Hard,
             IndicatorKind::Smooth => Indicator::Smooth { delta: cfg.transition.unwrap_or(dx) as Real },
@@ -314,9 +337,24 @@ impl Printer {
             Emission::Continuous => 1,
             Emission::Interval => ppc,
         };
-        let partial = cfg.emission == Emission::Continuous;
-        let plan = EmissionPlan { toolpath: toolpath.clone(), offsets: Arc::new(offsets), spacing: h, group, tube_height, domain, partial };
+        let (plan, particle_volume) = if let Some(section) = cfg.deposit.laid() {
+            section.check(&toolpath, cfg.nozzle.area())?;
+            let lattice = section.lattice(h);
+            let (per_column, volume) = (lattice.volume / cfg.nozzle.area(), lattice.particle_volume());
+            let laid = Some((Arc::new(lattice), per_column));
+            (EmissionPlan { toolpath: toolpath.clone(), offsets: Arc::new(Vec::new()), spacing: h, group: 1, tube_height: 0.0, domain, partial: false, laid }, volume)
+        } else {
+            let offsets = cfg.nozzle.lattice(h);
+            if offsets.is_empty() {
+                return Err(Invalid(format!("print.nozzle is smaller than one particle spacing ({h} m); refine simulation.dx")).into());
+            }
+            let volume = cfg.nozzle.area() * h / offsets.len() as f64;
+            let tube_height = cfg.tube_height.unwrap_or(2.0 * dx);
+            let partial = cfg.emission == Emission::Continuous;
+            (EmissionPlan { toolpath: toolpath.clone(), offsets: Arc::new(offsets), spacing: h, group, tube_height, domain, partial, laid: None }, volume)
+        };
         let newest = Newest::new(plan.particles_per_slab());
+        let tube_height = plan.tube_height;
         Ok(Printer { toolpath, shape: cfg.nozzle, tube_height, indicator, spacing: h, particle_volume, plan, emitter: None, sync: None, newest })
     }
 
@@ -336,7 +374,8 @@ impl Printer {
 
     /// The drive at time `t`, or None once the toolpath has ended.
     pub fn drive(&self, t: f64) -> Option<NozzleDrive> {
-        if t >= self.toolpath.end_time() {
+        // a laid deposit has no tube to drive
+        if t >= self.toolpath.end_time() || self.plan.laid.is_some() {
             return None;
         }
         let s = self.toolpath.state_at(t);

@@ -28,7 +28,7 @@ pub fn scenario_warnings(sc: &Scenario, sim: &Simulation) -> Vec<String> {
         }
     }
     // a printed section needs the nozzle resolved by enough cells
-    if let Some(r) = sc.print.as_ref().and_then(|p| p.nozzle.resolution_warning(dx, sc.simulation.j_bar)) {
+    if let Some(r) = sc.print.as_ref().filter(|p| p.deposit.laid().is_none()).and_then(|p| p.nozzle.resolution_warning(dx, sc.simulation.j_bar)) {
         w.push(r);
     }
     // a solid outside the domain touches nothing: most often its coordinates are in mm

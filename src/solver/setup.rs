@@ -160,7 +160,11 @@ fn acceleration(scenario: &Scenario, rho: f64) -> V3 {
 /// inside.
 fn check_print_inside_domain(sc: &Scenario, p: &Printer) -> Result<(), SimError> {
     let (lo, hi) = p.toolpath.bounds();
-    let [ex, ey] = p.shape.half_extent();
+    // a laid deposit reaches half its section's width from the path, the nozzle its outlet's
+    let [ex, ey] = match p.plan.laid.as_ref() {
+        Some((lattice, _)) => [lattice.across.iter().fold(0.0f64, |m, a| m.max(a.abs())); 2],
+        None => p.shape.half_extent(),
+    };
     let b = &sc.boundary;
     let sides = [[b.x_min, b.x_max], [b.y_min, b.y_max], [b.z_min, b.z_max]];
     let reach = [ex, ey, 0.0];

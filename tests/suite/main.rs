@@ -16,6 +16,7 @@ mod measure_report;
 mod print;
 mod print_arcs;
 mod print_dialects;
+mod print_laid;
 mod print_campaign;
 mod resolution;
 mod resume;
