@@ -87,11 +87,11 @@ bench-mass-scaling: build
 	python3 bench/mass_scaling.py --strand $(STRAND) --out $(OUT)/mass_scaling --dx 0.0025 --scales 1,16
 
 # The printed cylinder of Wolfs, Bos & Salet (2018) to failure: the whole 500 mm cylinder, layers
-# of 40 x 10 mm every 18.85 s, early_age_solid with the paper's E(t); strand's failure layer and
-# mode against the five measured (25-31), CPU time and peak memory (bench/cylinder.py). Not yet
-# predicted, and many CPU hours at 5 mm cells (BENCHMARKS.md "The printed cylinder"). CYLINDER_ARGS
-# picks the cells, the mass scaling and the layers, e.g. CYLINDER_ARGS="--dx 0.005 --layers 5".
-CYLINDER_ARGS ?= --dx 0.005 --mass-scaling 100
+# of 40 x 10 mm every 18.85 s laid at rest, early_age_solid with the paper's E(t); strand's failure
+# layer and mode against the five measured (25-31), CPU time and peak memory (bench/cylinder.py;
+# about 35 minutes on 2 cores at 10 mm cells, BENCHMARKS.md "The printed cylinder"). CYLINDER_ARGS
+# picks the cells, the mass scaling, the layers and the deposit, e.g. "--dx 0.005 --layers 5".
+CYLINDER_ARGS ?= --dx 0.01 --mass-scaling 100
 bench-cylinder: build
 	python3 bench/cylinder.py --strand $(STRAND) --out $(OUT)/cylinder $(CYLINDER_ARGS)
 
