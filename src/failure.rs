@@ -299,8 +299,10 @@ impl Detector {
             for o in history {
                 let (time, sections) = at(o);
                 let Some(s) = sections.get(k) else { break };
+                // a nozzle parked after the toolpath's end lays nothing: the top is judged under it
                 let nozzle = self.toolpath.state_at(time).position;
-                if (nozzle[0] - s.station).abs() < self.clearance && self.in_range(nozzle[1], self.clearance) {
+                let printing = time < self.toolpath.end_time();
+                if printing && (nozzle[0] - s.station).abs() < self.clearance && self.in_range(nozzle[1], self.clearance) {
                     if let Some(t) = self.spread.and_then(|limit| spreading.pass(time, limit)) {
                         found(self.failure(t, s.station, FailureRule::Spread, sway));
                         break;
@@ -492,6 +494,17 @@ mod tests {
         let rate_only = Detector::new(&FailureConfig { lost: Some(1.0), ..FailureConfig::default() }, wall(4), 0.005, None).unwrap();
         assert_eq!(detect(&rate_only, slow), None);
         assert!(detect(&d, slow).is_some_and(|f| f.time > 7.0), "10 mm lost at 4 mm/s");
+    }
+
+    /// A wall that gives way after its last layer, under the nozzle parked at the toolpath's end
+    /// (x = 0 after four layers, at 8.6 s), has failed: the parked nozzle lays nothing.
+    #[test]
+    fn a_top_sinking_under_the_parked_nozzle_after_the_print_has_failed() {
+        let d = Detector::new(&FailureConfig::default(), wall(4), 0.005, None).unwrap();
+        let history: Vec<_> = (0..=300).map(|i| 0.05 * i as f64).map(|t| obs(t, 0.0, 0.04 - 0.01 * (t - 9.0).max(0.0), 0.02)).collect();
+        let f = d.detect(&history, |o| (o.0, &o.1[..])).expect("fails after the print");
+        assert_eq!(f.layer, 4, "{f:?}");
+        assert!(f.time >= 9.0 - 1e-9 && f.time < 10.0, "{f:?}");
     }
 
     #[test]
