@@ -712,67 +712,17 @@ mod tests {
     #[cfg(not(feature = "f32"))]
     #[test]
     fn taylor_test_over_a_multi_step_sequence() {
-        use crate::adjoint_check::{group_errors, taylor_slope, Flat, Rng};
-        struct Run {
-            ls: Vec<M3>,
-            dt: Real,
-        }
-        impl Run {
-            fn states(&self, x: &[f64]) -> (Vec<[Real; 8]>, M3) {
-                let m = from_params(x, true);
-                let mut st = [0.0; 8];
-                m.init_state(&mut st);
-                let mut before = Vec::new();
-                let mut sigma = M3::ZERO;
-                for l in &self.ls {
-                    before.push(st);
-                    sigma = m.update(l, 1.0, self.dt, &mut st);
-                }
-                before.push(st);
-                (before, sigma)
-            }
-        }
-        impl Flat for Run {
-            fn forward(&self, x: &[f64]) -> Vec<f64> {
-                let (states, sigma) = self.states(x);
-                let mut out = sigma.to_cols_array().to_vec();
-                out.extend_from_slice(states.last().unwrap());
-                out
-            }
-            fn adjoint(&self, x: &[f64], cot: &[f64]) -> Vec<f64> {
-                let m = from_params(x, true);
-                let (states, _) = self.states(x);
-                let mut state_bar: Vec<Real> = cot[9..].to_vec();
-                let mut params_bar = vec![0.0; x.len()];
-                for (k, l) in self.ls.iter().enumerate().rev() {
-                    let stress_bar = if k + 1 == self.ls.len() { M3::from_cols_array(&cot[..9].try_into().unwrap()) } else { M3::ZERO };
-                    let (mut gv, mut jb, mut sb) = (M3::ZERO, 0.0, vec![0.0; 8]);
-                    let mut out = UpdateAdjoint { grad_v_bar: &mut gv, j_bar: &mut jb, state_bar: &mut sb, params_bar: &mut params_bar };
-                    m.update_adjoint(l, 1.0, self.dt, &states[k], &stress_bar, &state_bar, &mut out);
-                    state_bar = sb;
-                }
-                m.init_state_adjoint(&state_bar, &mut params_bar);
-                params_bar
-            }
-            fn groups(&self) -> Vec<(String, std::ops::Range<usize>)> {
-                from_params(&bilinear_params(true), true).param_names().iter().enumerate().map(|(i, n)| (n.to_string(), i..i + 1)).collect()
-            }
-        }
+        use crate::adjoint_check::{group_errors, slow_loading, taylor_slope, MaterialRun, Rng};
         // slow isochoric compression with a little shear and volume change: elastic first, then
         // on the cone; the kinks at 600 s fall between the steps at 598, 600 and 602 s, so set
         // them at 601 s
-        let ls: Vec<M3> = (0..60)
-            .map(|k| {
-                let s = (k as f64 * 0.3).sin();
-                M3::from_cols(V3::new(2e-4, 1e-4 * s, 0.0), V3::new(3e-4, 2e-4, 0.0), V3::new(0.0, 5e-5, -4e-4 - 1e-5 * s))
-            })
-            .collect();
-        let run = Run { ls, dt: 2.0 };
+        let ls = slow_loading(60, 1.0);
         let mut x = bilinear_params(true);
         x[14] = 550.0;
         for i in [3, 7, 11] {
             x[i] = 601.0;
         }
+        let run = MaterialRun::new(|p: &[f64]| from_params(p, true), ls.into_iter().map(|l| (l, 1.0)).collect(), 2.0, &x);
         let (states, _) = run.states(&x);
         let last = states.last().unwrap();
         assert!(last[6] > 0.0 && states[20][6] == 0.0, "elastic first, then plastic: eps_p {} -> {}", states[20][6], last[6]);
