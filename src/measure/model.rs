@@ -385,9 +385,14 @@ mod tests {
             assert!(names.iter().any(|n| n == k), "{k} in {names:?}");
         }
         assert_eq!(m.get("material.bulk_modulus_late_rate").unwrap(), 5e3);
-        let bad = M.replace("yield_stress = 100.0\n", "yield_stress = 100.0\nbulk_modulus_rate = -1e4\n");
+        let bad = M.replace("yield_stress = 100.0\n", "yield_stress = 100.0\nbulk_modulus_rate = 1e3\nbulk_modulus_late_rate = 2e3\n");
         let e = Model::from_table(&bad.parse().unwrap()).unwrap_err().to_string();
-        assert!(e.contains("material.bulk_modulus (with its rates) must be > 0"), "{e}");
+        assert!(e.contains("material.bulk_modulus_transition_age is required"), "{e}");
+        // a material number's bounds are [0, inf) or above: a falling law (a negative rate),
+        // which the material itself accepts, is not a model of the loop
+        let falling = M.replace("yield_stress = 100.0\n", "yield_stress = 100.0\nbulk_modulus_rate = -1e2\n");
+        let e = Model::from_table(&falling.parse().unwrap()).unwrap_err().to_string();
+        assert!(e.contains("material.bulk_modulus_rate = -100 is outside"), "{e}");
     }
 
     #[test]
