@@ -1645,7 +1645,9 @@ mod tests {
             held = m.update(&M3::ZERO, j, dt, &mut st);
         }
         let law = m.k_law().unwrap();
-        assert!(law.value(st[8] as f64) > 5.0 * law.value(10.0));
+        #[allow(clippy::unnecessary_cast)] // f32 build
+        let age = st[8] as f64;
+        assert!(law.value(age) > 5.0 * law.value(10.0));
         let tol = if cfg!(feature = "f32") { 1e-4 } else { 1e-10 };
         let p0 = -trace(&loaded) / 3.0;
         assert!(p0 > 0.0);
@@ -1822,8 +1824,8 @@ mod tests {
                 }
                 // the rates reach one step only through the age: a larger step keeps their
                 // differences above rounding
-                for i in nb..nb + if bilinear { 2 } else { 1 } {
-                    param_scale[i] *= 10.0;
+                for x in &mut param_scale[nb..nb + if bilinear { 2 } else { 1 }] {
+                    *x *= 10.0;
                 }
                 check_update_adjoint(&format!("{label}, age {age} s"), &make, &params, l, j, 1e-3, &state, 1.0, &state_scale, &param_scale, 1e-6, seed);
             }
