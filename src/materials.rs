@@ -83,7 +83,10 @@ mod tests {
         };
         // and the EVP material with its Maxwell branch, whose stress relaxes at rest
         let maxwell = ("evp_bingham", "density = 2100.0\nbulk_modulus = 1e6\npoisson_ratio = 0.3\nviscosity = 7.5\nyield_stress = 630.0\na_thix = 0.5\nmaxwell_modulus = 2e3\nmaxwell_time = 0.01");
-        for (kind, params) in examples().into_iter().chain([maxwell]) {
+        // and with the bulk modulus's age law (bilinear, the kink within the 40 steps), whose
+        // held pressure the rest stress reads
+        let aged = ("evp_bingham", "density = 2100.0\nbulk_modulus = 1e6\nshear_modulus = 3e5\nviscosity = 7.5\nyield_stress = 630.0\nbulk_modulus_rate = 1e5\nbulk_modulus_late_rate = 4e5\nbulk_modulus_transition_age = 30.02\nage_at_start = 30.0");
+        for (kind, params) in examples().into_iter().chain([maxwell, aged]) {
             let table: toml::Table = toml::from_str(&format!("kind = \"{kind}\"\n{params}")).unwrap();
             let m = build_material(&table).unwrap();
             let sl = m.state_names().len();

@@ -338,6 +338,11 @@ fn evp_bingham(n: f64) -> EvpBingham {
         maxwell_time: 1.0,
         flow_index: n,
         eos: Eos::Linear,
+        bulk_modulus_rate: None,
+        bulk_modulus_late_rate: None,
+        bulk_modulus_transition_age: None,
+        age_at_start: None,
+        max_age: None,
     }
 }
 

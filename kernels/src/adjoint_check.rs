@@ -9,7 +9,7 @@
 #![allow(clippy::unnecessary_cast)]
 
 use crate::material::{Material, UpdateAdjoint};
-use crate::real::{Real, M3};
+use crate::real::{Real, M3, V3};
 
 /// A tiny deterministic generator (xorshift*), so failures reproduce from the seed.
 pub struct Rng(pub u64);
@@ -150,6 +150,80 @@ impl<M: Material, F: Fn(&[f64]) -> M> Flat for MaterialUpdate<'_, M, F> {
             g.push((name.to_string(), i..i + 1));
         }
         g
+    }
+}
+
+/// The velocity gradients of the multi-step tests, `scale` times: a slow compression of z
+/// with a little shear and volume change, wavering from step to step.
+pub fn slow_loading(steps: usize, scale: Real) -> Vec<M3> {
+    (0..steps)
+        .map(|k| {
+            let s = (k as f64 * 0.3).sin() as Real;
+            M3::from_cols(V3::new(2e-4, 1e-4 * s, 0.0), V3::new(3e-4, 2e-4, 0.0), V3::new(0.0, 5e-5, -4e-4 - 1e-5 * s)) * scale
+        })
+        .collect()
+}
+
+/// A run of steps of a material from a new particle's state (`init_state`), as a [`Flat`] map
+/// from the parameters (in `param_names` order) to the last step's stress and the final state;
+/// its adjoint runs the steps' adjoints backwards, then `init_state_adjoint`. The groups are the
+/// parameters, one each.
+pub struct MaterialRun<M: Material, F: Fn(&[f64]) -> M> {
+    pub make: F,
+    /// (L, J) of each step.
+    pub steps: Vec<(M3, Real)>,
+    pub dt: Real,
+    names: Vec<String>,
+}
+
+impl<M: Material, F: Fn(&[f64]) -> M> MaterialRun<M, F> {
+    /// The run, its parameter names those of the material at `x`.
+    pub fn new(make: F, steps: Vec<(M3, Real)>, dt: Real, x: &[f64]) -> Self {
+        let names = make(x).param_names().iter().map(|n| n.to_string()).collect();
+        MaterialRun { make, steps, dt, names }
+    }
+
+    /// The state before each step and after the last, and the last step's stress.
+    pub fn states(&self, x: &[f64]) -> (Vec<Vec<Real>>, M3) {
+        let m = (self.make)(x);
+        let mut st = vec![0.0 as Real; m.state_names().len()];
+        m.init_state(&mut st);
+        let mut before = Vec::new();
+        let mut sigma = M3::ZERO;
+        for (l, j) in &self.steps {
+            before.push(st.clone());
+            sigma = m.update(l, *j, self.dt, &mut st);
+        }
+        before.push(st);
+        (before, sigma)
+    }
+}
+
+impl<M: Material, F: Fn(&[f64]) -> M> Flat for MaterialRun<M, F> {
+    fn forward(&self, x: &[f64]) -> Vec<f64> {
+        let (states, sigma) = self.states(x);
+        let mut out: Vec<f64> = sigma.to_cols_array().iter().map(|&v| v as f64).collect();
+        out.extend(states.last().unwrap().iter().map(|&v| v as f64));
+        out
+    }
+    fn adjoint(&self, x: &[f64], cot: &[f64]) -> Vec<f64> {
+        let m = (self.make)(x);
+        let (states, _) = self.states(x);
+        let n_state = states[0].len();
+        let mut state_bar: Vec<Real> = cot[9..].iter().map(|&v| v as Real).collect();
+        let mut params_bar = vec![0.0 as Real; x.len()];
+        for (k, (l, j)) in self.steps.iter().enumerate().rev() {
+            let stress_bar = if k + 1 == self.steps.len() { m3(cot) } else { M3::ZERO };
+            let (mut gv, mut jb, mut sb) = (M3::ZERO, 0.0 as Real, vec![0.0 as Real; n_state]);
+            let mut out = UpdateAdjoint { grad_v_bar: &mut gv, j_bar: &mut jb, state_bar: &mut sb, params_bar: &mut params_bar };
+            m.update_adjoint(l, *j, self.dt, &states[k], &stress_bar, &state_bar, &mut out);
+            state_bar = sb;
+        }
+        m.init_state_adjoint(&state_bar, &mut params_bar);
+        params_bar.iter().map(|&v| v as f64).collect()
+    }
+    fn groups(&self) -> Vec<(String, std::ops::Range<usize>)> {
+        self.names.iter().enumerate().map(|(i, n)| (n.clone(), i..i + 1)).collect()
     }
 }
 

@@ -374,6 +374,27 @@ mod tests {
 
     const M: &str = "[material]\nkind = \"evp_bingham\"\ndensity = 2300.0\nbulk_modulus = 1e6\npoisson_ratio = 0.3\nviscosity = 20.0\nyield_stress = 100.0\n[effects.thixotropy]\na_thix = 0.5\n";
 
+    /// The bulk modulus's age law (evp_bingham): its keys are parameters of the loop like every
+    /// number of `[material]`, and a bad one is refused by the material, naming the key.
+    #[test]
+    fn the_age_law_keys_of_evp_bingham_are_model_parameters() {
+        let law = "bulk_modulus_rate = 2e3\nbulk_modulus_late_rate = 5e3\nbulk_modulus_transition_age = 600.0\nage_at_start = 60.0\n";
+        let m = Model::from_table(&M.replace("yield_stress = 100.0\n", &format!("yield_stress = 100.0\n{law}")).parse().unwrap()).unwrap();
+        let names = m.param_names();
+        for k in ["material.bulk_modulus_rate", "material.bulk_modulus_late_rate", "material.bulk_modulus_transition_age", "material.age_at_start"] {
+            assert!(names.iter().any(|n| n == k), "{k} in {names:?}");
+        }
+        assert_eq!(m.get("material.bulk_modulus_late_rate").unwrap(), 5e3);
+        let bad = M.replace("yield_stress = 100.0\n", "yield_stress = 100.0\nbulk_modulus_rate = 1e3\nbulk_modulus_late_rate = 2e3\n");
+        let e = Model::from_table(&bad.parse().unwrap()).unwrap_err().to_string();
+        assert!(e.contains("material.bulk_modulus_transition_age is required"), "{e}");
+        // a material number's bounds are [0, inf) or above: a falling law (a negative rate),
+        // which the material itself accepts, is not a model of the loop
+        let falling = M.replace("yield_stress = 100.0\n", "yield_stress = 100.0\nbulk_modulus_rate = -1e2\n");
+        let e = Model::from_table(&falling.parse().unwrap()).unwrap_err().to_string();
+        assert!(e.contains("material.bulk_modulus_rate = -100 is outside"), "{e}");
+    }
+
     #[test]
     fn a_model_reads_writes_and_names_its_parameters() {
         let m = Model::from_table(&M.parse().unwrap()).unwrap();

@@ -62,7 +62,7 @@
 //!
 //! Sleeping freezes the stress. The internal state is not stepped either, but material at rest
 //! still builds up structure (thixotropy): a unit remembers when it fell asleep, and on waking
-//! its particles get the whole rest interval at once ([`Material::rest_for`]), so a deposited
+//! its particles get the whole rest interval at once ([`Material::rest_for_at`]), so a deposited
 //! layer gains the strength it would have had awake. A particle falling asleep is put at rest: its
 //! velocity and velocity gradient (below the rest thresholds anyway) become zero and its stress
 //! the material's stress at rest for its state and J, so a restart checkpoint rebuilds all three

@@ -231,8 +231,9 @@ impl Sleep {
             if state[u as usize].is_asleep() {
                 i += 1;
             } else {
+                let j = particles.j.as_slice()[i];
                 let st = &mut particles.state.as_mut_slice()[i * sl..(i + 1) * sl];
-                material.rest_for(st, rest[u as usize] as Real);
+                material.rest_for_at(st, rest[u as usize] as Real, j);
                 particles.stress.as_mut_slice()[i] = material.stress_at_rest(st, particles.j.as_slice()[i]);
                 particles.n_sleep -= 1;
                 particles.swap(i, particles.n_sleep);

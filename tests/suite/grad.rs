@@ -492,6 +492,25 @@ fn the_flow_front_against_the_maxwell_branch_agrees_with_differences_on_and_at_i
     assert!(errs.iter().map(|e| e.2).fold(f64::INFINITY, f64::min) <= 1e-4, "{errs:?}");
 }
 
+#[test]
+fn the_bulk_modulus_age_law_keys_are_gradient_parameters() {
+    // evp_bingham's age law (the slump of the tests above): `strand grad --wrt material.KEY`
+    // offers and resolves each of its keys, and without the law offers none of them
+    use strand::grad::params::{known, resolve};
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/measure/slump/slump.toml");
+    let base = std::fs::read_to_string(path).unwrap();
+    let law = "yield_stress = 60.0\nbulk_modulus_rate = 1e5\nbulk_modulus_late_rate = 3e5\nbulk_modulus_transition_age = 60.1\nage_at_start = 60.0\n";
+    let keys = ["material.bulk_modulus_rate", "material.bulk_modulus_late_rate", "material.bulk_modulus_transition_age", "material.age_at_start"];
+    let sim = strand::solver::Simulation::new(&Scenario::parse(&base.replace("yield_stress = 60.0\n", law)).unwrap()).unwrap();
+    let offered = known(&sim);
+    for k in keys {
+        assert!(offered.iter().any(|o| o == k), "{k} not in {offered:?}");
+        assert!(resolve(&sim, k).is_ok(), "{k}");
+    }
+    let plain = strand::solver::Simulation::new(&Scenario::parse(&base).unwrap()).unwrap();
+    assert!(keys.iter().all(|k| resolve(&plain, k).is_err()));
+}
+
 /// fixtures/scenarios/grad/two_layers.toml: two short EVP Bingham layers at 5 mm, the y >= 0 half
 /// behind a symmetry wall observed with its mirror image (`half`), or the whole strand.
 fn two_layers(half: bool) -> Scenario {

@@ -13,6 +13,8 @@
 //! chain through it; at the kink a = a_t the derivatives are those of the early branch (the one
 //! `value` takes there), the branch-taken convention of every adjoint in this crate.
 
+use crate::material::{non_negative, MaterialError};
+
 /// p(a): `p0 + rate a`, and beyond `late = Some((late_rate, transition_age))` the late slope.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct AgeLaw {
@@ -89,6 +91,68 @@ impl AgeLaw {
         };
         let kink = self.kinks_in(a0, a1).map_or(f64::NEG_INFINITY, |k| self.value(k));
         self.value(a0).max(end).max(kink)
+    }
+}
+
+/// The scenario keys of one law, with the `material.` prefix (param names drop it, [`bare`]).
+pub(crate) struct LawKeys {
+    pub value: &'static str,
+    pub rate: &'static str,
+    pub late_rate: &'static str,
+    pub transition_age: &'static str,
+}
+
+impl LawKeys {
+    /// The law's given values finite, its late rate and transition age both or neither, the
+    /// transition age >= 0; each message names the key.
+    pub(crate) fn check(&self, value: f64, rate: f64, late: Option<f64>, at: Option<f64>) -> Result<(), MaterialError> {
+        for (key, x) in [(self.value, value), (self.rate, rate)] {
+            if !x.is_finite() {
+                return Err(MaterialError::out_of_range(key, "finite", x));
+            }
+        }
+        match (late, at) {
+            (Some(l), Some(t)) => {
+                if !l.is_finite() {
+                    return Err(MaterialError::out_of_range(self.late_rate, "finite", l));
+                }
+                non_negative(self.transition_age, t)
+            }
+            (Some(_), None) => Err(MaterialError::RequiredWhen { key: self.transition_age, when: "its late rate is given", reason: "the late rate holds beyond it" }),
+            (None, Some(_)) => Err(MaterialError::RequiredWhen { key: self.late_rate, when: "its transition age is given", reason: "it is the rate beyond that age" }),
+            (None, None) => Ok(()),
+        }
+    }
+}
+
+/// `material.x` -> `x`.
+pub(crate) fn bare(key: &'static str) -> &'static str {
+    &key["material.".len()..]
+}
+
+/// `age_at_start` >= 0 and `max_age`, if given, finite and beyond it; then the words for the
+/// ages a law is checked over, for the messages.
+pub(crate) fn check_ages(age_at_start: f64, max_age: Option<f64>) -> Result<String, MaterialError> {
+    non_negative("material.age_at_start", age_at_start)?;
+    let a0 = age_at_start;
+    if let Some(m) = max_age {
+        if !(m.is_finite() && m > a0) {
+            return Err(MaterialError::out_of_range("material.max_age", format!("finite and > age_at_start = {a0}"), m));
+        }
+    }
+    Ok(match max_age {
+        Some(m) => format!("at every age from age_at_start = {a0} s to max_age = {m} s"),
+        None => format!("at every age from age_at_start = {a0} s on (set max_age to bound the ages)"),
+    })
+}
+
+/// The age the laws are evaluated at, and whether it is the particle's (false: held at
+/// `max_age`, so the laws do not move with the age).
+#[inline]
+pub(crate) fn law_age(age: f64, max_age: Option<f64>) -> (f64, bool) {
+    match max_age {
+        Some(m) if age > m => (m, false),
+        _ => (age, true),
     }
 }
 

@@ -55,7 +55,7 @@ use std::sync::OnceLock;
 
 use serde::Deserialize;
 
-use crate::material::age_law::AgeLaw;
+use crate::material::age_law::{bare, check_ages, law_age, AgeLaw, LawKeys};
 use crate::material::drucker_prager::{apex, return_map, return_map_adjoint, Cone};
 use crate::material::eos::{shear_modulus_of, shear_modulus_of_partials};
 use crate::material::{non_negative, positive, Material, MaterialError, StabilityInfo, UpdateAdjoint};
@@ -117,14 +117,6 @@ pub struct EarlyAgeSolid {
     pub max_age: Option<f64>,
 }
 
-/// The scenario keys of one law, with the `material.` prefix (param names drop it).
-struct LawKeys {
-    value: &'static str,
-    rate: &'static str,
-    late_rate: &'static str,
-    transition_age: &'static str,
-}
-
 const E_KEYS: LawKeys = LawKeys {
     value: "material.youngs_modulus",
     rate: "material.youngs_modulus_rate",
@@ -143,11 +135,6 @@ const PHI_KEYS: LawKeys = LawKeys {
     late_rate: "material.friction_angle_late_rate",
     transition_age: "material.friction_angle_transition_age",
 };
-
-/// `material.x` -> `x`.
-fn bare(key: &'static str) -> &'static str {
-    &key["material.".len()..]
-}
 
 /// Where each parameter sits in `param_names`: each law takes 2 slots (value, rate), 4 when
 /// bilinear (late rate, transition age); then nu, psi, age_at_start and the cutoff if given.
@@ -184,14 +171,10 @@ impl EarlyAgeSolid {
         Layout { e, c, phi, nu, psi: nu + 1, age0: nu + 2, cut: self.tension_cutoff.map(|_| nu + 3) }
     }
 
-    /// The age the laws are evaluated at, and whether it is the particle's (false: held at
-    /// `max_age`, so the laws do not move with the age).
+    /// The age the laws are evaluated at, and whether it is the particle's.
     #[inline]
     fn law_age(&self, age: f64) -> (f64, bool) {
-        match self.max_age {
-            Some(m) if age > m => (m, false),
-            _ => (age, true),
-        }
+        law_age(age, self.max_age)
     }
 
     /// K from E and nu.
@@ -223,39 +206,12 @@ impl EarlyAgeSolid {
         if !(nu.is_finite() && nu > -1.0 && nu < 0.5) {
             return Err(MaterialError::out_of_range("material.poisson_ratio", "in (-1, 0.5)", nu));
         }
-        non_negative("material.age_at_start", self.age_at_start)?;
+        let span = check_ages(self.age_at_start, self.max_age)?;
         let a0 = self.age_at_start;
-        if let Some(m) = self.max_age {
-            if !(m.is_finite() && m > a0) {
-                return Err(MaterialError::out_of_range("material.max_age", format!("finite and > age_at_start = {a0}"), m));
-            }
-        }
         let a1 = self.max_age.unwrap_or(f64::INFINITY);
-        let span = match self.max_age {
-            Some(m) => format!("at every age from age_at_start = {a0} s to max_age = {m} s"),
-            None => format!("at every age from age_at_start = {a0} s on (set max_age to bound the ages)"),
-        };
-        let check_keys = |k: &LawKeys, v: f64, rate: f64, late: Option<f64>, at: Option<f64>| -> Result<(), MaterialError> {
-            for (key, x) in [(k.value, v), (k.rate, rate)] {
-                if !x.is_finite() {
-                    return Err(MaterialError::out_of_range(key, "finite", x));
-                }
-            }
-            match (late, at) {
-                (Some(l), Some(t)) => {
-                    if !l.is_finite() {
-                        return Err(MaterialError::out_of_range(k.late_rate, "finite", l));
-                    }
-                    non_negative(k.transition_age, t)
-                }
-                (Some(_), None) => Err(MaterialError::RequiredWhen { key: k.transition_age, when: "its late rate is given", reason: "the late rate holds beyond it" }),
-                (None, Some(_)) => Err(MaterialError::RequiredWhen { key: k.late_rate, when: "its transition age is given", reason: "it is the rate beyond that age" }),
-                (None, None) => Ok(()),
-            }
-        };
-        check_keys(&E_KEYS, self.youngs_modulus, self.youngs_modulus_rate, self.youngs_modulus_late_rate, self.youngs_modulus_transition_age)?;
-        check_keys(&C_KEYS, self.cohesion, self.cohesion_rate, self.cohesion_late_rate, self.cohesion_transition_age)?;
-        check_keys(&PHI_KEYS, self.friction_angle_deg, self.friction_angle_rate, self.friction_angle_late_rate, self.friction_angle_transition_age)?;
+        E_KEYS.check(self.youngs_modulus, self.youngs_modulus_rate, self.youngs_modulus_late_rate, self.youngs_modulus_transition_age)?;
+        C_KEYS.check(self.cohesion, self.cohesion_rate, self.cohesion_late_rate, self.cohesion_transition_age)?;
+        PHI_KEYS.check(self.friction_angle_deg, self.friction_angle_rate, self.friction_angle_late_rate, self.friction_angle_transition_age)?;
         let (e, c, phi) = (self.e_law(), self.c_law(), self.phi_law());
         let e_min = e.min_over(a0, a1);
         if e_min.is_nan() || e_min <= 0.0 {
@@ -756,67 +712,17 @@ mod tests {
     #[cfg(not(feature = "f32"))]
     #[test]
     fn taylor_test_over_a_multi_step_sequence() {
-        use crate::adjoint_check::{group_errors, taylor_slope, Flat, Rng};
-        struct Run {
-            ls: Vec<M3>,
-            dt: Real,
-        }
-        impl Run {
-            fn states(&self, x: &[f64]) -> (Vec<[Real; 8]>, M3) {
-                let m = from_params(x, true);
-                let mut st = [0.0; 8];
-                m.init_state(&mut st);
-                let mut before = Vec::new();
-                let mut sigma = M3::ZERO;
-                for l in &self.ls {
-                    before.push(st);
-                    sigma = m.update(l, 1.0, self.dt, &mut st);
-                }
-                before.push(st);
-                (before, sigma)
-            }
-        }
-        impl Flat for Run {
-            fn forward(&self, x: &[f64]) -> Vec<f64> {
-                let (states, sigma) = self.states(x);
-                let mut out = sigma.to_cols_array().to_vec();
-                out.extend_from_slice(states.last().unwrap());
-                out
-            }
-            fn adjoint(&self, x: &[f64], cot: &[f64]) -> Vec<f64> {
-                let m = from_params(x, true);
-                let (states, _) = self.states(x);
-                let mut state_bar: Vec<Real> = cot[9..].to_vec();
-                let mut params_bar = vec![0.0; x.len()];
-                for (k, l) in self.ls.iter().enumerate().rev() {
-                    let stress_bar = if k + 1 == self.ls.len() { M3::from_cols_array(&cot[..9].try_into().unwrap()) } else { M3::ZERO };
-                    let (mut gv, mut jb, mut sb) = (M3::ZERO, 0.0, vec![0.0; 8]);
-                    let mut out = UpdateAdjoint { grad_v_bar: &mut gv, j_bar: &mut jb, state_bar: &mut sb, params_bar: &mut params_bar };
-                    m.update_adjoint(l, 1.0, self.dt, &states[k], &stress_bar, &state_bar, &mut out);
-                    state_bar = sb;
-                }
-                m.init_state_adjoint(&state_bar, &mut params_bar);
-                params_bar
-            }
-            fn groups(&self) -> Vec<(String, std::ops::Range<usize>)> {
-                from_params(&bilinear_params(true), true).param_names().iter().enumerate().map(|(i, n)| (n.to_string(), i..i + 1)).collect()
-            }
-        }
+        use crate::adjoint_check::{group_errors, slow_loading, taylor_slope, MaterialRun, Rng};
         // slow isochoric compression with a little shear and volume change: elastic first, then
         // on the cone; the kinks at 600 s fall between the steps at 598, 600 and 602 s, so set
         // them at 601 s
-        let ls: Vec<M3> = (0..60)
-            .map(|k| {
-                let s = (k as f64 * 0.3).sin();
-                M3::from_cols(V3::new(2e-4, 1e-4 * s, 0.0), V3::new(3e-4, 2e-4, 0.0), V3::new(0.0, 5e-5, -4e-4 - 1e-5 * s))
-            })
-            .collect();
-        let run = Run { ls, dt: 2.0 };
+        let ls = slow_loading(60, 1.0);
         let mut x = bilinear_params(true);
         x[14] = 550.0;
         for i in [3, 7, 11] {
             x[i] = 601.0;
         }
+        let run = MaterialRun::new(|p: &[f64]| from_params(p, true), ls.into_iter().map(|l| (l, 1.0)).collect(), 2.0, &x);
         let (states, _) = run.states(&x);
         let last = states.last().unwrap();
         assert!(last[6] > 0.0 && states[20][6] == 0.0, "elastic first, then plastic: eps_p {} -> {}", states[20][6], last[6]);

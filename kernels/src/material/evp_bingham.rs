@@ -48,9 +48,28 @@
 //! the step bound stays the elastic wave speed's; [`Material::stability`] reports `viscosity`
 //! (k) as its viscosity at every n, as at n = 1.
 //!
-//! G is constant. With `poisson_ratio`, eq. 18 is evaluated with the reference K rather than the
-//! EOS tangent at the current J (a few percent apart in the weakly compressible range), so the
-//! elastic shear response does not follow the density noise of the pressure field.
+//! G is constant (but see "Ageing"). With `poisson_ratio`, eq. 18 is evaluated with the
+//! reference K rather than the EOS tangent at the current J (a few percent apart in the weakly
+//! compressible range), so the elastic shear response does not follow the density noise of the
+//! pressure field.
+//!
+//! Ageing (optional; `docs/materials.md`): with `bulk_modulus_rate` given, K follows an
+//! [`AgeLaw`] of the particle's age a (linear, or bilinear with `bulk_modulus_late_rate` beyond
+//! `bulk_modulus_transition_age`), `bulk_modulus` being K at age 0, and G follows K at a fixed
+//! ratio: eq. 18 with `poisson_ratio`, G0 K(a) / K0 with `shear_modulus` G0 (the Poisson ratio
+//! the pair implies is held). The age is `early_age_solid`'s: the time since the particle's
+//! creation plus `age_at_start`, capped at `max_age`, read at the step's start and advanced by
+//! dt. The stress is held through stiffening (the rate form): the trial deviator already adds
+//! 2 G(a) dt D' to the rotated old one, and the pressure p = p_held + P(K(a), J) keeps a held
+//! part p_held in the state, re-expressed at each step's end so that p moves by
+//! P(K, J) - P(K, J_old) with the step's K and not by K's growth: p_held' = p_held +
+//! P(K(a), J) - P(K(a + dt), J) (both EOS are linear in K). A layer compressed by its own weight
+//! keeps its pressure and its J as it hardens; a total form P(K(a), J) would push it to expand.
+//! `rest_for_at` ages a sleeping particle and holds its pressure at its J the same way.
+//! Without `bulk_modulus_rate` (the default) nothing of this runs and the state has no age:
+//! every number is the one before the law existed. `bulk_modulus_rate = 0` is the same
+//! material with the age and p_held (then 0) in the state, which gradients in the law's
+//! parameters need.
 //!
 //! Optional viscoelastic Maxwell branch in parallel (paper 004; [`crate::material::maxwell`]):
 //! with `maxwell_modulus` G_M given, the Cauchy stress is sigma = s + s_M - p I, where s_M obeys
@@ -65,15 +84,19 @@
 //! to `maxwell_modulus` or `maxwell_time` needs (at G_M = 0 the derivative in G_M is carried by
 //! s_M through time).
 //!
-//! Per-particle state (8 reals, 14 with the Maxwell branch):
+//! Per-particle state (8 reals, 14 with the Maxwell branch, 2 more with the age law):
 //! `[s_xx, s_yy, s_zz, s_xy, s_yz, s_xz, lambda, gamma_p]` — the deviatoric Cauchy stress of the
 //! EVP element [Pa], the flocculation state [-] (initially `lambda0`), and the accumulated plastic
 //! shear strain gamma_p = integral of gamma_dot_p dt [-] (engineering shear measure; the von
 //! Mises equivalent plastic strain is gamma_p / sqrt(3)); then, with the branch,
-//! `[sM_xx, sM_yy, sM_zz, sM_xy, sM_yz, sM_xz]`, the Maxwell branch's deviatoric stress [Pa].
+//! `[sM_xx, sM_yy, sM_zz, sM_xy, sM_yz, sM_xz]`, the Maxwell branch's deviatoric stress [Pa];
+//! then, with the age law, `[age, p_held]`, the age [s] and the held pressure [Pa].
 
 use serde::Deserialize;
 
+use std::sync::OnceLock;
+
+use crate::material::age_law::{bare, check_ages, law_age, AgeLaw, LawKeys};
 use crate::material::eos::{resolve_shear_modulus, shear_modulus_of, shear_modulus_of_partials};
 use crate::material::{default_flow_index, maxwell, non_negative, positive, Eos, Material, MaterialError, StabilityInfo, UpdateAdjoint};
 use crate::real::{
@@ -121,6 +144,46 @@ pub struct EvpBingham {
     pub flow_index: f64,
     #[serde(default)]
     pub eos: Eos,
+    /// dK/da [Pa/s], the rate of the bulk modulus's age law (up to the transition age when
+    /// bilinear); `bulk_modulus` is then K at age 0 and G follows K (module docs, "Ageing").
+    /// Absent (the default): K and G constant, and no age in the state.
+    #[serde(default)]
+    pub bulk_modulus_rate: Option<f64>,
+    /// dK/da beyond `bulk_modulus_transition_age` [Pa/s].
+    #[serde(default)]
+    pub bulk_modulus_late_rate: Option<f64>,
+    /// Age where K's rate changes [s].
+    #[serde(default)]
+    pub bulk_modulus_transition_age: Option<f64>,
+    /// The mix's age when the print starts [s] (every particle's age at its creation); 0 when
+    /// absent; only with `bulk_modulus_rate`.
+    #[serde(default)]
+    pub age_at_start: Option<f64>,
+    /// The age the law stops at [s]; absent: none; only with `bulk_modulus_rate`.
+    #[serde(default)]
+    pub max_age: Option<f64>,
+}
+
+const K_KEYS: LawKeys = LawKeys {
+    value: "material.bulk_modulus",
+    rate: "material.bulk_modulus_rate",
+    late_rate: "material.bulk_modulus_late_rate",
+    transition_age: "material.bulk_modulus_transition_age",
+};
+
+/// The moduli a step reads with the age law on: K and G at the (law) age at the step's start,
+/// K at the age the step leaves in the state (in which the held pressure is re-expressed).
+struct Aged {
+    law: AgeLaw,
+    /// The law age at the step's start and whether it moves with the particle's (not past
+    /// `max_age`); the same at the step's end.
+    start: (f64, bool),
+    end: (f64, bool),
+    k: f64,
+    g: f64,
+    k_end: f64,
+    /// The age the step leaves in the state.
+    age_end: Real,
 }
 
 fn default_maxwell_time() -> f64 {
@@ -130,6 +193,10 @@ fn default_maxwell_time() -> f64 {
 const STATE: [&str; 8] = ["s_xx", "s_yy", "s_zz", "s_xy", "s_yz", "s_xz", "lambda", "gamma_p"];
 const STATE_MAXWELL: [&str; 14] = [
     "s_xx", "s_yy", "s_zz", "s_xy", "s_yz", "s_xz", "lambda", "gamma_p", "sM_xx", "sM_yy", "sM_zz", "sM_xy", "sM_yz", "sM_xz",
+];
+const STATE_AGED: [&str; 10] = ["s_xx", "s_yy", "s_zz", "s_xy", "s_yz", "s_xz", "lambda", "gamma_p", "age", "p_held"];
+const STATE_MAXWELL_AGED: [&str; 16] = [
+    "s_xx", "s_yy", "s_zz", "s_xy", "s_yz", "s_xz", "lambda", "gamma_p", "sM_xx", "sM_yy", "sM_zz", "sM_xy", "sM_yz", "sM_xz", "age", "p_held",
 ];
 
 impl EvpBingham {
@@ -161,7 +228,80 @@ impl EvpBingham {
                 reason: "eq. 22 divides by it",
             });
         }
+        self.validate_age_law()?;
         self.eos.validate("material.eos")
+    }
+
+    /// The age law's keys: only with `bulk_modulus_rate`; finite; K > 0 at every age.
+    fn validate_age_law(&self) -> Result<(), MaterialError> {
+        let Some(rate) = self.bulk_modulus_rate else {
+            let given = [
+                ("material.bulk_modulus_late_rate", self.bulk_modulus_late_rate),
+                ("material.bulk_modulus_transition_age", self.bulk_modulus_transition_age),
+                ("material.age_at_start", self.age_at_start),
+                ("material.max_age", self.max_age),
+            ];
+            return match given.into_iter().find(|(_, v)| v.is_some()) {
+                Some((key, _)) => Err(MaterialError::RequiredWhen {
+                    key: K_KEYS.rate,
+                    when: key,
+                    reason: "the bulk modulus's age law is on only with its rate (0 for a law at rest)",
+                }),
+                None => Ok(()),
+            };
+        };
+        K_KEYS.check(self.bulk_modulus, rate, self.bulk_modulus_late_rate, self.bulk_modulus_transition_age)?;
+        let a0 = self.age_at_start.unwrap_or(0.0);
+        let span = check_ages(a0, self.max_age)?;
+        let k_min = self.k_law().map_or(f64::NAN, |law| law.min_over(a0, self.max_age.unwrap_or(f64::INFINITY)));
+        if k_min.is_nan() || k_min <= 0.0 {
+            return Err(MaterialError::out_of_range("material.bulk_modulus (with its rates)", format!("> 0 {span}"), k_min));
+        }
+        Ok(())
+    }
+
+    /// The bulk modulus's age law, when `bulk_modulus_rate` is given.
+    fn k_law(&self) -> Option<AgeLaw> {
+        self.bulk_modulus_rate.map(|rate| AgeLaw { p0: self.bulk_modulus, rate, late: self.bulk_modulus_late_rate.zip(self.bulk_modulus_transition_age) })
+    }
+
+    /// G at bulk modulus `k`: with `poisson_ratio`, eq. 18; with `shear_modulus` G0, G0 k / K0
+    /// (G / K held, as nu is).
+    #[inline]
+    fn shear_at(&self, k: f64) -> f64 {
+        match self.shear_modulus {
+            Some(g0) => g0 * (k / self.bulk_modulus),
+            None => shear_modulus_of(k, None, self.poisson_ratio),
+        }
+    }
+
+    /// Index of the age in the state (the held pressure follows): after the Maxwell branch's.
+    fn age_slot(&self) -> usize {
+        if self.maxwell_modulus.is_some() {
+            14
+        } else {
+            8
+        }
+    }
+
+    /// The moduli of a step from a particle of age `age` (law on).
+    // a real conversion in the f32 build
+    #[allow(clippy::unnecessary_cast)]
+    fn aged(&self, law: AgeLaw, age: Real, dt: Real) -> Aged {
+        let age_end = age + dt;
+        let start = law_age(age as f64, self.max_age);
+        let end = law_age(age_end as f64, self.max_age);
+        let k = law.value(start.0);
+        Aged { law, start, end, k, g: self.shear_at(k), k_end: law.value(end.0), age_end }
+    }
+
+    /// The pressure of the held part and the EOS at K of the particle's age (law on).
+    // a real conversion in the f32 build
+    #[allow(clippy::unnecessary_cast)]
+    fn aged_pressure(&self, law: &AgeLaw, state: &[Real], j: Real) -> Real {
+        let slot = self.age_slot();
+        let k = law.value(law_age(state[slot] as f64, self.max_age).0);
+        state[slot + 1] + self.eos.pressure(r(k), j)
     }
 
     /// Elastic shear modulus G [Pa].
@@ -197,6 +337,58 @@ impl EvpBingham {
         } else {
             7
         }
+    }
+
+    /// The parameters without the age law.
+    fn base_param_names(&self) -> &'static [&'static str] {
+        match (self.shear_modulus.is_some(), self.maxwell_modulus.is_some()) {
+            (true, false) => &["bulk_modulus", "shear_modulus", "viscosity", "yield_stress", "a_thix", "alpha", "lambda0", "flow_index"],
+            (false, false) => &["bulk_modulus", "poisson_ratio", "viscosity", "yield_stress", "a_thix", "alpha", "lambda0", "flow_index"],
+            (true, true) => &[
+                "bulk_modulus", "shear_modulus", "viscosity", "yield_stress", "a_thix", "alpha", "lambda0", "maxwell_modulus", "maxwell_time", "flow_index",
+            ],
+            (false, true) => &[
+                "bulk_modulus", "poisson_ratio", "viscosity", "yield_stress", "a_thix", "alpha", "lambda0", "maxwell_modulus", "maxwell_time", "flow_index",
+            ],
+        }
+    }
+
+    /// Chain the adjoints of a step's moduli (K and G at the start age, K at the end age) to the
+    /// law's parameters (in `params_bar`, after the kind's own) and to the age before the step
+    /// (in `state_bar`); return the adjoints of parameters 1 (G0 or nu) and 0 (K0).
+    // real conversions in the f32 build
+    #[allow(clippy::unnecessary_cast)]
+    fn aged_adjoint(&self, a: &Aged, k_bar: Real, k_end_bar: Real, g_bar: Real, state_out_bar: &[Real], out: &mut UpdateAdjoint) -> (Real, Real) {
+        let (k_bar, k_end_bar, g_bar) = (k_bar as f64, k_end_bar as f64, g_bar as f64);
+        // G(K): G0 K / K0 with G0 given (so K0 enters twice), eq. 18 with nu
+        let (k_total, second, mut k0_bar) = match (self.shear_modulus, self.poisson_ratio) {
+            (Some(g0), _) => {
+                let k0 = self.bulk_modulus;
+                (k_bar + g_bar * g0 / k0, g_bar * a.k / k0, -g_bar * g0 * a.k / (k0 * k0))
+            }
+            (None, Some(nu)) => {
+                let (dg_dk, dg_dnu) = shear_modulus_of_partials(a.k, nu);
+                (k_bar + g_bar * dg_dk, g_bar * dg_dnu, 0.0)
+            }
+            (None, None) => (k_bar, 0.0, 0.0),
+        };
+        let first = self.base_param_names().len();
+        let n = if a.law.late.is_some() { 3 } else { 1 };
+        let mut age_bar = 0.0;
+        for ((age, moving), bar) in [(a.start, k_total), (a.end, k_end_bar)] {
+            let d = a.law.partials(age);
+            k0_bar += bar * d[0];
+            for i in 0..n {
+                out.params_bar[first + i] += r(bar * d[1 + i]);
+            }
+            if moving {
+                age_bar += bar * a.law.rate_at(age);
+            }
+        }
+        // age_out = age_in + dt
+        let slot = self.age_slot();
+        out.state_bar[slot] += state_out_bar[slot] + r(age_bar);
+        (r(second), r(k0_bar))
     }
 
     /// (G_M, t_M) of the Maxwell branch, when there is one.
@@ -288,10 +480,11 @@ impl Material for EvpBingham {
     }
 
     fn state_names(&self) -> &'static [&'static str] {
-        if self.maxwell_modulus.is_some() {
-            &STATE_MAXWELL
-        } else {
-            &STATE
+        match (self.maxwell_modulus.is_some(), self.bulk_modulus_rate.is_some()) {
+            (false, false) => &STATE,
+            (true, false) => &STATE_MAXWELL,
+            (false, true) => &STATE_AGED,
+            (true, true) => &STATE_MAXWELL_AGED,
         }
     }
 
@@ -302,11 +495,20 @@ impl Material for EvpBingham {
         if self.maxwell_modulus.is_some() {
             state[8..14].fill(r(0.0));
         }
+        if self.bulk_modulus_rate.is_some() {
+            let slot = self.age_slot();
+            state[slot] = r(self.age_at_start.unwrap_or(0.0));
+            state[slot + 1] = r(0.0);
+        }
     }
 
     #[inline]
     fn update(&self, grad_v: &M3, j: Real, dt: Real, state: &mut [Real]) -> M3 {
-        let g = r(self.shear_modulus());
+        let aged = self.k_law().map(|law| self.aged(law, state[self.age_slot()], dt));
+        let g = match &aged {
+            None => r(self.shear_modulus()),
+            Some(a) => r(a.g),
+        };
         let eta = r(self.viscosity);
         let tau0 = r(self.yield_stress);
         let alpha = r(self.alpha);
@@ -336,7 +538,18 @@ impl Material for EvpBingham {
 
         state[..6].copy_from_slice(&sym_to_array(&s));
         state[6] = lambda;
-        let p = M3::from_diagonal(V3::splat(self.eos.pressure(r(self.bulk_modulus), j)));
+        let p = match aged {
+            None => M3::from_diagonal(V3::splat(self.eos.pressure(r(self.bulk_modulus), j))),
+            Some(a) => {
+                // the rate form: p = p_held + P(K(a), J) moves by P(K, J) - P(K, J_old) with the
+                // step's K; re-expressed at the end age's K, p_held absorbs the stiffening
+                let slot = self.age_slot();
+                let p_end = self.eos.pressure(r(a.k_end), j);
+                state[slot + 1] = state[slot + 1] + self.eos.pressure(r(a.k), j) - p_end;
+                state[slot] = a.age_end;
+                M3::from_diagonal(V3::splat(state[slot + 1] + p_end))
+            }
+        };
         match self.maxwell() {
             None => s - p,
             Some((g_m, t_m)) => {
@@ -348,18 +561,23 @@ impl Material for EvpBingham {
     }
 
     /// With the Maxwell branch, `maxwell_modulus` and `maxwell_time` follow (indices 7, 8);
-    /// `flow_index` is last.
+    /// `flow_index` is last of the kind's own; the age law's keys come after it.
     fn param_names(&self) -> &'static [&'static str] {
-        match (self.shear_modulus.is_some(), self.maxwell_modulus.is_some()) {
-            (true, false) => &["bulk_modulus", "shear_modulus", "viscosity", "yield_stress", "a_thix", "alpha", "lambda0", "flow_index"],
-            (false, false) => &["bulk_modulus", "poisson_ratio", "viscosity", "yield_stress", "a_thix", "alpha", "lambda0", "flow_index"],
-            (true, true) => &[
-                "bulk_modulus", "shear_modulus", "viscosity", "yield_stress", "a_thix", "alpha", "lambda0", "maxwell_modulus", "maxwell_time", "flow_index",
-            ],
-            (false, true) => &[
-                "bulk_modulus", "poisson_ratio", "viscosity", "yield_stress", "a_thix", "alpha", "lambda0", "maxwell_modulus", "maxwell_time", "flow_index",
-            ],
-        }
+        let Some(law) = self.k_law() else { return self.base_param_names() };
+        // the age law's after the rest: `bulk_modulus_rate`, (`bulk_modulus_late_rate`,
+        // `bulk_modulus_transition_age`), `age_at_start`; one list per combination, built once
+        static NAMES: [OnceLock<Vec<&'static str>>; 8] = [const { OnceLock::new() }; 8];
+        let bilinear = law.late.is_some();
+        let mask = self.shear_modulus.is_some() as usize | (self.maxwell_modulus.is_some() as usize) << 1 | (bilinear as usize) << 2;
+        NAMES[mask].get_or_init(|| {
+            let mut v = self.base_param_names().to_vec();
+            v.push(bare(K_KEYS.rate));
+            if bilinear {
+                v.extend([bare(K_KEYS.late_rate), bare(K_KEYS.transition_age)]);
+            }
+            v.push("age_at_start");
+            v
+        })
     }
 
     /// The return map's root gamma_p is differentiated implicitly: at n = 1 through its quadratic
@@ -377,7 +595,11 @@ impl Material for EvpBingham {
         out: &mut UpdateAdjoint,
     ) {
         // forward, as in `update`
-        let g = r(self.shear_modulus());
+        let aged = self.k_law().map(|law| self.aged(law, state_in[self.age_slot()], dt));
+        let g = match &aged {
+            None => r(self.shear_modulus()),
+            Some(a) => r(a.g),
+        };
         let eta = r(self.viscosity);
         let tau0 = r(self.yield_stress);
         let alpha = r(self.alpha);
@@ -390,8 +612,24 @@ impl Material for EvpBingham {
         let f_tr = tau_tr - (r(1.0) + lambda_tr) * tau0;
 
         // adjoints of the outputs
-        let (k_bar, j_bar) = self.eos.pressure_adjoint(r(self.bulk_modulus), j, -crate::real::trace(stress_bar));
-        *out.j_bar += j_bar;
+        let p_bar = -crate::real::trace(stress_bar);
+        let (k_bar, k_end_bar) = match &aged {
+            None => {
+                let (k_bar, j_bar) = self.eos.pressure_adjoint(r(self.bulk_modulus), j, p_bar);
+                *out.j_bar += j_bar;
+                (k_bar, r(0.0))
+            }
+            Some(a) => {
+                // p_held' = p_held + P(K, J) - P(K_end, J), p = p_held' + P(K_end, J)
+                let slot = self.age_slot();
+                let held_bar = state_out_bar[slot + 1] + p_bar;
+                out.state_bar[slot + 1] += held_bar;
+                let (k_bar, j_bar) = self.eos.pressure_adjoint(r(a.k), j, held_bar);
+                let (k_end_bar, j_end_bar) = self.eos.pressure_adjoint(r(a.k_end), j, -state_out_bar[slot + 1]);
+                *out.j_bar += j_bar + j_end_bar;
+                (k_bar, k_end_bar)
+            }
+        };
         let s_bar = *stress_bar + sym_to_array_adjoint(&state_out_bar[..6]);
         let lambda_bar = state_out_bar[6];
         out.state_bar[7] += state_out_bar[7];
@@ -490,16 +728,19 @@ impl Material for EvpBingham {
         *out.grad_v_bar += skew(&w_bar);
         sym_from_slice_adjoint(&s_old_bar, &mut out.state_bar[..6]);
 
-        let (nu_or_g, k_extra) = match (self.shear_modulus, self.poisson_ratio) {
-            (Some(_), _) => (g_bar, r(0.0)),
-            (None, Some(nu)) => {
-                let (dg_dk, dg_dnu) = shear_modulus_of_partials(self.bulk_modulus, nu);
-                (g_bar * r(dg_dnu), g_bar * r(dg_dk))
-            }
-            (None, None) => (r(0.0), r(0.0)),
+        let (nu_or_g, k_extra) = match &aged {
+            None => match (self.shear_modulus, self.poisson_ratio) {
+                (Some(_), _) => (g_bar, r(0.0)),
+                (None, Some(nu)) => {
+                    let (dg_dk, dg_dnu) = shear_modulus_of_partials(self.bulk_modulus, nu);
+                    (g_bar * r(dg_dnu), g_bar * r(dg_dk))
+                }
+                (None, None) => (r(0.0), r(0.0)),
+            },
+            Some(a) => self.aged_adjoint(a, k_bar, k_end_bar, g_bar, state_out_bar, out),
         };
         let p = &mut out.params_bar;
-        p[0] += k_bar + k_extra;
+        p[0] += if aged.is_none() { k_bar + k_extra } else { k_extra };
         p[1] += nu_or_g;
         p[2] += eta_bar;
         p[3] += tau0_bar;
@@ -510,6 +751,10 @@ impl Material for EvpBingham {
 
     fn init_state_adjoint(&self, state_bar: &[Real], params_bar: &mut [Real]) {
         params_bar[6] += state_bar[6];
+        if self.k_law().is_some() {
+            // every particle starts at `age_at_start`, the last parameter
+            params_bar[self.param_names().len() - 1] += state_bar[self.age_slot()];
+        }
     }
 
     /// The deviators are the state itself (the EVP's, and the Maxwell branch's), so this is the
@@ -517,19 +762,35 @@ impl Material for EvpBingham {
     /// A sleeping particle keeps it: the Maxwell stress relaxes at rest, but not while asleep; on
     /// waking, `rest_for` relaxes it over the whole interval at once.
     fn stress_at_rest(&self, state: &[Real], j: Real) -> M3 {
-        let p = M3::from_diagonal(V3::splat(self.eos.pressure(r(self.bulk_modulus), j)));
+        let p = match self.k_law() {
+            None => M3::from_diagonal(V3::splat(self.eos.pressure(r(self.bulk_modulus), j))),
+            Some(law) => M3::from_diagonal(V3::splat(self.aged_pressure(&law, state, j))),
+        };
         match self.maxwell() {
             None => sym_from_slice(&state[..6]) - p,
             Some(_) => (sym_from_slice(&state[..6]) + sym_from_slice(&state[8..14])) - p,
         }
     }
 
+    /// Without J: [`Material::rest_for_at`] at J = 1, where the pressure is the held part alone.
     fn rest_for(&self, state: &mut [Real], duration: Real) {
+        self.rest_for_at(state, duration, r(1.0));
+    }
+
+    fn rest_for_at(&self, state: &mut [Real], duration: Real, j: Real) {
         // at rest below yield only eq. 22's build-up acts, and it is linear in time; the Maxwell
         // stress relaxes as exp(-duration / t_M)
         state[6] += self.build_up_rate() * duration;
         if let Some((_, t_m)) = self.maxwell() {
             maxwell::relax(&mut state[8..14], t_m, duration);
+        }
+        // the particle ages at its J, and its pressure is held as in `update`
+        if let Some(law) = self.k_law() {
+            let slot = self.age_slot();
+            let before = self.aged_pressure(&law, state, j);
+            state[slot] += duration;
+            let after = self.aged_pressure(&law, state, j);
+            state[slot + 1] += before - after;
         }
     }
 
@@ -548,10 +809,25 @@ impl Material for EvpBingham {
     /// The Maxwell branch adds at most 2 G_M dt D' per step (a spring G_M; see `maxwell`), so
     /// G_M counts with G in the elastic wave speed.
     fn stability(&self) -> StabilityInfo {
+        self.stability_at(0.0)
+    }
+
+    /// With the age law, the stiffest K (and its G) over the ages [age_at_start, age_at_start +
+    /// time] (capped at `max_age`): no particle is older during the step starting at `time`,
+    /// and `update` reads the age at the step's start.
+    fn stability_at(&self, time: f64) -> StabilityInfo {
+        let (k, g) = match self.k_law() {
+            None => (self.bulk_modulus, self.shear_modulus()),
+            Some(law) => {
+                let a0 = self.age_at_start.unwrap_or(0.0);
+                let k = law.max_over(a0, law_age(a0 + time.max(0.0), self.max_age).0);
+                (k, self.shear_at(k))
+            }
+        };
         StabilityInfo {
             density: r(self.density),
-            bulk_modulus: r(self.bulk_modulus),
-            shear_modulus: r(self.shear_modulus() + self.maxwell_modulus.unwrap_or(0.0)),
+            bulk_modulus: r(k),
+            shear_modulus: r(g + self.maxwell_modulus.unwrap_or(0.0)),
             max_viscosity: r(self.viscosity),
             thickening: None,
         }
@@ -582,6 +858,11 @@ mod tests {
             maxwell_time: 1.0,
             flow_index: 1.0,
             eos: Eos::Linear,
+            bulk_modulus_rate: None,
+            bulk_modulus_late_rate: None,
+            bulk_modulus_transition_age: None,
+            age_at_start: None,
+            max_age: None,
         }
     }
 
@@ -966,6 +1247,11 @@ mod tests {
             maxwell_time: if p.len() == 10 { p[8] } else { 1.0 },
             flow_index: p[p.len() - 1],
             eos,
+            bulk_modulus_rate: None,
+            bulk_modulus_late_rate: None,
+            bulk_modulus_transition_age: None,
+            age_at_start: None,
+            max_age: None,
         }
     }
 
@@ -1287,5 +1573,300 @@ mod tests {
         let mut p = [0.0; 8];
         m.init_state_adjoint(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 2.5, 1.0], &mut p);
         assert_eq!(p, [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 2.5, 0.0]);
+    }
+
+    /// K = 2e6 + 2e3 a [Pa] (doubling in 1000 s), bilinear with a late rate 5e3 Pa/s beyond
+    /// 600 s when asked; G follows K.
+    fn ageing(bilinear: bool) -> EvpBingham {
+        EvpBingham {
+            bulk_modulus_rate: Some(2e3),
+            bulk_modulus_late_rate: bilinear.then_some(5e3),
+            bulk_modulus_transition_age: bilinear.then_some(600.0),
+            ..solid()
+        }
+    }
+
+    fn at_age(m: &EvpBingham, age: Real) -> Vec<Real> {
+        let mut st = vec![0.0 as Real; m.state_names().len()];
+        m.init_state(&mut st);
+        st[m.age_slot()] = age;
+        st
+    }
+
+    /// The same small load applied to a fresh particle early (100 s) and late (1000 s, past the
+    /// kink): the stress it takes grows by the law's ratio K(1000) / K(100), the deviator (G
+    /// follows K, with G or nu given) and the pressure alike, so the strain a given load makes
+    /// shrinks by that ratio.
+    #[test]
+    fn a_growing_bulk_modulus_stiffens_the_elastic_response_by_the_law_ratio() {
+        let l = M3::from_cols(V3::new(-2e-3, 1e-3, 0.0), V3::new(1e-3, 5e-4, 0.0), V3::new(0.0, 0.0, 3e-4));
+        let (dt, j) = (1e-2 as Real, 0.999 as Real);
+        for bilinear in [false, true] {
+            for nu in [None, Some(0.3)] {
+                let m = EvpBingham { shear_modulus: if nu.is_some() { None } else { Some(1e6) }, poisson_ratio: nu, ..ageing(bilinear) };
+                assert!(m.validate().is_ok());
+                let law = m.k_law().unwrap();
+                let (mut early, mut late) = (at_age(&m, 100.0), at_age(&m, 1000.0));
+                let (s_early, s_late) = (m.update(&l, j, dt, &mut early), m.update(&l, j, dt, &mut late));
+                assert_eq!((early[7], late[7]), (0.0, 0.0), "elastic");
+                let ratio = (law.value(1000.0) / law.value(100.0)) as Real;
+                assert!(ratio > if bilinear { 2.3 } else { 1.8 });
+                for (a, b) in s_early.to_cols_array().into_iter().zip(s_late.to_cols_array()) {
+                    assert!((b - ratio * a).abs() <= 10.0 * EPS * b.abs().max(1.0), "{a} x {ratio} vs {b}");
+                }
+                // the age advanced by dt; without the law the response is the age-0 one
+                assert_eq!(late[8], 1000.0 + dt);
+                let mut fixed = fresh(&solid());
+                let s0 = solid().update(&l, j, dt, &mut fixed);
+                let k0 = (law.value(100.0) / 2e6) as Real;
+                assert!((s_early.x_axis.x - k0 * s0.x_axis.x).abs() <= 10.0 * EPS * s0.x_axis.x.abs() || nu.is_some());
+            }
+        }
+    }
+
+    /// The rate form holds the stress through stiffening: a particle loaded elastically, then
+    /// held (L = 0, J fixed) while its K grows fivefold, keeps its stress, the pressure too (a
+    /// total form P(K(a), J) would raise it fivefold); sleeping over the same time
+    /// (`rest_for_at`) holds it the same; `stress_at_rest` is `update`'s stress to the bit.
+    #[test]
+    fn the_rate_form_holds_the_stress_while_the_moduli_grow() {
+        let m = EvpBingham { yield_stress: 1e5, ..ageing(true) };
+        let j = 0.995 as Real;
+        let mut st = at_age(&m, 10.0);
+        let mut loaded = M3::ZERO;
+        for _ in 0..10 {
+            loaded = m.update(&simple_shear(0.5), j, 1e-3, &mut st);
+        }
+        assert_eq!(st[7], 0.0, "elastic");
+        let mut slept = st.clone();
+        let (dt, n) = (1.0 as Real, 3000);
+        let mut held = M3::ZERO;
+        for _ in 0..n {
+            held = m.update(&M3::ZERO, j, dt, &mut st);
+        }
+        let law = m.k_law().unwrap();
+        #[allow(clippy::unnecessary_cast)] // f32 build
+        let age = st[8] as f64;
+        assert!(law.value(age) > 5.0 * law.value(10.0));
+        let tol = if cfg!(feature = "f32") { 1e-4 } else { 1e-10 };
+        let p0 = -trace(&loaded) / 3.0;
+        assert!(p0 > 0.0);
+        for (a, b) in loaded.to_cols_array().into_iter().zip(held.to_cols_array()) {
+            assert!((a - b).abs() <= tol * p0, "{a} vs {b}");
+        }
+        let bits = |a: &M3| a.to_cols_array().map(|x| x.to_bits());
+        assert_eq!(bits(&m.stress_at_rest(&st, j)), bits(&held));
+        m.rest_for_at(&mut slept, n as Real * dt, j);
+        assert!((slept[8] - st[8]).abs() <= 1e-6 * st[8]);
+        let rested = m.stress_at_rest(&slept, j);
+        for (a, b) in loaded.to_cols_array().into_iter().zip(rested.to_cols_array()) {
+            assert!((a - b).abs() <= tol * p0, "{a} vs {b}");
+        }
+        // without J, `rest_for` is the particle at J = 1: it ages, its held pressure unchanged
+        let mut unloaded = at_age(&m, 10.0);
+        m.rest_for(&mut unloaded, 5.0);
+        assert_eq!((unloaded[8], unloaded[9]), (15.0, 0.0));
+    }
+
+    /// A law at rest (rate 0) is the material without the law, as numbers, with the age and the
+    /// held pressure (0) in the state; the law on changes it.
+    #[test]
+    fn a_zero_rate_is_the_material_without_the_law() {
+        let base = EvpBingham { a_thix: 0.8, alpha: 0.3, lambda0: 0.2, eos: Eos::Tait { gamma: 7.0 }, ..solid() };
+        let null = EvpBingham { bulk_modulus_rate: Some(0.0), age_at_start: Some(60.0), ..base.clone() };
+        assert!(null.validate().is_ok());
+        assert_eq!((base.state_names().len(), null.state_names().len()), (8, 10));
+        assert_eq!(base.stability(), null.stability_at(1e4));
+        let (s0, st0) = history(&base, 300);
+        let (s1, st1) = history(&null, 300);
+        assert_eq!(s0, s1);
+        assert_eq!(st0[..], st1[..8]);
+        assert_eq!(st1[9], 0.0);
+        // (f32: each 1 ms rounds to the age's spacing at 60 s, 3.8e-6 s)
+        assert!((st1[8] - (60.0 + 0.3)).abs() < if cfg!(feature = "f32") { 1e-3 } else { 1e-9 });
+        let (s2, _) = history(&EvpBingham { bulk_modulus_rate: Some(1e3), ..null }, 300);
+        assert_ne!(s0, s2);
+        // with the Maxwell branch the age follows its state
+        let both = EvpBingham { maxwell_modulus: Some(10.0), ..ageing(false) };
+        assert_eq!(&both.state_names()[14..], ["age", "p_held"]);
+        assert_eq!(both.age_slot(), 14);
+    }
+
+    /// The stiffest moduli over the ages a particle can have by `time`, capped at `max_age`.
+    #[test]
+    fn the_time_step_sees_the_stiffest_age() {
+        let m = EvpBingham { age_at_start: Some(100.0), maxwell_modulus: Some(300.0), ..ageing(true) };
+        assert!(m.validate().is_ok());
+        let law = m.k_law().unwrap();
+        let at = |a: f64| (law.value(a) as Real, (1e6 * law.value(a) / 2e6 + 300.0) as Real);
+        let pair = |s: StabilityInfo| (s.bulk_modulus, s.shear_modulus);
+        assert_eq!(pair(m.stability()), at(100.0));
+        assert_eq!(m.stability(), m.stability_at(0.0));
+        assert_eq!(pair(m.stability_at(900.0)), at(1000.0));
+        let capped = EvpBingham { max_age: Some(700.0), ..m.clone() };
+        assert_eq!(pair(capped.stability_at(900.0)), at(700.0));
+        // past max_age the law stops: a step at 5000 s is a step at 700 s
+        let l = M3::from_diagonal(V3::new(-1e-3, 0.0, 0.0));
+        let (mut a, mut b) = (at_age(&capped, 5000.0), at_age(&capped, 700.0));
+        assert_eq!(capped.update(&l, 0.99, 1.0, &mut a), capped.update(&l, 0.99, 1.0, &mut b));
+        // a falling-then-rising law: the bound is the largest value, not the last
+        let dip = EvpBingham { bulk_modulus_rate: Some(-1e3), bulk_modulus_late_rate: Some(500.0), bulk_modulus_transition_age: Some(1000.0), ..solid() };
+        assert!(dip.validate().is_ok());
+        assert_eq!(dip.stability_at(2500.0).bulk_modulus, 2e6);
+    }
+
+    #[test]
+    fn age_law_keys_are_validated_by_name() {
+        let msg = |m: EvpBingham| m.validate().unwrap_err().to_string();
+        assert!(ageing(true).validate().is_ok());
+        assert!(msg(EvpBingham { bulk_modulus_rate: Some(-3e3), ..solid() }).starts_with("material.bulk_modulus (with its rates) must be > 0 at every age"));
+        assert!(EvpBingham { bulk_modulus_rate: Some(-3e3), max_age: Some(600.0), ..solid() }.validate().is_ok());
+        assert!(msg(EvpBingham { bulk_modulus_rate: Some(f64::NAN), ..solid() }).starts_with("material.bulk_modulus_rate must be finite"));
+        assert!(msg(EvpBingham { bulk_modulus_late_rate: None, ..ageing(true) }).starts_with("material.bulk_modulus_late_rate is required"));
+        assert!(msg(EvpBingham { bulk_modulus_transition_age: None, ..ageing(true) }).starts_with("material.bulk_modulus_transition_age is required"));
+        assert!(msg(EvpBingham { bulk_modulus_transition_age: Some(-1.0), ..ageing(true) }).starts_with("material.bulk_modulus_transition_age must be >= 0"));
+        assert!(msg(EvpBingham { age_at_start: Some(-1.0), ..ageing(false) }).starts_with("material.age_at_start must be >= 0"));
+        assert!(msg(EvpBingham { max_age: Some(0.0), ..ageing(false) }).starts_with("material.max_age must be finite and > age_at_start"));
+        for (m, key) in [
+            (EvpBingham { age_at_start: Some(10.0), ..solid() }, "material.age_at_start"),
+            (EvpBingham { max_age: Some(10.0), ..solid() }, "material.max_age"),
+            (EvpBingham { bulk_modulus_late_rate: Some(1.0), bulk_modulus_transition_age: Some(5.0), ..solid() }, "material.bulk_modulus_late_rate"),
+        ] {
+            assert_eq!(msg(m), format!("material.bulk_modulus_rate is required when {key}: the bulk modulus's age law is on only with its rate (0 for a law at rest)"));
+        }
+        assert_eq!(&ageing(false).param_names()[8..], ["bulk_modulus_rate", "age_at_start"]);
+        let names = EvpBingham { maxwell_modulus: Some(1.0), shear_modulus: None, poisson_ratio: Some(0.3), ..ageing(true) }.param_names();
+        assert_eq!(names[1], "poisson_ratio");
+        assert_eq!(&names[10..], ["bulk_modulus_rate", "bulk_modulus_late_rate", "bulk_modulus_transition_age", "age_at_start"]);
+    }
+
+    /// The ageing material from parameter values in `param_names` order: the kind's own (8, or
+    /// 10 with the Maxwell branch), then the law's (rate; late rate and transition age when
+    /// bilinear) and `age_at_start`.
+    #[cfg(not(feature = "f32"))]
+    fn make_aged(poisson: bool, eos: Eos, maxwell: bool, bilinear: bool, max_age: Option<f64>) -> impl Fn(&[f64]) -> EvpBingham {
+        move |p: &[f64]| {
+            let nb = if maxwell { 10 } else { 8 };
+            let q = &p[nb..];
+            EvpBingham {
+                bulk_modulus_rate: Some(q[0]),
+                bulk_modulus_late_rate: bilinear.then(|| q[1]),
+                bulk_modulus_transition_age: bilinear.then(|| q[2]),
+                age_at_start: Some(q[q.len() - 1]),
+                max_age,
+                ..make(poisson, eos)(&p[..nb])
+            }
+        }
+    }
+
+    /// Central differences and the Taylor test of one step with the age law, at ages before,
+    /// just before and after the kink at 600 s and past `max_age`: elastic and plastic, G or nu
+    /// given (K0 enters G twice with G0), both equations of state, with the Maxwell branch.
+    /// State: the kind's, then the age and the held pressure.
+    #[cfg(not(feature = "f32"))]
+    #[test]
+    fn adjoint_with_the_age_law_matches_central_differences_across_the_kink() {
+        use crate::material::test_util::check_update_adjoint;
+        let spin = [0.3, -2.0, 0.5, 3.0, -0.4, 1.2, -0.7, 0.9, 0.2];
+        let tait = Eos::Tait { gamma: 7.0 };
+        let evp_el = vec![100.0, -40.0, -60.0, 80.0, -30.0, 20.0, 0.0, 0.01];
+        let evp_pl = vec![500.0, -200.0, -300.0, 400.0, -150.0, 250.0, 0.4, 0.3];
+        // (label, poisson, eos, maxwell, bilinear, max_age, L scale, J, EVP state)
+        type Case = (&'static str, bool, Eos, bool, bool, Option<f64>, f64, f64, Vec<f64>);
+        let cases: Vec<Case> = vec![
+            ("elastic, linear", false, Eos::Linear, false, false, None, 0.1, 0.98, evp_el.clone()),
+            ("elastic, bilinear, nu", true, Eos::Linear, false, true, None, 0.1, 1.02, evp_el.clone()),
+            ("plastic, bilinear", false, tait, false, true, None, 40.0, 0.99, evp_pl.clone()),
+            ("plastic, bilinear, nu, Tait", true, tait, false, true, None, 40.0, 1.01, evp_pl.clone()),
+            ("elastic, bilinear, maxwell", false, Eos::Linear, true, true, None, 0.1, 0.99, evp_el.clone()),
+            ("plastic, bilinear, max_age", true, Eos::Linear, false, true, Some(800.0), 40.0, 0.98, evp_pl.clone()),
+        ];
+        let mut seed = 200;
+        for (label, poisson, eos, maxwell, bilinear, max_age, scale, j, evp) in cases {
+            let mut params = vec![2e6, if poisson { 0.45 } else { 1e5 }, 7.5, 630.0, 50.0, 0.5, 0.2];
+            if maxwell {
+                params.extend([400.0, 0.5]);
+            }
+            params.push(1.0);
+            params.push(2e3);
+            if bilinear {
+                params.extend([5e3, 600.0]);
+            }
+            params.push(30.0);
+            let make = make_aged(poisson, eos, maxwell, bilinear, max_age);
+            assert!(make(&params).validate().is_ok(), "{label}");
+            for age in [300.0, 599.0, 900.0] {
+                seed += 1;
+                let mut state = evp.clone();
+                if maxwell {
+                    state.extend([30.0, -10.0, -20.0, 25.0, -8.0, 12.0]);
+                }
+                state.extend([age, -350.0]);
+                let m = make(&params);
+                let l = l_of(spin.map(|x| scale * x));
+                let mut st = state.clone();
+                m.update(&l, j, 1e-3, &mut st);
+                assert_eq!(st[7] > state[7], label.starts_with("plastic"), "{label} at {age} s: branch");
+                let mut state_scale: Vec<f64> = state.iter().map(|v| v.abs().max(1.0)).collect();
+                let n = state.len();
+                state_scale[n - 2] = 1.0;
+                let mut param_scale: Vec<f64> = params.iter().map(|v| v.abs().max(1.0) * 0.01).collect();
+                // as in the tests without the law: K and G (or nu) over their whole size, so the
+                // differences of their small derivatives in one step stay above rounding
+                param_scale[..7].copy_from_slice(&[1e6, if poisson { 0.1 } else { params[1] }, 10.0, 500.0, 1e4, 1000.0, 1.0]);
+                if maxwell {
+                    param_scale[7..9].copy_from_slice(&[1e3, params[8]]);
+                }
+                let nb = if maxwell { 10 } else { 8 };
+                if bilinear {
+                    // the transition age: well inside the 1 s between it and the nearest age
+                    param_scale[nb + 2] = 0.5;
+                }
+                // the rates reach one step only through the age: a larger step keeps their
+                // differences above rounding
+                for x in &mut param_scale[nb..nb + if bilinear { 2 } else { 1 }] {
+                    *x *= 10.0;
+                }
+                check_update_adjoint(&format!("{label}, age {age} s"), &make, &params, l, j, 1e-3, &state, 1.0, &state_scale, &param_scale, 1e-6, seed);
+            }
+        }
+    }
+
+    /// A run of 60 steps of 2 s from `age_at_start` = 550 s, through the kink at 601 s and from
+    /// elastic into plastic loading with J varying, as a map from all the parameters to the
+    /// final stress and state; its adjoint is the steps' adjoints run backwards, then
+    /// `init_state_adjoint`. Central differences per parameter, and the Taylor remainder over
+    /// all of them at once falling as h^2.
+    #[cfg(not(feature = "f32"))]
+    #[test]
+    fn taylor_test_with_the_age_law_over_a_multi_step_sequence() {
+        use crate::adjoint_check::{group_errors, slow_loading, taylor_slope, MaterialRun, Rng};
+        // a slow loading with J wavering: elastic first, then flowing; the kink at 601 s falls
+        // between the steps at 600 and 602 s; a viscosity of the order of G dt, so that it and
+        // the flow index reach the result above rounding
+        let ls = slow_loading(60, 0.25);
+        let js: Vec<Real> = (0..60).map(|k| 1.0 - 1e-3 * (1.0 + (k as f64 * 0.7).sin())).collect();
+        for poisson in [false, true] {
+            let x = vec![1e5, if poisson { 0.3 } else { 4e4 }, 5e4, 630.0, 2.0, 0.5, 0.2, 1.0, 100.0, 400.0, 601.0, 550.0];
+            let make = make_aged(poisson, Eos::Tait { gamma: 7.0 }, false, true, None);
+            let run = MaterialRun::new(make, ls.iter().copied().zip(js.iter().copied()).collect(), 2.0, &x);
+            let (states, _) = run.states(&x);
+            let last = states.last().unwrap();
+            assert!(last[7] > 0.0 && states[3][7] == 0.0, "elastic first, then plastic: gamma_p {} -> {}", states[3][7], last[7]);
+            assert!((last[8] - 670.0).abs() < 1e-9 && last[9] != 0.0);
+            let mut scale: Vec<f64> = x.iter().map(|v| v.abs().max(1.0) * 0.01).collect();
+            // ages: inside the 1 s between the kink and the nearest step
+            scale[10] = 0.5;
+            scale[11] = 0.5;
+            let mut rng = Rng(7);
+            let errs = group_errors(&run, &x, &scale, &mut rng);
+            println!("multi-step, nu {poisson}: {errs:?}");
+            for (name, e) in &errs {
+                assert!(*e < 1e-5, "{name}: adjoint vs central differences {e:.1e}");
+            }
+            let slope = taylor_slope(&run, &x, &scale, &mut rng).expect("curved along the direction");
+            println!("multi-step Taylor remainder slope {slope:.3}");
+            assert!(slope > 1.9, "Taylor remainder slope {slope:.3}");
+        }
     }
 }

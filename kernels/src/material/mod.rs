@@ -178,6 +178,13 @@ pub trait Material: Send + Sync + std::fmt::Debug {
     /// keep the default, which does nothing.
     fn rest_for(&self, _state: &mut [Real], _duration: Real) {}
 
+    /// [`Material::rest_for`] for a particle that sleeps at volume ratio `j`: what a material
+    /// whose pressure is held through ageing (`evp_bingham` with an age law) needs. The solver
+    /// wakes particles with this; the default ignores `j`.
+    fn rest_for_at(&self, state: &mut [Real], duration: Real, _j: Real) {
+        self.rest_for(state, duration)
+    }
+
     /// How far tau = sqrt(J2) of the stress held in `state` may rise before the material
     /// yields [Pa]: the margin a sleeping unit keeps against loads put on it while it sleeps
     /// (the solver's `sleep.rs` wakes it when the load's share passes the margin). Materials
