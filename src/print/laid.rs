@@ -99,8 +99,14 @@ impl LaidLattice {
     /// `per_column` (the column's volume over the outlet's area).
     pub fn layout(&self, tp: &Toolpath, q: u64, per_column: f64, mut put: impl FnMut([f64; 3])) -> f64 {
         let due = tp.time_at_extruded_length((q + 1) as f64 * per_column).unwrap_or(f64::INFINITY);
-        let middle = tp.time_at_extruded_length((q as f64 + 0.5) * per_column).unwrap_or(due);
-        let st = tp.state_at(middle);
+        let l = (q as f64 + 0.5) * per_column;
+        let middle = tp.time_at_extruded_length(l).unwrap_or(due);
+        // on the move extruding there, even where the middle falls on its end (the state at that
+        // instant would be the next move's, a layer change with no heading)
+        let st = match tp.move_extruding(l).flatten() {
+            Some(k) => tp.state_on(k, middle),
+            None => tp.state_at(middle),
+        };
         let (vx, vy) = (st.velocity[0], st.velocity[1]);
         let speed = (vx * vx + vy * vy).sqrt();
         // horizontal normal to the heading (left of it); `check` refuses print moves without one
@@ -145,6 +151,27 @@ mod tests {
         let (zmin, zmax) = pts.iter().fold((1.0f64, -1.0f64), |a, p| (a.0.min(p[2]), a.1.max(p[2])));
         assert!((ymin + 0.02 - 0.00125).abs() < 1e-12 && (ymax - 0.02 + 0.00125).abs() < 1e-12, "{ymin} {ymax}");
         assert!((zmin - 0.00125).abs() < 1e-12 && (zmax - 0.00875).abs() < 1e-12, "{zmin} {zmax}");
+    }
+
+    /// A column whose middle falls on the end of its move takes that move's heading, not the
+    /// next move's (a layer change, vertical).
+    #[test]
+    fn a_column_ending_a_move_keeps_its_heading() {
+        let segs: Vec<Segment> = toml::from_str::<toml::Table>(
+            "s = [{ kind = \"print\", to = [0.0, 0.005, 0.01], speed = 0.05, extrusion = 0.05 }, { kind = \"layer\", dz = 0.01, speed = 0.05 }]",
+        )
+        .unwrap()["s"]
+            .clone()
+            .try_into()
+            .unwrap();
+        let tp = Toolpath::from_segments([0.0, 0.0, 0.01], &segs).unwrap();
+        // 2 mm columns of a 4 x 2 mm section: the third one's middle (5 mm) is the move's end
+        let l = LaidSection { width: 0.004, height: 0.002 }.lattice(0.002);
+        let per_column = l.volume / 8e-6;
+        let mut pts = Vec::new();
+        l.layout(&tp, 2, per_column, |x| pts.push(x));
+        // the move runs along +y: the section lies across it, along x
+        assert!(pts.iter().all(|p| (p[1] - 0.005).abs() < 1e-12) && pts.iter().any(|p| p[0] > 0.0005), "{pts:?}");
     }
 
     #[test]
