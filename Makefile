@@ -89,8 +89,8 @@ bench-mass-scaling: build
 # The printed cylinder of Wolfs, Bos & Salet (2018) to failure: the whole 500 mm cylinder, layers
 # of 40 x 10 mm every 18.85 s laid at rest, early_age_solid with the paper's E(t); strand's failure
 # layer and mode against the five measured (25-31), CPU time and peak memory (bench/cylinder.py;
-# about 35 minutes on 2 cores at 10 mm cells, BENCHMARKS.md "The printed cylinder"). CYLINDER_ARGS
-# picks the cells, the mass scaling, the layers and the deposit, e.g. "--dx 0.005 --layers 5".
+# about an hour on 2 cores at 10 mm cells, all awake; BENCHMARKS.md "The printed cylinder").
+# CYLINDER_ARGS picks the cells, the mass scaling, the layers, the deposit and --sleep.
 CYLINDER_ARGS ?= --dx 0.01 --mass-scaling 100
 bench-cylinder: build
 	python3 bench/cylinder.py --strand $(STRAND) --out $(OUT)/cylinder $(CYLINDER_ARGS)

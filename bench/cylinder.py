@@ -20,12 +20,13 @@ wall's quasi-static response: an extruded deposit under s = 100 arrives with a m
 10 mm cells put 4 cells across the 40 mm wall, the resolution at which the suite's buckling test
 meets Greenhill's height within 10 %; a laid layer needs no cells of its own for its shape.
 
-BENCHMARKS.md "The printed cylinder" has the result; the run's JSON summary is kept as
-OUT/summary.json.
+All material stays awake by default: sleeping (`--sleep`) halves the cost but delays the
+collapse by a layer, since a frozen unit wakes only under load. BENCHMARKS.md "The printed
+cylinder" has both results; the run's JSON summary is kept as OUT/summary.json.
 
 Usage:
     cylinder.py [--strand PATH] [--out DIR] [--dx 0.01] [--layers 40] [--mass-scaling 100]
-                [--threads 2] [--no-sleep] [--deposit laid|extruded] [--write FILE]
+                [--threads 2] [--sleep] [--deposit laid|extruded] [--write FILE]
 """
 import argparse
 import json
@@ -93,12 +94,12 @@ SOURCES = """\
 # 0.2 s layer change at its start point; each layer laid at rest in its 40 x 10 mm section as the
 # nozzle passes (print.deposit, the activation model of the paper) unless --deposit extruded;
 # the section at x = 0 sees the wall at y = +R only (`[observe] y_range`), where the
-# ovalisation's radial lean is greatest; sleeping on (defaults);
+# ovalisation's radial lean is greatest; {sleeping};
 # mass scaling {s} (inertia only; weight, stresses and the age clock stay real); the run ends
 # {stop:.1f} s after the failure."""
 
 
-def scenario(dx, layers, s, amp=0.001, sleep=True, deposit="laid"):
+def scenario(dx, layers, s, amp=0.001, sleep=False, deposit="laid"):
     nozzle_d = 0.04
     extrusion = SPEED * WIDTH * HEIGHT / (math.pi * nozzle_d ** 2 / 4.0)
     c_over_e = cohesion_per_modulus()
@@ -113,9 +114,11 @@ def scenario(dx, layers, s, amp=0.001, sleep=True, deposit="laid"):
     period = 2.0 * math.pi * RADIUS / SPEED + HEIGHT / rise
     end = layers * period
     stop = 2.0 * period
-    args = f" --dx {dx} --layers {layers} --mass-scaling {s} --deposit {deposit}" + ("" if sleep else " --no-sleep")
+    args = f" --dx {dx} --layers {layers} --mass-scaling {s} --deposit {deposit}" + (" --sleep" if sleep else "")
     head = SOURCES.format(args=args, phi=PHI, ratio=STRAIN_AT_STRENGTH, c_over_e=c_over_e, c0=c_over_e * E0,
-                          c_rate=c_over_e * E_RATE, amp_mm=amp * 1e3, s=s, stop=stop)
+                          c_rate=c_over_e * E_RATE, amp_mm=amp * 1e3, s=s, stop=stop,
+                          sleeping="sleeping on (defaults): it delays the collapse by a layer" if sleep
+                          else "all material awake (sleeping delays the collapse by a layer)")
     top = HEIGHT * layers + 0.1
     half = RADIUS + 0.05
     sleep_table = "\n[sleep]\n" if sleep else ""
@@ -178,12 +181,13 @@ def main():
     ap.add_argument("--layers", type=int, default=40)
     ap.add_argument("--mass-scaling", type=float, default=100.0)
     ap.add_argument("--threads", type=int, default=2)
-    ap.add_argument("--no-sleep", action="store_true", help="keep all material awake")
+    ap.add_argument("--sleep", action="store_true",
+                    help="let material at rest sleep: faster, but it delays the collapse by a layer (BENCHMARKS.md)")
     ap.add_argument("--deposit", choices=["laid", "extruded"], default="laid",
                     help="lay each layer at rest in its 40 x 10 mm section (the paper's activation model), or extrude it")
     ap.add_argument("--write", help="only write the scenario to this file")
     a = ap.parse_args()
-    text = scenario(a.dx, a.layers, a.mass_scaling, sleep=not a.no_sleep, deposit=a.deposit)
+    text = scenario(a.dx, a.layers, a.mass_scaling, sleep=a.sleep, deposit=a.deposit)
     if a.write:
         with open(a.write, "w") as f:
             f.write(text)
