@@ -114,12 +114,16 @@ impl EmissionPlan {
         k
     }
 
+    /// Whether `x` lies in the material region of the domain (points outside are not emitted).
+    fn inside(&self, x: &[f64; 3]) -> bool {
+        (0..3).all(|a| x[a] >= self.domain.0[a] && x[a] <= self.domain.1[a])
+    }
+
     /// Slab `q`'s positions at its due time, each handed to `put`; returns the due time, the
     /// moves that set it (see `Slab::moves`) and the particles' velocity.
     fn layout(&self, q: u64, branch: Option<(Option<usize>, usize)>, mut put: impl FnMut([f64; 3])) -> (f64, (Option<usize>, usize), [f64; 3]) {
         if let Some((lattice, per_column)) = &self.laid {
-            let inside = |x: &[f64; 3]| (0..3).all(|a| x[a] >= self.domain.0[a] && x[a] <= self.domain.1[a]);
-            let due = lattice.layout(&self.toolpath, q, *per_column, |x| if inside(&x) { put(x) });
+            let due = lattice.layout(&self.toolpath, q, *per_column, |x| if self.inside(&x) { put(x) });
             let need = (q + 1) as f64 * per_column;
             let extruding = self.toolpath.move_extruding(need).flatten();
             return (due, (extruding, self.toolpath.state_at(due).interval), [0.0; 3]);
@@ -148,7 +152,7 @@ impl EmissionPlan {
             let z = z_top - 0.5 * h - excess - m as f64 * h;
             for o in self.offsets.iter() {
                 let x = [st.position[0] + o[0], st.position[1] + o[1], z];
-                if (0..3).all(|a| x[a] >= self.domain.0[a] && x[a] <= self.domain.1[a]) {
+                if self.inside(&x) {
                     put(x);
                 }
             }

@@ -90,6 +90,11 @@ impl LaidLattice {
         self.across.len() * self.down.len()
     }
 
+    /// The farthest a particle lies from the heartline, horizontally [m].
+    pub fn reach(&self) -> f64 {
+        self.across.iter().fold(0.0f64, |m, a| m.max(a.abs()))
+    }
+
     /// Each particle's volume.
     pub fn particle_volume(&self) -> f64 {
         self.volume / self.particles() as f64

@@ -162,7 +162,7 @@ fn check_print_inside_domain(sc: &Scenario, p: &Printer) -> Result<(), SimError>
     let (lo, hi) = p.toolpath.bounds();
     // a laid deposit reaches half its section's width from the path, the nozzle its outlet's
     let [ex, ey] = match p.plan.laid.as_ref() {
-        Some((lattice, _)) => [lattice.across.iter().fold(0.0f64, |m, a| m.max(a.abs())); 2],
+        Some((lattice, _)) => [lattice.reach(); 2],
         None => p.shape.half_extent(),
     };
     let b = &sc.boundary;
