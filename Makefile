@@ -6,7 +6,7 @@ OUT ?= out
 TARGET_DIR := $(if $(CARGO_TARGET_DIR),$(CARGO_TARGET_DIR),target)
 STRAND := $(TARGET_DIR)/release/strand
 
-.PHONY: run test fuzz verify verify-quick bench bench-peer bench-restart bench-kernels bench-case1 bench-layers bench-layers-dwell bench-failure bench-mass-scaling bench-cylinder bench-convergence bench-nozzle-cells bench-nozzle-body bench-lbox bench-vfunnel bench-print-diagnose lbox build fmt clippy clean
+.PHONY: run test fuzz verify verify-quick bench bench-peer bench-restart bench-kernels bench-case1 bench-layers bench-layers-dwell bench-failure bench-mass-scaling bench-cylinder bench-convergence bench-nozzle-cells bench-nozzle-body bench-lbox bench-vfunnel bench-print-diagnose bench-observable-scatter lbox build fmt clippy clean
 
 build:
 	$(CARGO) build --release
@@ -123,6 +123,12 @@ bench-nozzle-body: build
 # BENCHMARKS.md "A print campaign's diagnosis").
 bench-print-diagnose: build
 	bash bench/print_diagnose.sh $(STRAND) $(OUT)/print_diagnose
+
+# The printed section's width and height, extreme-based and smooth, against a sweep of the yield
+# stress on the print campaign's line (BENCHMARKS.md "Smooth section observables"; pass
+# SCATTER_ARGS for another scenario, parameter or range).
+bench-observable-scatter: build
+	python3 bench/observable_scatter.py --strand $(STRAND) --out $(OUT)/observable_scatter $(SCATTER_ARGS)
 
 # Paper 001's L-box predicted from the slump flow: Mix-A and Mix-B calibrated on their three
 # slump flows only, then their L-box after 0 and 600 s of rest against Table 3 and 001's own MPM,

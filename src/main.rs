@@ -471,10 +471,12 @@ fn grad(args: GradArgs) -> Result<bool, Failure> {
     };
     let seeds: Vec<strand::grad::driver::Seeded> = objs.into_iter().map(|objective| strand::grad::driver::Seeded { objective, step: None }).collect();
     let rs = strand::grad::driver::gradients(&sc, &seeds, &wrt, &opts)?;
-    let mut chks = Vec::new();
-    for (s, r) in seeds.iter().zip(&rs) {
-        chks.push(if check { Some(strand::grad::check::check(&sc, &s.objective, r, threads, &check_steps)?) } else { None });
-    }
+    let objectives: Vec<strand::grad::Objective> = seeds.iter().map(|s| s.objective.clone()).collect();
+    let chks: Vec<Option<strand::grad::check::Check>> = if check {
+        strand::grad::check::check_many(&sc, &objectives, &rs, threads, &check_steps)?.into_iter().map(Some).collect()
+    } else {
+        vec![None; rs.len()]
+    };
     if json && rs.len() == 1 {
         println!("{:#}", serde_json::json!({ "result": rs[0], "check": chks[0], "peak_rss_bytes": strand::verify::peak_rss_bytes() }));
     } else if json {

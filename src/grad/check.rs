@@ -1,7 +1,7 @@
 //! `strand grad --check`: the adjoint gradient against central differences at several step
 //! sizes, and the Taylor remainder test, each from full forward runs of perturbed scenarios.
 
-use super::driver::{forward_value, GradResult};
+use super::driver::{forward_values_after, GradResult};
 use super::objective::Objective;
 use super::GradError;
 use super::params::with_value;
@@ -53,42 +53,65 @@ fn perturbed(sc: &Scenario, keys: &[String], values: &[f64]) -> Result<Scenario,
 
 /// Central differences at the relative steps `rel_steps` for every parameter, then the Taylor test.
 pub fn check(sc: &Scenario, objective: &Objective, r: &GradResult, threads: Option<usize>, rel_steps: &[f64]) -> Result<Check, GradError> {
-    let value_at = |values: &[f64]| forward_value(&perturbed(sc, &r.params, values)?, objective, threads, r.steps);
+    Ok(check_many(sc, std::slice::from_ref(objective), std::slice::from_ref(r), threads, rel_steps)?.remove(0))
+}
+
+/// [`check`] of several objectives of one gradient run (`results[k]` of `objectives[k]`, with
+/// the same parameters at the same values): each perturbed forward run serves every objective,
+/// each taken after its own result's steps, so the check costs what one objective's does.
+pub fn check_many(sc: &Scenario, objectives: &[Objective], results: &[GradResult], threads: Option<usize>, rel_steps: &[f64]) -> Result<Vec<Check>, GradError> {
+    let Some(r) = results.first() else { return Ok(Vec::new()) };
+    if objectives.len() != results.len() || results.iter().any(|o| o.params != r.params || o.values != r.values) {
+        return Err(GradError::Objective("check: the results checked together must be of one run's parameters, one per objective".into()));
+    }
+    let steps: Vec<u64> = results.iter().map(|o| o.steps).collect();
+    let values_at = |values: &[f64]| forward_values_after(&perturbed(sc, &r.params, values)?, objectives, &steps, threads);
     let t0 = std::time::Instant::now();
-    let mut params = Vec::new();
-    for (k, key) in r.params.iter().enumerate() {
-        let mut central = Vec::new();
+    // central[k][j]: parameter k's differences for objective j
+    let mut central = vec![vec![Vec::new(); results.len()]; r.params.len()];
+    for (k, per_objective) in central.iter_mut().enumerate() {
         for &rel in rel_steps {
             let h = step_of(r.values[k], rel);
             let mut plus = r.values.clone();
             plus[k] += h;
             let mut minus = r.values.clone();
             minus[k] -= h;
-            let fd = (value_at(&plus)? - value_at(&minus)?) / (2.0 * h);
-            let rel_err = if fd == r.gradient[k] { 0.0 } else { (fd - r.gradient[k]).abs() / fd.abs().max(r.gradient[k].abs()) };
-            central.push((h, fd, rel_err));
+            let (up, down) = (values_at(&plus)?, values_at(&minus)?);
+            for (j, o) in results.iter().enumerate() {
+                let fd = (up[j] - down[j]) / (2.0 * h);
+                let rel_err = if fd == o.gradient[k] { 0.0 } else { (fd - o.gradient[k]).abs() / fd.abs().max(o.gradient[k].abs()) };
+                per_objective[j].push((h, fd, rel_err));
+            }
         }
-        params.push(ParamCheck { param: key.clone(), adjoint: r.gradient[k], central });
     }
     let central_s = t0.elapsed().as_secs_f64();
     let t1 = std::time::Instant::now();
     let d: Vec<f64> = r.values.iter().map(|&v| if v != 0.0 { v } else { 1.0 }).collect();
-    let slope_dir: f64 = r.gradient.iter().zip(&d).map(|(g, d)| g * d).sum();
-    let j0 = value_at(&r.values)?;
-    let mut taylor = Vec::new();
+    let j0 = values_at(&r.values)?;
+    let mut taylor = vec![Vec::new(); results.len()];
     for i in 0..5 {
         let h = 1e-3 / 2f64.powi(i);
         let at: Vec<f64> = r.values.iter().zip(&d).map(|(v, d)| v + h * d).collect();
-        taylor.push((h, (value_at(&at)? - j0 - h * slope_dir).abs()));
+        let jh = values_at(&at)?;
+        for (j, o) in results.iter().enumerate() {
+            let slope_dir: f64 = o.gradient.iter().zip(&d).map(|(g, d)| g * d).sum();
+            taylor[j].push((h, (jh[j] - j0[j] - h * slope_dir).abs()));
+        }
     }
-    Ok(Check {
-        params,
-        taylor_slope: log_slope(&taylor),
-        taylor,
-        central_s,
-        taylor_s: t1.elapsed().as_secs_f64(),
-        central_runs: 2 * rel_steps.len() * r.params.len(),
-    })
+    let taylor_s = t1.elapsed().as_secs_f64();
+    Ok(results
+        .iter()
+        .zip(taylor)
+        .enumerate()
+        .map(|(j, (o, taylor))| Check {
+            params: r.params.iter().enumerate().map(|(k, key)| ParamCheck { param: key.clone(), adjoint: o.gradient[k], central: central[k][j].clone() }).collect(),
+            taylor_slope: log_slope(&taylor),
+            taylor,
+            central_s,
+            taylor_s,
+            central_runs: 2 * rel_steps.len() * r.params.len(),
+        })
+        .collect())
 }
 
 /// Least-squares slope of log y against log x.

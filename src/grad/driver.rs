@@ -115,9 +115,23 @@ fn advance_to_end(sim: &mut Simulation, steps: u64) -> Result<(), GradError> {
 /// evaluate: the step count of the differentiated run is held fixed, also when a stop condition
 /// chose it).
 pub fn forward_value(sc: &Scenario, objective: &Objective, threads: Option<usize>, steps: u64) -> Result<f64, GradError> {
+    Ok(forward_values_after(sc, std::slice::from_ref(objective), &[steps], threads)?[0])
+}
+
+/// [`forward_value`] of several objectives on one forward run, `objectives[k]` after `steps[k]`
+/// steps.
+pub fn forward_values_after(sc: &Scenario, objectives: &[Objective], steps: &[u64], threads: Option<usize>) -> Result<Vec<f64>, GradError> {
     let mut sim = prepare(sc, threads)?;
-    advance_to_end(&mut sim, steps)?;
-    objective.evaluate(&sim, &Frame::of(&sim), None)
+    let frame = Frame::of(&sim);
+    let mut order: Vec<usize> = (0..objectives.len()).collect();
+    order.sort_by_key(|&k| steps[k]);
+    let (mut values, mut done) = (vec![f64::NAN; objectives.len()], 0);
+    for k in order {
+        advance_to_end(&mut sim, steps[k] - done)?;
+        done = steps[k];
+        values[k] = objectives[k].evaluate(&sim, &frame, None)?;
+    }
+    Ok(values)
 }
 
 /// The step of `sim`'s run (to its end time) after which the time is `t`, to the rounding the

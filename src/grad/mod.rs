@@ -10,6 +10,7 @@ mod fields;
 pub mod objective;
 pub mod params;
 mod print_adjoint;
+mod smooth_extent;
 pub mod schedule;
 mod step_adjoint;
 mod store;

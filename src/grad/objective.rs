@@ -51,6 +51,15 @@ pub enum Objective {
     /// extent + h of the particles `LayerHeight` assigns to it; with `[observe] mirror_y`, of
     /// them together with their mirror images; 0 for an empty layer.
     LayerWidth { station: f64, layer: usize },
+    /// The section's width at x = station [m] as a smooth function of every particle near it
+    /// (`smooth_extent.rs`): the distance between the outermost crossings of its thickness
+    /// profile over y with half a spacing; with `[observe] mirror_y`, twice the upper crossing's
+    /// distance from the plane. Unlike `width` it has no jumps where particles cross a slab's
+    /// edge, so fits and differences see a smooth function of the parameters.
+    SmoothWidth { station: f64 },
+    /// The section's height at x = station above the base [m], smooth as `SmoothWidth`: the
+    /// upper crossing of its width profile over z with half a spacing.
+    SmoothHeight { station: f64 },
     /// Top of all the material above the base [m].
     TotalHeight,
     /// Flow front: the leading edge of the material in x [m] (largest particle x plus half a
@@ -64,7 +73,7 @@ pub enum Objective {
     MeanZ,
 }
 
-pub const NAMES: &str = "spread, width@X[,X...], height@X[,X...], level@X, area@X[,X...], profile@X:Y, layer_height@X:K, layer_width@X:K, total_height, front, vx_max, kinetic_energy, mean_z";
+pub const NAMES: &str = "spread, width@X[,X...], height@X[,X...], level@X, area@X[,X...], profile@X:Y, layer_height@X:K, layer_width@X:K, smooth_width@X, smooth_height@X, total_height, front, vx_max, kinetic_energy, mean_z";
 
 impl std::str::FromStr for Objective {
     type Err = GradError;
@@ -80,6 +89,11 @@ impl std::str::FromStr for Objective {
             Some(("level", x)) => match stations(x)?[..] {
                 [station] => Ok(Objective::Level { station }),
                 _ => Err(GradError::Objective(format!("objective '{s}': level takes one station"))),
+            },
+            Some((name @ ("smooth_width" | "smooth_height"), x)) => match stations(x)?[..] {
+                [station] if name == "smooth_width" => Ok(Objective::SmoothWidth { station }),
+                [station] => Ok(Objective::SmoothHeight { station }),
+                _ => Err(GradError::Objective(format!("objective '{s}': {name} takes one station"))),
             },
             Some(("area", x)) => Ok(Objective::Area { stations: stations(x)? }),
             Some((name @ ("profile" | "layer_height" | "layer_width"), x)) => {
@@ -178,6 +192,8 @@ impl Objective {
             Objective::Profile { station, y } => at.profile(self, *station, *y, seed),
             Objective::LayerHeight { station, layer } => at.layer(self, *station, *layer, true, seed),
             Objective::LayerWidth { station, layer } => at.layer(self, *station, *layer, false, seed),
+            Objective::SmoothWidth { station } => at.smooth_extent(self, *station, true, seed),
+            Objective::SmoothHeight { station } => at.smooth_extent(self, *station, false, seed),
             Objective::TotalHeight => at.total_height(seed),
             Objective::Front => at.front(seed),
             Objective::VxMax => at.vx_max(seed),
@@ -196,6 +212,8 @@ impl Objective {
             Objective::Profile { station, y } => format!("profile@{station}:{y}"),
             Objective::LayerHeight { station, layer } => format!("layer_height@{station}:{layer}"),
             Objective::LayerWidth { station, layer } => format!("layer_width@{station}:{layer}"),
+            Objective::SmoothWidth { station } => format!("smooth_width@{station}"),
+            Objective::SmoothHeight { station } => format!("smooth_height@{station}"),
             Objective::TotalHeight => "total_height".into(),
             Objective::Front => "front".into(),
             Objective::VxMax => "vx_max".into(),
@@ -307,6 +325,69 @@ impl State<'_> {
             }
         }
         total
+    }
+
+    /// [`Objective::SmoothWidth`] (`width`) or [`Objective::SmoothHeight`]: the section's
+    /// samples (`smooth_extent::Sample`: the particle's y or z, and its area in the section, its
+    /// volume spread in x as `area`'s), their edges, and the edges' adjoints carried back to the
+    /// particles' positions, volume ratios and initial volumes.
+    fn smooth_extent(&self, what: &Objective, station: f64, width: bool, seed: Option<Seed>) -> Result<f64, GradError> {
+        use super::smooth_extent::{edge, edge_adjoint, Sample, Side};
+        let (frame, h) = (self.frame, self.frame.spacing);
+        let p = &self.sim.particles;
+        let (vol0, jv) = (p.vol0.as_slice(), p.j.as_slice());
+        // (particle, sign of d c / d its coordinate, B, dB/du) of each sample
+        let mut whose: Vec<(usize, f64, f64, f64)> = Vec::new();
+        let mut samples: Vec<Sample> = Vec::new();
+        for i in 0..p.n {
+            let x = self.world(i);
+            let u = (x[0] - station) / frame.slab;
+            if u.abs() >= 1.5 {
+                continue;
+            }
+            let (b, db) = crate::observe::quadratic_bspline_and_slope(u);
+            let a = (vol0[i] * jv[i]) as f64 * b / frame.slab;
+            let images: &[f64] = if frame.mirror_y.is_some() { &[1.0, -1.0] } else { &[1.0] };
+            for &sign in images {
+                let c = if width { section_y(frame, x[1], sign) } else { x[2] };
+                samples.push(Sample { c, a });
+                whose.push((i, if width { sign } else { 1.0 }, b, db));
+            }
+        }
+        let fail = |why: &str| GradError::Objective(format!("objective {}: {why} at x = {station} m", what.name()));
+        let upper = edge(&samples, h, Side::Upper).ok_or_else(|| fail("no section reaches half a spacing of material"))?;
+        let lower = match (width, frame.mirror_y) {
+            (true, None) => Some(edge(&samples, h, Side::Lower).ok_or_else(|| fail("no section reaches half a spacing of material"))?),
+            _ => None,
+        };
+        let value = match (width, frame.mirror_y, lower) {
+            (false, _, _) => upper - frame.base_z,
+            (true, Some(y0), _) => 2.0 * (upper - y0),
+            (true, None, Some(lower)) => upper - lower,
+            (true, None, None) => unreachable!("the lower edge is taken without a mirror"),
+        };
+        if let Some(s) = seed {
+            let (mut d_c, mut d_a) = (vec![0.0; samples.len()], vec![0.0; samples.len()]);
+            let tangent = || fail("the profile touches the level without crossing it (no derivative)");
+            let upper_weight = if width && frame.mirror_y.is_some() { 2.0 } else { 1.0 };
+            edge_adjoint(&samples, h, upper, upper_weight, &mut d_c, &mut d_a).ok_or_else(tangent)?;
+            if let Some(lower) = lower {
+                edge_adjoint(&samples, h, lower, -1.0, &mut d_c, &mut d_a).ok_or_else(tangent)?;
+            }
+            for (k, &(i, sign, b, db)) in whose.iter().enumerate() {
+                let coordinate = (d_c[k] * sign) as Real * self.scale;
+                if width {
+                    s.xg[i].y += coordinate;
+                } else {
+                    s.xg[i].z += coordinate;
+                }
+                let vol = (vol0[i] * jv[i]) as f64;
+                s.xg[i].x += (d_a[k] * vol * db / (frame.slab * frame.slab)) as Real * self.scale;
+                s.j[i] += (d_a[k] * vol0[i] as f64 * b / frame.slab) as Real;
+                s.vol0[i] += (d_a[k] * jv[i] as f64 * b / frame.slab) as Real;
+            }
+        }
+        Ok(value)
     }
 
     fn profile(&self, what: &Objective, station: f64, y: f64, seed: Option<Seed>) -> Result<f64, GradError> {
@@ -527,6 +608,64 @@ mod tests {
 
     fn value(sim: &Simulation, frame: &Frame, name: &str) -> f64 {
         name.parse::<Objective>().unwrap().evaluate(sim, frame, None).unwrap()
+    }
+
+    /// The smooth width and height: near the extreme-based ones, the same for the half model with
+    /// its mirror image as for the whole, and their seeds those of central differences in each
+    /// particle's position, volume ratio and initial volume.
+    #[test]
+    fn smooth_width_and_height_are_near_the_extremes_and_their_seeds_are_their_derivatives() {
+        let mut whole = Vec::new();
+        for half in [false, true] {
+            let (_, mut sim) = run(&two_layers(half));
+            let frame = Frame::of(&sim);
+            let x = 0.015;
+            let mut got = Vec::new();
+            for (smooth, extreme) in [("smooth_width", "width"), ("smooth_height", "height")] {
+                let name = format!("{smooth}@{x}");
+                let (v, e) = (value(&sim, &frame, &name), value(&sim, &frame, &format!("{extreme}@{x}")));
+                assert!((v - e).abs() <= 2.0 * frame.spacing, "half {half}: {name} {v} against {extreme} {e}");
+                got.push(v);
+                let n = sim.particles.n;
+                let (mut xg, mut vel, mut j, mut mass, mut vol0) = (vec![V3::ZERO; n], vec![V3::ZERO; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+                let obj: Objective = name.parse().unwrap();
+                let seed = Seed { xg: &mut xg, v: &mut vel, j: &mut j, mass: &mut mass, vol0: &mut vol0 };
+                obj.evaluate(&sim, &frame, Some(seed)).unwrap();
+                // the particles the edges hang on most, in each coordinate, and in J and V0
+                let heaviest = |g: &dyn Fn(usize) -> f64| (0..n).max_by(|&a, &b| g(a).abs().total_cmp(&g(b).abs())).unwrap();
+                let mut checked = 0;
+                for which in 0..5 {
+                    let g = |i: usize| match which { 0 => xg[i].x, 1 => xg[i].y, 2 => xg[i].z, 3 => j[i], _ => vol0[i] } as f64;
+                    let i = heaviest(&g);
+                    if g(i) == 0.0 {
+                        continue;
+                    }
+                    let eps = 1e-6;
+                    let scale = if which == 4 { sim.particles.vol0.as_slice()[i] as f64 } else { 1.0 };
+                    let mut at = |e: f64| {
+                        let p = &mut sim.particles;
+                        match which {
+                            0 => p.xg.as_mut_slice()[i].x += e as Real,
+                            1 => p.xg.as_mut_slice()[i].y += e as Real,
+                            2 => p.xg.as_mut_slice()[i].z += e as Real,
+                            3 => p.j.as_mut_slice()[i] += e as Real,
+                            _ => p.vol0.as_mut_slice()[i] += e as Real,
+                        }
+                        value(&sim, &frame, &name)
+                    };
+                    let (up, down) = (at(eps * scale), at(-2.0 * eps * scale));
+                    at(eps * scale);
+                    let fd = (up - down) / (2.0 * eps * scale);
+                    assert!((fd - g(i)).abs() <= 1e-4 * g(i).abs(), "half {half}, {name}, particle {i}, derivative {which}: seed {:e}, central differences {fd:e}", g(i));
+                    checked += 1;
+                }
+                assert!(checked >= 4, "half {half}, {name}: {checked} derivatives seeded");
+            }
+            whole.push(got);
+        }
+        for k in 0..2 {
+            assert!((whole[0][k] - whole[1][k]).abs() <= 0.05 * whole[0][k], "whole {:?} against half {:?}", whole[0], whole[1]);
+        }
     }
 
     #[test]

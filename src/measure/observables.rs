@@ -1,7 +1,7 @@
 //! The observables: what a simulation and a rheometer test can observe, and where or when each
 //! is taken.
 //!
-//! `at` is the station x [m] of a printed-geometry observable (`width`, `height`, `level`, `area`), the time [s] of one observed during
+//! `at` is the station x [m] of a printed-geometry observable (`width`, `height`, `smooth_width`, `smooth_height`, `level`, `area`), the time [s] of one observed during
 //! a run (`spread`, `front`: a slump spread or a flow distance against time; empty for the end), or the shear rate [1/s] of a rheometer reading.
 //! Three printed-geometry observables take a second coordinate after a colon, `X:Y` in the `at`
 //! column as in `name@X:Y`: `profile` the lateral position y [m] of a point of the section's top
@@ -20,7 +20,7 @@ use super::rheometer::Reading;
 use crate::grad::objective::Objective;
 
 /// Observables a simulation experiment can produce, and those of a rheometer experiment.
-pub const SIMULATION_OBSERVABLES: &[&str] = &["spread", "front", "width", "height", "level", "area", "profile", "layer_height", "layer_width", "vx_max", "kinetic_energy", "mean_z", "failure_layer", "failure_time", "arrival", "stop_time", "passed"];
+pub const SIMULATION_OBSERVABLES: &[&str] = &["spread", "front", "width", "height", "level", "area", "profile", "layer_height", "layer_width", "smooth_width", "smooth_height", "vx_max", "kinetic_energy", "mean_z", "failure_layer", "failure_time", "arrival", "stop_time", "passed"];
 pub const RHEOMETER_OBSERVABLES: &[&str] = &["stress"];
 
 /// Whether `o` is written with the coordinates its observable takes, on a simulation
@@ -73,6 +73,8 @@ pub fn observable_plan(o: &Observable, end: f64) -> Result<(f64, Objective), Mea
         "height" => (end, Objective::Height { stations: vec![station()?] }),
         "level" => (end, Objective::Level { station: station()? }),
         "area" => (end, Objective::Area { stations: vec![station()?] }),
+        "smooth_width" => (end, Objective::SmoothWidth { station: station()? }),
+        "smooth_height" => (end, Objective::SmoothHeight { station: station()? }),
         "profile" => {
             let (station, y) = both()?;
             (end, Objective::Profile { station, y })

@@ -82,7 +82,7 @@ pub fn covariates(rows: &[Row], exps: &Experiments, model: &Model) -> Result<Vec
 fn at_meaning(observable: &str) -> &'static str {
     match observable {
         "stress" => "shear rate [1/s]",
-        "width" | "height" | "level" | "profile" | "layer_height" | "layer_width" => "station x [m]",
+        "width" | "height" | "smooth_width" | "smooth_height" | "level" | "profile" | "layer_height" | "layer_width" => "station x [m]",
         "spread" | "front" => "time [s]",
         _ => "at",
     }
