@@ -107,16 +107,16 @@ def main():
         with open(data) as f:
             got = {row["observable"]: float(row["value"]) for row in csv.DictReader(f)}
         for n in NAMES:
-            values[n].append(got[f"{n}@{a.station}"])
+            values[n].append(got[n])
         sys.stderr.write(f"{a.param} = {x:g}: " + ", ".join(f"{n} {values[n][-1] * 1e3:.4f} mm" for n in NAMES) + "\n")
     step = xs[1] - xs[0]
-    print(f"| observable | change over {a.param} {a.lo:g}-{a.hi:g} [mm] | scatter (RMS about a quadratic) [mm] | scatter / change per step |")
+    print(f"| observable | change over {a.param} {a.lo:g}-{a.hi:g} [um] | scatter (RMS about a quadratic) [um] | scatter / change per step |")
     print("| --- | --- | --- | --- |")
     for n in NAMES:
         rms, slope = quadratic_residual_rms(xs, values[n])
         per_step = abs(slope) * step
         ratio = rms / per_step if per_step > 0 else float("inf")
-        print(f"| {n}@{a.station} | {(values[n][-1] - values[n][0]) * 1e3:+.4f} | {rms * 1e3:.4f} | {ratio:.2f} |")
+        print(f"| {n}@{a.station} | {(values[n][-1] - values[n][0]) * 1e6:+.1f} | {rms * 1e6:.2g} | {ratio:.2g} |")
 
 
 if __name__ == "__main__":
