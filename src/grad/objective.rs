@@ -773,7 +773,7 @@ budget = "16 MiB"
 
     #[test]
     fn names_parse_and_print_back_and_bad_ones_say_what_they_take() {
-        for name in ["profile@0.075:0.01", "profile@0.075:-0.002", "layer_height@0.075:2", "layer_width@0.03:1"] {
+        for name in ["profile@0.075:0.01", "profile@0.075:-0.002", "layer_height@0.075:2", "layer_width@0.03:1", "smooth_width@0.04", "smooth_height@0.04"] {
             let o: Objective = name.parse().unwrap();
             assert_eq!(o.name(), name);
             assert_eq!(o.name().parse::<Objective>().unwrap(), o);
@@ -790,6 +790,8 @@ budget = "16 MiB"
             ("layer_height@0.075:0", "layer K (1 = the bottom one)"),
             ("layer_height@0.075:1.5", "layer_height takes X:K"),
             ("layer_width@0.075:-1", "layer_width takes X:K"),
+            ("smooth_width@0.04,0.05", "smooth_width takes one station"),
+            ("smooth_height@x", "stations after '@' must be numbers"),
             ("profile", "unknown objective 'profile'"),
         ] {
             let e = bad.parse::<Objective>().unwrap_err().to_string();

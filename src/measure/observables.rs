@@ -141,8 +141,10 @@ mod tests {
         assert_eq!(plan("profile@0.075:0.01").unwrap(), (2.0, Objective::Profile { station: 0.075, y: 0.01 }));
         assert_eq!(plan("layer_height@0.075:2").unwrap(), (2.0, Objective::LayerHeight { station: 0.075, layer: 2 }));
         assert_eq!(plan("layer_width@0.075:1").unwrap(), (2.0, Objective::LayerWidth { station: 0.075, layer: 1 }));
+        assert_eq!(plan("smooth_width@0.075").unwrap(), (2.0, Objective::SmoothWidth { station: 0.075 }));
+        assert_eq!(plan("smooth_height@0.075").unwrap(), (2.0, Objective::SmoothHeight { station: 0.075 }));
         // each objective's name is the observable's own
-        for s in ["profile@0.075:0.01", "layer_height@0.075:2", "layer_width@0.075:1", "height@0.075"] {
+        for s in ["profile@0.075:0.01", "layer_height@0.075:2", "layer_width@0.075:1", "height@0.075", "smooth_width@0.075", "smooth_height@0.075"] {
             assert_eq!(plan(s).unwrap().1.name(), s);
         }
         let e = plan("layer_height@0.075:-2").unwrap_err().to_string();

@@ -302,7 +302,7 @@ fn hidden_structuration_is_found_from_failure_heights() {
     let base = d.join("base.toml");
     let args = [
         "diagnose", "--model", s(&base), "--data", s(&data), "--experiments", s(&exps),
-        "--fit", "material.yield_stress", "--json", "--jobs", "2", "--max-fitted", "1", "--no-loo", "--max-iterations", "4",
+        "--fit", "material.yield_stress", "--json", "--jobs", "2", "--max-fitted", "1", "--no-loo", "--max-iterations", "3",
     ];
     let (code, json, err) = strand(&args);
     assert_eq!(code, 0, "{err}");
