@@ -287,10 +287,10 @@ fn two_hidden_effects_are_resolved_by_rounds() {
 /// floor moves it at every rate alike (docs/failure.md), so the campaign itself tells them apart.
 /// The failure observables have no adjoint: their Jacobian columns are central differences of
 /// forward runs (measure/sensitivity.rs). One candidate is fitted, without leave-one-out, and
-/// every fit stops after 4 iterations. Measured at 0bf333a beside other runs: 243 s wall (base
-/// fit 35 s, score tests 54 s, likelihood-ratio fits 64 s, the candidate's fit 89 s); at 7fdb04f
-/// thixotropy first (score 947), error x 0.068 (93 Pa, A_thix 41 Pa/s); a Coulomb floor fitted
-/// does not lower it (x 1.02, LR 0).
+/// every fit stops after 3 iterations (4 found the same error ratio, with a candidate fit of
+/// 89 s where 3 take 49 s). Measured at 6bafe18 beside builds and other runs: 387 s wall (base fit
+/// 47 s, score tests 124 s, likelihood-ratio fits 134 s, the candidate's fit 49 s); thixotropy
+/// first, error x 0.068; a Coulomb floor fitted does not lower it (x 1.02).
 #[test]
 fn hidden_structuration_is_found_from_failure_heights() {
     let d = measure_fixtures("failure");
