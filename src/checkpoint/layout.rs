@@ -317,5 +317,12 @@ pub fn staging_bytes(sim: &Simulation) -> usize {
 /// last step's binning and the sleep tables too: the next step's sleeping depends on them.
 pub fn full_state(sim: &Simulation) -> Vec<(Cow<'static, str>, &[u8])> {
     let now = counts_now(sim);
-    slots(sim).into_iter().filter(|s| hashed(s, sim)).map(|s| (s.live(sim, &now), s)).map(|(b, s)| (s.name, b)).collect()
+    slots(sim)
+        .into_iter()
+        .filter(|s| hashed(s, sim))
+        .map(|s| {
+            let live = s.live(sim, &now);
+            (s.name, live)
+        })
+        .collect()
 }

@@ -680,10 +680,9 @@ mod tests {
     /// Progress changes no bit of a fit, and its JSON events are well-formed and monotone.
     #[test]
     fn a_fit_with_progress_events_is_the_fit_without() {
-        use crate::measure::progress::{tests::{check_monotone, Shared}, Progress};
+        use crate::measure::progress::tests::{check_monotone, Shared};
         let out = Shared::default();
-        let progress = Progress::json(Box::new(out.clone()));
-        progress.plan(1);
+        let progress = out.progress(1);
         progress.begin("fit", 1);
         let with = flow_curve_fit(&FitOptions { progress: progress.clone(), log: true, ..FitOptions::default() });
         progress.end();

@@ -886,14 +886,14 @@ mod tests {
     /// progress events as without, and the events are well-formed and monotone over every stage.
     #[test]
     fn a_diagnosis_with_progress_events_is_the_diagnosis_without() {
-        use crate::measure::progress::{tests::{check_monotone, Shared}, Progress};
+        use crate::measure::progress::tests::{check_monotone, Shared};
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/measure/campaign");
         let (truth, start) = (Model::load(&dir.join("truth_thixotropy.toml")).unwrap(), Model::load(&dir.join("base.toml")).unwrap());
         let exps = Experiments::load(&dir.join("experiments.toml")).unwrap();
         let data = super::super::synth::synth(&truth, &exps, 0.01, 7, 1).unwrap();
         let fit = vec!["material.yield_stress".to_string(), "material.viscosity".to_string()];
         let out = Shared::default();
-        let with = DiagnoseOptions { fit: FitOptions { progress: Progress::json(Box::new(out.clone())), ..FitOptions::default() }, ..DiagnoseOptions::default() };
+        let with = DiagnoseOptions { fit: FitOptions { progress: out.progress(0), ..FitOptions::default() }, ..DiagnoseOptions::default() };
         let a = diagnose(&start, &data, &exps, &fit, &with, None).unwrap();
         let b = diagnose(&start, &data, &exps, &fit, &DiagnoseOptions::default(), None).unwrap();
         let json = |d: &Diagnosis| {

@@ -241,6 +241,13 @@ pub mod tests {
     }
 
     impl Shared {
+        /// A handle whose JSON events this writer keeps, with `stages` planned.
+        pub fn progress(&self, stages: usize) -> Progress {
+            let p = Progress::json(Box::new(self.clone()));
+            p.plan(stages);
+            p
+        }
+
         pub fn events(&self) -> Vec<Event> {
             let text = String::from_utf8(self.0.lock().unwrap().clone()).unwrap();
             text.lines().map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{l}: {e}"))).collect()
@@ -274,8 +281,7 @@ pub mod tests {
     #[test]
     fn a_stage_that_expects_more_grows_and_ends_at_what_it_did() {
         let out = Shared::default();
-        let p = Progress::json(Box::new(out.clone()));
-        p.plan(2);
+        let p = out.progress(2);
         p.begin("first", 4);
         p.expect(3);
         p.advance(3);
