@@ -169,7 +169,7 @@ impl Pools for Grid {
         vec![
             // rebuilt by binning the restored particles
             PoolDecl::new("grid.table", Per::Table(self.geom.table_len()), Scratch, |g| &g.table, |g| &mut g.table),
-            PoolDecl::new("grid.nodes", Per::Block(NODES_PER_BLOCK), Nodes, |g| &g.nodes, |g| &mut g.nodes),
+            PoolDecl::new("grid.nodes", Per::Block(NODES_PER_BLOCK), Nodes { moving: "grid.moving", velocity: "grid.velocity" }, |g| &g.nodes, |g| &mut g.nodes),
             PoolDecl::new("grid.slot_block", Per::Block(1), Stored, |g| &g.slot_block, |g| &mut g.slot_block),
         ]
     }

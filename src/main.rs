@@ -239,6 +239,10 @@ struct FitSteps {
     /// where a step is refused and at the end (docs/measurement.md).
     #[arg(long)]
     jacobian_every_step: bool,
+    /// No progress on stderr: neither the bars (or, with --json, the progress events) nor the
+    /// line per stage and per accepted step.
+    #[arg(long)]
+    quiet: bool,
 }
 
 #[derive(clap::Args)]
@@ -345,10 +349,18 @@ impl EngineArgs {
         Ok(strand::measure::engine::Engine::new(&self.engine, self.engine_dir.as_deref(), &exe, threads)?)
     }
 
-    /// A fit's options on this engine, `jobs` experiments at a time, each step on stderr.
-    fn fit_options(&self, steps: &FitSteps, jobs: usize) -> Result<strand::measure::calibrate::FitOptions, Failure> {
-        let (max_iterations, secant) = (steps.max_iterations, !steps.jacobian_every_step);
-        Ok(strand::measure::calibrate::FitOptions { max_iterations, jobs, engine: self.engine()?, progress: true, secant, ..Default::default() })
+    /// A fit's options on this engine, the inputs' `--jobs` experiments at a time, its progress
+    /// on stderr (`measure/progress.rs`): a line per step and bars, or with `--json` progress
+    /// events as JSON lines; nothing with `--quiet`.
+    fn fit_options(&self, steps: &FitSteps, inputs: &MeasureInputs) -> Result<strand::measure::calibrate::FitOptions, Failure> {
+        use strand::measure::progress::Progress;
+        let (max_iterations, secant, jobs) = (steps.max_iterations, !steps.jacobian_every_step, inputs.jobs);
+        let progress = match (steps.quiet, inputs.json) {
+            (true, _) => Progress::default(),
+            (false, true) => Progress::json(Box::new(std::io::stderr())),
+            (false, false) => Progress::bars(),
+        };
+        Ok(strand::measure::calibrate::FitOptions { max_iterations, jobs, engine: self.engine()?, log: !steps.quiet, progress, secant, ..Default::default() })
     }
 }
 
@@ -584,7 +596,12 @@ fn calibrate(args: CalibrateArgs) -> Result<bool, Failure> {
     check_writable(&out, "--out")?;
     check_writable(&plot, "--plot")?;
     let (d, disc) = counted_data(&m, d0, &e, inputs.jobs)?;
-    let f = calibrate::calibrate_at(&m, disc.as_ref().map(|c| &c.start_values[..]), &d, &e, &fit, &engine.fit_options(&fit_steps, inputs.jobs)?)?;
+    let opts = engine.fit_options(&fit_steps, &inputs)?;
+    opts.progress.plan(1);
+    opts.progress.begin("fit", calibrate::expected_runs(&d, &fit));
+    let f = calibrate::calibrate_at(&m, disc.as_ref().map(|c| &c.start_values[..]), &d, &e, &fit, &opts)?;
+    opts.progress.end();
+    opts.progress.finish();
     // the fitted values first: a file that fails to write then loses nothing
     print_result(inputs.json, &f, &disc, |c| resolution::report(&c.data, &c.estimates, &f.model_values, "fitted"), || calibrate::report(&f))?;
     std::fs::write(&out, f.model.to_toml()).map_err(|e| format!("--out {}: {e}", out.display()))?;
@@ -608,10 +625,11 @@ fn diagnose(args: DiagnoseArgs) -> Result<bool, Failure> {
         check_writable(out, "--out")?;
     }
     let (d, disc) = counted_data(&m, d0, &e, inputs.jobs)?;
-    let opts = diagnose::DiagnoseOptions { fit: engine.fit_options(&fit_steps, inputs.jobs)?, alpha, leave_one_out: !no_loo, exact_refits: loo_refits, max_fitted: max_fitted as usize };
+    let opts = diagnose::DiagnoseOptions { fit: engine.fit_options(&fit_steps, &inputs)?, alpha, leave_one_out: !no_loo, exact_refits: loo_refits, max_fitted: max_fitted as usize };
     if rounds > 1 {
         use strand::measure::rounds;
         let r = rounds::rounds(&m, &d, &e, &fit, &opts, rounds as usize, disc.as_ref().map(|c| &c.start_values[..]))?;
+        opts.fit.progress.finish();
         // the report first: a file that fails to write then loses nothing
         if inputs.json {
             println!("{:#}", serde_json::to_value(&r)?);
@@ -625,6 +643,7 @@ fn diagnose(args: DiagnoseArgs) -> Result<bool, Failure> {
         return Ok(true);
     }
     let r = diagnose::diagnose(&m, &d, &e, &fit, &opts, disc.as_ref().map(|c| &c.start_values[..]))?;
+    opts.fit.progress.finish();
     // the report first: a file that fails to write then loses nothing
     print_result(inputs.json, &r, &disc, |c| resolution::report(&c.data, &c.estimates, &c.start_values, "start"), || diagnose::report(&r))?;
     if let (Some(out), Some(best)) = (&out, &r.recommended_model) {

@@ -38,13 +38,20 @@ pub struct Particles {
     pub state: Pool<Real>,
 }
 
+/// The positions' pool (`strand inspect` reads a checkpoint's bounding box from its section).
+pub const POSITIONS: &str = "particles.x";
+
+/// The section of a checkpoint that holds [`Particles::next_id`] where it cannot be rebuilt
+/// (merging sleeping particles, which stores the [`Role::FromIds`] pools, the ids' part).
+pub const NEXT_ID: &str = "particles.next_id";
+
 impl Pools for Particles {
     fn pools(&self) -> Vec<PoolDecl<Self>> {
         use Role::*;
         let sl = self.state_len;
         vec![
-            PoolDecl::new("particles.x", Per::Particle(1), Stored, |p| &p.xg, |p| &mut p.xg),
-            PoolDecl::new("particles.v", Per::Particle(1), Rebuilt, |p| &p.v, |p| &mut p.v),
+            PoolDecl::new(POSITIONS, Per::Particle(1), Stored, |p| &p.xg, |p| &mut p.xg),
+            PoolDecl::new("particles.v", Per::Particle(1), FlipVelocity, |p| &p.v, |p| &mut p.v),
             PoolDecl::new("particles.C", Per::Particle(1), Rebuilt, |p| &p.c, |p| &mut p.c),
             PoolDecl::new("particles.stress", Per::Particle(1), Rebuilt, |p| &p.stress, |p| &mut p.stress),
             PoolDecl::new("particles.J", Per::Particle(1), Stored, |p| &p.j, |p| &mut p.j),

@@ -24,6 +24,10 @@ pub enum Role {
     /// State a restore rebuilds from what is stored (C and the stress by this step's G2P and
     /// material update, a sleeping particle's velocity at rest). A step changes it.
     Rebuilt,
+    /// The particles' velocity: rebuilt as [`Role::Rebuilt`] is, except under FLIP, which adds
+    /// the grid's change of velocity to the awake particles' own, so a checkpoint stores the
+    /// awake particles' part. A step changes it.
+    FlipVelocity,
     /// The particle ids: stored, and left alone by a step that neither reorders nor merges
     /// particles (a gradient run's stored states leave them out).
     Ids,
@@ -31,9 +35,9 @@ pub enum Role {
     /// ids are; stored when sleeping particles merge, which makes particles that their ids no
     /// longer describe.
     FromIds,
-    /// The grid nodes in the middle of a step: a checkpoint stores the velocity channels of the
-    /// nodes that move.
-    Nodes,
+    /// The grid nodes in the middle of a step: a checkpoint stores which nodes move and their
+    /// velocity channels, as the two sections named here.
+    Nodes { moving: &'static str, velocity: &'static str },
 }
 
 impl Role {
@@ -45,7 +49,7 @@ impl Role {
     /// Whether a step changes it in a run that neither reorders nor merges particles: what a
     /// gradient run's stored states hold.
     pub fn changes_in_step(self) -> bool {
-        matches!(self, Role::Stored | Role::Rebuilt)
+        matches!(self, Role::Stored | Role::Rebuilt | Role::FlipVelocity)
     }
 }
 

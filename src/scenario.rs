@@ -14,7 +14,7 @@ use crate::invalid::Invalid;
 pub struct Scenario {
     #[serde(default)]
     pub name: String,
-    pub simulation: Simulation,
+    pub simulation: SimulationTable,
     pub domain: Domain,
     #[serde(default)]
     pub boundary: Boundary,
@@ -49,9 +49,11 @@ pub struct Scenario {
     pub source: String,
 }
 
+/// The `[simulation]` table: cell size, end time, time step and the solver's numerical options
+/// (the running simulation is `solver::Simulation`).
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct Simulation {
+pub struct SimulationTable {
     /// Grid spacing [m].
     pub dx: f64,
     /// Simulated time to reach [s].
@@ -426,7 +428,7 @@ impl Scenario {
 }
 
 /// `[simulation]`'s values: a positive cell, a finite end, a step the run can plan.
-fn check_simulation(s: &Simulation) -> Result<(), Invalid> {
+fn check_simulation(s: &SimulationTable) -> Result<(), Invalid> {
     if !(s.dx > 0.0 && s.dx.is_finite()) {
         return Err(Invalid(format!("simulation.dx must be a positive length, got {}", s.dx)));
     }

@@ -2,12 +2,15 @@
 //! good checkpoint and ends bit-identical to the run in one go.
 //!
 //! - `format.rs`: the self-describing, checksummed file and its reader;
-//! - `state.rs`: which parts of a `Simulation` it holds, and restoring them;
+//! - `layout.rs`: the restart state as one walk of the pool tables (sections, staging size,
+//!   the state hash's arrays);
+//! - `state.rs`: the header, and restoring a `Simulation` from the layout's sections;
 //! - `writer.rs`: the background writer (staging buffer, atomic write, pruning, disk budget);
 //! - this file: the `[checkpoint]` settings, picking the checkpoint to resume from, comparing
 //!   the scenario it was written with, and `strand inspect`.
 
 pub mod format;
+pub mod layout;
 pub mod state;
 pub mod writer;
 
@@ -221,7 +224,7 @@ fn bounding_box(ck: &Checkpoint) -> ([f64; 3], [f64; 3]) {
     let mut hi = [f64::NEG_INFINITY; 3];
     let Ok(sc) = crate::scenario::Scenario::parse(&ck.header.scenario_text) else { return (lo, hi) };
     let geom = crate::grid::GridGeom::new(sc.simulation.dx, sc.domain.min, sc.domain.max, sc.domain.periodic);
-    let Some(x) = ck.section("particles.x") else { return (lo, hi) };
+    let Some(x) = ck.section(crate::particles::POSITIONS) else { return (lo, hi) };
     let size = std::mem::size_of::<crate::V3>();
     for chunk in x.chunks_exact(size) {
         // the map is page aligned and sections 64-byte aligned, but copy to stay independent

@@ -14,178 +14,25 @@
 //! - sleeping particles' v, C and stress from (state, J): a particle falling asleep is put
 //!   at rest, which is exactly that (`sleep::put_at_rest`);
 //! - the step's binning and block slots by binning the restored positions again (the saved
-//!   `grid.slot_block` proves it gave the same slots); the per-block activity by G2P.
+//!   grid's stored pools prove it gave the same slots); the per-block activity by G2P.
+//!
+//! Which pools are stored, under which sections, comes from `layout.rs`'s walk of the pool
+//! tables; restore puts each slot back by its owner and role.
 
-use super::format::{checksum, pad, state_hash, Checkpoint, Header, Section};
+use super::format::{checksum, state_hash, Checkpoint, Header, Section};
+use super::layout::{at_section, awake_section, counts_now, full_state, layout, node_channels, slots, Owner, Slot};
 use crate::grid::NODES_PER_BLOCK;
 use crate::kernels::transfer::Node;
-use crate::kernels::{Real, M3, V3};
-use crate::pools::{live, with_role, Counts, Pools, Role};
+use crate::kernels::Real;
+use crate::particles::NEXT_ID;
+use crate::pools::{Counts, Role};
 use crate::solver::{DtLimit, SimError, Simulation};
-use std::borrow::Cow;
 use std::mem::size_of;
+
+pub use super::layout::{sections, staging_bytes, Part, Source};
 
 fn bytes<T: bytemuck::Pod>(s: &[T]) -> &[u8] {
     bytemuck::cast_slice(s)
-}
-
-/// Where a section's bytes come from.
-pub enum Source<'a> {
-    /// A pool's bytes as they are in memory.
-    Raw(&'a [u8]),
-    /// The active blocks' nodes as one u64 per block, bit `l` set when node `l` has a nonzero
-    /// channel `1..=k`: nodes without mass are zero after the grid update, and so are the
-    /// nodes held still next to sleeping blocks.
-    Moving(&'a [Node], usize),
-    /// Channels `1..=k` (velocity, and with FLIP the velocity before the update) of every
-    /// moving node, in slot then node order.
-    Velocities(&'a [Node], usize),
-    /// A table of `size`-byte elements, mostly zero: the u32 indices of its nonzero elements.
-    NonZeroAt(&'a [u8], usize),
-    /// The nonzero elements themselves, in index order.
-    NonZero(&'a [u8], usize),
-}
-
-/// One section of the restart state.
-pub struct Part<'a> {
-    pub name: String,
-    pub len: usize,
-    /// How many of its values are reals (the rest are integers, whatever the precision).
-    pub reals: usize,
-    pub source: Source<'a>,
-}
-
-impl Part<'_> {
-    fn raw<'a, T: bytemuck::Pod>(name: &str, s: &'a [T], reals_each: usize) -> Part<'a> {
-        Part { name: name.into(), len: std::mem::size_of_val(s), reals: s.len() * reals_each, source: Source::Raw(bytes(s)) }
-    }
-
-    /// Write the section into `dst` (`len` bytes).
-    pub fn fill(&self, dst: &mut [u8]) {
-        match self.source {
-            Source::Raw(b) => dst.copy_from_slice(b),
-            Source::Moving(nodes, k) => {
-                for (blk, out) in nodes.chunks_exact(NODES_PER_BLOCK).zip(dst.chunks_exact_mut(8)) {
-                    let mask = blk.iter().enumerate().fold(0u64, |m, (l, n)| if moving(n, k) { m | 1 << l } else { m });
-                    out.copy_from_slice(&mask.to_le_bytes());
-                }
-            }
-            Source::Velocities(nodes, k) => {
-                let mut out = dst.chunks_exact_mut(size_of::<Real>());
-                for n in nodes.iter().filter(|n| moving(n, k)) {
-                    for x in &n[1..=k] {
-                        out.next().expect("sized by count").copy_from_slice(bytemuck::bytes_of(x));
-                    }
-                }
-            }
-            Source::NonZeroAt(table, size) => {
-                let mut out = dst.chunks_exact_mut(4);
-                for (i, _) in table.chunks_exact(size).enumerate().filter(|(_, e)| nonzero(e)) {
-                    out.next().expect("sized by count").copy_from_slice(&(i as u32).to_le_bytes());
-                }
-            }
-            Source::NonZero(table, size) => {
-                let mut out = dst.chunks_exact_mut(size);
-                for e in table.chunks_exact(size).filter(|e| nonzero(e)) {
-                    out.next().expect("sized by count").copy_from_slice(e);
-                }
-            }
-        }
-    }
-}
-
-/// Whether a node has a velocity channel whose bits are not all zero (+0.0 is the only value
-/// a restore may leave out).
-fn moving(n: &Node, k: usize) -> bool {
-    n[1..=k].iter().any(|x| x.to_bits() != 0)
-}
-
-fn nonzero(e: &[u8]) -> bool {
-    e.iter().any(|&b| b != 0)
-}
-
-/// The live parts of `c`'s pools whose role passes `keep`, one section each, in declaration
-/// order.
-fn stored<'a, C: Pools>(c: &'a C, now: &Counts, keep: impl Fn(Role) -> bool) -> Vec<Part<'a>> {
-    let part = |d: &crate::pools::PoolDecl<C>| {
-        let b = d.live(c, now);
-        Part { name: d.name.to_string(), len: b.len(), reals: d.per.len(now) * d.of(c).reals_per_elem(), source: Source::Raw(b) }
-    };
-    with_role(c, keep).iter().map(part).collect()
-}
-
-/// The two sections of each of `c`'s sparse tables (all their values are counted as integers:
-/// the sleep tables are f32 or integers whatever the precision): the indices of its nonzero
-/// elements (section `NAME_at`), then those.
-fn sparse<C: Pools>(c: &C) -> Vec<Part<'_>> {
-    let mut v = Vec::new();
-    for d in with_role(c, |r| r == Role::Sparse) {
-        let (table, size) = (d.of(c).bytes(), d.of(c).elem_bytes());
-        let count = table.chunks_exact(size).filter(|e| nonzero(e)).count();
-        v.push(Part { name: format!("{}_at", d.name), len: count * 4, reals: 0, source: Source::NonZeroAt(table, size) });
-        v.push(Part { name: d.name.to_string(), len: count * size, reals: 0, source: Source::NonZero(table, size) });
-    }
-    v
-}
-
-/// Node channels a restart needs: the velocity, and with FLIP the velocity before the update.
-fn node_channels(sim: &Simulation) -> usize {
-    if sim.scenario.simulation.flip > 0.0 {
-        6
-    } else {
-        3
-    }
-}
-
-/// How many particles and grid slots `sim` has now.
-fn counts_now(sim: &Simulation) -> Counts {
-    Counts { particles: sim.particles.n, blocks: sim.grid.n_active, particle_blocks: sim.grid.n_particle_blocks }
-}
-
-/// What a checkpoint stores of the particles always: [`Role::Stored`] and the ids.
-fn always_stored(r: Role) -> bool {
-    matches!(r, Role::Stored | Role::Ids)
-}
-
-/// The restart state's sections, in file order, at the middle of a step (after
-/// `begin_step`; at a step boundary they describe the middle of the step just taken): the
-/// particles' stored pools (and FLIP's velocities), the grid's and its moving nodes, what
-/// merging adds, and the sleep tables.
-pub fn sections(sim: &Simulation) -> Vec<Part<'_>> {
-    let now = counts_now(sim);
-    let p = &sim.particles;
-    let mut v = stored(p, &now, always_stored);
-    if sim.scenario.simulation.flip > 0.0 {
-        // FLIP adds the change of the grid velocity to the particle's own; asleep it is zero
-        v.push(Part::raw("particles.v_awake", &p.v.as_slice()[p.n_sleep..p.n], 3));
-    }
-    v.extend(stored(&sim.grid, &now, |r| r == Role::Stored));
-    let nodes = &sim.grid.nodes.as_slice()[..now.blocks * NODES_PER_BLOCK];
-    let k = node_channels(sim);
-    let occupied = nodes.iter().filter(|n| moving(n, k)).count();
-    v.push(Part { name: "grid.moving".into(), len: now.blocks * 8, reals: 0, source: Source::Moving(nodes, k) });
-    v.push(Part {
-        name: "grid.velocity".into(),
-        len: occupied * k * size_of::<Real>(),
-        reals: occupied * k,
-        source: Source::Velocities(nodes, k),
-    });
-    if coarsens(sim) {
-        // merged particles carry what their ids no longer tell (module notes)
-        v.extend(stored(p, &now, |r| r == Role::FromIds));
-        v.push(Part::raw("particles.next_id", std::slice::from_ref(&p.next_id), 0));
-    }
-    if let Some(sl) = &sim.sleep {
-        // per unit of the whole domain, but zero away from material (and the load tables
-        // away from sleeping units)
-        v.extend(sparse(sl));
-    }
-    v
-}
-
-/// Whether `sim` merges sleeping particles (`[sleep] coarsen`).
-fn coarsens(sim: &Simulation) -> bool {
-    sim.sleep.as_ref().is_some_and(|s| s.cfg.coarsen)
 }
 
 /// Bytes of the restart state per particle with reals of `real_bytes` bytes (4 for f32, 8 for
@@ -199,46 +46,6 @@ pub fn restart_bytes_per_particle_with(sim: &Simulation, real_bytes: usize) -> f
 /// [`restart_bytes_per_particle_with`]).
 pub fn restart_bytes_per_particle(sim: &Simulation) -> f64 {
     restart_bytes_per_particle_with(sim, size_of::<Real>())
-}
-
-/// Bytes of the staging buffer `strand run` maps for `sim`'s checkpoints: [`sections`] at the
-/// pools' capacity (every entry of a sparse table nonzero, and as many nodes moving as the
-/// grid's slots hold, or 27 per particle), each padded.
-pub fn staging_bytes(sim: &Simulation) -> usize {
-    let p = &sim.particles;
-    let cap = Counts::capacity(p.capacity(), sim.grid.max_blocks());
-    let mut lens: Vec<usize> = with_role(p, always_stored).iter().map(|d| d.bytes_for(p, &cap)).collect();
-    if sim.scenario.simulation.flip > 0.0 {
-        lens.push(cap.particles * size_of::<V3>());
-    }
-    lens.extend(with_role(&sim.grid, |r| r == Role::Stored).iter().map(|d| d.bytes_for(&sim.grid, &cap)));
-    // a particle's stencil gives mass to 27 nodes, so no more nodes than that can move
-    let nodes = (cap.blocks * NODES_PER_BLOCK).min(27 * cap.particles);
-    lens.extend([cap.blocks * 8, nodes * node_channels(sim) * size_of::<Real>()]);
-    if coarsens(sim) {
-        lens.extend(with_role(p, |r| r == Role::FromIds).iter().map(|d| d.bytes_for(p, &cap)));
-        lens.push(4);
-    }
-    if let Some(sl) = &sim.sleep {
-        for d in with_role(sl, |r| r == Role::Sparse) {
-            let n = d.per.len(&cap);
-            lens.extend([n * 4, n * d.of(sl).elem_bytes()]);
-        }
-    }
-    lens.into_iter().map(pad).sum()
-}
-
-/// The arrays of the whole state at a step boundary, for the state hash: equal hashes,
-/// bit-identical particles (whatever a checkpoint leaves out to be rebuilt). With sleeping, the
-/// last step's binning and the sleep tables too: the next step's sleeping depends on them.
-fn full_state(sim: &Simulation) -> Vec<(Cow<'static, str>, &[u8])> {
-    let now = counts_now(sim);
-    let mut v = live(&sim.particles, &now, Role::is_state);
-    if let Some(sl) = &sim.sleep {
-        v.extend(live(&sim.grid, &now, |r| r == Role::Stored));
-        v.extend(live(sl, &now, Role::is_state));
-    }
-    v
 }
 
 /// Hash of the whole state at a step boundary (`strand run --json`'s `state_hash`).
@@ -357,20 +164,34 @@ fn check_compatible(sim: &Simulation, ck: &Checkpoint) -> Result<(), RestoreErro
         )));
     }
     let flip = sim.scenario.simulation.flip > 0.0;
-    if flip != ck.section("particles.v_awake").is_some() {
+    let all = slots(sim);
+    let awake = all.iter().find(|s| s.role == Role::FlipVelocity).map(|s| awake_section(&s.name));
+    if flip != awake.is_some_and(|a| ck.section(&a).is_some()) {
         return Err(RestoreError::Mismatch(format!(
             "the checkpoint was written {} FLIP, the scenario runs {} it (simulation.flip)",
             if flip { "without" } else { "with" },
             if flip { "with" } else { "without" }
         )));
     }
-    if sim.sleep.is_some() != ck.section("sleep.state_at").is_some() {
+    if sleeping_differs(sim, ck) {
         return Err(RestoreError::Mismatch("the checkpoint and the scenario differ in sleeping ([sleep])".into()));
     }
-    if coarsens(sim) != ck.section("particles.next_id").is_some() {
+    if super::layout::coarsens(sim) != ck.section(NEXT_ID).is_some() {
         return Err(RestoreError::Mismatch("the checkpoint and the scenario differ in merging sleeping particles ([sleep] coarsen)".into()));
     }
     Ok(())
+}
+
+/// Whether `sim` sleeps and `ck` lacks the first sleep table, or `sim` does not sleep and `ck`
+/// holds sections `sim`'s checkpoints do not (its sleep tables).
+fn sleeping_differs(sim: &Simulation, ck: &Checkpoint) -> bool {
+    let file = layout(sim);
+    if sim.sleep.is_some() {
+        let first = file.iter().find(|s| s.owner == Owner::Sleep && s.role == Role::Sparse);
+        return first.is_none_or(|s| ck.section(&at_section(&s.name)).is_none());
+    }
+    let expected: Vec<String> = sections(sim).into_iter().map(|p| p.name).collect();
+    ck.header.sections.iter().any(|s| !expected.contains(&s.name))
 }
 
 /// Put the checkpoint's state into `sim`, freshly built from a compatible scenario, leaving it
@@ -439,31 +260,30 @@ impl MassSource {
     }
 }
 
-/// The particle pools: the stored arrays, the awake velocities under FLIP, and the ids, masses
-/// and volumes (stored when merging, else rebuilt from the ids); C and the stress at rest.
+/// The particle pools: the stored ones, the awake velocities under FLIP, and the ids, masses
+/// and volumes (stored when merging, with the next id, else rebuilt from the ids); the rebuilt
+/// ones zero (C and the stress of awake particles come from G2P and the material update of this
+/// step), the sleeping particles' at rest.
 fn restore_particles(sim: &mut Simulation, ck: &Checkpoint, at: &Counts, asleep: usize, masses: &MassSource) -> Result<(), RestoreError> {
-    let put = |dst: &mut [u8], name: &str| -> Result<(), RestoreError> {
-        dst.copy_from_slice(section(ck, name, dst.len())?);
-        Ok(())
-    };
     let n = at.particles;
-    let flip = sim.scenario.simulation.flip > 0.0;
+    for s in slots(sim).iter().filter(|s| s.owner == Owner::Particles && matches!(s.role, Role::Rebuilt | Role::FlipVelocity)) {
+        let len = s.bytes_for(sim, at);
+        s.bytes_mut(sim)[..len].fill(0);
+    }
+    let file: Vec<Slot> = layout(sim).into_iter().filter(|s| s.owner == Owner::Particles).collect();
+    for s in &file {
+        let size = s.elem_bytes(sim);
+        let (range, name) = match s.role {
+            Role::FlipVelocity => (asleep * size..n * size, awake_section(&s.name)),
+            _ => (0..s.bytes_for(sim, at), s.name.to_string()),
+        };
+        let dst = &mut s.bytes_mut(sim)[range];
+        dst.copy_from_slice(section(ck, &name, dst.len())?);
+    }
     let p = &mut sim.particles;
-    for d in with_role(p, always_stored) {
-        put(d.live_mut(p, at), &d.name)?;
-    }
-    p.v.as_mut_slice()[..n].fill(V3::ZERO);
-    if flip {
-        put(bytemuck::cast_slice_mut(&mut p.v.as_mut_slice()[asleep..n]), "particles.v_awake")?;
-    }
     p.n = n;
     p.n_sleep = asleep;
-    if let Some(b) = ck.section("particles.next_id") {
-        for d in with_role(p, |r| r == Role::FromIds) {
-            put(d.live_mut(p, at), &d.name)?;
-        }
-        p.next_id = u32::from_le_bytes(b.try_into().map_err(|_| RestoreError::Inconsistent("section 'particles.next_id' is not 4 bytes".to_string()))?);
-    } else {
+    if !file.iter().any(|s| s.role == Role::FromIds) {
         // without merging, ids are 0..n in some order
         p.next_id = n as u32;
         for i in 0..n {
@@ -472,10 +292,6 @@ fn restore_particles(sim: &mut Simulation, ck: &Checkpoint, at: &Counts, asleep:
             p.vol0.as_mut_slice()[i] = v;
         }
     }
-    // C and the stress of awake particles come from G2P and the material update of this step;
-    // sleeping ones hold the rest state sleeping gave them
-    p.c.as_mut_slice()[..n].fill(M3::ZERO);
-    p.stress.as_mut_slice()[..n].fill(M3::ZERO);
     for i in 0..asleep {
         crate::sleep::put_at_rest(p, i, &*sim.material);
     }
@@ -509,22 +325,22 @@ fn check_rebuilt(sim: &Simulation, h: &Header) -> Result<(), RestoreError> {
     Ok(())
 }
 
-/// The sleeping tables (when the scenario sleeps), scattered back from their sparse sections, and the counts rebuilt
-/// from them checked against the header.
+/// The sleeping tables (when the scenario sleeps), scattered back from their sparse sections,
+/// and the counts rebuilt from them checked against the header.
 fn restore_sleep(sim: &mut Simulation, ck: &Checkpoint) -> Result<(), RestoreError> {
     let h = &ck.header;
-    let Some(sleep) = &mut sim.sleep else { return Ok(()) };
-    let loads = sleep.tests_loads();
-    if loads && ck.section("sleep.load_at").is_none() {
+    let Some(sleep) = &sim.sleep else { return Ok(()) };
+    let tables: Vec<Slot> = layout(sim).into_iter().filter(|s| s.owner == Owner::Sleep).collect();
+    if sleep.tests_loads() && tables.iter().any(|s| ck.section(&at_section(&s.name)).is_none()) {
         // forced on a scenario that turned the load test on: its sleeping units have no
         // margins to test loads against
         return Err(RestoreError::Inconsistent("the checkpoint holds no sleep load tables (written without sleep.wake_by_load)".into()));
     }
-    for d in with_role(sleep, |r| r == Role::Sparse) {
-        let pool = d.of_mut(sleep);
-        let size = pool.elem_bytes();
-        scatter(pool.bytes_mut(), size, ck, &format!("{}_at", d.name), &d.name)?;
+    for s in &tables {
+        let size = s.elem_bytes(sim);
+        scatter(s.bytes_mut(sim), size, ck, &at_section(&s.name), &s.name)?;
     }
+    let sleep = sim.sleep.as_mut().expect("sleeps");
     sleep.restored()?;
     if sleep.sleeping_units != h.sleeping_units as usize {
         return Err(RestoreError::Inconsistent(format!("the sleep table holds {} sleeping units, the header {}", sleep.sleeping_units, h.sleeping_units)));
@@ -532,31 +348,36 @@ fn restore_sleep(sim: &mut Simulation, ck: &Checkpoint) -> Result<(), RestoreErr
     Ok(())
 }
 
-/// Bin the restored particles, check that they give the checkpoint's grid blocks (`at`), and
-/// put the stored node velocities back.
+/// Bin the restored particles, check that they give the checkpoint's grid blocks (`at`, and the
+/// grid's stored pools), and put the stored node velocities back.
 fn restore_grid(sim: &mut Simulation, ck: &Checkpoint, at: &Counts) -> Result<(), RestoreError> {
-    let get = |name: &str, len: usize| section(ck, name, len);
     sim.bin_particles()?;
-    let (now, grid) = (counts_now(sim), &sim.grid);
-    let differ = "binning the restored particles does not give the checkpoint's grid blocks";
+    let now = counts_now(sim);
+    let differ = || RestoreError::Inconsistent("binning the restored particles does not give the checkpoint's grid blocks".into());
     if now.blocks != at.blocks || now.particle_blocks != at.particle_blocks {
-        return Err(RestoreError::Inconsistent(differ.into()));
+        return Err(differ());
     }
-    for d in with_role(grid, |r| r == Role::Stored) {
-        if get(&d.name, d.bytes_for(grid, at))? != d.live(grid, &now) {
-            return Err(RestoreError::Inconsistent(differ.into()));
+    for s in layout(sim).iter().filter(|s| s.owner == Owner::Grid) {
+        match s.role {
+            Role::Nodes { moving, velocity } => put_nodes(sim, ck, s, (moving, velocity))?,
+            _ if section(ck, &s.name, s.bytes_for(sim, at))? != s.live(sim, &now) => return Err(differ()),
+            _ => {}
         }
     }
-    let na = now.blocks;
-    let occupied: Vec<u64> = get("grid.moving", na * 8)?
-        .chunks_exact(8)
-        .map(|b| u64::from_le_bytes(b.try_into().expect("8 bytes")))
-        .collect();
+    Ok(())
+}
+
+/// The grid nodes of `s` from their two sections (`moving`, `velocity`): the velocity channels
+/// of the moving nodes, every other channel zero.
+fn put_nodes(sim: &mut Simulation, ck: &Checkpoint, s: &Slot, (moving, velocity): (&str, &str)) -> Result<(), RestoreError> {
+    let len = s.bytes_for(sim, &counts_now(sim));
+    let na = len / size_of::<Node>() / NODES_PER_BLOCK;
+    let occupied: Vec<u64> = section(ck, moving, na * 8)?.chunks_exact(8).map(|b| u64::from_le_bytes(b.try_into().expect("8 bytes"))).collect();
     let k = node_channels(sim);
     let count: usize = occupied.iter().map(|m| m.count_ones() as usize).sum();
-    let vel: &[u8] = get("grid.velocity", count * k * size_of::<Real>())?;
+    let vel: &[u8] = section(ck, velocity, count * k * size_of::<Real>())?;
     let mut vel = vel.chunks_exact(size_of::<Real>()).map(bytemuck::pod_read_unaligned::<Real>);
-    let nodes = &mut sim.grid.nodes.as_mut_slice()[..na * NODES_PER_BLOCK];
+    let nodes: &mut [Node] = bytemuck::cast_slice_mut(&mut s.bytes_mut(sim)[..len]);
     for (blk, mask) in nodes.chunks_exact_mut(NODES_PER_BLOCK).zip(&occupied) {
         for (l, node) in blk.iter_mut().enumerate() {
             *node = [0.0; 7];

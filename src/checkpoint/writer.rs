@@ -5,7 +5,7 @@
 //! the next is due.
 
 use super::format::{checksum, file_size, layout, state_hash, write_to, Header, Section};
-use super::state::Part;
+use super::layout::Part;
 use crate::disk;
 use crate::memory::Pool;
 use crate::writer::Writer;

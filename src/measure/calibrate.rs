@@ -20,7 +20,8 @@ use super::error::MeasureError;
 use super::experiments::Experiments;
 use super::observation::Observation;
 use super::linalg::{gauss_newton_step, normal_equations, pinv_sym, Mat};
-use super::engine::Engine;
+use super::engine::{Answer, Engine};
+use super::progress::Progress;
 use super::model::{Bounds, Model};
 use super::sensitivity::{Differences, Sensitivity};
 
@@ -35,7 +36,10 @@ pub struct FitOptions {
     /// scheduler's jobs.
     pub engine: Engine,
     /// A line on stderr per accepted step.
-    pub progress: bool,
+    pub log: bool,
+    /// The runs of each evaluation counted into the command's progress (`progress.rs`): bars,
+    /// JSON events or nothing; it changes no result.
+    pub progress: Progress,
     /// Broyden's secant update of the Jacobian after an accepted step, for a campaign with a
     /// simulation (module doc); a rheometer campaign's adjoints cost less than its runs and
     /// always give the Jacobian.
@@ -52,9 +56,46 @@ pub struct FitOptions {
     pub stop_on_secant: bool,
 }
 
+impl FitOptions {
+    /// The engine's values of every observation under `model`, with their gradients in `names`
+    /// when given ([`Engine::sensitivity`]), the runs counted into the progress.
+    pub fn sensitivity(&self, model: &Model, data: &[Observation], exps: &Experiments, names: Option<&[String]>) -> Result<Answer, MeasureError> {
+        let runs = runs(data, names.map_or(0, |n| 1 + 2 * n.len()).max(1));
+        self.counted(runs, || self.engine.sensitivity(self.jobs, model, data, exps, names))
+    }
+
+    /// The engine's Jacobian at a model whose values are known ([`Engine::jacobian_at`]), the
+    /// runs counted into the progress.
+    pub fn jacobian_at(&self, model: &Model, data: &[Observation], exps: &Experiments, names: &[String], at: (&[f64], &Differences)) -> Result<Answer, MeasureError> {
+        let sides = if matches!(at.1, Differences::Central) { 2 } else { 1 };
+        self.counted(runs(data, sides * names.len()), || self.engine.jacobian_at(self.jobs, model, data, exps, names, at))
+    }
+
+    fn counted<T>(&self, runs: u64, evaluate: impl FnOnce() -> T) -> T {
+        self.progress.expect(runs);
+        let answer = evaluate();
+        self.progress.advance(runs);
+        answer
+    }
+}
+
+/// The runs of an evaluation of `data` with `per_experiment` runs of each experiment: what a
+/// campaign of simulations differenced centrally costs (a rheometer test's adjoint costs less,
+/// and is counted alike).
+fn runs(data: &[Observation], per_experiment: usize) -> u64 {
+    (super::runner::group(data).len() * per_experiment) as u64
+}
+
+/// The runs a fit of `names` to `data` is expected to take: the Jacobian at the start and at the
+/// end, and three trial steps between (a fit on a rough model's secant Jacobians stops after a
+/// few; more are expected as they come).
+pub fn expected_runs(data: &[Observation], names: &[String]) -> u64 {
+    runs(data, 1 + 2 * names.len()) + runs(data, 3) + runs(data, 2 * names.len())
+}
+
 impl Default for FitOptions {
     fn default() -> FitOptions {
-        FitOptions { max_iterations: 30, tolerance: 1e-5, jobs: 1, engine: Engine::Local, progress: false, secant: true, uncertainties: true, stop_on_secant: false }
+        FitOptions { max_iterations: 30, tolerance: 1e-5, jobs: 1, engine: Engine::Local, log: false, progress: Progress::default(), secant: true, uncertainties: true, stop_on_secant: false }
     }
 }
 
@@ -201,8 +242,8 @@ pub fn calibrate(model: &Model, data: &[Observation], exps: &Experiments, names:
 pub fn calibrate_at(model: &Model, values: Option<&[f64]>, data: &[Observation], exps: &Experiments, names: &[String], opts: &FitOptions) -> Result<Fit, MeasureError> {
     check(model, names)?;
     let at_start = match values {
-        Some(v) => opts.engine.jacobian_at(opts.jobs, model, data, exps, names, (v, &Differences::Central))??,
-        None => opts.engine.sensitivity(opts.jobs, model, data, exps, Some(names))??,
+        Some(v) => opts.jacobian_at(model, data, exps, names, (v, &Differences::Central))??,
+        None => opts.sensitivity(model, data, exps, Some(names))??,
     };
     calibrate_from(model, data, exps, names, opts, at_start)
 }
@@ -220,8 +261,8 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
     let mut s = at_start;
     let first = s.clone();
     let mut c2 = chi2(&s.values, data);
-    if opts.progress {
-        eprintln!("fit of {}: chi^2 = {c2:.6e} at the start", names.join(", "));
+    if opts.log {
+        opts.progress.log(&format!("fit of {}: chi^2 = {c2:.6e} at the start", names.join(", ")));
     }
     let chi2_start = c2;
     let mut history = vec![c2];
@@ -232,7 +273,7 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
     let secant = on_secants(opts, data, exps);
     // whether `s`'s Jacobian is the engine's, not a secant update: a fit stops on an exact one
     let mut exact = true;
-    let exact_at = |m: &Model, s: &Sensitivity| opts.engine.jacobian_at(opts.jobs, m, data, exps, names, (&s.values, &Differences::Central))?;
+    let exact_at = |m: &Model, s: &Sensitivity| opts.jacobian_at(m, data, exps, names, (&s.values, &Differences::Central))?;
     while history.len() <= opts.max_iterations {
         let (z, jz) = standardised(&s.values, s.jacobian.as_ref().expect("asked"), data, &scale);
         free = free_parameters(&jz, &z, &theta, &bounds);
@@ -244,10 +285,10 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
         let gauss_newton = if cols.is_empty() { 0.0 } else { predicted_drop(&a, &g) };
         let unfounded = UNFOUNDED * promised_by_scatter(&a, &z, s.jacobian_scatter.as_ref().expect("asked"), data, &scale, &cols);
         let worth_a_try = negligible.max(unfounded);
-        if opts.progress && exact && scatter > 0.0 {
-            eprintln!("  exact Jacobian: an undamped step predicts chi^2 = {:.6e} (reduced chi^2 {birge:.3}; chi^2 scatters by {scatter:.3e}, the Jacobian's scatter promises {:.3e})", c2 - gauss_newton, unfounded / UNFOUNDED);
-        } else if opts.progress && exact && history.len() > 1 {
-            eprintln!("  exact Jacobian: an undamped step predicts chi^2 = {:.6e} (reduced chi^2 {birge:.3})", c2 - gauss_newton);
+        if opts.log && exact && scatter > 0.0 {
+            opts.progress.log(&format!("  exact Jacobian: an undamped step predicts chi^2 = {:.6e} (reduced chi^2 {birge:.3}; chi^2 scatters by {scatter:.3e}, the Jacobian's scatter promises {:.3e})", c2 - gauss_newton, unfounded / UNFOUNDED));
+        } else if opts.log && exact && history.len() > 1 {
+            opts.progress.log(&format!("  exact Jacobian: an undamped step predicts chi^2 = {:.6e} (reduced chi^2 {birge:.3})", c2 - gauss_newton));
         }
         // the optimum within reach of one step: the undamped step, from an exact Jacobian,
         // promises less than the reduced chi^2 or twice what is worth a try
@@ -280,8 +321,8 @@ pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, n
         let gain = drop / c2.max(1e-300);
         (theta, model, s, c2, exact) = (next.theta, next.model, next.at, next.chi2, !secant);
         history.push(c2);
-        if opts.progress {
-            eprintln!("step {}: chi^2 = {c2:.6e} (damping {lambda:.1e}{}, {:.1} s into the fit)", history.len() - 1, if exact { "" } else { ", secant Jacobian" }, clock.elapsed().as_secs_f64());
+        if opts.log {
+            opts.progress.log(&format!("step {}: chi^2 = {c2:.6e} (damping {lambda:.1e}{}, {:.1} s into the fit)", history.len() - 1, if exact { "" } else { ", secant Jacobian" }, clock.elapsed().as_secs_f64()));
         }
         if gain < opts.tolerance || drop < negligible {
             // a negligible drop from a step near the optimum is the optimum: a rough model
@@ -342,7 +383,7 @@ pub fn finish(f: Fit, data: &[Observation], exps: &Experiments, opts: &FitOption
     if !(opts.uncertainties && !opts.stop_on_secant && on_secants(opts, data, exps)) {
         return Ok(f);
     }
-    let exact = opts.engine.jacobian_at(opts.jobs, &f.model, data, exps, &f.names, (&f.model_values, &Differences::Central))??;
+    let exact = opts.jacobian_at(&f.model, data, exps, &f.names, (&f.model_values, &Differences::Central))??;
     let mut finished = calibrate_from(&f.model, data, exps, &f.names, opts, exact)?;
     finished.history = f.history.iter().chain(&finished.history[1..]).copied().collect();
     (finished.start, finished.chi2_start, finished.at_start) = (f.start, f.chi2_start, f.at_start);
@@ -426,11 +467,11 @@ fn damped_step(
         for (nm, v) in names.iter().zip(&trial) {
             tm.set(nm, *v)?;
         }
-        let tv = match opts.engine.sensitivity(opts.jobs, &tm, data, exps, None)? {
+        let tv = match opts.sensitivity(&tm, data, exps, None)? {
             Ok(t) => t.values,
             Err(e) => {
-                if opts.progress {
-                    eprintln!("  trial refused: the model fails there ({e}; damping {lambda:.1e}, the largest move {moved:.3} scales)");
+                if opts.log {
+                    opts.progress.log(&format!("  trial refused: the model fails there ({e}; damping {lambda:.1e}, the largest move {moved:.3} scales)"));
                 }
                 *lambda = raised(*lambda, simulated);
                 continue;
@@ -444,7 +485,7 @@ fn damped_step(
                 // the scatter is the model's near here, as the last exact Jacobian estimated it
                 Sensitivity { values: tv, jacobian: Some(jacobian), scatter: at.scatter.clone(), jacobian_scatter: at.jacobian_scatter.clone() }
             } else {
-                let Ok(at_trial) = opts.engine.jacobian_at(opts.jobs, &tm, data, exps, names, (&tv, &Differences::Central))? else {
+                let Ok(at_trial) = opts.jacobian_at(&tm, data, exps, names, (&tv, &Differences::Central))? else {
                     *lambda = raised(*lambda, simulated);
                     continue;
                 };
@@ -453,8 +494,8 @@ fn damped_step(
             *lambda = (*lambda / 3.0).max(1e-9);
             return Ok(Some(Accepted { theta: trial, model: tm, at: at_trial, chi2: tc2 }));
         }
-        if opts.progress {
-            eprintln!("  trial refused: chi^2 = {tc2:.6e}, {:.3e} predicted (damping {lambda:.1e}, the largest move {moved:.3} scales)", c2 - linear_drop);
+        if opts.log {
+            opts.progress.log(&format!("  trial refused: chi^2 = {tc2:.6e}, {:.3e} predicted (damping {lambda:.1e}, the largest move {moved:.3} scales)", c2 - linear_drop));
         }
         *lambda = raised(*lambda, simulated);
     }
@@ -620,8 +661,8 @@ mod tests {
         assert!((mean / said - 1.0).abs() < 0.15, "promised {mean} on average, {said} said");
     }
 
-    #[test]
-    fn a_bingham_flow_curve_fit_recovers_yield_stress_and_viscosity() {
+    /// The Bingham flow curve's fit of yield stress and viscosity from a start off the truth.
+    fn flow_curve_fit(opts: &FitOptions) -> Fit {
         let truth = Model::from_table(&MODEL.parse().unwrap()).unwrap();
         let e: Experiments = toml::from_str(EXPS).unwrap();
         let data = super::super::synth::synth(&truth, &e, 0.0, 1, 1).unwrap();
@@ -633,7 +674,31 @@ mod tests {
         start.set("material.yield_stress", 300.0).unwrap();
         start.set("material.viscosity", 20.0).unwrap();
         let names = vec!["material.yield_stress".to_string(), "material.viscosity".to_string()];
-        let f = calibrate(&start, &data, &e, &names, &FitOptions::default()).unwrap();
+        calibrate(&start, &data, &e, &names, opts).unwrap()
+    }
+
+    /// Progress changes no bit of a fit, and its JSON events are well-formed and monotone.
+    #[test]
+    fn a_fit_with_progress_events_is_the_fit_without() {
+        use crate::measure::progress::tests::{check_monotone, Shared};
+        let out = Shared::default();
+        let progress = out.progress(1);
+        progress.begin("fit", 1);
+        let with = flow_curve_fit(&FitOptions { progress: progress.clone(), log: true, ..FitOptions::default() });
+        progress.end();
+        let without = flow_curve_fit(&FitOptions::default());
+        let bits = |f: &Fit| [&f.values, &f.uncertainty, &f.history, &f.model_values].map(|v| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>());
+        assert_eq!(bits(&with), bits(&without));
+        assert_eq!(with.model.to_toml(), without.model.to_toml());
+        let events = out.events();
+        check_monotone(&events);
+        // the start's Jacobian, the trials and the end's: more than one evaluation
+        assert!(events.len() > 3 && events.iter().all(|e| e.stage == "fit"), "{events:?}");
+    }
+
+    #[test]
+    fn a_bingham_flow_curve_fit_recovers_yield_stress_and_viscosity() {
+        let f = flow_curve_fit(&FitOptions::default());
         assert!(f.chi2 < 1e-6 * f.chi2_start, "{}", report(&f));
         assert!((f.values[0] / 630.0 - 1.0).abs() < 1e-3 && (f.values[1] / 7.5 - 1.0).abs() < 1e-2, "{}", report(&f));
         // the history only falls

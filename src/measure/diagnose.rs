@@ -39,7 +39,7 @@
 //! 4. When no effect is recommended and the base model does not fit (chi^2 beyond its `alpha`
 //!    quantile) the verdict is "unexplained", with the pattern of the residuals.
 
-use super::calibrate::{calibrate, calibrate_at, calibrate_from, chi2, chi2_scatter, finish, predicted_drop, standardised, Fit, FitOptions};
+use super::calibrate::{calibrate, calibrate_at, calibrate_from, chi2, chi2_scatter, expected_runs, finish, predicted_drop, standardised, Fit, FitOptions};
 use super::error::{io_error, toml_error, MeasureError};
 use super::experiments::Experiments;
 use super::observation::Observation;
@@ -206,15 +206,25 @@ fn candidate(e: &dyn Effect, score: f64, dof: usize, p_value: f64, verdict: Stri
 /// the model's values of `data` where they are known, as the engine gives them.
 pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[String], opts: &DiagnoseOptions, at_model: Option<&[f64]>) -> Result<Diagnosis, MeasureError> {
     let m = data.len();
-    let mut clock = Clock::new(opts.fit.progress);
+    let mut clock = Clock::new(&opts.fit);
+    let progress = &opts.fit.progress;
+    // the base fit, the score tests and the likelihood-ratio fits; each candidate's stages are
+    // planned once the tests have ranked them
+    progress.plan(3);
     clock.say("the base model".into());
+    progress.begin("base fit", if fit.is_empty() { 0 } else { expected_runs(data, fit) });
     let base = base_fit(model, at_model, data, exps, fit, opts)?;
     let base_p_value = chi2_sf(base.chi2, m.saturating_sub(fit.len()).max(1));
     clock.timing.base_fit = clock.lap();
+    progress.end();
+    progress.begin("score tests", 0);
     let mut scored = score_tests(&base, data, exps, fit, opts, &clock)?;
     clock.timing.score_tests = clock.lap();
+    progress.end();
+    progress.begin("likelihood-ratio fits", scored.unreachable.iter().map(|e| expected_runs(data, &fit_names(fit, *e))).sum());
     let (lr, mut prefit) = likelihood_ratio_tests(&base, model, data, exps, fit, &scored.unreachable, opts, &clock)?;
     clock.timing.likelihood_ratio_fits = clock.lap();
+    progress.end();
     let mut cands = std::mem::take(&mut scored.candidates);
     cands.extend(lr);
     cands.sort_by(|a, b| b.score.total_cmp(&a.score).then(a.effect.cmp(&b.effect)));
@@ -263,18 +273,19 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
     })
 }
 
-/// A diagnosis's stages timed, and said on stderr as they begin when `progress` is on.
+/// A diagnosis's stages timed, and said on stderr as they begin when `log` is on.
 struct Clock {
-    progress: bool,
+    log: bool,
+    progress: super::progress::Progress,
     began: std::time::Instant,
     since: std::time::Instant,
     timing: Timing,
 }
 
 impl Clock {
-    fn new(progress: bool) -> Clock {
+    fn new(opts: &FitOptions) -> Clock {
         let now = std::time::Instant::now();
-        Clock { progress, began: now, since: now, timing: Timing::default() }
+        Clock { log: opts.log, progress: opts.progress.clone(), began: now, since: now, timing: Timing::default() }
     }
 
     /// Seconds since the last lap.
@@ -285,8 +296,8 @@ impl Clock {
     }
 
     fn say(&self, what: String) {
-        if self.progress {
-            eprintln!("diagnose ({:.0} s): {what}", self.began.elapsed().as_secs_f64());
+        if self.log {
+            self.progress.log(&format!("diagnose ({:.0} s): {what}", self.began.elapsed().as_secs_f64()));
         }
     }
 }
@@ -300,7 +311,7 @@ fn base_fit(model: &Model, at_model: Option<&[f64]>, data: &[Observation], exps:
     let m = data.len();
     let v = match at_model {
         Some(v) => v.to_vec(),
-        None => opts.fit.engine.sensitivity(opts.fit.jobs, model, data, exps, None)??.values,
+        None => opts.fit.sensitivity(model, data, exps, None)??.values,
     };
     let c2 = chi2(&v, data);
     Ok(Fit { names: vec![], start: vec![], values: vec![], uncertainty: vec![], at_bound: vec![], influence: vec![], chi2_start: c2, chi2: c2, reduced_chi2: c2 / m as f64, history: vec![c2], converged: true, observations: m, model_values: v.clone(), jacobian: vec![], scatter: vec![0.0; m], jacobian_scatter: vec![vec![]; m], at_start: Sensitivity { values: v, jacobian: Some(vec![]), scatter: vec![0.0; m], jacobian_scatter: Some(vec![vec![]; m]) }, model: model.clone() })
@@ -316,15 +327,15 @@ fn base_fit(model: &Model, at_model: Option<&[f64]>, data: &[Observation], exps:
 /// `with`'s values are that point's without a run where every added effect is at a start that
 /// `runs_as_model` ([`Effect::start_runs_as_model`]); otherwise they are run, and compared.
 fn beside_base(base: &Fit, (from_start, runs_as_model): (bool, bool), with: &Model, extra: &[String], data: &[Observation], exps: &Experiments, opts: &DiagnoseOptions) -> Result<Sensitivity, MeasureError> {
-    let (engine, jobs) = (&opts.fit.engine, opts.fit.jobs);
+    let engine = &opts.fit;
     let names: Vec<String> = base.names.iter().chain(extra).cloned().collect();
     let (known, known_jacobian, known_scatter, known_jacobian_scatter) = match from_start {
         true => (&base.at_start.values, base.at_start.jacobian.as_ref().expect("asked"), &base.at_start.scatter, base.at_start.jacobian_scatter.as_ref().expect("asked")),
         false => (&base.model_values, &base.jacobian, &base.scatter, &base.jacobian_scatter),
     };
-    let values = if runs_as_model { known.clone() } else { engine.sensitivity(jobs, with, data, exps, None)??.values };
+    let values = if runs_as_model { known.clone() } else { engine.sensitivity(with, data, exps, None)??.values };
     if values != *known || base.names.is_empty() || extra.is_empty() {
-        return engine.jacobian_at(jobs, with, data, exps, &names, (&values, &Differences::Central))?;
+        return engine.jacobian_at(with, data, exps, &names, (&values, &Differences::Central))?;
     }
     // an effect's columns the fitted parameters' give through the keys take no run
     let chained = super::chain::chained(with, data, exps, &base.names, (known_jacobian, known_jacobian_scatter), extra)?;
@@ -333,7 +344,7 @@ fn beside_base(base: &Fit, (from_start, runs_as_model): (bool, bool), with: &Mod
         (vec![vec![]; data.len()], vec![vec![]; data.len()], known_scatter.clone())
     } else {
         // one-sided: at the base fit's values, whose scatter its central differences estimated
-        let s = engine.jacobian_at(jobs, with, data, exps, &run, (&values, &Differences::Forward(known_scatter.clone())))??;
+        let s = engine.jacobian_at(with, data, exps, &run, (&values, &Differences::Forward(known_scatter.clone())))??;
         (s.jacobian.expect("asked"), s.jacobian_scatter.expect("asked"), known_scatter.clone())
     };
     // the known columns, then each extra parameter's, chained or computed
@@ -500,7 +511,7 @@ fn likelihood_ratio_tests(
             // parameters; from the model's values, where they are elsewhere, it may have
             clock.say(format!("{}: its likelihood ratio, from {}", e.name(), if std::ptr::eq(from, model) { "the model's values" } else { "the base fit's values" }));
             let start_values = beside_base(base, (std::ptr::eq(from, model), e.start_runs_as_model()), &with, &fnames[fit.len()..], data, exps, opts)?;
-            let at_start = calibrate_from(&with, data, exps, &fnames, &FitOptions { max_iterations: 0, progress: false, ..opts.fit.clone() }, start_values.clone())?;
+            let at_start = calibrate_from(&with, data, exps, &fnames, &FitOptions { max_iterations: 0, log: false, ..opts.fit.clone() }, start_values.clone())?;
             let predicted = base.chi2 - at_start.chi2 + gauss_newton_drop(&at_start, data)?;
             let informed = at_start.influence[fit.len()..].iter().any(|&i| i);
             let (f, unfitted) = if !informed || predicted < LR_WORTH_FITTING { (at_start, Some(predicted)) } else { (calibrate_from(&with, data, exps, &fnames, &opts.fit, start_values)?, None) };
@@ -559,6 +570,9 @@ fn fit_and_check(
     let mut leader: Option<(String, f64)> = None;
     let mut models: Vec<Option<Model>> = vec![None; cands.len()];
     let mut fitted = 0;
+    let progress = &opts.fit.progress;
+    // each candidate fitted: its fit, then its leave-one-out
+    progress.plan(2 * cands.iter().filter(|c| c.verdict.is_empty()).count().min(opts.max_fitted));
     for (ci, c) in cands.iter_mut().enumerate() {
         if !c.verdict.is_empty() {
             continue;
@@ -573,6 +587,7 @@ fn fit_and_check(
         let fnames = fit_names(fit, effect);
         let _ = clock.lap();
         clock.say(format!("{}: fitted{}", c.effect, if opts.leave_one_out { ", then checked by leaving each experiment out" } else { "" }));
+        progress.begin(&format!("{}: fit", c.effect), if prefit.contains_key(&c.effect) { 0 } else { expected_runs(data, &fnames) });
         // after a recommended candidate, a fit made here needs its optimum first: only one that
         // comes close to the leader's Akaike criterion is finished on an exact Jacobian (below);
         // the others' would be 2 p runs of the campaign that nothing reads (a likelihood-ratio
@@ -600,6 +615,9 @@ fn fit_and_check(
             _ => f,
         };
         clock.timing.candidate_fits += clock.lap();
+        progress.end();
+        // one run of each experiment left out, and the base model's the first time
+        progress.begin(&format!("{}: leave-one-out", c.effect), if base_loo.is_none() { 2 } else { 1 } * ids.len() as u64);
         c.record(&f, base.chi2, m);
         // a fit that moves the error by less than 1 % has not found anything, and is not
         // recommended whatever leaving experiments out would say
@@ -638,6 +656,7 @@ fn fit_and_check(
             c.verdict = format!("recommended: error x {:.3} (not checked by leave-one-out: {})", c.error_ratio.unwrap_or(1.0), if opts.leave_one_out { "one experiment only" } else { "switched off" });
         }
         models[ci] = Some(f.model);
+        progress.end();
     }
 
     Ok(models)
@@ -704,7 +723,7 @@ fn leave_one_out(f: &Fit, data: &[Observation], exps: &Experiments, ids: &[Strin
     for id in ids {
         let (kept, left): (Vec<usize>, Vec<usize>) = (0..data.len()).partition(|&i| data[i].experiment != *id);
         let test = rows_of(data, &left);
-        let predict = |model: &Model| -> Result<f64, MeasureError> { Ok(chi2(&opts.fit.engine.sensitivity(opts.fit.jobs, model, &test, exps, None)??.values, &test)) };
+        let predict = |model: &Model| -> Result<f64, MeasureError> { Ok(chi2(&opts.fit.sensitivity(model, &test, exps, None)??.values, &test)) };
         total += if f.names.is_empty() {
             predict(&f.model)?
         } else if opts.exact_refits {
@@ -861,5 +880,32 @@ mod tests {
         assert!((p_value(3.841458820694124, 1) - 0.025).abs() < 1e-9);
         assert!((p_value(5.991464547107979, 2) - 0.05).abs() < 1e-9);
         assert_eq!(p_value(10.0, 0), 1.0);
+    }
+
+    /// A diagnosis of the rheometer campaign with hidden thixotropy gives the same result with
+    /// progress events as without, and the events are well-formed and monotone over every stage.
+    #[test]
+    fn a_diagnosis_with_progress_events_is_the_diagnosis_without() {
+        use crate::measure::progress::tests::{check_monotone, Shared};
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/measure/campaign");
+        let (truth, start) = (Model::load(&dir.join("truth_thixotropy.toml")).unwrap(), Model::load(&dir.join("base.toml")).unwrap());
+        let exps = Experiments::load(&dir.join("experiments.toml")).unwrap();
+        let data = super::super::synth::synth(&truth, &exps, 0.01, 7, 1).unwrap();
+        let fit = vec!["material.yield_stress".to_string(), "material.viscosity".to_string()];
+        let out = Shared::default();
+        let with = DiagnoseOptions { fit: FitOptions { progress: out.progress(0), ..FitOptions::default() }, ..DiagnoseOptions::default() };
+        let a = diagnose(&start, &data, &exps, &fit, &with, None).unwrap();
+        let b = diagnose(&start, &data, &exps, &fit, &DiagnoseOptions::default(), None).unwrap();
+        let json = |d: &Diagnosis| {
+            let mut v = serde_json::to_value(d).unwrap();
+            v.as_object_mut().unwrap().remove("timing");
+            v.to_string()
+        };
+        assert_eq!(json(&a), json(&b));
+        let events = out.events();
+        check_monotone(&events);
+        for stage in ["base fit", "score tests", "likelihood-ratio fits", "thixotropy: fit", "thixotropy: leave-one-out"] {
+            assert!(events.iter().any(|e| e.stage == stage), "{stage}: {events:?}");
+        }
     }
 }

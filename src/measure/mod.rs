@@ -8,8 +8,8 @@
 //! uncertainty (`resolution.rs`), gradients (`sensitivity.rs`; idle workers lent to the
 //! experiments still running, `spare.rs`), fitting a model (`calibrate.rs`) and finding the
 //! effect it lacks (`diagnose.rs`); where the experiments run (`engine.rs`: here, or as a
-//! scheduler's jobs) and what a saved result was computed from (`provenance.rs`); why a step
-//! cannot be taken (`error.rs`).
+//! scheduler's jobs) and what a saved result was computed from (`provenance.rs`); a long command's
+//! progress (`progress.rs`); why a step cannot be taken (`error.rs`).
 //!
 //! Imports point one way (no circle among these files, `tests/suite/architecture.rs`): `error.rs` and
 //! `observation.rs` at the bottom; then the observables, the effects and the model; the experiments; the runner;
@@ -33,6 +33,7 @@ pub mod observation;
 pub mod passing;
 pub mod plan;
 pub mod preflight;
+pub mod progress;
 pub mod provenance;
 pub mod report;
 pub mod residuals;

@@ -66,7 +66,7 @@ impl Sleep {
             }
         }
         let (down_axis, sign) = self.down.expect("checked above");
-        let (state, rest, margin) = (states_mut(self.state.as_mut_slice()), self.rest.as_slice(), self.margin.as_slice());
+        let (state, asleep_since, margin) = (states_mut(self.state.as_mut_slice()), self.clock.as_slice(), self.margin.as_slice());
         let base = self.base.as_mut_slice();
         let loaded = self.loaded.as_mut_slice();
         let tau = self.cfg.load_time;
@@ -75,7 +75,7 @@ impl Sleep {
         for &u in &touched[..n_touched] {
             let l = load[u as usize];
             // the average has run since the unit fell asleep, from zero: unbias it
-            let slept = now - rest[u as usize] as f64;
+            let slept = now - asleep_since[u as usize] as f64;
             let weight = if tau > 0.0 { 1.0 - (-slept / tau).exp() } else { 1.0 };
             if weight < 0.9 {
                 continue;
@@ -91,7 +91,7 @@ impl Sleep {
             let mut c = unit_coords(geom, u);
             let (mut w, mut deepest) = (u, None);
             for depth in 1.. {
-                let gain = material.strength_gain((now - rest[w as usize] as f64).max(0.0) as Real) as f32;
+                let gain = material.strength_gain((now - asleep_since[w as usize] as f64).max(0.0) as Real) as f32;
                 if t > fraction * (margin[w as usize].max(0.0) + gain) + floor {
                     deepest = Some(c[down_axis]);
                 }

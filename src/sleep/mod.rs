@@ -113,10 +113,12 @@ pub struct Sleep {
     /// between a step and the next update), indexed by [`units::unit_index`]; stored as bytes
     /// (`units::states` views them).
     state: Pool<u8>,
-    /// Awake unit: time its material has been at rest [s], or, negative, minus the settling
-    /// time left since it woke (`wake_grace`). Sleeping unit: the simulation time at which it
-    /// fell asleep [s] (for the build-up owed on waking).
-    rest: Pool<f32>,
+    /// Each unit's clock [s], read by its state: awake, the time its material has been at rest,
+    /// or, negative, minus the settling time left since it woke (`wake_grace`); asleep, the
+    /// simulation time at which it fell asleep; woken, within an update, the rest it owes its
+    /// particles (the build-up of its time asleep). Its checkpoint section keeps the name
+    /// `sleep.rest`.
+    clock: Pool<f32>,
     /// Units woken by the current update (scratch; never more than the table holds).
     woken: Pool<u32>,
     /// Sleeping units per grid block, for the cheap pre-test of [`Holds::block`].
@@ -163,7 +165,7 @@ impl Pools for Sleep {
         let decl = PoolDecl::<Self>::new;
         let mut v = vec![
             decl("sleep.state", units, Sparse, |s| &s.state, |s| &mut s.state),
-            decl("sleep.rest", units, Sparse, |s| &s.rest, |s| &mut s.rest),
+            decl("sleep.rest", units, Sparse, |s| &s.clock, |s| &mut s.clock),
         ];
         if self.tests_loads() {
             v.extend([
@@ -217,7 +219,7 @@ impl Sleep {
             cfg,
             table_len: geom.table_len(),
             state: Pool::default(),
-            rest: Pool::default(),
+            clock: Pool::default(),
             woken: Pool::default(),
             asleep_in_block: Pool::default(),
             activity: Pool::default(),

@@ -39,7 +39,7 @@ impl Limits {
     }
 }
 
-/// One step of an awake unit's clock `rest` (see [`Sleep`]) under its material's (max speed,
+/// One step of an awake unit's clock (see [`Sleep`]) under its material's (max speed,
 /// max strain rate): the new clock, and whether the unit wakes its sleeping neighbours.
 ///
 /// A unit that has just woken waits out `wake_grace` first (negative clock) and wakes nobody
@@ -49,12 +49,12 @@ impl Limits {
 /// on K = 1 MPa concrete moves it at about 4 mm/s, above `wake_speed`); without the grace the
 /// pulse woke the next unit, whose own load woke the next, down the whole stack.
 #[inline]
-pub(super) fn tick(rest: f32, [v, rate]: [Real; 2], dt: f32, lim: &Limits) -> (f32, bool) {
-    if rest < 0.0 {
-        return ((rest + dt).min(0.0), false);
+pub(super) fn tick(clock: f32, [v, rate]: [Real; 2], dt: f32, lim: &Limits) -> (f32, bool) {
+    if clock < 0.0 {
+        return ((clock + dt).min(0.0), false);
     }
     let at_rest = v < lim.rest_speed && rate < lim.rest_rate;
-    (if at_rest { rest + dt } else { 0.0 }, v > lim.wake_speed)
+    (if at_rest { clock + dt } else { 0.0 }, v > lim.wake_speed)
 }
 
 impl Sleep {
@@ -97,7 +97,7 @@ impl Sleep {
         let activity = &self.activity.as_slice()[..npb];
         let limits = Limits::of(&self.cfg);
         let state = states_mut(self.state.as_mut_slice());
-        let rest = self.rest.as_mut_slice();
+        let clock = self.clock.as_mut_slice();
         let woken = self.woken.as_mut_slice();
         let mut n_woken = 0usize;
         // below: what a unit's speed may not wake when loads are tested; without, the speed
@@ -113,14 +113,14 @@ impl Sleep {
                 if [v, rate] == EMPTY_UNIT {
                     // no material: keep the clock at zero so that empty space never sleeps
                     if state[u as usize] == UnitState::Awake {
-                        rest[u as usize] = 0.0;
+                        clock[u as usize] = 0.0;
                     }
                     continue;
                 }
                 // awake material inside a sleeping unit, or fast material next to one, wakes it
                 let wakes_neighbours = if state[u as usize] == UnitState::Awake {
-                    let (r, loud) = tick(rest[u as usize], [v, rate], dt as f32, &limits);
-                    rest[u as usize] = r;
+                    let (r, loud) = tick(clock[u as usize], [v, rate], dt as f32, &limits);
+                    clock[u as usize] = r;
                     loud
                 } else {
                     wake(u, state, woken, &mut n_woken);
@@ -148,7 +148,7 @@ impl Sleep {
                         if unit_in_table(geom, u) {
                             let idx = unit_index(geom, u);
                             if state[idx as usize] == UnitState::Awake {
-                                rest[idx as usize] = rest[idx as usize].min(0.0);
+                                clock[idx as usize] = clock[idx as usize].min(0.0);
                             } else {
                                 wake(idx, state, woken, &mut n_woken);
                             }
@@ -173,7 +173,7 @@ impl Sleep {
         // above: what a unit falling asleep may lie under while it moves, when loads are tested
         let above = self.down.map(|(a, sign)| (a, -sign));
         let state = states_mut(self.state.as_mut_slice());
-        let rest = self.rest.as_mut_slice();
+        let clock = self.clock.as_mut_slice();
         let woken = self.woken.as_mut_slice();
         let per_block = self.asleep_in_block.as_mut_slice();
         let rest_time = self.cfg.rest_time as f32;
@@ -181,7 +181,7 @@ impl Sleep {
         for s in 0..npb {
             for k in 0..UNITS {
                 let u = slot_block[s] * UNITS as u32 + k as u32;
-                if rest[u as usize] < rest_time || state[u as usize] != UnitState::Awake || activity[s][k] == EMPTY_UNIT {
+                if clock[u as usize] < rest_time || state[u as usize] != UnitState::Awake || activity[s][k] == EMPTY_UNIT {
                     continue;
                 }
                 // material above may move up to `arrive_speed` (loads tested), the rest up to
@@ -193,7 +193,7 @@ impl Sleep {
                 });
                 if calm {
                     state[u as usize] = UnitState::Asleep;
-                    rest[u as usize] = now as f32;
+                    clock[u as usize] = now as f32;
                     per_block[u as usize / UNITS] += 1;
                     woken[woke + slept] = u;
                     slept += 1;
@@ -215,13 +215,13 @@ impl Sleep {
     fn wake_particles(&mut self, grid: &Grid, particles: &mut Particles, material: &dyn Material, now: f64, woke: usize) {
         let geom = &grid.geom;
         let state = states_mut(self.state.as_mut_slice());
-        let rest = self.rest.as_mut_slice();
+        let clock = self.clock.as_mut_slice();
         let woken = self.woken.as_slice();
         let per_block = self.asleep_in_block.as_mut_slice();
         let grace = self.cfg.wake_grace as f32;
         // the rest each woken unit owes its particles, then they leave the sleeping prefix
         for &u in &woken[..woke] {
-            rest[u as usize] = (now - rest[u as usize] as f64).max(0.0) as f32;
+            clock[u as usize] = (now - clock[u as usize] as f64).max(0.0) as f32;
             per_block[u as usize / UNITS] -= 1;
         }
         let sl = particles.state_len;
@@ -233,7 +233,7 @@ impl Sleep {
             } else {
                 let j = particles.j.as_slice()[i];
                 let st = &mut particles.state.as_mut_slice()[i * sl..(i + 1) * sl];
-                material.rest_for_at(st, rest[u as usize] as Real, j);
+                material.rest_for_at(st, clock[u as usize] as Real, j);
                 particles.stress.as_mut_slice()[i] = material.stress_at_rest(st, particles.j.as_slice()[i]);
                 particles.n_sleep -= 1;
                 particles.swap(i, particles.n_sleep);
@@ -241,7 +241,7 @@ impl Sleep {
         }
         for &u in &woken[..woke] {
             state[u as usize] = UnitState::Awake;
-            rest[u as usize] = -grace;
+            clock[u as usize] = -grace;
         }
         if self.tests_loads() {
             let (load, load_step) = (self.load.as_mut_slice(), self.load_step.as_mut_slice());

@@ -216,7 +216,7 @@ fn material_above_keeps_a_unit_awake_only_when_it_arrives_fast() {
     ];
     for (config, sleeps) in configs {
         let mut s = sleep_with(&g, config, &[]);
-        s.rest.as_mut_slice()[unit_index(&g, below) as usize] = 1.0;
+        s.clock.as_mut_slice()[unit_index(&g, below) as usize] = 1.0;
         let grid = grid_with(&g, &[block], 1);
         let mut act = [EMPTY_UNIT; UNITS];
         act[unit_index(&g, below) as usize % UNITS] = [0.0, 0.0];
@@ -243,7 +243,7 @@ fn loaded_column(config: &str, extra: f32) -> ([UnitState; 4], Sleep, Grid, Box<
     for &(u, m) in &column {
         let i = unit_index(&g, u) as usize;
         // fell asleep at t = 0 in step 0, as `update` leaves a unit falling asleep
-        (s.rest.as_mut_slice()[i], s.margin.as_mut_slice()[i], s.base.as_mut_slice()[i]) = (0.0, m, f32::NAN);
+        (s.clock.as_mut_slice()[i], s.margin.as_mut_slice()[i], s.base.as_mut_slice()[i]) = (0.0, m, f32::NAN);
     }
     // a node only the top unit holds (its stencil reach is nodes 2u..=2u+3): the weight on
     // the column
