@@ -5,7 +5,7 @@
 
 use super::error::PlanError;
 use super::targets::Setting;
-use super::Plan;
+use super::planner::Plan;
 use std::path::Path;
 
 /// One row of the sensitivity table: a target's change per +1 % of each free setting.
