@@ -82,15 +82,31 @@ fn the_map_agrees_with_direct_runs_at_two_of_its_points() {
 #[test]
 fn targets_no_setting_meets_are_named_with_how_close_the_best_came() {
     let dir = tempfile::tempdir().unwrap();
-    let targets = dir.path().join("t.toml");
-    // a layer 40 mm wide: the widest the bounds allow is about half of it
-    let text = std::fs::read_to_string(fixture("targets.toml")).unwrap().replace("width = 0.017", "width = 0.040");
-    std::fs::write(&targets, text).unwrap();
-    let out = dir.path().join("planned.toml");
     let (truth, line) = (fixture("truth.toml"), fixture("line.toml"));
-    let (code, _, stderr) = strand(&["plan", "--model", s(&truth), "--print", s(&line), "--targets", s(&targets), "--out", s(&out), "--max-evaluations", "3"]);
-    println!("{stderr}");
+    let base = std::fs::read_to_string(fixture("targets.toml")).unwrap();
+    let out = dir.path().join("planned.toml");
+    let plan = |targets: &str, evaluations: &str| {
+        let path = dir.path().join("t.toml");
+        std::fs::write(&path, targets).unwrap();
+        let r = strand(&["plan", "--model", s(&truth), "--print", s(&line), "--targets", s(&path), "--out", s(&out), "--max-evaluations", evaluations]);
+        println!("{}", r.2);
+        r
+    };
+    // a layer 40 mm wide: the widest the bounds allow is about half of it
+    let (code, _, stderr) = plan(&base.replace("width = 0.017", "width = 0.040"), "3");
     assert_eq!(code, 1, "{stderr}");
     assert!(stderr.contains("no feasible setting: the layer width 40.00 +- 0.80 mm cannot be met within the bounds: the closest setting found"), "{stderr}");
+    // a layer time too short for the wall's design height: how tall it stands at the longest
+    let (code, _, stderr) = plan(&base.replace("layer_time = [5.0, 600.0]", "layer_time = [1.0, 6.0]"), "1");
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("the wall cannot stand to its design height 0.1 m times 1.5 = 0.150 m within the layer time's bounds: at the longest, 6 s, it stands"), "{stderr}");
+    // bounds that exclude each other, refused before any run
+    let (code, _, stderr) = plan(&base.replace("layer_time = [5.0, 600.0]", "layer_time = [0.1, 0.2]"), "1");
+    assert_eq!(code, 2, "{stderr}");
+    assert!(stderr.contains("settings.layer_time's upper bound 0.2 s is shorter than one layer takes the nozzle at the highest speed") && stderr.contains("the bounds exclude each other"), "{stderr}");
+    assert!(!stderr.contains("start:"), "{stderr}");
+    let (code, _, stderr) = plan(&base.replace("height_tolerance = 0.0005", "height_tolerance = 0.0"), "1");
+    assert_eq!(code, 2, "{stderr}");
+    assert!(stderr.contains("layer.height_tolerance = 0: a tolerance of zero"), "{stderr}");
     assert!(!out.exists());
 }
