@@ -26,6 +26,7 @@ pub mod memory;
 pub mod observe;
 pub mod output;
 pub mod particles;
+pub mod plan;
 pub mod pools;
 pub mod print;
 pub mod run;

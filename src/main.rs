@@ -49,6 +49,12 @@ enum Cmd {
     /// significant ones, checks them by leave-one-experiment-out, and gives a verdict ("add
     /// EFFECT", "explained" or "unexplained").
     Diagnose(DiagnoseArgs),
+    /// Print settings from a calibrated model: the fastest build whose layer meets a width and a
+    /// height at a station and whose wall stands to a design height with a safety factor (bounded
+    /// gradient projection on the adjoint gradients; closed-form collapse and buckling), with the
+    /// margins and sensitivities; writes the scenario with the settings applied. With --map, the
+    /// printability map over two settings (CSV and PNG).
+    Plan(PlanArgs),
     /// One job of calibrate's or diagnose's --engine: compute the experiment a job file names
     /// (its values, and gradients when asked) and save the result with its provenance.
     Evaluate(EvaluateArgs),
@@ -279,6 +285,47 @@ struct DiagnoseArgs {
     rounds: u64,
     #[command(flatten)]
     engine: EngineArgs,
+}
+
+#[derive(clap::Args)]
+struct PlanArgs {
+    /// The calibrated model ([material] and [effects.NAME], as `strand calibrate` writes it).
+    #[arg(long)]
+    model: PathBuf,
+    /// The print: a scenario with an inline [print] path.
+    #[arg(long)]
+    print: PathBuf,
+    /// The targets: [layer], [wall] and [settings] (docs/planning.md).
+    #[arg(long)]
+    targets: PathBuf,
+    /// Where the scenario with the settings applied goes (default: PRINT's name with
+    /// .planned.toml); the map's files go beside it (.map.csv, .map.png).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Replace --out and the map's files if they exist.
+    #[arg(long)]
+    overwrite: bool,
+    /// Runs with gradients at most.
+    #[arg(long, default_value_t = 12)]
+    max_evaluations: usize,
+    /// The printability map over two settings, e.g. speed,extrusion (their bounds span the axes).
+    #[arg(long, value_name = "X,Y")]
+    map: Option<String>,
+    /// Points along the map's axes.
+    #[arg(long, default_value = "5x5", value_name = "NxM")]
+    map_size: String,
+    /// The map's points run at once (local engine).
+    #[arg(long, default_value_t = 1)]
+    jobs: usize,
+    #[command(flatten)]
+    engine: EngineArgs,
+    /// Memory for each gradient run's backward pass.
+    #[arg(long, default_value = "1 GiB")]
+    ram: String,
+    #[arg(long)]
+    threads: Option<usize>,
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(clap::Args)]
@@ -681,6 +728,47 @@ fn rheometer(args: RheometerArgs) -> Result<bool, Failure> {
     Ok(true)
 }
 
+/// `strand plan`: the settings, their report and scenario, and with --map the printability map.
+fn plan(args: PlanArgs) -> Result<bool, Failure> {
+    let PlanArgs { model, print, targets, out, overwrite, max_evaluations, map, map_size, jobs, engine, ram, threads, json } = args;
+    use strand::plan::{self, map as pmap, report};
+    let t = plan::targets::Targets::load(&targets)?;
+    let out = out.unwrap_or_else(|| print.with_extension("planned.toml"));
+    let (csv, png) = (out.with_extension("map.csv"), out.with_extension("map.png"));
+    report::refuse_existing(&out, overwrite)?;
+    let axes = map.as_deref().map(|s| pmap::axes(s, &map_size, &t)).transpose()?;
+    if axes.is_some() {
+        report::refuse_existing(&csv, overwrite)?;
+        report::refuse_existing(&png, overwrite)?;
+    }
+    let engine = engine.engine()?;
+    let ram_bytes = strand::memory::parse_size(&ram).map_err(|e| format!("--ram: {e}"))?;
+    let grad = strand::grad::GradOptions { ram_bytes, disk_bytes: 0, disk_dir: std::env::temp_dir(), threads, schedule: None, until_rest: None };
+    let p = plan::plan(&Model::load(&model)?, &print, &t, &plan::PlanOptions { grad, max_evaluations, progress: !json })?;
+    let missed = p.infeasible();
+    if missed.is_none() {
+        if json {
+            println!("{:#}", report::json(&p));
+        } else {
+            print!("{}", report::text(&p));
+        }
+    }
+    if let Some(axes) = axes {
+        let layer_time = p.wall.as_ref().map(|_| p.best().build.layer_time);
+        let m = pmap::map(&p.line, &t, p.wall.as_ref(), axes, &p.settings(), layer_time, &engine, jobs)?;
+        pmap::write_csv(&m, &csv)?;
+        pmap::write_png(&m, &png)?;
+        eprint!("{}", pmap::text(&m));
+        eprintln!("map written to {} and {}", csv.display(), png.display());
+    }
+    if let Some(e) = missed {
+        return Err(Failure { message: e.to_string(), code: 1 });
+    }
+    report::write_scenario(&p, &out, overwrite)?;
+    eprintln!("scenario with the settings written to {}", out.display());
+    Ok(true)
+}
+
 /// `strand evaluate`: one job of a distributed engine.
 fn evaluate(args: EvaluateArgs) -> Result<bool, Failure> {
     eprintln!("{}", strand::measure::engine::evaluate(&args.job, &args.out)?);
@@ -727,6 +815,7 @@ failure_from!(
     strand::bench::BenchError,
     strand::measure::error::MeasureError,
     strand::output::plot::PlotError,
+    strand::plan::error::PlanError,
     strand::scenario::ScenarioError,
     strand::solver::SimError,
     serde_json::Error,
@@ -747,6 +836,7 @@ fn main() -> ExitCode {
         Cmd::Synth(a) => synth(a),
         Cmd::Calibrate(a) => calibrate(a),
         Cmd::Diagnose(a) => diagnose(a),
+        Cmd::Plan(a) => plan(a),
         Cmd::Evaluate(a) => evaluate(a),
         Cmd::Bench(a) => bench(a),
     };

@@ -13,6 +13,7 @@ mod grad;
 mod measure;
 mod measure_inputs;
 mod measure_report;
+mod plan;
 mod print;
 mod print_arcs;
 mod print_dialects;

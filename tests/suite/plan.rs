@@ -1,0 +1,112 @@
+//! `strand plan` at reduced size (fixtures/plan: a 40 mm line at 4 mm cells under a synthetic
+//! truth): the planned settings, simulated, give the target layer and the wall stands by the
+//! closed form; the map agrees with direct runs at two of its points; the command refuses to
+//! overwrite its output and names the target it cannot meet.
+
+use crate::common::{s, strand};
+use std::path::{Path, PathBuf};
+use strand::measure::model::Model;
+use strand::plan::line::Line;
+use strand::plan::map::{self, Axis};
+use strand::plan::targets::{Setting, Targets};
+
+fn fixture(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/plan").join(name)
+}
+
+#[test]
+fn planned_settings_simulated_give_the_target_layer_and_a_standing_wall() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("planned.toml");
+    let (truth, line, targets) = (fixture("truth.toml"), fixture("line.toml"), fixture("targets.toml"));
+    let args = ["plan", "--model", s(&truth), "--print", s(&line), "--targets", s(&targets), "--out", s(&out), "--json"];
+    let (code, stdout, stderr) = strand(&args);
+    assert_eq!(code, 0, "{stderr}");
+    let v: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    println!("{stderr}\n{v:#}");
+    let t = Targets::load(&fixture("targets.toml")).unwrap();
+    // the search moved from the scenario's settings (its layer is 16.1 mm wide, off the target)
+    let speed = v["settings"]["speed"].as_f64().unwrap();
+    let extrusion = v["settings"]["extrusion"].as_f64().unwrap();
+    assert!(v["runs"].as_u64().unwrap() >= 2 && (speed, extrusion) != (0.08, 0.05), "{v:#}");
+    assert!((0.05..=0.12).contains(&speed) && (0.03..=0.08).contains(&extrusion), "{v:#}");
+    // the written scenario, run on its own, gives the layer within the tolerances
+    let sc = strand::scenario::Scenario::load(&out).unwrap();
+    let seeds: Vec<strand::grad::driver::Seeded> = ["width@0.025", "height@0.025"].iter().map(|o| strand::grad::driver::Seeded { objective: o.parse().unwrap(), step: None }).collect();
+    let [w, h] = strand::grad::driver::forward_values(&sc, &seeds, None).unwrap()[..] else { panic!() };
+    println!("simulated at the plan: width {w}, height {h}");
+    assert!((w - t.layer.width).abs() <= t.layer.width_tolerance, "width {w}");
+    assert!((h - t.layer.height).abs() <= t.layer.height_tolerance, "height {h}");
+    assert_eq!((w, h), (v["layer"]["width"].as_f64().unwrap(), v["layer"]["height"].as_f64().unwrap()), "the plan's prediction is the scenario's run");
+    // the wall stands to 1.5 x 0.1 m at the plan's layer time, and not at a tenth of it
+    let model = Model::load(&fixture("truth.toml")).unwrap();
+    let wall = strand::plan::constraint::Wall::of(&model, 0.0, 9.81).unwrap();
+    let lt = v["settings"]["layer_time"].as_f64().unwrap();
+    assert!(wall.buildable(w, h, lt, 1.0).unwrap().height >= 0.15 * (1.0 - 1e-6), "layer time {lt}");
+    assert!(wall.buildable(w, h, 0.1 * lt, 1.0).unwrap().height < 0.15, "layer time {lt}");
+    // never overwritten silently
+    let (code, _, stderr) = strand(&args);
+    assert_ne!(code, 0);
+    assert!(stderr.contains("exists: give --overwrite"), "{stderr}");
+}
+
+#[test]
+fn the_map_agrees_with_direct_runs_at_two_of_its_points() {
+    let t = Targets::load(&fixture("targets.toml")).unwrap();
+    let model = Model::load(&fixture("truth.toml")).unwrap();
+    let line = Line::new(&model, &fixture("line.toml"), &t).unwrap();
+    let axes = [Axis { setting: Setting::Speed, bounds: [0.06, 0.1], n: 2 }, Axis { setting: Setting::Extrusion, bounds: [0.04, 0.06], n: 3 }];
+    let m = map::map(&line, &t, None, axes, &line.nominal, None, &strand::measure::engine::Engine::Local, 2).unwrap();
+    print!("{}", map::text(&m));
+    assert_eq!(m.points.len(), 6);
+    for k in [1, 4] {
+        let p = &m.points[k];
+        let direct = line.layer_values(&p.x, None).unwrap();
+        println!("point {k}: map {:?}, direct {direct:?}", [p.width, p.height]);
+        for (a, b) in [p.width, p.height].iter().zip(direct) {
+            assert!((a - b).abs() <= 1e-9 * b.abs(), "point {k}: {a} against {b}");
+        }
+    }
+    // the width grows with the extrusion speed at each speed (paper 000, Comminal et al.)
+    for i in 0..2 {
+        assert!(m.points[i].width < m.points[2 + i].width && m.points[2 + i].width < m.points[4 + i].width, "{}", map::text(&m));
+    }
+    let dir = tempfile::tempdir().unwrap();
+    map::write_csv(&m, &dir.path().join("map.csv")).unwrap();
+    map::write_png(&m, &dir.path().join("map.png")).unwrap();
+    let csv = std::fs::read_to_string(dir.path().join("map.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 7);
+    assert!(std::fs::metadata(dir.path().join("map.png")).unwrap().len() > 1000);
+}
+
+#[test]
+fn targets_no_setting_meets_are_named_with_how_close_the_best_came() {
+    let dir = tempfile::tempdir().unwrap();
+    let (truth, line) = (fixture("truth.toml"), fixture("line.toml"));
+    let base = std::fs::read_to_string(fixture("targets.toml")).unwrap();
+    let out = dir.path().join("planned.toml");
+    let plan = |targets: &str, evaluations: &str| {
+        let path = dir.path().join("t.toml");
+        std::fs::write(&path, targets).unwrap();
+        let r = strand(&["plan", "--model", s(&truth), "--print", s(&line), "--targets", s(&path), "--out", s(&out), "--max-evaluations", evaluations]);
+        println!("{}", r.2);
+        r
+    };
+    // a layer 40 mm wide: the widest the bounds allow is about half of it
+    let (code, _, stderr) = plan(&base.replace("width = 0.017", "width = 0.040"), "3");
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("no feasible setting: the layer width 40.00 +- 0.80 mm cannot be met within the bounds: the closest setting found"), "{stderr}");
+    // a layer time too short for the wall's design height: how tall it stands at the longest
+    let (code, _, stderr) = plan(&base.replace("layer_time = [5.0, 600.0]", "layer_time = [1.0, 6.0]"), "1");
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("the wall cannot stand to its design height 0.1 m times 1.5 = 0.150 m within the layer time's bounds: at the longest, 6 s, it stands"), "{stderr}");
+    // bounds that exclude each other, refused before any run
+    let (code, _, stderr) = plan(&base.replace("layer_time = [5.0, 600.0]", "layer_time = [0.1, 0.2]"), "1");
+    assert_eq!(code, 2, "{stderr}");
+    assert!(stderr.contains("settings.layer_time's upper bound 0.2 s is shorter than one layer takes the nozzle at the highest speed") && stderr.contains("the bounds exclude each other"), "{stderr}");
+    assert!(!stderr.contains("start:"), "{stderr}");
+    let (code, _, stderr) = plan(&base.replace("height_tolerance = 0.0005", "height_tolerance = 0.0"), "1");
+    assert_eq!(code, 2, "{stderr}");
+    assert!(stderr.contains("layer.height_tolerance = 0: a tolerance of zero"), "{stderr}");
+    assert!(!out.exists());
+}
