@@ -122,15 +122,23 @@ pub fn forward_value(sc: &Scenario, objective: &Objective, threads: Option<usize
 /// steps.
 pub fn forward_values_after(sc: &Scenario, objectives: &[Objective], steps: &[u64], threads: Option<usize>) -> Result<Vec<f64>, GradError> {
     let mut sim = prepare(sc, threads)?;
-    let frame = Frame::of(&sim);
-    let mut order: Vec<usize> = (0..objectives.len()).collect();
+    let last = steps.iter().copied().max().unwrap_or(0);
+    values_along(&mut sim, objectives, steps, last)
+}
+
+/// `objectives[k]` after `steps[k]` steps of `sim`, which runs `run_to` steps in all (an
+/// objective after a later step stays NaN).
+fn values_along(sim: &mut Simulation, objectives: &[Objective], steps: &[u64], run_to: u64) -> Result<Vec<f64>, GradError> {
+    let frame = Frame::of(sim);
+    let mut order: Vec<usize> = (0..objectives.len()).filter(|&k| steps[k] <= run_to).collect();
     order.sort_by_key(|&k| steps[k]);
     let (mut values, mut done) = (vec![f64::NAN; objectives.len()], 0);
     for k in order {
-        advance_to_end(&mut sim, steps[k] - done)?;
+        advance_to_end(sim, steps[k] - done)?;
         done = steps[k];
-        values[k] = objectives[k].evaluate(&sim, &frame, None)?;
+        values[k] = objectives[k].evaluate(sim, &frame, None)?;
     }
+    advance_to_end(sim, run_to - done)?;
     Ok(values)
 }
 
@@ -162,20 +170,10 @@ pub fn step_at(sim: &Simulation, t: f64) -> Option<u64> {
 /// The objectives after a forward run of `sc`, each taken after its step (`None`: the last).
 pub fn forward_values(sc: &Scenario, seeds: &[Seeded], threads: Option<usize>) -> Result<Vec<f64>, GradError> {
     let mut sim = prepare(sc, threads)?;
-    let end = sim.scenario.simulation.end_time;
     let n = count_steps(&sim);
-    let frame = Frame::of(&sim);
+    let objectives: Vec<Objective> = seeds.iter().map(|s| s.objective.clone()).collect();
     let stops: Vec<u64> = seeds.iter().map(|s| s.step.unwrap_or(n)).collect();
-    let mut values = vec![f64::NAN; seeds.len()];
-    for step in 0..=n {
-        if step > 0 {
-            sim.step_until(end)?;
-        }
-        for (k, s) in seeds.iter().enumerate().filter(|(k, _)| stops[*k] == step) {
-            values[k] = s.objective.evaluate(&sim, &frame, None)?;
-        }
-    }
-    Ok(values)
+    values_along(&mut sim, &objectives, &stops, n)
 }
 
 /// Ranges of particle ids per body (bodies are filled in order, ids are creation order).

@@ -19,7 +19,7 @@
 use super::error::MeasureError;
 use super::experiments::Experiments;
 use super::observation::Observation;
-use super::linalg::{gauss_newton_step, normal_equations, pinv_sym, Mat};
+use super::linalg::{gauss_newton_step, normal_equations, pinv_sym, secant_update, Mat};
 use super::engine::{Answer, Engine};
 use super::progress::Progress;
 use super::model::{Bounds, Model};
@@ -500,22 +500,6 @@ fn damped_step(
         *lambda = raised(*lambda, simulated);
     }
     Ok(None)
-}
-
-/// Broyden's update of `jac` (at `from`) for a step to `to`, where the values went from `v0` to
-/// `v1`: the least change, in the parameters' scales, after which the Jacobian maps the step onto
-/// the values' change.
-fn secant_update(jac: &[Vec<f64>], (from, to): (&[f64], &[f64]), scale: &[f64], (v0, v1): (&[f64], &[f64])) -> Vec<Vec<f64>> {
-    let dx: Vec<f64> = to.iter().zip(from).map(|(b, a)| b - a).collect();
-    let ds: Vec<f64> = dx.iter().zip(scale).map(|(d, s)| d / s).collect();
-    let norm2: f64 = ds.iter().map(|d| d * d).sum();
-    jac.iter()
-        .zip(v0.iter().zip(v1))
-        .map(|(row, (a, b))| {
-            let miss = (b - a) - row.iter().zip(&dx).map(|(g, d)| g * d).sum::<f64>();
-            row.iter().zip(ds.iter().zip(scale)).map(|(g, (d, s))| g + miss * d / (s * norm2)).collect()
-        })
-        .collect()
 }
 
 /// Whether any of the experiments `data` observes is a simulation (a rheometer test's Jacobian

@@ -74,6 +74,22 @@ pub fn f_sf(f: f64, d1: usize, d2: usize) -> f64 {
     FisherSnedecor::new(d1 as f64, d2 as f64).expect("d1, d2 > 0 degrees of freedom").sf(f)
 }
 
+/// Broyden's update of `jac` (at `from`) for a step to `to`, where the values went from `v0` to
+/// `v1`: the least change, in the parameters' scales, after which the Jacobian maps the step onto
+/// the values' change.
+pub fn secant_update(jac: &[Vec<f64>], (from, to): (&[f64], &[f64]), scale: &[f64], (v0, v1): (&[f64], &[f64])) -> Vec<Vec<f64>> {
+    let dx: Vec<f64> = to.iter().zip(from).map(|(b, a)| b - a).collect();
+    let ds: Vec<f64> = dx.iter().zip(scale).map(|(d, s)| d / s).collect();
+    let norm2: f64 = ds.iter().map(|d| d * d).sum();
+    jac.iter()
+        .zip(v0.iter().zip(v1))
+        .map(|(row, (a, b))| {
+            let miss = (b - a) - row.iter().zip(&dx).map(|(g, d)| g * d).sum::<f64>();
+            row.iter().zip(ds.iter().zip(scale)).map(|(g, (d, s))| g + miss * d / (s * norm2)).collect()
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

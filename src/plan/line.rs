@@ -124,6 +124,11 @@ impl Line {
         }
     }
 
+    /// The width and the height as the objectives of one run, at its end.
+    fn seeds(&self) -> Result<Vec<Seeded>, PlanError> {
+        self.observables().iter().map(|o| Ok(Seeded { objective: o.parse::<Objective>()?, step: None })).collect()
+    }
+
     /// The point as an experiment `id` of the measurement loop, in a campaign of its own folder.
     pub fn experiment(&self, id: &str, x: &Point) -> Experiment {
         let file = self.path.file_name().map(PathBuf::from).unwrap_or_else(|| self.path.clone());
@@ -159,7 +164,7 @@ impl Line {
     /// sweep for both), the others' entries 0.
     pub fn layer(&self, x: &Point, free: &[Setting], opts: &GradOptions) -> Result<Layer, PlanError> {
         let sc = self.scenario(x)?;
-        let seeds: Vec<Seeded> = self.observables().iter().map(|o| Ok(Seeded { objective: o.parse::<Objective>()?, step: None })).collect::<Result<_, PlanError>>()?;
+        let seeds = self.seeds()?;
         let by: Vec<(Setting, Vec<String>)> = free.iter().map(|&s| (s, self.keys_of(s))).collect();
         let wrt: Vec<String> = by.iter().flat_map(|(_, k)| k.iter().cloned()).collect();
         let rs = gradients(&sc, &seeds, &wrt, opts)?;
@@ -167,8 +172,7 @@ impl Line {
         for (r, g) in rs.iter().zip(layer.gradient.iter_mut()) {
             let mut k = 0;
             for (s, keys) in &by {
-                let i = Setting::ALL.iter().position(|a| a == s).expect("a setting");
-                g[i] = r.gradient[k..k + keys.len()].iter().sum();
+                g[s.index()] = r.gradient[k..k + keys.len()].iter().sum();
                 k += keys.len();
             }
         }
@@ -178,7 +182,7 @@ impl Line {
     /// The layer at `x`, by a forward run alone.
     pub fn layer_values(&self, x: &Point, threads: Option<usize>) -> Result<[f64; 2], PlanError> {
         let sc = self.scenario(x)?;
-        let seeds: Vec<Seeded> = self.observables().iter().map(|o| Ok(Seeded { objective: o.parse::<Objective>()?, step: None })).collect::<Result<_, PlanError>>()?;
+        let seeds = self.seeds()?;
         let v = crate::grad::driver::forward_values(&sc, &seeds, threads)?;
         Ok([v[0], v[1]])
     }

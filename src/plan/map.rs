@@ -36,7 +36,7 @@ impl Axis {
         (0..self.n).map(|k| if self.n == 1 { lo } else { lo + (hi - lo) * k as f64 / (self.n - 1) as f64 }).collect()
     }
     fn index(&self) -> usize {
-        Setting::ALL.iter().position(|a| *a == self.setting).expect("a setting")
+        self.setting.index()
     }
 }
 
@@ -118,7 +118,7 @@ pub fn map(line: &Line, targets: &Targets, wall: Option<&WallGoal>, axes: [Axis;
         _ => engine.sensitivity(jobs, &line.model, &data, &exps, None)??.values.chunks(2).map(|v| Ok([v[0], v[1]])).collect(),
     };
     let l = &targets.layer;
-    let length = targets.wall.as_ref().and_then(|w| w.length).unwrap_or(line.length);
+    let length = targets.layer_length(line.length);
     let mut points = Vec::new();
     for (k, x) in xs.iter().enumerate() {
         let ([width, height], error) = match &values[k] {
@@ -155,7 +155,6 @@ pub fn write_csv(m: &Map, path: &Path) -> Result<(), PlanError> {
 /// The map as heat maps of width, height [mm] and buildable height [m] (with a wall) in a PNG.
 pub fn write_png(m: &Map, path: &Path) -> Result<(), PlanError> {
     let [a, b] = m.axes;
-    let unit = |s: Setting| if s == Setting::Standoff { "mm" } else { "mm/s" };
     let (xs, ys): (Vec<f64>, Vec<f64>) = (a.values().iter().map(|v| v * 1e3).collect(), b.values().iter().map(|v| v * 1e3).collect());
     let marked: Vec<bool> = m.points.iter().map(|p| p.feasible).collect();
     let point = Some([m.marked[a.index()] * 1e3, m.marked[b.index()] * 1e3]);
@@ -165,8 +164,8 @@ pub fn write_png(m: &Map, path: &Path) -> Result<(), PlanError> {
         let t = m.layer_time.map_or(String::new(), |t| format!(" at T = {t:.1} s"));
         panels.push(panel(&format!("buildable height [m]{t}"), m.points.iter().map(|p| p.buildable.map_or(f64::NAN, |b| b.height)).collect()));
     }
-    let xd = format!("{} [{}]", a.setting.name(), unit(a.setting));
-    let yd = format!("{} [{}]", b.setting.name(), unit(b.setting));
+    let xd = format!("{} [{}]", a.setting.name(), a.setting.unit().0);
+    let yd = format!("{} [{}]", b.setting.name(), b.setting.unit().0);
     Ok(plot_heat_maps(path, &xd, &yd, &panels)?)
 }
 

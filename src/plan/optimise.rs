@@ -22,7 +22,7 @@ use super::error::PlanError;
 use super::line::{Layer, Line, Point};
 use super::targets::Setting;
 use crate::grad::GradOptions;
-use crate::measure::linalg::{gauss_newton_step, normal_equations, pinv_sym};
+use crate::measure::linalg::{gauss_newton_step, normal_equations, pinv_sym, secant_update};
 
 /// What the search is given.
 pub struct Problem<'a> {
@@ -74,7 +74,7 @@ impl Problem<'_> {
     }
 
     fn index(&self, k: usize) -> usize {
-        Setting::ALL.iter().position(|s| *s == self.free[k].0).expect("a setting")
+        self.free[k].0.index()
     }
 
     /// The start: the scenario's settings, within the bounds.
@@ -218,16 +218,16 @@ impl Problem<'_> {
             let u: Vec<f64> = self.scaled(&at.x).iter().zip(&d).map(|(a, b)| a + b).collect();
             let mut trial = self.evaluate(&self.unscaled(&at.x, &u))?;
             // the step's secant: what the width and the height did along it
-            let du: Vec<f64> = self.scaled(&trial.x).iter().zip(self.scaled(&at.x)).map(|(b, a)| b - a).collect();
-            let dr = [trial.residual[0] - at.residual[0], trial.residual[1] - at.residual[1]];
+            let (from, to) = (self.scaled(&at.x), self.scaled(&trial.x));
+            let secant = |jac: &mut Vec<Vec<f64>>| secant(jac, (&from, &to), (&at.residual, &trial.residual));
             if Problem::better(&trial, &at) {
-                secant(&mut trial.jacobian, &du, &dr);
+                secant(&mut trial.jacobian);
                 trial.accepted = true;
                 at = trial.clone();
                 delta = (2.0 * delta).min(0.5);
                 say(&trial, "kept");
             } else {
-                secant(&mut at.jacobian, &du, &dr);
+                secant(&mut at.jacobian);
                 delta /= 4.0;
                 say(&trial, "refused");
             }
@@ -237,20 +237,16 @@ impl Problem<'_> {
     }
 }
 
-/// Broyden's least-change update of `jac` so that it maps the step `du` onto the change `dr`: the
+/// Broyden's least-change update of `jac` (`measure::linalg::secant_update`, in the scaled
+/// settings) for the step `from` -> `to`, along which the residuals went `r0` -> `r1`: the
 /// adjoint gives the local slope, which at the cells a plan runs at can differ from the slope
-/// over a step (the section's outline moves by whole particles).
-fn secant(jac: &mut [Vec<f64>], du: &[f64], dr: &[f64; 2]) {
-    let norm2: f64 = du.iter().map(|d| d * d).sum();
-    if norm2 <= 0.0 {
+/// over a step (the section's outline moves by whole particles). A step the bounds cut to
+/// nothing leaves it as it is.
+fn secant(jac: &mut Vec<Vec<f64>>, (from, to): (&[f64], &[f64]), (r0, r1): (&[f64; 2], &[f64; 2])) {
+    if from.iter().zip(to).map(|(a, b)| (b - a) * (b - a)).sum::<f64>() <= 0.0 {
         return;
     }
-    for (row, d) in jac.iter_mut().zip(dr) {
-        let miss = d - row.iter().zip(du).map(|(j, u)| j * u).sum::<f64>();
-        for (j, u) in row.iter_mut().zip(du) {
-            *j += miss * u / norm2;
-        }
-    }
+    *jac = secant_update(jac, (from, to), &vec![1.0; from.len()], (r0, r1));
 }
 
 /// The answer of a search: its last accepted point.

@@ -36,6 +36,42 @@ impl Plan {
     pub fn settings(&self) -> Point {
         self.best().x
     }
+
+    /// Why the plan's point does not meet the targets: each target missed and how close the best
+    /// setting came.
+    pub fn infeasible(&self) -> Option<PlanError> {
+        let b = self.best();
+        let l = &self.targets.layer;
+        let at = format!("speed {:.4} m/s, extrusion {:.4} m/s, standoff {:.4} m", b.x[0], b.x[1], b.x[2]);
+        let mut missed = Vec::new();
+        for (k, (name, target, tol)) in [("width", l.width, l.width_tolerance), ("height", l.height, l.height_tolerance)].into_iter().enumerate() {
+            if b.residual[k].abs() > 1.0 {
+                let v = b.layer.values[k];
+                missed.push(format!(
+                    "the layer {name} {:.2} +- {:.2} mm cannot be met within the bounds: the closest setting found ({at}) gives {:.2} mm, {:.2} mm off ({:.1} tolerances)",
+                    target * 1e3,
+                    tol * 1e3,
+                    v * 1e3,
+                    (v - target).abs() * 1e3,
+                    b.residual[k].abs()
+                ));
+            }
+        }
+        if let (Some(short), Some(w), Some([_, hi])) = (&b.build.short, &self.targets.wall, self.layer_time) {
+            missed.push(format!(
+                "the wall cannot stand to its design height {} m times {} = {:.3} m within the layer time's bounds: at the longest, {hi} s, it stands {:.3} m ({}), {:.0} % of it, with layers {:.2} x {:.2} mm ({at})",
+                w.design_height,
+                w.safety_factor,
+                w.design_height * w.safety_factor,
+                short.height,
+                short.mode.map_or("no failure found", |m| m.name()),
+                100.0 * short.height / (w.design_height * w.safety_factor),
+                b.layer.values[0] * 1e3,
+                b.layer.values[1] * 1e3
+            ));
+        }
+        (!missed.is_empty()).then(|| PlanError::Infeasible(missed.join("; ")))
+    }
 }
 
 /// Options of a plan's search.
@@ -49,11 +85,11 @@ pub struct PlanOptions {
 /// the bounds against each other and every run's memory at the bounds' corners.
 pub fn problem<'a>(line: &'a Line, targets: &Targets, opts: &PlanOptions) -> Result<Problem<'a>, PlanError> {
     let mut free = targets.free();
+    let length = targets.layer_length(line.length);
     let wall = match &targets.wall {
         None => None,
         Some(w) => {
             let fastest = targets.settings.speed.map_or(line.nominal[0], |b| b[1]);
-            let length = w.length.unwrap_or(line.length);
             let [lo, hi] = targets.settings.layer_time.unwrap_or([f64::MIN_POSITIVE, f64::INFINITY]);
             if length / fastest > hi {
                 return Err(PlanError::Targets(format!(
@@ -74,7 +110,6 @@ pub fn problem<'a>(line: &'a Line, targets: &Targets, opts: &PlanOptions) -> Res
     if free.is_empty() {
         return Err(PlanError::Targets("settings: every bound holds its setting (lower = upper): nothing is left to choose".into()));
     }
-    let length = targets.wall.as_ref().and_then(|w| w.length).unwrap_or(line.length);
     let p = Problem {
         line,
         length,
@@ -91,7 +126,7 @@ pub fn problem<'a>(line: &'a Line, targets: &Targets, opts: &PlanOptions) -> Res
         .map(|c| {
             let mut x = p.start();
             for (k, (s, [lo, hi])) in p.free.iter().enumerate() {
-                x[Setting::ALL.iter().position(|a| a == s).expect("a setting")] = if c >> k & 1 == 1 { *hi } else { *lo };
+                x[s.index()] = if c >> k & 1 == 1 { *hi } else { *lo };
             }
             x
         })
@@ -113,46 +148,4 @@ pub fn plan(model: &crate::measure::model::Model, scenario: &Path, targets: &Tar
     };
     let (buckling_checked, layer_time) = (wall.as_ref().is_some_and(|w| w.wall.checks_buckling()), wall.as_ref().map(|w| w.layer_time));
     Ok(Plan { line, targets: targets.clone(), free, history, wall, buckling_checked, layer_time, seconds: clock.elapsed().as_secs_f64() })
-}
-
-impl Plan {
-    /// Why the plan's point does not meet the targets: each target missed and how close the best
-    /// setting came.
-    pub fn infeasible(&self) -> Option<PlanError> {
-        infeasible(self)
-    }
-}
-
-fn infeasible(plan: &Plan) -> Option<PlanError> {
-    let b = plan.best();
-    let l = &plan.targets.layer;
-    let at = format!("speed {:.4} m/s, extrusion {:.4} m/s, standoff {:.4} m", b.x[0], b.x[1], b.x[2]);
-    let mut missed = Vec::new();
-    for (k, (name, target, tol)) in [("width", l.width, l.width_tolerance), ("height", l.height, l.height_tolerance)].into_iter().enumerate() {
-        if b.residual[k].abs() > 1.0 {
-            let v = b.layer.values[k];
-            missed.push(format!(
-                "the layer {name} {:.2} +- {:.2} mm cannot be met within the bounds: the closest setting found ({at}) gives {:.2} mm, {:.2} mm off ({:.1} tolerances)",
-                target * 1e3,
-                tol * 1e3,
-                v * 1e3,
-                (v - target).abs() * 1e3,
-                b.residual[k].abs()
-            ));
-        }
-    }
-    if let (Some(short), Some(w), Some([_, hi])) = (&b.build.short, &plan.targets.wall, plan.layer_time) {
-        missed.push(format!(
-            "the wall cannot stand to its design height {} m times {} = {:.3} m within the layer time's bounds: at the longest, {hi} s, it stands {:.3} m ({}), {:.0} % of it, with layers {:.2} x {:.2} mm ({at})",
-            w.design_height,
-            w.safety_factor,
-            w.design_height * w.safety_factor,
-            short.height,
-            short.mode.map_or("no failure found", |m| m.name()),
-            100.0 * short.height / (w.design_height * w.safety_factor),
-            b.layer.values[0] * 1e3,
-            b.layer.values[1] * 1e3
-        ));
-    }
-    (!missed.is_empty()).then(|| PlanError::Infeasible(missed.join("; ")))
 }

@@ -25,7 +25,7 @@ pub struct Sensitivity {
 pub fn sensitivities(plan: &Plan) -> Vec<Sensitivity> {
     let b = plan.best();
     let l = &plan.targets.layer;
-    let idx = |s: Setting| Setting::ALL.iter().position(|a| *a == s).expect("a setting");
+    let idx = Setting::index;
     let row = |target: &'static str, unit: &'static str, scale: f64, d: &dyn Fn(usize) -> f64, tol: Option<f64>| {
         let derivative: Vec<f64> = plan.free.iter().map(|(s, _)| d(idx(*s))).collect();
         let per_percent = plan.free.iter().zip(&derivative).map(|((s, _), g)| g * b.x[idx(*s)] * 0.01 * scale).collect();
@@ -53,9 +53,8 @@ pub fn text(plan: &Plan) -> String {
     let runs = plan.history.len();
     s += &format!("plan: {} runs with gradients in {:.1} s\n", runs, plan.seconds);
     s += "settings:\n";
-    let unit = |st: Setting| if st == Setting::Standoff { ("mm", 1e3) } else { ("mm/s", 1e3) };
     for (k, st) in Setting::ALL.iter().enumerate() {
-        let (u, f) = unit(*st);
+        let (u, f) = st.unit();
         match plan.free.iter().find(|(a, _)| a == st) {
             Some((_, [lo, hi])) => s += &format!("  {:<10} {:>9.2} {u:<5} (bounds {:.2} to {:.2})\n", st.name(), b.x[k] * f, lo * f, hi * f),
             None => s += &format!("  {:<10} {:>9.2} {u:<5} (held at the scenario's)\n", st.name(), b.x[k] * f),

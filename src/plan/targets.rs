@@ -96,6 +96,20 @@ impl Setting {
     pub fn parse(s: &str) -> Option<Setting> {
         Setting::ALL.into_iter().find(|x| x.name() == s)
     }
+
+    /// The setting's place in a point (`line::Point`), in [`Setting::ALL`]'s order.
+    pub fn index(self) -> usize {
+        Setting::ALL.iter().position(|a| *a == self).expect("every setting is in ALL")
+    }
+
+    /// The unit a report shows the setting in, and its factor from SI.
+    pub fn unit(self) -> (&'static str, f64) {
+        if self == Setting::Standoff {
+            ("mm", 1e3)
+        } else {
+            ("mm/s", 1e3)
+        }
+    }
 }
 
 impl Bounds {
@@ -122,6 +136,11 @@ impl Targets {
     }
 
     /// The settings the plan moves, in [`Setting::ALL`]'s order.
+    /// One layer's path [m]: the wall's, or `printed` (the print's extruding length).
+    pub fn layer_length(&self, printed: f64) -> f64 {
+        self.wall.as_ref().and_then(|w| w.length).unwrap_or(printed)
+    }
+
     pub fn free(&self) -> Vec<(Setting, [f64; 2])> {
         Setting::ALL.into_iter().filter_map(|s| self.settings.of(s).map(|b| (s, b))).collect()
     }
