@@ -292,7 +292,8 @@ struct PlanArgs {
     /// The calibrated model ([material] and [effects.NAME], as `strand calibrate` writes it).
     #[arg(long)]
     model: PathBuf,
-    /// The print: a scenario with an inline [print] path.
+    /// The print: a scenario with an inline [print] path, or a G-code or point-list toolpath
+    /// (written inline beside --out as .path.toml, and again with the settings as .gcode or .csv).
     #[arg(long)]
     print: PathBuf,
     /// The targets: [layer], [wall] and [settings] (docs/planning.md).
@@ -736,6 +737,12 @@ fn plan(args: PlanArgs) -> Result<bool, Failure> {
     let out = out.unwrap_or_else(|| print.with_extension("planned.toml"));
     let (csv, png) = (out.with_extension("map.csv"), out.with_extension("map.png"));
     report::refuse_existing(&out, overwrite)?;
+    // a G-code or point-list print is planned on its moves written inline beside --out
+    let file = plan::toolpath_file::inline(&print, &out.with_extension("path.toml"), overwrite)?;
+    if let Some(f) = &file {
+        report::refuse_existing(&f.planned_path(&out), overwrite)?;
+    }
+    let scenario = file.as_ref().map_or(print.clone(), |f| f.inlined.clone());
     let axes = map.as_deref().map(|s| pmap::axes(s, &map_size, &t)).transpose()?;
     if axes.is_some() {
         report::refuse_existing(&csv, overwrite)?;
@@ -744,7 +751,7 @@ fn plan(args: PlanArgs) -> Result<bool, Failure> {
     let engine = engine.engine()?;
     let ram_bytes = strand::memory::parse_size(&ram).map_err(|e| format!("--ram: {e}"))?;
     let grad = strand::grad::GradOptions { ram_bytes, disk_bytes: 0, disk_dir: std::env::temp_dir(), threads, schedule: None, until_rest: None };
-    let p = plan::plan(&Model::load(&model)?, &print, &t, &plan::PlanOptions { grad, max_evaluations, progress: !json })?;
+    let p = plan::plan(&Model::load(&model)?, &scenario, &t, &plan::PlanOptions { grad, max_evaluations, progress: !json })?;
     let missed = p.infeasible();
     if missed.is_none() {
         if json {
@@ -766,6 +773,11 @@ fn plan(args: PlanArgs) -> Result<bool, Failure> {
     }
     report::write_scenario(&p, &out, overwrite)?;
     eprintln!("scenario with the settings written to {}", out.display());
+    if let Some(f) = &file {
+        let written = f.planned_path(&out);
+        f.write_planned(&p, &written, overwrite)?;
+        eprintln!("{} with the settings written to {} (its moves inline: {})", print.display(), written.display(), f.inlined.display());
+    }
     Ok(true)
 }
 

@@ -66,7 +66,7 @@ impl Line {
         let sc = parse_scenario(&scenario_text(model, &experiment_keys(model, &x)?, path)?, path)?;
         let p = sc.print.as_ref().ok_or_else(|| PlanError::Unsupported(format!("{}: no [print] table: a plan sets a print's settings", path.display())))?;
         if p.path.is_empty() {
-            return Err(PlanError::Unsupported(format!("{}: a plan sets an inline [print] path (a G-code or point-list toolpath: not yet)", path.display())));
+            return Err(PlanError::Unsupported(format!("{}: a plan sets an inline [print] path (`strand plan` writes a G-code or point-list toolpath inline first: plan::toolpath_file)", path.display())));
         }
         if p.path.iter().any(|s| matches!(s, Segment::Arc { extrusion, .. } if *extrusion > 0.0)) {
             return Err(PlanError::Unsupported(format!("{}: a plan sets straight extruding moves; this path extrudes along arcs (not yet)", path.display())));

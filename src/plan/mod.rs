@@ -10,7 +10,8 @@
 //! (`constraint.rs`, `build.rs`), the margins and the sensitivity of each target to each
 //! setting (`report.rs`); or an error naming the target that cannot be met and how close the
 //! best setting came. `map.rs` runs the print over a grid of two settings (the printability
-//! map).
+//! map). `toolpath_file.rs` writes a G-code or point-list print inline for the plan, and the
+//! file again with the planned settings.
 //!
 //! Imports point one way: `error.rs` and `targets.rs` at the bottom; the print (`line.rs`) and
 //! the wall (`constraint.rs`); the build (`build.rs`); the search (`optimise.rs`); the plan
@@ -26,5 +27,6 @@ pub mod optimise;
 pub mod planner;
 pub mod report;
 pub mod targets;
+pub mod toolpath_file;
 
 pub use planner::{plan, Plan, PlanOptions};

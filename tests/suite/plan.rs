@@ -110,3 +110,40 @@ fn targets_no_setting_meets_are_named_with_how_close_the_best_came() {
     assert!(stderr.contains("layer.height_tolerance = 0: a tolerance of zero"), "{stderr}");
     assert!(!out.exists());
 }
+
+/// A G-code print: written inline for the plan, then written again at a point and a layer time;
+/// strand's own G-code reader finds exactly those settings in it (no simulation).
+#[test]
+fn the_planned_gcode_carries_the_settings() {
+    use strand::print::toolpath::MoveKind;
+    let dir = tempfile::tempdir().unwrap();
+    let t = Targets::load(&fixture("targets.toml")).unwrap();
+    let model = Model::load(&fixture("truth.toml")).unwrap();
+    let print = fixture("line_gcode.toml");
+    let f = strand::plan::toolpath_file::inline(&print, &dir.path().join("p.path.toml"), false).unwrap().expect("a G-code print");
+    let line = Line::new(&model, &f.inlined, &t).unwrap();
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * b.abs();
+    assert!(close(line.nominal[0], 0.08) && close(line.nominal[1], 0.05) && close(line.nominal[2], 0.006), "{:?}", line.nominal);
+    let sc = strand::scenario::Scenario::load(&print).unwrap();
+    let cfg = sc.print.as_ref().unwrap();
+    let reread = |path: &Path| strand::print::gcode::parse_gcode_for_outlet(&std::fs::read_to_string(path).unwrap(), &cfg.gcode_options, cfg.nozzle.area()).unwrap().0;
+    let x = [0.0731, 0.0427, 0.0052];
+    let out = dir.path().join("p.gcode");
+    for (layer_time, gap) in [(3.0, 3.0), (0.1, 0.04 / 0.0731 + 0.006 / 0.08)] {
+        f.write(&line, &x, Some(layer_time), &out, true).unwrap();
+        let tp = reread(&out);
+        let prints: Vec<_> = tp.moves().iter().filter(|m| m.kind == MoveKind::Print).collect();
+        assert_eq!(prints.len(), 2);
+        for m in &prints {
+            assert!(close(m.length() / m.duration(), x[0]) && close(m.extrusion_speed, x[1]), "{m:?}");
+        }
+        // the standoff over the platform (z = 3 mm), and the layers a layer time apart (or the
+        // nozzle's own time when that is longer: no dwell)
+        assert!((prints[0].from[2] - 0.003 - x[2]).abs() < 1e-12, "{:?}", prints[0]);
+        let layers = tp.layers();
+        assert_eq!(layers.len(), 2);
+        assert!(close(layers[1].1 - layers[0].1, gap), "layer time {layer_time}: {layers:?}");
+    }
+    let e = f.write(&line, &x, None, &out, false).unwrap_err().to_string();
+    assert!(e.contains("exists: give --overwrite"), "{e}");
+}
