@@ -312,6 +312,10 @@ struct PlanArgs {
     /// The printability map over two settings, e.g. speed,extrusion (their bounds span the axes).
     #[arg(long, value_name = "X,Y")]
     map: Option<String>,
+    /// After the plan, run a brute-force grid of NxM points over its first two free settings and
+    /// compare the fastest feasible one and the cost with the plan's.
+    #[arg(long, value_name = "NxM")]
+    grid_check: Option<String>,
     /// Points along the map's axes.
     #[arg(long, default_value = "5x5", value_name = "NxM")]
     map_size: String,
@@ -731,7 +735,7 @@ fn rheometer(args: RheometerArgs) -> Result<bool, Failure> {
 
 /// `strand plan`: the settings, their report and scenario, and with --map the printability map.
 fn plan(args: PlanArgs) -> Result<bool, Failure> {
-    let PlanArgs { model, print, targets, out, overwrite, max_evaluations, map, map_size, jobs, engine, ram, threads, json } = args;
+    let PlanArgs { model, print, targets, out, overwrite, max_evaluations, map, grid_check, map_size, jobs, engine, ram, threads, json } = args;
     use strand::plan::{self, map as pmap, report};
     let t = plan::targets::Targets::load(&targets)?;
     let out = out.unwrap_or_else(|| print.with_extension("planned.toml"));
@@ -770,6 +774,10 @@ fn plan(args: PlanArgs) -> Result<bool, Failure> {
     }
     if let Some(e) = missed {
         return Err(Failure { message: e.to_string(), code: 1 });
+    }
+    if let Some(size) = grid_check {
+        let [n, m] = plan::grid_search::size(&size)?;
+        eprint!("{}", plan::grid_search::text(&p, &plan::grid_search::grid_search(&p, [n, m], &engine, jobs)?));
     }
     report::write_scenario(&p, &out, overwrite)?;
     eprintln!("scenario with the settings written to {}", out.display());

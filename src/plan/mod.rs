@@ -11,7 +11,8 @@
 //! setting (`report.rs`); or an error naming the target that cannot be met and how close the
 //! best setting came. `map.rs` runs the print over a grid of two settings (the printability
 //! map). `toolpath_file.rs` writes a G-code or point-list print inline for the plan, and the
-//! file again with the planned settings.
+//! file again with the planned settings. `grid_search.rs` checks a plan against a brute-force
+//! grid of its settings.
 //!
 //! Imports point one way: `error.rs` and `targets.rs` at the bottom; the print (`line.rs`) and
 //! the wall (`constraint.rs`); the build (`build.rs`); the search (`optimise.rs`); the plan
@@ -21,6 +22,7 @@
 pub mod build;
 pub mod constraint;
 pub mod error;
+pub mod grid_search;
 pub mod line;
 pub mod map;
 pub mod optimise;

@@ -149,7 +149,7 @@ impl FilePrint {
         refuse_existing(out, overwrite)?;
         let (tp, dwells) = self.planned(line, x, layer_time)?;
         let lt = layer_time.map_or(String::new(), |t| format!(", layer time {t} s"));
-        let head = format!("strand plan of {}: speed {} m/s, extrusion {} m/s, standoff {} m{lt}", line.path.display(), x[0], x[1], x[2]);
+        let head = format!("strand plan: speed {} m/s, extrusion {} m/s, standoff {} m{lt}", x[0], x[1], x[2]);
         let text = match &self.source {
             Source::Gcode(o) => gcode(&tp, &dwells, o, self.outlet_area, &head),
             Source::Points => points(&tp, &dwells, self.outlet_area, &head)?,

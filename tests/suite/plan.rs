@@ -147,3 +147,42 @@ fn the_planned_gcode_carries_the_settings() {
     let e = f.write(&line, &x, None, &out, false).unwrap_err().to_string();
     assert!(e.contains("exists: give --overwrite"), "{e}");
 }
+
+fn plan_of(targets: &Targets) -> strand::plan::Plan {
+    let model = Model::load(&fixture("truth.toml")).unwrap();
+    let grad = strand::grad::GradOptions { ram_bytes: 1 << 30, disk_bytes: 0, disk_dir: std::env::temp_dir(), threads: None, schedule: None, until_rest: None };
+    let p = strand::plan::plan(&model, &fixture("line.toml"), targets, &strand::plan::PlanOptions { grad, max_evaluations: 12, progress: false }).unwrap();
+    print!("{}", strand::plan::report::text(&p));
+    assert!(p.infeasible().is_none(), "{:?}", p.infeasible());
+    p
+}
+
+/// Issue 55's brute-force check: a 4 x 4 grid over the plan's speed and extrusion speed finds no
+/// setting meeting the targets that builds faster than the plan by more than the grid resolves.
+#[test]
+fn a_grid_search_finds_no_faster_setting_than_the_plan() {
+    let p = plan_of(&Targets::load(&fixture("targets.toml")).unwrap());
+    let g = strand::plan::grid_search::grid_search(&p, [4, 4], &strand::measure::engine::Engine::Local, 2).unwrap();
+    print!("{}", strand::plan::grid_search::text(&p, &g));
+    assert_eq!(g.points.len(), 16);
+    let gain = g.gain(&p).expect("a feasible grid point (the targets' band crosses the grid)");
+    assert!(gain <= g.slack, "the grid builds {gain} s faster than the plan, more than its spacing resolves ({} s)", g.slack);
+}
+
+/// The standoff free as well: three settings for two targets, so the search moves along the
+/// targets towards the fastest build; the plan, simulated, meets the targets, and it builds no
+/// slower than the first setting that met them.
+#[test]
+fn a_plan_with_the_standoff_free_meets_the_targets_by_simulation() {
+    let text = std::fs::read_to_string(fixture("targets.toml")).unwrap();
+    let t = Targets::parse(&text.replace("layer_time = [5.0, 600.0]", "standoff = [0.004, 0.008]\nlayer_time = [5.0, 600.0]")).unwrap();
+    let p = plan_of(&t);
+    assert_eq!(p.free.len(), 3);
+    let x = p.settings();
+    assert!((0.004..=0.008).contains(&x[2]), "{x:?}");
+    let [w, h] = p.line.layer_values(&x, None).unwrap();
+    println!("simulated at the plan {x:?}: width {w}, height {h}");
+    assert!((w - t.layer.width).abs() <= t.layer.width_tolerance && (h - t.layer.height).abs() <= t.layer.height_tolerance);
+    let first = p.history.iter().find(|e| e.feasible()).unwrap();
+    assert!(p.best().build.build_time <= first.build.build_time, "{} after {}", p.best().build.build_time, first.build.build_time);
+}
