@@ -6,7 +6,7 @@ OUT ?= out
 TARGET_DIR := $(if $(CARGO_TARGET_DIR),$(CARGO_TARGET_DIR),target)
 STRAND := $(TARGET_DIR)/release/strand
 
-.PHONY: run test fuzz verify verify-quick bench bench-peer bench-restart bench-kernels bench-case1 bench-layers bench-layers-dwell bench-failure bench-mass-scaling bench-cylinder bench-convergence bench-nozzle-cells bench-nozzle-body bench-lbox bench-vfunnel bench-print-diagnose bench-observable-scatter lbox build fmt clippy clean
+.PHONY: run test fuzz verify verify-quick bench bench-peer bench-restart bench-kernels bench-case1 bench-layers bench-layers-dwell bench-failure bench-mass-scaling bench-cylinder bench-convergence bench-nozzle-cells bench-nozzle-body bench-lbox bench-vfunnel bench-print-diagnose bench-observable-scatter bench-plan lbox build fmt clippy clean
 
 build:
 	$(CARGO) build --release
@@ -121,6 +121,14 @@ bench-nozzle-body: build
 # minutes on 2 cores): fixtures/measure/print/'s four lines and two walls at 1.5 mm cells against
 # data synthesised from its friction truth at 1 mm, timed by stage (bench/print_diagnose.sh;
 # BENCHMARKS.md "A print campaign's diagnosis").
+# strand plan against a brute-force grid of its settings (BENCHMARKS.md "Planning"): the plan of
+# fixtures/plan alone, then again with an 8x8 grid over speed and extrusion (--jobs 2); each
+# command's wall and CPU seconds (GNU time), the grid's runs and fastest feasible build.
+bench-plan: build
+	mkdir -p $(OUT)/plan
+	/usr/bin/time -f "plan alone: %e s wall, %U+%S CPU s" $(STRAND) plan --model fixtures/plan/truth.toml --print fixtures/plan/line.toml --targets fixtures/plan/targets.toml --out $(OUT)/plan/line.planned.toml --overwrite > /dev/null
+	/usr/bin/time -f "plan and grid: %e s wall, %U+%S CPU s" $(STRAND) plan --model fixtures/plan/truth.toml --print fixtures/plan/line.toml --targets fixtures/plan/targets.toml --out $(OUT)/plan/line.planned.toml --overwrite --grid-check 8x8 --jobs 2 2>&1 >/dev/null | grep -vE "^  (start|kept|trial|refused)"
+
 bench-print-diagnose: build
 	bash bench/print_diagnose.sh $(STRAND) $(OUT)/print_diagnose
 

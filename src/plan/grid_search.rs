@@ -23,7 +23,7 @@ pub struct Graded {
 pub struct GridSearch {
     pub axes: [Axis; 2],
     pub points: Vec<Graded>,
-    /// Wall and CPU seconds of the grid's runs [s].
+    /// Wall and CPU seconds of the grid: its runs and its points' builds [s].
     pub seconds: f64,
     pub cpu_seconds: f64,
     /// The build time the grid cannot resolve at the plan [s].
@@ -60,7 +60,6 @@ pub fn grid_search(plan: &Plan, n: [usize; 2], engine: &Engine, jobs: usize) -> 
     let axes: [Axis; 2] = std::array::from_fn(|k| Axis { setting: plan.free[k].0, bounds: plan.free[k].1, n: n[k] });
     let (cpu, clock) = (crate::run::process_cpu_seconds(), std::time::Instant::now());
     let m = map::map(&plan.line, &plan.targets, None, axes, &plan.settings(), None, engine, jobs)?;
-    let (seconds, cpu_seconds) = (clock.elapsed().as_secs_f64(), crate::run::process_cpu_seconds() - cpu);
     let length = plan.targets.layer_length(plan.line.length);
     let mut points = Vec::new();
     for point in m.points {
@@ -71,6 +70,8 @@ pub fn grid_search(plan: &Plan, n: [usize; 2], engine: &Engine, jobs: usize) -> 
         let feasible = point.feasible && build.as_ref().is_some_and(|b| b.short.is_none());
         points.push(Graded { point, build, feasible });
     }
+    // the cost counts the closed forms too (each point's bisections for its layer time)
+    let (seconds, cpu_seconds) = (clock.elapsed().as_secs_f64(), crate::run::process_cpu_seconds() - cpu);
     let slack = axes.iter().map(|a| build_derivative(plan, a.setting.index()).abs() * (a.bounds[1] - a.bounds[0]) / (a.n - 1) as f64).sum();
     Ok(GridSearch { axes, points, seconds, cpu_seconds, slack })
 }
@@ -79,7 +80,7 @@ pub fn grid_search(plan: &Plan, n: [usize; 2], engine: &Engine, jobs: usize) -> 
 pub fn text(plan: &Plan, g: &GridSearch) -> String {
     let b = &plan.best().build;
     let mut s = format!(
-        "grid check: {}x{} over {} and {}: {} forward runs in {:.1} s ({:.1} CPU s); the plan: {} gradient runs in {:.1} s\n",
+        "grid check: {}x{} over {} and {}: {} forward runs and builds in {:.1} s ({:.1} CPU s); the plan: {} gradient runs in {:.1} s\n",
         g.axes[0].n,
         g.axes[1].n,
         g.axes[0].setting.name(),
