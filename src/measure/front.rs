@@ -21,7 +21,7 @@
 
 use super::error::MeasureError;
 use super::observation::Observable;
-use crate::grad::objective::{Frame, Objective};
+use crate::observables::{Frame, Objective};
 use crate::solver::Simulation;
 
 /// The observables of this file.

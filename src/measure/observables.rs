@@ -17,7 +17,7 @@ use super::front;
 use super::passing;
 use super::observation::Observable;
 use super::rheometer::Reading;
-use crate::grad::objective::Objective;
+use crate::observables::Objective;
 
 /// Observables a simulation experiment can produce, and those of a rheometer experiment.
 pub const SIMULATION_OBSERVABLES: &[&str] = &["spread", "front", "width", "height", "level", "area", "profile", "layer_height", "layer_width", "smooth_width", "smooth_height", "vx_max", "kinetic_energy", "mean_z", "failure_layer", "failure_time", "arrival", "stop_time", "passed"];
