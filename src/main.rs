@@ -810,6 +810,7 @@ failure_from!(
     strand::checkpoint::NoCheckpoints,
     strand::invalid::Invalid,
     strand::grad::GradError,
+    strand::observables::ObservableError,
     strand::grad::schedule::ScheduleError,
     strand::verify::VerifyError,
     strand::bench::BenchError,

@@ -1,8 +1,14 @@
 //! `area`: a section's area, the particle volumes V0 J weighted in x by the quadratic B-spline of
 //! knot spacing `[observe] slab` (as `sections.csv`'s `area`).
 
+use super::objective::{Kind, Takes};
 use super::state::{Seed, State};
 use crate::kernels::Real;
+
+/// Cross-section area at x = station [m2], summed: the particle volumes V0 J weighted by the
+/// quadratic B-spline of knot spacing `slab` in x, over the slab (as `sections.csv`'s `area`,
+/// consistent with the mass balance); with `[observe] mirror_y`, of the mirrored material.
+pub(super) const AREA: Kind = Kind { name: "area", takes: Takes::Stations, measured: true, evaluate: |s, o, seed| Ok(s.area(o.stations(), seed)) };
 
 impl State<'_> {
     pub(super) fn area(&self, stations: &[f64], mut seed: Option<Seed>) -> f64 {

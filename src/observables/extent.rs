@@ -1,9 +1,24 @@
 //! `width`, `height`, `level` and `total_height`: a section's or the whole material's extent,
 //! from its extreme particles plus half a spacing on each side (as `sections.csv`'s).
 
-use super::objective::Objective;
+use super::objective::{At, Kind, Objective, Takes};
 use super::state::{arg_max, Seed, State};
 use super::ObservableError;
+
+/// Extent in y of the particles within half a cell of x = station [m], summed over the
+/// stations (paper 000 sec. 4.2 sums three); with `[observe] mirror_y`, of the mirrored
+/// material.
+pub(super) const WIDTH: Kind = Kind { name: "width", takes: Takes::Stations, measured: true, evaluate: |s, o, seed| s.width_or_height(o, o.stations(), true, seed) };
+
+/// Top of the particles within half a cell of x = station above the base [m], summed.
+pub(super) const HEIGHT: Kind = Kind { name: "height", takes: Takes::Stations, measured: true, evaluate: |s, o, seed| s.width_or_height(o, o.stations(), false, seed) };
+
+/// `height` at one station where the material may not have arrived: 0 when no particle lies
+/// within half a cell of it (an L-box's height at the end of the box).
+pub(super) const LEVEL: Kind = Kind { name: "level", takes: Takes::Station, measured: true, evaluate: |s, o, seed| s.level(o.station(), seed) };
+
+/// Top of all the material above the base [m].
+pub(super) const TOTAL_HEIGHT: Kind = Kind { name: "total_height", takes: Takes::Nothing, measured: false, evaluate: |s, _, seed| s.total_height(seed) };
 
 impl State<'_> {
     pub(super) fn level(&self, station: f64, seed: Option<Seed>) -> Result<f64, ObservableError> {
@@ -11,7 +26,7 @@ impl State<'_> {
         if arg_max(self.n(), slab, |_| 0.0).is_none() {
             return Ok(0.0);
         }
-        let height = Objective::Height { stations: vec![station] };
+        let height = Objective::new(&HEIGHT, At::Stations(vec![station]));
         self.width_or_height(&height, &[station], false, seed)
     }
 

@@ -1,10 +1,23 @@
 //! `layer_height@X:K` and `layer_width@X:K`: a printed layer's thickness and width at a station,
 //! as the reporter's `layers.csv` gives them.
 
-use super::objective::Objective;
+use super::objective::{Kind, Objective, Takes};
 use super::state::{layer_tops, section_points, section_y, Seed, State};
 use super::ObservableError;
 use crate::kernels::Real;
+
+/// Thickness [m] of printed layer `layer` (1 = the bottom one) at x = station, as
+/// `observe::layer_heights` (the run's `layers.csv`) gives it: the slab's particles are
+/// assigned to layers by their z against the toolpath's layer heights (the nominal tops);
+/// a layer's top is its highest particle + h / 2, its thickness that top minus the top of
+/// the nearest non-empty layer below (the base for the first); 0 for an empty layer. The
+/// assignment and the top particles are held fixed.
+pub(super) const LAYER_HEIGHT: Kind = Kind { name: "layer_height", takes: Takes::StationAndLayer, measured: true, evaluate: |s, o, seed| s.layer(o, o.station(), o.layer(), true, seed) };
+
+/// Width [m] of printed layer `layer` at x = station (`observe::layer_widths`): the y
+/// extent + h of the particles `layer_height` assigns to it; with `[observe] mirror_y`, of
+/// them together with their mirror images; 0 for an empty layer.
+pub(super) const LAYER_WIDTH: Kind = Kind { name: "layer_width", takes: Takes::StationAndLayer, measured: true, evaluate: |s, o, seed| s.layer(o, o.station(), o.layer(), false, seed) };
 
 impl State<'_> {
     /// A printed layer's thickness (`height`) or width at a station.

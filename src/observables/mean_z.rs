@@ -1,8 +1,12 @@
 //! `mean_z`: the volume-weighted mean height of the particles above the base.
 
+use super::objective::{Kind, Takes};
 use super::state::{Seed, State};
 use super::ObservableError;
 use crate::kernels::Real;
+
+/// Volume-weighted mean height of the particles above the base.
+pub(super) const MEAN_Z: Kind = Kind { name: "mean_z", takes: Takes::Nothing, measured: true, evaluate: |s, _, seed| s.mean_z(seed) };
 
 impl State<'_> {
     pub(super) fn mean_z(&self, seed: Option<Seed>) -> Result<f64, ObservableError> {

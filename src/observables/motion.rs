@@ -1,7 +1,14 @@
 //! `vx_max` and `kinetic_energy`: the material's motion.
 
+use super::objective::{Kind, Takes};
 use super::state::{arg_max, Seed, State};
 use super::ObservableError;
+
+/// Largest x velocity of any particle (the centreline speed of a channel flow).
+pub(super) const VX_MAX: Kind = Kind { name: "vx_max", takes: Takes::Nothing, measured: true, evaluate: |s, _, seed| s.vx_max(seed) };
+
+/// Sum of m |v|^2 / 2.
+pub(super) const KINETIC_ENERGY: Kind = Kind { name: "kinetic_energy", takes: Takes::Nothing, measured: true, evaluate: |s, _, seed| Ok(s.kinetic_energy(seed)) };
 
 impl State<'_> {
     pub(super) fn vx_max(&self, seed: Option<Seed>) -> Result<f64, ObservableError> {

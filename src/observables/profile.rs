@@ -1,9 +1,21 @@
 //! `profile@X:Y`: a point of a section's top outline, as the reporter's `profile.csv` draws it.
 
-use super::objective::Objective;
+use super::objective::{Kind, Objective, Takes};
 use super::state::{section_points, section_y, Seed, State};
 use super::ObservableError;
 use crate::kernels::Real;
+
+/// A point of the printed cross-section's profile: the height above the base [m] of the top
+/// outline of the section at x = station, at lateral position y [m]. Exactly
+/// `observe::profile_z_at(cross_section(..).profile, y) - base_z` as the run's reporter builds
+/// the section: the particles with |x - station| <= slab / 2 (`[observe] slab`, default one
+/// cell), with `[observe] mirror_y` together with their mirror images, binned in y at the
+/// print's spacing h from the lowest y; a bin's top is its highest particle + h / 2, the
+/// outline runs linearly between bin centres, flat over the outer half of a run's end bins,
+/// and at the base elsewhere (0 in a gap or beside the material). Its adjoint flows through
+/// the particles that set the tops of the (at most two) bins around y, and through the one
+/// that sets the lowest y (the bins' origin); which particles those are is held fixed.
+pub(super) const PROFILE: Kind = Kind { name: "profile", takes: Takes::StationAndY, measured: true, evaluate: |s, o, seed| s.profile(o, o.station(), o.y(), seed) };
 
 impl State<'_> {
     pub(super) fn profile(&self, what: &Objective, station: f64, y: f64, seed: Option<Seed>) -> Result<f64, ObservableError> {

@@ -21,7 +21,7 @@
 //! dr/dc_i = a_i B'((r - c_i) / h) / h^2 / p'(r) and dr/da_i = -B((r - c_i) / h) / h / p'(r),
 //! smooth in every particle's position and volume as long as the crossing is not tangent.
 
-use super::objective::Objective;
+use super::objective::{Kind, Objective, Takes};
 use super::state::{section_y, Seed, State};
 use super::ObservableError;
 use crate::kernels::Real;
@@ -108,8 +108,19 @@ pub fn edge_adjoint(samples: &[Sample], h: f64, r: f64, scale: f64, d_c: &mut [f
     Some(())
 }
 
+/// The section's width at x = station [m] as a smooth function of every particle near it
+/// (this file): the distance between the outermost crossings of its thickness
+/// profile over y with half a spacing; with `[observe] mirror_y`, twice the upper crossing's
+/// distance from the plane. Unlike `width` it has no jumps where particles cross a slab's
+/// edge, so fits and differences see a smooth function of the parameters.
+pub(super) const SMOOTH_WIDTH: Kind = Kind { name: "smooth_width", takes: Takes::Station, measured: true, evaluate: |s, o, seed| s.smooth_extent(o, o.station(), true, seed) };
+
+/// The section's height at x = station above the base [m], smooth as `smooth_width`: the
+/// upper crossing of its width profile over z with half a spacing.
+pub(super) const SMOOTH_HEIGHT: Kind = Kind { name: "smooth_height", takes: Takes::Station, measured: true, evaluate: |s, o, seed| s.smooth_extent(o, o.station(), false, seed) };
+
 impl State<'_> {
-    /// [`Objective::SmoothWidth`] (`width`) or [`Objective::SmoothHeight`]: the section's
+    /// [`SMOOTH_WIDTH`] (`width`) or [`SMOOTH_HEIGHT`]: the section's
     /// samples (`smooth_extent::Sample`: the particle's y or z, and its area in the section, its
     /// volume spread in x as `area`'s), their edges, and the edges' adjoints carried back to the
     /// particles' positions, volume ratios and initial volumes.

@@ -1,8 +1,13 @@
 //! `spread`: the slump-flow spread, the mean of the x and y extents of the particles within two
 //! spacings of the base (as `spread.csv`'s `mean_diameter`).
 
+use super::objective::{Kind, Takes};
 use super::state::{arg_max, Seed, State};
 use super::ObservableError;
+
+/// Slump-flow spread: mean of the x and y extents of the particles within two spacings of
+/// the base (as `spread.csv`'s `mean_diameter`).
+pub(super) const SPREAD: Kind = Kind { name: "spread", takes: Takes::Nothing, measured: true, evaluate: |s, _, seed| s.spread(seed) };
 
 impl State<'_> {
     pub(super) fn spread(&self, seed: Option<Seed>) -> Result<f64, ObservableError> {

@@ -1,7 +1,7 @@
 //! The observables against the reporter's and against central differences.
 
 use super::state::Frame;
-use super::{Objective, Seed, NAMES};
+use super::{names, At, Objective, Seed};
 use crate::kernels::{Real, V3};
 use crate::solver::Simulation;
 use crate::observe::{self, Cloud};
@@ -213,8 +213,8 @@ fn names_parse_and_print_back_and_bad_ones_say_what_they_take() {
         assert_eq!(o.name(), name);
         assert_eq!(o.name().parse::<Objective>().unwrap(), o);
     }
-    assert_eq!("profile@0.075:0.01".parse::<Objective>().unwrap(), Objective::Profile { station: 0.075, y: 0.01 });
-    assert_eq!(" layer_height@0.075: 3".trim().parse::<Objective>().unwrap(), Objective::LayerHeight { station: 0.075, layer: 3 });
+    assert_eq!("profile@0.075:0.01".parse::<Objective>().unwrap().at, At::Point { station: 0.075, y: 0.01 });
+    assert_eq!(" layer_height@0.075: 3".trim().parse::<Objective>().unwrap().at, At::Layer { station: 0.075, layer: 3 });
     for (bad, want) in [
         ("profile@0.075", "profile takes X:Y"),
         ("profile@0.075:", "profile takes X:Y"),
@@ -233,6 +233,6 @@ fn names_parse_and_print_back_and_bad_ones_say_what_they_take() {
         assert!(e.contains(want) && e.contains(bad), "{bad}: {e}");
     }
     for name in ["profile@X:Y", "layer_height@X:K", "layer_width@X:K"] {
-        assert!(NAMES.contains(name), "{NAMES}");
+        assert!(names().contains(name), "{}", names());
     }
 }
