@@ -24,6 +24,7 @@ pub mod materials;
 pub mod measure;
 pub mod memory;
 pub mod observe;
+pub mod observables;
 pub mod output;
 pub mod particles;
 pub mod plan;

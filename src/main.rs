@@ -523,7 +523,7 @@ fn grad(args: GradArgs) -> Result<bool, Failure> {
         return Err(format!("--until-rest: the speed must be finite and > 0 m/s (a speed the run can exceed and fall back below), got {v}").into());
     }
     let sc = Scenario::load(&scenario)?;
-    let objs: Vec<strand::grad::Objective> = objective.iter().map(|o| o.parse()).collect::<Result<_, _>>()?;
+    let objs: Vec<strand::observables::Objective> = objective.iter().map(|o| o.parse()).collect::<Result<_, _>>()?;
     let size = |s: &str, what: &str| strand::memory::parse_size(s).map_err(|e| format!("--{what}: {e}"));
     let opts = strand::grad::GradOptions {
         ram_bytes: size(&ram, "ram")?,
@@ -535,7 +535,7 @@ fn grad(args: GradArgs) -> Result<bool, Failure> {
     };
     let seeds: Vec<strand::grad::driver::Seeded> = objs.into_iter().map(|objective| strand::grad::driver::Seeded { objective, step: None }).collect();
     let rs = strand::grad::driver::gradients(&sc, &seeds, &wrt, &opts)?;
-    let objectives: Vec<strand::grad::Objective> = seeds.iter().map(|s| s.objective.clone()).collect();
+    let objectives: Vec<strand::observables::Objective> = seeds.iter().map(|s| s.objective.clone()).collect();
     let chks: Vec<Option<strand::grad::check::Check>> = if check {
         strand::grad::check::check_many(&sc, &objectives, &rs, threads, &check_steps)?.into_iter().map(Some).collect()
     } else {
@@ -830,6 +830,7 @@ failure_from!(
     strand::checkpoint::NoCheckpoints,
     strand::invalid::Invalid,
     strand::grad::GradError,
+    strand::observables::ObservableError,
     strand::grad::schedule::ScheduleError,
     strand::verify::VerifyError,
     strand::bench::BenchError,

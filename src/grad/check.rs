@@ -2,7 +2,7 @@
 //! sizes, and the Taylor remainder test, each from full forward runs of perturbed scenarios.
 
 use super::driver::{forward_values_after, GradResult};
-use super::objective::Objective;
+use crate::observables::Objective;
 use super::GradError;
 use super::params::with_value;
 use crate::scenario::Scenario;

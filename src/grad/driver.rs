@@ -9,7 +9,7 @@
 //! extreme in an objective, which branch a material or wall took).
 
 use super::fields::state_bytes;
-use super::objective::{Frame, Objective};
+use crate::observables::{Frame, Objective};
 use super::params::{resolve, Param};
 use super::schedule::{choose, Action, Budget, Kind, OnlineSchedule, Plan};
 use super::step_adjoint::StepAdjoint;
@@ -486,7 +486,7 @@ impl Executor<'_> {
         for (k, s) in self.seeds.iter().enumerate() {
             let a = &mut self.adj.seeds[k];
             let p = &mut a.next;
-            let seed = super::objective::Seed {
+            let seed = crate::observables::Seed {
                 xg: &mut p.xg.as_mut_slice()[..n0],
                 v: &mut p.v.as_mut_slice()[..n0],
                 j: &mut p.j.as_mut_slice()[..n0],

@@ -3,6 +3,7 @@
 //! store, or the simulation beneath.
 
 use super::schedule::ScheduleError;
+use crate::observables::ObservableError;
 use crate::memory::{fmt_bytes, MemoryError, MemoryPlan};
 use crate::print::PrintError;
 use crate::scenario::ScenarioError;
@@ -69,6 +70,12 @@ pub enum GradError {
     SlotSize { path: PathBuf, len: usize, expected: usize },
     #[error("the schedule never reached the objective's step")]
     StepNotReached,
+}
+
+impl From<ObservableError> for GradError {
+    fn from(e: ObservableError) -> GradError {
+        GradError::Objective(e.0)
+    }
 }
 
 impl From<ScenarioError> for GradError {

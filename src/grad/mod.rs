@@ -7,14 +7,11 @@ pub mod check;
 pub mod driver;
 mod error;
 mod fields;
-pub mod objective;
 pub mod params;
 mod print_adjoint;
-mod smooth_extent;
 pub mod schedule;
 mod step_adjoint;
 mod store;
 
 pub use driver::{gradient, GradOptions, GradResult};
 pub use error::GradError;
-pub use objective::Objective;

@@ -4,7 +4,7 @@
 //! forward in `solver/`). Phases outer, objectives inner: every objective's adjoint of a phase
 //! sees the live state as that phase left it.
 
-use super::objective::{Frame, Objective, Seed};
+use crate::observables::{Frame, Objective, Seed};
 use super::print_adjoint::PrintParams;
 use super::GradError;
 use crate::memory::{Backing, MemoryError, MemoryPlan};

@@ -6,6 +6,7 @@
 
 use crate::grad::GradError;
 use crate::invalid::Invalid;
+use crate::observables::ObservableError;
 use crate::output::plot::PlotError;
 use crate::report::ReportError;
 use crate::scenario::ScenarioError;
@@ -141,6 +142,12 @@ impl From<ScenarioError> for MeasureError {
 impl From<SimError> for MeasureError {
     fn from(e: SimError) -> MeasureError {
         MeasureError::Sim(Box::new(e))
+    }
+}
+
+impl From<ObservableError> for MeasureError {
+    fn from(e: ObservableError) -> MeasureError {
+        MeasureError::Observable(e.0)
     }
 }
 

@@ -133,7 +133,7 @@ impl Experiments {
                 return Err(MeasureError::Experiments(format!("experiment.{i}: id '{}' is used twice", x.id)));
             }
             let names = match (&x.scenario, &x.protocol) {
-                (Some(_), None) => SIMULATION_OBSERVABLES,
+                (Some(_), None) => &SIMULATION_OBSERVABLES[..],
                 (None, Some(_)) => RHEOMETER_OBSERVABLES,
                 _ => return Err(MeasureError::Experiments(format!("experiment '{}': give either scenario (a simulation) or protocol (a rheometer test)", x.id))),
             };

@@ -2,7 +2,7 @@
 //! the front reaches a station and when it stops (an L-box's `t_end` and `t_final`, paper 001
 //! Sec. 4.2).
 //!
-//! The front is `front`'s: the largest particle x plus half a spacing (`Objective::Front`), so
+//! The front is `front`'s: the largest particle x plus half a spacing (`observables/front.rs`), so
 //! these observables are for flows along +x (an L-box, a channel). It is recorded after every
 //! step of the run, to its end:
 //!
@@ -21,7 +21,7 @@
 
 use super::error::MeasureError;
 use super::observation::Observable;
-use crate::grad::objective::{Frame, Objective};
+use crate::observables::{At, Frame, Objective, FRONT};
 use crate::solver::Simulation;
 
 /// The observables of this file.
@@ -59,7 +59,7 @@ impl FrontTrace {
 
     /// Add `sim`'s front at its current time.
     pub fn record(&mut self, sim: &Simulation) -> Result<(), MeasureError> {
-        let x = Objective::Front.evaluate(sim, &Frame::of(sim), None)?;
+        let x = Objective::new(&FRONT, At::Nothing).evaluate(sim, &Frame::of(sim), None)?;
         self.push(sim.time, x);
         Ok(())
     }

@@ -17,10 +17,16 @@ use super::front;
 use super::passing;
 use super::observation::Observable;
 use super::rheometer::Reading;
-use crate::grad::objective::Objective;
+use crate::observables::{At, Objective, Takes, KINDS};
+use std::sync::LazyLock;
 
-/// Observables a simulation experiment can produce, and those of a rheometer experiment.
-pub const SIMULATION_OBSERVABLES: &[&str] = &["spread", "front", "width", "height", "level", "area", "profile", "layer_height", "layer_width", "smooth_width", "smooth_height", "vx_max", "kinetic_energy", "mean_z", "failure_layer", "failure_time", "arrival", "stop_time", "passed"];
+/// Observables a simulation experiment can produce: those of the registry (`src/observables/`)
+/// an experiment may name, and those read from a run's history (failure, front, passing).
+pub static SIMULATION_OBSERVABLES: LazyLock<Vec<&'static str>> = LazyLock::new(|| {
+    let registry = KINDS.iter().filter(|k| k.measured).map(|k| k.name);
+    registry.chain(crate::failure::OBSERVABLES.iter().chain(front::OBSERVABLES).chain(passing::OBSERVABLES).copied()).collect()
+});
+/// Observables a rheometer experiment can produce.
 pub const RHEOMETER_OBSERVABLES: &[&str] = &["stress"];
 
 /// Whether `o` is written with the coordinates its observable takes, on a simulation
@@ -44,60 +50,47 @@ pub fn check_coordinates(o: &Observable, simulation: bool) -> Result<(), Measure
 /// (spread, front, vx_max, kinetic_energy, mean_z) may be taken during the run, `@T`; a section's
 /// (width, height, area, profile, layers), whose `@` is a station, at its end `end`.
 pub fn observable_plan(o: &Observable, end: f64) -> Result<(f64, Objective), MeasureError> {
-    let second = match o.name.as_str() {
-        "profile" => Some("a station and a lateral position: profile@X:Y (metres)"),
-        "layer_height" => Some("a station and a layer: layer_height@X:K (K = 1 the bottom layer)"),
-        "layer_width" => Some("a station and a layer: layer_width@X:K (K = 1 the bottom layer)"),
+    let name = o.name.as_str();
+    let kind = crate::observables::kind(name).filter(|k| k.measured);
+    let second = match kind.map(|k| k.takes) {
+        Some(Takes::StationAndY) => Some(format!("a station and a lateral position: {name}@X:Y (metres)")),
+        Some(Takes::StationAndLayer) => Some(format!("a station and a layer: {name}@X:K (K = 1 the bottom layer)")),
         _ => None,
     };
-    if o.at2.is_some() && second.is_none() && SIMULATION_OBSERVABLES.contains(&o.name.as_str()) {
-        return Err(MeasureError::Observable(format!("'{o}': {} takes one coordinate after '@', not two", o.name)));
+    if o.at2.is_some() && second.is_none() && SIMULATION_OBSERVABLES.contains(&name) {
+        return Err(MeasureError::Observable(format!("'{o}': {name} takes one coordinate after '@', not two")));
     }
-    let station = || o.at.ok_or_else(|| MeasureError::Observable(format!("'{}' needs a station: {}@X", o.name, o.name)));
-    let both = || match (o.at, o.at2, second) {
-        (Some(x), Some(y), _) => Ok((x, y)),
-        (_, _, what) => Err(MeasureError::Observable(format!("'{o}' needs {}", what.unwrap_or("two coordinates")))),
+    let Some(kind) = kind else {
+        return Err(MeasureError::Observable(match name {
+            name if front::OBSERVABLES.contains(&name) => format!("'{o}' is read from the front's history over the run, not at one time: it has no adjoint"),
+            name if passing::OBSERVABLES.contains(&name) => format!("'{o}' is read from the history of the mass below a plane over the run, not at one time: it has no adjoint"),
+            other => format!("a simulation cannot observe '{other}'"),
+        }));
     };
-    let layer = || {
-        let (x, k) = both()?;
-        if k >= 1.0 && k.fract() == 0.0 && k <= u32::MAX as f64 {
-            Ok((x, k as usize))
-        } else {
-            Err(MeasureError::Observable(format!("'{o}': the layer must be a whole number from 1 (the bottom layer), got {k}")))
-        }
+    let station = || o.at.ok_or_else(|| MeasureError::Observable(format!("'{name}' needs a station: {name}@X")));
+    let both = || match (o.at, o.at2) {
+        (Some(x), Some(y)) => Ok((x, y)),
+        _ => Err(MeasureError::Observable(format!("'{o}' needs {}", second.as_deref().unwrap_or("two coordinates")))),
     };
-    let (t, obj) = match o.name.as_str() {
-        "spread" => (o.at.unwrap_or(end), Objective::Spread),
-        "front" => (o.at.unwrap_or(end), Objective::Front),
-        "width" => (end, Objective::Width { stations: vec![station()?] }),
-        "height" => (end, Objective::Height { stations: vec![station()?] }),
-        "level" => (end, Objective::Level { station: station()? }),
-        "area" => (end, Objective::Area { stations: vec![station()?] }),
-        "smooth_width" => (end, Objective::SmoothWidth { station: station()? }),
-        "smooth_height" => (end, Objective::SmoothHeight { station: station()? }),
-        "profile" => {
+    let (t, at) = match kind.takes {
+        Takes::Nothing => (o.at.unwrap_or(end), At::Nothing),
+        Takes::Stations | Takes::Station => (end, At::Stations(vec![station()?])),
+        Takes::StationAndY => {
             let (station, y) = both()?;
-            (end, Objective::Profile { station, y })
+            (end, At::Point { station, y })
         }
-        "layer_height" => {
-            let (station, layer) = layer()?;
-            (end, Objective::LayerHeight { station, layer })
+        Takes::StationAndLayer => {
+            let (station, k) = both()?;
+            if !(k >= 1.0 && k.fract() == 0.0 && k <= u32::MAX as f64) {
+                return Err(MeasureError::Observable(format!("'{o}': the layer must be a whole number from 1 (the bottom layer), got {k}")));
+            }
+            (end, At::Layer { station, layer: k as usize })
         }
-        "layer_width" => {
-            let (station, layer) = layer()?;
-            (end, Objective::LayerWidth { station, layer })
-        }
-        "vx_max" => (o.at.unwrap_or(end), Objective::VxMax),
-        "kinetic_energy" => (o.at.unwrap_or(end), Objective::KineticEnergy),
-        "mean_z" => (o.at.unwrap_or(end), Objective::MeanZ),
-        name if front::OBSERVABLES.contains(&name) => return Err(MeasureError::Observable(format!("'{o}' is read from the front's history over the run, not at one time: it has no adjoint"))),
-        name if passing::OBSERVABLES.contains(&name) => return Err(MeasureError::Observable(format!("'{o}' is read from the history of the mass below a plane over the run, not at one time: it has no adjoint"))),
-        other => return Err(MeasureError::Observable(format!("a simulation cannot observe '{other}'"))),
     };
     if !(0.0..=end).contains(&t) {
         return Err(MeasureError::Observable(format!("'{o}': time {t} s is outside the run [0, {end}] s")));
     }
-    Ok((t, obj))
+    Ok((t, Objective::new(kind, at)))
 }
 
 /// Which reading a rheometer observable is: the last one at its shear rate.
@@ -138,11 +131,12 @@ mod tests {
     #[test]
     fn printed_geometry_observables_are_their_objectives_at_the_end() {
         let plan = |s: &str| observable_plan(&Observable::parse(s).unwrap(), 2.0);
-        assert_eq!(plan("profile@0.075:0.01").unwrap(), (2.0, Objective::Profile { station: 0.075, y: 0.01 }));
-        assert_eq!(plan("layer_height@0.075:2").unwrap(), (2.0, Objective::LayerHeight { station: 0.075, layer: 2 }));
-        assert_eq!(plan("layer_width@0.075:1").unwrap(), (2.0, Objective::LayerWidth { station: 0.075, layer: 1 }));
-        assert_eq!(plan("smooth_width@0.075").unwrap(), (2.0, Objective::SmoothWidth { station: 0.075 }));
-        assert_eq!(plan("smooth_height@0.075").unwrap(), (2.0, Objective::SmoothHeight { station: 0.075 }));
+        let objective = |name: &str, at: At| Objective::new(crate::observables::kind(name).unwrap(), at);
+        assert_eq!(plan("profile@0.075:0.01").unwrap(), (2.0, objective("profile", At::Point { station: 0.075, y: 0.01 })));
+        assert_eq!(plan("layer_height@0.075:2").unwrap(), (2.0, objective("layer_height", At::Layer { station: 0.075, layer: 2 })));
+        assert_eq!(plan("layer_width@0.075:1").unwrap(), (2.0, objective("layer_width", At::Layer { station: 0.075, layer: 1 })));
+        assert_eq!(plan("smooth_width@0.075").unwrap(), (2.0, objective("smooth_width", At::Stations(vec![0.075]))));
+        assert_eq!(plan("smooth_height@0.075").unwrap(), (2.0, objective("smooth_height", At::Stations(vec![0.075]))));
         // each objective's name is the observable's own
         for s in ["profile@0.075:0.01", "layer_height@0.075:2", "layer_width@0.075:1", "height@0.075", "smooth_width@0.075", "smooth_height@0.075"] {
             assert_eq!(plan(s).unwrap().1.name(), s);

@@ -18,7 +18,7 @@ use super::observables::{observable_plan, reading_index};
 use super::observation::{Observable, Observation};
 use super::rheometer::{Protocol, Rheometer};
 use super::spare::Spare;
-use crate::grad::objective::{Frame, Objective};
+use crate::observables::{Frame, Objective};
 use crate::kernels::material::Material;
 use crate::scenario::Scenario;
 use crate::solver::Simulation;

@@ -30,7 +30,8 @@ use super::effects::Keys;
 use super::model::Model;
 use super::rheometer::Rheometer;
 use crate::grad::driver::Seeded;
-use crate::grad::{driver, params, GradOptions, Objective};
+use crate::grad::{driver, params, GradOptions};
+use crate::observables::Objective;
 
 /// Values (one per observation) and, when asked, d value / d parameter (a row per observation).
 #[derive(Clone, Debug)]

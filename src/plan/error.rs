@@ -2,6 +2,7 @@
 //! bounds meets (saying which and how close the best came), or the layers below failing.
 
 use crate::grad::GradError;
+use crate::observables::ObservableError;
 use crate::measure::error::MeasureError;
 use crate::output::plot::PlotError;
 
@@ -24,4 +25,9 @@ pub enum PlanError {
     Plot(#[from] PlotError),
     #[error("{0}")]
     Io(String),
+}
+impl From<ObservableError> for PlanError {
+    fn from(e: ObservableError) -> PlanError {
+        PlanError::Grad(e.into())
+    }
 }

@@ -16,7 +16,8 @@
 use super::error::PlanError;
 use super::targets::{Setting, Targets};
 use crate::grad::driver::{gradients, Seeded};
-use crate::grad::{GradOptions, Objective};
+use crate::grad::GradOptions;
+use crate::observables::Objective;
 use crate::measure::experiments::{Experiment, Experiments};
 use crate::measure::model::Model;
 use crate::measure::runner::{experiment_keys, parse_scenario, scenario_text};

@@ -8,7 +8,8 @@ use std::process::Command;
 use strand::grad::schedule::Kind;
 use strand::grad::check::{check, REL_STEPS};
 use strand::grad::driver::Seeded;
-use strand::grad::{gradient, GradOptions, Objective};
+use strand::grad::{gradient, GradOptions};
+use strand::observables::Objective;
 use strand::scenario::Scenario;
 
 /// A small Newtonian block thrown across a floor with Coulomb friction, next to no-slip and

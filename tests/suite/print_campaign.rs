@@ -4,7 +4,8 @@
 
 use std::path::Path;
 use strand::grad::check::check;
-use strand::grad::{gradient, GradOptions, Objective};
+use strand::grad::{gradient, GradOptions};
+use strand::observables::Objective;
 use strand::scenario::Scenario;
 use crate::common::{strand, s, measure_fixtures};
 

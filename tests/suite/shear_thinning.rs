@@ -69,7 +69,8 @@ fn the_slump_front_against_the_flow_index_agrees_with_central_differences() {
     // Herschel-Bulkley, and at n = 1 (the effect's null, where the score test reads d/dn): the
     // solver's adjoint in material.flow_index against central differences and the Taylor test
     use strand::grad::check::{check, REL_STEPS};
-    use strand::grad::{gradient, GradOptions, Objective};
+    use strand::grad::{gradient, GradOptions};
+    use strand::observables::Objective;
     use strand::scenario::Scenario;
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/measure/slump/slump.toml");
     let base = std::fs::read_to_string(path).unwrap();

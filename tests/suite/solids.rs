@@ -356,7 +356,7 @@ budget = "64 MiB"
     let dir = tempfile::tempdir().unwrap();
     let wrt: Vec<String> = ["material.viscosity", "body.0.velocity.x", "simulation.gravity.z"].iter().map(|s| s.to_string()).collect();
     for objective in ["mean_z", "kinetic_energy"] {
-        let obj: strand::grad::Objective = objective.parse().unwrap();
+        let obj: strand::observables::Objective = objective.parse().unwrap();
         let r = strand::grad::gradient(&sc, &obj, &wrt, &grad_opts(dir.path())).unwrap();
         let c = check(&sc, &obj, &r, None, &REL_STEPS).unwrap();
         for p in &c.params {

@@ -21,6 +21,10 @@
 //! dr/dc_i = a_i B'((r - c_i) / h) / h^2 / p'(r) and dr/da_i = -B((r - c_i) / h) / h / p'(r),
 //! smooth in every particle's position and volume as long as the crossing is not tangent.
 
+use super::objective::{Kind, Objective, Takes};
+use super::state::{section_y, Seed, State};
+use super::ObservableError;
+use crate::kernels::Real;
 use crate::observe::quadratic_bspline_and_slope;
 
 /// One particle's (or mirror image's) place on the measured axis and its area in the section.
@@ -102,6 +106,81 @@ pub fn edge_adjoint(samples: &[Sample], h: f64, r: f64, scale: f64, d_c: &mut [f
         d_a[k] -= scale * b / h / slope;
     }
     Some(())
+}
+
+/// The section's width at x = station [m] as a smooth function of every particle near it
+/// (this file): the distance between the outermost crossings of its thickness
+/// profile over y with half a spacing; with `[observe] mirror_y`, twice the upper crossing's
+/// distance from the plane. Unlike `width` it has no jumps where particles cross a slab's
+/// edge, so fits and differences see a smooth function of the parameters.
+pub(super) const SMOOTH_WIDTH: Kind = Kind { name: "smooth_width", takes: Takes::Station, measured: true, evaluate: |s, o, seed| s.smooth_extent(o, o.station(), true, seed) };
+
+/// The section's height at x = station above the base [m], smooth as `smooth_width`: the
+/// upper crossing of its width profile over z with half a spacing.
+pub(super) const SMOOTH_HEIGHT: Kind = Kind { name: "smooth_height", takes: Takes::Station, measured: true, evaluate: |s, o, seed| s.smooth_extent(o, o.station(), false, seed) };
+
+impl State<'_> {
+    /// [`SMOOTH_WIDTH`] (`width`) or [`SMOOTH_HEIGHT`]: the section's
+    /// samples (`smooth_extent::Sample`: the particle's y or z, and its area in the section, its
+    /// volume spread in x as `area`'s), their edges, and the edges' adjoints carried back to the
+    /// particles' positions, volume ratios and initial volumes.
+    pub(super) fn smooth_extent(&self, what: &Objective, station: f64, width: bool, seed: Option<Seed>) -> Result<f64, ObservableError> {
+        let (frame, h) = (self.frame, self.frame.spacing);
+        let p = &self.sim.particles;
+        let (vol0, jv) = (p.vol0.as_slice(), p.j.as_slice());
+        // (particle, sign of d c / d its coordinate, B, dB/du) of each sample
+        let mut whose: Vec<(usize, f64, f64, f64)> = Vec::new();
+        let mut samples: Vec<Sample> = Vec::new();
+        for i in 0..p.n {
+            let x = self.world(i);
+            let u = (x[0] - station) / frame.slab;
+            if u.abs() >= 1.5 {
+                continue;
+            }
+            let (b, db) = crate::observe::quadratic_bspline_and_slope(u);
+            let a = (vol0[i] * jv[i]) as f64 * b / frame.slab;
+            let images: &[f64] = if frame.mirror_y.is_some() { &[1.0, -1.0] } else { &[1.0] };
+            for &sign in images {
+                let c = if width { section_y(frame, x[1], sign) } else { x[2] };
+                samples.push(Sample { c, a });
+                whose.push((i, if width { sign } else { 1.0 }, b, db));
+            }
+        }
+        let fail = |why: &str| ObservableError(format!("objective {}: {why} at x = {station} m", what.name()));
+        let upper = edge(&samples, h, Side::Upper).ok_or_else(|| fail("no section reaches half a spacing of material"))?;
+        let lower = match (width, frame.mirror_y) {
+            (true, None) => Some(edge(&samples, h, Side::Lower).ok_or_else(|| fail("no section reaches half a spacing of material"))?),
+            _ => None,
+        };
+        let value = match (width, frame.mirror_y, lower) {
+            (false, _, _) => upper - frame.base_z,
+            (true, Some(y0), _) => 2.0 * (upper - y0),
+            (true, None, Some(lower)) => upper - lower,
+            (true, None, None) => unreachable!("the lower edge is taken without a mirror"),
+        };
+        if let Some(s) = seed {
+            let (mut d_c, mut d_a) = (vec![0.0; samples.len()], vec![0.0; samples.len()]);
+            let tangent = || fail("the profile touches the level without crossing it (no derivative)");
+            let upper_weight = if width && frame.mirror_y.is_some() { 2.0 } else { 1.0 };
+            edge_adjoint(&samples, h, upper, upper_weight, &mut d_c, &mut d_a).ok_or_else(tangent)?;
+            if let Some(lower) = lower {
+                edge_adjoint(&samples, h, lower, -1.0, &mut d_c, &mut d_a).ok_or_else(tangent)?;
+            }
+            for (k, &(i, sign, b, db)) in whose.iter().enumerate() {
+                let coordinate = (d_c[k] * sign) as Real * self.scale;
+                if width {
+                    s.xg[i].y += coordinate;
+                } else {
+                    s.xg[i].z += coordinate;
+                }
+                let vol = (vol0[i] * jv[i]) as f64;
+                s.xg[i].x += (d_a[k] * vol * db / (frame.slab * frame.slab)) as Real * self.scale;
+                s.j[i] += (d_a[k] * vol0[i] as f64 * b / frame.slab) as Real;
+                s.vol0[i] += (d_a[k] * jv[i] as f64 * b / frame.slab) as Real;
+            }
+        }
+        Ok(value)
+    }
 }
 
 #[cfg(test)]
