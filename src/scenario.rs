@@ -373,6 +373,19 @@ impl Scenario {
         Ok(sc)
     }
 
+    /// A scenario from a TOML table already read and edited (the measurement loop sets a model's
+    /// keys in it): the scenario `parse` gives of the table's text, read from the table itself;
+    /// the text is written once, as the scenario's record (`source`), and not read back.
+    pub fn from_table(doc: toml::Table) -> Result<Scenario, ScenarioError> {
+        let parse_error = |message: String| ScenarioError::Parse { path: PathBuf::from("<table>"), message };
+        let source = toml::to_string(&doc).map_err(|e| parse_error(e.to_string()))?;
+        let mut sc: Scenario = toml::Value::Table(doc).try_into().map_err(|e: toml::de::Error| parse_error(e.to_string()))?;
+        sc.validate()?;
+        sc.source = source;
+        sc.resolve_defaults();
+        Ok(sc)
+    }
+
     fn parse_as_written(text: &str) -> Result<Scenario, ScenarioError> {
         let mut sc: Scenario =
             toml::from_str(text).map_err(|e| ScenarioError::Parse { path: PathBuf::from("<text>"), message: e.to_string() })?;

@@ -54,9 +54,9 @@ pub fn evaluate(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obs
     r.map_err(|e| e.within(format!("experiment '{}'", x.id)))
 }
 
-/// The scenario of a simulation experiment: the file's, with the model's `[material]` in place
-/// of its own and every key set.
-pub fn scenario_text(model: &Model, keys: &Keys, scenario: &Path) -> Result<String, MeasureError> {
+/// The scenario table of a simulation experiment: the file's, with the model's `[material]` in
+/// place of its own and every key set.
+pub fn scenario_table(model: &Model, keys: &Keys, scenario: &Path) -> Result<toml::Table, MeasureError> {
     let text = std::fs::read_to_string(scenario).map_err(io_error(scenario))?;
     let mut doc: toml::Table = text.parse().map_err(toml_error(scenario))?;
     doc.insert("material".into(), toml::Value::Table(model.material_for(keys)));
@@ -67,18 +67,41 @@ pub fn scenario_text(model: &Model, keys: &Keys, scenario: &Path) -> Result<Stri
         let at = super::effects::placed(k, &doc);
         set_path(&mut doc, &at, *v).map_err(|e| e.within(format!("set.{k}")))?;
     }
-    Ok(toml::to_string(&doc)?)
+    Ok(doc)
 }
 
+/// The text of [`scenario_table`]: what a saved result records of the scenario it ran.
+pub fn scenario_text(model: &Model, keys: &Keys, scenario: &Path) -> Result<String, MeasureError> {
+    Ok(toml::to_string(&scenario_table(model, keys, scenario)?)?)
+}
+
+/// The scenario a simulation experiment runs: [`scenario_table`], read as a scenario from the
+/// table (no text written and read back per run).
+pub fn build_scenario(model: &Model, keys: &Keys, scenario: &Path) -> Result<Scenario, MeasureError> {
+    scenario_from_table(scenario_table(model, keys, scenario)?, scenario)
+}
+
+/// The scenario of table `doc`, read from file `scenario`: its files relative to the file's
+/// folder, no checkpoints (an experiment's run is not resumed).
+pub fn scenario_from_table(doc: toml::Table, scenario: &Path) -> Result<Scenario, MeasureError> {
+    let sc = Scenario::from_table(doc).map_err(|e| MeasureError::from(e).within(scenario.display()))?;
+    Ok(as_experiment(sc, scenario))
+}
+
+/// A scenario's text, read as experiment `scenario`'s (see [`scenario_from_table`]).
 pub fn parse_scenario(text: &str, scenario: &Path) -> Result<Scenario, MeasureError> {
-    let mut sc = Scenario::parse(text).map_err(|e| MeasureError::from(e).within(scenario.display()))?;
+    let sc = Scenario::parse(text).map_err(|e| MeasureError::from(e).within(scenario.display()))?;
+    Ok(as_experiment(sc, scenario))
+}
+
+fn as_experiment(mut sc: Scenario, scenario: &Path) -> Scenario {
     sc.base_dir = scenario.parent().map(Path::to_path_buf).unwrap_or_default();
     sc.checkpoint.enabled = false;
-    Ok(sc)
+    sc
 }
 
 fn simulate(model: &Model, keys: &Keys, scenario: &Path, wanted: &[Observable], threads: Option<usize>) -> Result<Vec<f64>, MeasureError> {
-    let mut sc = parse_scenario(&scenario_text(model, keys, scenario)?, scenario)?;
+    let mut sc = build_scenario(model, keys, scenario)?;
     if let Some(t) = threads {
         sc.simulation.threads = t;
     }

@@ -24,10 +24,10 @@ use super::error::MeasureError;
 use super::experiments::{Experiment, Experiments};
 use super::observables::{observable_plan, reading_index};
 use super::observation::{Observable, Observation};
-use super::runner::{experiment_keys, find, group, job_threads, par_map_experiments, parse_scenario, rheometer_setup, scenario_text, ungroup};
+use super::runner::{experiment_keys, find, group, job_threads, par_map_experiments, rheometer_setup, scenario_from_table, scenario_table, ungroup};
 use super::spare::Spare;
 use super::effects::Keys;
-use super::model::Model;
+use super::model::{set_path, Model};
 use super::rheometer::Rheometer;
 use crate::grad::driver::Seeded;
 use crate::grad::{driver, params, GradOptions, Objective};
@@ -439,15 +439,14 @@ fn by_adjoint(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obser
     match (&x.scenario, &x.protocol) {
         (Some(s), _) => {
             let path = exps.base_dir.join(s);
-            let text = scenario_text(model, &keys, &path)?;
-            let whole = parse_scenario(&text, &path)?;
+            let doc = scenario_table(model, &keys, &path)?;
+            let whole = scenario_from_table(doc.clone(), &path)?;
             let end = whole.simulation.end_time;
             // each model key with the scenario key it landed on (the floor's friction on the
             // platform or the z_min face)
             let (wrt, placed): (Vec<String>, Vec<String>) = match names {
                 Some(_) => {
                     let known = params::known(&driver::prepare(&whole, threads)?);
-                    let doc: toml::Table = text.parse()?;
                     keys.keys().filter(|k| !x.set.contains_key(*k)).map(|k| (k.clone(), super::effects::placed(k, &doc))).filter(|(_, p)| known.contains(p)).unzip()
                 }
                 None => (Vec::new(), Vec::new()),
@@ -472,7 +471,9 @@ fn by_adjoint(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obser
                 }
             }
             for (k, (t, obj)) in plans.iter().enumerate().filter(|(k, _)| steps[*k].is_none()) {
-                let sc = parse_scenario(&params::with_value(&text, "simulation.end_time", *t)?, &path)?;
+                let mut at_t = doc.clone();
+                set_path(&mut at_t, "simulation.end_time", *t)?;
+                let sc = scenario_from_table(at_t, &path)?;
                 out[k] = Some(if names.is_none() {
                     let steps = driver::count_steps(&driver::prepare(&sc, threads)?);
                     Valued::new(driver::forward_value(&sc, obj, threads, steps)?, None)
