@@ -17,6 +17,7 @@
 //! engine, diagnosis and rounds on top.
 
 pub mod calibrate;
+pub mod campaign;
 pub mod chain;
 pub mod compare;
 pub mod diagnose;
