@@ -351,7 +351,7 @@ def limits(root):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--root", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
-    ap.add_argument("--from", dest="start", default="src/measure/diagnose.rs:diagnose:model")
+    ap.add_argument("--from", dest="start", default="src/measure/diagnose/mod.rs:diagnose:model")
     ap.add_argument("--route", action="store_true", help="print every stay in order")
     ap.add_argument("--limits", action="store_true", help="check src/measure/'s function and line limits")
     a = ap.parse_args()

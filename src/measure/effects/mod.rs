@@ -148,7 +148,7 @@ mod tests {
     #[test]
     fn every_effect_at_its_start_runs_as_the_model_without_it() {
         use crate::measure::model::Model;
-        use crate::measure::runner::build_scenario;
+        use crate::measure::campaign::runner::build_scenario;
         let line = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/measure/print/line.toml");
         let dir = tempfile::tempdir().unwrap();
         let short = dir.path().join("line.toml");

@@ -4,18 +4,37 @@
 //! [`Campaign`] value is handed to calibration (`calibrate.rs`), diagnosis (`diagnose.rs`) and
 //! its rounds (`rounds.rs`) instead of the bundle each of them took apart.
 //!
-//! In: experiments, data, [`FitOptions`], the discretisation estimate. Out: the engine's values,
-//! and Jacobians in named parameters, of every observation under a model, the runs counted into
-//! the command's progress.
+//! In: a model, experiments, data, [`FitOptions`], the discretisation estimate. Out: the engine's
+//! values, and Jacobians in named parameters, of every observation under the model, the runs
+//! counted into the command's progress.
+//!
+//! The folder holds what a campaign is and how it runs: the experiments file (`experiments.rs`),
+//! planned before any run (`preflight.rs`); one experiment under a model, a simulation or a
+//! virtual rheometer (`runner.rs`, `rheometer.rs`); values and gradients (`sensitivity.rs`, idle
+//! workers lent to the experiments still running: `spare.rs`); where the experiments run
+//! (`engine.rs`) and what a saved result was computed from (`provenance.rs`); the
+//! discretisation error counted beside the measurement uncertainty (`resolution.rs`); a long
+//! command's progress (`progress.rs`).
 
-use super::engine::{Answer, Engine};
+pub mod engine;
+pub mod experiments;
+pub mod preflight;
+pub mod progress;
+pub mod provenance;
+pub mod resolution;
+pub mod rheometer;
+pub mod runner;
+pub mod sensitivity;
+pub mod spare;
+
+use self::engine::{Answer, Engine};
 use super::error::MeasureError;
-use super::experiments::Experiments;
+use self::experiments::Experiments;
 use super::model::Model;
 use super::observation::Observation;
-use super::progress::Progress;
-use super::resolution::Counted;
-use super::sensitivity::Differences;
+use self::progress::Progress;
+use self::resolution::Counted;
+use self::sensitivity::Differences;
 
 /// A campaign's data and experiments, and how they run; borrowed, so a part (a subset of the
 /// data, other options) is a new value over the same things.
@@ -33,7 +52,7 @@ pub struct Campaign<'a> {
 pub struct FitOptions {
     pub max_iterations: usize,
     /// Stop when an accepted step lowers chi^2 by less than this fraction (or by less than
-    /// [`CHI2_NEGLIGIBLE`](super::calibrate::CHI2_NEGLIGIBLE)).
+    /// [`CHI2_NEGLIGIBLE`](super::fit::calibrate::CHI2_NEGLIGIBLE)).
     pub tolerance: f64,
     pub jobs: usize,
     /// Where each evaluation's experiments run (`engine.rs`): here, `jobs` at a time, or as a
@@ -112,7 +131,7 @@ impl<'a> Campaign<'a> {
     /// Whether any of the experiments the data observe is a simulation (a rheometer test's
     /// Jacobian comes from its adjoint at less than a run's cost).
     pub fn runs_simulations(&self) -> bool {
-        super::runner::group(self.data).iter().any(|(id, _)| self.exps.get(id).is_some_and(|x| x.scenario.is_some()))
+        self::runner::group(self.data).iter().any(|(id, _)| self.exps.get(id).is_some_and(|x| x.scenario.is_some()))
     }
 
     /// Whether a fit steps on secant Jacobians: asked to ([`FitOptions::secant`]), where the
@@ -126,7 +145,7 @@ impl<'a> Campaign<'a> {
 /// campaign of simulations differenced centrally costs (a rheometer test's adjoint costs less,
 /// and is counted alike).
 fn runs(data: &[Observation], per_experiment: usize) -> u64 {
-    (super::runner::group(data).len() * per_experiment) as u64
+    (self::runner::group(data).len() * per_experiment) as u64
 }
 
 /// The runs a fit of `names` to `data` is expected to take: the Jacobian at the start and at the

@@ -10,9 +10,9 @@
 //! the finer run.
 //! `Simulation::new` plans again, so a path that misses this still refuses before it allocates.
 
-use super::error::MeasureError;
+use crate::measure::error::MeasureError;
 use super::experiments::{Experiment, Experiments, ResolutionTable};
-use super::model::Model;
+use crate::measure::model::Model;
 use super::runner::{build_scenario, experiment_keys};
 use crate::scenario::Scenario;
 

@@ -31,11 +31,11 @@
 //! The default order, [`DEFAULT_ORDER`], is measured on case 1 (BENCHMARKS.md,
 //! "Discretisation error").
 
-use super::error::MeasureError;
+use crate::measure::error::MeasureError;
 use super::experiments::{Experiment, Experiments, ResolutionTable};
-use super::observation::{Observable, Observation};
+use crate::measure::observation::{Observable, Observation};
 use super::runner::{evaluate, experiment_keys, find, group, job_threads, par_map_experiments, build_scenario, ungroup};
-use super::model::Model;
+use crate::measure::model::Model;
 
 /// The order of convergence p assumed when `[resolution]` gives none: case 1's width at 8, 10
 /// and 25 cells per nozzle diameter converges at p = 0.78 (BENCHMARKS.md, "Discretisation

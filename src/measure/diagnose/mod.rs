@@ -38,15 +38,24 @@
 //!    steps) only where it comes close to that criterion ([`SCREENED_MARGIN`]).
 //! 4. When no effect is recommended and the base model does not fit (chi^2 beyond its `alpha`
 //!    quantile) the verdict is "unexplained", with the pattern of the residuals.
+//!
+//! In: a campaign, a model and the parameters to refit. Out: a [`Diagnosis`] (candidates ranked,
+//! a verdict, the recommended model), or with `--rounds` the loop run to its end (`rounds.rs`).
+//! Beside it: Jacobian columns the keys give without a run (`chain.rs`) and the residuals'
+//! shapes in words (`residuals.rs`).
 
-use super::calibrate::{calibrate, calibrate_at, calibrate_from, chi2, chi2_scatter, finish, predicted_drop, standardised, Fit};
+pub mod chain;
+pub mod residuals;
+pub mod rounds;
+
+use super::fit::calibrate::{calibrate, calibrate_at, calibrate_from, chi2, chi2_scatter, finish, predicted_drop, standardised, Fit};
 use super::campaign::{expected_runs, Campaign, FitOptions};
 use super::error::{io_error, toml_error, MeasureError};
 use super::observation::Observation;
 use super::effects::{Covariates, Effect};
-use super::linalg::{chi2_sf, gauss_newton_step, normal_equations, pinv_sym};
+use super::fit::linalg::{chi2_sf, gauss_newton_step, normal_equations, pinv_sym};
 use super::model::Model;
-use super::sensitivity::{Differences, Sensitivity};
+use super::campaign::sensitivity::{Differences, Sensitivity};
 
 #[derive(Clone, Debug)]
 pub struct DiagnoseOptions {
@@ -108,7 +117,7 @@ pub struct Diagnosis {
     /// then the base fit's residual shapes in words.
     pub pattern: Vec<String>,
     /// The base fit's residual shapes (trend, curvature, step, together) against each covariate.
-    pub shapes: Vec<super::residuals::Shape>,
+    pub shapes: Vec<self::residuals::Shape>,
     /// Wall-clock seconds of each stage.
     pub timing: Timing,
     #[serde(skip)]
@@ -287,7 +296,7 @@ pub fn diagnose(c: &Campaign, model: &Model, fit: &[String], opts: &DiagnoseOpti
 /// A diagnosis's stages timed, and said on stderr as they begin when `log` is on.
 struct Clock {
     log: bool,
-    progress: super::progress::Progress,
+    progress: super::campaign::progress::Progress,
     began: std::time::Instant,
     since: std::time::Instant,
     timing: Timing,
@@ -332,7 +341,7 @@ fn base_fit(c: &Campaign, model: &Model, fit: &[String]) -> Result<Fit, MeasureE
 /// (or the model it started from, `from_start`) with effects added. Where `with` gives that
 /// point's values (every added effect at its null, or a modulus at the stand-in the base model
 /// runs in its place), the fitted parameters' columns are the base fit's own there, `extra`'s
-/// follow from them where the keys allow ([`chained`](super::chain::chained)), and only the
+/// follow from them where the keys allow ([`chained`](self::chain::chained)), and only the
 /// rest are computed, from those values, by one-sided differences (the scatter is the base
 /// fit's there: [`Differences::Forward`]); elsewhere every column is, from `with`'s values.
 /// `with`'s values are that point's without a run where every added effect is at a start that
@@ -349,7 +358,7 @@ fn beside_base(c: &Campaign, base: &Fit, (from_start, runs_as_model): (bool, boo
         return c.jacobian_at(with, &names, (&values, &Differences::Central))?;
     }
     // an effect's columns the fitted parameters' give through the keys take no run
-    let chained = super::chain::chained(with, data, exps, &base.names, (known_jacobian, known_jacobian_scatter), extra)?;
+    let chained = self::chain::chained(with, data, exps, &base.names, (known_jacobian, known_jacobian_scatter), extra)?;
     let run: Vec<String> = extra.iter().zip(&chained).filter(|(_, c)| c.is_none()).map(|(n, _)| n.clone()).collect();
     let (computed, computed_scatter, scatter) = if run.is_empty() {
         (vec![vec![]; data.len()], vec![vec![]; data.len()], known_scatter.clone())
@@ -359,7 +368,7 @@ fn beside_base(c: &Campaign, base: &Fit, (from_start, runs_as_model): (bool, boo
         (s.jacobian.expect("asked"), s.jacobian_scatter.expect("asked"), known_scatter.clone())
     };
     // the known columns, then each extra parameter's, chained or computed
-    let rows = |known: &[Vec<f64>], computed: Vec<Vec<f64>>, pick: fn(&super::chain::Chained) -> &Vec<f64>| -> Vec<Vec<f64>> {
+    let rows = |known: &[Vec<f64>], computed: Vec<Vec<f64>>, pick: fn(&self::chain::Chained) -> &Vec<f64>| -> Vec<Vec<f64>> {
         computed
             .into_iter()
             .enumerate()
@@ -573,7 +582,7 @@ fn fit_and_check(
 ) -> Result<Vec<Option<Model>>, MeasureError> {
     let (data, fit, opts) = (d.c.data, d.fit, d.opts);
     let m = data.len();
-    let ids: Vec<String> = super::runner::group(data).into_iter().map(|(id, _)| id).collect();
+    let ids: Vec<String> = super::campaign::runner::group(data).into_iter().map(|(id, _)| id).collect();
     let mut base_loo: Option<f64> = None;
     // the recommended candidate with the least chi^2 + 2 k so far (set only by leave-one-out)
     let mut leader: Option<(String, f64)> = None;
@@ -680,10 +689,10 @@ fn fit_candidate(d: Diagnosing, base: &Fit, effect: &'static dyn Effect, scored:
 }
 
 /// The shapes of the base fit's residuals against every covariate (`residuals.rs`).
-fn residual_shapes(campaign: &Campaign, base: &Fit, alpha: f64) -> Result<Vec<super::residuals::Shape>, MeasureError> {
+fn residual_shapes(campaign: &Campaign, base: &Fit, alpha: f64) -> Result<Vec<self::residuals::Shape>, MeasureError> {
     let c = super::compare::comparison(campaign.data, &base.model_values);
-    let covs = super::report::covariates(&c.rows, campaign.exps, &base.model)?;
-    Ok(super::residuals::shapes(&c.rows, &covs, alpha))
+    let covs = super::compare::report::covariates(&c.rows, campaign.exps, &base.model)?;
+    Ok(self::residuals::shapes(&c.rows, &covs, alpha))
 }
 
 /// The verdict among the recommended candidates: the score ranks them, the fit decides. The one
@@ -710,7 +719,7 @@ fn choose(cands: &mut [Candidate]) -> Option<usize> {
 fn applicable(c: &Campaign, effect: &'static dyn Effect, model: &Model) -> Result<(), MeasureError> {
     let (data, exps) = (c.data, c.exps);
     model.with_effect(effect).keys(&Covariates::default()).map_err(|m| MeasureError::Effect(format!("in this model, {m}")))?;
-    for (id, _) in super::runner::group(data) {
+    for (id, _) in super::campaign::runner::group(data) {
         if let Some(s) = exps.get(&id).and_then(|x| x.scenario.as_ref()) {
             let path = exps.base_dir.join(s);
             let text = std::fs::read_to_string(&path).map_err(io_error(&path))?;
@@ -885,7 +894,7 @@ pub fn report(d: &Diagnosis) -> String {
 mod tests {
     use super::*;
     use crate::measure::effects;
-    use crate::measure::experiments::Experiments;
+    use super::super::campaign::experiments::Experiments;
 
     #[test]
     fn an_effect_whose_null_the_solver_cannot_run_gets_the_likelihood_ratio_and_the_others_the_score() {
@@ -906,11 +915,11 @@ mod tests {
     /// progress events as without, and the events are well-formed and monotone over every stage.
     #[test]
     fn a_diagnosis_with_progress_events_is_the_diagnosis_without() {
-        use crate::measure::progress::tests::{check_monotone, Shared};
+        use super::super::campaign::progress::tests::{check_monotone, Shared};
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/measure/campaign");
         let (truth, start) = (Model::load(&dir.join("truth_thixotropy.toml")).unwrap(), Model::load(&dir.join("base.toml")).unwrap());
         let exps = Experiments::load(&dir.join("experiments.toml")).unwrap();
-        let data = super::super::synth::synth(&truth, &exps, 0.01, 7, 1).unwrap();
+        let data = super::super::compare::synth::synth(&truth, &exps, 0.01, 7, 1).unwrap();
         let fit = vec!["material.yield_stress".to_string(), "material.viscosity".to_string()];
         let out = Shared::default();
         let with = FitOptions { progress: out.progress(0), ..FitOptions::default() };

@@ -4,10 +4,10 @@
 //! verdict is not "add EFFECT") or N rounds have run. The error after each round is the
 //! chi^2 per observation of the model it leaves.
 
-use super::campaign::Campaign;
-use super::error::MeasureError;
-use super::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
-use super::model::Model;
+use crate::measure::campaign::Campaign;
+use crate::measure::error::MeasureError;
+use crate::measure::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
+use crate::measure::model::Model;
 use std::fmt::Write as _;
 
 #[derive(Clone, Debug, serde::Serialize)]
@@ -81,7 +81,7 @@ pub fn report(r: &Rounds) -> String {
     let mut s = String::new();
     for round in &r.rounds {
         let _ = writeln!(s, "=== round {} ===", round.round);
-        s.push_str(&super::diagnose::report(&round.diagnosis));
+        s.push_str(&crate::measure::diagnose::report(&round.diagnosis));
         s.push('\n');
     }
     let _ = writeln!(s, "rounds (chi^2 / observations):");

@@ -7,7 +7,7 @@
 //! rank-one secant (the update that matches the step's change of values) instead of computing
 //! it again; the engine computes it again where the secant fit stalls (a step refused, or a
 //! stop that the Jacobian declares) and at the end, so the fit stops, and its uncertainties come,
-//! from an exact Jacobian ([`FitOptions::secant`](super::campaign::FitOptions::secant)).
+//! from an exact Jacobian ([`FitOptions::secant`](crate::measure::campaign::FitOptions::secant)).
 //!
 //! Parameters move in units of their scale (an effect's typical magnitude, a material number's
 //! starting value), so the damping treats them alike. A parameter at a bound whose Gauss-Newton
@@ -16,12 +16,12 @@
 //! data's uncertainties taken as given (not rescaled by the reduced chi^2, which is reported
 //! beside).
 
-use super::campaign::Campaign;
-use super::error::MeasureError;
-use super::observation::Observation;
+use crate::measure::campaign::Campaign;
+use crate::measure::error::MeasureError;
+use crate::measure::observation::Observation;
 use super::linalg::{gauss_newton_step, normal_equations, pinv_sym, secant_update, Mat};
-use super::model::{Bounds, Model, Parameter};
-use super::sensitivity::{Differences, Sensitivity};
+use crate::measure::model::{Bounds, Model, Parameter};
+use crate::measure::campaign::sensitivity::{Differences, Sensitivity};
 
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Fit {
@@ -161,7 +161,7 @@ pub fn calibrate(c: &Campaign, model: &Model, names: &[String]) -> Result<Fit, M
 
 /// [`calibrate`] from a model whose values of the data may be known (`values`), as the engine
 /// gives them (the discretisation error's runs at the model,
-/// [`counted_data`](super::resolution::counted_data)): then the start's Jacobian runs only its
+/// [`counted_data`](crate::measure::campaign::resolution::counted_data)): then the start's Jacobian runs only its
 /// differences.
 pub fn calibrate_at(c: &Campaign, model: &Model, values: Option<&[f64]>, names: &[String]) -> Result<Fit, MeasureError> {
     check(model, names)?;
@@ -187,8 +187,8 @@ pub fn calibrate_from(c: &Campaign, model: &Model, names: &[String], at_start: S
     fit.result(Started { start, chi2: c2, at: first }, converged)
 }
 
-/// A fit made for its optimum only ([`FitOptions::uncertainties`](super::campaign::FitOptions::uncertainties)
-/// off, perhaps [`stop_on_secant`](super::campaign::FitOptions::stop_on_secant) on), finished as the campaign's options ask: where its Jacobian
+/// A fit made for its optimum only ([`FitOptions::uncertainties`](crate::measure::campaign::FitOptions::uncertainties)
+/// off, perhaps [`stop_on_secant`](crate::measure::campaign::FitOptions::stop_on_secant) on), finished as the campaign's options ask: where its Jacobian
 /// at the end may be a secant update, the engine's exact one there, and the fit taken on from it
 /// until that Jacobian's stop holds (at once, where the secant fit had stopped at the optimum),
 /// so that its uncertainties, and a leave-one-out step on its curvature, come from an exact
@@ -572,7 +572,7 @@ pub fn plot_convergence(f: &Fit, path: &std::path::Path) -> Result<(), crate::ou
 mod tests {
     use super::*;
     use crate::measure::campaign::FitOptions;
-    use crate::measure::experiments::Experiments;
+    use crate::measure::campaign::experiments::Experiments;
     use crate::measure::observation::Observable;
 
     const MODEL: &str = "[material]\nkind = \"bingham\"\ndensity = 2100.0\nbulk_modulus = 1e6\nviscosity = 7.5\nyield_stress = 630.0\n";
@@ -608,7 +608,7 @@ mod tests {
     #[test]
     fn a_scattered_jacobian_promises_what_promised_by_scatter_says() {
         use rand_distr::{Distribution, StandardNormal};
-        let mut rng = super::super::synth::noise_source(3);
+        let mut rng = crate::measure::compare::synth::noise_source(3);
         let m = 40;
         let truth: Vec<Vec<f64>> = (0..m).map(|i| vec![1.0 + 0.1 * i as f64, 1.1 + 0.1 * i as f64 + 0.02 * (i % 3) as f64]).collect();
         // residuals at the optimum: the part of a draw the columns do not explain
@@ -637,7 +637,7 @@ mod tests {
     fn flow_curve_fit(opts: &FitOptions) -> Fit {
         let truth = Model::from_table(&MODEL.parse().unwrap()).unwrap();
         let e: Experiments = toml::from_str(EXPS).unwrap();
-        let data = super::super::synth::synth(&truth, &e, 0.0, 1, 1).unwrap();
+        let data = crate::measure::compare::synth::synth(&truth, &e, 0.0, 1, 1).unwrap();
         let data: Vec<Observation> = data.into_iter().map(|mut o| {
             o.uncertainty = 1.0;
             o
@@ -652,7 +652,7 @@ mod tests {
     /// Progress changes no bit of a fit, and its JSON events are well-formed and monotone.
     #[test]
     fn a_fit_with_progress_events_is_the_fit_without() {
-        use crate::measure::progress::tests::{check_monotone, Shared};
+        use crate::measure::campaign::progress::tests::{check_monotone, Shared};
         let out = Shared::default();
         let progress = out.progress(1);
         progress.begin("fit", 1);
