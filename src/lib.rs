@@ -20,6 +20,7 @@ pub mod failure;
 pub mod grad;
 pub mod grid;
 pub mod invalid;
+pub mod key;
 pub mod materials;
 pub mod measure;
 pub mod memory;

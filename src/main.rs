@@ -404,7 +404,7 @@ impl EngineArgs {
     /// A fit's options on this engine, the inputs' `--jobs` experiments at a time, its progress
     /// on stderr (`measure/progress.rs`): a line per step and bars, or with `--json` progress
     /// events as JSON lines; nothing with `--quiet`.
-    fn fit_options(&self, steps: &FitSteps, inputs: &MeasureInputs) -> Result<strand::measure::calibrate::FitOptions, Failure> {
+    fn fit_options(&self, steps: &FitSteps, inputs: &MeasureInputs) -> Result<strand::measure::campaign::FitOptions, Failure> {
         use strand::measure::progress::Progress;
         let (max_iterations, secant, jobs) = (steps.max_iterations, !steps.jacobian_every_step, inputs.jobs);
         let progress = match (steps.quiet, inputs.json) {
@@ -412,7 +412,7 @@ impl EngineArgs {
             (false, true) => Progress::json(Box::new(std::io::stderr())),
             (false, false) => Progress::bars(),
         };
-        Ok(strand::measure::calibrate::FitOptions { max_iterations, jobs, engine: self.engine()?, log: !steps.quiet, progress, secant, ..Default::default() })
+        Ok(strand::measure::campaign::FitOptions { max_iterations, jobs, engine: self.engine()?, log: !steps.quiet, progress, secant, ..Default::default() })
     }
 }
 
@@ -638,7 +638,7 @@ fn counted_data(m: &Model, d: Vec<Observation>, e: &Experiments, jobs: usize) ->
 /// `strand calibrate`: the fit, its report, the calibrated model and the convergence plot.
 fn calibrate(args: CalibrateArgs) -> Result<bool, Failure> {
     let CalibrateArgs { inputs, fit, out, plot, fit_steps, engine } = args;
-    use strand::measure::{calibrate, resolution};
+    use strand::measure::{calibrate, campaign::{expected_runs, Campaign}, resolution};
     let (m, d0, e, planned) = inputs.load()?;
     if let Some(w) = resolution::uncounted_warning(&planned.prints, &e) {
         eprintln!("{w}");
@@ -650,8 +650,9 @@ fn calibrate(args: CalibrateArgs) -> Result<bool, Failure> {
     let (d, disc) = counted_data(&m, d0, &e, inputs.jobs)?;
     let opts = engine.fit_options(&fit_steps, &inputs)?;
     opts.progress.plan(1);
-    opts.progress.begin("fit", calibrate::expected_runs(&d, &fit));
-    let f = calibrate::calibrate_at(&m, disc.as_ref().map(|c| &c.start_values[..]), &d, &e, &fit, &opts)?;
+    opts.progress.begin("fit", expected_runs(&d, &fit));
+    let c = Campaign { estimate: disc.as_ref(), ..Campaign::new(&e, &d, &opts) };
+    let f = calibrate::calibrate_at(&c, &m, c.start_values(), &fit)?;
     opts.progress.end();
     opts.progress.finish();
     // the fitted values first: a file that fails to write then loses nothing
@@ -665,7 +666,7 @@ fn calibrate(args: CalibrateArgs) -> Result<bool, Failure> {
 /// `strand diagnose`: which effect the model lacks, in one round or several.
 fn diagnose(args: DiagnoseArgs) -> Result<bool, Failure> {
     let DiagnoseArgs { inputs, fit, alpha, no_loo, loo_refits, max_fitted, out, fit_steps, rounds, engine } = args;
-    use strand::measure::{diagnose, resolution};
+    use strand::measure::{campaign::Campaign, diagnose, resolution};
     if !(alpha > 0.0 && alpha < 1.0) {
         return Err(format!("--alpha must be in (0, 1), got {alpha}").into());
     }
@@ -677,11 +678,13 @@ fn diagnose(args: DiagnoseArgs) -> Result<bool, Failure> {
         check_writable(out, "--out")?;
     }
     let (d, disc) = counted_data(&m, d0, &e, inputs.jobs)?;
-    let opts = diagnose::DiagnoseOptions { fit: engine.fit_options(&fit_steps, &inputs)?, alpha, leave_one_out: !no_loo, exact_refits: loo_refits, max_fitted: max_fitted as usize };
+    let fit_opts = engine.fit_options(&fit_steps, &inputs)?;
+    let c = Campaign { estimate: disc.as_ref(), ..Campaign::new(&e, &d, &fit_opts) };
+    let opts = diagnose::DiagnoseOptions { alpha, leave_one_out: !no_loo, exact_refits: loo_refits, max_fitted: max_fitted as usize };
     if rounds > 1 {
         use strand::measure::rounds;
-        let r = rounds::rounds(&m, &d, &e, &fit, &opts, rounds as usize, disc.as_ref().map(|c| &c.start_values[..]))?;
-        opts.fit.progress.finish();
+        let r = rounds::rounds(&c, &m, &fit, &opts, rounds as usize)?;
+        fit_opts.progress.finish();
         // the report first: a file that fails to write then loses nothing
         if inputs.json {
             println!("{:#}", serde_json::to_value(&r)?);
@@ -694,8 +697,8 @@ fn diagnose(args: DiagnoseArgs) -> Result<bool, Failure> {
         }
         return Ok(true);
     }
-    let r = diagnose::diagnose(&m, &d, &e, &fit, &opts, disc.as_ref().map(|c| &c.start_values[..]))?;
-    opts.fit.progress.finish();
+    let r = diagnose::diagnose(&c, &m, &fit, &opts)?;
+    fit_opts.progress.finish();
     // the report first: a file that fails to write then loses nothing
     print_result(inputs.json, &r, &disc, |c| resolution::report(&c.data, &c.estimates, &c.start_values, "start"), || diagnose::report(&r))?;
     if let (Some(out), Some(best)) = (&out, &r.recommended_model) {

@@ -353,6 +353,18 @@ pub enum ScenarioError {
     Invalid(#[from] Invalid),
 }
 
+/// A table's deserialisation error on one line, where first (`in \`simulation\``) and what is
+/// wrong last, as a text's error ends with what is wrong.
+fn where_then_what(e: &toml::de::Error) -> String {
+    let what = e.message().trim();
+    let full = e.to_string();
+    let place: Vec<&str> = full.lines().map(str::trim).filter(|l| !l.is_empty() && *l != what).collect();
+    match place.is_empty() {
+        true => what.to_string(),
+        false => format!("{}: {what}", place.join(" ")),
+    }
+}
+
 impl Scenario {
     pub fn load(path: &Path) -> Result<Scenario, ScenarioError> {
         let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Io { path: path.into(), source })?;
@@ -369,6 +381,19 @@ impl Scenario {
     /// directory.
     pub fn parse(text: &str) -> Result<Scenario, ScenarioError> {
         let mut sc = Scenario::parse_as_written(text)?;
+        sc.resolve_defaults();
+        Ok(sc)
+    }
+
+    /// A scenario from a TOML table already read and edited (the measurement loop sets a model's
+    /// keys in it): the scenario `parse` gives of the table's text, read from the table itself;
+    /// the text is written once, as the scenario's record (`source`), and not read back.
+    pub fn from_table(doc: toml::Table) -> Result<Scenario, ScenarioError> {
+        let parse_error = |message: String| ScenarioError::Parse { path: PathBuf::from("<table>"), message };
+        let source = toml::to_string(&doc).map_err(|e| parse_error(e.to_string()))?;
+        let mut sc: Scenario = toml::Value::Table(doc).try_into().map_err(|e: toml::de::Error| parse_error(where_then_what(&e)))?;
+        sc.validate()?;
+        sc.source = source;
         sc.resolve_defaults();
         Ok(sc)
     }

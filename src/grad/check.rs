@@ -5,6 +5,7 @@ use super::driver::{forward_values_after, GradResult};
 use crate::observables::Objective;
 use super::GradError;
 use super::params::with_value;
+use crate::key::Key;
 use crate::scenario::Scenario;
 
 /// Default relative step sizes of the central differences (times |theta|, or absolute when
@@ -44,7 +45,7 @@ fn step_of(theta: f64, rel: f64) -> f64 {
 fn perturbed(sc: &Scenario, keys: &[String], values: &[f64]) -> Result<Scenario, GradError> {
     let mut text = sc.source.clone();
     for (k, v) in keys.iter().zip(values) {
-        text = with_value(&text, k, *v)?;
+        text = with_value(&text, &Key::parse(k).map_err(GradError::Param)?, *v)?;
     }
     let mut p = Scenario::parse(&text)?;
     p.base_dir = sc.base_dir.clone();

@@ -10,7 +10,8 @@
 
 use super::fields::state_bytes;
 use crate::observables::{Frame, Objective};
-use super::params::{resolve, Param};
+use super::params::{parse, Param};
+use crate::key::Key;
 use super::schedule::{choose, Action, Budget, Kind, OnlineSchedule, Plan};
 use super::step_adjoint::StepAdjoint;
 use super::store::{DiskSlots, RamSlots, Store};
@@ -233,8 +234,8 @@ pub fn gradients(sc: &Scenario, seeds: &[Seeded], wrt: &[String], opts: &GradOpt
 fn gradient_run(sc: &Scenario, seeds: &[Seeded], wrt: &[String], opts: &GradOptions) -> Result<Vec<GradResult>, GradError> {
     let wall = Instant::now();
     let sim = prepare(sc, opts.threads)?;
-    let params: Vec<Param> = wrt.iter().map(|k| resolve(&sim, k)).collect::<Result<_, _>>()?;
-    let values: Vec<f64> = wrt.iter().map(|k| super::params::value(&sc.source, k)).collect::<Result<_, _>>()?;
+    let (keys, params): (Vec<Key>, Vec<Param>) = wrt.iter().map(|k| parse(&sim, k)).collect::<Result<Vec<_>, _>>()?.into_iter().unzip();
+    let values: Vec<f64> = keys.iter().map(|k| super::params::value(&sc.source, k)).collect::<Result<_, _>>()?;
     let frame = Frame::of(&sim);
     let n0 = sim.particles.n;
     let print_keys: Vec<(String, f64)> =

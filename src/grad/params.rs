@@ -4,6 +4,7 @@
 //! differences) and reports a parameter.
 
 use super::GradError;
+use crate::key::Key;
 use crate::kernels::boundary::WallKind;
 use crate::solver::Simulation;
 
@@ -77,9 +78,18 @@ pub fn known(sim: &Simulation) -> Vec<String> {
     k
 }
 
-/// The parameter a key names, or an error listing the keys this scenario offers.
-pub fn resolve(sim: &Simulation, key: &str) -> Result<Param, GradError> {
-    let parts: Vec<&str> = key.split('.').collect();
+/// The parameter `key` names, parsed once ([`Key`]); an error listing the keys this scenario
+/// offers where it names none.
+pub fn parse(sim: &Simulation, key: &str) -> Result<(Key, Param), GradError> {
+    let unknown = || GradError::Param(format!("unknown parameter '{key}' for this scenario; known: {}", known(sim).join(", ")));
+    let k = Key::parse(key).map_err(|_| unknown())?;
+    let p = resolve(sim, &k).ok_or_else(unknown)?;
+    Ok((k, p))
+}
+
+/// The parameter a key names in this scenario, if any.
+fn resolve(sim: &Simulation, key: &Key) -> Option<Param> {
+    let parts: Vec<&str> = key.parts().collect();
     let p = match parts.as_slice() {
         ["material", "density"] => Some(Param::Density),
         ["material", name] => sim.material.param_names().iter().position(|n| n == name).map(Param::Material),
@@ -89,7 +99,7 @@ pub fn resolve(sim: &Simulation, key: &str) -> Result<Param, GradError> {
             (Ok(body), Some(axis)) if body < sim.scenario.bodies.len() => Some(Param::BodyVelocity { body, axis }),
             _ => None,
         },
-        ["print", "path", _, _] | ["print", "extrusion_factor" | "z_offset"] => known(sim).iter().any(|k| k == key).then_some(Param::Toolpath),
+        ["print", "path", _, _] | ["print", "extrusion_factor" | "z_offset"] => known(sim).iter().any(|k| k == key.as_str()).then_some(Param::Toolpath),
         ["boundary", "platform", "kind", "friction", "mu"] => {
             matches!(sim.walls.platform, Some((_, _, WallKind::Friction { .. }))).then_some(Param::PlatformFriction)
         }
@@ -99,13 +109,13 @@ pub fn resolve(sim: &Simulation, key: &str) -> Result<Param, GradError> {
         }),
         _ => None,
     };
-    p.ok_or_else(|| GradError::Param(format!("unknown parameter '{key}' for this scenario; known: {}", known(sim).join(", "))))
+    p
 }
 
 /// Walk `key` in a TOML document: `x`/`y`/`z` and numbers index arrays.
-fn walk<'a>(doc: &'a mut toml::Value, key: &str) -> Result<&'a mut toml::Value, GradError> {
+fn walk<'a>(doc: &'a mut toml::Value, key: &Key) -> Result<&'a mut toml::Value, GradError> {
     let mut at = doc;
-    for part in key.split('.') {
+    for part in key.parts() {
         at = match at {
             toml::Value::Table(t) => t.get_mut(part),
             toml::Value::Array(a) => part.parse::<usize>().ok().or_else(|| axis(part)).and_then(|i| a.get_mut(i)),
@@ -117,7 +127,7 @@ fn walk<'a>(doc: &'a mut toml::Value, key: &str) -> Result<&'a mut toml::Value, 
 }
 
 /// The value of `key` in the scenario text.
-pub fn value(source: &str, key: &str) -> Result<f64, GradError> {
+pub fn value(source: &str, key: &Key) -> Result<f64, GradError> {
     let mut doc: toml::Value = toml::from_str(source)?;
     match walk(&mut doc, key)? {
         toml::Value::Float(f) => Ok(*f),
@@ -127,7 +137,7 @@ pub fn value(source: &str, key: &str) -> Result<f64, GradError> {
 }
 
 /// The scenario text with `key` set to `v`.
-pub fn with_value(source: &str, key: &str, v: f64) -> Result<String, GradError> {
+pub fn with_value(source: &str, key: &Key, v: f64) -> Result<String, GradError> {
     let mut doc: toml::Value = toml::from_str(source)?;
     *walk(&mut doc, key)? = toml::Value::Float(v);
     Ok(toml::to_string(&doc)?)

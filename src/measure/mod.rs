@@ -1,46 +1,36 @@
-//! The measurement loop: measurements (`observation.rs`), what can be observed
-//! (`observables.rs`; the flow front's history in `front.rs`, the mass passed below a plane in
-//! `passing.rs`) and the experiments that produced them (`experiments.rs`), a model and its
-//! effects (`model.rs`, `effects/`), a virtual rheometer (`rheometer.rs`), running experiments
-//! under a model (`runner.rs`), comparing with measurements (`compare.rs`) or synthesising them
-//! (`synth.rs`), the comparison as a folder of plots and trends (`report.rs`) and the shapes of
-//! its residuals (`residuals.rs`), the discretisation error counted beside the measurement
-//! uncertainty (`resolution.rs`), gradients (`sensitivity.rs`; idle workers lent to the
-//! experiments still running, `spare.rs`), fitting a model (`calibrate.rs`) and finding the
-//! effect it lacks (`diagnose.rs`); where the experiments run (`engine.rs`: here, or as a
-//! scheduler's jobs) and what a saved result was computed from (`provenance.rs`); a long command's
-//! progress (`progress.rs`); why a step cannot be taken (`error.rs`).
+//! The measurement loop, in the order data flow through it:
 //!
-//! Imports point one way (no circle among these files, `tests/suite/architecture.rs`): `error.rs` and
-//! `observation.rs` at the bottom; then the observables, the effects and the model; the experiments; the runner;
-//! comparison and synthesis; reports and residual shapes; and sensitivity, calibration, the
-//! engine, diagnosis and rounds on top.
+//! - the measurements (`observation.rs`), what can be observed (`observables.rs`; the flow
+//!   front's history in `front.rs`, the mass passed below a plane in `passing.rs`);
+//! - a model: the `[material]` and the effects switched on (`model.rs`, `effects/`, the
+//!   expressions of declared effects in `expression.rs`);
+//! - a campaign (`campaign/`): the experiments and their data, run under a model, here or as a
+//!   scheduler's jobs, with values, gradients and the discretisation error;
+//! - the model against the data (`compare/`): residuals, the report folder, synthetic data;
+//! - a fit of the model's parameters (`fit/`), and the effect the model lacks (`diagnose/`);
+//! - why a step cannot be taken (`error.rs`).
+//!
+//! Each folder's module doc says what enters it and what leaves. Imports point one way (no circle
+//! among these files, `tests/suite/architecture.rs`): `error.rs` and `observation.rs` at the
+//! bottom; the observables, the effects and the model; the campaign; comparison; the fit; and
+//! diagnosis on top. The modules most callers name are also found at `measure::NAME` (below),
+//! the paths the rest of the crate and the tests use; files of the loop name each other by
+//! their place.
 
-pub mod calibrate;
-pub mod chain;
+pub mod campaign;
 pub mod compare;
 pub mod diagnose;
 pub mod effects;
-pub mod engine;
 pub mod error;
-pub mod experiments;
 pub mod expression;
+pub mod fit;
 pub mod front;
-pub mod linalg;
 pub mod model;
 pub mod observables;
 pub mod observation;
 pub mod passing;
-pub mod plan;
-pub mod preflight;
-pub mod progress;
-pub mod provenance;
-pub mod report;
-pub mod residuals;
-pub mod resolution;
-pub mod rheometer;
-pub mod rounds;
-pub mod runner;
-pub mod sensitivity;
-pub mod spare;
-pub mod synth;
+
+pub use campaign::{engine, experiments, preflight, progress, provenance, resolution, rheometer, runner, sensitivity, spare};
+pub use compare::{plan, report, synth};
+pub use diagnose::{chain, residuals, rounds};
+pub use fit::{calibrate, linalg};

@@ -24,6 +24,7 @@
 use super::error::{io_error, toml_error, MeasureError};
 use super::effects::declared::{self, Declared};
 use super::effects::{self, Covariates, Effect, Keys};
+use crate::key::Key;
 use std::path::{Path, PathBuf};
 use std::collections::BTreeMap;
 
@@ -182,7 +183,8 @@ impl Model {
 
     fn locate(&self, name: &str) -> Result<Slot, MeasureError> {
         let unknown = || MeasureError::Model(format!("unknown parameter '{name}'; the model has {}", self.param_names().join(", ")));
-        let (head, key) = name.split_once('.').ok_or_else(unknown)?;
+        let parsed = Key::parse(name).map_err(|_| unknown())?;
+        let (head, key) = (parsed.table(), parsed.field());
         if head == "material" {
             return match self.material.get(key).and_then(super::observation::number) {
                 Some(_) => Ok(Slot::Material(key.to_string())),
@@ -198,36 +200,67 @@ impl Model {
         Ok(Slot::Effect(e, p))
     }
 
+    /// Parameter `name`, its key parsed and located once, with its bounds and unit here.
+    pub fn parameter(&self, name: &str) -> Result<Parameter, MeasureError> {
+        let slot = self.locate(name)?;
+        let (bounds, unit) = (self.bounds_at(&slot), self.unit_at(&slot));
+        let key = Key::parse(name).expect("located");
+        Ok(Parameter { key, slot, bounds, unit })
+    }
+
     pub fn get(&self, name: &str) -> Result<f64, MeasureError> {
-        Ok(match self.locate(name)? {
-            Slot::Material(k) => super::observation::number(&self.material[&k]).expect("located"),
-            Slot::Effect(e, p) => self.effects[e].1[p],
-        })
+        Ok(self.value_at(&self.locate(name)?))
     }
 
     pub fn set(&mut self, name: &str, v: f64) -> Result<(), MeasureError> {
-        match self.locate(name)? {
-            Slot::Material(k) => {
-                self.material.insert(k, toml::Value::Float(v));
-            }
-            Slot::Effect(e, p) => self.effects[e].1[p] = v,
-        }
+        let slot = self.locate(name)?;
+        self.set_at(&slot, v);
         Ok(())
+    }
+
+    /// The value of parameter `p` (resolved in this model or one with the same effects).
+    pub fn value(&self, p: &Parameter) -> f64 {
+        self.value_at(&p.slot)
+    }
+
+    /// Set parameter `p` (resolved in this model or one with the same effects) to `v`.
+    pub fn set_value(&mut self, p: &Parameter, v: f64) {
+        self.set_at(&p.slot, v)
+    }
+
+    fn value_at(&self, slot: &Slot) -> f64 {
+        match slot {
+            Slot::Material(k) => super::observation::number(&self.material[k]).expect("located"),
+            Slot::Effect(e, p) => self.effects[*e].1[*p],
+        }
+    }
+
+    fn set_at(&mut self, slot: &Slot, v: f64) {
+        match slot {
+            Slot::Material(k) => {
+                self.material.insert(k.clone(), toml::Value::Float(v));
+            }
+            Slot::Effect(e, p) => self.effects[*e].1[*p] = v,
+        }
     }
 
     /// Bounds of a parameter: an effect's own; a material number stays >= 0, and one that is
     /// positive stays positive (the materials reject a zero modulus or density).
     pub fn bounds(&self, name: &str) -> Result<Bounds, MeasureError> {
-        Ok(match self.locate(name)? {
+        Ok(self.bounds_at(&self.locate(name)?))
+    }
+
+    fn bounds_at(&self, slot: &Slot) -> Bounds {
+        match slot {
             Slot::Material(_) => {
-                let v = self.get(name)?;
+                let v = self.value_at(slot);
                 Bounds { lower: if v > 0.0 { 1e-6 * v } else { 0.0 }, upper: f64::INFINITY, scale: if v != 0.0 { v.abs() } else { 1.0 } }
             }
             Slot::Effect(e, p) => {
-                let s = self.effects[e].0.params()[p];
+                let s = self.effects[*e].0.params()[*p];
                 Bounds { lower: s.lower, upper: s.upper, scale: s.scale }
             }
-        })
+        }
     }
 
     /// The magnitude a parameter is measured against: a material number's value in the model as
@@ -236,13 +269,17 @@ impl Model {
     /// number a fit has taken towards 0 (a viscosity the data barely see, walked to its bound)
     /// is still differenced over a step that moves the model by more than particle noise.
     pub fn unit(&self, name: &str) -> Result<f64, MeasureError> {
-        Ok(match self.locate(name)? {
-            Slot::Material(k) => match self.units.get(&k) {
+        Ok(self.unit_at(&self.locate(name)?))
+    }
+
+    fn unit_at(&self, slot: &Slot) -> f64 {
+        match slot {
+            Slot::Material(k) => match self.units.get(k) {
                 Some(&u) => u,
-                None => self.bounds(name)?.scale,
+                None => self.bounds_at(slot).scale,
             },
-            Slot::Effect(e, p) => self.effects[e].0.params()[p].scale,
-        })
+            Slot::Effect(e, p) => self.effects[*e].0.params()[*p].scale,
+        }
     }
 
     /// The material an experiment runs with, before its keys are set: the model's, less every
@@ -316,6 +353,21 @@ impl Model {
     }
 }
 
+/// A model's parameter, its key parsed once ([`Model::parameter`]): a material number or an
+/// effect's parameter, with its bounds and unit (a material number's, as the model it was
+/// resolved in gives them). It reads and sets that model, and every model with the same effects
+/// (a fit's trial models).
+#[derive(Clone, Debug)]
+pub struct Parameter {
+    pub key: Key,
+    slot: Slot,
+    pub bounds: Bounds,
+    pub unit: f64,
+}
+
+/// Where a parameter lives: a material number by name, or an effect's (its place in the model's
+/// effects) parameter.
+#[derive(Clone, Debug)]
 enum Slot {
     Material(String),
     Effect(usize, usize),

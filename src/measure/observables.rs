@@ -16,7 +16,7 @@ use super::error::MeasureError;
 use super::front;
 use super::passing;
 use super::observation::Observable;
-use super::rheometer::Reading;
+use super::campaign::rheometer::Reading;
 use crate::observables::{At, Objective, Takes, KINDS};
 use std::sync::LazyLock;
 

@@ -34,7 +34,8 @@ fn code(text: &str) -> String {
     // unit tests in a file of their own (`mod tests;`) are left out by their declaration; inline
     // ones (`mod tests {`) run to the end of the file
     let text = text.replace("#[cfg(test)]\nmod tests;", "");
-    let body = match text.find("#[cfg(test)]\nmod tests") {
+    // (`pub mod tests` too: a test module other files' tests borrow from)
+    let body = match ["#[cfg(test)]\nmod tests", "#[cfg(test)]\npub mod tests"].iter().filter_map(|m| text.find(m)).min() {
         Some(i) => &text[..i],
         None => &text[..],
     };

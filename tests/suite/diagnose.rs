@@ -330,7 +330,7 @@ fn a_failure_layers_column_resolves_its_staircase() {
     let model = Model::from_table(&text.parse().unwrap()).unwrap();
     let wanted = [Observable::parse("failure_layer").unwrap(), Observable::parse("failure_time").unwrap()];
     let names = ["thixotropy.a_thix".to_string()];
-    let got = sensitivity::one(&model, &exps, "mid", &wanted, Some(&names), Some(1), None).unwrap();
+    let got = sensitivity::one(&model, &exps, "mid", &wanted, (Some(&names), Some(1)), None).unwrap();
     let (layer, dlayer) = (got[0].value, got[0].gradient.as_ref().unwrap()[0]);
     let dtime = got[1].gradient.as_ref().unwrap()[0];
     assert_eq!(layer, 4.0, "{got:?}");
@@ -344,7 +344,8 @@ fn a_failure_layers_column_resolves_its_staircase() {
 /// slumps (simulations, so secant steps), fitted from the base model away from their truth.
 #[test]
 fn a_fit_finished_on_an_exact_jacobian_ends_where_a_full_fit_does() {
-    use strand::measure::calibrate::{calibrate, finish, FitOptions};
+    use strand::measure::calibrate::{calibrate, finish};
+    use strand::measure::campaign::{Campaign, FitOptions};
     use strand::measure::sensitivity::{jacobian_at, Differences};
     use strand::measure::{experiments::Experiments, model::Model, synth::synth};
     let d = measure_fixtures("slump");
@@ -356,15 +357,17 @@ fn a_fit_finished_on_an_exact_jacobian_ends_where_a_full_fit_does() {
     let start = Model::load(&d.join("base.toml")).unwrap();
     let names = ["material.yield_stress".to_string(), "material.viscosity".to_string()];
     let opts = FitOptions { jobs: 2, ..FitOptions::default() };
-    let full = calibrate(&start, &data, &exps, &names, &opts).unwrap();
-    let lazy = calibrate(&start, &data, &exps, &names, &FitOptions { uncertainties: false, stop_on_secant: true, ..opts.clone() }).unwrap();
-    let finished = finish(lazy.clone(), &data, &exps, &opts).unwrap();
+    let c = Campaign::new(&exps, &data, &opts);
+    let full = calibrate(&c, &start, &names).unwrap();
+    let lazy_opts = FitOptions { uncertainties: false, stop_on_secant: true, ..opts.clone() };
+    let lazy = calibrate(&c.with_opts(&lazy_opts), &start, &names).unwrap();
+    let finished = finish(&c, lazy.clone()).unwrap();
     println!("full: {:?} +/- {:?}, chi^2 {} ({:?})", full.values, full.uncertainty, full.chi2, full.history);
     println!("lazy: {:?}, chi^2 {} ({:?})", lazy.values, lazy.chi2, lazy.history);
     println!("finished: {:?} +/- {:?}, chi^2 {} ({:?})", finished.values, finished.uncertainty, finished.chi2, finished.history);
     // the lazy fit ends on a secant Jacobian, the finished one on the engine's at its values, to
     // the bit
-    let exact_at = |f: &strand::measure::calibrate::Fit| jacobian_at(&f.model, &data, &exps, &names, 2, &f.model_values, &Differences::Central).unwrap().jacobian.unwrap();
+    let exact_at = |f: &strand::measure::calibrate::Fit| jacobian_at(&f.model, &data, &exps, (&names, 2), (&f.model_values, &Differences::Central)).unwrap().jacobian.unwrap();
     assert_ne!(lazy.jacobian, exact_at(&lazy), "the lazy fit ended on an exact Jacobian: nothing to finish");
     assert_eq!(finished.jacobian, exact_at(&finished));
     // it keeps the lazy fit's start and history, and goes on only downhill

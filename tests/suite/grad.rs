@@ -478,7 +478,7 @@ fn the_flow_front_against_the_maxwell_branch_agrees_with_differences_on_and_at_i
     let null = Scenario::parse(&with(0.0, 1.0)).unwrap();
     let r = gradient(&null, &obj, &wrt, &opts(None, dir.path())).unwrap();
     assert_eq!(r.gradient[1], 0.0, "at G_M = 0 nothing depends on t_M");
-    let value = |g_m: f64| forward_value(&Scenario::parse(&with_value(&null.source, "material.maxwell_modulus", g_m).unwrap()).unwrap(), &obj, None, r.steps).unwrap();
+    let value = |g_m: f64| forward_value(&Scenario::parse(&with_value(&null.source, &strand::key::Key::parse("material.maxwell_modulus").unwrap(), g_m).unwrap()).unwrap(), &obj, None, r.steps).unwrap();
     let j0 = value(0.0);
     assert_eq!(j0, r.value, "the gradient's forward is the run");
     let errs: Vec<(f64, f64, f64)> = [3.0, 0.3, 0.03]
@@ -498,7 +498,7 @@ fn the_flow_front_against_the_maxwell_branch_agrees_with_differences_on_and_at_i
 fn the_bulk_modulus_age_law_keys_are_gradient_parameters() {
     // evp_bingham's age law (the slump of the tests above): `strand grad --wrt material.KEY`
     // offers and resolves each of its keys, and without the law offers none of them
-    use strand::grad::params::{known, resolve};
+    use strand::grad::params::{known, parse};
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/measure/slump/slump.toml");
     let base = std::fs::read_to_string(path).unwrap();
     let law = "yield_stress = 60.0\nbulk_modulus_rate = 1e5\nbulk_modulus_late_rate = 3e5\nbulk_modulus_transition_age = 60.1\nage_at_start = 60.0\n";
@@ -507,10 +507,10 @@ fn the_bulk_modulus_age_law_keys_are_gradient_parameters() {
     let offered = known(&sim);
     for k in keys {
         assert!(offered.iter().any(|o| o == k), "{k} not in {offered:?}");
-        assert!(resolve(&sim, k).is_ok(), "{k}");
+        assert!(parse(&sim, k).is_ok(), "{k}");
     }
     let plain = strand::solver::Simulation::new(&Scenario::parse(&base).unwrap()).unwrap();
-    assert!(keys.iter().all(|k| resolve(&plain, k).is_err()));
+    assert!(keys.iter().all(|k| parse(&plain, k).is_err()));
 }
 
 /// fixtures/scenarios/grad/two_layers.toml: two short EVP Bingham layers at 5 mm, the y >= 0 half

@@ -94,7 +94,8 @@ fn measurements_of_the_finer_run_are_explained_by_the_estimated_discretisation_e
 /// itself, bit for bit, and one started from other values is not.
 #[test]
 fn a_fit_from_the_estimates_runs_is_the_fit_that_runs_its_start() {
-    use strand::measure::calibrate::{calibrate, calibrate_at, Fit, FitOptions};
+    use strand::measure::calibrate::{calibrate, calibrate_at, Fit};
+    use strand::measure::campaign::{Campaign, FitOptions};
     use strand::measure::{experiments::Experiments, model::Model, resolution::counted_data, synth::synth};
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
@@ -107,12 +108,14 @@ fn a_fit_from_the_estimates_runs_is_the_fit_that_runs_its_start() {
     let at_model = counted.expect("a [resolution] table").start_values;
     let names = ["material.yield_stress".to_string(), "material.viscosity".to_string()];
     let opts = FitOptions { jobs: 2, ..FitOptions::default() };
-    let itself = calibrate(&start, &data, &exps, &names, &opts).unwrap();
-    let from_runs = calibrate_at(&start, Some(&at_model), &data, &exps, &names, &opts).unwrap();
+    let c = Campaign::new(&exps, &data, &opts);
+    let itself = calibrate(&c, &start, &names).unwrap();
+    let from_runs = calibrate_at(&c, &start, Some(&at_model), &names).unwrap();
     let what = |f: &Fit| (f.at_start.values.clone(), f.at_start.jacobian.clone(), f.history.clone(), f.values.clone(), f.model_values.clone(), f.jacobian.clone(), f.uncertainty.clone());
     assert!(itself.history.len() > 1, "the fit took a step: {:?}", itself.history);
     assert_eq!(what(&from_runs), what(&itself));
     // the values given are the ones taken
     let shifted: Vec<f64> = at_model.iter().map(|v| v * 1.001).collect();
-    assert_ne!(calibrate_at(&start, Some(&shifted), &data, &exps, &names, &FitOptions { max_iterations: 0, ..opts }).unwrap().at_start.values, itself.at_start.values);
+    let no_steps = FitOptions { max_iterations: 0, ..opts.clone() };
+    assert_ne!(calibrate_at(&c.with_opts(&no_steps), &start, Some(&shifted), &names).unwrap().at_start.values, itself.at_start.values);
 }

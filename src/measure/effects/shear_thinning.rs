@@ -51,7 +51,7 @@ impl Effect for ShearThinning {
 mod tests {
     use super::*;
     use crate::measure::model::Model;
-    use crate::measure::rheometer::{Protocol, Rheometer};
+    use crate::measure::campaign::rheometer::{Protocol, Rheometer};
 
     #[test]
     fn it_needs_a_bingham_family_material() {

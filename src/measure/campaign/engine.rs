@@ -27,10 +27,10 @@
 //! model's hash), every number is saved exactly ([`Exact`]), and a run's result does not depend
 //! on its thread count.
 
-use super::error::{io_error, MeasureError};
+use crate::measure::error::{io_error, MeasureError};
 use super::experiments::{Experiment, Experiments};
-use super::model::Model;
-use super::observation::{Observable, Observation};
+use crate::measure::model::Model;
+use crate::measure::observation::{Observable, Observation};
 use super::provenance::{self, exact, plain, Exact, Provenance};
 use super::runner::{find, group};
 use super::sensitivity::{self, Differences, Sensitivity, Valued};
@@ -114,7 +114,7 @@ impl Engine {
     /// scheduler's jobs compute them again, to the same bits.
     pub fn jacobian_at(&self, jobs: usize, model: &Model, data: &[Observation], exps: &Experiments, names: &[String], (values, differences): (&[f64], &Differences)) -> Result<Answer, MeasureError> {
         match self {
-            Engine::Local => Ok(sensitivity::jacobian_at(model, data, exps, names, jobs, values, differences)),
+            Engine::Local => Ok(sensitivity::jacobian_at(model, data, exps, (names, jobs), (values, differences))),
             Engine::Scheduler(s) => s.sensitivity(model, data, exps, Some(names), match differences {
                 Differences::Central => None,
                 Differences::Forward(scatter) => Some(scatter),
@@ -383,7 +383,7 @@ pub fn evaluate(job_path: &Path, out: &Path) -> Result<String, MeasureError> {
         return Err(MeasureError::Engine(format!("{}: {} scatters for {} observables: not a job of this strand", job_path.display(), job.scatter.as_ref().map_or(0, Vec::len), obs.len())));
     }
     let scatter = job.scatter.as_ref().map(|s| plain(s));
-    let outcome = match sensitivity::one(&model, &exps, &id, &obs, job.names.as_deref(), job.threads, scatter.as_deref()) {
+    let outcome = match sensitivity::one(&model, &exps, &id, &obs, (job.names.as_deref(), job.threads), scatter.as_deref()) {
         Ok(per) => Outcome::Values {
             values: exact(&per.iter().map(|v| v.value).collect::<Vec<_>>()),
             jacobian: job.names.as_ref().map(|_| per.iter().map(|v| exact(v.gradient.as_deref().unwrap_or_default())).collect()),

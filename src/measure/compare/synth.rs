@@ -1,11 +1,11 @@
 //! Measurements synthesised from a model (`strand synth`): every experiment's `observe` list run
 //! under the model, each value with seeded noise, so a seed gives the same data anywhere.
 
-use super::error::MeasureError;
-use super::experiments::Experiments;
-use super::model::Model;
-use super::observation::{Observable, Observation};
-use super::runner::evaluate_all;
+use crate::measure::error::MeasureError;
+use crate::measure::campaign::experiments::Experiments;
+use crate::measure::model::Model;
+use crate::measure::observation::{Observable, Observation};
+use crate::measure::campaign::runner::evaluate_all;
 use rand::rngs::ChaCha8Rng;
 use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
@@ -49,7 +49,7 @@ pub(crate) fn noise_source(seed: u64) -> ChaCha8Rng {
 
 #[cfg(test)]
 mod tests {
-    use super::super::runner::fixture::setup;
+    use crate::measure::campaign::runner::fixture::setup;
     use super::*;
 
     #[test]

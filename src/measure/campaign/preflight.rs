@@ -10,10 +10,10 @@
 //! the finer run.
 //! `Simulation::new` plans again, so a path that misses this still refuses before it allocates.
 
-use super::error::MeasureError;
+use crate::measure::error::MeasureError;
 use super::experiments::{Experiment, Experiments, ResolutionTable};
-use super::model::Model;
-use super::runner::{experiment_keys, parse_scenario, scenario_text};
+use crate::measure::model::Model;
+use super::runner::{build_scenario, experiment_keys};
 use crate::scenario::Scenario;
 
 /// What the up-front planning saw: the experiments that print (whose cell size's discretisation
@@ -54,7 +54,7 @@ pub fn plan_experiments<'a>(model: &Model, exps: &Experiments, ids: impl IntoIte
 fn scenario_of(model: &Model, exps: &Experiments, x: &Experiment) -> Result<Scenario, MeasureError> {
     let path = exps.base_dir.join(x.scenario.as_ref().expect("a simulation"));
     let keys = experiment_keys(model, x)?;
-    parse_scenario(&scenario_text(model, &keys, &path)?, &path)
+    build_scenario(model, &keys, &path)
 }
 
 /// Experiment `x`'s finer run of `[resolution]`. When it cannot be built though `x` can, the

@@ -8,9 +8,9 @@
 //! round-trip form (serde_json's `float_roundtrip` reads it back to the same bits), NaN and the
 //! infinities as strings, which JSON numbers cannot hold.
 
-use super::error::{io_error, MeasureError};
+use crate::measure::error::{io_error, MeasureError};
 use super::experiments::{Experiment, Experiments};
-use super::model::Model;
+use crate::measure::model::Model;
 use super::runner::{experiment_keys, scenario_text};
 use std::path::Path;
 

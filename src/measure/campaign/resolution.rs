@@ -31,11 +31,11 @@
 //! The default order, [`DEFAULT_ORDER`], is measured on case 1 (BENCHMARKS.md,
 //! "Discretisation error").
 
-use super::error::MeasureError;
+use crate::measure::error::MeasureError;
 use super::experiments::{Experiment, Experiments, ResolutionTable};
-use super::observation::{Observable, Observation};
-use super::runner::{evaluate, experiment_keys, find, group, job_threads, par_map_experiments, parse_scenario, scenario_text, ungroup};
-use super::model::Model;
+use crate::measure::observation::{Observable, Observation};
+use super::runner::{evaluate, experiment_keys, find, group, job_threads, par_map_experiments, build_scenario, ungroup};
+use crate::measure::model::Model;
 
 /// The order of convergence p assumed when `[resolution]` gives none: case 1's width at 8, 10
 /// and 25 cells per nozzle diameter converges at p = 0.78 (BENCHMARKS.md, "Discretisation
@@ -97,7 +97,7 @@ fn finer(x: &Experiment, table: &ResolutionTable) -> Experiment {
 fn cell_size(model: &Model, exps: &Experiments, x: &Experiment) -> Result<f64, MeasureError> {
     let path = exps.base_dir.join(x.scenario.as_ref().expect("a simulation"));
     let keys = experiment_keys(model, x)?;
-    Ok(parse_scenario(&scenario_text(model, &keys, &path)?, &path)?.simulation.dx)
+    Ok(build_scenario(model, &keys, &path)?.simulation.dx)
 }
 
 /// Each observation's discretisation error under `model` (None for a rheometer test), from the

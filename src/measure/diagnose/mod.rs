@@ -38,19 +38,27 @@
 //!    steps) only where it comes close to that criterion ([`SCREENED_MARGIN`]).
 //! 4. When no effect is recommended and the base model does not fit (chi^2 beyond its `alpha`
 //!    quantile) the verdict is "unexplained", with the pattern of the residuals.
+//!
+//! In: a campaign, a model and the parameters to refit. Out: a [`Diagnosis`] (candidates ranked,
+//! a verdict, the recommended model), or with `--rounds` the loop run to its end (`rounds.rs`).
+//! Beside it: Jacobian columns the keys give without a run (`chain.rs`) and the residuals'
+//! shapes in words (`residuals.rs`).
 
-use super::calibrate::{calibrate, calibrate_at, calibrate_from, chi2, chi2_scatter, expected_runs, finish, predicted_drop, standardised, Fit, FitOptions};
+pub mod chain;
+pub mod residuals;
+pub mod rounds;
+
+use super::fit::calibrate::{calibrate, calibrate_at, calibrate_from, chi2, chi2_scatter, finish, predicted_drop, standardised, Fit};
+use super::campaign::{expected_runs, Campaign, FitOptions};
 use super::error::{io_error, toml_error, MeasureError};
-use super::experiments::Experiments;
 use super::observation::Observation;
 use super::effects::{Covariates, Effect};
-use super::linalg::{chi2_sf, gauss_newton_step, normal_equations, pinv_sym};
+use super::fit::linalg::{chi2_sf, gauss_newton_step, normal_equations, pinv_sym};
 use super::model::Model;
-use super::sensitivity::{Differences, Sensitivity};
+use super::campaign::sensitivity::{Differences, Sensitivity};
 
 #[derive(Clone, Debug)]
 pub struct DiagnoseOptions {
-    pub fit: FitOptions,
     /// Significance level of the score and likelihood-ratio tests and of the base model's
     /// goodness of fit.
     pub alpha: f64,
@@ -64,7 +72,7 @@ pub struct DiagnoseOptions {
 
 impl Default for DiagnoseOptions {
     fn default() -> DiagnoseOptions {
-        DiagnoseOptions { fit: FitOptions::default(), alpha: 0.01, max_fitted: 3, leave_one_out: true, exact_refits: false }
+        DiagnoseOptions { alpha: 0.01, max_fitted: 3, leave_one_out: true, exact_refits: false }
     }
 }
 
@@ -109,7 +117,7 @@ pub struct Diagnosis {
     /// then the base fit's residual shapes in words.
     pub pattern: Vec<String>,
     /// The base fit's residual shapes (trend, curvature, step, together) against each covariate.
-    pub shapes: Vec<super::residuals::Shape>,
+    pub shapes: Vec<self::residuals::Shape>,
     /// Wall-clock seconds of each stage.
     pub timing: Timing,
     #[serde(skip)]
@@ -202,34 +210,46 @@ fn candidate(e: &dyn Effect, score: f64, dof: usize, p_value: f64, verdict: Stri
     Candidate { effect: e.name().into(), about: e.about().into(), rank: 0, test: test_of(e).into(), score, dof, p_value, fitted_chi2: None, error_ratio: None, fitted: vec![], loo_chi2_base: None, loo_chi2: None, verdict, recommended: false }
 }
 
-/// Which effect `model` lacks, to explain `data` once `fit` is refitted (module doc); `at_model`:
-/// the model's values of `data` where they are known, as the engine gives them.
-pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[String], opts: &DiagnoseOptions, at_model: Option<&[f64]>) -> Result<Diagnosis, MeasureError> {
+/// A diagnosis's question: the campaign, the parameters refitted with every candidate, and the
+/// options of the tests.
+#[derive(Clone, Copy)]
+struct Diagnosing<'c, 'a> {
+    c: &'c Campaign<'a>,
+    fit: &'c [String],
+    opts: &'c DiagnoseOptions,
+}
+
+/// Which effect `model` lacks, to explain the campaign's data once `fit` is refitted (module
+/// doc); the model's values of the data are known where the campaign's discretisation estimate
+/// ran them.
+pub fn diagnose(c: &Campaign, model: &Model, fit: &[String], opts: &DiagnoseOptions) -> Result<Diagnosis, MeasureError> {
+    let d = Diagnosing { c, fit, opts };
+    let data = c.data;
     let m = data.len();
-    let mut clock = Clock::new(&opts.fit);
-    let progress = &opts.fit.progress;
+    let mut clock = Clock::new(c.opts);
+    let progress = &c.opts.progress;
     // the base fit, the score tests and the likelihood-ratio fits; each candidate's stages are
     // planned once the tests have ranked them
     progress.plan(3);
     clock.say("the base model".into());
     progress.begin("base fit", if fit.is_empty() { 0 } else { expected_runs(data, fit) });
-    let base = base_fit(model, at_model, data, exps, fit, opts)?;
+    let base = base_fit(c, model, fit)?;
     let base_p_value = chi2_sf(base.chi2, m.saturating_sub(fit.len()).max(1));
     clock.timing.base_fit = clock.lap();
     progress.end();
     progress.begin("score tests", 0);
-    let mut scored = score_tests(&base, data, exps, fit, opts, &clock)?;
+    let mut scored = score_tests(d, &base, &clock)?;
     clock.timing.score_tests = clock.lap();
     progress.end();
     progress.begin("likelihood-ratio fits", scored.unreachable.iter().map(|e| expected_runs(data, &fit_names(fit, *e))).sum());
-    let (lr, mut prefit) = likelihood_ratio_tests(&base, model, data, exps, fit, &scored.unreachable, opts, &clock)?;
+    let (lr, mut prefit) = likelihood_ratio_tests(d, &base, model, &scored.unreachable, &clock)?;
     clock.timing.likelihood_ratio_fits = clock.lap();
     progress.end();
     let mut cands = std::mem::take(&mut scored.candidates);
     cands.extend(lr);
     cands.sort_by(|a, b| b.score.total_cmp(&a.score).then(a.effect.cmp(&b.effect)));
     cands.append(&mut scored.inapplicable);
-    let models = fit_and_check(&mut cands, &base, &mut prefit, &scored, data, exps, fit, opts, &mut clock)?;
+    let models = fit_and_check(d, &mut cands, &base, (&mut prefit, &scored), &mut clock)?;
 
     // Effects equal at first order at the null (linear and exponential ageing) tie on the score;
     // the fit tells them apart. The statistic ranks, score and likelihood ratio alike (module
@@ -248,7 +268,7 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
     let best = choose(&mut cands);
     let recommended = best.map(|i| cands[i].effect.clone());
     let recommended_model = best.and_then(|i| models[i].clone());
-    let shapes = residual_shapes(&base, data, exps, opts.alpha)?;
+    let shapes = residual_shapes(c, &base, opts.alpha)?;
     let (verdict, mut pattern) = match (&recommended, base_p_value < opts.alpha) {
         (Some(e), _) => (format!("add {e}"), vec![]),
         (None, true) => ("unexplained".to_string(), largest_residuals(&base, data)),
@@ -276,7 +296,7 @@ pub fn diagnose(model: &Model, data: &[Observation], exps: &Experiments, fit: &[
 /// A diagnosis's stages timed, and said on stderr as they begin when `log` is on.
 struct Clock {
     log: bool,
-    progress: super::progress::Progress,
+    progress: super::campaign::progress::Progress,
     began: std::time::Instant,
     since: std::time::Instant,
     timing: Timing,
@@ -303,15 +323,15 @@ impl Clock {
 }
 
 /// The base model fitted in `fit` (or taken as it is when `fit` is empty), from its values
-/// `at_model` where they are known.
-fn base_fit(model: &Model, at_model: Option<&[f64]>, data: &[Observation], exps: &Experiments, fit: &[String], opts: &DiagnoseOptions) -> Result<Fit, MeasureError> {
+/// where the campaign's discretisation estimate ran them.
+fn base_fit(c: &Campaign, model: &Model, fit: &[String]) -> Result<Fit, MeasureError> {
     if !fit.is_empty() {
-        return calibrate_at(model, at_model, data, exps, fit, &opts.fit);
+        return calibrate_at(c, model, c.start_values(), fit);
     }
-    let m = data.len();
-    let v = match at_model {
+    let (data, m) = (c.data, c.data.len());
+    let v = match c.start_values() {
         Some(v) => v.to_vec(),
-        None => opts.fit.sensitivity(model, data, exps, None)??.values,
+        None => c.sensitivity(model, None)??.values,
     };
     let c2 = chi2(&v, data);
     Ok(Fit { names: vec![], start: vec![], values: vec![], uncertainty: vec![], at_bound: vec![], influence: vec![], chi2_start: c2, chi2: c2, reduced_chi2: c2 / m as f64, history: vec![c2], converged: true, observations: m, model_values: v.clone(), jacobian: vec![], scatter: vec![0.0; m], jacobian_scatter: vec![vec![]; m], at_start: Sensitivity { values: v, jacobian: Some(vec![]), scatter: vec![0.0; m], jacobian_scatter: Some(vec![vec![]; m]) }, model: model.clone() })
@@ -321,34 +341,34 @@ fn base_fit(model: &Model, at_model: Option<&[f64]>, data: &[Observation], exps:
 /// (or the model it started from, `from_start`) with effects added. Where `with` gives that
 /// point's values (every added effect at its null, or a modulus at the stand-in the base model
 /// runs in its place), the fitted parameters' columns are the base fit's own there, `extra`'s
-/// follow from them where the keys allow ([`chained`](super::chain::chained)), and only the
+/// follow from them where the keys allow ([`chained`](self::chain::chained)), and only the
 /// rest are computed, from those values, by one-sided differences (the scatter is the base
 /// fit's there: [`Differences::Forward`]); elsewhere every column is, from `with`'s values.
 /// `with`'s values are that point's without a run where every added effect is at a start that
 /// `runs_as_model` ([`Effect::start_runs_as_model`]); otherwise they are run, and compared.
-fn beside_base(base: &Fit, (from_start, runs_as_model): (bool, bool), with: &Model, extra: &[String], data: &[Observation], exps: &Experiments, opts: &DiagnoseOptions) -> Result<Sensitivity, MeasureError> {
-    let engine = &opts.fit;
+fn beside_base(c: &Campaign, base: &Fit, (from_start, runs_as_model): (bool, bool), with: &Model, extra: &[String]) -> Result<Sensitivity, MeasureError> {
+    let (data, exps) = (c.data, c.exps);
     let names: Vec<String> = base.names.iter().chain(extra).cloned().collect();
     let (known, known_jacobian, known_scatter, known_jacobian_scatter) = match from_start {
         true => (&base.at_start.values, base.at_start.jacobian.as_ref().expect("asked"), &base.at_start.scatter, base.at_start.jacobian_scatter.as_ref().expect("asked")),
         false => (&base.model_values, &base.jacobian, &base.scatter, &base.jacobian_scatter),
     };
-    let values = if runs_as_model { known.clone() } else { engine.sensitivity(with, data, exps, None)??.values };
+    let values = if runs_as_model { known.clone() } else { c.sensitivity(with, None)??.values };
     if values != *known || base.names.is_empty() || extra.is_empty() {
-        return engine.jacobian_at(with, data, exps, &names, (&values, &Differences::Central))?;
+        return c.jacobian_at(with, &names, (&values, &Differences::Central))?;
     }
     // an effect's columns the fitted parameters' give through the keys take no run
-    let chained = super::chain::chained(with, data, exps, &base.names, (known_jacobian, known_jacobian_scatter), extra)?;
+    let chained = self::chain::chained(with, data, exps, &base.names, (known_jacobian, known_jacobian_scatter), extra)?;
     let run: Vec<String> = extra.iter().zip(&chained).filter(|(_, c)| c.is_none()).map(|(n, _)| n.clone()).collect();
     let (computed, computed_scatter, scatter) = if run.is_empty() {
         (vec![vec![]; data.len()], vec![vec![]; data.len()], known_scatter.clone())
     } else {
         // one-sided: at the base fit's values, whose scatter its central differences estimated
-        let s = engine.jacobian_at(with, data, exps, &run, (&values, &Differences::Forward(known_scatter.clone())))??;
+        let s = c.jacobian_at(with, &run, (&values, &Differences::Forward(known_scatter.clone())))??;
         (s.jacobian.expect("asked"), s.jacobian_scatter.expect("asked"), known_scatter.clone())
     };
     // the known columns, then each extra parameter's, chained or computed
-    let rows = |known: &[Vec<f64>], computed: Vec<Vec<f64>>, pick: fn(&super::chain::Chained) -> &Vec<f64>| -> Vec<Vec<f64>> {
+    let rows = |known: &[Vec<f64>], computed: Vec<Vec<f64>>, pick: fn(&self::chain::Chained) -> &Vec<f64>| -> Vec<Vec<f64>> {
         computed
             .into_iter()
             .enumerate()
@@ -379,12 +399,13 @@ struct ScoreTests {
 
 /// Every absent effect that can act on these experiments at its null, differentiated at once,
 /// and scored.
-fn score_tests(base: &Fit, data: &[Observation], exps: &Experiments, fit: &[String], opts: &DiagnoseOptions, clock: &Clock) -> Result<ScoreTests, MeasureError> {
+fn score_tests(d: Diagnosing, base: &Fit, clock: &Clock) -> Result<ScoreTests, MeasureError> {
+    let (data, fit, opts) = (d.c.data, d.fit, d.opts);
     let mut absent: Vec<&'static dyn Effect> = Vec::new();
     let mut unreachable: Vec<&'static dyn Effect> = Vec::new();
     let mut inapplicable: Vec<Candidate> = Vec::new();
     for e in base.model.available().into_iter().filter(|e| !base.model.has(e.name())) {
-        match applicable(e, &base.model, data, exps) {
+        match applicable(d.c, e, &base.model) {
             Ok(()) if !e.null_at_infinity() => absent.push(e),
             Ok(()) => unreachable.push(e),
             Err(why) => inapplicable.push(candidate(e, 0.0, 0, 1.0, format!("not applicable: {why}"))),
@@ -401,7 +422,7 @@ fn score_tests(base: &Fit, data: &[Observation], exps: &Experiments, fit: &[Stri
         names.extend(e.params().iter().map(|s| format!("{}.{}", e.name(), s.name)));
     }
     clock.say(format!("score tests at the nulls of {}", absent.iter().map(|e| e.name()).collect::<Vec<_>>().join(", ")));
-    let at_nulls = beside_base(base, (false, absent.iter().all(|e| e.start_runs_as_model())), &aug, &names[fit.len()..], data, exps, opts)?;
+    let at_nulls = beside_base(d.c, base, (false, absent.iter().all(|e| e.start_runs_as_model())), &aug, &names[fit.len()..])?;
     let scale: Vec<f64> = names.iter().map(|n| aug.bounds(n).map(|b| b.scale)).collect::<Result<_, _>>()?;
     let (z, jz) = standardised(&at_nulls.values, at_nulls.jacobian.as_ref().expect("asked"), data, &scale);
     let fcols: Vec<usize> = (0..fit.len()).collect();
@@ -474,17 +495,14 @@ fn score_tests(base: &Fit, data: &[Observation], exps: &Experiments, fit: &[Stri
 /// from the model's own: the base fit may have gone where the effect has no gradient (a yield
 /// stress fitted so low that every reading is past yield, where G drops out); the better of the two
 /// fits counts. Returns the candidates and the fits a candidate's fit can take over.
-#[allow(clippy::too_many_arguments)]
 fn likelihood_ratio_tests(
+    d: Diagnosing,
     base: &Fit,
     model: &Model,
-    data: &[Observation],
-    exps: &Experiments,
-    fit: &[String],
     unreachable: &[&'static dyn Effect],
-    opts: &DiagnoseOptions,
     clock: &Clock,
 ) -> Result<(Vec<Candidate>, std::collections::BTreeMap<String, Fit>), MeasureError> {
+    let (c, data, fit, opts) = (d.c, d.c.data, d.fit, d.opts);
     let m = data.len();
     let mut cands = Vec::new();
     let mut prefit: std::collections::BTreeMap<String, Fit> = Default::default();
@@ -510,11 +528,15 @@ fn likelihood_ratio_tests(
             // (G where every reading is past yield) the fit would only refit the fitted
             // parameters; from the model's values, where they are elsewhere, it may have
             clock.say(format!("{}: its likelihood ratio, from {}", e.name(), if std::ptr::eq(from, model) { "the model's values" } else { "the base fit's values" }));
-            let start_values = beside_base(base, (std::ptr::eq(from, model), e.start_runs_as_model()), &with, &fnames[fit.len()..], data, exps, opts)?;
-            let at_start = calibrate_from(&with, data, exps, &fnames, &FitOptions { max_iterations: 0, log: false, ..opts.fit.clone() }, start_values.clone())?;
+            let start_values = beside_base(c, base, (std::ptr::eq(from, model), e.start_runs_as_model()), &with, &fnames[fit.len()..])?;
+            let no_steps = FitOptions { max_iterations: 0, log: false, ..c.opts.clone() };
+            let at_start = calibrate_from(&c.with_opts(&no_steps), &with, &fnames, start_values.clone())?;
             let predicted = base.chi2 - at_start.chi2 + gauss_newton_drop(&at_start, data)?;
             let informed = at_start.influence[fit.len()..].iter().any(|&i| i);
-            let (f, unfitted) = if !informed || predicted < LR_WORTH_FITTING { (at_start, Some(predicted)) } else { (calibrate_from(&with, data, exps, &fnames, &opts.fit, start_values)?, None) };
+            let (f, unfitted) = match !informed || predicted < LR_WORTH_FITTING {
+                true => (at_start, Some(predicted)),
+                false => (calibrate_from(c, &with, &fnames, start_values)?, None),
+            };
             if best.as_ref().is_none_or(|b| f.chi2 < b.chi2) {
                 best = Some(f);
                 screened = unfitted;
@@ -551,26 +573,22 @@ fn likelihood_ratio_tests(
 /// Fit the significant candidates, best first, up to `max_fitted` (a likelihood-ratio effect's
 /// fit is already in `prefit`), and check each by leave-one-experiment-out; their verdicts set.
 /// Returns each candidate's fitted model.
-#[allow(clippy::too_many_arguments)]
 fn fit_and_check(
+    d: Diagnosing,
     cands: &mut [Candidate],
     base: &Fit,
-    prefit: &mut std::collections::BTreeMap<String, Fit>,
-    scored: &ScoreTests,
-    data: &[Observation],
-    exps: &Experiments,
-    fit: &[String],
-    opts: &DiagnoseOptions,
+    (prefit, scored): (&mut std::collections::BTreeMap<String, Fit>, &ScoreTests),
     clock: &mut Clock,
 ) -> Result<Vec<Option<Model>>, MeasureError> {
+    let (data, fit, opts) = (d.c.data, d.fit, d.opts);
     let m = data.len();
-    let ids: Vec<String> = super::runner::group(data).into_iter().map(|(id, _)| id).collect();
+    let ids: Vec<String> = super::campaign::runner::group(data).into_iter().map(|(id, _)| id).collect();
     let mut base_loo: Option<f64> = None;
     // the recommended candidate with the least chi^2 + 2 k so far (set only by leave-one-out)
     let mut leader: Option<(String, f64)> = None;
     let mut models: Vec<Option<Model>> = vec![None; cands.len()];
     let mut fitted = 0;
-    let progress = &opts.fit.progress;
+    let progress = &d.c.opts.progress;
     // each candidate fitted: its fit, then its leave-one-out
     progress.plan(2 * cands.iter().filter(|c| c.verdict.is_empty()).count().min(opts.max_fitted));
     for (ci, c) in cands.iter_mut().enumerate() {
@@ -593,24 +611,15 @@ fn fit_and_check(
         // the others' would be 2 p runs of the campaign that nothing reads (a likelihood-ratio
         // fit, made before, is finished already)
         let lazy = leader.is_some() && !prefit.contains_key(&c.effect);
-        let fit_opts = FitOptions { uncertainties: opts.fit.uncertainties && !lazy, stop_on_secant: lazy, ..opts.fit.clone() };
         let f = match prefit.remove(&c.effect) {
             Some(f) => f,
-            // from the score tests' Jacobian, taken where every absent effect is at its null,
-            // as this one is here: the same runs, unless an effect at its null moved a value
-            None if scored.at_nulls.values == base.model_values => {
-                let cols: Vec<usize> = (0..fit.len()).chain(scored.columns.iter().find(|(e, _)| *e == c.effect).expect("a score-tested effect").1.iter().copied()).collect();
-                let pick = |m: &Option<Vec<Vec<f64>>>| Some(m.as_ref().expect("asked").iter().map(|r| cols.iter().map(|&k| r[k]).collect()).collect());
-                let (jacobian, jacobian_scatter) = (pick(&scored.at_nulls.jacobian), pick(&scored.at_nulls.jacobian_scatter));
-                calibrate_from(&base.model.with_effect(effect), data, exps, &fnames, &fit_opts, Sensitivity { jacobian, jacobian_scatter, ..scored.at_nulls.clone() })?
-            }
-            None => calibrate(&base.model.with_effect(effect), data, exps, &fnames, &fit_opts)?,
+            None => fit_candidate(d, base, effect, scored, lazy)?,
         };
         let aic = |f: &Fit| f.chi2 + 2.0 * f.names.len() as f64;
         let f = match &leader {
             Some((name, best)) if lazy && f.chi2 < 0.99 * base.chi2 && aic(&f) < SCREENED_MARGIN * best => {
                 clock.say(format!("{}: within {SCREENED_MARGIN} times {name}'s Akaike criterion; finished on an exact Jacobian", c.effect));
-                finish(f, data, exps, &opts.fit)?
+                finish(d.c, f)?
             }
             _ => f,
         };
@@ -636,9 +645,9 @@ fn fit_and_check(
             );
         } else if opts.leave_one_out && ids.len() >= 2 {
             if base_loo.is_none() {
-                base_loo = Some(leave_one_out(base, data, exps, &ids, opts)?);
+                base_loo = Some(leave_one_out(d.c, base, &ids, opts)?);
             }
-            let loo = leave_one_out(&f, data, exps, &ids, opts)?;
+            let loo = leave_one_out(d.c, &f, &ids, opts)?;
             clock.timing.leave_one_out += clock.lap();
             c.loo_chi2_base = base_loo;
             c.loo_chi2 = Some(loo);
@@ -662,11 +671,28 @@ fn fit_and_check(
     Ok(models)
 }
 
+/// A candidate's fit with the base parameters, its effect from its null; `lazy`: for its optimum
+/// only, on secant Jacobians ([`FitOptions::stop_on_secant`]).
+fn fit_candidate(d: Diagnosing, base: &Fit, effect: &'static dyn Effect, scored: &ScoreTests, lazy: bool) -> Result<Fit, MeasureError> {
+    let fit_opts = FitOptions { uncertainties: d.c.opts.uncertainties && !lazy, stop_on_secant: lazy, ..d.c.opts.clone() };
+    let (c, fnames, with) = (d.c.with_opts(&fit_opts), fit_names(d.fit, effect), base.model.with_effect(effect));
+    if scored.at_nulls.values != base.model_values {
+        return calibrate(&c, &with, &fnames);
+    }
+    // from the score tests' Jacobian, taken where every absent effect is at its null, as this
+    // one is here: the same runs, unless an effect at its null moved a value
+    let own = &scored.columns.iter().find(|(e, _)| *e == effect.name()).expect("a score-tested effect").1;
+    let cols: Vec<usize> = (0..d.fit.len()).chain(own.iter().copied()).collect();
+    let pick = |m: &Option<Vec<Vec<f64>>>| Some(m.as_ref().expect("asked").iter().map(|r| cols.iter().map(|&k| r[k]).collect()).collect());
+    let (jacobian, jacobian_scatter) = (pick(&scored.at_nulls.jacobian), pick(&scored.at_nulls.jacobian_scatter));
+    calibrate_from(&c, &with, &fnames, Sensitivity { jacobian, jacobian_scatter, ..scored.at_nulls.clone() })
+}
+
 /// The shapes of the base fit's residuals against every covariate (`residuals.rs`).
-fn residual_shapes(base: &Fit, data: &[Observation], exps: &Experiments, alpha: f64) -> Result<Vec<super::residuals::Shape>, MeasureError> {
-    let c = super::compare::comparison(data, &base.model_values);
-    let covs = super::report::covariates(&c.rows, exps, &base.model)?;
-    Ok(super::residuals::shapes(&c.rows, &covs, alpha))
+fn residual_shapes(campaign: &Campaign, base: &Fit, alpha: f64) -> Result<Vec<self::residuals::Shape>, MeasureError> {
+    let c = super::compare::comparison(campaign.data, &base.model_values);
+    let covs = super::compare::report::covariates(&c.rows, campaign.exps, &base.model)?;
+    Ok(self::residuals::shapes(&c.rows, &covs, alpha))
 }
 
 /// The verdict among the recommended candidates: the score ranks them, the fit decides. The one
@@ -690,9 +716,10 @@ fn choose(cands: &mut [Candidate]) -> Option<usize> {
 
 /// Whether `effect` can act on `model`'s keys and on every simulation experiment the data name,
 /// each run with `model`'s `[material]`.
-fn applicable(effect: &'static dyn Effect, model: &Model, data: &[Observation], exps: &Experiments) -> Result<(), MeasureError> {
+fn applicable(c: &Campaign, effect: &'static dyn Effect, model: &Model) -> Result<(), MeasureError> {
+    let (data, exps) = (c.data, c.exps);
     model.with_effect(effect).keys(&Covariates::default()).map_err(|m| MeasureError::Effect(format!("in this model, {m}")))?;
-    for (id, _) in super::runner::group(data) {
+    for (id, _) in super::campaign::runner::group(data) {
         if let Some(s) = exps.get(&id).and_then(|x| x.scenario.as_ref()) {
             let path = exps.base_dir.join(s);
             let text = std::fs::read_to_string(&path).map_err(io_error(&path))?;
@@ -718,23 +745,24 @@ fn applicable(effect: &'static dyn Effect, model: &Model, data: &[Observation], 
 /// it, is replaced by a full refit started from the full fit. The check costs one run of each
 /// experiment in all, against a calibration each for refits. With `exact_refits` every experiment
 /// is left out of a full refit.
-fn leave_one_out(f: &Fit, data: &[Observation], exps: &Experiments, ids: &[String], opts: &DiagnoseOptions) -> Result<f64, MeasureError> {
+fn leave_one_out(c: &Campaign, f: &Fit, ids: &[String], opts: &DiagnoseOptions) -> Result<f64, MeasureError> {
+    let data = c.data;
     let mut total = 0.0;
     for id in ids {
         let (kept, left): (Vec<usize>, Vec<usize>) = (0..data.len()).partition(|&i| data[i].experiment != *id);
         let test = rows_of(data, &left);
-        let predict = |model: &Model| -> Result<f64, MeasureError> { Ok(chi2(&opts.fit.sensitivity(model, &test, exps, None)??.values, &test)) };
+        let predict = |model: &Model| -> Result<f64, MeasureError> { Ok(chi2(&c.with_data(&test).sensitivity(model, None)??.values, &test)) };
         total += if f.names.is_empty() {
             predict(&f.model)?
         } else if opts.exact_refits {
-            predict(&refit(f, data, &kept, exps, opts)?)?
+            predict(&refit(c, f, &kept)?)?
         } else {
             let step = one_step_without(f, data, (&kept, &left))?;
             let left_out = predict(&step.model)?;
             if step.trusted(left_out) {
                 left_out
             } else {
-                predict(&refit(f, data, &kept, exps, opts)?)?
+                predict(&refit(c, f, &kept)?)?
             }
         };
     }
@@ -743,9 +771,9 @@ fn leave_one_out(f: &Fit, data: &[Observation], exps: &Experiments, ids: &[Strin
 
 /// `f` refitted to the observations `kept` of its data, from its own values and Jacobian there;
 /// only the optimum counts ([`FitOptions::uncertainties`] off).
-fn refit(f: &Fit, data: &[Observation], kept: &[usize], exps: &Experiments, opts: &DiagnoseOptions) -> Result<Model, MeasureError> {
-    let fit = FitOptions { uncertainties: false, ..opts.fit.clone() };
-    Ok(calibrate_from(&f.model, &rows_of(data, kept), exps, &f.names, &fit, f.at_end(kept))?.model)
+fn refit(c: &Campaign, f: &Fit, kept: &[usize]) -> Result<Model, MeasureError> {
+    let (opts, rows) = (FitOptions { uncertainties: false, ..c.opts.clone() }, rows_of(c.data, kept));
+    Ok(calibrate_from(&c.with_data(&rows).with_opts(&opts), &f.model, &f.names, f.at_end(kept))?.model)
 }
 
 /// The observations `rows` (indices into `data`), in their order.
@@ -866,6 +894,7 @@ pub fn report(d: &Diagnosis) -> String {
 mod tests {
     use super::*;
     use crate::measure::effects;
+    use super::super::campaign::experiments::Experiments;
 
     #[test]
     fn an_effect_whose_null_the_solver_cannot_run_gets_the_likelihood_ratio_and_the_others_the_score() {
@@ -886,16 +915,16 @@ mod tests {
     /// progress events as without, and the events are well-formed and monotone over every stage.
     #[test]
     fn a_diagnosis_with_progress_events_is_the_diagnosis_without() {
-        use crate::measure::progress::tests::{check_monotone, Shared};
+        use super::super::campaign::progress::tests::{check_monotone, Shared};
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/measure/campaign");
         let (truth, start) = (Model::load(&dir.join("truth_thixotropy.toml")).unwrap(), Model::load(&dir.join("base.toml")).unwrap());
         let exps = Experiments::load(&dir.join("experiments.toml")).unwrap();
-        let data = super::super::synth::synth(&truth, &exps, 0.01, 7, 1).unwrap();
+        let data = super::super::compare::synth::synth(&truth, &exps, 0.01, 7, 1).unwrap();
         let fit = vec!["material.yield_stress".to_string(), "material.viscosity".to_string()];
         let out = Shared::default();
-        let with = DiagnoseOptions { fit: FitOptions { progress: out.progress(0), ..FitOptions::default() }, ..DiagnoseOptions::default() };
-        let a = diagnose(&start, &data, &exps, &fit, &with, None).unwrap();
-        let b = diagnose(&start, &data, &exps, &fit, &DiagnoseOptions::default(), None).unwrap();
+        let with = FitOptions { progress: out.progress(0), ..FitOptions::default() };
+        let a = diagnose(&Campaign::new(&exps, &data, &with), &start, &fit, &DiagnoseOptions::default()).unwrap();
+        let b = diagnose(&Campaign::new(&exps, &data, &FitOptions::default()), &start, &fit, &DiagnoseOptions::default()).unwrap();
         let json = |d: &Diagnosis| {
             let mut v = serde_json::to_value(d).unwrap();
             v.as_object_mut().unwrap().remove("timing");

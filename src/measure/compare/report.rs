@@ -6,12 +6,12 @@
 //! for thixotropy, age for ageing, a speed for a rate effect), so a strong correlation of z with a
 //! covariate points at what to add before `strand diagnose` is run.
 
-use super::error::{io_error, MeasureError};
-use super::compare::{Comparison, Row};
-use super::experiments::Experiments;
-use super::model::Model;
-use super::residuals::{Covariate, Shape};
-use super::runner::{experiment_keys, find};
+use crate::measure::error::{io_error, MeasureError};
+use crate::measure::compare::{Comparison, Row};
+use crate::measure::campaign::experiments::Experiments;
+use crate::measure::model::Model;
+use crate::measure::diagnose::residuals::{Covariate, Shape};
+use crate::measure::campaign::runner::{experiment_keys, find};
 use crate::output::plot::{plot_measured_model, plot_xy, MeasuredPoint};
 use std::collections::{BTreeSet, HashMap, HashSet};
 use std::fmt::Write as _;
@@ -41,7 +41,7 @@ pub struct Trend {
 /// value the model gives it, if any (a `material.*` key); a key only the scenario file holds has no
 /// value there, as the report does not read scenarios.
 pub fn covariates(rows: &[Row], exps: &Experiments, model: &Model) -> Result<Vec<Covariate>, MeasureError> {
-    let mut keys: HashMap<&str, super::effects::Keys> = HashMap::new();
+    let mut keys: HashMap<&str, crate::measure::effects::Keys> = HashMap::new();
     let mut set_names = BTreeSet::new();
     for r in rows {
         if !keys.contains_key(r.experiment.as_str()) {
@@ -50,7 +50,7 @@ pub fn covariates(rows: &[Row], exps: &Experiments, model: &Model) -> Result<Vec
             keys.insert(&r.experiment, experiment_keys(model, x)?);
         }
     }
-    let per_experiment = |f: &dyn Fn(&super::experiments::Experiment) -> f64| -> Result<Vec<Option<f64>>, MeasureError> {
+    let per_experiment = |f: &dyn Fn(&crate::measure::campaign::experiments::Experiment) -> f64| -> Result<Vec<Option<f64>>, MeasureError> {
         rows.iter().map(|r| find(exps, &r.experiment).map(|x| Some(f(x)))).collect()
     };
     let mut out = vec![
@@ -169,7 +169,7 @@ pub fn write(dir: &Path, c: &Comparison, exps: &Experiments, model: &Model) -> R
     prepare_dir(dir)?;
     let covs = covariates(&c.rows, exps, model)?;
     let trends = trends(&c.rows, &covs);
-    let shapes = super::residuals::shapes(&c.rows, &covs, SHAPES_ALPHA);
+    let shapes = crate::measure::diagnose::residuals::shapes(&c.rows, &covs, SHAPES_ALPHA);
     let mut names = HashSet::new();
     let mut fits = Vec::new();
     for observable in observables(&c.rows) {
@@ -335,7 +335,7 @@ fn html(c: &Comparison, trends: &[Trend], shapes: &[Shape], fits: &[Figure], res
         c.chi2
     );
     let summary_header = ["name", "n", "rms z", "mean |relative error| [%]"];
-    let summary = |list: &[super::compare::Summary]| -> Vec<(bool, Vec<String>)> {
+    let summary = |list: &[crate::measure::compare::Summary]| -> Vec<(bool, Vec<String>)> {
         list.iter().map(|m| (false, vec![m.name.clone(), m.n.to_string(), format!("{:.3}", m.rms_z), format!("{:.2}", 100.0 * m.mean_rel_error)])).collect()
     };
     s.push_str("<h2>Per experiment</h2>\n");

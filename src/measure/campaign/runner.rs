@@ -8,14 +8,14 @@
 //! runs once, producing every observable asked of it; experiments are independent jobs, run
 //! `jobs` at a time, and give the same numbers however many run together.
 
-use super::error::{io_error, toml_error, MeasureError};
-use super::effects::Keys;
+use crate::measure::error::{io_error, toml_error, MeasureError};
+use crate::measure::effects::Keys;
 use super::experiments::{Experiment, Experiments};
-use super::front::FrontTrace;
-use super::passing::PassingTrace;
-use super::model::{set_path, Model};
-use super::observables::{observable_plan, reading_index};
-use super::observation::{Observable, Observation};
+use crate::measure::front::FrontTrace;
+use crate::measure::passing::PassingTrace;
+use crate::measure::model::{set_path, Model};
+use crate::measure::observables::{observable_plan, reading_index};
+use crate::measure::observation::{Observable, Observation};
 use super::rheometer::{Protocol, Rheometer};
 use super::spare::Spare;
 use crate::observables::{Frame, Objective};
@@ -36,7 +36,7 @@ pub fn experiment_keys(model: &Model, x: &Experiment) -> Result<Keys, MeasureErr
 
 /// An override's value (validated as a number when the experiments were loaded).
 fn number(v: &toml::Value) -> f64 {
-    super::observation::number(v).unwrap_or(f64::NAN)
+    crate::measure::observation::number(v).unwrap_or(f64::NAN)
 }
 
 /// The model's values of `wanted` for experiment `x`; a simulation with `threads` threads (its
@@ -54,9 +54,9 @@ pub fn evaluate(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obs
     r.map_err(|e| e.within(format!("experiment '{}'", x.id)))
 }
 
-/// The scenario of a simulation experiment: the file's, with the model's `[material]` in place
-/// of its own and every key set.
-pub fn scenario_text(model: &Model, keys: &Keys, scenario: &Path) -> Result<String, MeasureError> {
+/// The scenario table of a simulation experiment: the file's, with the model's `[material]` in
+/// place of its own and every key set.
+pub fn scenario_table(model: &Model, keys: &Keys, scenario: &Path) -> Result<toml::Table, MeasureError> {
     let text = std::fs::read_to_string(scenario).map_err(io_error(scenario))?;
     let mut doc: toml::Table = text.parse().map_err(toml_error(scenario))?;
     doc.insert("material".into(), toml::Value::Table(model.material_for(keys)));
@@ -64,21 +64,44 @@ pub fn scenario_text(model: &Model, keys: &Keys, scenario: &Path) -> Result<Stri
         e.check_scenario(&doc).map_err(|m| MeasureError::Effect(format!("effect '{}' {m} in {}", e.name(), scenario.display())))?;
     }
     for (k, v) in keys {
-        let at = super::effects::placed(k, &doc);
+        let at = crate::measure::effects::placed(k, &doc);
         set_path(&mut doc, &at, *v).map_err(|e| e.within(format!("set.{k}")))?;
     }
-    Ok(toml::to_string(&doc)?)
+    Ok(doc)
 }
 
+/// The text of [`scenario_table`]: what a saved result records of the scenario it ran.
+pub fn scenario_text(model: &Model, keys: &Keys, scenario: &Path) -> Result<String, MeasureError> {
+    Ok(toml::to_string(&scenario_table(model, keys, scenario)?)?)
+}
+
+/// The scenario a simulation experiment runs: [`scenario_table`], read as a scenario from the
+/// table (no text written and read back per run).
+pub fn build_scenario(model: &Model, keys: &Keys, scenario: &Path) -> Result<Scenario, MeasureError> {
+    scenario_from_table(scenario_table(model, keys, scenario)?, scenario)
+}
+
+/// The scenario of table `doc`, read from file `scenario`: its files relative to the file's
+/// folder, no checkpoints (an experiment's run is not resumed).
+pub fn scenario_from_table(doc: toml::Table, scenario: &Path) -> Result<Scenario, MeasureError> {
+    let sc = Scenario::from_table(doc).map_err(|e| MeasureError::from(e).within(scenario.display()))?;
+    Ok(as_experiment(sc, scenario))
+}
+
+/// A scenario's text, read as experiment `scenario`'s (see [`scenario_from_table`]).
 pub fn parse_scenario(text: &str, scenario: &Path) -> Result<Scenario, MeasureError> {
-    let mut sc = Scenario::parse(text).map_err(|e| MeasureError::from(e).within(scenario.display()))?;
+    let sc = Scenario::parse(text).map_err(|e| MeasureError::from(e).within(scenario.display()))?;
+    Ok(as_experiment(sc, scenario))
+}
+
+fn as_experiment(mut sc: Scenario, scenario: &Path) -> Scenario {
     sc.base_dir = scenario.parent().map(Path::to_path_buf).unwrap_or_default();
     sc.checkpoint.enabled = false;
-    Ok(sc)
+    sc
 }
 
 fn simulate(model: &Model, keys: &Keys, scenario: &Path, wanted: &[Observable], threads: Option<usize>) -> Result<Vec<f64>, MeasureError> {
-    let mut sc = parse_scenario(&scenario_text(model, keys, scenario)?, scenario)?;
+    let mut sc = build_scenario(model, keys, scenario)?;
     if let Some(t) = threads {
         sc.simulation.threads = t;
     }
@@ -95,7 +118,7 @@ fn simulate(model: &Model, keys: &Keys, scenario: &Path, wanted: &[Observable], 
     // the front's arrival and stop, the mass passed below a plane: histories over the whole run
     // (`front.rs`, `passing.rs`)
     let of = |names: &[&str]| -> Vec<usize> { (0..wanted.len()).filter(|&k| names.contains(&wanted[k].name.as_str())).collect() };
-    let (fronts, passed) = (of(super::front::OBSERVABLES), of(super::passing::OBSERVABLES));
+    let (fronts, passed) = (of(crate::measure::front::OBSERVABLES), of(crate::measure::passing::OBSERVABLES));
     let rest: Vec<usize> = (0..wanted.len()).filter(|k| !failing.contains(k) && !fronts.contains(k) && !passed.contains(k)).collect();
     if rest.is_empty() && fronts.is_empty() && passed.is_empty() {
         return Ok(values);
@@ -305,7 +328,7 @@ mod tests {
 /// Two rheometer experiments under a Bingham model: the fixture of the runner's, the
 /// comparison's and the synthesis's unit tests.
 #[cfg(test)]
-pub(super) mod fixture {
+pub(crate) mod fixture {
     use super::{Experiments, Model};
 
     pub const MODEL: &str = "[material]\nkind = \"bingham\"\ndensity = 2100.0\nbulk_modulus = 1e6\nviscosity = 7.5\nyield_stress = 630.0\n";

@@ -13,7 +13,7 @@
 //! `init_state_adjoint`, giving d(sum_k w_k tau_k)/d(parameter) for every parameter the material
 //! names.
 
-use super::error::{io_error, toml_error, MeasureError};
+use crate::measure::error::{io_error, toml_error, MeasureError};
 use crate::kernels::material::{Material, UpdateAdjoint};
 use crate::kernels::{Real, M3, V3};
 use serde::Deserialize;

@@ -4,11 +4,10 @@
 //! verdict is not "add EFFECT") or N rounds have run. The error after each round is the
 //! chi^2 per observation of the model it leaves.
 
-use super::error::MeasureError;
-use super::experiments::Experiments;
-use super::observation::Observation;
-use super::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
-use super::model::Model;
+use crate::measure::campaign::Campaign;
+use crate::measure::error::MeasureError;
+use crate::measure::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
+use crate::measure::model::Model;
 use std::fmt::Write as _;
 
 #[derive(Clone, Debug, serde::Serialize)]
@@ -40,14 +39,15 @@ pub struct Rounds {
 }
 
 /// Diagnose rounds from `model`, each adding the effect the last recommended, until none is or
-/// `max_rounds` have run; `at_model`: `model`'s values of `data` where known ([`diagnose`]).
-pub fn rounds(model: &Model, data: &[Observation], exps: &Experiments, fit: &[String], opts: &DiagnoseOptions, max_rounds: usize, at_model: Option<&[f64]>) -> Result<Rounds, MeasureError> {
-    let n = data.len().max(1) as f64;
+/// `max_rounds` have run.
+pub fn rounds(c: &Campaign, model: &Model, fit: &[String], opts: &DiagnoseOptions, max_rounds: usize) -> Result<Rounds, MeasureError> {
+    let n = c.data.len().max(1) as f64;
     let (mut model, mut fit) = (model.clone(), fit.to_vec());
     let mut out = Rounds { rounds: vec![], added: vec![], final_chi2: f64::NAN, final_chi2_per_observation: f64::NAN, complete: false, fit: vec![], model: model.clone() };
     for round in 1..=max_rounds.max(1) {
-        // the model's values are known in the first round only
-        let d = diagnose(&model, data, exps, &fit, opts, at_model.filter(|_| round == 1))?;
+        // the model's values are known in the first round only (the discretisation estimate's)
+        let campaign = if round == 1 { *c } else { Campaign { estimate: None, ..*c } };
+        let d = diagnose(&campaign, &model, &fit, opts)?;
         let before = d.base_chi2;
         let chosen = d.recommended.as_ref().and_then(|e| d.candidates.iter().find(|c| c.effect == *e));
         let (added, after, next) = match (chosen, &d.recommended_model) {
@@ -81,7 +81,7 @@ pub fn report(r: &Rounds) -> String {
     let mut s = String::new();
     for round in &r.rounds {
         let _ = writeln!(s, "=== round {} ===", round.round);
-        s.push_str(&super::diagnose::report(&round.diagnosis));
+        s.push_str(&crate::measure::diagnose::report(&round.diagnosis));
         s.push('\n');
     }
     let _ = writeln!(s, "rounds (chi^2 / observations):");

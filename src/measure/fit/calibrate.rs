@@ -7,7 +7,7 @@
 //! rank-one secant (the update that matches the step's change of values) instead of computing
 //! it again; the engine computes it again where the secant fit stalls (a step refused, or a
 //! stop that the Jacobian declares) and at the end, so the fit stops, and its uncertainties come,
-//! from an exact Jacobian ([`FitOptions::secant`]).
+//! from an exact Jacobian ([`FitOptions::secant`](crate::measure::campaign::FitOptions::secant)).
 //!
 //! Parameters move in units of their scale (an effect's typical magnitude, a material number's
 //! starting value), so the damping treats them alike. A parameter at a bound whose Gauss-Newton
@@ -16,88 +16,12 @@
 //! data's uncertainties taken as given (not rescaled by the reduced chi^2, which is reported
 //! beside).
 
-use super::error::MeasureError;
-use super::experiments::Experiments;
-use super::observation::Observation;
+use crate::measure::campaign::Campaign;
+use crate::measure::error::MeasureError;
+use crate::measure::observation::Observation;
 use super::linalg::{gauss_newton_step, normal_equations, pinv_sym, secant_update, Mat};
-use super::engine::{Answer, Engine};
-use super::progress::Progress;
-use super::model::{Bounds, Model};
-use super::sensitivity::{Differences, Sensitivity};
-
-#[derive(Clone, Debug)]
-pub struct FitOptions {
-    pub max_iterations: usize,
-    /// Stop when an accepted step lowers chi^2 by less than this fraction (or by less than
-    /// [`CHI2_NEGLIGIBLE`]).
-    pub tolerance: f64,
-    pub jobs: usize,
-    /// Where each evaluation's experiments run (`engine.rs`): here, `jobs` at a time, or as a
-    /// scheduler's jobs.
-    pub engine: Engine,
-    /// A line on stderr per accepted step.
-    pub log: bool,
-    /// The runs of each evaluation counted into the command's progress (`progress.rs`): bars,
-    /// JSON events or nothing; it changes no result.
-    pub progress: Progress,
-    /// Broyden's secant update of the Jacobian after an accepted step, for a campaign with a
-    /// simulation (module doc); a rheometer campaign's adjoints cost less than its runs and
-    /// always give the Jacobian.
-    pub secant: bool,
-    /// The fit stops on an exact Jacobian and reports its uncertainties from one. Off for a fit
-    /// that needs only its optimum (a leave-one-out refit, which predicts the left-out
-    /// experiment): a secant step's negligible drop then ends it, and no Jacobian is computed
-    /// at the end, each one 2 p runs of the campaign.
-    pub uncertainties: bool,
-    /// A stall the secant Jacobian declares (its undamped step promises nothing worth a run)
-    /// ends the fit, without the exact Jacobian that would check it: for a fit whose chi^2 only
-    /// screens (a candidate diagnose fits after a recommended one, finished where it comes close
-    /// to it), not for one whose optimum is reported.
-    pub stop_on_secant: bool,
-}
-
-impl FitOptions {
-    /// The engine's values of every observation under `model`, with their gradients in `names`
-    /// when given ([`Engine::sensitivity`]), the runs counted into the progress.
-    pub fn sensitivity(&self, model: &Model, data: &[Observation], exps: &Experiments, names: Option<&[String]>) -> Result<Answer, MeasureError> {
-        let runs = runs(data, names.map_or(0, |n| 1 + 2 * n.len()).max(1));
-        self.counted(runs, || self.engine.sensitivity(self.jobs, model, data, exps, names))
-    }
-
-    /// The engine's Jacobian at a model whose values are known ([`Engine::jacobian_at`]), the
-    /// runs counted into the progress.
-    pub fn jacobian_at(&self, model: &Model, data: &[Observation], exps: &Experiments, names: &[String], at: (&[f64], &Differences)) -> Result<Answer, MeasureError> {
-        let sides = if matches!(at.1, Differences::Central) { 2 } else { 1 };
-        self.counted(runs(data, sides * names.len()), || self.engine.jacobian_at(self.jobs, model, data, exps, names, at))
-    }
-
-    fn counted<T>(&self, runs: u64, evaluate: impl FnOnce() -> T) -> T {
-        self.progress.expect(runs);
-        let answer = evaluate();
-        self.progress.advance(runs);
-        answer
-    }
-}
-
-/// The runs of an evaluation of `data` with `per_experiment` runs of each experiment: what a
-/// campaign of simulations differenced centrally costs (a rheometer test's adjoint costs less,
-/// and is counted alike).
-fn runs(data: &[Observation], per_experiment: usize) -> u64 {
-    (super::runner::group(data).len() * per_experiment) as u64
-}
-
-/// The runs a fit of `names` to `data` is expected to take: the Jacobian at the start and at the
-/// end, and three trial steps between (a fit on a rough model's secant Jacobians stops after a
-/// few; more are expected as they come).
-pub fn expected_runs(data: &[Observation], names: &[String]) -> u64 {
-    runs(data, 1 + 2 * names.len()) + runs(data, 3) + runs(data, 2 * names.len())
-}
-
-impl Default for FitOptions {
-    fn default() -> FitOptions {
-        FitOptions { max_iterations: 30, tolerance: 1e-5, jobs: 1, engine: Engine::Local, log: false, progress: Progress::default(), secant: true, uncertainties: true, stop_on_secant: false }
-    }
-}
+use crate::measure::model::{Bounds, Model, Parameter};
+use crate::measure::campaign::sensitivity::{Differences, Sensitivity};
 
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Fit {
@@ -230,164 +154,317 @@ pub fn chi2(values: &[f64], data: &[Observation]) -> f64 {
     values.iter().zip(data).map(|(v, o)| ((v - o.value) / o.uncertainty).powi(2)).sum()
 }
 
-/// Fit `names` of `model` to `data`.
-pub fn calibrate(model: &Model, data: &[Observation], exps: &Experiments, names: &[String], opts: &FitOptions) -> Result<Fit, MeasureError> {
-    calibrate_at(model, None, data, exps, names, opts)
+/// Fit `names` of `model` to the campaign's data.
+pub fn calibrate(c: &Campaign, model: &Model, names: &[String]) -> Result<Fit, MeasureError> {
+    calibrate_at(c, model, None, names)
 }
 
-/// [`calibrate`] from a model whose values of `data` may be known (`values`), as the engine
+/// [`calibrate`] from a model whose values of the data may be known (`values`), as the engine
 /// gives them (the discretisation error's runs at the model,
-/// [`counted_data`](super::resolution::counted_data)): then the start's Jacobian runs only its
+/// [`counted_data`](crate::measure::campaign::resolution::counted_data)): then the start's Jacobian runs only its
 /// differences.
-pub fn calibrate_at(model: &Model, values: Option<&[f64]>, data: &[Observation], exps: &Experiments, names: &[String], opts: &FitOptions) -> Result<Fit, MeasureError> {
+pub fn calibrate_at(c: &Campaign, model: &Model, values: Option<&[f64]>, names: &[String]) -> Result<Fit, MeasureError> {
     check(model, names)?;
     let at_start = match values {
-        Some(v) => opts.jacobian_at(model, data, exps, names, (v, &Differences::Central))??,
-        None => opts.sensitivity(model, data, exps, Some(names))??,
+        Some(v) => c.jacobian_at(model, names, (v, &Differences::Central))??,
+        None => c.sensitivity(model, Some(names))??,
     };
-    calibrate_from(model, data, exps, names, opts, at_start)
+    calibrate_from(c, model, names, at_start)
 }
 
 /// [`calibrate`] from a start whose values and Jacobian in `names` are known: `at_start` is
 /// what the engine gives at `model` (a fit's own, or its rows for a subset of its data).
-pub fn calibrate_from(model: &Model, data: &[Observation], exps: &Experiments, names: &[String], opts: &FitOptions, at_start: Sensitivity) -> Result<Fit, MeasureError> {
-    let (bounds, start) = check(model, names)?;
-    let scale: Vec<f64> = bounds.iter().map(|b| b.scale).collect();
-    let mut theta = start.clone();
-    let m = data.len();
-    let n = names.len();
-    let mut model = model.clone();
-    let clock = std::time::Instant::now();
-    let mut s = at_start;
-    let first = s.clone();
-    let mut c2 = chi2(&s.values, data);
-    if opts.log {
-        opts.progress.log(&format!("fit of {}: chi^2 = {c2:.6e} at the start", names.join(", ")));
+pub fn calibrate_from(c: &Campaign, model: &Model, names: &[String], at_start: Sensitivity) -> Result<Fit, MeasureError> {
+    let (params, start) = check(model, names)?;
+    let first = at_start.clone();
+    let c2 = chi2(&at_start.values, c.data);
+    if c.opts.log {
+        c.opts.progress.log(&format!("fit of {}: chi^2 = {c2:.6e} at the start", names.join(", ")));
     }
-    let chi2_start = c2;
-    let mut history = vec![c2];
-    let mut lambda = DAMPING;
-    let mut converged = false;
-    let mut free = vec![true; n];
-    let simulated = runs_simulations(data, exps);
-    let secant = on_secants(opts, data, exps);
-    // whether `s`'s Jacobian is the engine's, not a secant update: a fit stops on an exact one
-    let mut exact = true;
-    let exact_at = |m: &Model, s: &Sensitivity| opts.jacobian_at(m, data, exps, names, (&s.values, &Differences::Central))?;
-    while history.len() <= opts.max_iterations {
-        let (z, jz) = standardised(&s.values, s.jacobian.as_ref().expect("asked"), data, &scale);
-        free = free_parameters(&jz, &z, &theta, &bounds);
-        let cols: Vec<usize> = (0..n).filter(|&i| free[i]).collect();
+    let now = Accepted { theta: start.clone(), model: model.clone(), at: at_start, chi2: c2 };
+    let mut fit = Fitting::new(c, names, &params, now);
+    let converged = fit.iterate()?;
+    fit.result(Started { start, chi2: c2, at: first }, converged)
+}
+
+/// A fit made for its optimum only ([`FitOptions::uncertainties`](crate::measure::campaign::FitOptions::uncertainties)
+/// off, perhaps [`stop_on_secant`](crate::measure::campaign::FitOptions::stop_on_secant) on), finished as the campaign's options ask: where its Jacobian
+/// at the end may be a secant update, the engine's exact one there, and the fit taken on from it
+/// until that Jacobian's stop holds (at once, where the secant fit had stopped at the optimum),
+/// so that its uncertainties, and a leave-one-out step on its curvature, come from an exact
+/// Jacobian as a fit made with uncertainties does. The fit keeps its start and history.
+pub fn finish(c: &Campaign, f: Fit) -> Result<Fit, MeasureError> {
+    if !(c.opts.uncertainties && !c.opts.stop_on_secant && c.on_secants()) {
+        return Ok(f);
+    }
+    let exact = c.jacobian_at(&f.model, &f.names, (&f.model_values, &Differences::Central))??;
+    let mut finished = calibrate_from(c, &f.model, &f.names, exact)?;
+    finished.history = f.history.iter().chain(&finished.history[1..]).copied().collect();
+    (finished.start, finished.chi2_start, finished.at_start) = (f.start, f.chi2_start, f.at_start);
+    Ok(finished)
+}
+
+/// Where a fit started: the parameters, chi^2, and the values and Jacobian there.
+struct Started {
+    start: Vec<f64>,
+    chi2: f64,
+    at: Sensitivity,
+}
+
+/// A fit under way: the campaign, the parameters fitted (their keys parsed once, with their
+/// bounds and scales), the step it stands at, and the state of its iteration.
+struct Fitting<'c, 'a> {
+    campaign: &'c Campaign<'a>,
+    names: &'c [String],
+    params: &'c [Parameter],
+    bounds: Vec<Bounds>,
+    scale: Vec<f64>,
+    now: Accepted,
+    /// Whether `now.at`'s Jacobian is the engine's, not a secant update: a fit stops on an
+    /// exact one.
+    exact: bool,
+    lambda: f64,
+    free: Vec<bool>,
+    history: Vec<f64>,
+    simulated: bool,
+    secant: bool,
+    clock: std::time::Instant,
+}
+
+/// What one iteration found from the step a fit stands at: the free parameters' normal
+/// equations, what a step must promise to be tried, and whether the optimum is within reach.
+struct Outlook {
+    a: Mat,
+    g: Vec<f64>,
+    cols: Vec<usize>,
+    /// A step that lowers chi^2 by less is no step (module doc of [`CHI2_NEGLIGIBLE`]).
+    negligible: f64,
+    worth_a_try: f64,
+    gauss_newton: f64,
+    near: bool,
+}
+
+impl<'c, 'a> Fitting<'c, 'a> {
+    fn new(campaign: &'c Campaign<'a>, names: &'c [String], params: &'c [Parameter], now: Accepted) -> Fitting<'c, 'a> {
+        let bounds: Vec<Bounds> = params.iter().map(|p| p.bounds).collect();
+        let scale: Vec<f64> = bounds.iter().map(|b| b.scale).collect();
+        let n = names.len();
+        let history = vec![now.chi2];
+        let (simulated, secant) = (campaign.runs_simulations(), campaign.on_secants());
+        let clock = std::time::Instant::now();
+        Fitting { campaign, names, params, bounds, scale, now, exact: true, lambda: DAMPING, free: vec![true; n], history, simulated, secant, clock }
+    }
+
+    /// The engine's exact Jacobian where the fit stands.
+    fn exact_at(&self) -> Result<Sensitivity, MeasureError> {
+        self.campaign.jacobian_at(&self.now.model, self.names, (&self.now.at.values, &Differences::Central))?
+    }
+
+    /// Steps until the fit converges (true) or reaches the iteration limit (false).
+    fn iterate(&mut self) -> Result<bool, MeasureError> {
+        let opts = self.campaign.opts;
+        while self.history.len() <= opts.max_iterations {
+            let o = self.outlook();
+            let next = if o.gauss_newton < o.worth_a_try {
+                None
+            } else {
+                // one try on a secant Jacobian, which is then computed again, and near the
+                // optimum (a promise under twice what the scatter would make is near it)
+                let tries = if !self.exact || o.near {
+                    1
+                } else if self.simulated {
+                    SIMULATION_TRIES
+                } else {
+                    TRIES
+                };
+                self.damped_step(&o, tries)?
+            };
+            let Some(next) = next else {
+                if self.exact || opts.stop_on_secant {
+                    return Ok(true);
+                }
+                // a new Jacobian, whose first step is undamped: the damping a secant Jacobian's
+                // refused trial raised was that Jacobian's
+                self.now.at = self.exact_at()?;
+                (self.exact, self.lambda) = (true, DAMPING);
+                continue;
+            };
+            let drop = self.now.chi2 - next.chi2;
+            let gain = drop / self.now.chi2.max(1e-300);
+            (self.now, self.exact) = (next, !self.secant);
+            let c2 = self.now.chi2;
+            self.history.push(c2);
+            if opts.log {
+                let (lambda, secant) = (self.lambda, if self.exact { "" } else { ", secant Jacobian" });
+                let (step, seconds) = (self.history.len() - 1, self.clock.elapsed().as_secs_f64());
+                opts.progress.log(&format!("step {step}: chi^2 = {c2:.6e} (damping {lambda:.1e}{secant}, {seconds:.1} s into the fit)"));
+            }
+            if gain < opts.tolerance || drop < o.negligible {
+                // a negligible drop from a step near the optimum is the optimum: a rough model
+                // accepts steps within its scatter as often as it refuses them, each a Jacobian
+                if self.exact || o.near || !opts.uncertainties {
+                    return Ok(true);
+                }
+                self.now.at = self.exact_at()?;
+                (self.exact, self.lambda) = (true, DAMPING);
+            }
+        }
+        Ok(false)
+    }
+
+    /// The free parameters and their normal equations where the fit stands, and what a step
+    /// from there must promise.
+    fn outlook(&mut self) -> Outlook {
+        let (data, opts) = (self.campaign.data, self.campaign.opts);
+        let (s, c2, m) = (&self.now.at, self.now.chi2, data.len());
+        let (z, jz) = standardised(&s.values, s.jacobian.as_ref().expect("asked"), data, &self.scale);
+        self.free = free_parameters(&jz, &z, &self.now.theta, &self.bounds);
+        let cols: Vec<usize> = (0..self.names.len()).filter(|&i| self.free[i]).collect();
         let birge = (c2 / m.saturating_sub(cols.len()).max(1) as f64).max(1.0);
         let scatter = chi2_scatter(&z, &s.scatter, data);
         let negligible = (CHI2_NEGLIGIBLE * birge).max(scatter);
         let (a, g) = normal_equations(&jz, &z, &cols);
         let gauss_newton = if cols.is_empty() { 0.0 } else { predicted_drop(&a, &g) };
-        let unfounded = UNFOUNDED * promised_by_scatter(&a, &z, s.jacobian_scatter.as_ref().expect("asked"), data, &scale, &cols);
+        let jacobian_scatter = s.jacobian_scatter.as_ref().expect("asked");
+        let unfounded = UNFOUNDED * promised_by_scatter(&a, &z, jacobian_scatter, data, &self.scale, &cols);
         let worth_a_try = negligible.max(unfounded);
-        if opts.log && exact && scatter > 0.0 {
-            opts.progress.log(&format!("  exact Jacobian: an undamped step predicts chi^2 = {:.6e} (reduced chi^2 {birge:.3}; chi^2 scatters by {scatter:.3e}, the Jacobian's scatter promises {:.3e})", c2 - gauss_newton, unfounded / UNFOUNDED));
-        } else if opts.log && exact && history.len() > 1 {
-            opts.progress.log(&format!("  exact Jacobian: an undamped step predicts chi^2 = {:.6e} (reduced chi^2 {birge:.3})", c2 - gauss_newton));
+        if opts.log && self.exact {
+            let predicts = format!("  exact Jacobian: an undamped step predicts chi^2 = {:.6e}", c2 - gauss_newton);
+            if scatter > 0.0 {
+                let promise = unfounded / UNFOUNDED;
+                let why = format!("chi^2 scatters by {scatter:.3e}, the Jacobian's scatter promises {promise:.3e}");
+                opts.progress.log(&format!("{predicts} (reduced chi^2 {birge:.3}; {why})"));
+            } else if self.history.len() > 1 {
+                opts.progress.log(&format!("{predicts} (reduced chi^2 {birge:.3})"));
+            }
         }
         // the optimum within reach of one step: the undamped step, from an exact Jacobian,
         // promises less than the reduced chi^2 or twice what is worth a try
-        let near = exact && gauss_newton < (CHI2_ROUGH * birge).max(2.0 * worth_a_try);
-        let next = if gauss_newton < worth_a_try {
-            None
-        } else {
-            // one try on a secant Jacobian, which is then computed again, and near the optimum
-            // (a promise under twice what the scatter would make is near it)
-            let tries = if !exact || near {
-                1
-            } else if simulated {
-                SIMULATION_TRIES
-            } else {
-                TRIES
+        let near = self.exact && gauss_newton < (CHI2_ROUGH * birge).max(2.0 * worth_a_try);
+        Outlook { a, g, cols, negligible, worth_a_try, gauss_newton, near }
+    }
+
+    /// The fit as it ends: uncertainties from the undamped normal matrix at the optimum, on an
+    /// exact Jacobian where the options ask for them.
+    fn result(mut self, started: Started, converged: bool) -> Result<Fit, MeasureError> {
+        if !self.exact && self.campaign.opts.uncertainties {
+            self.now.at = self.exact_at()?;
+        }
+        let (data, n, m) = (self.campaign.data, self.names.len(), self.campaign.data.len());
+        let (s, scale, free) = (self.now.at, &self.scale, &self.free);
+        let (z, jz) = standardised(&s.values, s.jacobian.as_ref().expect("asked"), data, scale);
+        let cols: Vec<usize> = (0..n).filter(|&i| free[i]).collect();
+        let (a, _) = normal_equations(&jz, &z, &cols);
+        let (cov, _) = pinv_sym(&a, 1e-12);
+        let influence: Vec<bool> = (0..n).map(|i| jz.iter().any(|r| r[i] != 0.0)).collect();
+        let mut uncertainty = vec![f64::NAN; n];
+        for (k, &i) in cols.iter().enumerate() {
+            // the pseudo-inverse gives 0 where the data say nothing
+            uncertainty[i] = if influence[i] { cov[k][k].sqrt() * scale[i] } else { f64::INFINITY };
+        }
+        let at_bound: Vec<bool> = (0..n).map(|i| !free[i]).collect();
+        let dof = m.saturating_sub(cols.len()).max(1);
+        let c2 = self.now.chi2;
+        Ok(Fit {
+            names: self.names.to_vec(),
+            start: started.start,
+            values: self.now.theta,
+            uncertainty,
+            at_bound,
+            influence,
+            chi2_start: started.chi2,
+            chi2: c2,
+            reduced_chi2: c2 / dof as f64,
+            history: self.history,
+            converged,
+            observations: m,
+            model_values: s.values.clone(),
+            jacobian: s.jacobian.expect("asked"),
+            scatter: s.scatter,
+            jacobian_scatter: s.jacobian_scatter.expect("asked"),
+            at_start: started.at,
+            model: self.now.model,
+        })
+    }
+
+    /// A Levenberg-Marquardt step from where the fit stands on the normal equations of the free
+    /// parameters (`o`), the damping raised until a step lowers chi^2 (at most `tries` tries)
+    /// and lowered after it; none when no step lowers it, or when the damping has left a step
+    /// whose linearised drop is under what is worth a try. On secants the accepted step's
+    /// Jacobian is the secant update of the last one, otherwise the engine's. A trial the model
+    /// rejects (a material that will not build), or whose Jacobian run is rejected (a side of a
+    /// central difference where a printed line breaks up), is a failed step; the engine failing
+    /// to run it is an error.
+    fn damped_step(&mut self, o: &Outlook, tries: usize) -> Result<Option<Accepted>, MeasureError> {
+        let (c, opts) = (self.campaign, self.campaign.opts);
+        let (theta, bounds) = (&self.now.theta, &self.bounds);
+        for _ in 0..tries {
+            let lambda = self.lambda;
+            let mut damped: Mat = o.a.clone();
+            for (k, row) in damped.iter_mut().enumerate() {
+                row[k] += lambda * o.a[k][k].max(1e-12);
+            }
+            let step = gauss_newton_step(&damped, &o.g, 1e-14);
+            let mut trial = theta.to_vec();
+            for (k, &i) in o.cols.iter().enumerate() {
+                trial[i] = (theta[i] + step[k] * bounds[i].scale).clamp(bounds[i].lower, bounds[i].upper);
+            }
+            let moved = trial.iter().zip(theta).zip(bounds).map(|((a, b), bd)| ((a - b) / bd.scale).abs()).fold(0.0, f64::max);
+            // the drop the linearisation predicts for the step taken (after the clamp): once the
+            // damping leaves less than a negligible one, no step worth a run remains
+            let taken: Vec<f64> = o.cols.iter().map(|&i| (trial[i] - theta[i]) / bounds[i].scale).collect();
+            let a_taken: Vec<f64> = o.a.iter().map(|r| r.iter().zip(&taken).map(|(x, t)| x * t).sum()).collect();
+            let linear_drop = -taken.iter().zip(o.g.iter().zip(&a_taken)).map(|(t, (gi, at))| t * (2.0 * gi + at)).sum::<f64>();
+            if moved < 1e-12 || linear_drop < o.worth_a_try {
+                return Ok(None);
+            }
+            let mut tm = self.now.model.clone();
+            for (p, v) in self.params.iter().zip(&trial) {
+                tm.set_value(p, *v);
+            }
+            let tv = match c.sensitivity(&tm, None)? {
+                Ok(t) => t.values,
+                Err(e) => {
+                    if opts.log {
+                        let why = format!("damping {lambda:.1e}, the largest move {moved:.3} scales");
+                        opts.progress.log(&format!("  trial refused: the model fails there ({e}; {why})"));
+                    }
+                    self.lambda = raised(lambda, self.simulated);
+                    continue;
+                }
             };
-            damped_step(&model, &theta, (&s, c2, worth_a_try), (&a, &g), &cols, &mut lambda, names, &bounds, data, exps, opts, (secant, tries, simulated))?
-        };
-        let Some(next) = next else {
-            if exact || opts.stop_on_secant {
-                converged = true;
-                break;
+            let tc2 = chi2(&tv, c.data);
+            if tc2.is_finite() && tc2 < self.now.chi2 {
+                let Some(at_trial) = self.at_trial(&tm, (&trial, tv))? else {
+                    self.lambda = raised(lambda, self.simulated);
+                    continue;
+                };
+                self.lambda = (lambda / 3.0).max(1e-9);
+                return Ok(Some(Accepted { theta: trial, model: tm, at: at_trial, chi2: tc2 }));
             }
-            // a new Jacobian, whose first step is undamped: the damping a secant Jacobian's
-            // refused trial raised was that Jacobian's
-            (s, exact, lambda) = (exact_at(&model, &s)?, true, DAMPING);
-            continue;
-        };
-        let drop = c2 - next.chi2;
-        let gain = drop / c2.max(1e-300);
-        (theta, model, s, c2, exact) = (next.theta, next.model, next.at, next.chi2, !secant);
-        history.push(c2);
-        if opts.log {
-            opts.progress.log(&format!("step {}: chi^2 = {c2:.6e} (damping {lambda:.1e}{}, {:.1} s into the fit)", history.len() - 1, if exact { "" } else { ", secant Jacobian" }, clock.elapsed().as_secs_f64()));
-        }
-        if gain < opts.tolerance || drop < negligible {
-            // a negligible drop from a step near the optimum is the optimum: a rough model
-            // accepts steps within its scatter as often as it refuses them, each a Jacobian
-            if exact || near || !opts.uncertainties {
-                converged = true;
-                break;
+            if opts.log {
+                let predicted = self.now.chi2 - linear_drop;
+                let why = format!("damping {lambda:.1e}, the largest move {moved:.3} scales");
+                opts.progress.log(&format!("  trial refused: chi^2 = {tc2:.6e}, {predicted:.3e} predicted ({why})"));
             }
-            (s, exact, lambda) = (exact_at(&model, &s)?, true, DAMPING);
+            self.lambda = raised(lambda, self.simulated);
         }
-    }
-    if !exact && opts.uncertainties {
-        s = exact_at(&model, &s)?;
+        Ok(None)
     }
 
-    // uncertainties from the undamped normal matrix at the optimum
-    let (z, jz) = standardised(&s.values, s.jacobian.as_ref().expect("asked"), data, &scale);
-    let cols: Vec<usize> = (0..n).filter(|&i| free[i]).collect();
-    let (a, _) = normal_equations(&jz, &z, &cols);
-    let (cov, _) = pinv_sym(&a, 1e-12);
-    let influence: Vec<bool> = (0..n).map(|i| jz.iter().any(|r| r[i] != 0.0)).collect();
-    let mut uncertainty = vec![f64::NAN; n];
-    for (k, &i) in cols.iter().enumerate() {
-        // the pseudo-inverse gives 0 where the data say nothing
-        uncertainty[i] = if influence[i] { cov[k][k].sqrt() * scale[i] } else { f64::INFINITY };
+    /// The values and Jacobian at an accepted trial `tm` (parameters `trial`, values `tv`): the
+    /// secant update of the last Jacobian on secants, otherwise the engine's (none where its
+    /// run is rejected).
+    fn at_trial(&self, tm: &Model, (trial, tv): (&[f64], Vec<f64>)) -> Result<Option<Sensitivity>, MeasureError> {
+        let at = &self.now.at;
+        if self.secant {
+            let jacobian = secant_update(at.jacobian.as_ref().expect("asked"), (&self.now.theta, trial), &self.scale, (&at.values, &tv));
+            // the scatter is the model's near here, as the last exact Jacobian estimated it
+            let (scatter, jacobian_scatter) = (at.scatter.clone(), at.jacobian_scatter.clone());
+            return Ok(Some(Sensitivity { values: tv, jacobian: Some(jacobian), scatter, jacobian_scatter }));
+        }
+        Ok(self.campaign.jacobian_at(tm, self.names, (&tv, &Differences::Central))?.ok())
     }
-    let at_bound: Vec<bool> = (0..n).map(|i| !free[i]).collect();
-    let dof = m.saturating_sub(cols.len()).max(1);
-    Ok(Fit {
-        names: names.to_vec(),
-        start,
-        values: theta,
-        uncertainty,
-        at_bound,
-        influence,
-        chi2_start,
-        chi2: c2,
-        reduced_chi2: c2 / dof as f64,
-        history,
-        converged,
-        observations: m,
-        model_values: s.values.clone(),
-        jacobian: s.jacobian.expect("asked"),
-        scatter: s.scatter,
-        jacobian_scatter: s.jacobian_scatter.expect("asked"),
-        at_start: first,
-        model,
-    })
-}
-
-/// A fit made for its optimum only ([`FitOptions::uncertainties`] off, perhaps
-/// [`FitOptions::stop_on_secant`] on), finished as `opts` asks: where its Jacobian at the end may
-/// be a secant update, the engine's exact one there, and the fit taken on from it until that
-/// Jacobian's stop holds (at once, where the secant fit had stopped at the optimum), so that its
-/// uncertainties, and a leave-one-out step on its curvature, come from an exact Jacobian as a
-/// fit made with uncertainties does. The fit keeps its start and history.
-pub fn finish(f: Fit, data: &[Observation], exps: &Experiments, opts: &FitOptions) -> Result<Fit, MeasureError> {
-    if !(opts.uncertainties && !opts.stop_on_secant && on_secants(opts, data, exps)) {
-        return Ok(f);
-    }
-    let exact = opts.jacobian_at(&f.model, data, exps, &f.names, (&f.model_values, &Differences::Central))??;
-    let mut finished = calibrate_from(&f.model, data, exps, &f.names, opts, exact)?;
-    finished.history = f.history.iter().chain(&finished.history[1..]).copied().collect();
-    (finished.start, finished.chi2_start, finished.at_start) = (f.start, f.chi2_start, f.at_start);
-    Ok(finished)
 }
 
 /// Which parameters move: one is held at its bound when the Gauss-Newton step of the others and
@@ -412,6 +489,7 @@ fn free_parameters(jz: &[Vec<f64>], z: &[f64], theta: &[f64], bounds: &[Bounds])
     }
 }
 
+
 /// A step a fit accepted: the parameters, the model with them, its values and Jacobian there,
 /// and chi^2.
 struct Accepted {
@@ -421,99 +499,6 @@ struct Accepted {
     chi2: f64,
 }
 
-/// A Levenberg-Marquardt step from `theta` (at `model`, with values and Jacobian `at` and chi^2
-/// `c2`) on the normal equations `(a, g)` of the free parameters `cols`, the damping `lambda`
-/// raised until a step lowers chi^2 (at most `tries` tries) and lowered after it; none when no
-/// step lowers it, or when the damping has left a step whose linearised drop is under
-/// `negligible`. With `secant` the accepted step's Jacobian is the secant update of `at`'s,
-/// otherwise the engine's. A trial the model rejects (a material that will not build), or whose
-/// Jacobian run is rejected (a side of a central difference where a printed line breaks up), is
-/// a failed step; the engine failing to run it is an error.
-#[allow(clippy::too_many_arguments)]
-fn damped_step(
-    model: &Model,
-    theta: &[f64],
-    (at, c2, negligible): (&Sensitivity, f64, f64),
-    (a, g): (&Mat, &[f64]),
-    cols: &[usize],
-    lambda: &mut f64,
-    names: &[String],
-    bounds: &[Bounds],
-    data: &[Observation],
-    exps: &Experiments,
-    opts: &FitOptions,
-    (secant, tries, simulated): (bool, usize, bool),
-) -> Result<Option<Accepted>, MeasureError> {
-    for _ in 0..tries {
-        let mut damped: Mat = a.clone();
-        for (k, row) in damped.iter_mut().enumerate() {
-            row[k] += *lambda * a[k][k].max(1e-12);
-        }
-        let step = gauss_newton_step(&damped, g, 1e-14);
-        let mut trial = theta.to_vec();
-        for (k, &i) in cols.iter().enumerate() {
-            trial[i] = (theta[i] + step[k] * bounds[i].scale).clamp(bounds[i].lower, bounds[i].upper);
-        }
-        let moved = trial.iter().zip(theta).zip(bounds).map(|((a, b), bd)| ((a - b) / bd.scale).abs()).fold(0.0, f64::max);
-        // the drop the linearisation predicts for the step taken (after the clamp): once the
-        // damping leaves less than a negligible one, no step worth a run remains
-        let taken: Vec<f64> = cols.iter().map(|&i| (trial[i] - theta[i]) / bounds[i].scale).collect();
-        let a_taken: Vec<f64> = a.iter().map(|r| r.iter().zip(&taken).map(|(x, t)| x * t).sum()).collect();
-        let linear_drop = -taken.iter().zip(g.iter().zip(&a_taken)).map(|(t, (gi, at))| t * (2.0 * gi + at)).sum::<f64>();
-        if moved < 1e-12 || linear_drop < negligible {
-            return Ok(None);
-        }
-        let mut tm = model.clone();
-        for (nm, v) in names.iter().zip(&trial) {
-            tm.set(nm, *v)?;
-        }
-        let tv = match opts.sensitivity(&tm, data, exps, None)? {
-            Ok(t) => t.values,
-            Err(e) => {
-                if opts.log {
-                    opts.progress.log(&format!("  trial refused: the model fails there ({e}; damping {lambda:.1e}, the largest move {moved:.3} scales)"));
-                }
-                *lambda = raised(*lambda, simulated);
-                continue;
-            }
-        };
-        let tc2 = chi2(&tv, data);
-        if tc2.is_finite() && tc2 < c2 {
-            let at_trial = if secant {
-                let scale: Vec<f64> = bounds.iter().map(|b| b.scale).collect();
-                let jacobian = secant_update(at.jacobian.as_ref().expect("asked"), (theta, &trial), &scale, (&at.values, &tv));
-                // the scatter is the model's near here, as the last exact Jacobian estimated it
-                Sensitivity { values: tv, jacobian: Some(jacobian), scatter: at.scatter.clone(), jacobian_scatter: at.jacobian_scatter.clone() }
-            } else {
-                let Ok(at_trial) = opts.jacobian_at(&tm, data, exps, names, (&tv, &Differences::Central))? else {
-                    *lambda = raised(*lambda, simulated);
-                    continue;
-                };
-                at_trial
-            };
-            *lambda = (*lambda / 3.0).max(1e-9);
-            return Ok(Some(Accepted { theta: trial, model: tm, at: at_trial, chi2: tc2 }));
-        }
-        if opts.log {
-            opts.progress.log(&format!("  trial refused: chi^2 = {tc2:.6e}, {:.3e} predicted (damping {lambda:.1e}, the largest move {moved:.3} scales)", c2 - linear_drop));
-        }
-        *lambda = raised(*lambda, simulated);
-    }
-    Ok(None)
-}
-
-/// Whether any of the experiments `data` observes is a simulation (a rheometer test's Jacobian
-/// comes from its adjoint at less than a run's cost).
-fn runs_simulations(data: &[Observation], exps: &Experiments) -> bool {
-    super::runner::group(data).iter().any(|(id, _)| exps.get(id).is_some_and(|x| x.scenario.is_some()))
-}
-
-/// Whether a fit of `data` steps on secant Jacobians: asked to ([`FitOptions::secant`]), where
-/// its campaign runs simulations.
-fn on_secants(opts: &FitOptions, data: &[Observation], exps: &Experiments) -> bool {
-    opts.secant && runs_simulations(data, exps)
-}
-
 /// chi^2's drop one undamped Gauss-Newton step predicts, g^T A^+ g, from the normal equations
 /// (A, g) of the standardised residuals.
 pub fn predicted_drop(a: &Mat, g: &[f64]) -> f64 {
@@ -521,17 +506,18 @@ pub fn predicted_drop(a: &Mat, g: &[f64]) -> f64 {
     g.iter().zip(&inv).map(|(gi, row)| gi * row.iter().zip(g).map(|(a, b)| a * b).sum::<f64>()).sum()
 }
 
-/// The parameters' bounds and starting values, checked: something to fit, each start finite.
-fn check(model: &Model, names: &[String]) -> Result<(Vec<Bounds>, Vec<f64>), MeasureError> {
+/// The parameters, their keys parsed once, and their starting values, checked: something to
+/// fit, each start finite.
+fn check(model: &Model, names: &[String]) -> Result<(Vec<Parameter>, Vec<f64>), MeasureError> {
     if names.is_empty() {
         return Err(MeasureError::Fit("nothing to fit: name the parameters (--fit P1,P2,...)".into()));
     }
-    let bounds: Vec<Bounds> = names.iter().map(|n| model.bounds(n)).collect::<Result<_, _>>()?;
-    let start: Vec<f64> = names.iter().map(|n| model.get(n)).collect::<Result<_, _>>()?;
+    let params: Vec<Parameter> = names.iter().map(|n| model.parameter(n)).collect::<Result<_, _>>()?;
+    let start: Vec<f64> = params.iter().map(|p| model.value(p)).collect();
     if let Some((n, v)) = names.iter().zip(&start).find(|(_, v)| !v.is_finite()) {
         return Err(MeasureError::Fit(format!("{n} starts at {v}, its null at infinity, where there is no gradient to move it by: give it a finite start in the model")));
     }
-    Ok((bounds, start))
+    Ok((params, start))
 }
 
 impl Fit {
@@ -585,6 +571,8 @@ pub fn plot_convergence(f: &Fit, path: &std::path::Path) -> Result<(), crate::ou
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::measure::campaign::FitOptions;
+    use crate::measure::campaign::experiments::Experiments;
     use crate::measure::observation::Observable;
 
     const MODEL: &str = "[material]\nkind = \"bingham\"\ndensity = 2100.0\nbulk_modulus = 1e6\nviscosity = 7.5\nyield_stress = 630.0\n";
@@ -620,7 +608,7 @@ mod tests {
     #[test]
     fn a_scattered_jacobian_promises_what_promised_by_scatter_says() {
         use rand_distr::{Distribution, StandardNormal};
-        let mut rng = super::super::synth::noise_source(3);
+        let mut rng = crate::measure::compare::synth::noise_source(3);
         let m = 40;
         let truth: Vec<Vec<f64>> = (0..m).map(|i| vec![1.0 + 0.1 * i as f64, 1.1 + 0.1 * i as f64 + 0.02 * (i % 3) as f64]).collect();
         // residuals at the optimum: the part of a draw the columns do not explain
@@ -649,7 +637,7 @@ mod tests {
     fn flow_curve_fit(opts: &FitOptions) -> Fit {
         let truth = Model::from_table(&MODEL.parse().unwrap()).unwrap();
         let e: Experiments = toml::from_str(EXPS).unwrap();
-        let data = super::super::synth::synth(&truth, &e, 0.0, 1, 1).unwrap();
+        let data = crate::measure::compare::synth::synth(&truth, &e, 0.0, 1, 1).unwrap();
         let data: Vec<Observation> = data.into_iter().map(|mut o| {
             o.uncertainty = 1.0;
             o
@@ -658,13 +646,13 @@ mod tests {
         start.set("material.yield_stress", 300.0).unwrap();
         start.set("material.viscosity", 20.0).unwrap();
         let names = vec!["material.yield_stress".to_string(), "material.viscosity".to_string()];
-        calibrate(&start, &data, &e, &names, opts).unwrap()
+        calibrate(&Campaign::new(&e, &data, opts), &start, &names).unwrap()
     }
 
     /// Progress changes no bit of a fit, and its JSON events are well-formed and monotone.
     #[test]
     fn a_fit_with_progress_events_is_the_fit_without() {
-        use crate::measure::progress::tests::{check_monotone, Shared};
+        use crate::measure::campaign::progress::tests::{check_monotone, Shared};
         let out = Shared::default();
         let progress = out.progress(1);
         progress.begin("fit", 1);

@@ -8,13 +8,13 @@
 //! key of its own (a thixotropic build-up rate, a flow index) or moves a print key is not
 //! spanned, and its column is computed.
 
-use super::error::MeasureError;
-use super::effects::Keys;
-use super::experiments::Experiments;
-use super::linalg::{gauss_newton_step, normal_equations};
-use super::model::Model;
-use super::observation::Observation;
-use super::runner::{find, group};
+use crate::measure::error::MeasureError;
+use crate::measure::effects::Keys;
+use crate::measure::campaign::experiments::Experiments;
+use crate::measure::fit::linalg::{gauss_newton_step, normal_equations};
+use crate::measure::model::Model;
+use crate::measure::observation::Observation;
+use crate::measure::campaign::runner::{find, group};
 
 /// The columns of `extra` (one value per observation of `data`) at `model`, given `jacobian`
 /// (a row per observation) in `fitted` and its entries' scatter: `Some` for each parameter whose
@@ -84,11 +84,11 @@ mod tests {
         let model = Model::from_table(&MODEL.parse().unwrap()).unwrap();
         let exps: Experiments = toml::from_str(EXPS).unwrap();
         exps.validate().unwrap();
-        let data = super::super::synth::synth(&model, &exps, 0.0, 1, 1).unwrap();
+        let data = crate::measure::compare::synth::synth(&model, &exps, 0.0, 1, 1).unwrap();
         let fitted = vec!["material.yield_stress".to_string(), "material.viscosity".to_string()];
         let extra: Vec<String> = ["ageing.rate", "thixotropy.a_thix"].iter().map(|s| s.to_string()).collect();
         let all: Vec<String> = fitted.iter().chain(&extra).cloned().collect();
-        let exact = super::super::sensitivity::sensitivity(&model, &data, &exps, Some(&all), 1).unwrap().jacobian.unwrap();
+        let exact = crate::measure::campaign::sensitivity::sensitivity(&model, &data, &exps, Some(&all), 1).unwrap().jacobian.unwrap();
         let fit_rows: Vec<Vec<f64>> = exact.iter().map(|r| r[..2].to_vec()).collect();
         let no_scatter = vec![vec![0.0; 2]; fit_rows.len()];
         let cols = chained(&model, &data, &exps, &fitted, (&fit_rows, &no_scatter), &extra).unwrap();

@@ -6,12 +6,12 @@
 //! are the same, and saved exactly). Each saved file carries the [`Provenance`] of its values,
 //! and collect refuses one computed under another model, scenario, experiments entry or binary.
 
-use super::error::{io_error, MeasureError};
-use super::experiments::Experiments;
-use super::model::Model;
-use super::observation::{Observable, Observation};
-use super::provenance::{exact, plain, Exact, Provenance};
-use super::runner::{find, group};
+use crate::measure::error::{io_error, MeasureError};
+use crate::measure::campaign::experiments::Experiments;
+use crate::measure::model::Model;
+use crate::measure::observation::{Observable, Observation};
+use crate::measure::campaign::provenance::{exact, plain, Exact, Provenance};
+use crate::measure::campaign::runner::{find, group};
 use std::path::{Path, PathBuf};
 
 /// One experiment's values, as a job saves them.
@@ -99,5 +99,5 @@ pub fn collect(dir: &Path, model: &Model, exps: &Experiments, data: &[Observatio
             Ok(plain(&s.values))
         })
         .collect::<Result<_, MeasureError>>()?;
-    Ok(super::runner::ungroup(data, &wanted, &per))
+    Ok(crate::measure::campaign::runner::ungroup(data, &wanted, &per))
 }

@@ -1,12 +1,20 @@
 //! The model against measurements (`strand compare`): each observation's residual and z-score,
 //! their summaries per experiment and per observable, and chi^2, the loss a calibration
-//! minimises. The model's values come from the runner (`runner.rs`).
+//! minimises. The model's values come from the runner (`campaign/runner.rs`).
+//!
+//! In: data and the model's values of them. Out: the comparison, as text and JSON, or as a
+//! folder of plots (`report.rs`); its jobs across machines (`plan.rs`); synthetic data from a
+//! model (`synth.rs`).
+
+pub mod plan;
+pub mod report;
+pub mod synth;
 
 use super::error::MeasureError;
-use super::experiments::Experiments;
+use super::campaign::experiments::Experiments;
 use super::model::Model;
 use super::observation::{at_text, Observable, Observation};
-use super::runner::model_values;
+use super::campaign::runner::model_values;
 
 /// One observation against the model.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -152,8 +160,8 @@ pub fn report(c: &Comparison) -> String {
 
 #[cfg(test)]
 mod tests {
-    use super::super::runner::fixture::{setup, MODEL};
-    use super::super::synth::synth;
+    use super::super::campaign::runner::fixture::{setup, MODEL};
+    use super::synth::synth;
     use super::*;
 
     #[test]

@@ -21,8 +21,8 @@
 //! A shape is reported when its p-value is below alpha / (the number of tests made), Bonferroni's
 //! bound, so that pure noise flags nothing at rate alpha however many covariates there are.
 
-use super::compare::Row;
-use super::linalg::{f_sf, pinv_sym};
+use crate::measure::compare::Row;
+use crate::measure::fit::linalg::{f_sf, pinv_sym};
 use std::fmt::Write as _;
 
 /// Something z may move with: its value at each row of the comparison, None where it does not
@@ -172,7 +172,7 @@ fn covariate_shapes(rows: &[Row], c: &Covariate) -> Vec<Tested> {
     // the sign of the last column's coefficient: the slope, or the quadratic term
     let shape = |kind: &str, (f, p, coef): (f64, f64, Vec<f64>), signed: bool| {
         let sign = if signed { coef.last().copied().unwrap_or(0.0).signum() } else { 0.0 };
-        Tested { shape: Shape { covariate: c.name.clone(), kind: kind.into(), n: x.len(), f, p_value: p, sign, text: describe(c, kind, sign, &x, &z, f, p) }, per_experiment }
+        Tested { shape: Shape { covariate: c.name.clone(), kind: kind.into(), n: x.len(), f, p_value: p, sign, text: describe(c, kind, sign, (&x, &z), (f, p)) }, per_experiment }
     };
     let mut out = Vec::new();
     if k == 2 {
@@ -260,7 +260,9 @@ fn cause(name: &str, kind: &str, sign: f64) -> Option<String> {
     })
 }
 
-fn describe(c: &Covariate, kind: &str, sign: f64, x: &[f64], z: &[f64], f: f64, p: f64) -> String {
+/// A shape in words: of `kind` against covariate `c` (`sign` its direction), from the values
+/// `x` of the covariate and the residuals `z`, with its F statistic and p-value.
+fn describe(c: &Covariate, kind: &str, sign: f64, (x, z): (&[f64], &[f64]), (f, p): (f64, f64)) -> String {
     let what = label(&c.name);
     let shape = match kind {
         "trend" => format!("residuals {} with {what}", if sign > 0.0 { "rise" } else { "fall" }),
@@ -304,7 +306,7 @@ mod tests {
     use super::*;
     use crate::measure::compare::comparison;
     use crate::measure::observation::{Observable, Observation};
-    use crate::measure::synth::noise_source;
+    use crate::measure::compare::synth::noise_source;
     use rand_distr::{Distribution, StandardNormal};
 
     /// A campaign's layout: six experiments (rest time, age) of three rates each.

@@ -17,10 +17,10 @@
 //! observe = ["stress@10", "stress@1"]
 //! ```
 
-use super::error::{io_error, MeasureError};
-use super::effects::Covariates;
-use super::observables::{self, RHEOMETER_OBSERVABLES, SIMULATION_OBSERVABLES};
-use super::observation::{number, Observable};
+use crate::measure::error::{io_error, MeasureError};
+use crate::measure::effects::Covariates;
+use crate::measure::observables::{self, RHEOMETER_OBSERVABLES, SIMULATION_OBSERVABLES};
+use crate::measure::observation::{number, Observable};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 

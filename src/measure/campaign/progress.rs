@@ -7,7 +7,7 @@
 //! on a terminal, two bars on stderr (indicatif; hidden where stderr is not a terminal, where a
 //! plain line at most every [`LINE_EVERY`] seconds stands in); with `--json`, one JSON object per
 //! event on stderr ([`Event`]); nothing for a silent handle (`--quiet`, and the library's
-//! default). A handle is passed down inside [`FitOptions`](super::calibrate::FitOptions); it
+//! default). A handle is passed down inside [`FitOptions`](crate::measure::campaign::FitOptions); it
 //! only counts and prints, so results are the same bits with it or without it.
 
 use std::io::{IsTerminal, Write};

@@ -20,14 +20,14 @@
 //! after the step of the whole run that reaches it (to the step control's rounding of 1e-9 dt),
 //! not from a run that ends there: the two differ by that rounding of the last step's length.
 
-use super::error::MeasureError;
+use crate::measure::error::MeasureError;
 use super::experiments::{Experiment, Experiments};
-use super::observables::{observable_plan, reading_index};
-use super::observation::{Observable, Observation};
-use super::runner::{experiment_keys, find, group, job_threads, par_map_experiments, parse_scenario, rheometer_setup, scenario_text, ungroup};
+use crate::measure::observables::{observable_plan, reading_index};
+use crate::measure::observation::{Observable, Observation};
+use super::runner::{experiment_keys, find, group, job_threads, par_map_experiments, rheometer_setup, scenario_from_table, scenario_table, ungroup};
 use super::spare::Spare;
-use super::effects::Keys;
-use super::model::Model;
+use crate::measure::effects::Keys;
+use crate::measure::model::{set_path, Model};
 use super::rheometer::Rheometer;
 use crate::grad::driver::Seeded;
 use crate::grad::{driver, params, GradOptions};
@@ -68,18 +68,18 @@ pub enum Differences {
 /// Values of every observation under `model`, with their gradients in `names` when given;
 /// experiments run `jobs` at a time.
 pub fn sensitivity(model: &Model, data: &[Observation], exps: &Experiments, names: Option<&[String]>, jobs: usize) -> Result<Sensitivity, MeasureError> {
-    campaign(model, data, exps, names, jobs, None, &Differences::Central)
+    campaign(model, data, exps, (names, jobs), (None, &Differences::Central))
 }
 
 /// [`sensitivity`] in `names` at a model whose values are known (`values`, in the data's order,
 /// as [`sensitivity`] gives them there: a calibration's accepted trial). An experiment whose
 /// Jacobian is all differences takes them instead of running the model again: one run of its
 /// 1 + 2 p (or 1 + p, [`Differences::Forward`]).
-pub fn jacobian_at(model: &Model, data: &[Observation], exps: &Experiments, names: &[String], jobs: usize, values: &[f64], differences: &Differences) -> Result<Sensitivity, MeasureError> {
-    campaign(model, data, exps, Some(names), jobs, Some(values), differences)
+pub fn jacobian_at(model: &Model, data: &[Observation], exps: &Experiments, (names, jobs): (&[String], usize), (values, differences): (&[f64], &Differences)) -> Result<Sensitivity, MeasureError> {
+    campaign(model, data, exps, (Some(names), jobs), (Some(values), differences))
 }
 
-fn campaign(model: &Model, data: &[Observation], exps: &Experiments, names: Option<&[String]>, jobs: usize, known: Option<&[f64]>, differences: &Differences) -> Result<Sensitivity, MeasureError> {
+fn campaign(model: &Model, data: &[Observation], exps: &Experiments, (names, jobs): (Option<&[String]>, usize), (known, differences): (Option<&[f64]>, &Differences)) -> Result<Sensitivity, MeasureError> {
     let wanted = group(data);
     let threads = job_threads(jobs, wanted.len());
     let known = known.map(|v| regroup(data, &wanted, v));
@@ -89,7 +89,7 @@ fn campaign(model: &Model, data: &[Observation], exps: &Experiments, names: Opti
     };
     let per = par_map_experiments(&wanted, jobs, |k, spare| {
         let given = Given { values: known.as_ref().map(|v| &v[k][..]), scatter: scatter.as_ref().map(|s| &s[k][..]), spare: Some(spare) };
-        one_given(model, exps, &wanted[k].0, &wanted[k].1, names, threads, given)
+        one_given(model, exps, &wanted[k].0, &wanted[k].1, (names, threads), given)
     })?;
     Ok(assemble(data, &wanted, &per, names))
 }
@@ -118,13 +118,13 @@ pub fn regroup(data: &[Observation], wanted: &[(String, Vec<Observable>)], value
 /// One experiment's values of `wanted` and, with `names`, their gradients (one-sided where
 /// `scatter`, its values' known scatter, is given): the unit of work [`sensitivity`] runs side
 /// by side and a scheduler's job runs alone (`engine.rs`).
-pub fn one(model: &Model, exps: &Experiments, id: &str, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>, scatter: Option<&[f64]>) -> Result<Vec<Valued>, MeasureError> {
-    one_given(model, exps, id, wanted, names, threads, Given { scatter, ..Given::default() })
+pub fn one(model: &Model, exps: &Experiments, id: &str, wanted: &[Observable], (names, threads): (Option<&[String]>, Option<usize>), scatter: Option<&[f64]>) -> Result<Vec<Valued>, MeasureError> {
+    one_given(model, exps, id, wanted, (names, threads), Given { scatter, ..Given::default() })
 }
 
-fn one_given(model: &Model, exps: &Experiments, id: &str, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>, given: Given) -> Result<Vec<Valued>, MeasureError> {
+fn one_given(model: &Model, exps: &Experiments, id: &str, wanted: &[Observable], (names, threads): (Option<&[String]>, Option<usize>), given: Given) -> Result<Vec<Valued>, MeasureError> {
     let x = find(exps, id)?;
-    experiment(model, exps, x, wanted, names, threads, given).map_err(|e| e.within(format!("experiment '{id}'")))
+    experiment(model, exps, x, wanted, (names, threads), given).map_err(|e| e.within(format!("experiment '{id}'")))
 }
 
 /// The experiments' results ([`one`] each, in `wanted`'s order) in the data's order.
@@ -159,7 +159,7 @@ impl Valued {
 
 /// Whether an observable's gradient comes from an adjoint; the others are differenced.
 pub fn has_adjoint(o: &Observable) -> bool {
-    ![crate::failure::OBSERVABLES, super::front::OBSERVABLES, super::passing::OBSERVABLES].concat().contains(&o.name.as_str())
+    ![crate::failure::OBSERVABLES, crate::measure::front::OBSERVABLES, crate::measure::passing::OBSERVABLES].concat().contains(&o.name.as_str())
 }
 
 /// The relative step [`differenced`] starts from: a tenth of the parameter (its scale, the
@@ -199,20 +199,20 @@ pub fn by_differences_is_cheaper(runs: usize, observations: usize) -> bool {
 
 /// One experiment's values of `wanted` and, with `names`, their gradients; `given`: what the
 /// caller has of it ([`Given`]).
-fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>, given: Given) -> Result<Vec<Valued>, MeasureError> {
+fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], (names, threads): (Option<&[String]>, Option<usize>), given: Given) -> Result<Vec<Valued>, MeasureError> {
     let (adjoint, other): (Vec<usize>, Vec<usize>) = (0..wanted.len()).partition(|&k| has_adjoint(&wanted[k]));
     if other.is_empty() {
-        return simulated(model, exps, x, wanted, names, threads, given);
+        return simulated(model, exps, x, wanted, (names, threads), given);
     }
     let pick = |ks: &[usize]| ks.iter().map(|&k| wanted[k].clone()).collect::<Vec<_>>();
     let part = |v: Option<&[f64]>, ks: &[usize]| v.map(|v| ks.iter().map(|&k| v[k]).collect::<Vec<f64>>());
     let mut out: Vec<Option<Valued>> = vec![None; wanted.len()];
-    for (&k, v) in other.iter().zip(differenced(model, exps, x, &pick(&other), names, threads, part(given.values, &other).as_deref())?) {
+    for (&k, v) in other.iter().zip(differenced(model, exps, x, &pick(&other), (names, threads), part(given.values, &other).as_deref())?) {
         out[k] = Some(v);
     }
     if !adjoint.is_empty() {
         let (values, scatter) = (part(given.values, &adjoint), part(given.scatter, &adjoint));
-        for (&k, v) in adjoint.iter().zip(simulated(model, exps, x, &pick(&adjoint), names, threads, Given { values: values.as_deref(), scatter: scatter.as_deref(), spare: given.spare })?) {
+        for (&k, v) in adjoint.iter().zip(simulated(model, exps, x, &pick(&adjoint), (names, threads), Given { values: values.as_deref(), scatter: scatter.as_deref(), spare: given.spare })?) {
             out[k] = Some(v);
         }
     }
@@ -226,8 +226,8 @@ fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obser
 /// extrusion factor's adjoint gets the sign of a line's width wrong) and, for a simulation, for
 /// every parameter when that costs less than the adjoint ([`by_differences_is_cheaper`]). With
 /// the values' scatter known, each difference is one-sided ([`Differences::Forward`]).
-fn simulated(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>, given: Given) -> Result<Vec<Valued>, MeasureError> {
-    let (Some(names), Some(_)) = (names, &x.scenario) else { return by_adjoint(model, exps, x, wanted, names, threads) };
+fn simulated(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], (names, threads): (Option<&[String]>, Option<usize>), given: Given) -> Result<Vec<Valued>, MeasureError> {
+    let (Some(names), Some(_)) = (names, &x.scenario) else { return by_adjoint(model, exps, x, wanted, (names, threads)) };
     let keys = experiment_keys(model, x)?;
     let sides = names.iter().map(|n| smooth_step(model, n).and_then(|h| moves(model, x, &keys, n, h))).collect::<Result<Vec<_>, _>>()?;
     let sides: Vec<Option<Sides>> = match given.scatter {
@@ -242,10 +242,10 @@ fn simulated(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observ
     let adjoint: Vec<String> = names.iter().zip(&from_the_adjoint).filter(|(_, a)| **a).map(|(n, _)| n.clone()).collect();
     let at_model = match given.values {
         Some(v) if adjoint.is_empty() => v.iter().map(|&v| Valued::new(v, None)).collect(),
-        _ => by_adjoint(model, exps, x, wanted, (!adjoint.is_empty()).then_some(&adjoint[..]), threads)?,
+        _ => by_adjoint(model, exps, x, wanted, ((!adjoint.is_empty()).then_some(&adjoint[..]), threads))?,
     };
     let values: Vec<f64> = at_model.iter().map(|v| v.value).collect();
-    let run = |m: &Model| Ok(by_adjoint(m, exps, x, wanted, None, threads)?.into_iter().map(|v| v.value).collect());
+    let run = |m: &Model| Ok(by_adjoint(m, exps, x, wanted, (None, threads))?.into_iter().map(|v| v.value).collect());
     let differenced: Vec<Option<Sides>> = sides.into_iter().zip(&by_differences).map(|(s, &d)| s.filter(|_| d)).collect();
     let Central { columns, scatter, column_scatter } = central(&values, run, differenced, (given.scatter, given.spare))?;
     let mut from_adjoint = 0..adjoint.len();
@@ -278,7 +278,7 @@ fn simulated(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observ
 /// domain is refused). The difference is one-sided where p - h or p + h leaves the parameter's
 /// bounds (an effect at its null on its lower bound). A parameter that leaves this experiment's
 /// scenario keys as they are has a zero column without a run.
-fn differenced(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>, known: Option<&[f64]>) -> Result<Vec<Valued>, MeasureError> {
+fn differenced(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], (names, threads): (Option<&[String]>, Option<usize>), known: Option<&[f64]>) -> Result<Vec<Valued>, MeasureError> {
     const WIDEST: f64 = 0.4;
     const WIDEST_AT_NULL: f64 = 64.0;
     const GROWTH: f64 = 4.0;
@@ -428,7 +428,7 @@ struct Central {
     column_scatter: Vec<Vec<f64>>,
 }
 
-fn by_adjoint(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], names: Option<&[String]>, threads: Option<usize>) -> Result<Vec<Valued>, MeasureError> {
+fn by_adjoint(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], (names, threads): (Option<&[String]>, Option<usize>)) -> Result<Vec<Valued>, MeasureError> {
     let keys = experiment_keys(model, x)?;
     // an override cuts the key from the model
     let chain = |mut keys_bar: Keys| -> Result<Vec<f64>, MeasureError> {
@@ -440,16 +440,15 @@ fn by_adjoint(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obser
     match (&x.scenario, &x.protocol) {
         (Some(s), _) => {
             let path = exps.base_dir.join(s);
-            let text = scenario_text(model, &keys, &path)?;
-            let whole = parse_scenario(&text, &path)?;
+            let doc = scenario_table(model, &keys, &path)?;
+            let whole = scenario_from_table(doc.clone(), &path)?;
             let end = whole.simulation.end_time;
             // each model key with the scenario key it landed on (the floor's friction on the
             // platform or the z_min face)
             let (wrt, placed): (Vec<String>, Vec<String>) = match names {
                 Some(_) => {
                     let known = params::known(&driver::prepare(&whole, threads)?);
-                    let doc: toml::Table = text.parse()?;
-                    keys.keys().filter(|k| !x.set.contains_key(*k)).map(|k| (k.clone(), super::effects::placed(k, &doc))).filter(|(_, p)| known.contains(p)).unzip()
+                    keys.keys().filter(|k| !x.set.contains_key(*k)).map(|k| (k.clone(), crate::measure::effects::placed(k, &doc))).filter(|(_, p)| known.contains(p)).unzip()
                 }
                 None => (Vec::new(), Vec::new()),
             };
@@ -473,7 +472,9 @@ fn by_adjoint(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obser
                 }
             }
             for (k, (t, obj)) in plans.iter().enumerate().filter(|(k, _)| steps[*k].is_none()) {
-                let sc = parse_scenario(&params::with_value(&text, "simulation.end_time", *t)?, &path)?;
+                let mut at_t = doc.clone();
+                set_path(&mut at_t, "simulation.end_time", *t)?;
+                let sc = scenario_from_table(at_t, &path)?;
                 out[k] = Some(if names.is_none() {
                     let steps = driver::count_steps(&driver::prepare(&sc, threads)?);
                     Valued::new(driver::forward_value(&sc, obj, threads, steps)?, None)
@@ -597,8 +598,8 @@ mod tests {
         let x = find(&e, "flow").unwrap();
         let wanted = [Observable::parse("stress@20").unwrap(), Observable::parse("stress@5").unwrap()];
         let names: Vec<String> = ["material.yield_stress", "material.viscosity", "ageing.rate"].map(String::from).to_vec();
-        let fd = differenced(&m, &e, x, &wanted, Some(&names), None, None).unwrap();
-        let adj = by_adjoint(&m, &e, x, &wanted, Some(&names), None).unwrap();
+        let fd = differenced(&m, &e, x, &wanted, (Some(&names), None), None).unwrap();
+        let adj = by_adjoint(&m, &e, x, &wanted, (Some(&names), None)).unwrap();
         for (f, a) in fd.iter().zip(&adj) {
             let (v, va) = (f.value, a.value);
             assert!((v - va).abs() <= 1e-9 * va.abs(), "{v} against {va}");
@@ -609,12 +610,12 @@ mod tests {
             assert_eq!(g[2], 0.0);
         }
         let values: Vec<f64> = fd.iter().map(|v| v.value).collect();
-        assert_eq!(differenced(&m, &e, x, &wanted, Some(&names), None, Some(&values)).unwrap(), fd);
+        assert_eq!(differenced(&m, &e, x, &wanted, (Some(&names), None), Some(&values)).unwrap(), fd);
         // at age 100 s ageing moves the yield stress: d stress / d rate = tau0 age, one-sided
         let aged: Experiments = toml::from_str(&EXPS.replace("observe = ", "age = 100.0\nobserve = ")).unwrap();
         let x = find(&aged, "flow").unwrap();
-        let fd = differenced(&m, &aged, x, &wanted, Some(&names), None, None).unwrap();
-        let adj = by_adjoint(&m, &aged, x, &wanted, Some(&names), None).unwrap();
+        let fd = differenced(&m, &aged, x, &wanted, (Some(&names), None), None).unwrap();
+        let adj = by_adjoint(&m, &aged, x, &wanted, (Some(&names), None)).unwrap();
         for (f, a) in fd.iter().zip(&adj) {
             let (g, ga) = (f.gradient.as_ref().unwrap(), a.gradient.as_ref().unwrap());
             assert!((g[2] / (630.0 * 100.0) - 1.0).abs() < 1e-6 && (g[2] / ga[2] - 1.0).abs() < 1e-6, "{g:?} against the adjoint's {ga:?}");
@@ -638,11 +639,11 @@ mod tests {
         let names: Vec<String> = ["material.yield_stress", "material.viscosity", "extrusion_factor.factor"].map(String::from).to_vec();
         // two material parameters; the extrusion factor's is differenced either way
         assert!(by_differences_is_cheaper(2 * 2, wanted.len()));
-        let fd = experiment(&m, &e, x, &wanted, Some(&names), Some(1), Given::default()).unwrap();
-        let adj = by_adjoint(&m, &e, x, &wanted, Some(&names), Some(1)).unwrap();
+        let fd = experiment(&m, &e, x, &wanted, (Some(&names), Some(1)), Given::default()).unwrap();
+        let adj = by_adjoint(&m, &e, x, &wanted, (Some(&names), Some(1))).unwrap();
         // the values known (a calibration's accepted trial), the same Jacobian without their run
         let values: Vec<f64> = fd.iter().map(|v| v.value).collect();
-        let known = experiment(&m, &e, x, &wanted, Some(&names), Some(1), Given { values: Some(&values), ..Given::default() }).unwrap();
+        let known = experiment(&m, &e, x, &wanted, (Some(&names), Some(1)), Given { values: Some(&values), ..Given::default() }).unwrap();
         assert_eq!(known, fd);
         let p: Vec<f64> = names.iter().map(|n| m.get(n).unwrap()).collect();
         let mut by_name = std::collections::BTreeMap::new();
@@ -668,7 +669,7 @@ mod tests {
         // one-sided with the values' scatter known: p runs, not 2 p, the columns the central
         // ones to first order, the scatter the one given
         let scatter: Vec<f64> = fd.iter().map(|v| v.scatter).collect();
-        let forward = experiment(&m, &e, x, &wanted, Some(&names), Some(1), Given { values: Some(&values), scatter: Some(&scatter), spare: None }).unwrap();
+        let forward = experiment(&m, &e, x, &wanted, (Some(&names), Some(1)), Given { values: Some(&values), scatter: Some(&scatter), spare: None }).unwrap();
         for ((o, f), (c, s)) in wanted.iter().zip(&forward).zip(fd.iter().zip(&scatter)) {
             assert_eq!((f.value, f.scatter), (c.value, *s));
             let (gf, gc) = (f.gradient.as_ref().unwrap(), c.gradient.as_ref().unwrap());
@@ -687,8 +688,8 @@ mod tests {
         // adjoint and the toolpath's from differences
         let more: Vec<String> = ["material.bulk_modulus"].map(String::from).into_iter().chain(names.iter().cloned()).collect();
         assert!(!by_differences_is_cheaper(2 * 3, 1));
-        let hybrid = experiment(&m, &e, x, &wanted[..1], Some(&more), Some(1), Given::default()).unwrap();
-        let adj = by_adjoint(&m, &e, x, &wanted[..1], Some(&more[..3]), Some(1)).unwrap();
+        let hybrid = experiment(&m, &e, x, &wanted[..1], (Some(&more), Some(1)), Given::default()).unwrap();
+        let adj = by_adjoint(&m, &e, x, &wanted[..1], (Some(&more[..3]), Some(1))).unwrap();
         let (row, adj_row) = (hybrid[0].gradient.as_ref().unwrap(), adj[0].gradient.as_ref().unwrap());
         assert_eq!(&row[..3], &adj_row[..], "the material's columns from the adjoint");
         assert_eq!(row[3], fd[0].gradient.as_ref().unwrap()[2], "the extrusion factor's from differences");
