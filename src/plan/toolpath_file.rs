@@ -164,20 +164,12 @@ impl FilePrint {
     }
 }
 
-/// Metres of material through the outlet per unit of E under `o` (as the G-code reader counts
-/// it: extrudate length, or filament by volume through the outlet).
-fn e_unit(o: &GcodeOptions, outlet_area: f64) -> f64 {
-    match (o.e_unit, o.filament_diameter) {
-        (Some(e), _) => e,
-        (None, Some(d)) => o.unit * std::f64::consts::PI * (d * o.unit).powi(2) / 4.0 / outlet_area,
-        (None, None) => 1e-3,
-    }
-}
-
 /// `tp` as G-code under `o`: absolute positions, relative E, every move with its F; `dwells`
 /// as G4 before their moves.
 pub fn gcode(tp: &Toolpath, dwells: &[(usize, f64)], o: &GcodeOptions, outlet_area: f64, head: &str) -> String {
-    let (unit, eu) = (o.unit, e_unit(o, outlet_area));
+    // as the G-code reader counts E
+    let Ok(eu) = o.metres_per_e(|| Ok::<_, std::convert::Infallible>(outlet_area));
+    let unit = o.unit;
     let at = |p: [f64; 3]| -> [f64; 3] { std::array::from_fn(|i| (p[i] - o.origin[i]) / unit) };
     let mut s = format!("; {head}\nG90\nM83\n");
     let mut here: [f64; 3] = std::array::from_fn(|i| o.origin[i] + unit * o.start[i]);

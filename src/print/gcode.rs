@@ -213,6 +213,18 @@ fn import(text: &str, opts: &GcodeOptions, outlet_area: Option<f64>) -> Result<(
 }
 
 impl GcodeOptions {
+    /// Metres of material through the outlet per unit of E: `e_unit`, or filament of
+    /// `filament_diameter` by volume through the outlet (`outlet_area` is asked for only then),
+    /// or [`DEFAULT_E_UNIT`].
+    pub fn metres_per_e<E>(&self, outlet_area: impl FnOnce() -> Result<f64, E>) -> Result<f64, E> {
+        Ok(match (self.e_unit, self.filament_diameter) {
+            (Some(e), _) => e,
+            // E × unit of filament of cross-section π (d unit)² / 4, through the outlet
+            (None, Some(d)) => self.unit * std::f64::consts::PI * (d * self.unit).powi(2) / 4.0 / outlet_area()?,
+            (None, None) => DEFAULT_E_UNIT,
+        })
+    }
+
     /// Check every option is usable.
     pub fn validate(&self) -> Result<(), GcodeError> {
         let bad = |key, message: String| Err(GcodeError::Option { key, message });
@@ -393,12 +405,7 @@ impl<'a> Machine<'a> {
                 message: format!("{key} converts by volume, through the nozzle's outlet area: import the file through a scenario's [print]"),
             })
         };
-        let e_unit = match (opts.e_unit, opts.filament_diameter) {
-            (Some(e), _) => e,
-            // E × unit of filament of cross-section π (d unit)² / 4, through the outlet
-            (None, Some(d)) => opts.unit * std::f64::consts::PI * (d * opts.unit).powi(2) / 4.0 / outlet("filament_diameter")?,
-            (None, None) => DEFAULT_E_UNIT,
-        };
+        let e_unit = opts.metres_per_e(|| outlet("filament_diameter"))?;
         let pump = match opts.flow_unit {
             Some(q) => Some(
                 Pump::new(opts.pump_on.as_deref(), opts.pump_off.as_deref(), q, outlet("flow_unit")?)
