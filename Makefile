@@ -6,7 +6,7 @@ OUT ?= out
 TARGET_DIR := $(if $(CARGO_TARGET_DIR),$(CARGO_TARGET_DIR),target)
 STRAND := $(TARGET_DIR)/release/strand
 
-.PHONY: run test fuzz verify verify-quick bench bench-peer bench-restart bench-kernels bench-case1 bench-layers bench-layers-dwell bench-failure bench-mass-scaling bench-cylinder bench-convergence bench-nozzle-cells bench-nozzle-body bench-lbox bench-vfunnel bench-print-diagnose bench-observable-scatter bench-plan lbox build fmt clippy clean
+.PHONY: run test fuzz verify verify-quick bench bench-peer bench-restart bench-kernels bench-case1 bench-layers bench-layers-dwell bench-failure bench-mass-scaling bench-cylinder bench-sleeping-wall bench-convergence bench-nozzle-cells bench-nozzle-body bench-lbox bench-vfunnel bench-print-diagnose bench-observable-scatter bench-plan lbox build fmt clippy clean
 
 build:
 	$(CARGO) build --release
@@ -94,6 +94,16 @@ bench-mass-scaling: build
 CYLINDER_ARGS ?= --dx 0.01 --mass-scaling 100
 bench-cylinder: build
 	python3 bench/cylinder.py --strand $(STRAND) --out $(OUT)/cylinder $(CYLINDER_ARGS)
+
+# A laid early-age wall printed to failure awake and asleep (fixtures/scenarios/print/
+# early_age_wall.toml, with `[sleep]` added for the second run; docs/failure.md "Sleeping and
+# failure"): both runs at once, one thread each, about a minute; each run's failure line.
+bench-sleeping-wall: build
+	mkdir -p $(OUT)/sleeping_wall
+	{ cat fixtures/scenarios/print/early_age_wall.toml; printf '\n[sleep]\n'; } > $(OUT)/sleeping_wall/asleep.toml
+	$(STRAND) run fixtures/scenarios/print/early_age_wall.toml --out $(OUT)/sleeping_wall/awake --threads 1 --overwrite 2> $(OUT)/sleeping_wall/awake.log & \
+	$(STRAND) run $(OUT)/sleeping_wall/asleep.toml --out $(OUT)/sleeping_wall/asleep --threads 1 --overwrite 2> $(OUT)/sleeping_wall/asleep.log; wait
+	@for r in awake asleep; do echo "$$r: $$(grep -E 'failed by|^done' $(OUT)/sleeping_wall/$$r.log | tr '\n' ' ')"; done
 
 # Case 1's section at five cell sizes (5 to 2 mm, 5 to 12.5 cells per nozzle diameter), its
 # observed order of convergence and Richardson extrapolation (BENCHMARKS.md "Discretisation

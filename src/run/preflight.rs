@@ -8,8 +8,8 @@ use crate::solver::Simulation;
 
 /// What a scenario does that its author may not expect, said before it runs, one line each
 /// (`warning: ...` or `note: ...`): a wall moved to the nearest cell face, nothing to simulate,
-/// a body cut by the domain, bodies overlapping, a solid that holds no grid node, what
-/// the G-code import skipped.
+/// a body cut by the domain, bodies overlapping, a solid that holds no grid node, a sleeping
+/// elastic wall printed to failure, what the G-code import skipped.
 pub fn scenario_warnings(sc: &Scenario, sim: &Simulation) -> Vec<String> {
     use crate::solver::for_each_lattice_point;
     let mut w = Vec::new();
@@ -43,6 +43,18 @@ pub fn scenario_warnings(sc: &Scenario, sim: &Simulation) -> Vec<String> {
     for (name, most) in sim.solids.as_ref().map_or(Vec::new(), |z| z.held_at_no_node(&sim.grid.geom)) {
         let seen = if most > 0.0 { format!("only its band's nodes take part of its condition (at most {most:.2}), so material seeps through it") } else { "the grid does not see it".to_string() };
         w.push(format!("solid '{name}' holds no grid node at dx = {dx} (none lies on or inside it): {seen}; make it at least a cell thick or move a face onto a node plane"));
+    }
+    // sleeping material is held still: the failure layer of a wall of a rate-independent
+    // elastic-plastic solid (elastic, no viscosity) moves (docs/failure.md)
+    if sc.sleep.is_some() && sc.print.is_some() && sc.observe.as_ref().is_some_and(|o| !o.stations.is_empty()) && {
+        let st = sim.material.stability();
+        st.shear_modulus > 0.0 && st.max_viscosity == 0.0
+    } {
+        w.push(format!(
+            "warning: [sleep] holds sleeping material still, and a sleeping {} wall printed to failure does not fail where it \
+             fails awake (docs/failure.md \"Sleeping and failure\"); for its failure layer, run it without [sleep]",
+            sim.material.name()
+        ));
     }
     if sim.particles.n == 0 && sc.print.is_none() {
         w.push(if sc.bodies.is_empty() {

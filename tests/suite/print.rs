@@ -403,3 +403,19 @@ fn a_mass_scaled_wall_fails_at_the_same_layer_in_fewer_steps() {
     assert!(scaled.layer.abs_diff(real.layer) <= 1, "scaled {scaled:?}, real {real:?}");
     assert!(steps_scaled * 4 <= steps_real, "{steps_scaled} steps scaled against {steps_real} real");
 }
+
+/// A wall of an elastic-plastic material printed to failure with `[sleep]` is warned of before
+/// it runs (sleeping moves its failure layer: docs/failure.md "Sleeping and failure"); the same
+/// wall awake, and a Bingham wall asleep, are not.
+#[test]
+fn a_sleeping_elastic_wall_printed_to_failure_is_warned_of() {
+    let warned = |text: &str| {
+        let sc = Scenario::parse(text).unwrap();
+        let sim = strand::solver::Simulation::new(&sc).unwrap();
+        strand::run::scenario_warnings(&sc, &sim).iter().any(|w| w.contains("Sleeping and failure"))
+    };
+    let wall = std::fs::read_to_string(format!("{}/fixtures/scenarios/print/early_age_wall.toml", env!("CARGO_MANIFEST_DIR"))).unwrap();
+    assert!(warned(&format!("{wall}\n[sleep]\n")));
+    assert!(!warned(&wall));
+    assert!(!warned(&tiny_wall(5, 100.0, Some("rest_time = 0.02"))));
+}
