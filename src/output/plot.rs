@@ -256,8 +256,21 @@ type DrawError<'b> = DrawingAreaErrorKind<<BitMapBackend<'b> as DrawingBackend>:
 
 /// The axes and grid of an x-y plot in `body`.
 fn xy_chart<'a, 'b>(body: &'a DrawingArea<BitMapBackend<'b>, Shift>, xr: Range<f64>, yr: Range<f64>, x_desc: &str, y_desc: &str) -> Result<XyChart<'a, 'b>, DrawError<'b>> {
+    // plotters' own default: at most 10 labels on the x axis
+    xy_chart_with_x_labels(body, xr, yr, (x_desc, y_desc), 10)
+}
+
+/// [`xy_chart`] with at most `x_labels` tick labels on the x axis: a narrow panel (a heat map's)
+/// has room for a few only.
+fn xy_chart_with_x_labels<'a, 'b>(
+    body: &'a DrawingArea<BitMapBackend<'b>, Shift>,
+    xr: Range<f64>,
+    yr: Range<f64>,
+    (x_desc, y_desc): (&str, &str),
+    x_labels: usize,
+) -> Result<XyChart<'a, 'b>, DrawError<'b>> {
     let mut chart = ChartBuilder::on(body).margin(MARGIN).x_label_area_size(X_LABEL_AREA).y_label_area_size(Y_LABEL_AREA).build_cartesian_2d(xr, yr)?;
-    chart.configure_mesh().x_desc(x_desc).y_desc(y_desc).label_style((FAMILY, 14)).axis_desc_style((FAMILY, 16)).draw()?;
+    chart.configure_mesh().x_desc(x_desc).y_desc(y_desc).x_labels(x_labels).label_style((FAMILY, 14)).axis_desc_style((FAMILY, 16)).draw()?;
     Ok(chart)
 }
 
@@ -345,7 +358,8 @@ pub fn plot_heat_maps(path: &Path, x_desc: &str, y_desc: &str, panels: &[HeatMap
         };
         let (ex, ey) = (edges(&p.xs), edges(&p.ys));
         let body = area.titled(&p.title, (FAMILY, 18)).map_err(|e| err(&e))?;
-        let mut chart = xy_chart(&body, ex[0]..ex[ex.len() - 1], ey[0]..ey[ey.len() - 1], x_desc, y_desc).map_err(|e| err(&e))?;
+        // a 400-pixel panel fits about four labels of a few digits each
+        let mut chart = xy_chart_with_x_labels(&body, ex[0]..ex[ex.len() - 1], ey[0]..ey[ey.len() - 1], (x_desc, y_desc), 4).map_err(|e| err(&e))?;
         let finite_values = p.values.iter().copied().filter(|v| v.is_finite());
         let (lo, hi) = finite_values.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
         let colour = |v: f64| {
