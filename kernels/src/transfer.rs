@@ -62,6 +62,35 @@ pub fn p2g_block<const SPLIT: bool>(
     tp: &TransferParams,
     local: &mut [Node; NEIGHBOURHOOD_NODES],
 ) {
+    #[cfg(target_arch = "x86_64")]
+    if crate::cpu::has_avx2() {
+        // SAFETY: the CPU has AVX2.
+        return unsafe { p2g_block_avx2::<SPLIT>(origin, order, p, tp, local) };
+    }
+    p2g_block_body::<SPLIT>(origin, order, p, tp, local)
+}
+
+/// [`p2g_block`] compiled for AVX2 (see [`crate::cpu`]: the same IEEE operations, the same bits).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn p2g_block_avx2<const SPLIT: bool>(
+    origin: [i32; 3],
+    order: &[u32],
+    p: &P2gInput,
+    tp: &TransferParams,
+    local: &mut [Node; NEIGHBOURHOOD_NODES],
+) {
+    p2g_block_body::<SPLIT>(origin, order, p, tp, local)
+}
+
+#[inline(always)]
+fn p2g_block_body<const SPLIT: bool>(
+    origin: [i32; 3],
+    order: &[u32],
+    p: &P2gInput,
+    tp: &TransferParams,
+    local: &mut [Node; NEIGHBOURHOOD_NODES],
+) {
     let dx = tp.dx;
     let stress_scale = -tp.dt * r(4.0) / (dx * dx);
     for &pi in order {
@@ -195,6 +224,39 @@ pub fn g2p_block(
     tp: &TransferParams,
     out: &mut G2pOutput,
 ) -> Real {
+    #[cfg(target_arch = "x86_64")]
+    if crate::cpu::has_avx2() {
+        // SAFETY: the CPU has AVX2.
+        return unsafe { g2p_block_avx2(origin, order, local, flip, j_bar, tp, out) };
+    }
+    g2p_block_body(origin, order, local, flip, j_bar, tp, out)
+}
+
+/// [`g2p_block`] compiled for AVX2 (see [`crate::cpu`]: the same IEEE operations, the same bits).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn g2p_block_avx2(
+    origin: [i32; 3],
+    order: &[u32],
+    local: &[Node; NEIGHBOURHOOD_NODES],
+    flip: Real,
+    j_bar: Option<&[Real]>,
+    tp: &TransferParams,
+    out: &mut G2pOutput,
+) -> Real {
+    g2p_block_body(origin, order, local, flip, j_bar, tp, out)
+}
+
+#[inline(always)]
+fn g2p_block_body(
+    origin: [i32; 3],
+    order: &[u32],
+    local: &[Node; NEIGHBOURHOOD_NODES],
+    flip: Real,
+    j_bar: Option<&[Real]>,
+    tp: &TransferParams,
+    out: &mut G2pOutput,
+) -> Real {
     let dx = tp.dx;
     let inv_dx = r(1.0) / dx;
     let c_scale = r(4.0) * inv_dx * inv_dx;
@@ -288,5 +350,63 @@ mod tests {
         assert_eq!(j[0], 0.9, "dt = 0 leaves J alone");
         assert!((vv[0] - v).abs().max_element() < 1e-5, "{:?}", vv[0]);
         assert!((cc[0] - c).abs_diff_eq(M3::ZERO, 1e-4), "{:?}", cc[0]);
+    }
+
+    /// A block of particles with scattered positions, velocities, affine fields and stresses.
+    #[cfg(target_arch = "x86_64")]
+    fn scattered_block(n: usize) -> (Vec<V3>, Vec<V3>, Vec<M3>, Vec<M3>, Vec<Real>) {
+        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+        let mut u = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut v3 = |lo: f64, span: f64| V3::new(r(lo + span * u()), r(lo + span * u()), r(lo + span * u()));
+        let xg: Vec<V3> = (0..n).map(|_| v3(8.5, 3.99)).collect(); // stencil bases 8..12: block origin 8
+        let v = (0..n).map(|_| v3(-1.0, 2.0)).collect();
+        let mut m3 = || M3::from_cols(v3(-5.0, 10.0), v3(-5.0, 10.0), v3(-5.0, 10.0));
+        let c = (0..n).map(|_| m3()).collect();
+        let stress = (0..n).map(|_| m3() * r(100.0)).collect();
+        let mass = (0..n).map(|k| r(1e-3 * (1.0 + (k % 7) as f64))).collect();
+        (xg, v, c, stress, mass)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn avx2_copies_give_the_baseline_bits() {
+        if !crate::cpu::has_avx2() {
+            return; // nothing to compare on this CPU
+        }
+        let bits = |nodes: &[Node]| nodes.iter().flat_map(|n| n.map(|x| x.to_bits())).collect::<Vec<_>>();
+        let (xg, v, c, stress, mass) = scattered_block(300);
+        let (vol0, j) = (vec![r(2e-6); 300], vec![r(0.97); 300]);
+        let order: Vec<u32> = (0..300u32).rev().collect();
+        let origin = [8, 8, 8];
+        let tp = TransferParams { dx: r(2.5e-3), dt: r(2.5e-5) };
+        let input = P2gInput { xg: &xg, v: &v, c: &c, stress: &stress, mass: &mass, vol0: &vol0, j: &j };
+        let mut base = [[r(0.0); 7]; NEIGHBOURHOOD_NODES];
+        let mut avx = base;
+        p2g_block_body::<true>(origin, &order, &input, &tp, &mut base);
+        unsafe { p2g_block_avx2::<true>(origin, &order, &input, &tp, &mut avx) };
+        assert_eq!(bits(&base), bits(&avx), "P2G split");
+        p2g_block_body::<false>(origin, &order, &input, &tp, &mut base);
+        unsafe { p2g_block_avx2::<false>(origin, &order, &input, &tp, &mut avx) };
+        assert_eq!(bits(&base), bits(&avx), "P2G folded");
+        for (flip, jbar) in [(r(0.0), None), (r(0.95), Some(&vol0[..]))] {
+            let run = |avx2: bool| {
+                let (mut x, mut vv, mut cc, mut jj) = (xg.clone(), v.clone(), c.clone(), j.clone());
+                let mut out = G2pOutput { xg: &mut x, v: &mut vv, c: &mut cc, j: &mut jj };
+                let vmax = if avx2 {
+                    unsafe { g2p_block_avx2(origin, &order, &base, flip, jbar, &tp, &mut out) }
+                } else {
+                    g2p_block_body(origin, &order, &base, flip, jbar, &tp, &mut out)
+                };
+                let mut all: Vec<Real> = vec![vmax];
+                all.extend(x.iter().chain(&vv).flat_map(|a| a.to_array()));
+                all.extend(cc.iter().flat_map(|m| m.to_cols_array()));
+                all.extend(jj);
+                all.iter().map(|a| a.to_bits()).collect::<Vec<_>>()
+            };
+            assert_eq!(run(false), run(true), "G2P flip {flip}");
+        }
     }
 }
