@@ -33,7 +33,7 @@ bw = lim[f"triad_bytes_per_s_t{threads}"]
 COUNT = {  # phase: (f64 bytes, index bytes, flops)
     "p2g": (216 + 47, 4, 585),
     "g2p": (160 + 24, 4, 462),
-    "materials": (256, 0, 40),
+    "materials": (176, 0, 40),
     "grid_update": (14, 0, 3),
 }
 print()
