@@ -159,6 +159,8 @@ pub trait NodeLanes: Copy + Add<Output = Self> + Sub<Output = Self> + AddAssign 
     fn scatter(self, node: &mut Node, weight: Real, m: Real);
 }
 
+// `V3 -> V3A` is the identity in f64 and Vec3 -> Vec3A in f32
+#[allow(clippy::useless_conversion)]
 impl NodeLanes for V3A {
     #[inline(always)]
     fn zero() -> Self {
@@ -397,9 +399,11 @@ mod tests {
         assert!((cc[0] - c).abs_diff_eq(M3::ZERO, 1e-4), "{:?}", cc[0]);
     }
 
+    #[cfg(target_arch = "x86_64")]
+    type Block = (Vec<V3>, Vec<V3>, Vec<M3>, Vec<M3>, Vec<Real>);
     /// A block of particles with scattered positions, velocities, affine fields and stresses.
     #[cfg(target_arch = "x86_64")]
-    fn scattered_block(n: usize) -> (Vec<V3>, Vec<V3>, Vec<M3>, Vec<M3>, Vec<Real>) {
+    fn scattered_block(n: usize) -> Block {
         let mut seed = 0x2545_f491_4f6c_dd1d_u64;
         let mut u = || {
             seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
