@@ -6,7 +6,7 @@ OUT ?= out
 TARGET_DIR := $(if $(CARGO_TARGET_DIR),$(CARGO_TARGET_DIR),target)
 STRAND := $(TARGET_DIR)/release/strand
 
-.PHONY: run test fuzz verify verify-quick bench bench-peer bench-restart bench-kernels bench-case1 bench-layers bench-layers-dwell bench-failure bench-mass-scaling bench-cylinder bench-sleeping-wall bench-convergence bench-nozzle-cells bench-nozzle-body bench-lbox bench-vfunnel bench-print-diagnose bench-observable-scatter bench-plan lbox build fmt clippy clean
+.PHONY: run test fuzz verify verify-quick bench bench-peer bench-roofline bench-restart bench-kernels bench-case1 bench-layers bench-layers-dwell bench-failure bench-mass-scaling bench-cylinder bench-sleeping-wall bench-convergence bench-nozzle-cells bench-nozzle-body bench-lbox bench-vfunnel bench-print-diagnose bench-observable-scatter bench-plan lbox build fmt clippy clean
 
 build:
 	$(CARGO) build --release
@@ -47,6 +47,11 @@ bench: bench-peer bench-restart bench-kernels
 
 bench-peer:
 	CARGO_TARGET_DIR=$(TARGET_DIR) bash bench/compare.sh
+
+# The step's phases against this machine's memory bandwidth and peak arithmetic (BENCHMARKS.md
+# "Roofline of the step", docs/roofline.md).
+bench-roofline:
+	CARGO_TARGET_DIR=$(TARGET_DIR) bash bench/roofline.sh
 
 bench-restart:
 	$(CARGO) test --release --test suite -- resume::the_evp_print_restart_state --nocapture 2>&1 | grep -E "B/particle|test result"

@@ -8,6 +8,7 @@
 
 pub mod real;
 pub mod bspline;
+pub mod cpu;
 pub mod material;
 pub mod transfer;
 pub mod transfer_adjoint;

@@ -9,6 +9,7 @@
 
 use crate::bspline::{base_and_fx, weights};
 use crate::real::{r, Real, M3, V3, V3A};
+use std::ops::{Add, AddAssign, Mul, Sub, SubAssign};
 
 /// Nodes per block edge.
 pub const BLOCK_EDGE: usize = 4;
@@ -62,6 +63,35 @@ pub fn p2g_block<const SPLIT: bool>(
     tp: &TransferParams,
     local: &mut [Node; NEIGHBOURHOOD_NODES],
 ) {
+    #[cfg(target_arch = "x86_64")]
+    if crate::cpu::has_avx2() {
+        // SAFETY: the CPU has AVX2.
+        return unsafe { p2g_block_avx2::<SPLIT>(origin, order, p, tp, local) };
+    }
+    p2g_block_body::<SPLIT, V3A>(origin, order, p, tp, local)
+}
+
+/// [`p2g_block`] compiled for AVX2 (see [`crate::cpu`]: the same IEEE operations, the same bits).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn p2g_block_avx2<const SPLIT: bool>(
+    origin: [i32; 3],
+    order: &[u32],
+    p: &P2gInput,
+    tp: &TransferParams,
+    local: &mut [Node; NEIGHBOURHOOD_NODES],
+) {
+    p2g_block_body::<SPLIT, crate::cpu::AvxLanes>(origin, order, p, tp, local)
+}
+
+#[inline(always)]
+fn p2g_block_body<const SPLIT: bool, L: NodeLanes>(
+    origin: [i32; 3],
+    order: &[u32],
+    p: &P2gInput,
+    tp: &TransferParams,
+    local: &mut [Node; NEIGHBOURHOOD_NODES],
+) {
     let dx = tp.dx;
     let stress_scale = -tp.dt * r(4.0) / (dx * dx);
     for &pi in order {
@@ -76,8 +106,8 @@ pub fn p2g_block<const SPLIT: bool>(
         // mv + affine (e - (fx - 1)) dx. Building it axis by axis costs three additions per node
         // instead of a matrix-vector product.
         let centre = (fx - V3::ONE) * dx;
-        let (ax, ay, az) = (affine.x_axis * dx, affine.y_axis * dx, affine.z_axis * dx);
-        let q0 = p.v[pi] * m - affine * centre;
+        let (ax, ay, az) = (L::slope(affine.x_axis * dx), L::slope(affine.y_axis * dx), L::slope(affine.z_axis * dx));
+        let q0 = L::mass_momentum(m, p.v[pi] * m - affine * centre);
         let (ix, iy, iz) = (impulse.x_axis * dx, impulse.y_axis * dx, impulse.z_axis * dx);
         let i0 = if SPLIT { -(impulse * centre) } else { V3::ZERO };
         let (oi, oj, ok) = (
@@ -96,12 +126,8 @@ pub fn p2g_block<const SPLIT: bool>(
                 for c in 0..3 {
                     let ec = c as Real - r(1.0);
                     let weight = wab * w[c].z;
-                    let mom = (qab + az * ec) * weight;
                     let node = &mut local[row + c];
-                    node[0] += weight * m;
-                    node[1] += mom.x;
-                    node[2] += mom.y;
-                    node[3] += mom.z;
+                    (qab + az * ec).scatter(node, weight, m);
                     if SPLIT {
                         let imp = (iab + iz * ec) * weight;
                         node[4] += imp.x;
@@ -114,6 +140,58 @@ pub fn p2g_block<const SPLIT: bool>(
     }
 }
 
+/// The register P2G builds a node's mass and momentum in and G2P's gather sums a node's three
+/// velocity channels in. Each implementation performs, lane by lane, the IEEE operations of
+/// [`V3`] in the same order (padding lanes are dropped), so the results have the same bits
+/// whichever runs.
+pub trait NodeLanes: Copy + Add<Output = Self> + Sub<Output = Self> + AddAssign + SubAssign + Mul<Real, Output = Self> {
+    fn zero() -> Self;
+    /// Channels `CH..CH + 3` of a node.
+    fn node<const CH: usize>(n: &Node) -> Self;
+    /// The three vector lanes.
+    fn v3(self) -> V3;
+    /// P2G's momentum `q` of a particle of mass `m`; a four-lane register carries `m` in lane 0.
+    fn mass_momentum(m: Real, q: V3) -> Self;
+    /// A slope of the momentum along one axis (lane 0, if any, zero: `m + 0 e` stays `m`).
+    fn slope(col: V3) -> Self;
+    /// Adds `weight m` and `weight q` to channels 0 and 1..4 of `node`, `self` being `q` as
+    /// built from [`NodeLanes::mass_momentum`] and slopes.
+    fn scatter(self, node: &mut Node, weight: Real, m: Real);
+}
+
+// `V3 -> V3A` is the identity in f64 and Vec3 -> Vec3A in f32
+#[allow(clippy::useless_conversion)]
+impl NodeLanes for V3A {
+    #[inline(always)]
+    fn zero() -> Self {
+        V3A::ZERO
+    }
+    #[inline(always)]
+    fn node<const CH: usize>(n: &Node) -> Self {
+        V3A::new(n[CH], n[CH + 1], n[CH + 2])
+    }
+    #[inline(always)]
+    fn v3(self) -> V3 {
+        V3::from(self)
+    }
+    #[inline(always)]
+    fn mass_momentum(_: Real, q: V3) -> Self {
+        q.into()
+    }
+    #[inline(always)]
+    fn slope(col: V3) -> Self {
+        col.into()
+    }
+    #[inline(always)]
+    fn scatter(self, node: &mut Node, weight: Real, m: Real) {
+        let mom = self * weight;
+        node[0] += weight * m;
+        node[1] += mom.x;
+        node[2] += mom.y;
+        node[3] += mom.z;
+    }
+}
+
 /// The velocity `v = sum w v_i` and `B = sum w v_i (x_i - x_p)^T` a particle gathers from the
 /// node velocities in channels `CH..CH + 3` of its stencil, whose base is local node `o`.
 ///
@@ -121,21 +199,19 @@ pub fn p2g_block<const SPLIT: bool>(
 /// `dx (sum w v_i e_k - v (fx_k - 1))`, and the inner sums build up axis by axis (three
 /// multiply-adds per node instead of twelve). Centred offsets keep the cancellation against
 /// `v (fx_k - 1)` small. The adjoint recomputes through this same function, bit for bit.
+/// `L` is the register the sums run in (see [`NodeLanes`]); every choice gives the same bits.
 #[inline(always)]
-pub fn gather_velocity<const CH: usize>(local: &[Node; NEIGHBOURHOOD_NODES], o: [usize; 3], fx: V3, w: &[V3; 3], dx: Real) -> (V3, M3) {
-    let mut v = V3A::ZERO;
-    let mut mx = V3A::ZERO;
-    let mut my = V3A::ZERO;
-    let mut mz = V3A::ZERO;
+pub fn gather_velocity<const CH: usize, L: NodeLanes>(local: &[Node; NEIGHBOURHOOD_NODES], o: [usize; 3], fx: V3, w: &[V3; 3], dx: Real) -> (V3, M3) {
+    let mut v = L::zero();
+    let mut mx = L::zero();
+    let mut my = L::zero();
+    let mut mz = L::zero();
     for a in 0..3 {
         // sums over b and c of this a-plane: plain, times e_b, times e_c
-        let (mut t0, mut tb, mut tc) = (V3A::ZERO, V3A::ZERO, V3A::ZERO);
+        let (mut t0, mut tb, mut tc) = (L::zero(), L::zero(), L::zero());
         for b in 0..3 {
             let row = local_index(o[0] + a, o[1] + b, o[2]);
-            let node = |c: usize| {
-                let n = &local[row + c];
-                V3A::new(n[CH], n[CH + 1], n[CH + 2]) * w[c].z
-            };
+            let node = |c: usize| L::node::<CH>(&local[row + c]) * w[c].z;
             let (n0, n1, n2) = (node(0), node(1), node(2));
             let s0 = n0 + n1 + n2;
             let s1 = n2 - n0;
@@ -156,7 +232,7 @@ pub fn gather_velocity<const CH: usize>(local: &[Node; NEIGHBOURHOOD_NODES], o: 
             _ => {}
         }
     }
-    let (v, mx, my, mz) = (V3::from(v), V3::from(mx), V3::from(my), V3::from(mz));
+    let (v, mx, my, mz) = (v.v3(), mx.v3(), my.v3(), mz.v3());
     let centre = fx - V3::ONE;
     let bmat = M3::from_cols(mx - v * centre.x, my - v * centre.y, mz - v * centre.z) * dx;
     (v, bmat)
@@ -195,6 +271,39 @@ pub fn g2p_block(
     tp: &TransferParams,
     out: &mut G2pOutput,
 ) -> Real {
+    #[cfg(target_arch = "x86_64")]
+    if crate::cpu::has_avx2() {
+        // SAFETY: the CPU has AVX2.
+        return unsafe { g2p_block_avx2(origin, order, local, flip, j_bar, tp, out) };
+    }
+    g2p_block_body::<V3A>(origin, order, local, flip, j_bar, tp, out)
+}
+
+/// [`g2p_block`] compiled for AVX2 (see [`crate::cpu`]: the same IEEE operations, the same bits).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn g2p_block_avx2(
+    origin: [i32; 3],
+    order: &[u32],
+    local: &[Node; NEIGHBOURHOOD_NODES],
+    flip: Real,
+    j_bar: Option<&[Real]>,
+    tp: &TransferParams,
+    out: &mut G2pOutput,
+) -> Real {
+    g2p_block_body::<crate::cpu::AvxLanes>(origin, order, local, flip, j_bar, tp, out)
+}
+
+#[inline(always)]
+fn g2p_block_body<L: NodeLanes>(
+    origin: [i32; 3],
+    order: &[u32],
+    local: &[Node; NEIGHBOURHOOD_NODES],
+    flip: Real,
+    j_bar: Option<&[Real]>,
+    tp: &TransferParams,
+    out: &mut G2pOutput,
+) -> Real {
     let dx = tp.dx;
     let inv_dx = r(1.0) / dx;
     let c_scale = r(4.0) * inv_dx * inv_dx;
@@ -217,8 +326,8 @@ pub fn g2p_block(
             (base[1] - origin[1]) as usize,
             (base[2] - origin[2]) as usize,
         );
-        let (v, bmat) = gather_velocity::<1>(local, [oi, oj, ok], fx, &w, dx);
-        let dv = if flip > r(0.0) { v - gather_velocity::<4>(local, [oi, oj, ok], fx, &w, dx).0 } else { V3::ZERO };
+        let (v, bmat) = gather_velocity::<1, L>(local, [oi, oj, ok], fx, &w, dx);
+        let dv = if flip > r(0.0) { v - gather_velocity::<4, L>(local, [oi, oj, ok], fx, &w, dx).0 } else { V3::ZERO };
         let cm = bmat * c_scale;
         out.c[pi] = cm;
         out.xg[pi] += v * (tp.dt * inv_dx);
@@ -288,5 +397,65 @@ mod tests {
         assert_eq!(j[0], 0.9, "dt = 0 leaves J alone");
         assert!((vv[0] - v).abs().max_element() < 1e-5, "{:?}", vv[0]);
         assert!((cc[0] - c).abs_diff_eq(M3::ZERO, 1e-4), "{:?}", cc[0]);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    type Block = (Vec<V3>, Vec<V3>, Vec<M3>, Vec<M3>, Vec<Real>);
+    /// A block of particles with scattered positions, velocities, affine fields and stresses.
+    #[cfg(target_arch = "x86_64")]
+    fn scattered_block(n: usize) -> Block {
+        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+        let mut u = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut v3 = |lo: f64, span: f64| V3::new(r(lo + span * u()), r(lo + span * u()), r(lo + span * u()));
+        let xg: Vec<V3> = (0..n).map(|_| v3(8.5, 3.99)).collect(); // stencil bases 8..12: block origin 8
+        let v = (0..n).map(|_| v3(-1.0, 2.0)).collect();
+        let mut m3 = || M3::from_cols(v3(-5.0, 10.0), v3(-5.0, 10.0), v3(-5.0, 10.0));
+        let c = (0..n).map(|_| m3()).collect();
+        let stress = (0..n).map(|_| m3() * r(100.0)).collect();
+        let mass = (0..n).map(|k| r(1e-3 * (1.0 + (k % 7) as f64))).collect();
+        (xg, v, c, stress, mass)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn avx2_copies_give_the_baseline_bits() {
+        if !crate::cpu::has_avx2() {
+            return; // nothing to compare on this CPU
+        }
+        let bits = |nodes: &[Node]| nodes.iter().flat_map(|n| n.map(|x| x.to_bits())).collect::<Vec<_>>();
+        let (xg, v, c, stress, mass) = scattered_block(300);
+        let (vol0, j) = (vec![r(2e-6); 300], vec![r(0.97); 300]);
+        let order: Vec<u32> = (0..300u32).rev().collect();
+        let origin = [8, 8, 8];
+        let tp = TransferParams { dx: r(2.5e-3), dt: r(2.5e-5) };
+        let input = P2gInput { xg: &xg, v: &v, c: &c, stress: &stress, mass: &mass, vol0: &vol0, j: &j };
+        let mut base = [[r(0.0); 7]; NEIGHBOURHOOD_NODES];
+        let mut avx = base;
+        p2g_block_body::<true, V3A>(origin, &order, &input, &tp, &mut base);
+        unsafe { p2g_block_avx2::<true>(origin, &order, &input, &tp, &mut avx) };
+        assert_eq!(bits(&base), bits(&avx), "P2G split");
+        p2g_block_body::<false, V3A>(origin, &order, &input, &tp, &mut base);
+        unsafe { p2g_block_avx2::<false>(origin, &order, &input, &tp, &mut avx) };
+        assert_eq!(bits(&base), bits(&avx), "P2G folded");
+        for (flip, jbar) in [(r(0.0), None), (r(0.95), Some(&vol0[..]))] {
+            let run = |avx2: bool| {
+                let (mut x, mut vv, mut cc, mut jj) = (xg.clone(), v.clone(), c.clone(), j.clone());
+                let mut out = G2pOutput { xg: &mut x, v: &mut vv, c: &mut cc, j: &mut jj };
+                let vmax = if avx2 {
+                    unsafe { g2p_block_avx2(origin, &order, &base, flip, jbar, &tp, &mut out) }
+                } else {
+                    g2p_block_body::<V3A>(origin, &order, &base, flip, jbar, &tp, &mut out)
+                };
+                let mut all: Vec<Real> = vec![vmax];
+                all.extend(x.iter().chain(&vv).flat_map(|a| a.to_array()));
+                all.extend(cc.iter().flat_map(|m| m.to_cols_array()));
+                all.extend(jj);
+                all.iter().map(|a| a.to_bits()).collect::<Vec<_>>()
+            };
+            assert_eq!(run(false), run(true), "G2P flip {flip}");
+        }
     }
 }

@@ -240,7 +240,7 @@ fn g2p_particle(origin: [i32; 3], local: &[Node; NEIGHBOURHOOD_NODES], tp: &Tran
     let inv_dx = r(1.0) / dx;
     let c_scale = r(4.0) * inv_dx * inv_dx;
     let stencil = Stencil::new(origin, xg);
-    let (v, bmat) = gather_velocity::<1>(local, stencil.base, stencil.fx, &stencil.w, dx);
+    let (v, bmat) = gather_velocity::<1, crate::real::V3A>(local, stencil.base, stencil.fx, &stencil.w, dx);
     let tr_c = trace(&(bmat * c_scale));
     G2pParticle { stencil, v, bmat, tr_c, xg_new: xg + v * (tp.dt * inv_dx) }
 }

@@ -1,0 +1,109 @@
+//! Runtime CPU-feature dispatch of the hot kernels: one binary, built for the baseline x86-64
+//! (SSE2), runs P2G and G2P through copies compiled for AVX2 where the CPU has it.
+//!
+//! The rule that keeps results bit-identical whichever copy runs: only features that change the
+//! instructions, never the arithmetic. AVX2 (with the VEX encodings and SSE4.1's `roundsd` it
+//! implies) performs the same IEEE-754 operations in the same order; FMA is not enabled, and Rust
+//! never contracts a multiply and an add on its own, so no rounding moves. The tests of
+//! `transfer.rs` compare the two copies bit for bit.
+
+/// Whether this CPU runs the AVX2 copies (std caches the CPUID answer after the first call).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub fn has_avx2() -> bool {
+    std::arch::is_x86_feature_detected!("avx2")
+}
+
+/// The node register of the AVX2 copies of P2G and G2P: f64 has no SIMD vector of three in glam,
+/// so one 256-bit register holds a node's mass and momentum (P2G) or three velocity channels and
+/// a padding lane (G2P); see [`crate::transfer::NodeLanes`]. Only ever built inside the AVX2
+/// copies, which is where its intrinsics inline.
+#[cfg(all(target_arch = "x86_64", not(feature = "f32")))]
+#[derive(Clone, Copy)]
+pub struct AvxLanes(std::arch::x86_64::__m256d);
+
+/// In f32 glam's `Vec3A` already fills one SSE register.
+#[cfg(feature = "f32")]
+pub type AvxLanes = crate::real::V3A;
+
+#[cfg(all(target_arch = "x86_64", not(feature = "f32")))]
+mod avx_lanes {
+    use super::AvxLanes;
+    use crate::real::{Real, V3};
+    use crate::transfer::{NodeLanes, Node};
+    use std::arch::x86_64::*;
+    use std::ops::{Add, AddAssign, Mul, Sub, SubAssign};
+
+    // SAFETY (every intrinsic below): AvxLanes values exist only in the AVX2 copies of P2G and
+    // G2P, which run only on CPUs with AVX2; the loads and stores stay inside the node.
+    impl NodeLanes for AvxLanes {
+        #[inline(always)]
+        fn zero() -> Self {
+            AvxLanes(unsafe { _mm256_setzero_pd() })
+        }
+        #[inline(always)]
+        fn node<const CH: usize>(n: &Node) -> Self {
+            if CH + 4 <= n.len() {
+                AvxLanes(unsafe { _mm256_loadu_pd(n.as_ptr().add(CH)) })
+            } else {
+                // the last three channels: load the four ending there, rotate them down one lane
+                let x = unsafe { _mm256_loadu_pd(n.as_ptr().add(n.len() - 4)) };
+                AvxLanes(unsafe { _mm256_permute4x64_pd::<0b00_11_10_01>(x) })
+            }
+        }
+        #[inline(always)]
+        fn v3(self) -> V3 {
+            let mut a = [0.0; 4];
+            unsafe { _mm256_storeu_pd(a.as_mut_ptr(), self.0) };
+            V3::new(a[0], a[1], a[2])
+        }
+        // P2G: lane 0 the mass, lanes 1..4 the momentum, so a node's channels 0..4 take one add
+        #[inline(always)]
+        fn mass_momentum(m: Real, q: V3) -> Self {
+            AvxLanes(unsafe { _mm256_setr_pd(m, q.x, q.y, q.z) })
+        }
+        #[inline(always)]
+        fn slope(col: V3) -> Self {
+            AvxLanes(unsafe { _mm256_setr_pd(0.0, col.x, col.y, col.z) })
+        }
+        #[inline(always)]
+        fn scatter(self, node: &mut Node, weight: Real, _: Real) {
+            let add = self * weight;
+            unsafe { _mm256_storeu_pd(node.as_mut_ptr(), _mm256_add_pd(_mm256_loadu_pd(node.as_ptr()), add.0)) };
+        }
+    }
+
+    impl Add for AvxLanes {
+        type Output = Self;
+        #[inline(always)]
+        fn add(self, o: Self) -> Self {
+            AvxLanes(unsafe { _mm256_add_pd(self.0, o.0) })
+        }
+    }
+    impl Sub for AvxLanes {
+        type Output = Self;
+        #[inline(always)]
+        fn sub(self, o: Self) -> Self {
+            AvxLanes(unsafe { _mm256_sub_pd(self.0, o.0) })
+        }
+    }
+    impl Mul<Real> for AvxLanes {
+        type Output = Self;
+        #[inline(always)]
+        fn mul(self, s: Real) -> Self {
+            AvxLanes(unsafe { _mm256_mul_pd(self.0, _mm256_set1_pd(s)) })
+        }
+    }
+    impl AddAssign for AvxLanes {
+        #[inline(always)]
+        fn add_assign(&mut self, o: Self) {
+            *self = *self + o;
+        }
+    }
+    impl SubAssign for AvxLanes {
+        #[inline(always)]
+        fn sub_assign(&mut self, o: Self) {
+            *self = *self - o;
+        }
+    }
+}
