@@ -1,8 +1,8 @@
 //! A measurement campaign: the experiments, the measurements they gave (with the discretisation
 //! error counted where `[resolution]` asks: `resolution.rs`), the estimate that counted it, and
 //! how the experiments run (the engine, jobs at a time, progress and a fit's options). One
-//! [`Campaign`] value is handed to calibration (`calibrate.rs`), diagnosis (`diagnose.rs`) and
-//! its rounds (`rounds.rs`) instead of the bundle each of them took apart.
+//! [`Campaign`] value is handed to calibration (`fit/calibrate.rs`), diagnosis (`diagnose/`) and
+//! its rounds (`diagnose/rounds.rs`) instead of the bundle each of them took apart.
 //!
 //! In: a model, experiments, data, [`FitOptions`], the discretisation estimate. Out: the engine's
 //! values, and Jacobians in named parameters, of every observation under the model, the runs

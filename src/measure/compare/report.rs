@@ -159,7 +159,7 @@ pub fn prepare_dir(dir: &Path) -> Result<(), MeasureError> {
     std::fs::create_dir_all(dir).map_err(|source| MeasureError::ReportFolder { dir: dir.to_path_buf(), source })
 }
 
-/// Significance of the residual shapes the report names (`residuals.rs`), for all its tests
+/// Significance of the residual shapes the report names (`diagnose/residuals.rs`), for all its tests
 /// together.
 pub const SHAPES_ALPHA: f64 = 0.01;
 

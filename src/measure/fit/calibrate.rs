@@ -1,6 +1,6 @@
 //! `strand calibrate`: a bounded Levenberg-Marquardt fit of named model parameters to
 //! measurements, minimising chi^2 = sum ((model - measured) / uncertainty)^2 with the Jacobian
-//! from the adjoints (`sensitivity.rs`).
+//! from the adjoints (`campaign/sensitivity.rs`).
 //!
 //! Where the campaign runs simulations, whose Jacobian costs 2 p forward runs (or an adjoint's
 //! several) against one for the values, an accepted step updates the Jacobian by Broyden's
