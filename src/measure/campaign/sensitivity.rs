@@ -25,8 +25,8 @@ use super::experiments::{Experiment, Experiments};
 use crate::measure::observables::{observable_plan, reading_index};
 use crate::measure::observation::{Observable, Observation};
 use super::runner::{
-    experiment_keys, find, group, job_threads, par_map_experiments, rheometer_setup, scenario_from_table, scenario_table,
-    ungroup,
+    experiment_keys, find, group, job_threads, par_map_experiments, rheometer_setup, scenario_from_table,
+    scenario_table, ungroup,
 };
 use super::spare::Spare;
 use crate::measure::effects::Keys;

@@ -189,7 +189,7 @@ fn read_sets(
             .symbols()
             .iter()
             .map(|s| {
-                resolve(s, &params, &covariates, material).ok_or_else(|| {
+                resolve(s, params, covariates, material).ok_or_else(|| {
                     MeasureError::Effect(format!(
                         "{here}.sets.\"{key}\"{line}: unknown symbol '{s}' in '{text}'; an expression reads the \
                             effect's parameters ({}), rest_time, age, the covariates it lists in `covariates` ({}), a \
