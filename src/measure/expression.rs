@@ -102,7 +102,9 @@ fn tokens(text: &str) -> Result<Vec<(Token, usize)>, MeasureError> {
                 }
             }
             let s: String = chars[start..i].iter().collect();
-            let v = s.parse::<f64>().map_err(|_| MeasureError::Expression(format!("'{s}' is not a number (at character {})", start + 1)))?;
+            let v = s
+                .parse::<f64>()
+                .map_err(|_| MeasureError::Expression(format!("'{s}' is not a number (at character {})", start + 1)))?;
             out.push((Token::Number(v), start));
         } else if c.is_alphabetic() || c == '_' {
             while i < chars.len() && (chars[i].is_alphanumeric() || chars[i] == '_' || chars[i] == '.') {
@@ -173,7 +175,10 @@ impl Parser {
     /// unary := ('-' | '+') unary | power, at most [`MAX_DEPTH`] levels deep.
     fn unary(&mut self) -> Result<Node, MeasureError> {
         if self.depth == MAX_DEPTH {
-            return Err(MeasureError::Expression(format!("the expression nests deeper than {MAX_DEPTH} levels (parentheses, calls, signs, exponents) {}", self.where_())));
+            return Err(MeasureError::Expression(format!(
+                "the expression nests deeper than {MAX_DEPTH} levels (parentheses, calls, signs, exponents) {}",
+                self.where_()
+            )));
         }
         self.depth += 1;
         let node = self.unary_level();
@@ -217,7 +222,10 @@ impl Parser {
                 self.at += 1;
                 if let Some(Token::Open) = self.peek() {
                     let f = FUNCTIONS.iter().find(|(n, _)| *n == name).map(|(_, f)| *f).ok_or_else(|| {
-                        MeasureError::Expression(format!("unknown function '{name}' {here}; known: {}", FUNCTIONS.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", ")))
+                        MeasureError::Expression(format!(
+                            "unknown function '{name}' {here}; known: {}",
+                            FUNCTIONS.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", ")
+                        ))
                     })?;
                     self.at += 1;
                     let arg = self.sum()?;
@@ -239,8 +247,13 @@ impl Parser {
                 self.close()?;
                 Ok(inner)
             }
-            Some(t) => Err(MeasureError::Expression(format!("expected a number, a name or '(' {here}, found {}", describe(&t)))),
-            None => Err(MeasureError::Expression("the expression ends where a number, a name or '(' should be".to_string())),
+            Some(t) => Err(MeasureError::Expression(format!(
+                "expected a number, a name or '(' {here}, found {}",
+                describe(&t)
+            ))),
+            None => {
+                Err(MeasureError::Expression("the expression ends where a number, a name or '(' should be".to_string()))
+            }
         }
     }
 
@@ -395,7 +408,12 @@ mod tests {
     #[test]
     fn an_expression_nested_too_deep_is_an_error_not_a_stack_overflow() {
         let n = 10_000;
-        for text in [format!("{}x{}", "(".repeat(n), ")".repeat(n)), format!("{}x", "-".repeat(n)), format!("x{}", "^x".repeat(n)), format!("{}x{}", "exp(".repeat(n), ")".repeat(n))] {
+        for text in [
+            format!("{}x{}", "(".repeat(n), ")".repeat(n)),
+            format!("{}x", "-".repeat(n)),
+            format!("x{}", "^x".repeat(n)),
+            format!("{}x{}", "exp(".repeat(n), ")".repeat(n)),
+        ] {
             let e = Expression::parse(&text).unwrap_err().to_string();
             assert!(e.contains(&format!("nests deeper than {MAX_DEPTH} levels")), "{e}");
         }
@@ -409,7 +427,10 @@ mod tests {
         for (text, at) in [
             ("tau * (1 + a * age^b)", vec![100.0, 2e-3, 1800.0, 0.7]),
             ("-x^2 / (1 + y) - 3e-1 * x", vec![1.3, 0.4]),
-            ("exp(-t / s) * sqrt(u) + ln(u) - log10(u) + tanh(v) * sin(v) + cos(v) * abs(w)", vec![2.0, 5.0, 3.0, 0.3, -1.5]),
+            (
+                "exp(-t / s) * sqrt(u) + ln(u) - log10(u) + tanh(v) * sin(v) + cos(v) * abs(w)",
+                vec![2.0, 5.0, 3.0, 0.3, -1.5],
+            ),
             ("x ^ y ^ z", vec![1.2, 1.1, 0.9]),
             ("material.viscosity * exp(-e * (temperature - 20))", vec![20.0, 0.02, 35.0]),
         ] {
@@ -422,7 +443,12 @@ mod tests {
                 p[i] += h;
                 m[i] -= h;
                 let fd = (e.eval(&p) - e.eval(&m)) / (2.0 * h);
-                assert!((g[i] - fd).abs() <= 1e-6 * fd.abs().max(1e-6), "{text}: d/d{}: {} vs {fd}", e.symbols()[i], g[i]);
+                assert!(
+                    (g[i] - fd).abs() <= 1e-6 * fd.abs().max(1e-6),
+                    "{text}: d/d{}: {} vs {fd}",
+                    e.symbols()[i],
+                    g[i]
+                );
             }
         }
     }

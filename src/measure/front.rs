@@ -33,12 +33,19 @@ pub fn check_observable(o: &Observable) -> Result<(), MeasureError> {
     let what = match o.name.as_str() {
         "arrival" => "the station the front reaches: arrival@X (metres)",
         "stop_time" => "the distance the front may still move once stopped: stop_time@D (metres, > 0)",
-        other => return Err(MeasureError::Observable(format!("'{other}' is not a front-history observable ({})", OBSERVABLES.join(", ")))),
+        other => {
+            return Err(MeasureError::Observable(format!(
+                "'{other}' is not a front-history observable ({})",
+                OBSERVABLES.join(", ")
+            )))
+        }
     };
     match (o.at, o.at2) {
         (Some(_), Some(_)) => Err(MeasureError::Observable(format!("'{o}': {} takes one coordinate, {what}", o.name))),
         (None, _) => Err(MeasureError::Observable(format!("'{}' needs {what}", o.name))),
-        (Some(d), None) if o.name == "stop_time" && d <= 0.0 => Err(MeasureError::Observable(format!("'{o}': the distance must be > 0 metres, got {d}"))),
+        (Some(d), None) if o.name == "stop_time" && d <= 0.0 => {
+            Err(MeasureError::Observable(format!("'{o}': the distance must be > 0 metres, got {d}")))
+        }
         (Some(_), None) => Ok(()),
     }
 }
@@ -151,7 +158,14 @@ mod tests {
         let ob = |s: &str| Observable::parse(s).unwrap();
         assert!(check_observable(&ob("arrival@0.7")).is_ok());
         assert!(check_observable(&ob("stop_time@0.005")).is_ok());
-        for (bad, want) in [("arrival", "arrival@X"), ("arrival@0.7:1", "one coordinate"), ("stop_time", "stop_time@D"), ("stop_time@0", "> 0 metres"), ("stop_time@-0.01", "> 0 metres"), ("front@1", "not a front-history")] {
+        for (bad, want) in [
+            ("arrival", "arrival@X"),
+            ("arrival@0.7:1", "one coordinate"),
+            ("stop_time", "stop_time@D"),
+            ("stop_time@0", "> 0 metres"),
+            ("stop_time@-0.01", "> 0 metres"),
+            ("front@1", "not a front-history"),
+        ] {
             let e = check_observable(&ob(bad)).unwrap_err().to_string();
             assert!(e.contains(want), "{bad}: {e}");
         }

@@ -30,7 +30,9 @@ pub mod observables;
 pub mod observation;
 pub mod passing;
 
-pub use campaign::{engine, experiments, preflight, progress, provenance, resolution, rheometer, runner, sensitivity, spare};
+pub use campaign::{
+    engine, experiments, preflight, progress, provenance, resolution, rheometer, runner, sensitivity, spare,
+};
 pub use compare::{plan, report, synth};
 pub use diagnose::{chain, residuals, rounds};
 pub use fit::{calibrate, linalg};

@@ -104,10 +104,17 @@ impl Model {
             Some(toml::Value::Table(m)) => m.clone(),
             _ => return Err(MeasureError::Model("no [material] table".into())),
         };
-        let units = material.iter().filter_map(|(k, v)| super::observation::number(v).filter(|x| x.is_finite() && *x != 0.0).map(|x| (k.clone(), x.abs()))).collect();
+        let units = material
+            .iter()
+            .filter_map(|(k, v)| {
+                super::observation::number(v).filter(|x| x.is_finite() && *x != 0.0).map(|x| (k.clone(), x.abs()))
+            })
+            .collect();
         let mut model = Model { material, effects: Vec::new(), declared: Vec::new(), path: PathBuf::new(), units };
         if let Some(e) = t.get("effects") {
-            let e = e.as_table().ok_or_else(|| MeasureError::Model("effects must be a table of [effects.NAME] tables".into()))?;
+            let e = e
+                .as_table()
+                .ok_or_else(|| MeasureError::Model("effects must be a table of [effects.NAME] tables".into()))?;
             for (name, v) in e {
                 let v = v.as_table().ok_or_else(|| MeasureError::Model(format!("effects.{name} must be a table")))?;
                 if declared::is_declaration(v) {
@@ -124,9 +131,13 @@ impl Model {
                 let mut p: Vec<f64> = effect.params().iter().map(|s| s.null).collect();
                 for (k, x) in v {
                     let i = effect.params().iter().position(|s| s.name == k).ok_or_else(|| {
-                        MeasureError::Model(format!("effects.{name}: unknown parameter '{k}'; it has {}", effect.params().iter().map(|s| s.name).collect::<Vec<_>>().join(", ")))
+                        MeasureError::Model(format!(
+                            "effects.{name}: unknown parameter '{k}'; it has {}",
+                            effect.params().iter().map(|s| s.name).collect::<Vec<_>>().join(", ")
+                        ))
                     })?;
-                    p[i] = super::observation::number(x).ok_or_else(|| MeasureError::Model(format!("effects.{name}.{k} must be a number")))?;
+                    p[i] = super::observation::number(x)
+                        .ok_or_else(|| MeasureError::Model(format!("effects.{name}.{k} must be a number")))?;
                 }
                 model = model.with_effect(effect);
                 model.effects.iter_mut().find(|(e, _)| e.name() == name).expect("just added").1 = p;
@@ -141,7 +152,9 @@ impl Model {
         if !m.has(effect.name()) {
             m.effects.push((effect, effect.params().iter().map(|s| s.null).collect()));
             // the library's in registry order, then the declared ones by name
-            let rank = |e: &dyn Effect| (effects::REGISTRY.iter().position(|r| r.name() == e.name()).unwrap_or(usize::MAX), e.name());
+            let rank = |e: &dyn Effect| {
+                (effects::REGISTRY.iter().position(|r| r.name() == e.name()).unwrap_or(usize::MAX), e.name())
+            };
             m.effects.sort_by_key(|(e, _)| rank(*e));
         }
         m
@@ -174,7 +187,12 @@ impl Model {
 
     /// Every parameter: the material's numbers, then each effect's.
     pub fn param_names(&self) -> Vec<String> {
-        let mut n: Vec<String> = self.material.iter().filter(|(_, v)| super::observation::number(v).is_some()).map(|(k, _)| format!("material.{k}")).collect();
+        let mut n: Vec<String> = self
+            .material
+            .iter()
+            .filter(|(_, v)| super::observation::number(v).is_some())
+            .map(|(k, _)| format!("material.{k}"))
+            .collect();
         for (e, _) in &self.effects {
             n.extend(e.params().iter().map(|s| format!("{}.{}", e.name(), s.name)));
         }
@@ -182,7 +200,9 @@ impl Model {
     }
 
     fn locate(&self, name: &str) -> Result<Slot, MeasureError> {
-        let unknown = || MeasureError::Model(format!("unknown parameter '{name}'; the model has {}", self.param_names().join(", ")));
+        let unknown = || {
+            MeasureError::Model(format!("unknown parameter '{name}'; the model has {}", self.param_names().join(", ")))
+        };
         let parsed = Key::parse(name).map_err(|_| unknown())?;
         let (head, key) = (parsed.table(), parsed.field());
         if head == "material" {
@@ -192,8 +212,12 @@ impl Model {
             };
         }
         let e = self.effects.iter().position(|(e, _)| e.name() == head).ok_or_else(|| match self.effect(head) {
-            Ok(_) if self.declared.iter().any(|d| d.name() == head) => MeasureError::Model(format!("'{name}': effect '{head}' is declared as a candidate, not in the model (remove its candidate = true)")),
-            Ok(_) => MeasureError::Model(format!("'{name}': effect '{head}' is not in the model (add [effects.{head}])")),
+            Ok(_) if self.declared.iter().any(|d| d.name() == head) => MeasureError::Model(format!(
+                "'{name}': effect '{head}' is declared as a candidate, not in the model (remove its candidate = true)"
+            )),
+            Ok(_) => {
+                MeasureError::Model(format!("'{name}': effect '{head}' is not in the model (add [effects.{head}])"))
+            }
             Err(_) => unknown(),
         })?;
         let p = self.effects[e].0.params().iter().position(|s| s.name == key).ok_or_else(unknown)?;
@@ -254,7 +278,11 @@ impl Model {
         match slot {
             Slot::Material(_) => {
                 let v = self.value_at(slot);
-                Bounds { lower: if v > 0.0 { 1e-6 * v } else { 0.0 }, upper: f64::INFINITY, scale: if v != 0.0 { v.abs() } else { 1.0 } }
+                Bounds {
+                    lower: if v > 0.0 { 1e-6 * v } else { 0.0 },
+                    upper: f64::INFINITY,
+                    scale: if v != 0.0 { v.abs() } else { 1.0 },
+                }
             }
             Slot::Effect(e, p) => {
                 let s = self.effects[*e].0.params()[*p];
@@ -298,15 +326,24 @@ impl Model {
 
     /// The keys after every effect, and the keys before each effect (what its adjoint reads).
     fn keys_traced(&self, x: &Covariates) -> Result<(Keys, Vec<Keys>), MeasureError> {
-        let mut keys: Keys = self.material.iter().filter_map(|(k, v)| super::observation::number(v).map(|n| (format!("material.{k}"), n))).collect();
+        let mut keys: Keys = self
+            .material
+            .iter()
+            .filter_map(|(k, v)| super::observation::number(v).map(|n| (format!("material.{k}"), n)))
+            .collect();
         let mut before = Vec::with_capacity(self.effects.len());
         for (e, p) in &self.effects {
             before.push(keys.clone());
             e.apply(p, x, &mut keys).map_err(|m| m.within(format!("effect '{}'", e.name())))?;
             // a value an effect made not finite is the effect's fault, named here rather than
             // as a bad material value later
-            if let Some((k, v)) = keys.iter().find(|(k, v)| !v.is_finite() && before.last().and_then(|b| b.get(k.as_str())).is_none_or(|w| w.is_finite())) {
-                return Err(MeasureError::Effect(format!("effect '{}' gives {k} = {v}, not a finite number (its parameters {p:?})", e.name())));
+            if let Some((k, v)) = keys.iter().find(|(k, v)| {
+                !v.is_finite() && before.last().and_then(|b| b.get(k.as_str())).is_none_or(|w| w.is_finite())
+            }) {
+                return Err(MeasureError::Effect(format!(
+                    "effect '{}' gives {k} = {v}, not a finite number (its parameters {p:?})",
+                    e.name()
+                )));
             }
         }
         Ok((keys, before))
@@ -340,7 +377,9 @@ impl Model {
             for (eff, p) in &self.effects {
                 let tab: toml::Table = match self.declared.iter().find(|d| d.name() == eff.name()) {
                     Some(d) => d.to_table(Some(p)),
-                    None => eff.params().iter().zip(p).map(|(s, v)| (s.name.to_string(), toml::Value::Float(*v))).collect(),
+                    None => {
+                        eff.params().iter().zip(p).map(|(s, v)| (s.name.to_string(), toml::Value::Float(*v))).collect()
+                    }
                 };
                 e.insert(eff.name().into(), toml::Value::Table(tab));
             }
@@ -395,7 +434,8 @@ fn expression_line(text: &str, effect: &str, key: &str) -> Option<usize> {
 /// `z_min = { friction = { mu = v } }`).
 pub fn set_path(doc: &mut toml::Table, key: &str, v: f64) -> Result<(), MeasureError> {
     let parts: Vec<&str> = key.split('.').collect();
-    let mut at: &mut toml::Value = doc.entry(parts[0].to_string()).or_insert_with(|| toml::Value::Table(toml::Table::new()));
+    let mut at: &mut toml::Value =
+        doc.entry(parts[0].to_string()).or_insert_with(|| toml::Value::Table(toml::Table::new()));
     if parts.len() == 1 {
         *at = toml::Value::Float(v);
         return Ok(());
@@ -405,7 +445,9 @@ pub fn set_path(doc: &mut toml::Table, key: &str, v: f64) -> Result<(), MeasureE
         if let toml::Value::Array(a) = at {
             let idx = part.parse::<usize>().ok().or_else(|| ["x", "y", "z"].iter().position(|x| x == part));
             let len = a.len();
-            at = idx.and_then(|j| a.get_mut(j)).ok_or_else(|| MeasureError::Model(format!("'{key}': index '{part}' is not in an array of {len}")))?;
+            at = idx
+                .and_then(|j| a.get_mut(j))
+                .ok_or_else(|| MeasureError::Model(format!("'{key}': index '{part}' is not in an array of {len}")))?;
         } else {
             if !at.is_table() {
                 *at = toml::Value::Table(toml::Table::new());
@@ -424,20 +466,33 @@ pub fn set_path(doc: &mut toml::Table, key: &str, v: f64) -> Result<(), MeasureE
 mod tests {
     use super::*;
 
-    const M: &str = "[material]\nkind = \"evp_bingham\"\ndensity = 2300.0\nbulk_modulus = 1e6\npoisson_ratio = 0.3\nviscosity = 20.0\nyield_stress = 100.0\n[effects.thixotropy]\na_thix = 0.5\n";
+    const M: &str = "[material]\nkind = \"evp_bingham\"\ndensity = 2300.0\nbulk_modulus = 1e6\npoisson_ratio = 0.3\n\
+        viscosity = 20.0\nyield_stress = 100.0\n[effects.thixotropy]\na_thix = 0.5\n";
 
     /// The bulk modulus's age law (evp_bingham): its keys are parameters of the loop like every
     /// number of `[material]`, and a bad one is refused by the material, naming the key.
     #[test]
     fn the_age_law_keys_of_evp_bingham_are_model_parameters() {
-        let law = "bulk_modulus_rate = 2e3\nbulk_modulus_late_rate = 5e3\nbulk_modulus_transition_age = 600.0\nage_at_start = 60.0\n";
-        let m = Model::from_table(&M.replace("yield_stress = 100.0\n", &format!("yield_stress = 100.0\n{law}")).parse().unwrap()).unwrap();
+        let law = "bulk_modulus_rate = 2e3\nbulk_modulus_late_rate = 5e3\nbulk_modulus_transition_age = 600.0\n\
+            age_at_start = 60.0\n";
+        let m = Model::from_table(
+            &M.replace("yield_stress = 100.0\n", &format!("yield_stress = 100.0\n{law}")).parse().unwrap(),
+        )
+        .unwrap();
         let names = m.param_names();
-        for k in ["material.bulk_modulus_rate", "material.bulk_modulus_late_rate", "material.bulk_modulus_transition_age", "material.age_at_start"] {
+        for k in [
+            "material.bulk_modulus_rate",
+            "material.bulk_modulus_late_rate",
+            "material.bulk_modulus_transition_age",
+            "material.age_at_start",
+        ] {
             assert!(names.iter().any(|n| n == k), "{k} in {names:?}");
         }
         assert_eq!(m.get("material.bulk_modulus_late_rate").unwrap(), 5e3);
-        let bad = M.replace("yield_stress = 100.0\n", "yield_stress = 100.0\nbulk_modulus_rate = 1e3\nbulk_modulus_late_rate = 2e3\n");
+        let bad = M.replace(
+            "yield_stress = 100.0\n",
+            "yield_stress = 100.0\nbulk_modulus_rate = 1e3\nbulk_modulus_late_rate = 2e3\n",
+        );
         let e = Model::from_table(&bad.parse().unwrap()).unwrap_err().to_string();
         assert!(e.contains("material.bulk_modulus_transition_age is required"), "{e}");
         // a material number's bounds are [0, inf) or above: a falling law (a negative rate),
@@ -470,7 +525,8 @@ mod tests {
 
     #[test]
     fn set_path_makes_a_friction_wall_of_a_free_slip_one() {
-        let mut doc: toml::Table = "[boundary]\nz_min = \"free_slip\"\n[print]\npath = [{ speed = 1.0 }]\n".parse().unwrap();
+        let mut doc: toml::Table =
+            "[boundary]\nz_min = \"free_slip\"\n[print]\npath = [{ speed = 1.0 }]\n".parse().unwrap();
         set_path(&mut doc, "boundary.z_min.friction.mu", 0.3).unwrap();
         set_path(&mut doc, "print.path.0.speed", 2.0).unwrap();
         assert_eq!(doc["boundary"]["z_min"]["friction"]["mu"].as_float(), Some(0.3));

@@ -1,8 +1,10 @@
 //! The observables: what a simulation and a rheometer test can observe, and where or when each
 //! is taken.
 //!
-//! `at` is the station x [m] of a printed-geometry observable (`width`, `height`, `smooth_width`, `smooth_height`, `level`, `area`), the time [s] of one observed during
-//! a run (`spread`, `front`: a slump spread or a flow distance against time; empty for the end), or the shear rate [1/s] of a rheometer reading.
+//! `at` is the station x [m] of a printed-geometry observable (`width`, `height`, `smooth_width`, `smooth_height`,
+//! `level`, `area`), the time [s] of one observed during
+//! a run (`spread`, `front`: a slump spread or a flow distance against time; empty for the end), or the shear rate
+//! [1/s] of a rheometer reading.
 //! Three printed-geometry observables take a second coordinate after a colon, `X:Y` in the `at`
 //! column as in `name@X:Y`: `profile` the lateral position y [m] of a point of the section's top
 //! outline (`profile@0.075:0.01`), `layer_height` and `layer_width` the layer, 1 = the bottom one
@@ -24,7 +26,9 @@ use std::sync::LazyLock;
 /// an experiment may name, and those read from a run's history (failure, front, passing).
 pub static SIMULATION_OBSERVABLES: LazyLock<Vec<&'static str>> = LazyLock::new(|| {
     let registry = KINDS.iter().filter(|k| k.measured).map(|k| k.name);
-    registry.chain(crate::failure::OBSERVABLES.iter().chain(front::OBSERVABLES).chain(passing::OBSERVABLES).copied()).collect()
+    registry
+        .chain(crate::failure::OBSERVABLES.iter().chain(front::OBSERVABLES).chain(passing::OBSERVABLES).copied())
+        .collect()
 });
 /// Observables a rheometer experiment can produce.
 pub const RHEOMETER_OBSERVABLES: &[&str] = &["stress"];
@@ -62,8 +66,10 @@ pub fn observable_plan(o: &Observable, end: f64) -> Result<(f64, Objective), Mea
     }
     let Some(kind) = kind else {
         return Err(MeasureError::Observable(match name {
-            name if front::OBSERVABLES.contains(&name) => format!("'{o}' is read from the front's history over the run, not at one time: it has no adjoint"),
-            name if passing::OBSERVABLES.contains(&name) => format!("'{o}' is read from the history of the mass below a plane over the run, not at one time: it has no adjoint"),
+            name if front::OBSERVABLES.contains(&name) => format!("'{o}' is read from the front's history over the \
+                run, not at one time: it has no adjoint"),
+            name if passing::OBSERVABLES.contains(&name) => format!("'{o}' is read from the history of the mass below \
+                a plane over the run, not at one time: it has no adjoint"),
             other => format!("a simulation cannot observe '{other}'"),
         }));
     };
@@ -82,7 +88,9 @@ pub fn observable_plan(o: &Observable, end: f64) -> Result<(f64, Objective), Mea
         Takes::StationAndLayer => {
             let (station, k) = both()?;
             if !(k >= 1.0 && k.fract() == 0.0 && k <= u32::MAX as f64) {
-                return Err(MeasureError::Observable(format!("'{o}': the layer must be a whole number from 1 (the bottom layer), got {k}")));
+                return Err(MeasureError::Observable(format!(
+                    "'{o}': the layer must be a whole number from 1 (the bottom layer), got {k}"
+                )));
             }
             (end, At::Layer { station, layer: k as usize })
         }
@@ -97,18 +105,27 @@ pub fn observable_plan(o: &Observable, end: f64) -> Result<(f64, Objective), Mea
 pub fn reading_index(o: &Observable, readings: &[Reading]) -> Result<usize, MeasureError> {
     let rate = reading_rate(o)?;
     readings.iter().rposition(|r| (r.rate - rate).abs() <= 1e-9 * rate.abs().max(1.0)).ok_or_else(|| {
-        MeasureError::Observable(format!("'{o}': the protocol records no reading at rate {rate} (it records {:?})", readings.iter().map(|r| r.rate).collect::<Vec<_>>()))
+        MeasureError::Observable(format!(
+            "'{o}': the protocol records no reading at rate {rate} (it records {:?})",
+            readings.iter().map(|r| r.rate).collect::<Vec<_>>()
+        ))
     })
 }
 
 /// The shear rate of a rheometer observable, `stress@RATE`.
 pub fn reading_rate(o: &Observable) -> Result<f64, MeasureError> {
     if !RHEOMETER_OBSERVABLES.contains(&o.name.as_str()) {
-        return Err(MeasureError::Observable(format!("a rheometer test cannot observe '{}'; it can observe {}", o.name, RHEOMETER_OBSERVABLES.join(", "))));
+        return Err(MeasureError::Observable(format!(
+            "a rheometer test cannot observe '{}'; it can observe {}",
+            o.name,
+            RHEOMETER_OBSERVABLES.join(", ")
+        )));
     }
     match (o.at, o.at2) {
         (Some(rate), None) => Ok(rate),
-        (Some(_), Some(_)) => Err(MeasureError::Observable(format!("'{o}': stress takes one coordinate, the shear rate: stress@RATE"))),
+        (Some(_), Some(_)) => {
+            Err(MeasureError::Observable(format!("'{o}': stress takes one coordinate, the shear rate: stress@RATE")))
+        }
         (None, _) => Err(MeasureError::Observable("'stress' needs the shear rate: stress@RATE".into())),
     }
 }
@@ -132,13 +149,29 @@ mod tests {
     fn printed_geometry_observables_are_their_objectives_at_the_end() {
         let plan = |s: &str| observable_plan(&Observable::parse(s).unwrap(), 2.0);
         let objective = |name: &str, at: At| Objective::new(crate::observables::kind(name).unwrap(), at);
-        assert_eq!(plan("profile@0.075:0.01").unwrap(), (2.0, objective("profile", At::Point { station: 0.075, y: 0.01 })));
-        assert_eq!(plan("layer_height@0.075:2").unwrap(), (2.0, objective("layer_height", At::Layer { station: 0.075, layer: 2 })));
-        assert_eq!(plan("layer_width@0.075:1").unwrap(), (2.0, objective("layer_width", At::Layer { station: 0.075, layer: 1 })));
+        assert_eq!(
+            plan("profile@0.075:0.01").unwrap(),
+            (2.0, objective("profile", At::Point { station: 0.075, y: 0.01 }))
+        );
+        assert_eq!(
+            plan("layer_height@0.075:2").unwrap(),
+            (2.0, objective("layer_height", At::Layer { station: 0.075, layer: 2 }))
+        );
+        assert_eq!(
+            plan("layer_width@0.075:1").unwrap(),
+            (2.0, objective("layer_width", At::Layer { station: 0.075, layer: 1 }))
+        );
         assert_eq!(plan("smooth_width@0.075").unwrap(), (2.0, objective("smooth_width", At::Stations(vec![0.075]))));
         assert_eq!(plan("smooth_height@0.075").unwrap(), (2.0, objective("smooth_height", At::Stations(vec![0.075]))));
         // each objective's name is the observable's own
-        for s in ["profile@0.075:0.01", "layer_height@0.075:2", "layer_width@0.075:1", "height@0.075", "smooth_width@0.075", "smooth_height@0.075"] {
+        for s in [
+            "profile@0.075:0.01",
+            "layer_height@0.075:2",
+            "layer_width@0.075:1",
+            "height@0.075",
+            "smooth_width@0.075",
+            "smooth_height@0.075",
+        ] {
             assert_eq!(plan(s).unwrap().1.name(), s);
         }
         let e = plan("layer_height@0.075:-2").unwrap_err().to_string();

@@ -38,7 +38,13 @@ pub struct Observable {
 
 /// `X` or `X:Y`, finite numbers, as the `at` of an observable; the error says what is wrong.
 pub fn parse_at(a: &str) -> Result<(f64, Option<f64>), MeasureError> {
-    let number = |v: &str| v.trim().parse::<f64>().ok().filter(|x| x.is_finite()).ok_or_else(|| MeasureError::Observable(format!("'{}' is not a number", v.trim())));
+    let number = |v: &str| {
+        v.trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| MeasureError::Observable(format!("'{}' is not a number", v.trim())))
+    };
     let mut parts = a.split(':');
     let at = number(parts.next().unwrap_or(""))?;
     let at2 = parts.next().map(number).transpose()?;
@@ -93,7 +99,11 @@ pub fn parse_observations(text: &str) -> Result<Vec<Observation>, MeasureError> 
     let mut rd = csv::ReaderBuilder::new().trim(csv::Trim::All).comment(Some(b'#')).from_reader(text.as_bytes());
     let header: Vec<String> = rd.headers()?.iter().map(str::to_string).collect();
     let want = ["experiment", "observable", "at", "value", "uncertainty"];
-    let col = |name: &str| header.iter().position(|h| h == name).ok_or_else(|| MeasureError::Observations(format!("no '{name}' column (the columns are {})", want.join(","))));
+    let col = |name: &str| {
+        header.iter().position(|h| h == name).ok_or_else(|| {
+            MeasureError::Observations(format!("no '{name}' column (the columns are {})", want.join(",")))
+        })
+    };
     let idx: Vec<usize> = want.iter().map(|w| col(w)).collect::<Result<_, _>>()?;
     let mut out = Vec::new();
     for rec in rd.records() {
@@ -101,12 +111,18 @@ pub fn parse_observations(text: &str) -> Result<Vec<Observation>, MeasureError> 
         let line = rec.position().map_or(0, |p| p.line());
         let field = |k: usize| rec.get(idx[k]).unwrap_or("");
         let number = |k: usize| -> Result<f64, MeasureError> {
-            field(k).parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| MeasureError::Observations(format!("line {line}: {} '{}' is not a number", want[k], field(k))))
+            field(k).parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| {
+                MeasureError::Observations(format!("line {line}: {} '{}' is not a number", want[k], field(k)))
+            })
         };
         let (at, at2) = if field(2).is_empty() {
             (None, None)
         } else {
-            let (a, b) = parse_at(field(2)).map_err(|e| MeasureError::Observations(format!("line {line}: at {e} (X, or X:Y for profile@X:Y and layer_height@X:K)")))?;
+            let (a, b) = parse_at(field(2)).map_err(|e| {
+                MeasureError::Observations(format!(
+                    "line {line}: at {e} (X, or X:Y for profile@X:Y and layer_height@X:K)"
+                ))
+            })?;
             (Some(a), b)
         };
         let uncertainty = number(4)?;
@@ -136,7 +152,14 @@ pub fn write_observations(path: &Path, obs: &[Observation]) -> Result<(), Measur
     w.write_record(["experiment", "observable", "at", "value", "uncertainty"]).map_err(err)?;
     for o in obs {
         let at = at_text(o.observable.at, o.observable.at2);
-        w.write_record([o.experiment.clone(), o.observable.name.clone(), at, format!("{:e}", o.value), format!("{:e}", o.uncertainty)]).map_err(err)?;
+        w.write_record([
+            o.experiment.clone(),
+            o.observable.name.clone(),
+            at,
+            format!("{:e}", o.value),
+            format!("{:e}", o.uncertainty),
+        ])
+        .map_err(err)?;
     }
     w.flush().map_err(io_error(path))
 }
@@ -152,7 +175,8 @@ mod tests {
 
     #[test]
     fn observations_round_trip_and_bad_rows_name_their_line() {
-        let text = "experiment,observable,at,value,uncertainty\nSF240,spread,,0.5,0.01\n# a comment\ncase1, width ,0.016,0.0301,5e-4\n";
+        let text = "experiment,observable,at,value,uncertainty\nSF240,spread,,0.5,0.01\n# a comment\ncase1, width \
+            ,0.016,0.0301,5e-4\n";
         let obs = parse_observations(text).unwrap();
         assert_eq!(obs.len(), 2);
         assert_eq!(obs[1].observable, Observable { name: "width".into(), at: Some(0.016), at2: None });
@@ -160,9 +184,14 @@ mod tests {
         let p = dir.path().join("d.csv");
         write_observations(&p, &obs).unwrap();
         assert_eq!(read_observations(&p).unwrap(), obs);
-        let e = parse_observations("experiment,observable,at,value,uncertainty\nA,spread,,0.5,0.01\nB,spread,,zero,0.01\n").unwrap_err().to_string();
+        let e =
+            parse_observations("experiment,observable,at,value,uncertainty\nA,spread,,0.5,0.01\nB,spread,,zero,0.01\n")
+                .unwrap_err()
+                .to_string();
         assert!(e.contains("line 3") && e.contains("value 'zero'"), "{e}");
-        let e = parse_observations("experiment,observable,at,value,uncertainty\nA,spread,,0.5,0\n").unwrap_err().to_string();
+        let e = parse_observations("experiment,observable,at,value,uncertainty\nA,spread,,0.5,0\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("line 2") && e.contains("uncertainty"), "{e}");
         let e = parse_observations("experiment,observable,value\nA,spread,0.5\n").unwrap_err().to_string();
         assert!(e.contains("no 'at' column"), "{e}");
@@ -172,7 +201,14 @@ mod tests {
     fn a_second_coordinate_parses_prints_back_and_bad_ones_are_named() {
         let o = Observable::parse("profile@0.075:0.01").unwrap();
         assert_eq!(o, Observable { name: "profile".into(), at: Some(0.075), at2: Some(0.01) });
-        for s in ["profile@0.075:0.01", "profile@0.075:-0.002", "layer_height@0.075:2", "layer_width@0.03:1", "width@0.016", "spread"] {
+        for s in [
+            "profile@0.075:0.01",
+            "profile@0.075:-0.002",
+            "layer_height@0.075:2",
+            "layer_width@0.03:1",
+            "width@0.016",
+            "spread",
+        ] {
             assert_eq!(Observable::parse(s).unwrap().to_string(), s);
         }
         assert_eq!(Observable::parse(" profile @ 0.075 : 0.01 ").unwrap(), o);
@@ -188,7 +224,8 @@ mod tests {
             assert!(e.starts_with(&format!("'{bad}': ")) && e.contains(want), "{bad}: {e}");
         }
         // in the measurements CSV the at column holds X:Y
-        let text = "experiment,observable,at,value,uncertainty\ncase1,profile,0.075:0.01,0.012,5e-4\ncase1,layer_height,0.075:2,0.006,2e-4\ncase1,height,0.075,0.018,5e-4\n";
+        let text = "experiment,observable,at,value,uncertainty\ncase1,profile,0.075:0.01,0.012,5e-4\n\
+            case1,layer_height,0.075:2,0.006,2e-4\ncase1,height,0.075,0.018,5e-4\n";
         let obs = parse_observations(text).unwrap();
         let names: Vec<String> = obs.iter().map(|o| o.observable.to_string()).collect();
         assert_eq!(names, ["profile@0.075:0.01", "layer_height@0.075:2", "height@0.075"]);
@@ -197,7 +234,9 @@ mod tests {
         write_observations(&p, &obs).unwrap();
         assert!(std::fs::read_to_string(&p).unwrap().contains("case1,profile,0.075:0.01,"));
         assert_eq!(read_observations(&p).unwrap(), obs);
-        let e = parse_observations("experiment,observable,at,value,uncertainty\ncase1,profile,0.075:y,0.012,5e-4\n").unwrap_err().to_string();
+        let e = parse_observations("experiment,observable,at,value,uncertainty\ncase1,profile,0.075:y,0.012,5e-4\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("line 2") && e.contains("at 'y' is not a number"), "{e}");
     }
 }

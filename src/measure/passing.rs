@@ -22,10 +22,16 @@ pub const OBSERVABLES: &[&str] = &["passed"];
 pub fn check_observable(o: &Observable) -> Result<(), MeasureError> {
     let what = "the plane and the fraction of the mass below it: passed@Z:F (metres, 0 < F <= 1)";
     if o.name != "passed" {
-        return Err(MeasureError::Observable(format!("'{}' is not a passing observable ({})", o.name, OBSERVABLES.join(", "))));
+        return Err(MeasureError::Observable(format!(
+            "'{}' is not a passing observable ({})",
+            o.name,
+            OBSERVABLES.join(", ")
+        )));
     }
     match (o.at, o.at2) {
-        (Some(_), Some(f)) if !(f > 0.0 && f <= 1.0) => Err(MeasureError::Observable(format!("'{o}': the fraction must lie in (0, 1], got {f}"))),
+        (Some(_), Some(f)) if !(f > 0.0 && f <= 1.0) => {
+            Err(MeasureError::Observable(format!("'{o}': the fraction must lie in (0, 1], got {f}")))
+        }
         (Some(_), Some(_)) => Ok(()),
         _ => Err(MeasureError::Observable(format!("'{o}' needs {what}"))),
     }
@@ -55,7 +61,11 @@ impl PassingTrace {
         if total <= 0.0 {
             return Err(MeasureError::History("passed: no material in the run".into()));
         }
-        let below = self.planes.iter().map(|&z| (0..p.n).filter(|&i| sim.position(i)[2] < z).map(|i| mass[i] as f64).sum::<f64>() / total).collect();
+        let below = self
+            .planes
+            .iter()
+            .map(|&z| (0..p.n).filter(|&i| sim.position(i)[2] < z).map(|i| mass[i] as f64).sum::<f64>() / total)
+            .collect();
         self.push(sim.time, below);
         Ok(())
     }
@@ -112,7 +122,13 @@ mod tests {
     #[test]
     fn a_malformed_passed_names_what_it_needs() {
         assert!(check_observable(&ob("passed@0.2:0.99")).is_ok());
-        for (bad, want) in [("passed", "passed@Z:F"), ("passed@0.2", "passed@Z:F"), ("passed@0.2:0", "(0, 1]"), ("passed@0.2:1.5", "(0, 1]"), ("front@1", "not a passing")] {
+        for (bad, want) in [
+            ("passed", "passed@Z:F"),
+            ("passed@0.2", "passed@Z:F"),
+            ("passed@0.2:0", "(0, 1]"),
+            ("passed@0.2:1.5", "(0, 1]"),
+            ("front@1", "not a passing"),
+        ] {
             let e = check_observable(&ob(bad)).unwrap_err().to_string();
             assert!(e.contains(want), "{bad}: {e}");
         }

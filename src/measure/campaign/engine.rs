@@ -78,7 +78,8 @@ impl Engine {
         if name == "local" {
             return match dir {
                 None => Ok(Engine::Local),
-                Some(d) => Err(MeasureError::Engine(format!("--engine-dir {} is the folder of a scheduler's jobs; the local engine runs in this process (name a scheduler with --engine)", d.display()))),
+                Some(d) => Err(MeasureError::Engine(format!("--engine-dir {} is the folder of a scheduler's jobs; the \
+                    local engine runs in this process (name a scheduler with --engine)", d.display()))),
             };
         }
         let template = match PRESETS.iter().find(|(n, _)| *n == name) {
@@ -86,14 +87,19 @@ impl Engine {
             None if name.contains("{jobs}") || name.contains("{task}") => name.to_string(),
             None => {
                 let names: Vec<&str> = PRESETS.iter().map(|(n, _)| *n).collect();
-                return Err(MeasureError::Engine(format!("--engine {name}: not an engine; give local, {}, or a command template naming {{jobs}} (the file of job commands) or {{task}} (a job array's task script)", names.join(", "))));
+                return Err(MeasureError::Engine(format!("--engine {name}: not an engine; give local, {}, or a command \
+                    template naming {{jobs}} (the file of job commands) or {{task}} (a job array's task \
+                    script)", names.join(", "))));
             }
         };
-        let dir = dir.ok_or_else(|| MeasureError::Engine(format!("--engine {name} needs --engine-dir DIR, a folder every job can read and write (the results are kept there)")))?;
+        let dir = dir.ok_or_else(|| MeasureError::Engine(format!("--engine {name} needs --engine-dir DIR, a folder \
+            every job can read and write (the results are kept there)")))?;
         for sub in ["jobs", "results", "logs", "batches"] {
-            std::fs::create_dir_all(dir.join(sub)).map_err(|e| MeasureError::Io(e).within(format!("--engine-dir {}", dir.display())))?;
+            std::fs::create_dir_all(dir.join(sub))
+                .map_err(|e| MeasureError::Io(e).within(format!("--engine-dir {}", dir.display())))?;
         }
-        let dir = std::path::absolute(dir).map_err(|e| MeasureError::Io(e).within(format!("--engine-dir {}", dir.display())))?;
+        let dir = std::path::absolute(dir)
+            .map_err(|e| MeasureError::Io(e).within(format!("--engine-dir {}", dir.display())))?;
         let exe = std::path::absolute(exe).map_err(io_error(exe))?;
         Ok(Engine::Scheduler(Scheduler { template, dir, exe, threads }))
     }
@@ -101,7 +107,14 @@ impl Engine {
     /// The values of every observation under `model`, with their gradients in `names` when
     /// given. `Err` is the engine failing (a job that left no result, named with its log);
     /// `Ok(Err)` the model's own failure, as a local run gives it.
-    pub fn sensitivity(&self, jobs: usize, model: &Model, data: &[Observation], exps: &Experiments, names: Option<&[String]>) -> Result<Answer, MeasureError> {
+    pub fn sensitivity(
+        &self,
+        jobs: usize,
+        model: &Model,
+        data: &[Observation],
+        exps: &Experiments,
+        names: Option<&[String]>,
+    ) -> Result<Answer, MeasureError> {
         match self {
             Engine::Local => Ok(sensitivity::sensitivity(model, data, exps, names, jobs)),
             Engine::Scheduler(s) => s.sensitivity(model, data, exps, names, None),
@@ -112,7 +125,15 @@ impl Engine {
     /// calibration's accepted trial), its simulations differenced as `differences` says. Here
     /// the experiments differenced throughout take the values instead of running them again; a
     /// scheduler's jobs compute them again, to the same bits.
-    pub fn jacobian_at(&self, jobs: usize, model: &Model, data: &[Observation], exps: &Experiments, names: &[String], (values, differences): (&[f64], &Differences)) -> Result<Answer, MeasureError> {
+    pub fn jacobian_at(
+        &self,
+        jobs: usize,
+        model: &Model,
+        data: &[Observation],
+        exps: &Experiments,
+        names: &[String],
+        (values, differences): (&[f64], &Differences),
+    ) -> Result<Answer, MeasureError> {
         match self {
             Engine::Local => Ok(sensitivity::jacobian_at(model, data, exps, (names, jobs), (values, differences))),
             Engine::Scheduler(s) => s.sensitivity(model, data, exps, Some(names), match differences {
@@ -160,7 +181,12 @@ pub struct Computed {
 pub enum Outcome {
     /// A value per observable and, with names, a gradient row per observable; the scatter of
     /// each ([`Sensitivity::scatter`], [`Sensitivity::jacobian_scatter`]).
-    Values { values: Vec<Exact>, jacobian: Option<Vec<Vec<Exact>>>, scatter: Vec<Exact>, jacobian_scatter: Option<Vec<Vec<Exact>>> },
+    Values {
+        values: Vec<Exact>,
+        jacobian: Option<Vec<Vec<Exact>>>,
+        scatter: Vec<Exact>,
+        jacobian_scatter: Option<Vec<Vec<Exact>>>,
+    },
     /// The model's failure, as the local evaluation reports it.
     Failed(String),
 }
@@ -169,7 +195,8 @@ impl Job {
     /// The file stem of this job and of its result and log: the experiment id (made safe for a
     /// file name) and a hash of what the result depends on.
     fn key(&self, id: &str) -> String {
-        let safe: String = id.chars().map(|c| if c.is_ascii_alphanumeric() || "-_.".contains(c) { c } else { '_' }).collect();
+        let safe: String =
+            id.chars().map(|c| if c.is_ascii_alphanumeric() || "-_.".contains(c) { c } else { '_' }).collect();
         let what = match &self.scatter {
             None => serde_json::to_string(&(&self.provenance, &self.observables, &self.names, &self.units)),
             Some(s) => serde_json::to_string(&(&self.provenance, &self.observables, &self.names, &self.units, s)),
@@ -204,7 +231,14 @@ fn tail(path: &Path, none: &str) -> String {
 impl Scheduler {
     /// As [`Engine::sensitivity`]; `scatter` (in the data's order) makes the differences
     /// one-sided ([`Differences::Forward`]).
-    fn sensitivity(&self, model: &Model, data: &[Observation], exps: &Experiments, names: Option<&[String]>, scatter: Option<&[f64]>) -> Result<Answer, MeasureError> {
+    fn sensitivity(
+        &self,
+        model: &Model,
+        data: &[Observation],
+        exps: &Experiments,
+        names: Option<&[String]>,
+        scatter: Option<&[f64]>,
+    ) -> Result<Answer, MeasureError> {
         let wanted = group(data);
         let scatter = scatter.map(|s| sensitivity::regroup(data, &wanted, s));
         // each experiment: its answer when known (collected, or the experiment is not in the
@@ -236,17 +270,27 @@ impl Scheduler {
         if !pending.is_empty() {
             self.submit(&wanted, &pending, collected)?;
             for (k, key, job) in &pending {
-                answers[*k] = Some(read_result(&self.dir.join("results").join(format!("{key}.json")), job, &wanted[*k].0)?);
+                answers[*k] =
+                    Some(read_result(&self.dir.join("results").join(format!("{key}.json")), job, &wanted[*k].0)?);
             }
         }
-        let per: Vec<Vec<Valued>> = match answers.into_iter().map(|a| a.expect("every experiment answered")).collect::<Result<_, _>>() {
-            Ok(per) => per,
-            Err(e) => return Ok(Err(e)),
-        };
+        let per: Vec<Vec<Valued>> =
+            match answers.into_iter().map(|a| a.expect("every experiment answered")).collect::<Result<_, _>>() {
+                Ok(per) => per,
+                Err(e) => return Ok(Err(e)),
+            };
         Ok(Ok(sensitivity::assemble(data, &wanted, &per, names)))
     }
 
-    fn job(&self, model: &Model, exps: &Experiments, x: &Experiment, obs: &[Observable], names: Option<&[String]>, scatter: Option<&[f64]>) -> Result<Job, MeasureError> {
+    fn job(
+        &self,
+        model: &Model,
+        exps: &Experiments,
+        x: &Experiment,
+        obs: &[Observable],
+        names: Option<&[String]>,
+        scatter: Option<&[f64]>,
+    ) -> Result<Job, MeasureError> {
         Ok(Job {
             provenance: Provenance::of(model, exps, x),
             model: model.to_toml(),
@@ -263,7 +307,12 @@ impl Scheduler {
 
     /// Write a batch of the `pending` jobs and run the scheduler's command on it; every job
     /// must leave its result, or the error names each one missing with its log.
-    fn submit(&self, wanted: &[(String, Vec<Observable>)], pending: &[(usize, String, Job)], collected: usize) -> Result<(), MeasureError> {
+    fn submit(
+        &self,
+        wanted: &[(String, Vec<Observable>)],
+        pending: &[(usize, String, Job)],
+        collected: usize,
+    ) -> Result<(), MeasureError> {
         let batches = self.dir.join("batches");
         let mut number = 1;
         let lines_path = loop {
@@ -277,12 +326,20 @@ impl Scheduler {
         let path = |sub: &str, key: &str, ext: &str| self.dir.join(sub).join(format!("{key}.{ext}"));
         let mut lines = String::new();
         for (_, key, _) in pending {
-            lines += &format!("{} evaluate {} --out {} >> {} 2>&1\n", quote(&self.exe), quote(&path("jobs", key, "json")), quote(&path("results", key, "json")), quote(&path("logs", key, "log")));
+            lines += &format!(
+                "{} evaluate {} --out {} >> {} 2>&1\n",
+                quote(&self.exe),
+                quote(&path("jobs", key, "json")),
+                quote(&path("results", key, "json")),
+                quote(&path("logs", key, "log"))
+            );
         }
         std::fs::write(&lines_path, &lines).map_err(io_error(&lines_path))?;
         let task = lines_path.with_extension("sh");
         let script = format!(
-            "#!/bin/bash\n# Job K of batch {number:04}: bash {0} K, or a job array's task (K from the scheduler)\nk=${{1:-${{SLURM_ARRAY_TASK_ID:-${{HQ_TASK_ID:?no task index: give it as the first argument}}}}}}\nsed -n \"${{k}}p\" {1} | bash\n",
+            "#!/bin/bash\n# Job K of batch {number:04}: bash {0} K, or a job array's task (K from the scheduler)\n\
+                k=${{1:-${{SLURM_ARRAY_TASK_ID:-${{HQ_TASK_ID:?no task index: give it as the first argument}}}}}}\nsed \
+                -n \"${{k}}p\" {1} | bash\n",
             quote(&task),
             quote(&lines_path)
         );
@@ -292,11 +349,19 @@ impl Scheduler {
             use std::os::unix::fs::PermissionsExt;
             std::fs::set_permissions(&task, std::fs::Permissions::from_mode(0o755)).map_err(io_error(&task))?;
         }
-        let command = self.template.replace("{jobs}", &quote(&lines_path)).replace("{task}", &quote(&task)).replace("{n}", &pending.len().to_string()).replace("{dir}", &quote(&self.dir));
+        let command = self
+            .template
+            .replace("{jobs}", &quote(&lines_path))
+            .replace("{task}", &quote(&task))
+            .replace("{n}", &pending.len().to_string())
+            .replace("{dir}", &quote(&self.dir));
         let log = lines_path.with_extension("log");
         let out = std::fs::File::create(&log).map_err(io_error(&log))?;
         let err = out.try_clone().map_err(MeasureError::Io)?;
-        eprintln!("engine: batch {number:04}, {} jobs submitted ({collected} collected from earlier runs): {command}", pending.len());
+        eprintln!(
+            "engine: batch {number:04}, {} jobs submitted ({collected} collected from earlier runs): {command}",
+            pending.len()
+        );
         let status = std::process::Command::new("bash")
             .arg("-c")
             .arg(&command)
@@ -308,13 +373,22 @@ impl Scheduler {
         let missing: Vec<String> = pending
             .iter()
             .filter(|(_, key, _)| !path("results", key, "json").exists())
-            .map(|(k, key, _)| format!("  experiment '{}': no result; job {}, log {}{}", wanted[*k].0, path("jobs", key, "json").display(), path("logs", key, "log").display(), tail(&path("logs", key, "log"), "empty: the job did not start")))
+            .map(|(k, key, _)| {
+                format!(
+                    "  experiment '{}': no result; job {}, log {}{}",
+                    wanted[*k].0,
+                    path("jobs", key, "json").display(),
+                    path("logs", key, "log").display(),
+                    tail(&path("logs", key, "log"), "empty: the job did not start")
+                )
+            })
             .collect();
         if missing.is_empty() {
             return Ok(());
         }
         Err(MeasureError::Engine(format!(
-            "the engine's command {} and {} of {} jobs left no result:\n{}\n  the command: {command}\n  its output: {}{}\nThe results computed are kept in {}: run the same command again to compute only what is missing.",
+            "the engine's command {} and {} of {} jobs left no result:\n{}\n  the command: {command}\n  its output: \
+                {}{}\nThe results computed are kept in {}: run the same command again to compute only what is missing.",
             status.code().map_or("was stopped by a signal".to_string(), |c| format!("exited with status {c}")),
             missing.len(),
             pending.len(),
@@ -330,10 +404,17 @@ impl Scheduler {
 /// experiment `id` and what differs.
 fn read_result(path: &Path, job: &Job, id: &str) -> Result<Result<Vec<Valued>, MeasureError>, MeasureError> {
     let text = std::fs::read_to_string(path).map_err(|e| io_error(path)(e).within(format!("experiment '{id}'")))?;
-    let c: Computed = serde_json::from_str(&text).map_err(|e| MeasureError::Engine(format!("experiment '{id}': {} is not a result of this strand ({e}): delete it to compute it again", path.display())))?;
+    let c: Computed = serde_json::from_str(&text).map_err(|e| {
+        MeasureError::Engine(format!(
+            "experiment '{id}': {} is not a result of this strand ({e}): delete it to compute it again",
+            path.display()
+        ))
+    })?;
     job.provenance.check(&c.provenance, id, path)?;
     if c.experiment != id || c.observables != job.observables || c.names != job.names {
-        return Err(MeasureError::Engine(format!("experiment '{id}': {} holds {} {:?} differentiated in {:?}, the campaign asks {:?} in {:?}: delete it to compute it again", path.display(), c.experiment, c.observables, c.names, job.observables, job.names)));
+        return Err(MeasureError::Engine(format!("experiment '{id}': {} holds {} {:?} differentiated in {:?}, the \
+            campaign asks {:?} in {:?}: delete it to compute it \
+            again", path.display(), c.experiment, c.observables, c.names, job.observables, job.names)));
     }
     Ok(match c.outcome {
         Outcome::Failed(e) => Err(MeasureError::InJob(e)),
@@ -341,15 +422,26 @@ fn read_result(path: &Path, job: &Job, id: &str) -> Result<Result<Vec<Valued>, M
             let n = job.observables.len();
             let rows = jacobian.map(|j| j.iter().map(|r| plain(r)).collect::<Vec<_>>());
             let row_scatter = jacobian_scatter.map(|j| j.iter().map(|r| plain(r)).collect::<Vec<_>>());
-            let shaped = |r: &Option<Vec<Vec<f64>>>| r.as_ref().is_none_or(|r| r.len() == n) && r.is_some() == job.names.is_some();
+            let shaped = |r: &Option<Vec<Vec<f64>>>| {
+                r.as_ref().is_none_or(|r| r.len() == n) && r.is_some() == job.names.is_some()
+            };
             if values.len() != n || scatter.len() != n || !shaped(&rows) || !shaped(&row_scatter) {
-                return Err(MeasureError::Engine(format!("experiment '{id}': {} holds {} values for {n} observables: delete it to compute it again", path.display(), values.len())));
+                return Err(MeasureError::Engine(format!(
+                    "experiment '{id}': {} holds {} values for {n} observables: delete it to compute it again",
+                    path.display(),
+                    values.len()
+                )));
             }
             let (mut rows, mut row_scatter) = (rows.map(Vec::into_iter), row_scatter.map(Vec::into_iter));
             Ok(plain(&values)
                 .into_iter()
                 .zip(plain(&scatter))
-                .map(|(value, scatter)| Valued { value, gradient: rows.as_mut().and_then(Iterator::next), scatter, gradient_scatter: row_scatter.as_mut().and_then(Iterator::next) })
+                .map(|(value, scatter)| Valued {
+                    value,
+                    gradient: rows.as_mut().and_then(Iterator::next),
+                    scatter,
+                    gradient_scatter: row_scatter.as_mut().and_then(Iterator::next),
+                })
                 .collect())
         }
     })
@@ -369,34 +461,65 @@ fn job_model(job: &Job) -> Result<Model, MeasureError> {
 /// to print.
 pub fn evaluate(job_path: &Path, out: &Path) -> Result<String, MeasureError> {
     let text = std::fs::read_to_string(job_path).map_err(io_error(job_path))?;
-    let job: Job = serde_json::from_str(&text).map_err(|e| MeasureError::Engine(format!("{}: not a job of this strand ({e})", job_path.display())))?;
-    let x: Experiment = toml::from_str(&job.experiment).map_err(|e| MeasureError::Engine(format!("{}: the experiment: {}", job_path.display(), e.message())))?;
+    let job: Job = serde_json::from_str(&text)
+        .map_err(|e| MeasureError::Engine(format!("{}: not a job of this strand ({e})", job_path.display())))?;
+    let x: Experiment = toml::from_str(&job.experiment)
+        .map_err(|e| MeasureError::Engine(format!("{}: the experiment: {}", job_path.display(), e.message())))?;
     let id = x.id.clone();
     let exps = Experiments { experiment: vec![x], base_dir: job.base_dir.clone(), resolution: None };
     let model = job_model(&job).map_err(|e| e.within(job_path.display()))?;
     // the files as they are now must be those the job was planned with
-    Provenance::of(&model, &exps, &exps.experiment[0]).check(&job.provenance, &id, job_path).map_err(|e| MeasureError::Engine(format!("{e}: the job was planned with other files or another strand; run the campaign again to plan it anew")))?;
+    Provenance::of(&model, &exps, &exps.experiment[0]).check(&job.provenance, &id, job_path).map_err(|e| {
+        MeasureError::Engine(format!(
+            "{e}: the job was planned with other files or another strand; run the campaign again to plan it anew"
+        ))
+    })?;
     // the experiment's memory planned before it runs: over the budget is the job's error, not a result
     super::preflight::plan_experiments(&model, &exps, [id.as_str()])?;
     let obs: Vec<Observable> = job.observables.iter().map(|o| Observable::parse(o)).collect::<Result<_, _>>()?;
     if job.scatter.as_ref().is_some_and(|s| s.len() != obs.len()) {
-        return Err(MeasureError::Engine(format!("{}: {} scatters for {} observables: not a job of this strand", job_path.display(), job.scatter.as_ref().map_or(0, Vec::len), obs.len())));
+        return Err(MeasureError::Engine(format!(
+            "{}: {} scatters for {} observables: not a job of this strand",
+            job_path.display(),
+            job.scatter.as_ref().map_or(0, Vec::len),
+            obs.len()
+        )));
     }
     let scatter = job.scatter.as_ref().map(|s| plain(s));
-    let outcome = match sensitivity::one(&model, &exps, &id, &obs, (job.names.as_deref(), job.threads), scatter.as_deref()) {
-        Ok(per) => Outcome::Values {
-            values: exact(&per.iter().map(|v| v.value).collect::<Vec<_>>()),
-            jacobian: job.names.as_ref().map(|_| per.iter().map(|v| exact(v.gradient.as_deref().unwrap_or_default())).collect()),
-            scatter: exact(&per.iter().map(|v| v.scatter).collect::<Vec<_>>()),
-            jacobian_scatter: job.names.as_ref().map(|_| per.iter().map(|v| exact(v.gradient_scatter.as_deref().unwrap_or_default())).collect()),
-        },
-        Err(e) => Outcome::Failed(e.to_string()),
-    };
+    let outcome =
+        match sensitivity::one(&model, &exps, &id, &obs, (job.names.as_deref(), job.threads), scatter.as_deref()) {
+            Ok(per) => Outcome::Values {
+                values: exact(&per.iter().map(|v| v.value).collect::<Vec<_>>()),
+                jacobian: job
+                    .names
+                    .as_ref()
+                    .map(|_| per.iter().map(|v| exact(v.gradient.as_deref().unwrap_or_default())).collect()),
+                scatter: exact(&per.iter().map(|v| v.scatter).collect::<Vec<_>>()),
+                jacobian_scatter: job
+                    .names
+                    .as_ref()
+                    .map(|_| per.iter().map(|v| exact(v.gradient_scatter.as_deref().unwrap_or_default())).collect()),
+            },
+            Err(e) => Outcome::Failed(e.to_string()),
+        };
     let line = match &outcome {
-        Outcome::Values { values, jacobian, .. } => format!("experiment '{id}': {} values{} saved to {}", values.len(), if jacobian.is_some() { " and their gradients" } else { "" }, out.display()),
-        Outcome::Failed(e) => format!("experiment '{id}': the model fails here ({e}); saved as its result to {}", out.display()),
+        Outcome::Values { values, jacobian, .. } => format!(
+            "experiment '{id}': {} values{} saved to {}",
+            values.len(),
+            if jacobian.is_some() { " and their gradients" } else { "" },
+            out.display()
+        ),
+        Outcome::Failed(e) => {
+            format!("experiment '{id}': the model fails here ({e}); saved as its result to {}", out.display())
+        }
     };
-    let c = Computed { experiment: id, observables: job.observables, names: job.names, provenance: job.provenance, outcome };
+    let c = Computed {
+        experiment: id,
+        observables: job.observables,
+        names: job.names,
+        provenance: job.provenance,
+        outcome,
+    };
     write_atomic(out, &serde_json::to_string_pretty(&c)?)?;
     Ok(line)
 }
@@ -405,8 +528,10 @@ pub fn evaluate(job_path: &Path, out: &Path) -> Result<String, MeasureError> {
 mod tests {
     use super::*;
 
-    const MODEL: &str = "[material]\nkind = \"bingham\"\ndensity = 2100.0\nbulk_modulus = 1e6\nviscosity = 7.5\nyield_stress = 630.0\n";
-    const EXPS: &str = "[[experiment]]\nid = \"flow\"\nobserve = [\"stress@20\"]\n[experiment.protocol]\n[[experiment.protocol.phase]]\nkind = \"sweep\"\nrates = [20.0]\nhold = 0.5\n";
+    const MODEL: &str =
+        "[material]\nkind = \"bingham\"\ndensity = 2100.0\nbulk_modulus = 1e6\nviscosity = 7.5\nyield_stress = 630.0\n";
+    const EXPS: &str = "[[experiment]]\nid = \"flow\"\nobserve = [\"stress@20\"]\n[experiment.protocol]\n\
+        [[experiment.protocol.phase]]\nkind = \"sweep\"\nrates = [20.0]\nhold = 0.5\n";
 
     /// A job's model keeps the units of the model it was planned from, which its file does not
     /// hold, so a job differences a parameter fitted towards 0 over the step a local run takes;
@@ -416,9 +541,16 @@ mod tests {
         let mut model = Model::from_table(&MODEL.parse().unwrap()).unwrap();
         model.set("material.viscosity", 1e-5).unwrap();
         let exps: Experiments = toml::from_str(EXPS).unwrap();
-        let s = Scheduler { template: "true".into(), dir: PathBuf::from("unused"), exe: PathBuf::from("strand"), threads: None };
+        let s = Scheduler {
+            template: "true".into(),
+            dir: PathBuf::from("unused"),
+            exe: PathBuf::from("strand"),
+            threads: None,
+        };
         let names = vec!["material.viscosity".to_string()];
-        let job = s.job(&model, &exps, &exps.experiment[0], &[Observable::parse("stress@20").unwrap()], Some(&names), None).unwrap();
+        let job = s
+            .job(&model, &exps, &exps.experiment[0], &[Observable::parse("stress@20").unwrap()], Some(&names), None)
+            .unwrap();
         let read: Job = serde_json::from_str(&serde_json::to_string(&job).unwrap()).unwrap();
         let there = job_model(&read).unwrap();
         assert_eq!(there.get("material.viscosity").unwrap(), 1e-5);
@@ -431,7 +563,16 @@ mod tests {
         other.units.insert("viscosity".into(), 1.0);
         assert_ne!(other.key("flow"), job.key("flow"));
         // one-sided differences carry the values' scatter, exactly, in the job and its key
-        let forward = s.job(&model, &exps, &exps.experiment[0], &[Observable::parse("stress@20").unwrap()], Some(&names), Some(&[0.1 + 0.2])).unwrap();
+        let forward = s
+            .job(
+                &model,
+                &exps,
+                &exps.experiment[0],
+                &[Observable::parse("stress@20").unwrap()],
+                Some(&names),
+                Some(&[0.1 + 0.2]),
+            )
+            .unwrap();
         let read: Job = serde_json::from_str(&serde_json::to_string(&forward).unwrap()).unwrap();
         assert_eq!(read.scatter.as_deref().map(plain), Some(vec![0.1 + 0.2]));
         assert_ne!(forward.key("flow"), job.key("flow"));
@@ -449,14 +590,23 @@ mod tests {
         let mut exps: Experiments = toml::from_str(text).unwrap();
         exps.base_dir = dir.path().to_path_buf();
         let model = Model::from_table(&MODEL.parse().unwrap()).unwrap();
-        let s = Scheduler { template: "true".into(), dir: dir.path().join("jobs"), exe: PathBuf::from("strand"), threads: None };
-        let job = s.job(&model, &exps, &exps.experiment[0], &[Observable::parse("spread").unwrap()], None, None).unwrap();
+        let s = Scheduler {
+            template: "true".into(),
+            dir: dir.path().join("jobs"),
+            exe: PathBuf::from("strand"),
+            threads: None,
+        };
+        let job =
+            s.job(&model, &exps, &exps.experiment[0], &[Observable::parse("spread").unwrap()], None, None).unwrap();
         let (job_path, out) = (dir.path().join("SF.json"), dir.path().join("SF.result.json"));
         std::fs::write(&job_path, serde_json::to_string(&job).unwrap()).unwrap();
         let clock = std::time::Instant::now();
         let err = evaluate(&job_path, &out).unwrap_err().to_string();
         assert!(clock.elapsed() < std::time::Duration::from_secs(5), "took {:?}", clock.elapsed());
-        assert!(err.contains("over the budget of") && err.contains("need at least") && err.contains("experiment 'SF'"), "{err}");
+        assert!(
+            err.contains("over the budget of") && err.contains("need at least") && err.contains("experiment 'SF'"),
+            "{err}"
+        );
         assert!(!out.exists(), "a refused job must leave no result");
         // the same job at the fixture's own cell size is planned and passes the refusal
         let fits: Experiments = toml::from_str(&text.replace("1e-5", "0.02")).unwrap();

@@ -96,12 +96,23 @@ impl ResolutionTable {
         }
         match self.fine.get("simulation.dx").and_then(number) {
             Some(dx) if dx > 0.0 && dx.is_finite() => {}
-            Some(dx) => return Err(MeasureError::Experiments(format!("fine.\"simulation.dx\" must be a cell size > 0, got {dx}"))),
-            None => return Err(MeasureError::Experiments("fine must set \"simulation.dx\", the finer run's cell size: fine = { \"simulation.dx\" = 0.002 }".into())),
+            Some(dx) => {
+                return Err(MeasureError::Experiments(format!(
+                    "fine.\"simulation.dx\" must be a cell size > 0, got {dx}"
+                )))
+            }
+            None => {
+                return Err(MeasureError::Experiments(
+                    "fine must set \"simulation.dx\", the finer run's cell size: fine = { \"simulation.dx\" = 0.002 }"
+                        .into(),
+                ))
+            }
         }
         if let Some(p) = self.order {
             if !(p.is_finite() && p > 0.0 && p <= 8.0) {
-                return Err(MeasureError::Experiments(format!("order must be an order of convergence in (0, 8], got {p}")));
+                return Err(MeasureError::Experiments(format!(
+                    "order must be an order of convergence in (0, 8], got {p}"
+                )));
             }
         }
         Ok(())
@@ -117,7 +128,8 @@ impl Experiment {
 impl Experiments {
     pub fn load(path: &Path) -> Result<Experiments, MeasureError> {
         let text = std::fs::read_to_string(path).map_err(io_error(path))?;
-        let mut e: Experiments = toml::from_str(&text).map_err(|e| MeasureError::Experiments(format!("{}: {}", path.display(), e.message())))?;
+        let mut e: Experiments = toml::from_str(&text)
+            .map_err(|e| MeasureError::Experiments(format!("{}: {}", path.display(), e.message())))?;
         e.base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
         e.validate().map_err(|m| m.within(path.display()))?;
         Ok(e)
@@ -135,26 +147,47 @@ impl Experiments {
             let names = match (&x.scenario, &x.protocol) {
                 (Some(_), None) => &SIMULATION_OBSERVABLES[..],
                 (None, Some(_)) => RHEOMETER_OBSERVABLES,
-                _ => return Err(MeasureError::Experiments(format!("experiment '{}': give either scenario (a simulation) or protocol (a rheometer test)", x.id))),
+                _ => {
+                    return Err(MeasureError::Experiments(format!(
+                        "experiment '{}': give either scenario (a simulation) or protocol (a rheometer test)",
+                        x.id
+                    )))
+                }
             };
             for o in &x.observe {
-                let ob = Observable::parse(o).map_err(|e| MeasureError::Experiments(format!("experiment '{}': observe {e}", x.id)))?;
+                let ob = Observable::parse(o)
+                    .map_err(|e| MeasureError::Experiments(format!("experiment '{}': observe {e}", x.id)))?;
                 if !names.contains(&ob.name.as_str()) {
-                    return Err(MeasureError::Experiments(format!("experiment '{}': cannot observe '{}'; it can observe {}", x.id, ob.name, names.join(", "))));
+                    return Err(MeasureError::Experiments(format!(
+                        "experiment '{}': cannot observe '{}'; it can observe {}",
+                        x.id,
+                        ob.name,
+                        names.join(", ")
+                    )));
                 }
-                observables::check_coordinates(&ob, x.scenario.is_some()).map_err(|e| MeasureError::Experiments(format!("experiment '{}': observe {e}", x.id)))?;
+                observables::check_coordinates(&ob, x.scenario.is_some())
+                    .map_err(|e| MeasureError::Experiments(format!("experiment '{}': observe {e}", x.id)))?;
             }
             for (what, v) in [("rest_time", x.rest_time), ("age", x.age)] {
                 if !(v.is_finite() && v >= 0.0) {
-                    return Err(MeasureError::Experiments(format!("experiment '{}': {what} must be >= 0 seconds, got {v}", x.id)));
+                    return Err(MeasureError::Experiments(format!(
+                        "experiment '{}': {what} must be >= 0 seconds, got {v}",
+                        x.id
+                    )));
                 }
             }
             for (name, v) in &x.covariates {
                 if ["rest_time", "age"].contains(&name.as_str()) {
-                    return Err(MeasureError::Experiments(format!("experiment '{}': covariates.{name}: give {name} as its own key ({name} = ...)", x.id)));
+                    return Err(MeasureError::Experiments(format!(
+                        "experiment '{}': covariates.{name}: give {name} as its own key ({name} = ...)",
+                        x.id
+                    )));
                 }
                 if !v.is_finite() {
-                    return Err(MeasureError::Experiments(format!("experiment '{}': covariates.{name} must be a finite number, got {v}", x.id)));
+                    return Err(MeasureError::Experiments(format!(
+                        "experiment '{}': covariates.{name} must be a finite number, got {v}",
+                        x.id
+                    )));
                 }
             }
             for (k, v) in &x.set {
@@ -181,19 +214,30 @@ mod tests {
             let e: Experiments = toml::from_str(t).map_err(|e| e.to_string())?;
             e.validate().map(|_| e).map_err(|e| e.to_string())
         };
-        let ok = parse("[[experiment]]\nid = \"a\"\nscenario = \"s.toml\"\nobserve = [\"spread\", \"width@0.02\"]\nset = { \"material.yield_stress\" = 300.0 }\n").unwrap();
+        let ok = parse("[[experiment]]\nid = \"a\"\nscenario = \"s.toml\"\nobserve = [\"spread\", \"width@0.02\"]\nset \
+            = { \"material.yield_stress\" = 300.0 }\n").unwrap();
         assert_eq!(ok.experiment[0].observe.len(), 2);
         let e = parse("[[experiment]]\nid = \"a\"\nscenario = \"s.toml\"\nobserve = [\"stress@10\"]\n").unwrap_err();
         assert!(e.contains("cannot observe 'stress'"), "{e}");
         let e = parse("[[experiment]]\nid = \"a\"\nscenario = \"s.toml\"\nprotocol = \"p.toml\"\n").unwrap_err();
         assert!(e.contains("either scenario"), "{e}");
-        let e = parse("[[experiment]]\nid = \"a\"\nscenario = \"s.toml\"\n[[experiment]]\nid = \"a\"\nscenario = \"t.toml\"\n").unwrap_err();
+        let e = parse(
+            "[[experiment]]\nid = \"a\"\nscenario = \"s.toml\"\n[[experiment]]\nid = \"a\"\nscenario = \"t.toml\"\n",
+        )
+        .unwrap_err();
         assert!(e.contains("used twice"), "{e}");
-        let e = parse("[[experiment]]\nid = \"a\"\nscenario = \"s.toml\"\nset = { \"material.kind\" = \"x\" }\n").unwrap_err();
+        let e = parse("[[experiment]]\nid = \"a\"\nscenario = \"s.toml\"\nset = { \"material.kind\" = \"x\" }\n")
+            .unwrap_err();
         assert!(e.contains("must be a number"), "{e}");
         // the printed geometry's observables and the coordinates each takes
-        let observe = |list: &str, what: &str| parse(&format!("[[experiment]]\nid = \"a\"\n{what} = \"s.toml\"\nobserve = [{list}]\n"));
-        let ok = observe("\"profile@0.075:0.01\", \"layer_height@0.075:2\", \"layer_width@0.075:1\", \"height@0.075\"", "scenario").unwrap();
+        let observe = |list: &str, what: &str| {
+            parse(&format!("[[experiment]]\nid = \"a\"\n{what} = \"s.toml\"\nobserve = [{list}]\n"))
+        };
+        let ok = observe(
+            "\"profile@0.075:0.01\", \"layer_height@0.075:2\", \"layer_width@0.075:1\", \"height@0.075\"",
+            "scenario",
+        )
+        .unwrap();
         assert_eq!(ok.experiment[0].observe.len(), 4);
         for (list, want) in [
             ("\"profile@0.075\"", "needs a station and a lateral position: profile@X:Y"),

@@ -1,8 +1,8 @@
 //! A measurement campaign: the experiments, the measurements they gave (with the discretisation
 //! error counted where `[resolution]` asks: `resolution.rs`), the estimate that counted it, and
 //! how the experiments run (the engine, jobs at a time, progress and a fit's options). One
-//! [`Campaign`] value is handed to calibration (`calibrate.rs`), diagnosis (`diagnose.rs`) and
-//! its rounds (`rounds.rs`) instead of the bundle each of them took apart.
+//! [`Campaign`] value is handed to calibration (`fit/calibrate.rs`), diagnosis (`diagnose/`) and
+//! its rounds (`diagnose/rounds.rs`) instead of the bundle each of them took apart.
 //!
 //! In: a model, experiments, data, [`FitOptions`], the discretisation estimate. Out: the engine's
 //! values, and Jacobians in named parameters, of every observation under the model, the runs
@@ -115,10 +115,17 @@ impl<'a> Campaign<'a> {
 
     /// The engine's Jacobian at a model whose values are known ([`Engine::jacobian_at`]), the
     /// runs counted into the progress.
-    pub fn jacobian_at(&self, model: &Model, names: &[String], at: (&[f64], &Differences)) -> Result<Answer, MeasureError> {
+    pub fn jacobian_at(
+        &self,
+        model: &Model,
+        names: &[String],
+        at: (&[f64], &Differences),
+    ) -> Result<Answer, MeasureError> {
         let sides = if matches!(at.1, Differences::Central) { 2 } else { 1 };
         let (opts, data, exps) = (self.opts, self.data, self.exps);
-        self.counted(runs(data, sides * names.len()), || opts.engine.jacobian_at(opts.jobs, model, data, exps, names, at))
+        self.counted(runs(data, sides * names.len()), || {
+            opts.engine.jacobian_at(opts.jobs, model, data, exps, names, at)
+        })
     }
 
     fn counted<T>(&self, runs: u64, evaluate: impl FnOnce() -> T) -> T {
@@ -157,7 +164,17 @@ pub fn expected_runs(data: &[Observation], names: &[String]) -> u64 {
 
 impl Default for FitOptions {
     fn default() -> FitOptions {
-        FitOptions { max_iterations: 30, tolerance: 1e-5, jobs: 1, engine: Engine::Local, log: false, progress: Progress::default(), secant: true, uncertainties: true, stop_on_secant: false }
+        FitOptions {
+            max_iterations: 30,
+            tolerance: 1e-5,
+            jobs: 1,
+            engine: Engine::Local,
+            log: false,
+            progress: Progress::default(),
+            secant: true,
+            uncertainties: true,
+            stop_on_secant: false,
+        }
     }
 }
 

@@ -26,13 +26,19 @@ pub struct Planned {
 /// Plan every simulation the experiments `ids` (of `exps`, under `model`) will run: the
 /// experiment's own and, with `[resolution]`, its finer one. An error names the first that
 /// cannot be built or is over its budget, or whose finer cell is not finer.
-pub fn plan_experiments<'a>(model: &Model, exps: &Experiments, ids: impl IntoIterator<Item = &'a str>) -> Result<Planned, MeasureError> {
+pub fn plan_experiments<'a>(
+    model: &Model,
+    exps: &Experiments,
+    ids: impl IntoIterator<Item = &'a str>,
+) -> Result<Planned, MeasureError> {
     let mut planned = Planned::default();
     for id in ids {
         let Some(x) = exps.get(id) else { continue }; // an unknown id is the runner's to name
         let Some(file) = &x.scenario else { continue }; // a rheometer test allocates no pools
         let sc = scenario_of(model, exps, x).map_err(|e| e.within(format!("experiment '{id}'{}", with_set(&x.set))))?;
-        crate::solver::preflight(&sc).map_err(|e| MeasureError::Memory(format!("experiment '{id}' ({}{}): {e}", file.display(), with_set(&x.set))))?;
+        crate::solver::preflight(&sc).map_err(|e| {
+            MeasureError::Memory(format!("experiment '{id}' ({}{}): {e}", file.display(), with_set(&x.set)))
+        })?;
         if sc.print.is_some() {
             planned.prints.push(id.to_string());
         }
@@ -41,10 +47,16 @@ pub fn plan_experiments<'a>(model: &Model, exps: &Experiments, ids: impl IntoIte
             let (dx, fine_dx) = (sc.simulation.dx, fine.simulation.dx);
             if fine_dx >= dx {
                 return Err(MeasureError::Resolution(format!(
-                    "experiment '{id}': [resolution] fine.\"simulation.dx\" = {fine_dx} is not finer than the cell size the model runs it at, {dx}"
+                    "experiment '{id}': [resolution] fine.\"simulation.dx\" = {fine_dx} is not finer than the cell \
+                        size the model runs it at, {dx}"
                 )));
             }
-            crate::solver::preflight(&fine).map_err(|e| MeasureError::Memory(format!("experiment '{id}', its finer run of [resolution] fine = {}: {e}", show(&table.fine))))?;
+            crate::solver::preflight(&fine).map_err(|e| {
+                MeasureError::Memory(format!(
+                    "experiment '{id}', its finer run of [resolution] fine = {}: {e}",
+                    show(&table.fine)
+                ))
+            })?;
         }
     }
     Ok(planned)
@@ -60,7 +72,12 @@ fn scenario_of(model: &Model, exps: &Experiments, x: &Experiment) -> Result<Scen
 /// Experiment `x`'s finer run of `[resolution]`. When it cannot be built though `x` can, the
 /// error names the `fine` key at fault (tried one at a time) rather than a line of the scenario
 /// text the keys were set into, which the user never wrote.
-fn fine_scenario(model: &Model, exps: &Experiments, x: &Experiment, table: &ResolutionTable) -> Result<Scenario, MeasureError> {
+fn fine_scenario(
+    model: &Model,
+    exps: &Experiments,
+    x: &Experiment,
+    table: &ResolutionTable,
+) -> Result<Scenario, MeasureError> {
     let with = |keys: &mut dyn Iterator<Item = (&String, &toml::Value)>| {
         let mut f = x.clone();
         for (k, v) in keys {
@@ -77,7 +94,10 @@ fn fine_scenario(model: &Model, exps: &Experiments, x: &Experiment, table: &Reso
         // the error's last line says what is wrong; the lines above quote the generated text
         let text = e.to_string();
         let why = text.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("").trim().to_string();
-        MeasureError::Resolution(format!("experiment '{}': [resolution] {key}: the finer run's scenario cannot be built: {why}", x.id))
+        MeasureError::Resolution(format!(
+            "experiment '{}': [resolution] {key}: the finer run's scenario cannot be built: {why}",
+            x.id
+        ))
     })
 }
 

@@ -79,9 +79,14 @@ impl Progress {
     pub fn bars() -> Progress {
         let sink = if std::io::stderr().is_terminal() {
             let multi = indicatif::MultiProgress::with_draw_target(indicatif::ProgressDrawTarget::stderr());
-            let style = |t: &str| indicatif::ProgressStyle::with_template(t).unwrap_or_else(|_| indicatif::ProgressStyle::default_bar());
+            let style = |t: &str| {
+                indicatif::ProgressStyle::with_template(t).unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+            };
             let overall = multi.add(indicatif::ProgressBar::new(1).with_style(style("{prefix:>28} [{bar:30}] {msg}")));
-            let stage = multi.add(indicatif::ProgressBar::new(0).with_style(style("{prefix:>28} [{bar:30}] {pos}/{len} runs  {elapsed}  {msg}")));
+            let stage = multi.add(
+                indicatif::ProgressBar::new(0)
+                    .with_style(style("{prefix:>28} [{bar:30}] {pos}/{len} runs  {elapsed}  {msg}")),
+            );
             for b in [&overall, &stage] {
                 b.enable_steady_tick(Duration::from_secs(1));
             }
@@ -103,7 +108,9 @@ impl Progress {
         let now = Instant::now();
         let stage = Stage { name: String::new(), done: 0, total: 0, began: now };
         let shown = (String::new(), 0, 0, 0, 0);
-        Progress { meter: Some(Arc::new(Mutex::new(Meter { sink, shown, began: now, stages: 0, stages_done: 0, stage }))) }
+        Progress {
+            meter: Some(Arc::new(Mutex::new(Meter { sink, shown, began: now, stages: 0, stages_done: 0, stage }))),
+        }
     }
 
     fn update(&self, f: impl FnOnce(&mut Meter)) {
@@ -179,7 +186,8 @@ impl Meter {
         let s = &self.stage;
         let elapsed = s.began.elapsed().as_secs_f64();
         let fraction = if s.total == 0 { 0.0 } else { s.done as f64 / s.total as f64 };
-        let overall = (self.stages_done as f64 + if s.done < s.total { fraction } else { 0.0 }) / self.stages.max(1) as f64;
+        let overall =
+            (self.stages_done as f64 + if s.done < s.total { fraction } else { 0.0 }) / self.stages.max(1) as f64;
         let overall_elapsed = self.began.elapsed().as_secs_f64();
         Event {
             stage: s.name.clone(),
@@ -196,13 +204,21 @@ impl Meter {
 
     fn show(&mut self) {
         let e = self.event();
-        let eta = |s: Option<f64>| s.map_or("ETA -".to_string(), |s| format!("ETA {}", indicatif::HumanDuration(Duration::from_secs_f64(s))));
+        let eta = |s: Option<f64>| {
+            s.map_or("ETA -".to_string(), |s| format!("ETA {}", indicatif::HumanDuration(Duration::from_secs_f64(s))))
+        };
         match &mut self.sink {
             Sink::Bars { overall, stage, .. } => {
                 overall.set_length(e.stages.max(1) as u64 * 1000);
-                let at = e.stages_done as u64 * 1000 + if e.total > 0 && e.done < e.total { 1000 * e.done / e.total } else { 0 };
+                let at = e.stages_done as u64 * 1000
+                    + if e.total > 0 && e.done < e.total { 1000 * e.done / e.total } else { 0 };
                 overall.set_position(at.max(overall.position()));
-                overall.set_message(format!("stage {} of {}  {}", (e.stages_done + 1).min(e.stages), e.stages, eta(e.overall_eta_s)));
+                overall.set_message(format!(
+                    "stage {} of {}  {}",
+                    (e.stages_done + 1).min(e.stages),
+                    e.stages,
+                    eta(e.overall_eta_s)
+                ));
                 stage.set_prefix(e.stage.clone());
                 stage.set_length(e.total);
                 stage.set_position(e.done);
@@ -211,12 +227,22 @@ impl Meter {
             Sink::Lines { last } => {
                 if last.elapsed().as_secs_f64() >= LINE_EVERY && !e.stage.is_empty() {
                     *last = Instant::now();
-                    eprintln!("progress: {} {}/{} runs, {}; stage {} of {}, {} in all", e.stage, e.done, e.total, eta(e.eta_s), (e.stages_done + 1).min(e.stages), e.stages, eta(e.overall_eta_s));
+                    eprintln!(
+                        "progress: {} {}/{} runs, {}; stage {} of {}, {} in all",
+                        e.stage,
+                        e.done,
+                        e.total,
+                        eta(e.eta_s),
+                        (e.stages_done + 1).min(e.stages),
+                        e.stages,
+                        eta(e.overall_eta_s)
+                    );
                 }
             }
             Sink::Json(out) => {
                 if !e.stage.is_empty() {
-                    let _ = serde_json::to_writer(&mut *out, &e).map_err(std::io::Error::from).and_then(|_| writeln!(out));
+                    let _ =
+                        serde_json::to_writer(&mut *out, &e).map_err(std::io::Error::from).and_then(|_| writeln!(out));
                 }
             }
         }

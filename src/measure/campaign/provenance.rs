@@ -44,7 +44,12 @@ impl Provenance {
     /// The provenance of experiment `x` under `model` as the files stand now.
     pub fn of(model: &Model, exps: &Experiments, x: &Experiment) -> Provenance {
         let entry = toml::to_string(x).unwrap_or_else(|e| format!("error: {e}"));
-        Provenance { format: format(), model: hash(&model.to_toml()), scenario: hash(&resolved(model, exps, x)), experiment: hash(&entry) }
+        Provenance {
+            format: format(),
+            model: hash(&model.to_toml()),
+            scenario: hash(&resolved(model, exps, x)),
+            experiment: hash(&entry),
+        }
     }
 
     /// `saved` (read from `file`) must be this provenance: the error names experiment `id` and
@@ -54,7 +59,11 @@ impl Provenance {
         if saved.format != self.format {
             differ.push(format!("another binary ({}; this is {})", saved.format, self.format));
         }
-        for (what, a, b) in [("model", &saved.model, &self.model), ("scenario", &saved.scenario, &self.scenario), ("experiments entry", &saved.experiment, &self.experiment)] {
+        for (what, a, b) in [
+            ("model", &saved.model, &self.model),
+            ("scenario", &saved.scenario, &self.scenario),
+            ("experiments entry", &saved.experiment, &self.experiment),
+        ] {
             if a != b {
                 differ.push(format!("another {what} (hash {}, now {})", &a[..a.len().min(12)], &b[..b.len().min(12)]));
             }
@@ -62,7 +71,11 @@ impl Provenance {
         if differ.is_empty() {
             return Ok(());
         }
-        Err(MeasureError::Provenance(format!("experiment '{id}': {} comes from {}; refusing it", file.display(), differ.join(" and "))))
+        Err(MeasureError::Provenance(format!(
+            "experiment '{id}': {} comes from {}; refusing it",
+            file.display(),
+            differ.join(" and ")
+        )))
     }
 }
 
@@ -166,7 +179,8 @@ mod tests {
 
     #[test]
     fn saved_numbers_read_back_to_the_same_bits() {
-        let v = [0.1 + 0.2, -0.0, 5e-324, f64::MAX, 1.0 / 3.0, 2.5e-17, -7.0, f64::INFINITY, f64::NEG_INFINITY, f64::NAN];
+        let v =
+            [0.1 + 0.2, -0.0, 5e-324, f64::MAX, 1.0 / 3.0, 2.5e-17, -7.0, f64::INFINITY, f64::NEG_INFINITY, f64::NAN];
         let text = serde_json::to_string(&exact(&v)).unwrap();
         let back: Vec<Exact> = serde_json::from_str(&text).unwrap();
         for (a, b) in v.iter().zip(plain(&back)) {
@@ -175,16 +189,21 @@ mod tests {
         assert!(serde_json::from_str::<Vec<Exact>>("[\"many\"]").is_err());
     }
 
-    const MODEL: &str = "[material]\nkind = \"bingham\"\ndensity = 2100.0\nbulk_modulus = 1e6\nviscosity = 7.5\nyield_stress = 630.0\n";
+    const MODEL: &str =
+        "[material]\nkind = \"bingham\"\ndensity = 2100.0\nbulk_modulus = 1e6\nviscosity = 7.5\nyield_stress = 630.0\n";
 
     #[test]
     fn a_changed_model_scenario_gcode_or_entry_changes_the_provenance_and_is_named() {
         let dir = tempfile::tempdir().unwrap();
         let d = dir.path();
-        let scenario = "name = \"p\"\n[simulation]\ndx = 0.01\nend_time = 0.1\n[domain]\nmin = [0.0, 0.0, 0.0]\nmax = [0.1, 0.1, 0.1]\n[material]\nkind = \"newtonian\"\ndensity = 1000.0\nbulk_modulus = 1e5\nviscosity = 1.0\n[print]\ngcode = \"path.gcode\"\n";
+        let scenario = "name = \"p\"\n[simulation]\ndx = 0.01\nend_time = 0.1\n[domain]\nmin = [0.0, 0.0, 0.0]\nmax = \
+            [0.1, 0.1, 0.1]\n[material]\nkind = \"newtonian\"\ndensity = 1000.0\nbulk_modulus = 1e5\nviscosity = 1.0\n\
+            [print]\ngcode = \"path.gcode\"\n";
         std::fs::write(d.join("s.toml"), scenario).unwrap();
         std::fs::write(d.join("path.gcode"), "G1 X10 Y0 E1\n").unwrap();
-        let exps_text = "[[experiment]]\nid = \"P\"\nscenario = \"s.toml\"\nobserve = [\"width@0.05\"]\n[[experiment]]\nid = \"R\"\nprotocol = { phase = [{ kind = \"shear\", rate = 5.0, duration = 0.5 }] }\nobserve = [\"stress@5\"]\n";
+        let exps_text = "[[experiment]]\nid = \"P\"\nscenario = \"s.toml\"\nobserve = [\"width@0.05\"]\n\
+            [[experiment]]\nid = \"R\"\nprotocol = { phase = [{ kind = \"shear\", rate = 5.0, duration = 0.5 }] }\n\
+            observe = [\"stress@5\"]\n";
         std::fs::write(d.join("e.toml"), exps_text).unwrap();
         let exps = Experiments::load(&d.join("e.toml")).unwrap();
         let model = Model::from_table(&MODEL.parse().unwrap()).unwrap();
@@ -199,7 +218,13 @@ mod tests {
         other.set("material.viscosity", 7.500000000000001).unwrap();
         let e = base.check(&p(&other, &exps, "P"), "P", file).unwrap_err().to_string();
         // the model reaches a simulation's scenario too (its [material] is the model's)
-        assert!(e.contains("experiment 'P'") && e.contains("another model") && e.contains("another scenario") && !e.contains("entry"), "{e}");
+        assert!(
+            e.contains("experiment 'P'")
+                && e.contains("another model")
+                && e.contains("another scenario")
+                && !e.contains("entry"),
+            "{e}"
+        );
 
         std::fs::write(d.join("path.gcode"), "G1 X12 Y0 E1\n").unwrap();
         let e = p(&model, &exps, "P").check(&base, "P", file).unwrap_err().to_string();
@@ -218,7 +243,10 @@ mod tests {
         std::fs::write(d.join("e.toml"), exps_text.replace("rate = 5.0", "rate = 5.5")).unwrap();
         let edited = Experiments::load(&d.join("e.toml")).unwrap();
         let e = p(&model, &edited, "R").check(&rheo, "R", file).unwrap_err().to_string();
-        assert!(e.contains("experiment 'R'") && e.contains("another scenario") && e.contains("another experiments entry"), "{e}");
+        assert!(
+            e.contains("experiment 'R'") && e.contains("another scenario") && e.contains("another experiments entry"),
+            "{e}"
+        );
 
         let mut old = base.clone();
         old.format = "strand 0.0.9, result format 0".into();

@@ -103,7 +103,13 @@ fn cell_size(model: &Model, exps: &Experiments, x: &Experiment) -> Result<f64, M
 /// Each observation's discretisation error under `model` (None for a rheometer test), from the
 /// experiments' `[resolution]` table; None without one. `values`, when given, are the model's
 /// values of `data` already computed (compare's), which spares the runs at the model's cell size.
-pub fn estimate(model: &Model, data: &[Observation], exps: &Experiments, values: Option<&[f64]>, jobs: usize) -> Result<Option<Vec<Option<Estimate>>>, MeasureError> {
+pub fn estimate(
+    model: &Model,
+    data: &[Observation],
+    exps: &Experiments,
+    values: Option<&[f64]>,
+    jobs: usize,
+) -> Result<Option<Vec<Option<Estimate>>>, MeasureError> {
     let Some(table) = &exps.resolution else { return Ok(None) };
     let p = order(table);
     let wanted = group(data);
@@ -118,7 +124,8 @@ pub fn estimate(model: &Model, data: &[Observation], exps: &Experiments, values:
         let fine_x = finer(x, table);
         let (dx, fine_dx) = (cell_size(model, exps, x)?, cell_size(model, exps, &fine_x)?);
         if fine_dx >= dx {
-            return Err(MeasureError::Resolution(format!("experiment '{id}': [resolution] fine.\"simulation.dx\" = {fine_dx} is not finer than the cell size the model runs it at, {dx}")));
+            return Err(MeasureError::Resolution(format!("experiment '{id}': [resolution] fine.\"simulation.dx\" = \
+                {fine_dx} is not finer than the cell size the model runs it at, {dx}")));
         }
         // the two runs side by side where the campaign has a spare worker, the longer first
         let runs: Vec<&Experiment> = if given.is_some() { vec![&fine_x] } else { vec![&fine_x, x] };
@@ -132,10 +139,21 @@ pub fn estimate(model: &Model, data: &[Observation], exps: &Experiments, values:
             .zip(coarse.iter().zip(&fine))
             .map(|(o, (&c, &f))| {
                 if !(c.is_finite() && f.is_finite()) {
-                    return Err(MeasureError::Resolution(format!("experiment '{id}': {o} is {c} at dx = {dx} and {f} at dx = {fine_dx}: no discretisation error can be estimated")));
+                    return Err(MeasureError::Resolution(format!("experiment '{id}': {o} is {c} at dx = {dx} and {f} at \
+                        dx = {fine_dx}: no discretisation error can be estimated")));
                 }
                 let r = richardson(c, f, dx / fine_dx, p);
-                Ok(Some(Estimate { experiment: id.clone(), observable: o.to_string(), dx, fine_dx, order: p, value: c, fine: f, extrapolated: r.extrapolated, error: r.error }))
+                Ok(Some(Estimate {
+                    experiment: id.clone(),
+                    observable: o.to_string(),
+                    dx,
+                    fine_dx,
+                    order: p,
+                    value: c,
+                    fine: f,
+                    extrapolated: r.extrapolated,
+                    error: r.error,
+                }))
             })
             .collect()
     })?;
@@ -184,7 +202,12 @@ pub struct Counted {
 /// ([`counted`]), and what was counted; `data` unchanged without `[resolution]`. The model's own
 /// runs are a fit's (fixed step, every particle awake: [`sensitivity`](super::sensitivity)), so
 /// the fit from this model takes their values as its start's.
-pub fn counted_data(model: &Model, data: Vec<Observation>, exps: &Experiments, jobs: usize) -> Result<(Vec<Observation>, Option<Counted>), MeasureError> {
+pub fn counted_data(
+    model: &Model,
+    data: Vec<Observation>,
+    exps: &Experiments,
+    jobs: usize,
+) -> Result<(Vec<Observation>, Option<Counted>), MeasureError> {
     if exps.resolution.is_none() {
         return Ok((data, None));
     }
@@ -204,7 +227,8 @@ pub fn uncounted_warning(prints: &[String], exps: &Experiments) -> Option<String
     Some(format!(
         "warning: the print experiments ({}) run without a [resolution] table, so the cell size's discretisation error \
          is not counted: a misfit it causes is read as the material's. Count it with a finer run of every experiment \
-         in the experiments file, e.g. [resolution] fine = {{ \"simulation.dx\" = <a finer cell> }} (docs/discretisation.md)",
+         in the experiments file, e.g. [resolution] fine = {{ \"simulation.dx\" = <a finer cell> }} \
+             (docs/discretisation.md)",
         prints.join(", ")
     ))
 }
@@ -227,8 +251,16 @@ pub fn report(data: &[Observation], estimates: &[Option<Estimate>], values: &[f6
     let Some(first) = estimates.iter().flatten().next() else {
         return "discretisation: no simulation experiment in the data, nothing to estimate\n".into();
     };
-    let _ = writeln!(s, "discretisation error (Richardson, order p = {}, cells {} m against {} m; estimated once, at the model given):", first.order, first.dx, first.fine_dx);
-    let _ = writeln!(s, "{:<14} {:<22} {:>13} {:>13} {:>13} {:>13} {:>13} {:>9} {:>9}", "experiment", "observable", "model at dx", "finer", "extrapolated", "discretis.", "uncertainty", "z meas.", "z");
+    let _ = writeln!(
+        s,
+        "discretisation error (Richardson, order p = {}, cells {} m against {} m; estimated once, at the model given):",
+        first.order, first.dx, first.fine_dx
+    );
+    let _ = writeln!(
+        s,
+        "{:<14} {:<22} {:>13} {:>13} {:>13} {:>13} {:>13} {:>9} {:>9}",
+        "experiment", "observable", "model at dx", "finer", "extrapolated", "discretis.", "uncertainty", "z meas.", "z"
+    );
     let (mut chi2_meas, mut chi2) = (0.0, 0.0);
     for ((o, e), v) in data.iter().zip(estimates).zip(values) {
         let residual = v - o.value;
@@ -239,15 +271,25 @@ pub fn report(data: &[Observation], estimates: &[Option<Estimate>], values: &[f6
         let label = o.observable.to_string();
         match e {
             Some(e) => {
-                let _ = writeln!(s, "{:<14} {:<22} {:>13.6e} {:>13.6e} {:>13.6e} {:>13.4e} {:>13.4e} {:>9.2} {:>9.2}", o.experiment, label, e.value, e.fine, e.extrapolated, e.error, o.uncertainty, z_meas, z);
+                let _ = writeln!(
+                    s,
+                    "{:<14} {:<22} {:>13.6e} {:>13.6e} {:>13.6e} {:>13.4e} {:>13.4e} {:>9.2} {:>9.2}",
+                    o.experiment, label, e.value, e.fine, e.extrapolated, e.error, o.uncertainty, z_meas, z
+                );
             }
             None => {
-                let _ = writeln!(s, "{:<14} {:<22} {:>13} {:>13} {:>13} {:>13} {:>13.4e} {:>9.2} {:>9.2}", o.experiment, label, "-", "-", "-", "none", o.uncertainty, z_meas, z);
+                let _ = writeln!(
+                    s,
+                    "{:<14} {:<22} {:>13} {:>13} {:>13} {:>13} {:>13.4e} {:>9.2} {:>9.2}",
+                    o.experiment, label, "-", "-", "-", "none", o.uncertainty, z_meas, z
+                );
             }
         }
     }
     let n = data.len().max(1) as f64;
-    let _ = writeln!(s, "z at the {what} model: rms {:.3} against the measurement uncertainty alone, {:.3} with the discretisation error counted (chi^2 {:.4e} -> {:.4e})\n", (chi2_meas / n).sqrt(), (chi2 / n).sqrt(), chi2_meas, chi2);
+    let _ = writeln!(s, "z at the {what} model: rms {:.3} against the measurement uncertainty alone, {:.3} with the \
+        discretisation error counted (chi^2 {:.4e} -> \
+        {:.4e})\n", (chi2_meas / n).sqrt(), (chi2 / n).sqrt(), chi2_meas, chi2);
     s
 }
 
@@ -295,8 +337,23 @@ mod tests {
 
     #[test]
     fn errors_are_added_in_quadrature_and_rheometer_rows_keep_theirs() {
-        let o = |u: f64| Observation { experiment: "a".into(), observable: Observable::parse("width@0.05").unwrap(), value: 0.03, uncertainty: u };
-        let e = Estimate { experiment: "a".into(), observable: "width@0.05".into(), dx: 2e-3, fine_dx: 1e-3, order: 1.0, value: 0.034, fine: 0.032, extrapolated: 0.030, error: 4e-4 };
+        let o = |u: f64| Observation {
+            experiment: "a".into(),
+            observable: Observable::parse("width@0.05").unwrap(),
+            value: 0.03,
+            uncertainty: u,
+        };
+        let e = Estimate {
+            experiment: "a".into(),
+            observable: "width@0.05".into(),
+            dx: 2e-3,
+            fine_dx: 1e-3,
+            order: 1.0,
+            value: 0.034,
+            fine: 0.032,
+            extrapolated: 0.030,
+            error: 4e-4,
+        };
         let data = vec![o(3e-4), o(1e-3)];
         let c = counted(&data, &[Some(e.clone()), None]);
         assert!((c[0].uncertainty - 5e-4).abs() < 1e-15, "{c:?}");

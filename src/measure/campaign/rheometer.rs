@@ -101,7 +101,13 @@ fn shear(g: f64) -> M3 {
 impl<'a> Rheometer<'a> {
     /// Check the protocol (every phase named by its index on error) and lay out its steps.
     pub fn new(material: &'a dyn Material, protocol: &Protocol) -> Result<Rheometer<'a>, MeasureError> {
-        let positive = |what: String, v: f64| if v.is_finite() && v > 0.0 { Ok(v) } else { Err(MeasureError::Rheometer(format!("{what} must be > 0, got {v}"))) };
+        let positive = |what: String, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(v)
+            } else {
+                Err(MeasureError::Rheometer(format!("{what} must be > 0, got {v}")))
+            }
+        };
         positive("rheometer.dt".into(), protocol.dt)?;
         if protocol.phase.is_empty() {
             return Err(MeasureError::Rheometer("rheometer: the protocol has no phase".into()));
@@ -115,7 +121,8 @@ impl<'a> Rheometer<'a> {
                 let n = (duration / dt).round().max(1.0);
                 if n > MAX_STEPS as f64 {
                     return Err(MeasureError::Rheometer(format!(
-                        "rheometer.phase.{i}: {duration} s at dt = {dt} s is {n:.3e} steps, more than the {MAX_STEPS} a protocol may take; raise its dt"
+                        "rheometer.phase.{i}: {duration} s at dt = {dt} s is {n:.3e} steps, more than the {MAX_STEPS} \
+                            a protocol may take; raise its dt"
                     )));
                 }
                 Ok(n as usize)
@@ -140,7 +147,10 @@ impl<'a> Rheometer<'a> {
                     positive(key("hold"), *hold)?;
                     for (k, &rate) in rates.iter().enumerate() {
                         if !rate.is_finite() {
-                            return Err(MeasureError::Rheometer(format!("{}[{k}] must be finite, got {rate}", key("rates"))));
+                            return Err(MeasureError::Rheometer(format!(
+                                "{}[{k}] must be finite, got {rate}",
+                                key("rates")
+                            )));
                         }
                         holds.push(Hold { rate, dt, steps: steps(*hold, dt)?, record: true });
                     }
@@ -149,7 +159,9 @@ impl<'a> Rheometer<'a> {
         }
         let total: usize = holds.iter().map(|h| h.steps).sum();
         if total > MAX_STEPS {
-            return Err(MeasureError::Rheometer(format!("rheometer: the protocol takes {total} steps, more than the {MAX_STEPS} it may take; raise dt")));
+            return Err(MeasureError::Rheometer(format!(
+                "rheometer: the protocol takes {total} steps, more than the {MAX_STEPS} it may take; raise dt"
+            )));
         }
         Ok(Rheometer { material, holds })
     }
@@ -171,7 +183,11 @@ impl<'a> Rheometer<'a> {
         let mut history = Vec::with_capacity(self.steps() * sl);
         let readings = self.forward(Some(&mut history));
         if weights.len() != readings.len() {
-            return Err(MeasureError::Rheometer(format!("rheometer: {} weights for {} readings", weights.len(), readings.len())));
+            return Err(MeasureError::Rheometer(format!(
+                "rheometer: {} weights for {} readings",
+                weights.len(),
+                readings.len()
+            )));
         }
         let np = self.material.param_names().len();
         let mut params_bar = vec![0.0 as Real; np];
@@ -190,8 +206,21 @@ impl<'a> Rheometer<'a> {
                 }
                 state_in_bar.fill(0.0);
                 let (mut l_bar, mut j_bar) = (M3::ZERO, 0.0 as Real);
-                let mut out = UpdateAdjoint { grad_v_bar: &mut l_bar, j_bar: &mut j_bar, state_bar: &mut state_in_bar, params_bar: &mut params_bar };
-                self.material.update_adjoint(&l, 1.0, h.dt as Real, &history[s * sl..(s + 1) * sl], &stress_bar, &state_bar, &mut out);
+                let mut out = UpdateAdjoint {
+                    grad_v_bar: &mut l_bar,
+                    j_bar: &mut j_bar,
+                    state_bar: &mut state_in_bar,
+                    params_bar: &mut params_bar,
+                };
+                self.material.update_adjoint(
+                    &l,
+                    1.0,
+                    h.dt as Real,
+                    &history[s * sl..(s + 1) * sl],
+                    &stress_bar,
+                    &state_bar,
+                    &mut out,
+                );
                 std::mem::swap(&mut state_bar, &mut state_in_bar);
             }
         }
@@ -226,7 +255,12 @@ impl<'a> Rheometer<'a> {
 /// `strand rheometer`: the `[material]` of the TOML file `model` under the `[rheometer]` protocol
 /// (its own table, or the file `protocol`); with `sensitivity`, each reading's derivative with
 /// respect to every material parameter. Returns the report (a table, or JSON).
-pub fn run_cli(model: &std::path::Path, protocol: Option<&std::path::Path>, sensitivity: bool, json: bool) -> Result<String, MeasureError> {
+pub fn run_cli(
+    model: &std::path::Path,
+    protocol: Option<&std::path::Path>,
+    sensitivity: bool,
+    json: bool,
+) -> Result<String, MeasureError> {
     use std::fmt::Write as _;
     let read = |p: &std::path::Path| -> Result<toml::Table, MeasureError> {
         let text = std::fs::read_to_string(p).map_err(io_error(p))?;
@@ -234,17 +268,26 @@ pub fn run_cli(model: &std::path::Path, protocol: Option<&std::path::Path>, sens
     };
     let table = read(model)?;
     let mat = match table.get("material") {
-        Some(toml::Value::Table(t)) => crate::materials::build_material(t).map_err(|e| MeasureError::from(e).within(model.display()))?,
+        Some(toml::Value::Table(t)) => {
+            crate::materials::build_material(t).map_err(|e| MeasureError::from(e).within(model.display()))?
+        }
         _ => return Err(MeasureError::Rheometer(format!("{}: no [material] table", model.display()))),
     };
     let (source, proto) = match protocol {
         Some(p) => (p.to_path_buf(), toml::Value::Table(read(p)?)),
         None => match table.get("rheometer") {
             Some(v) => (model.to_path_buf(), v.clone()),
-            None => return Err(MeasureError::Rheometer(format!("{}: no [rheometer] table; give one or --protocol FILE", model.display()))),
+            None => {
+                return Err(MeasureError::Rheometer(format!(
+                    "{}: no [rheometer] table; give one or --protocol FILE",
+                    model.display()
+                )))
+            }
         },
     };
-    let proto: Protocol = proto.try_into().map_err(|e: toml::de::Error| MeasureError::Rheometer(format!("{}: rheometer: {}", source.display(), e.message())))?;
+    let proto: Protocol = proto.try_into().map_err(|e: toml::de::Error| {
+        MeasureError::Rheometer(format!("{}: rheometer: {}", source.display(), e.message()))
+    })?;
     let rh = Rheometer::new(&*mat, &proto).map_err(|e| e.within(source.display()))?;
     let readings = rh.run();
     let names = mat.param_names();
@@ -263,12 +306,20 @@ pub fn run_cli(model: &std::path::Path, protocol: Option<&std::path::Path>, sens
             .map(|(k, r)| {
                 let mut o = serde_json::json!({ "time": r.time, "rate": r.rate, "stress": r.stress });
                 if sensitivity {
-                    o["d_stress"] = names.iter().zip(&sens[k]).map(|(n, v)| (n.to_string(), serde_json::json!(v))).collect::<serde_json::Map<_, _>>().into();
+                    o["d_stress"] = names
+                        .iter()
+                        .zip(&sens[k])
+                        .map(|(n, v)| (n.to_string(), serde_json::json!(v)))
+                        .collect::<serde_json::Map<_, _>>()
+                        .into();
                 }
                 o
             })
             .collect();
-        return Ok(format!("{:#}\n", serde_json::json!({ "material": mat.name(), "steps": rh.steps(), "readings": rows })));
+        return Ok(format!(
+            "{:#}\n",
+            serde_json::json!({ "material": mat.name(), "steps": rh.steps(), "readings": rows })
+        ));
     }
     let mut s = String::new();
     let _ = writeln!(s, "{} under {} constitutive steps:", mat.name(), rh.steps());
@@ -304,7 +355,8 @@ mod tests {
         toml::from_str(text).unwrap()
     }
 
-    const BINGHAM: &str = "kind = \"bingham\"\ndensity = 2100.0\nbulk_modulus = 1e6\nviscosity = 7.5\nyield_stress = 630.0\n";
+    const BINGHAM: &str =
+        "kind = \"bingham\"\ndensity = 2100.0\nbulk_modulus = 1e6\nviscosity = 7.5\nyield_stress = 630.0\n";
 
     #[test]
     fn a_bingham_flow_curve_is_tau0_plus_eta_gamma_dot() {
@@ -337,7 +389,13 @@ mod tests {
                 assert_eq!(r.len(), 6);
                 for x in &r {
                     let expect = 80.0 + 25.0 * x.rate.powf(n);
-                    assert!((x.stress / expect - 1.0).abs() < 1e-3, "{} n = {n}, rate {}: {} vs {expect}", m.name(), x.rate, x.stress);
+                    assert!(
+                        (x.stress / expect - 1.0).abs() < 1e-3,
+                        "{} n = {n}, rate {}: {} vs {expect}",
+                        m.name(),
+                        x.rate,
+                        x.stress
+                    );
                 }
             }
         }
@@ -345,10 +403,12 @@ mod tests {
 
     #[test]
     fn thixotropic_build_up_raises_the_stress_after_rest() {
-        let evp = "kind = \"evp_bingham\"\ndensity = 2400.0\nbulk_modulus = 1e6\nshear_modulus = 1e5\nviscosity = 19.5\nyield_stress = 92.0\na_thix = 0.39\nalpha = 0.15\n";
+        let evp = "kind = \"evp_bingham\"\ndensity = 2400.0\nbulk_modulus = 1e6\nshear_modulus = 1e5\nviscosity = \
+            19.5\nyield_stress = 92.0\na_thix = 0.39\nalpha = 0.15\n";
         let m = material(evp);
         let after = |rest: f64| {
-            let p = protocol(&format!("[[phase]]\nkind = \"rest\"\nduration = {rest}\ndt = 0.01\n[[phase]]\nkind = \"shear\"\nrate = 1.0\nduration = 0.05\n"));
+            let p = protocol(&format!("[[phase]]\nkind = \"rest\"\nduration = {rest}\ndt = 0.01\n[[phase]]\nkind = \
+                \"shear\"\nrate = 1.0\nduration = 0.05\n"));
             Rheometer::new(&*m, &p).unwrap().run()[0].stress
         };
         let (t0, t240) = (after(0.01), after(240.0));
@@ -357,19 +417,26 @@ mod tests {
 
     #[test]
     fn a_maxwell_branch_adds_eta_m_gamma_dot_to_the_flow_curve() {
-        let evp = "kind = \"evp_bingham\"\ndensity = 2400.0\nbulk_modulus = 1e6\nshear_modulus = 1e5\nviscosity = 19.5\nyield_stress = 92.0\n";
+        let evp = "kind = \"evp_bingham\"\ndensity = 2400.0\nbulk_modulus = 1e6\nshear_modulus = 1e5\nviscosity = \
+            19.5\nyield_stress = 92.0\n";
         // eta_M = G_M t_M = 10 Pa s; each hold lasts 10 t_M, so the branch is at its steady state
         let (g_m, t_m) = (200.0, 0.05);
         let p = protocol("[[phase]]\nkind = \"sweep\"\nrates = [4.0, 1.0, 0.25]\nhold = 0.5\n");
         let without = Rheometer::new(&*material(evp), &p).unwrap().run();
-        let with = Rheometer::new(&*material(&format!("{evp}maxwell_modulus = {g_m}\nmaxwell_time = {t_m}\n")), &p).unwrap().run();
+        let with = Rheometer::new(&*material(&format!("{evp}maxwell_modulus = {g_m}\nmaxwell_time = {t_m}\n")), &p)
+            .unwrap()
+            .run();
         for (a, b) in without.iter().zip(&with) {
             // the Jaumann Maxwell model's steady shear stress, eta_M gamma_dot / (1 + Wi^2) with
             // the Weissenberg number Wi = t_M gamma_dot (0.2 at the fastest rate)
             let wi = t_m * a.rate;
             let expect = g_m * t_m * a.rate / (1.0 + wi * wi);
             let added = b.stress - a.stress;
-            assert!((added / expect - 1.0).abs() < 1e-3, "rate {}: the branch adds {added} Pa, expected {expect}", a.rate);
+            assert!(
+                (added / expect - 1.0).abs() < 1e-3,
+                "rate {}: the branch adds {added} Pa, expected {expect}",
+                a.rate
+            );
         }
     }
 
@@ -378,7 +445,8 @@ mod tests {
         let m = material(BINGHAM);
         let e = |text: &str| Rheometer::new(&*m, &protocol(text)).err().unwrap().to_string();
         assert!(e("[[phase]]\nkind = \"rest\"\nduration = -1.0\n").contains("rheometer.phase.0.duration"));
-        assert!(e("[[phase]]\nkind = \"rest\"\nduration = 1.0\n[[phase]]\nkind = \"sweep\"\nrates = []\nhold = 1.0\n").contains("rheometer.phase.1.rates"));
+        assert!(e("[[phase]]\nkind = \"rest\"\nduration = 1.0\n[[phase]]\nkind = \"sweep\"\nrates = []\nhold = 1.0\n")
+            .contains("rheometer.phase.1.rates"));
         assert!(e("dt = 0.0\n[[phase]]\nkind = \"rest\"\nduration = 1.0\n").contains("rheometer.dt"));
         // issue 27 finding 7: a rest of 1e12 s is refused at once, not run for ever
         let long = e("[[phase]]\nkind = \"rest\"\nduration = 1e12\n");
@@ -394,20 +462,30 @@ mod tests {
     #[test]
     fn gradients_match_central_differences() {
         let p = protocol(
-            "dt = 0.002\n[[phase]]\nkind = \"rest\"\nduration = 20.0\ndt = 0.01\n[[phase]]\nkind = \"shear\"\nrate = 0.5\nduration = 0.4\n\
+            "dt = 0.002\n[[phase]]\nkind = \"rest\"\nduration = 20.0\ndt = 0.01\n[[phase]]\nkind = \"shear\"\nrate = \
+                0.5\nduration = 0.4\n\
              [[phase]]\nkind = \"sweep\"\nrates = [20.0, 5.0, 1.0]\nhold = 0.3\n",
         );
         let cases = [
-            "kind = \"evp_bingham\"\ndensity = 2400.0\nbulk_modulus = 1e6\nshear_modulus = 2e4\nviscosity = 19.5\nyield_stress = 92.0\na_thix = 0.39\nalpha = 0.15\nlambda0 = 0.2\n",
+            "kind = \"evp_bingham\"\ndensity = 2400.0\nbulk_modulus = 1e6\nshear_modulus = 2e4\nviscosity = 19.5\n\
+                yield_stress = 92.0\na_thix = 0.39\nalpha = 0.15\nlambda0 = 0.2\n",
             BINGHAM,
-            "kind = \"papanastasiou_roussel\"\ndensity = 2100.0\nbulk_modulus = 1e6\nviscosity = 7.5\nyield_stress = 630.0\n",
+            "kind = \"papanastasiou_roussel\"\ndensity = 2100.0\nbulk_modulus = 1e6\nviscosity = 7.5\nyield_stress = \
+                630.0\n",
             // Herschel-Bulkley, thinning and thickening
-            "kind = \"bingham\"\ndensity = 2100.0\nbulk_modulus = 1e6\nviscosity = 25.0\nyield_stress = 80.0\nflow_index = 0.6\n",
-            "kind = \"papanastasiou_roussel\"\ndensity = 2100.0\nbulk_modulus = 1e6\nviscosity = 25.0\nyield_stress = 80.0\nflow_index = 1.3\n",
-            "kind = \"evp_bingham\"\ndensity = 2400.0\nbulk_modulus = 1e6\nshear_modulus = 2e4\nviscosity = 19.5\nyield_stress = 92.0\na_thix = 0.39\nalpha = 0.15\nlambda0 = 0.2\nflow_index = 0.6\n",
+            "kind = \"bingham\"\ndensity = 2100.0\nbulk_modulus = 1e6\nviscosity = 25.0\nyield_stress = 80.0\n\
+                flow_index = 0.6\n",
+            "kind = \"papanastasiou_roussel\"\ndensity = 2100.0\nbulk_modulus = 1e6\nviscosity = 25.0\nyield_stress = \
+                80.0\nflow_index = 1.3\n",
+            "kind = \"evp_bingham\"\ndensity = 2400.0\nbulk_modulus = 1e6\nshear_modulus = 2e4\nviscosity = 19.5\n\
+                yield_stress = 92.0\na_thix = 0.39\nalpha = 0.15\nlambda0 = 0.2\nflow_index = 0.6\n",
             // with the Maxwell branch, and at its null (G_M = 0, where d/d t_M is 0)
-            "kind = \"evp_bingham\"\ndensity = 2400.0\nbulk_modulus = 1e6\nshear_modulus = 2e4\nviscosity = 19.5\nyield_stress = 92.0\na_thix = 0.39\nalpha = 0.15\nlambda0 = 0.2\nmaxwell_modulus = 300.0\nmaxwell_time = 0.2\n",
-            "kind = \"evp_bingham\"\ndensity = 2400.0\nbulk_modulus = 1e6\nshear_modulus = 2e4\nviscosity = 19.5\nyield_stress = 92.0\na_thix = 0.39\nalpha = 0.15\nlambda0 = 0.2\nmaxwell_modulus = 0.0\nmaxwell_time = 1.0\n",
+            "kind = \"evp_bingham\"\ndensity = 2400.0\nbulk_modulus = 1e6\nshear_modulus = 2e4\nviscosity = 19.5\n\
+                yield_stress = 92.0\na_thix = 0.39\nalpha = 0.15\nlambda0 = 0.2\nmaxwell_modulus = 300.0\nmaxwell_time \
+                = 0.2\n",
+            "kind = \"evp_bingham\"\ndensity = 2400.0\nbulk_modulus = 1e6\nshear_modulus = 2e4\nviscosity = 19.5\n\
+                yield_stress = 92.0\na_thix = 0.39\nalpha = 0.15\nlambda0 = 0.2\nmaxwell_modulus = 0.0\nmaxwell_time = \
+                1.0\n",
         ];
         for text in cases {
             let table: toml::Table = text.parse().unwrap();
@@ -435,7 +513,12 @@ mod tests {
                     (4.0 * loss(&at(v + h)) - 3.0 * loss(&table) - loss(&at(v + 2.0 * h))) / (2.0 * h)
                 };
                 let scale = cd.abs().max(grad[k].abs()).max(1e-8);
-                assert!((grad[k] - cd).abs() <= 1e-5 * scale, "{}: {name}: adjoint {}, central difference {cd}", m.name(), grad[k]);
+                assert!(
+                    (grad[k] - cd).abs() <= 1e-5 * scale,
+                    "{}: {name}: adjoint {}, central difference {cd}",
+                    m.name(),
+                    grad[k]
+                );
                 // the branch counts, at its null too (its score)
                 assert!(*name != "maxwell_modulus" || cd.abs() > 1e-2, "{name}: {cd}");
             }

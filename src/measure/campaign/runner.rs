@@ -41,7 +41,13 @@ fn number(v: &toml::Value) -> f64 {
 
 /// The model's values of `wanted` for experiment `x`; a simulation with `threads` threads (its
 /// scenario's when `None`).
-pub fn evaluate(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], threads: Option<usize>) -> Result<Vec<f64>, MeasureError> {
+pub fn evaluate(
+    model: &Model,
+    exps: &Experiments,
+    x: &Experiment,
+    wanted: &[Observable],
+    threads: Option<usize>,
+) -> Result<Vec<f64>, MeasureError> {
     let r = experiment_keys(model, x).and_then(|keys| match (&x.scenario, &x.protocol) {
         (Some(s), _) => simulate(model, &keys, &exps.base_dir.join(s), wanted, threads),
         (None, Some(p)) => {
@@ -61,7 +67,8 @@ pub fn scenario_table(model: &Model, keys: &Keys, scenario: &Path) -> Result<tom
     let mut doc: toml::Table = text.parse().map_err(toml_error(scenario))?;
     doc.insert("material".into(), toml::Value::Table(model.material_for(keys)));
     for (e, _) in &model.effects {
-        e.check_scenario(&doc).map_err(|m| MeasureError::Effect(format!("effect '{}' {m} in {}", e.name(), scenario.display())))?;
+        e.check_scenario(&doc)
+            .map_err(|m| MeasureError::Effect(format!("effect '{}' {m} in {}", e.name(), scenario.display())))?;
     }
     for (k, v) in keys {
         let at = crate::measure::effects::placed(k, &doc);
@@ -100,7 +107,13 @@ fn as_experiment(mut sc: Scenario, scenario: &Path) -> Scenario {
     sc
 }
 
-fn simulate(model: &Model, keys: &Keys, scenario: &Path, wanted: &[Observable], threads: Option<usize>) -> Result<Vec<f64>, MeasureError> {
+fn simulate(
+    model: &Model,
+    keys: &Keys,
+    scenario: &Path,
+    wanted: &[Observable],
+    threads: Option<usize>,
+) -> Result<Vec<f64>, MeasureError> {
     let mut sc = build_scenario(model, keys, scenario)?;
     if let Some(t) = threads {
         sc.simulation.threads = t;
@@ -108,7 +121,8 @@ fn simulate(model: &Model, keys: &Keys, scenario: &Path, wanted: &[Observable], 
     let end = sc.simulation.end_time;
     let mut values = vec![0.0; wanted.len()];
     // a print's failure layer and time: one run to the failure, observed as `strand run` does
-    let failing: Vec<usize> = (0..wanted.len()).filter(|&k| crate::failure::OBSERVABLES.contains(&wanted[k].name.as_str())).collect();
+    let failing: Vec<usize> =
+        (0..wanted.len()).filter(|&k| crate::failure::OBSERVABLES.contains(&wanted[k].name.as_str())).collect();
     if !failing.is_empty() {
         let (failure, layers) = crate::report::failure_of(&sc)?;
         for &k in &failing {
@@ -117,13 +131,17 @@ fn simulate(model: &Model, keys: &Keys, scenario: &Path, wanted: &[Observable], 
     }
     // the front's arrival and stop, the mass passed below a plane: histories over the whole run
     // (`front.rs`, `passing.rs`)
-    let of = |names: &[&str]| -> Vec<usize> { (0..wanted.len()).filter(|&k| names.contains(&wanted[k].name.as_str())).collect() };
+    let of = |names: &[&str]| -> Vec<usize> {
+        (0..wanted.len()).filter(|&k| names.contains(&wanted[k].name.as_str())).collect()
+    };
     let (fronts, passed) = (of(crate::measure::front::OBSERVABLES), of(crate::measure::passing::OBSERVABLES));
-    let rest: Vec<usize> = (0..wanted.len()).filter(|k| !failing.contains(k) && !fronts.contains(k) && !passed.contains(k)).collect();
+    let rest: Vec<usize> =
+        (0..wanted.len()).filter(|k| !failing.contains(k) && !fronts.contains(k) && !passed.contains(k)).collect();
     if rest.is_empty() && fronts.is_empty() && passed.is_empty() {
         return Ok(values);
     }
-    let mut plan: Vec<(usize, f64, Objective)> = rest.iter().map(|&k| observable_plan(&wanted[k], end).map(|(t, o)| (k, t, o))).collect::<Result<_, _>>()?;
+    let mut plan: Vec<(usize, f64, Objective)> =
+        rest.iter().map(|&k| observable_plan(&wanted[k], end).map(|(t, o)| (k, t, o))).collect::<Result<_, _>>()?;
     plan.sort_by(|a, b| a.1.total_cmp(&b.1));
     let mut sim = Simulation::new(&sc)?;
     // each plane recorded once, however many fractions of it are observed
@@ -176,7 +194,12 @@ fn step_to(sim: &mut Simulation, t: f64, history: &mut Histories) -> Result<(), 
 
 /// The material of a rheometer experiment (the model's, with its `material.*` keys; walls and the
 /// printing process do not reach a rheometer) and its protocol.
-pub fn rheometer_setup(model: &Model, keys: &Keys, base: &Path, protocol: &toml::Value) -> Result<(Box<dyn Material>, Protocol), MeasureError> {
+pub fn rheometer_setup(
+    model: &Model,
+    keys: &Keys,
+    base: &Path,
+    protocol: &toml::Value,
+) -> Result<(Box<dyn Material>, Protocol), MeasureError> {
     let mut mat = model.material_for(keys);
     for (k, v) in keys {
         match k.strip_prefix("material.") {
@@ -194,7 +217,10 @@ pub fn rheometer_setup(model: &Model, keys: &Keys, base: &Path, protocol: &toml:
             let text = std::fs::read_to_string(&p).map_err(io_error(&p))?;
             toml::from_str(&text).map_err(|e| MeasureError::Run(format!("{}: {}", p.display(), e.message())))?
         }
-        v => v.clone().try_into().map_err(|e: toml::de::Error| MeasureError::Run(format!("protocol: {}", e.message())))?,
+        v => v
+            .clone()
+            .try_into()
+            .map_err(|e: toml::de::Error| MeasureError::Run(format!("protocol: {}", e.message())))?,
     };
     Ok((material, proto))
 }
@@ -212,7 +238,12 @@ pub fn group(data: &[Observation]) -> Vec<(String, Vec<Observable>)> {
 }
 
 /// The model's value of every observation, in the data's order.
-pub fn model_values(model: &Model, data: &[Observation], exps: &Experiments, jobs: usize) -> Result<Vec<f64>, MeasureError> {
+pub fn model_values(
+    model: &Model,
+    data: &[Observation],
+    exps: &Experiments,
+    jobs: usize,
+) -> Result<Vec<f64>, MeasureError> {
     let wanted = group(data);
     let values = evaluate_all(model, exps, &wanted, jobs)?;
     Ok(ungroup(data, &wanted, &values))
@@ -231,7 +262,12 @@ pub fn ungroup<T: Clone>(data: &[Observation], wanted: &[(String, Vec<Observable
 }
 
 /// Evaluate each experiment's `wanted` observables, `jobs` experiments at a time.
-pub fn evaluate_all(model: &Model, exps: &Experiments, wanted: &[(String, Vec<Observable>)], jobs: usize) -> Result<Vec<Vec<f64>>, MeasureError> {
+pub fn evaluate_all(
+    model: &Model,
+    exps: &Experiments,
+    wanted: &[(String, Vec<Observable>)],
+    jobs: usize,
+) -> Result<Vec<Vec<f64>>, MeasureError> {
     let threads = job_threads(jobs, wanted.len());
     par_map_experiments(wanted, jobs, |k, _| {
         let (id, obs) = &wanted[k];
@@ -252,7 +288,12 @@ pub fn job_threads(jobs: usize, experiments: usize) -> Option<usize> {
 
 /// Experiment `id`, or an error listing the ids there are.
 pub fn find<'a>(exps: &'a Experiments, id: &str) -> Result<&'a Experiment, MeasureError> {
-    exps.get(id).ok_or_else(|| MeasureError::Run(format!("experiment '{id}' is not in the experiments file (it has {})", exps.experiment.iter().map(|e| e.id.as_str()).collect::<Vec<_>>().join(", "))))
+    exps.get(id).ok_or_else(|| {
+        MeasureError::Run(format!(
+            "experiment '{id}' is not in the experiments file (it has {})",
+            exps.experiment.iter().map(|e| e.id.as_str()).collect::<Vec<_>>().join(", ")
+        ))
+    })
 }
 
 /// `f(k)` for each of the experiments `wanted` (`f(k)` runs `wanted[k]`) as independent jobs,
@@ -262,7 +303,11 @@ pub fn find<'a>(exps: &'a Experiments, id: &str) -> Result<&'a Experiment, Measu
 /// The order is scheduling only: the results, and each job's threads, are the same in any order.
 /// A worker left without an experiment joins the runs of those still running that go through
 /// the [`Spare`] `f` is given.
-pub fn par_map_experiments<T: Send>(wanted: &[(String, Vec<Observable>)], jobs: usize, f: impl Fn(usize, &Spare) -> Result<T, MeasureError> + Sync) -> Result<Vec<T>, MeasureError> {
+pub fn par_map_experiments<T: Send>(
+    wanted: &[(String, Vec<Observable>)],
+    jobs: usize,
+    f: impl Fn(usize, &Spare) -> Result<T, MeasureError> + Sync,
+) -> Result<Vec<T>, MeasureError> {
     let last: Vec<f64> = {
         let took = LAST_SECONDS.lock().unwrap_or_else(|e| e.into_inner());
         wanted.iter().map(|(id, _)| took.get(id).copied().unwrap_or(f64::INFINITY)).collect()
@@ -280,15 +325,22 @@ pub fn par_map_experiments<T: Send>(wanted: &[(String, Vec<Observable>)], jobs: 
 }
 
 /// Seconds each experiment's last job took in this process ([`par_map_experiments`]).
-static LAST_SECONDS: std::sync::Mutex<std::collections::BTreeMap<String, f64>> = std::sync::Mutex::new(std::collections::BTreeMap::new());
+static LAST_SECONDS: std::sync::Mutex<std::collections::BTreeMap<String, f64>> =
+    std::sync::Mutex::new(std::collections::BTreeMap::new());
 
 /// `f(k)` for every k of `order` as independent jobs, handed out in that order by `workers`
 /// threads, each of which leaves its slot to `spare` when none is left; results in index order,
 /// the first error (by index) if any failed.
-fn in_order<T: Send>(order: &[usize], workers: usize, spare: &Spare, f: impl Fn(usize) -> Result<T, MeasureError> + Sync) -> Result<Vec<T>, MeasureError> {
+fn in_order<T: Send>(
+    order: &[usize],
+    workers: usize,
+    spare: &Spare,
+    f: impl Fn(usize) -> Result<T, MeasureError> + Sync,
+) -> Result<Vec<T>, MeasureError> {
     let n = order.len();
     let next = std::sync::atomic::AtomicUsize::new(0);
-    let results: Vec<std::sync::Mutex<Option<Result<T, MeasureError>>>> = (0..n).map(|_| std::sync::Mutex::new(None)).collect();
+    let results: Vec<std::sync::Mutex<Option<Result<T, MeasureError>>>> =
+        (0..n).map(|_| std::sync::Mutex::new(None)).collect();
     std::thread::scope(|s| {
         for _ in 0..workers {
             s.spawn(|| {
@@ -316,10 +368,20 @@ mod tests {
     #[test]
     fn unknown_experiments_and_readings_are_named() {
         let (m, e) = setup();
-        let data = vec![Observation { experiment: "nope".into(), observable: Observable::parse("stress@5").unwrap(), value: 1.0, uncertainty: 1.0 }];
+        let data = vec![Observation {
+            experiment: "nope".into(),
+            observable: Observable::parse("stress@5").unwrap(),
+            value: 1.0,
+            uncertainty: 1.0,
+        }];
         let err = model_values(&m, &data, &e, 1).unwrap_err().to_string();
         assert!(err.contains("'nope'") && err.contains("flow, weak"), "{err}");
-        let data = vec![Observation { experiment: "flow".into(), observable: Observable::parse("stress@7").unwrap(), value: 1.0, uncertainty: 1.0 }];
+        let data = vec![Observation {
+            experiment: "flow".into(),
+            observable: Observable::parse("stress@7").unwrap(),
+            value: 1.0,
+            uncertainty: 1.0,
+        }];
         let err = model_values(&m, &data, &e, 1).unwrap_err().to_string();
         assert!(err.contains("flow") && err.contains("no reading at rate 7"), "{err}");
     }
@@ -331,9 +393,13 @@ mod tests {
 pub(crate) mod fixture {
     use super::{Experiments, Model};
 
-    pub const MODEL: &str = "[material]\nkind = \"bingham\"\ndensity = 2100.0\nbulk_modulus = 1e6\nviscosity = 7.5\nyield_stress = 630.0\n";
-    pub const EXPS: &str = "[[experiment]]\nid = \"flow\"\nobserve = [\"stress@20\", \"stress@5\"]\n[experiment.protocol]\n[[experiment.protocol.phase]]\nkind = \"sweep\"\nrates = [20.0, 5.0]\nhold = 0.5\n\n\
-                        [[experiment]]\nid = \"weak\"\nset = { \"material.yield_stress\" = 300.0 }\nobserve = [\"stress@5\"]\n[experiment.protocol]\n[[experiment.protocol.phase]]\nkind = \"shear\"\nrate = 5.0\nduration = 0.5\n";
+    pub const MODEL: &str =
+        "[material]\nkind = \"bingham\"\ndensity = 2100.0\nbulk_modulus = 1e6\nviscosity = 7.5\nyield_stress = 630.0\n";
+    pub const EXPS: &str = "[[experiment]]\nid = \"flow\"\nobserve = [\"stress@20\", \"stress@5\"]\n\
+        [experiment.protocol]\n[[experiment.protocol.phase]]\nkind = \"sweep\"\nrates = [20.0, 5.0]\nhold = 0.5\n\n\
+                        [[experiment]]\nid = \"weak\"\nset = { \"material.yield_stress\" = 300.0 }\nobserve = \
+                            [\"stress@5\"]\n[experiment.protocol]\n[[experiment.protocol.phase]]\nkind = \"shear\"\n\
+                            rate = 5.0\nduration = 0.5\n";
 
     pub fn setup() -> (Model, Experiments) {
         let m = Model::from_table(&MODEL.parse().unwrap()).unwrap();

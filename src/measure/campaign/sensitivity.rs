@@ -24,7 +24,10 @@ use crate::measure::error::MeasureError;
 use super::experiments::{Experiment, Experiments};
 use crate::measure::observables::{observable_plan, reading_index};
 use crate::measure::observation::{Observable, Observation};
-use super::runner::{experiment_keys, find, group, job_threads, par_map_experiments, rheometer_setup, scenario_from_table, scenario_table, ungroup};
+use super::runner::{
+    experiment_keys, find, group, job_threads, par_map_experiments, rheometer_setup, scenario_from_table,
+    scenario_table, ungroup,
+};
 use super::spare::Spare;
 use crate::measure::effects::Keys;
 use crate::measure::model::{set_path, Model};
@@ -67,7 +70,13 @@ pub enum Differences {
 
 /// Values of every observation under `model`, with their gradients in `names` when given;
 /// experiments run `jobs` at a time.
-pub fn sensitivity(model: &Model, data: &[Observation], exps: &Experiments, names: Option<&[String]>, jobs: usize) -> Result<Sensitivity, MeasureError> {
+pub fn sensitivity(
+    model: &Model,
+    data: &[Observation],
+    exps: &Experiments,
+    names: Option<&[String]>,
+    jobs: usize,
+) -> Result<Sensitivity, MeasureError> {
     campaign(model, data, exps, (names, jobs), (None, &Differences::Central))
 }
 
@@ -75,11 +84,23 @@ pub fn sensitivity(model: &Model, data: &[Observation], exps: &Experiments, name
 /// as [`sensitivity`] gives them there: a calibration's accepted trial). An experiment whose
 /// Jacobian is all differences takes them instead of running the model again: one run of its
 /// 1 + 2 p (or 1 + p, [`Differences::Forward`]).
-pub fn jacobian_at(model: &Model, data: &[Observation], exps: &Experiments, (names, jobs): (&[String], usize), (values, differences): (&[f64], &Differences)) -> Result<Sensitivity, MeasureError> {
+pub fn jacobian_at(
+    model: &Model,
+    data: &[Observation],
+    exps: &Experiments,
+    (names, jobs): (&[String], usize),
+    (values, differences): (&[f64], &Differences),
+) -> Result<Sensitivity, MeasureError> {
     campaign(model, data, exps, (Some(names), jobs), (Some(values), differences))
 }
 
-fn campaign(model: &Model, data: &[Observation], exps: &Experiments, (names, jobs): (Option<&[String]>, usize), (known, differences): (Option<&[f64]>, &Differences)) -> Result<Sensitivity, MeasureError> {
+fn campaign(
+    model: &Model,
+    data: &[Observation],
+    exps: &Experiments,
+    (names, jobs): (Option<&[String]>, usize),
+    (known, differences): (Option<&[f64]>, &Differences),
+) -> Result<Sensitivity, MeasureError> {
     let wanted = group(data);
     let threads = job_threads(jobs, wanted.len());
     let known = known.map(|v| regroup(data, &wanted, v));
@@ -88,7 +109,11 @@ fn campaign(model: &Model, data: &[Observation], exps: &Experiments, (names, job
         Differences::Forward(s) => Some(regroup(data, &wanted, s)),
     };
     let per = par_map_experiments(&wanted, jobs, |k, spare| {
-        let given = Given { values: known.as_ref().map(|v| &v[k][..]), scatter: scatter.as_ref().map(|s| &s[k][..]), spare: Some(spare) };
+        let given = Given {
+            values: known.as_ref().map(|v| &v[k][..]),
+            scatter: scatter.as_ref().map(|s| &s[k][..]),
+            spare: Some(spare),
+        };
         one_given(model, exps, &wanted[k].0, &wanted[k].1, (names, threads), given)
     })?;
     Ok(assemble(data, &wanted, &per, names))
@@ -118,17 +143,36 @@ pub fn regroup(data: &[Observation], wanted: &[(String, Vec<Observable>)], value
 /// One experiment's values of `wanted` and, with `names`, their gradients (one-sided where
 /// `scatter`, its values' known scatter, is given): the unit of work [`sensitivity`] runs side
 /// by side and a scheduler's job runs alone (`engine.rs`).
-pub fn one(model: &Model, exps: &Experiments, id: &str, wanted: &[Observable], (names, threads): (Option<&[String]>, Option<usize>), scatter: Option<&[f64]>) -> Result<Vec<Valued>, MeasureError> {
+pub fn one(
+    model: &Model,
+    exps: &Experiments,
+    id: &str,
+    wanted: &[Observable],
+    (names, threads): (Option<&[String]>, Option<usize>),
+    scatter: Option<&[f64]>,
+) -> Result<Vec<Valued>, MeasureError> {
     one_given(model, exps, id, wanted, (names, threads), Given { scatter, ..Given::default() })
 }
 
-fn one_given(model: &Model, exps: &Experiments, id: &str, wanted: &[Observable], (names, threads): (Option<&[String]>, Option<usize>), given: Given) -> Result<Vec<Valued>, MeasureError> {
+fn one_given(
+    model: &Model,
+    exps: &Experiments,
+    id: &str,
+    wanted: &[Observable],
+    (names, threads): (Option<&[String]>, Option<usize>),
+    given: Given,
+) -> Result<Vec<Valued>, MeasureError> {
     let x = find(exps, id)?;
     experiment(model, exps, x, wanted, (names, threads), given).map_err(|e| e.within(format!("experiment '{id}'")))
 }
 
 /// The experiments' results ([`one`] each, in `wanted`'s order) in the data's order.
-pub fn assemble(data: &[Observation], wanted: &[(String, Vec<Observable>)], per: &[Vec<Valued>], names: Option<&[String]>) -> Sensitivity {
+pub fn assemble(
+    data: &[Observation],
+    wanted: &[(String, Vec<Observable>)],
+    per: &[Vec<Valued>],
+    names: Option<&[String]>,
+) -> Sensitivity {
     let flat = ungroup(data, wanted, per);
     Sensitivity {
         values: flat.iter().map(|v| v.value).collect(),
@@ -159,7 +203,9 @@ impl Valued {
 
 /// Whether an observable's gradient comes from an adjoint; the others are differenced.
 pub fn has_adjoint(o: &Observable) -> bool {
-    ![crate::failure::OBSERVABLES, crate::measure::front::OBSERVABLES, crate::measure::passing::OBSERVABLES].concat().contains(&o.name.as_str())
+    ![crate::failure::OBSERVABLES, crate::measure::front::OBSERVABLES, crate::measure::passing::OBSERVABLES]
+        .concat()
+        .contains(&o.name.as_str())
 }
 
 /// The relative step [`differenced`] starts from: a tenth of the parameter (its scale, the
@@ -199,7 +245,14 @@ pub fn by_differences_is_cheaper(runs: usize, observations: usize) -> bool {
 
 /// One experiment's values of `wanted` and, with `names`, their gradients; `given`: what the
 /// caller has of it ([`Given`]).
-fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], (names, threads): (Option<&[String]>, Option<usize>), given: Given) -> Result<Vec<Valued>, MeasureError> {
+fn experiment(
+    model: &Model,
+    exps: &Experiments,
+    x: &Experiment,
+    wanted: &[Observable],
+    (names, threads): (Option<&[String]>, Option<usize>),
+    given: Given,
+) -> Result<Vec<Valued>, MeasureError> {
     let (adjoint, other): (Vec<usize>, Vec<usize>) = (0..wanted.len()).partition(|&k| has_adjoint(&wanted[k]));
     if other.is_empty() {
         return simulated(model, exps, x, wanted, (names, threads), given);
@@ -207,12 +260,26 @@ fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obser
     let pick = |ks: &[usize]| ks.iter().map(|&k| wanted[k].clone()).collect::<Vec<_>>();
     let part = |v: Option<&[f64]>, ks: &[usize]| v.map(|v| ks.iter().map(|&k| v[k]).collect::<Vec<f64>>());
     let mut out: Vec<Option<Valued>> = vec![None; wanted.len()];
-    for (&k, v) in other.iter().zip(differenced(model, exps, x, &pick(&other), (names, threads), part(given.values, &other).as_deref())?) {
+    for (&k, v) in other.iter().zip(differenced(
+        model,
+        exps,
+        x,
+        &pick(&other),
+        (names, threads),
+        part(given.values, &other).as_deref(),
+    )?) {
         out[k] = Some(v);
     }
     if !adjoint.is_empty() {
         let (values, scatter) = (part(given.values, &adjoint), part(given.scatter, &adjoint));
-        for (&k, v) in adjoint.iter().zip(simulated(model, exps, x, &pick(&adjoint), (names, threads), Given { values: values.as_deref(), scatter: scatter.as_deref(), spare: given.spare })?) {
+        for (&k, v) in adjoint.iter().zip(simulated(
+            model,
+            exps,
+            x,
+            &pick(&adjoint),
+            (names, threads),
+            Given { values: values.as_deref(), scatter: scatter.as_deref(), spare: given.spare },
+        )?) {
             out[k] = Some(v);
         }
     }
@@ -226,35 +293,53 @@ fn experiment(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obser
 /// extrusion factor's adjoint gets the sign of a line's width wrong) and, for a simulation, for
 /// every parameter when that costs less than the adjoint ([`by_differences_is_cheaper`]). With
 /// the values' scatter known, each difference is one-sided ([`Differences::Forward`]).
-fn simulated(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], (names, threads): (Option<&[String]>, Option<usize>), given: Given) -> Result<Vec<Valued>, MeasureError> {
-    let (Some(names), Some(_)) = (names, &x.scenario) else { return by_adjoint(model, exps, x, wanted, (names, threads)) };
+fn simulated(
+    model: &Model,
+    exps: &Experiments,
+    x: &Experiment,
+    wanted: &[Observable],
+    (names, threads): (Option<&[String]>, Option<usize>),
+    given: Given,
+) -> Result<Vec<Valued>, MeasureError> {
+    let (Some(names), Some(_)) = (names, &x.scenario) else {
+        return by_adjoint(model, exps, x, wanted, (names, threads));
+    };
     let keys = experiment_keys(model, x)?;
-    let sides = names.iter().map(|n| smooth_step(model, n).and_then(|h| moves(model, x, &keys, n, h))).collect::<Result<Vec<_>, _>>()?;
+    let sides = names
+        .iter()
+        .map(|n| smooth_step(model, n).and_then(|h| moves(model, x, &keys, n, h)))
+        .collect::<Result<Vec<_>, _>>()?;
     let sides: Vec<Option<Sides>> = match given.scatter {
         Some(_) => sides.into_iter().map(|s| s.map(Sides::one_side)).collect(),
         None => sides,
     };
     // the toolpath's parameters are differenced either way
-    let all = by_differences_is_cheaper(sides.iter().flatten().filter(|s| !s.toolpath).map(Sides::runs).sum(), wanted.len());
+    let all =
+        by_differences_is_cheaper(sides.iter().flatten().filter(|s| !s.toolpath).map(Sides::runs).sum(), wanted.len());
     let by_differences: Vec<bool> = sides.iter().map(|s| s.as_ref().is_some_and(|s| all || s.toolpath)).collect();
     // a parameter that leaves the experiment as it is has a zero column, from neither
     let from_the_adjoint: Vec<bool> = sides.iter().zip(&by_differences).map(|(s, &d)| s.is_some() && !d).collect();
-    let adjoint: Vec<String> = names.iter().zip(&from_the_adjoint).filter(|(_, a)| **a).map(|(n, _)| n.clone()).collect();
+    let adjoint: Vec<String> =
+        names.iter().zip(&from_the_adjoint).filter(|(_, a)| **a).map(|(n, _)| n.clone()).collect();
     let at_model = match given.values {
         Some(v) if adjoint.is_empty() => v.iter().map(|&v| Valued::new(v, None)).collect(),
         _ => by_adjoint(model, exps, x, wanted, ((!adjoint.is_empty()).then_some(&adjoint[..]), threads))?,
     };
     let values: Vec<f64> = at_model.iter().map(|v| v.value).collect();
     let run = |m: &Model| Ok(by_adjoint(m, exps, x, wanted, (None, threads))?.into_iter().map(|v| v.value).collect());
-    let differenced: Vec<Option<Sides>> = sides.into_iter().zip(&by_differences).map(|(s, &d)| s.filter(|_| d)).collect();
-    let Central { columns, scatter, column_scatter } = central(&values, run, differenced, (given.scatter, given.spare))?;
+    let differenced: Vec<Option<Sides>> =
+        sides.into_iter().zip(&by_differences).map(|(s, &d)| s.filter(|_| d)).collect();
+    let Central { columns, scatter, column_scatter } =
+        central(&values, run, differenced, (given.scatter, given.spare))?;
     let mut from_adjoint = 0..adjoint.len();
-    let picks: Vec<Option<usize>> = from_the_adjoint.iter().map(|&a| if a { from_adjoint.next() } else { None }).collect();
+    let picks: Vec<Option<usize>> =
+        from_the_adjoint.iter().map(|&a| if a { from_adjoint.next() } else { None }).collect();
     Ok(at_model
         .into_iter()
         .zip(columns.into_iter().zip(column_scatter).zip(scatter))
         .map(|(v, ((fd, fd_scatter), scatter))| {
-            let row = picks.iter().zip(fd).map(|(k, d)| k.map_or(d, |k| v.gradient.as_ref().expect("asked")[k])).collect();
+            let row =
+                picks.iter().zip(fd).map(|(k, d)| k.map_or(d, |k| v.gradient.as_ref().expect("asked")[k])).collect();
             let row_scatter = picks.iter().zip(fd_scatter).map(|(k, d)| if k.is_some() { 0.0 } else { d }).collect();
             Valued { value: v.value, gradient: Some(row), scatter, gradient_scatter: Some(row_scatter) }
         })
@@ -278,7 +363,14 @@ fn simulated(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observ
 /// domain is refused). The difference is one-sided where p - h or p + h leaves the parameter's
 /// bounds (an effect at its null on its lower bound). A parameter that leaves this experiment's
 /// scenario keys as they are has a zero column without a run.
-fn differenced(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], (names, threads): (Option<&[String]>, Option<usize>), known: Option<&[f64]>) -> Result<Vec<Valued>, MeasureError> {
+fn differenced(
+    model: &Model,
+    exps: &Experiments,
+    x: &Experiment,
+    wanted: &[Observable],
+    (names, threads): (Option<&[String]>, Option<usize>),
+    known: Option<&[f64]>,
+) -> Result<Vec<Valued>, MeasureError> {
     const WIDEST: f64 = 0.4;
     const WIDEST_AT_NULL: f64 = 64.0;
     const GROWTH: f64 = 4.0;
@@ -293,7 +385,8 @@ fn differenced(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obse
     for (j, name) in names.iter().enumerate() {
         let (p, b) = (model.get(name)?, model.bounds(name)?);
         let side = |m: Option<Model>| m.map_or(Ok(values.clone()), |m| run(&m));
-        let (mut h, widest) = if p != 0.0 { (DIFFERENCE_STEP * p.abs(), WIDEST * p.abs()) } else { (b.scale, WIDEST_AT_NULL * b.scale) };
+        let (mut h, widest) =
+            if p != 0.0 { (DIFFERENCE_STEP * p.abs(), WIDEST * p.abs()) } else { (b.scale, WIDEST_AT_NULL * b.scale) };
         // each observable's smallest move so far (its stair), and whether a difference spanned two
         let mut stair = vec![f64::INFINITY; wanted.len()];
         let mut resolved = vec![false; wanted.len()];
@@ -376,9 +469,15 @@ fn moves(model: &Model, x: &Experiment, keys: &Keys, name: &str, h: f64) -> Resu
 /// knows it, is taken instead. A column's entry, a difference over a width w, scatters by
 /// s sqrt(2) / w. The sides' runs, independent of each other, share the campaign's `spare`
 /// workers.
-fn central(values: &[f64], run: impl Fn(&Model) -> Result<Vec<f64>, MeasureError> + Sync, sides: Vec<Option<Sides>>, (known, spare): (Option<&[f64]>, Option<&Spare>)) -> Result<Central, MeasureError> {
+fn central(
+    values: &[f64],
+    run: impl Fn(&Model) -> Result<Vec<f64>, MeasureError> + Sync,
+    sides: Vec<Option<Sides>>,
+    (known, spare): (Option<&[f64]>, Option<&Spare>),
+) -> Result<Central, MeasureError> {
     // every side that moves, low before high, parameter by parameter
-    let moved: Vec<&Model> = sides.iter().flatten().flat_map(|s| [s.lo.1.as_ref(), s.hi.1.as_ref()]).flatten().collect();
+    let moved: Vec<&Model> =
+        sides.iter().flatten().flat_map(|s| [s.lo.1.as_ref(), s.hi.1.as_ref()]).flatten().collect();
     let ran = match spare {
         Some(spare) => spare.map(moved.len(), |i| run(moved[i])),
         None => moved.iter().map(|m| run(m)).collect(),
@@ -414,7 +513,10 @@ fn central(values: &[f64], run: impl Fn(&Model) -> Result<Vec<f64>, MeasureError
     }
     let scatter: Vec<f64> = match known {
         Some(s) => s.to_vec(),
-        None => second.into_iter().map(|d2| if both_sides == 0 { 0.0 } else { (d2 / (6 * both_sides) as f64).sqrt() }).collect(),
+        None => second
+            .into_iter()
+            .map(|d2| if both_sides == 0 { 0.0 } else { (d2 / (6 * both_sides) as f64).sqrt() })
+            .collect(),
     };
     let column_scatter = scatter.iter().map(|s| widths.iter().map(|w| s * 2f64.sqrt() / w).collect()).collect();
     Ok(Central { columns: rows, scatter, column_scatter })
@@ -428,7 +530,13 @@ struct Central {
     column_scatter: Vec<Vec<f64>>,
 }
 
-fn by_adjoint(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Observable], (names, threads): (Option<&[String]>, Option<usize>)) -> Result<Vec<Valued>, MeasureError> {
+fn by_adjoint(
+    model: &Model,
+    exps: &Experiments,
+    x: &Experiment,
+    wanted: &[Observable],
+    (names, threads): (Option<&[String]>, Option<usize>),
+) -> Result<Vec<Valued>, MeasureError> {
     let keys = experiment_keys(model, x)?;
     // an override cuts the key from the model
     let chain = |mut keys_bar: Keys| -> Result<Vec<f64>, MeasureError> {
@@ -448,19 +556,32 @@ fn by_adjoint(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obser
             let (wrt, placed): (Vec<String>, Vec<String>) = match names {
                 Some(_) => {
                     let known = params::known(&driver::prepare(&whole, threads)?);
-                    keys.keys().filter(|k| !x.set.contains_key(*k)).map(|k| (k.clone(), crate::measure::effects::placed(k, &doc))).filter(|(_, p)| known.contains(p)).unzip()
+                    keys.keys()
+                        .filter(|k| !x.set.contains_key(*k))
+                        .map(|k| (k.clone(), crate::measure::effects::placed(k, &doc)))
+                        .filter(|(_, p)| known.contains(p))
+                        .unzip()
                 }
                 None => (Vec::new(), Vec::new()),
             };
             // the observations the whole run passes share its forward and reverse sweeps (an
             // adjoint each); the others (between two of its steps, or at t = 0) run to their time
-            let plans: Vec<(f64, Objective)> = wanted.iter().map(|o| observable_plan(o, end)).collect::<Result<_, _>>()?;
+            let plans: Vec<(f64, Objective)> =
+                wanted.iter().map(|o| observable_plan(o, end)).collect::<Result<_, _>>()?;
             let sim = driver::prepare(&whole, threads)?;
             let steps: Vec<Option<u64>> = plans.iter().map(|(t, _)| driver::step_at(&sim, *t)).collect();
             drop(sim);
             let shared: Vec<usize> = (0..plans.len()).filter(|&k| steps[k].is_some()).collect();
-            let seeds: Vec<Seeded> = shared.iter().map(|&k| Seeded { objective: plans[k].1.clone(), step: steps[k] }).collect();
-            let opts = GradOptions { ram_bytes: 2 << 30, disk_bytes: 0, disk_dir: std::env::temp_dir(), threads, schedule: None, until_rest: None };
+            let seeds: Vec<Seeded> =
+                shared.iter().map(|&k| Seeded { objective: plans[k].1.clone(), step: steps[k] }).collect();
+            let opts = GradOptions {
+                ram_bytes: 2 << 30,
+                disk_bytes: 0,
+                disk_dir: std::env::temp_dir(),
+                threads,
+                schedule: None,
+                until_rest: None,
+            };
             let mut out: Vec<Option<Valued>> = vec![None; plans.len()];
             if names.is_none() {
                 for (&k, v) in shared.iter().zip(driver::forward_values(&whole, &seeds, threads)?) {
@@ -512,8 +633,10 @@ fn by_adjoint(model: &Model, exps: &Experiments, x: &Experiment, wanted: &[Obser
 mod tests {
     use super::*;
 
-    const MODEL: &str = "[material]\nkind = \"bingham\"\ndensity = 2100.0\nbulk_modulus = 1e6\nviscosity = 7.5\nyield_stress = 630.0\n[effects.ageing]\nrate = 0.0\n";
-    const EXPS: &str = "[[experiment]]\nid = \"flow\"\nobserve = [\"stress@20\", \"stress@5\"]\n[experiment.protocol]\n[[experiment.protocol.phase]]\nkind = \"sweep\"\nrates = [20.0, 5.0]\nhold = 0.5\n";
+    const MODEL: &str = "[material]\nkind = \"bingham\"\ndensity = 2100.0\nbulk_modulus = 1e6\nviscosity = 7.5\n\
+        yield_stress = 630.0\n[effects.ageing]\nrate = 0.0\n";
+    const EXPS: &str = "[[experiment]]\nid = \"flow\"\nobserve = [\"stress@20\", \"stress@5\"]\n[experiment.protocol]\n\
+        [[experiment.protocol.phase]]\nkind = \"sweep\"\nrates = [20.0, 5.0]\nhold = 0.5\n";
 
     /// A simulation's difference steps 3 % of the parameter, or of its unit where the parameter
     /// has gone under it: the value the model was read with for a material number, the scale
@@ -562,11 +685,22 @@ mod tests {
         let rms = (c.scatter.iter().map(|x| x * x).sum::<f64>() / n as f64).sqrt();
         assert!((rms / s - 1.0).abs() < 0.05, "rms scatter {rms} against {s}");
         // the slopes scatter about theirs by s / (sqrt(2) h), as each entry's scatter says
-        let (miss, said): (f64, f64) = (0..n as usize).map(|i| ((c.columns[i][0] - (1.0 + i as f64)).powi(2), c.column_scatter[i][0].powi(2))).fold((0.0, 0.0), |(a, b), (x, y)| (a + x, b + y));
+        let (miss, said): (f64, f64) = (0..n as usize)
+            .map(|i| ((c.columns[i][0] - (1.0 + i as f64)).powi(2), c.column_scatter[i][0].powi(2)))
+            .fold((0.0, 0.0), |(a, b), (x, y)| (a + x, b + y));
         let expected = s / (2f64.sqrt() * h);
-        assert!(((miss / n as f64).sqrt() / expected - 1.0).abs() < 0.05, "slopes miss by {} rms against {expected}", (miss / n as f64).sqrt());
-        assert!(((said / n as f64).sqrt() / expected - 1.0).abs() < 0.1, "slopes said to scatter by {} rms against {expected}", (said / n as f64).sqrt());
-        let smooth = |m: &Model| -> Result<Vec<f64>, MeasureError> { Ok(vec![3.0 * m.get(name)?, m.get(name)?.powi(2)]) };
+        assert!(
+            ((miss / n as f64).sqrt() / expected - 1.0).abs() < 0.05,
+            "slopes miss by {} rms against {expected}",
+            (miss / n as f64).sqrt()
+        );
+        assert!(
+            ((said / n as f64).sqrt() / expected - 1.0).abs() < 0.1,
+            "slopes said to scatter by {} rms against {expected}",
+            (said / n as f64).sqrt()
+        );
+        let smooth =
+            |m: &Model| -> Result<Vec<f64>, MeasureError> { Ok(vec![3.0 * m.get(name)?, m.get(name)?.powi(2)]) };
         let c = central(&smooth(&m).unwrap(), smooth, sides(), (None, None)).unwrap();
         assert!(c.scatter[0] < 1e-12, "a line has no scatter: {}", c.scatter[0]);
         assert!((c.scatter[1] - 2.0 * h * h / 6f64.sqrt()).abs() < 1e-9, "a parabola's: {}", c.scatter[1]);
@@ -580,10 +714,20 @@ mod tests {
         let known = vec![s; n as usize];
         let c = central(&rough(&m).unwrap(), rough, forward, (Some(&known), None)).unwrap();
         assert_eq!(c.scatter, known);
-        let (miss, said): (f64, f64) = (0..n as usize).map(|i| ((c.columns[i][0] - (1.0 + i as f64)).powi(2), c.column_scatter[i][0].powi(2))).fold((0.0, 0.0), |(a, b), (x, y)| (a + x, b + y));
+        let (miss, said): (f64, f64) = (0..n as usize)
+            .map(|i| ((c.columns[i][0] - (1.0 + i as f64)).powi(2), c.column_scatter[i][0].powi(2)))
+            .fold((0.0, 0.0), |(a, b), (x, y)| (a + x, b + y));
         let expected = s * 2f64.sqrt() / h;
-        assert!(((miss / n as f64).sqrt() / expected - 1.0).abs() < 0.05, "forward slopes miss by {} rms against {expected}", (miss / n as f64).sqrt());
-        assert!(((said / n as f64).sqrt() / expected - 1.0).abs() < 1e-9, "forward slopes said to scatter by {} rms against {expected}", (said / n as f64).sqrt());
+        assert!(
+            ((miss / n as f64).sqrt() / expected - 1.0).abs() < 0.05,
+            "forward slopes miss by {} rms against {expected}",
+            (miss / n as f64).sqrt()
+        );
+        assert!(
+            ((said / n as f64).sqrt() / expected - 1.0).abs() < 1e-9,
+            "forward slopes said to scatter by {} rms against {expected}",
+            (said / n as f64).sqrt()
+        );
     }
 
     /// The differenced Jacobian is the adjoint's where the observable is linear in the
@@ -597,7 +741,8 @@ mod tests {
         e.validate().unwrap();
         let x = find(&e, "flow").unwrap();
         let wanted = [Observable::parse("stress@20").unwrap(), Observable::parse("stress@5").unwrap()];
-        let names: Vec<String> = ["material.yield_stress", "material.viscosity", "ageing.rate"].map(String::from).to_vec();
+        let names: Vec<String> =
+            ["material.yield_stress", "material.viscosity", "ageing.rate"].map(String::from).to_vec();
         let fd = differenced(&m, &e, x, &wanted, (Some(&names), None), None).unwrap();
         let adj = by_adjoint(&m, &e, x, &wanted, (Some(&names), None)).unwrap();
         for (f, a) in fd.iter().zip(&adj) {
@@ -618,7 +763,10 @@ mod tests {
         let adj = by_adjoint(&m, &aged, x, &wanted, (Some(&names), None)).unwrap();
         for (f, a) in fd.iter().zip(&adj) {
             let (g, ga) = (f.gradient.as_ref().unwrap(), a.gradient.as_ref().unwrap());
-            assert!((g[2] / (630.0 * 100.0) - 1.0).abs() < 1e-6 && (g[2] / ga[2] - 1.0).abs() < 1e-6, "{g:?} against the adjoint's {ga:?}");
+            assert!(
+                (g[2] / (630.0 * 100.0) - 1.0).abs() < 1e-6 && (g[2] / ga[2] - 1.0).abs() < 1e-6,
+                "{g:?} against the adjoint's {ga:?}"
+            );
         }
     }
 
@@ -630,20 +778,23 @@ mod tests {
     #[test]
     fn differences_stand_in_for_the_adjoint_on_a_print_line() {
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/measure/print");
-        let mut m = Model::from_table(&std::fs::read_to_string(dir.join("base.toml")).unwrap().parse().unwrap()).unwrap();
+        let mut m =
+            Model::from_table(&std::fs::read_to_string(dir.join("base.toml")).unwrap().parse().unwrap()).unwrap();
         m = m.with_effect(crate::measure::effects::find("extrusion_factor").unwrap());
         m.set("extrusion_factor.factor", 0.95).unwrap();
         let e = Experiments::load(&dir.join("experiments.toml")).unwrap();
         let x = find(&e, "line_V60").unwrap();
         let wanted: Vec<Observable> = x.observe.iter().map(|o| Observable::parse(o).unwrap()).collect();
-        let names: Vec<String> = ["material.yield_stress", "material.viscosity", "extrusion_factor.factor"].map(String::from).to_vec();
+        let names: Vec<String> =
+            ["material.yield_stress", "material.viscosity", "extrusion_factor.factor"].map(String::from).to_vec();
         // two material parameters; the extrusion factor's is differenced either way
         assert!(by_differences_is_cheaper(2 * 2, wanted.len()));
         let fd = experiment(&m, &e, x, &wanted, (Some(&names), Some(1)), Given::default()).unwrap();
         let adj = by_adjoint(&m, &e, x, &wanted, (Some(&names), Some(1))).unwrap();
         // the values known (a calibration's accepted trial), the same Jacobian without their run
         let values: Vec<f64> = fd.iter().map(|v| v.value).collect();
-        let known = experiment(&m, &e, x, &wanted, (Some(&names), Some(1)), Given { values: Some(&values), ..Given::default() }).unwrap();
+        let given = Given { values: Some(&values), ..Given::default() };
+        let known = experiment(&m, &e, x, &wanted, (Some(&names), Some(1)), given).unwrap();
         assert_eq!(known, fd);
         let p: Vec<f64> = names.iter().map(|n| m.get(n).unwrap()).collect();
         let mut by_name = std::collections::BTreeMap::new();
@@ -652,24 +803,36 @@ mod tests {
             assert_eq!(v, a.value, "{o:?}: the values come from the same runs");
             let (g, ga) = (f.gradient.as_ref().unwrap(), a.gradient.as_ref().unwrap());
             for j in 0..names.len() {
-                println!("{} {:?}: d / d ln {}: differences {:.4e}, adjoint {:.4e}", o.name, o.at2, names[j], g[j] * p[j], ga[j] * p[j]);
+                let (name, differences, adjoint) = (&names[j], g[j] * p[j], ga[j] * p[j]);
+                println!(
+                    "{} {:?}: d / d ln {name}: differences {differences:.4e}, adjoint {adjoint:.4e}",
+                    o.name, o.at2
+                );
             }
             by_name.insert(o.name.clone(), (v, g.clone(), ga.clone()));
         }
         let (area, g, _) = &by_name["area"];
-        println!("d ln area / d ln factor = {:.4}", g[2] * p[2] / area);
-        assert!((g[2] * p[2] / area - 1.0).abs() < 0.05, "d ln area / d ln factor = {} against mass balance's 1", g[2] * p[2] / area);
+        let ratio = g[2] * p[2] / area;
+        println!("d ln area / d ln factor = {ratio:.4}");
+        assert!((ratio - 1.0).abs() < 0.05, "d ln area / d ln factor = {ratio} against mass balance's 1");
         for o in ["width", "height"] {
             let (_, g, ga) = &by_name[o];
             let big = (0..2).map(|j| (ga[j] * p[j]).abs()).fold(0.0, f64::max);
             for j in 0..2 {
-                assert!((g[j] - ga[j]).abs() * p[j] <= 0.25 * big, "{o}: d / d {}: differences {} against the adjoint's {}", names[j], g[j], ga[j]);
+                assert!(
+                    (g[j] - ga[j]).abs() * p[j] <= 0.25 * big,
+                    "{o}: d / d {}: differences {} against the adjoint's {}",
+                    names[j],
+                    g[j],
+                    ga[j]
+                );
             }
         }
         // one-sided with the values' scatter known: p runs, not 2 p, the columns the central
         // ones to first order, the scatter the one given
         let scatter: Vec<f64> = fd.iter().map(|v| v.scatter).collect();
-        let forward = experiment(&m, &e, x, &wanted, (Some(&names), Some(1)), Given { values: Some(&values), scatter: Some(&scatter), spare: None }).unwrap();
+        let given = Given { values: Some(&values), scatter: Some(&scatter), spare: None };
+        let forward = experiment(&m, &e, x, &wanted, (Some(&names), Some(1)), given).unwrap();
         for ((o, f), (c, s)) in wanted.iter().zip(&forward).zip(fd.iter().zip(&scatter)) {
             assert_eq!((f.value, f.scatter), (c.value, *s));
             let (gf, gc) = (f.gradient.as_ref().unwrap(), c.gradient.as_ref().unwrap());
@@ -679,14 +842,32 @@ mod tests {
             let big = (0..names.len()).map(|j| (gc[j] * p[j]).abs()).fold(0.0, f64::max);
             for j in 0..names.len() {
                 let apart = 3.0 * sf[j].hypot(sc[j]);
-                println!("{} {:?}: d / d ln {}: forward {:.4e}, central {:.4e}, 3 sigma {:.4e}", o.name, o.at2, names[j], gf[j] * p[j], gc[j] * p[j], apart * p[j]);
-                assert!((gf[j] - gc[j]).abs() <= apart, "{}: d / d {}: forward {} against central {}, 3 sigma {apart}", o.name, names[j], gf[j], gc[j]);
-                assert!(o.name != "width" || (gf[j] - gc[j]).abs() * p[j] <= 0.25 * big, "width: d / d {}: forward {} against central {}", names[j], gf[j], gc[j]);
+                let (name, one_sided, central, sigma3) = (&names[j], gf[j] * p[j], gc[j] * p[j], apart * p[j]);
+                println!(
+                    "{} {:?}: d / d ln {name}: forward {one_sided:.4e}, central {central:.4e}, 3 sigma {sigma3:.4e}",
+                    o.name, o.at2
+                );
+                assert!(
+                    (gf[j] - gc[j]).abs() <= apart,
+                    "{}: d / d {}: forward {} against central {}, 3 sigma {apart}",
+                    o.name,
+                    names[j],
+                    gf[j],
+                    gc[j]
+                );
+                assert!(
+                    o.name != "width" || (gf[j] - gc[j]).abs() * p[j] <= 0.25 * big,
+                    "width: d / d {}: forward {} against central {}",
+                    names[j],
+                    gf[j],
+                    gc[j]
+                );
             }
         }
         // with more parameters than differences pay for, the material's columns come from the
         // adjoint and the toolpath's from differences
-        let more: Vec<String> = ["material.bulk_modulus"].map(String::from).into_iter().chain(names.iter().cloned()).collect();
+        let more: Vec<String> =
+            ["material.bulk_modulus"].map(String::from).into_iter().chain(names.iter().cloned()).collect();
         assert!(!by_differences_is_cheaper(2 * 3, 1));
         let hybrid = experiment(&m, &e, x, &wanted[..1], (Some(&more), Some(1)), Given::default()).unwrap();
         let adj = by_adjoint(&m, &e, x, &wanted[..1], (Some(&more[..3]), Some(1))).unwrap();

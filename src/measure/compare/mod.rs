@@ -94,7 +94,12 @@ fn summarise<'a>(rows: impl Iterator<Item = &'a Row>, key: impl Fn(&Row) -> Stri
 }
 
 /// Run every experiment the data name and compare.
-pub fn compare(model: &Model, data: &[Observation], exps: &Experiments, jobs: usize) -> Result<Comparison, MeasureError> {
+pub fn compare(
+    model: &Model,
+    data: &[Observation],
+    exps: &Experiments,
+    jobs: usize,
+) -> Result<Comparison, MeasureError> {
     Ok(comparison(data, &model_values(model, data, exps, jobs)?))
 }
 
@@ -105,7 +110,11 @@ pub fn comparison(data: &[Observation], values: &[f64]) -> Comparison {
 
 /// The comparison with each observation's discretisation error (if any) added in quadrature to
 /// its uncertainty in z.
-pub fn comparison_with_discretisation(data: &[Observation], values: &[f64], discretisation: &[Option<f64>]) -> Comparison {
+pub fn comparison_with_discretisation(
+    data: &[Observation],
+    values: &[f64],
+    discretisation: &[Option<f64>],
+) -> Comparison {
     let rows: Vec<Row> = data
         .iter()
         .zip(values)
@@ -113,7 +122,18 @@ pub fn comparison_with_discretisation(data: &[Observation], values: &[f64], disc
         .map(|((o, &model), &d)| {
             let residual = model - o.value;
             let sigma = o.uncertainty.hypot(d.unwrap_or(0.0));
-            Row { experiment: o.experiment.clone(), observable: o.observable.name.clone(), at: o.observable.at, at2: o.observable.at2, measured: o.value, uncertainty: o.uncertainty, model, residual, z: residual / sigma, discretisation: d }
+            Row {
+                experiment: o.experiment.clone(),
+                observable: o.observable.name.clone(),
+                at: o.observable.at,
+                at2: o.observable.at2,
+                measured: o.value,
+                uncertainty: o.uncertainty,
+                model,
+                residual,
+                z: residual / sigma,
+                discretisation: d,
+            }
         })
         .collect();
     let by_experiment = summarise(rows.iter(), |r| r.experiment.clone());
@@ -134,17 +154,42 @@ pub fn report(c: &Comparison) -> String {
         (true, None) => format!(" {:>13}", "-"),
     };
     let head = if counted { format!(" {:>13}", "discretis.") } else { String::new() };
-    let _ = writeln!(s, "{:<14} {:<16} {:>10} {:>13} {:>13} {:>13}{head} {:>8}", "experiment", "observable", "at", "measured", "model", "residual", "z");
+    let _ = writeln!(
+        s,
+        "{:<14} {:<16} {:>10} {:>13} {:>13} {:>13}{head} {:>8}",
+        "experiment", "observable", "at", "measured", "model", "residual", "z"
+    );
     for r in &c.rows {
-        let _ = writeln!(s, "{:<14} {:<16} {:>10} {:>13.6e} {:>13.6e} {:>13.4e}{} {:>8.2}", r.experiment, r.observable, r.at_cell(), r.measured, r.model, r.residual, cell(r), r.z);
+        let _ = writeln!(
+            s,
+            "{:<14} {:<16} {:>10} {:>13.6e} {:>13.6e} {:>13.4e}{} {:>8.2}",
+            r.experiment,
+            r.observable,
+            r.at_cell(),
+            r.measured,
+            r.model,
+            r.residual,
+            cell(r),
+            r.z
+        );
     }
     if counted {
-        let _ = writeln!(s, "(discretis.: the model's estimated discretisation error, added in quadrature to the uncertainty in z)");
+        let _ = writeln!(
+            s,
+            "(discretis.: the model's estimated discretisation error, added in quadrature to the uncertainty in z)"
+        );
     }
     for (title, list) in [("per experiment", &c.by_experiment), ("per observable", &c.by_observable)] {
         let _ = writeln!(s, "\n{title}:");
         for m in list {
-            let _ = writeln!(s, "  {:<16} n = {:<4} rms z = {:<10.3} mean |relative error| = {:.2} %", m.name, m.n, m.rms_z, 100.0 * m.mean_rel_error);
+            let _ = writeln!(
+                s,
+                "  {:<16} n = {:<4} rms z = {:<10.3} mean |relative error| = {:.2} %",
+                m.name,
+                m.n,
+                m.rms_z,
+                100.0 * m.mean_rel_error
+            );
         }
     }
     let mut worst: Vec<&Row> = c.rows.iter().collect();
@@ -152,7 +197,14 @@ pub fn report(c: &Comparison) -> String {
     let _ = writeln!(s, "\nwhere the model fails most (largest |z|):");
     for r in worst.iter().take(5) {
         let dir = if r.residual > 0.0 { "over" } else { "under" };
-        let _ = writeln!(s, "  {} {}: z = {:.2} (model {dir}-predicts by {:.2} %)", r.experiment, r.label(), r.z, 100.0 * (r.residual / r.measured).abs());
+        let _ = writeln!(
+            s,
+            "  {} {}: z = {:.2} (model {dir}-predicts by {:.2} %)",
+            r.experiment,
+            r.label(),
+            r.z,
+            100.0 * (r.residual / r.measured).abs()
+        );
     }
     let _ = writeln!(s, "\nchi^2 = {:.6e} over {} observations", c.chi2, c.rows.len());
     s
@@ -187,7 +239,12 @@ mod tests {
     fn the_report_shows_both_coordinates() {
         let data: Vec<Observation> = ["profile@0.075:0.01", "layer_height@0.075:2"]
             .iter()
-            .map(|s| Observation { experiment: "print".into(), observable: Observable::parse(s).unwrap(), value: 0.01, uncertainty: 1e-4 })
+            .map(|s| Observation {
+                experiment: "print".into(),
+                observable: Observable::parse(s).unwrap(),
+                value: 0.01,
+                uncertainty: 1e-4,
+            })
             .collect();
         let c = comparison(&data, &[0.011, 0.012]);
         assert_eq!((c.rows[0].at, c.rows[0].at2), (Some(0.075), Some(0.01)));

@@ -29,15 +29,30 @@ pub fn only(data: &[Observation], id: &str) -> Result<Vec<Observation>, MeasureE
     let mine: Vec<Observation> = data.iter().filter(|o| o.experiment == id).cloned().collect();
     if mine.is_empty() {
         let ids: Vec<String> = group(data).into_iter().map(|(i, _)| i).collect();
-        return Err(MeasureError::Jobs(format!("--only {id}: the data have no observation of it (they have {})", ids.join(", "))));
+        return Err(MeasureError::Jobs(format!(
+            "--only {id}: the data have no observation of it (they have {})",
+            ids.join(", ")
+        )));
     }
     Ok(mine)
 }
 
 /// Save experiment `id`'s `values` of `data` under `model`.
-pub fn save(path: &Path, model: &Model, exps: &Experiments, id: &str, data: &[Observation], values: &[f64]) -> Result<(), MeasureError> {
+pub fn save(
+    path: &Path,
+    model: &Model,
+    exps: &Experiments,
+    id: &str,
+    data: &[Observation],
+    values: &[f64],
+) -> Result<(), MeasureError> {
     let provenance = Provenance::of(model, exps, find(exps, id)?);
-    let s = Saved { experiment: id.to_string(), provenance, observables: data.iter().map(|o| o.observable.to_string()).collect(), values: exact(values) };
+    let s = Saved {
+        experiment: id.to_string(),
+        provenance,
+        observables: data.iter().map(|o| o.observable.to_string()).collect(),
+        values: exact(values),
+    };
     let text = serde_json::to_string_pretty(&s)?;
     std::fs::write(path, text).map_err(io_error(path))
 }
@@ -49,11 +64,19 @@ fn absolute(p: &Path) -> Result<PathBuf, MeasureError> {
 
 /// Write `DIR/jobs.txt` (one command per experiment of the data) and `DIR/slurm.sh`; returns
 /// the number of jobs.
-pub fn plan(dir: &Path, exe: &Path, model: &Path, data_path: &Path, experiments: &Path, data: &[Observation]) -> Result<usize, MeasureError> {
+pub fn plan(
+    dir: &Path,
+    exe: &Path,
+    model: &Path,
+    data_path: &Path,
+    experiments: &Path,
+    data: &[Observation],
+) -> Result<usize, MeasureError> {
     std::fs::create_dir_all(dir).map_err(|e| MeasureError::Jobs(format!("--plan {}: {e}", dir.display())))?;
     let dir = absolute(dir)?;
     let quote = |p: &Path| format!("'{}'", p.display().to_string().replace('\'', "'\\''"));
-    let (exe, model, data_path, experiments) = (absolute(exe)?, absolute(model)?, absolute(data_path)?, absolute(experiments)?);
+    let (exe, model, data_path, experiments) =
+        (absolute(exe)?, absolute(model)?, absolute(data_path)?, absolute(experiments)?);
     let ids: Vec<String> = group(data).into_iter().map(|(id, _)| id).collect();
     let mut jobs = String::new();
     for id in &ids {
@@ -72,7 +95,8 @@ pub fn plan(dir: &Path, exe: &Path, model: &Path, data_path: &Path, experiments:
     let jobs_path = dir.join("jobs.txt");
     std::fs::write(&jobs_path, jobs).map_err(io_error(&jobs_path))?;
     let slurm = format!(
-        "#!/bin/bash\n# One experiment per array task: sbatch {}\n#SBATCH --array=1-{}\n#SBATCH --cpus-per-task=1\nsed -n \"${{SLURM_ARRAY_TASK_ID}}p\" {} | bash\n",
+        "#!/bin/bash\n# One experiment per array task: sbatch {}\n#SBATCH --array=1-{}\n#SBATCH --cpus-per-task=1\nsed \
+            -n \"${{SLURM_ARRAY_TASK_ID}}p\" {} | bash\n",
         quote(&dir.join("slurm.sh")),
         ids.len(),
         quote(&jobs_path)
@@ -89,12 +113,29 @@ pub fn collect(dir: &Path, model: &Model, exps: &Experiments, data: &[Observatio
         .iter()
         .map(|(id, obs)| {
             let path = dir.join(format!("{id}.json"));
-            let text = std::fs::read_to_string(&path).map_err(|e| MeasureError::Jobs(format!("experiment '{id}' has no result in {} ({e}): run its job from jobs.txt", dir.display())))?;
-            let s: Saved = serde_json::from_str(&text).map_err(|e| MeasureError::Jobs(format!("experiment '{id}': {} is not a result of this strand ({e}): run its job from jobs.txt again", path.display())))?;
-            Provenance::of(model, exps, find(exps, id)?).check(&s.provenance, id, &path).map_err(|e| MeasureError::Jobs(format!("{e}: plan and run the jobs again under the current model and files")))?;
+            let text = std::fs::read_to_string(&path).map_err(|e| {
+                MeasureError::Jobs(format!(
+                    "experiment '{id}' has no result in {} ({e}): run its job from jobs.txt",
+                    dir.display()
+                ))
+            })?;
+            let s: Saved = serde_json::from_str(&text).map_err(|e| {
+                MeasureError::Jobs(format!(
+                    "experiment '{id}': {} is not a result of this strand ({e}): run its job from jobs.txt again",
+                    path.display()
+                ))
+            })?;
+            Provenance::of(model, exps, find(exps, id)?).check(&s.provenance, id, &path).map_err(|e| {
+                MeasureError::Jobs(format!("{e}: plan and run the jobs again under the current model and files"))
+            })?;
             let want: Vec<String> = obs.iter().map(Observable::to_string).collect();
             if s.experiment != *id || s.observables != want || s.values.len() != want.len() {
-                return Err(MeasureError::Jobs(format!("{}: it holds {} {:?}, the data ask {id} {want:?}: plan and run the jobs again", path.display(), s.experiment, s.observables)));
+                return Err(MeasureError::Jobs(format!(
+                    "{}: it holds {} {:?}, the data ask {id} {want:?}: plan and run the jobs again",
+                    path.display(),
+                    s.experiment,
+                    s.observables
+                )));
             }
             Ok(plain(&s.values))
         })

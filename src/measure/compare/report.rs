@@ -50,7 +50,8 @@ pub fn covariates(rows: &[Row], exps: &Experiments, model: &Model) -> Result<Vec
             keys.insert(&r.experiment, experiment_keys(model, x)?);
         }
     }
-    let per_experiment = |f: &dyn Fn(&crate::measure::campaign::experiments::Experiment) -> f64| -> Result<Vec<Option<f64>>, MeasureError> {
+    type Of<'a> = &'a dyn Fn(&crate::measure::campaign::experiments::Experiment) -> f64;
+    let per_experiment = |f: Of| -> Result<Vec<Option<f64>>, MeasureError> {
         rows.iter().map(|r| find(exps, &r.experiment).map(|x| Some(f(x)))).collect()
     };
     let mut out = vec![
@@ -58,17 +59,29 @@ pub fn covariates(rows: &[Row], exps: &Experiments, model: &Model) -> Result<Vec
         Covariate { name: "age".into(), axis: "age [s]".into(), values: per_experiment(&|x| x.age)? },
     ];
     // the covariates experiments declare, by name; None where one does not
-    let declared: BTreeSet<&String> = rows.iter().filter_map(|r| find(exps, &r.experiment).ok()).flat_map(|x| x.covariates.keys()).collect();
+    let declared: BTreeSet<&String> =
+        rows.iter().filter_map(|r| find(exps, &r.experiment).ok()).flat_map(|x| x.covariates.keys()).collect();
     for name in declared {
-        let values = rows.iter().map(|r| find(exps, &r.experiment).map(|x| x.covariates.get(name).copied())).collect::<Result<_, _>>()?;
+        let values = rows
+            .iter()
+            .map(|r| find(exps, &r.experiment).map(|x| x.covariates.get(name).copied()))
+            .collect::<Result<_, _>>()?;
         out.push(Covariate { name: name.clone(), axis: name.clone(), values });
     }
     for observable in observables(rows) {
         let values = rows.iter().map(|r| if r.observable == observable { r.at } else { None }).collect();
-        out.push(Covariate { name: format!("at({observable})"), axis: format!("{observable}: {}", at_meaning(observable)), values });
+        out.push(Covariate {
+            name: format!("at({observable})"),
+            axis: format!("{observable}: {}", at_meaning(observable)),
+            values,
+        });
         if rows.iter().any(|r| r.observable == observable && r.at2.is_some()) {
             let values = rows.iter().map(|r| if r.observable == observable { r.at2 } else { None }).collect();
-            out.push(Covariate { name: format!("at2({observable})"), axis: format!("{observable}: {}", at2_meaning(observable)), values });
+            out.push(Covariate {
+                name: format!("at2({observable})"),
+                axis: format!("{observable}: {}", at2_meaning(observable)),
+                values,
+            });
         }
     }
     for key in set_names {
@@ -82,7 +95,8 @@ pub fn covariates(rows: &[Row], exps: &Experiments, model: &Model) -> Result<Vec
 fn at_meaning(observable: &str) -> &'static str {
     match observable {
         "stress" => "shear rate [1/s]",
-        "width" | "height" | "smooth_width" | "smooth_height" | "level" | "profile" | "layer_height" | "layer_width" => "station x [m]",
+        "width" | "height" | "smooth_width" | "smooth_height" | "level" | "profile" | "layer_height"
+        | "layer_width" => "station x [m]",
         "spread" | "front" => "time [s]",
         _ => "at",
     }
@@ -114,7 +128,12 @@ pub fn trends(rows: &[Row], covariates: &[Covariate]) -> Vec<Trend> {
     covariates
         .iter()
         .filter_map(|c| {
-            let (x, z): (Vec<f64>, Vec<f64>) = rows.iter().zip(&c.values).filter_map(|(r, v)| v.map(|v| (v, r.z))).filter(|(x, z)| x.is_finite() && z.is_finite()).unzip();
+            let (x, z): (Vec<f64>, Vec<f64>) = rows
+                .iter()
+                .zip(&c.values)
+                .filter_map(|(r, v)| v.map(|v| (v, r.z)))
+                .filter(|(x, z)| x.is_finite() && z.is_finite())
+                .unzip();
             // Compared exactly: a mean of equal values can round, and a constant would then seem to vary.
             if !x.iter().any(|v| *v != x[0]) {
                 return None;
@@ -159,13 +178,18 @@ pub fn prepare_dir(dir: &Path) -> Result<(), MeasureError> {
     std::fs::create_dir_all(dir).map_err(|source| MeasureError::ReportFolder { dir: dir.to_path_buf(), source })
 }
 
-/// Significance of the residual shapes the report names (`residuals.rs`), for all its tests
+/// Significance of the residual shapes the report names (`diagnose/residuals.rs`), for all its tests
 /// together.
 pub const SHAPES_ALPHA: f64 = 0.01;
 
 /// Write the report into `dir` (plots, `trends.csv`, `index.html`); the trends and the residual
 /// shapes it found.
-pub fn write(dir: &Path, c: &Comparison, exps: &Experiments, model: &Model) -> Result<(Vec<Trend>, Vec<Shape>), MeasureError> {
+pub fn write(
+    dir: &Path,
+    c: &Comparison,
+    exps: &Experiments,
+    model: &Model,
+) -> Result<(Vec<Trend>, Vec<Shape>), MeasureError> {
     prepare_dir(dir)?;
     let covs = covariates(&c.rows, exps, model)?;
     let trends = trends(&c.rows, &covs);
@@ -230,7 +254,8 @@ fn plot_model_vs_data(path: &Path, rows: &[Row], observable: &str) -> Result<(),
     let by_at = rows.iter().all(|r| r.at.is_some());
     let mut groups: Vec<(String, Vec<MeasuredPoint>)> = Vec::new();
     for r in rows {
-        let id = if by_at2 { format!("{} x = {}", r.experiment, r.at.unwrap_or(f64::NAN)) } else { r.experiment.clone() };
+        let id =
+            if by_at2 { format!("{} x = {}", r.experiment, r.at.unwrap_or(f64::NAN)) } else { r.experiment.clone() };
         let k = match groups.iter().position(|(g, _)| *g == id) {
             Some(k) => k,
             None => {
@@ -262,10 +287,26 @@ fn plot_model_vs_data(path: &Path, rows: &[Row], observable: &str) -> Result<(),
 fn plot_residuals(path: &Path, rows: &[Row], cov: &Covariate) -> Result<(), MeasureError> {
     let series: Vec<(String, Vec<[f64; 2]>)> = observables(rows)
         .into_iter()
-        .map(|o| (o.to_string(), rows.iter().zip(&cov.values).filter(|(r, _)| r.observable == o).filter_map(|(r, v)| v.map(|v| [v, r.z])).collect::<Vec<_>>()))
+        .map(|o| {
+            (
+                o.to_string(),
+                rows.iter()
+                    .zip(&cov.values)
+                    .filter(|(r, _)| r.observable == o)
+                    .filter_map(|(r, v)| v.map(|v| [v, r.z]))
+                    .collect::<Vec<_>>(),
+            )
+        })
         .filter(|(_, pts)| !pts.is_empty())
         .collect();
-    Ok(plot_xy(path, &format!("z = (model - measured) / uncertainty against {}", cov.name), &cov.axis, "z", &series, false)?)
+    Ok(plot_xy(
+        path,
+        &format!("z = (model - measured) / uncertainty against {}", cov.name),
+        &cov.axis,
+        "z",
+        &series,
+        false,
+    )?)
 }
 
 fn write_trends_csv(path: &Path, trends: &[Trend]) -> Result<(), MeasureError> {
@@ -273,7 +314,14 @@ fn write_trends_csv(path: &Path, trends: &[Trend]) -> Result<(), MeasureError> {
     let mut w = csv::Writer::from_path(path).map_err(err)?;
     w.write_record(["covariate", "n", "r", "slope", "trend"]).map_err(err)?;
     for t in trends {
-        w.write_record([t.covariate.clone(), t.n.to_string(), format!("{:e}", t.r), format!("{:e}", t.slope), t.trend.to_string()]).map_err(err)?;
+        w.write_record([
+            t.covariate.clone(),
+            t.n.to_string(),
+            format!("{:e}", t.r),
+            format!("{:e}", t.slope),
+            t.trend.to_string(),
+        ])
+        .map_err(err)?;
     }
     w.flush().map_err(io_error(path))
 }
@@ -313,30 +361,64 @@ fn table(s: &mut String, header: &[&str], rows: impl IntoIterator<Item = (bool, 
 
 fn figures(s: &mut String, figs: &[Figure]) {
     for f in figs {
-        let _ = writeln!(s, "<figure><img src=\"{0}\" alt=\"{1}\"><figcaption>{1}</figcaption></figure>", escape(&f.file), escape(&f.caption));
+        let _ = writeln!(
+            s,
+            "<figure><img src=\"{0}\" alt=\"{1}\"><figcaption>{1}</figcaption></figure>",
+            escape(&f.file),
+            escape(&f.caption)
+        );
     }
 }
 
+/// The page's head, its style sheet and its title.
+const HTML_HEAD: &str = concat!(
+    "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>strand compare: model \
+        against measurements</title>\n<style>\n",
+    "body { font-family: sans-serif; margin: 2em auto; max-width: 960px; padding: 0 1em; }\n",
+    "table { border-collapse: collapse; margin: 0.5em 0 1.5em; }\nth, td { border: 1px solid #bbb; padding: \
+        0.2em 0.6em; text-align: right; }\n",
+    "th { background: #eee; }\ntd:first-child, th:first-child { text-align: left; }\ntr.flag { background: \
+        #fdd; }\n",
+    "img { max-width: 100%; }\nfigure { margin: 1em 0; }\n</style>\n</head>\n<body>\n<h1>Model against \
+        measurements</h1>\n",
+);
+
 /// The page: summaries, the worst observations, the trends and every plot, with nothing fetched
 /// from elsewhere so the folder can be mailed or archived as it is.
-fn html(c: &Comparison, trends: &[Trend], shapes: &[Shape], fits: &[Figure], residuals: &[Figure], model: &Model) -> String {
+fn html(
+    c: &Comparison,
+    trends: &[Trend],
+    shapes: &[Shape],
+    fits: &[Figure],
+    residuals: &[Figure],
+    model: &Model,
+) -> String {
     let mut s = String::new();
     let experiments = c.by_experiment.len();
-    s.push_str("<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>strand compare: model against measurements</title>\n<style>\n");
-    s.push_str("body { font-family: sans-serif; margin: 2em auto; max-width: 960px; padding: 0 1em; }\n");
-    s.push_str("table { border-collapse: collapse; margin: 0.5em 0 1.5em; }\nth, td { border: 1px solid #bbb; padding: 0.2em 0.6em; text-align: right; }\n");
-    s.push_str("th { background: #eee; }\ntd:first-child, th:first-child { text-align: left; }\ntr.flag { background: #fdd; }\n");
-    s.push_str("img { max-width: 100%; }\nfigure { margin: 1em 0; }\n</style>\n</head>\n<body>\n<h1>Model against measurements</h1>\n");
+    s.push_str(HTML_HEAD);
     let _ = writeln!(
         s,
-        "<p>Model <code>{}</code>: {} observations of {experiments} experiments, chi^2 = {:.6e}. z = (model - measured) / uncertainty.</p>",
+        "<p>Model <code>{}</code>: {} observations of {experiments} experiments, chi^2 = {:.6e}. z = (model - \
+            measured) / uncertainty.</p>",
         escape(&model.path.display().to_string()),
         c.rows.len(),
         c.chi2
     );
     let summary_header = ["name", "n", "rms z", "mean |relative error| [%]"];
     let summary = |list: &[crate::measure::compare::Summary]| -> Vec<(bool, Vec<String>)> {
-        list.iter().map(|m| (false, vec![m.name.clone(), m.n.to_string(), format!("{:.3}", m.rms_z), format!("{:.2}", 100.0 * m.mean_rel_error)])).collect()
+        list.iter()
+            .map(|m| {
+                (
+                    false,
+                    vec![
+                        m.name.clone(),
+                        m.n.to_string(),
+                        format!("{:.3}", m.rms_z),
+                        format!("{:.2}", 100.0 * m.mean_rel_error),
+                    ],
+                )
+            })
+            .collect()
     };
     s.push_str("<h2>Per experiment</h2>\n");
     table(&mut s, &summary_header, summary(&c.by_experiment));
@@ -347,18 +429,43 @@ fn html(c: &Comparison, trends: &[Trend], shapes: &[Shape], fits: &[Figure], res
     worst.sort_by(|a, b| b.z.abs().total_cmp(&a.z.abs()));
     let _ = writeln!(s, "<h2>Where the model fails most ({} largest |z|)</h2>", worst.len().min(WORST));
     let worst_rows = worst.iter().take(WORST).map(|r| {
-        (false, vec![r.experiment.clone(), r.observable.clone(), r.at_cell(), format!("{:.6e}", r.measured), format!("{:.6e}", r.model), format!("{:.4e}", r.residual), format!("{:.2}", r.z)])
+        (
+            false,
+            vec![
+                r.experiment.clone(),
+                r.observable.clone(),
+                r.at_cell(),
+                format!("{:.6e}", r.measured),
+                format!("{:.6e}", r.model),
+                format!("{:.4e}", r.residual),
+                format!("{:.2}", r.z),
+            ],
+        )
     });
     table(&mut s, &["experiment", "observable", "at", "measured", "model", "residual", "z"], worst_rows);
 
-    let _ = writeln!(s, "<h2>Trends of z with the covariates</h2>\n<p>Pearson r and least-squares slope of z against each covariate that varies across the data; |r| &gt;= {TREND_R} is flagged as a trend.</p>");
+    let _ = writeln!(s, "<h2>Trends of z with the covariates</h2>\n<p>Pearson r and least-squares slope of z against \
+        each covariate that varies across the data; |r| &gt;= {TREND_R} is flagged as a trend.</p>");
     if trends.is_empty() {
         s.push_str("<p>No covariate varies across the data.</p>\n");
     } else {
-        let rows = trends.iter().map(|t| (t.trend, vec![t.covariate.clone(), t.n.to_string(), format!("{:.3}", t.r), format!("{:.4e}", t.slope), if t.trend { "trend".into() } else { String::new() }]));
+        let rows = trends.iter().map(|t| {
+            (
+                t.trend,
+                vec![
+                    t.covariate.clone(),
+                    t.n.to_string(),
+                    format!("{:.3}", t.r),
+                    format!("{:.4e}", t.slope),
+                    if t.trend { "trend".into() } else { String::new() },
+                ],
+            )
+        });
         table(&mut s, &["covariate", "n", "r", "slope", ""], rows);
     }
-    let _ = writeln!(s, "<h2>Shape of the residuals</h2>\n<p>Trend, curvature, step between groups, or residuals moving together within an experiment, each an F-test significant at {SHAPES_ALPHA} for all the tests together.</p>");
+    let _ = writeln!(s, "<h2>Shape of the residuals</h2>\n<p>Trend, curvature, step between groups, or residuals \
+        moving together within an experiment, each an F-test significant at {SHAPES_ALPHA} for all the tests \
+        together.</p>");
     if shapes.is_empty() {
         s.push_str("<p>No trend, curvature, step or per-experiment shift is significant.</p>\n");
     } else {
@@ -387,7 +494,14 @@ mod tests {
 
     /// Rows whose z equals `z`, one per experiment `e0`, `e1`, ...
     fn rows(z: &[f64]) -> Vec<Row> {
-        let data: Vec<Observation> = (0..z.len()).map(|k| Observation { experiment: format!("e{k}"), observable: Observable { name: "stress".into(), at: Some(1.0), at2: None }, value: 100.0, uncertainty: 1.0 }).collect();
+        let data: Vec<Observation> = (0..z.len())
+            .map(|k| Observation {
+                experiment: format!("e{k}"),
+                observable: Observable { name: "stress".into(), at: Some(1.0), at2: None },
+                value: 100.0,
+                uncertainty: 1.0,
+            })
+            .collect();
         let values: Vec<f64> = z.iter().map(|z| 100.0 + z).collect();
         comparison(&data, &values).rows
     }
@@ -399,7 +513,8 @@ mod tests {
     #[test]
     fn z_linear_in_a_covariate_is_a_trend_and_a_constant_has_no_row() {
         let x = [0.0, 1.0, 2.5, 4.0, 7.0];
-        let covs = [covariate("x", &x.map(Some)), covariate("constant", &[Some(3.0); 5]), covariate("absent", &[None; 5])];
+        let covs =
+            [covariate("x", &x.map(Some)), covariate("constant", &[Some(3.0); 5]), covariate("absent", &[None; 5])];
         let t = trends(&rows(&x.map(|x| 2.0 * x)), &covs);
         assert_eq!(t.len(), 1, "{t:?}");
         assert_eq!((t[0].covariate.as_str(), t[0].n, t[0].trend), ("x", 5, true));
@@ -409,13 +524,19 @@ mod tests {
     #[test]
     fn trends_use_only_rows_with_a_value_and_weak_ones_are_not_flagged() {
         // z falls with x where x is known; the unknown rows would spoil the line if counted
-        let t = trends(&rows(&[3.0, 1.0, -1.0, 50.0, -50.0]), &[covariate("x", &[Some(0.0), Some(1.0), Some(2.0), None, None])]);
+        let t = trends(
+            &rows(&[3.0, 1.0, -1.0, 50.0, -50.0]),
+            &[covariate("x", &[Some(0.0), Some(1.0), Some(2.0), None, None])],
+        );
         assert_eq!(t[0].n, 3);
         assert!((t[0].r + 1.0).abs() < 1e-12 && (t[0].slope + 2.0).abs() < 1e-12 && t[0].trend, "{t:?}");
         // z alternating with x: r = -2 / sqrt(20) = -0.45, not flagged
         let x4 = [Some(0.0), Some(1.0), Some(2.0), Some(3.0)];
         let t = trends(&rows(&[1.0, -1.0, 1.0, -1.0]), &[covariate("x", &x4)]);
-        assert!((t[0].r + 2.0 / 20f64.sqrt()).abs() < 1e-12 && (t[0].slope + 0.4).abs() < 1e-12 && !t[0].trend, "{t:?}");
+        assert!(
+            (t[0].r + 2.0 / 20f64.sqrt()).abs() < 1e-12 && (t[0].slope + 0.4).abs() < 1e-12 && !t[0].trend,
+            "{t:?}"
+        );
         // constant z moves with nothing
         let t = trends(&rows(&[2.0; 4]), &[covariate("x", &x4)]);
         assert_eq!((t[0].r, t[0].slope, t[0].trend), (0.0, 0.0, false));
@@ -437,13 +558,19 @@ protocol = { phase = [{ kind = "sweep", rates = [5.0, 1.0], hold = 0.5 }] }
 set = { "material.density" = 2000.0 }
 "#;
 
-    const MODEL: &str = "[material]\nkind = \"evp_bingham\"\ndensity = 2300.0\nbulk_modulus = 1.0e6\npoisson_ratio = 0.3\nviscosity = 20.0\nyield_stress = 100.0\n";
+    const MODEL: &str = "[material]\nkind = \"evp_bingham\"\ndensity = 2300.0\nbulk_modulus = 1.0e6\npoisson_ratio = \
+        0.3\nviscosity = 20.0\nyield_stress = 100.0\n";
 
     fn setup() -> (Model, Experiments, Comparison) {
         let model = Model::from_table(&MODEL.parse().unwrap()).unwrap();
         let exps: Experiments = toml::from_str(EXPERIMENTS).unwrap();
         exps.validate().unwrap();
-        let obs = |e: &str, at: f64, value: f64| Observation { experiment: e.into(), observable: Observable { name: "stress".into(), at: Some(at), at2: None }, value, uncertainty: 2.0 };
+        let obs = |e: &str, at: f64, value: f64| Observation {
+            experiment: e.into(),
+            observable: Observable { name: "stress".into(), at: Some(at), at2: None },
+            value,
+            uncertainty: 2.0,
+        };
         let data = [obs("a", 5.0, 150.0), obs("a", 1.0, 118.0), obs("b", 5.0, 260.0), obs("b", 1.0, 200.0)];
         let c = comparison(&data, &[145.0, 120.0, 200.0, 120.0]);
         (model, exps, c)
@@ -467,12 +594,33 @@ set = { "material.density" = 2000.0 }
     #[test]
     fn a_second_coordinate_is_a_covariate_and_the_plot_axis() {
         let (model, exps, _) = setup();
-        let obs = |e: &str, s: &str, value: f64| Observation { experiment: e.into(), observable: Observable::parse(s).unwrap(), value, uncertainty: 1e-4 };
-        let data = [obs("a", "profile@0.075:-0.01", 0.010), obs("a", "profile@0.075:0.0", 0.012), obs("b", "profile@0.075:0.01", 0.011), obs("b", "height@0.075", 0.012)];
+        let obs = |e: &str, s: &str, value: f64| Observation {
+            experiment: e.into(),
+            observable: Observable::parse(s).unwrap(),
+            value,
+            uncertainty: 1e-4,
+        };
+        let data = [
+            obs("a", "profile@0.075:-0.01", 0.010),
+            obs("a", "profile@0.075:0.0", 0.012),
+            obs("b", "profile@0.075:0.01", 0.011),
+            obs("b", "height@0.075", 0.012),
+        ];
         let c = comparison(&data, &[0.0101, 0.0125, 0.0118, 0.0121]);
         let covs = covariates(&c.rows, &exps, &model).unwrap();
         let names: Vec<&str> = covs.iter().map(|c| c.name.as_str()).collect();
-        assert_eq!(names, ["rest_time", "age", "at(profile)", "at2(profile)", "at(height)", "set.material.density", "set.material.viscosity"]);
+        assert_eq!(
+            names,
+            [
+                "rest_time",
+                "age",
+                "at(profile)",
+                "at2(profile)",
+                "at(height)",
+                "set.material.density",
+                "set.material.viscosity"
+            ]
+        );
         assert_eq!(covs[3].values, [Some(-0.01), Some(0.0), Some(0.01), None]);
         assert_eq!(covs[3].axis, "profile: lateral position y [m]");
         // z grows with y: a trend the page shows, with both coordinates in its table
@@ -498,12 +646,19 @@ set = { "material.density" = 2000.0 }
         assert_eq!(t.len(), 3);
         let page = std::fs::read_to_string(out.join("index.html")).unwrap();
         assert!(page.contains("a&lt;&amp;&gt;&quot;") && !page.contains("a<&>"), "{page}");
-        let pngs: Vec<String> = std::fs::read_dir(&out).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).filter(|n| n.ends_with(".png")).collect();
+        let pngs: Vec<String> = std::fs::read_dir(&out)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .filter(|n| n.ends_with(".png"))
+            .collect();
         assert_eq!(pngs.len(), 4, "{pngs:?}");
         for p in &pngs {
             assert!(page.contains(&format!("<img src=\"{p}\"")), "{p} not in the page");
         }
-        assert!(out.join("residuals_vs_set.material.viscosity.png").exists() && out.join("residuals_vs_at_stress.png").exists());
+        assert!(
+            out.join("residuals_vs_set.material.viscosity.png").exists()
+                && out.join("residuals_vs_at_stress.png").exists()
+        );
         let csv = std::fs::read_to_string(out.join("trends.csv")).unwrap();
         assert!(csv.starts_with("covariate,n,r,slope,trend\n") && csv.lines().count() == 4, "{csv}");
         // a file where the folder should be is named

@@ -13,7 +13,13 @@ use rand_distr::{Distribution, StandardNormal};
 /// Measurements of every experiment's `observe` list under `model`, each value times
 /// (1 + noise N(0, 1)) from a seeded generator, with uncertainty noise |value| (at least 1e-6 of
 /// it, so z-scores stay finite without noise).
-pub fn synth(model: &Model, exps: &Experiments, noise: f64, seed: u64, jobs: usize) -> Result<Vec<Observation>, MeasureError> {
+pub fn synth(
+    model: &Model,
+    exps: &Experiments,
+    noise: f64,
+    seed: u64,
+    jobs: usize,
+) -> Result<Vec<Observation>, MeasureError> {
     if !(noise.is_finite() && noise >= 0.0) {
         return Err(MeasureError::Synth(format!("--noise must be >= 0, got {noise}")));
     }
@@ -32,7 +38,12 @@ pub fn synth(model: &Model, exps: &Experiments, noise: f64, seed: u64, jobs: usi
         for (o, v) in obs.iter().zip(vals) {
             let sample: f64 = StandardNormal.sample(&mut rng);
             let value = v * (1.0 + noise * sample);
-            out.push(Observation { experiment: id.clone(), observable: o.clone(), value, uncertainty: noise.max(1e-6) * v.abs().max(1e-300) });
+            out.push(Observation {
+                experiment: id.clone(),
+                observable: o.clone(),
+                value,
+                uncertainty: noise.max(1e-6) * v.abs().max(1e-300),
+            });
         }
     }
     Ok(out)
@@ -58,7 +69,8 @@ mod tests {
         let a = synth(&m, &e, 0.05, 7, 1).unwrap();
         assert_eq!(a, synth(&m, &e, 0.05, 7, 3).unwrap());
         assert_ne!(a, synth(&m, &e, 0.05, 8, 1).unwrap());
-        let rel: Vec<f64> = a.iter().zip(synth(&m, &e, 0.0, 7, 1).unwrap()).map(|(n, c)| n.value / c.value - 1.0).collect();
+        let rel: Vec<f64> =
+            a.iter().zip(synth(&m, &e, 0.0, 7, 1).unwrap()).map(|(n, c)| n.value / c.value - 1.0).collect();
         assert!(rel.iter().all(|r| r.abs() < 0.25) && rel.iter().any(|r| r.abs() > 1e-4), "{rel:?}");
     }
 
@@ -70,7 +82,19 @@ mod tests {
     fn the_noise_stream_for_a_seed_is_fixed() {
         let mut rng = noise_source(7);
         let drawn: Vec<u64> = (0..6).map(|_| StandardNormal.sample(&mut rng)).map(|s: f64| s.to_bits()).collect();
-        let recorded: [f64; 6] = [-0.7753719332177971, -1.3834217200084091, 0.8897130187430372, 0.3597790583440233, 0.30000900340094644, -0.6499864550087331];
-        assert_eq!(drawn, recorded.map(f64::to_bits), "drawn {:?}", drawn.iter().map(|b| f64::from_bits(*b)).collect::<Vec<_>>());
+        let recorded: [f64; 6] = [
+            -0.7753719332177971,
+            -1.3834217200084091,
+            0.8897130187430372,
+            0.3597790583440233,
+            0.30000900340094644,
+            -0.6499864550087331,
+        ];
+        assert_eq!(
+            drawn,
+            recorded.map(f64::to_bits),
+            "drawn {:?}",
+            drawn.iter().map(|b| f64::from_bits(*b)).collect::<Vec<_>>()
+        );
     }
 }

@@ -20,15 +20,28 @@ use crate::measure::campaign::runner::{find, group};
 /// (a row per observation) in `fitted` and its entries' scatter: `Some` for each parameter whose
 /// key moves lie, in every experiment, in the span of the fitted parameters' (to round-off), with
 /// each entry's scatter (the fitted entries' combined, as independent), `None` for the others.
-pub fn chained(model: &Model, data: &[Observation], exps: &Experiments, fitted: &[String], (jacobian, jacobian_scatter): (&[Vec<f64>], &[Vec<f64>]), extra: &[String]) -> Result<Vec<Option<Chained>>, MeasureError> {
+pub fn chained(
+    model: &Model,
+    data: &[Observation],
+    exps: &Experiments,
+    fitted: &[String],
+    (jacobian, jacobian_scatter): (&[Vec<f64>], &[Vec<f64>]),
+    extra: &[String],
+) -> Result<Vec<Option<Chained>>, MeasureError> {
     let all: Vec<String> = fitted.iter().chain(extra).cloned().collect();
     let fcols: Vec<usize> = (0..fitted.len()).collect();
-    let mut columns: Vec<Option<Chained>> = vec![Some(Chained { column: vec![0.0; data.len()], scatter: vec![0.0; data.len()] }); extra.len()];
+    let mut columns: Vec<Option<Chained>> =
+        vec![Some(Chained { column: vec![0.0; data.len()], scatter: vec![0.0; data.len()] }); extra.len()];
     for (id, _) in group(data) {
         let x = find(exps, &id)?;
         let cov = x.covariates();
         // d key / d parameter, a row per key the experiment takes from the model
-        let tangents: Vec<Vec<f64>> = model.keys(&cov)?.into_keys().filter(|k| !x.set.contains_key(k)).map(|k| model.keys_adjoint(&cov, Keys::from([(k, 1.0)]), &all)).collect::<Result<_, _>>()?;
+        let tangents: Vec<Vec<f64>> = model
+            .keys(&cov)?
+            .into_keys()
+            .filter(|k| !x.set.contains_key(k))
+            .map(|k| model.keys_adjoint(&cov, Keys::from([(k, 1.0)]), &all))
+            .collect::<Result<_, _>>()?;
         let rows: Vec<usize> = (0..data.len()).filter(|&i| data[i].experiment == id).collect();
         for (q, column) in columns.iter_mut().enumerate() {
             let Some(col) = column else { continue };
@@ -65,7 +78,11 @@ fn combination(tangents: &[Vec<f64>], cols: &[usize], t: &[f64]) -> Option<Vec<f
     }
     let (a, g) = normal_equations(tangents, t, cols);
     let c: Vec<f64> = gauss_newton_step(&a, &g, 1e-12).iter().map(|v| -v).collect();
-    let miss = tangents.iter().zip(t).map(|(r, ti)| (ti - cols.iter().zip(&c).map(|(&k, ck)| r[k] * ck).sum::<f64>()).abs()).fold(0.0, f64::max);
+    let miss = tangents
+        .iter()
+        .zip(t)
+        .map(|(r, ti)| (ti - cols.iter().zip(&c).map(|(&k, ck)| r[k] * ck).sum::<f64>()).abs())
+        .fold(0.0, f64::max);
     (miss <= 1e-9 * size).then_some(c)
 }
 
@@ -73,8 +90,12 @@ fn combination(tangents: &[Vec<f64>], cols: &[usize], t: &[f64]) -> Option<Vec<f
 mod tests {
     use super::*;
 
-    const MODEL: &str = "[material]\nkind = \"evp_bingham\"\ndensity = 2300.0\nbulk_modulus = 1e6\npoisson_ratio = 0.3\nviscosity = 30.0\nyield_stress = 80.0\n[effects.ageing]\n[effects.thixotropy]\n";
-    const EXPS: &str = "[[experiment]]\nid = \"young\"\nrest_time = 60.0\nage = 60.0\nobserve = [\"stress@20\", \"stress@5\"]\n[experiment.protocol]\n[[experiment.protocol.phase]]\nkind = \"sweep\"\nrates = [20.0, 5.0]\nhold = 0.5\n\n[[experiment]]\nid = \"old\"\nage = 600.0\nobserve = [\"stress@20\"]\n[experiment.protocol]\n[[experiment.protocol.phase]]\nkind = \"sweep\"\nrates = [20.0]\nhold = 0.5\n";
+    const MODEL: &str = "[material]\nkind = \"evp_bingham\"\ndensity = 2300.0\nbulk_modulus = 1e6\npoisson_ratio = \
+        0.3\nviscosity = 30.0\nyield_stress = 80.0\n[effects.ageing]\n[effects.thixotropy]\n";
+    const EXPS: &str = "[[experiment]]\nid = \"young\"\nrest_time = 60.0\nage = 60.0\nobserve = [\"stress@20\", \
+        \"stress@5\"]\n[experiment.protocol]\n[[experiment.protocol.phase]]\nkind = \"sweep\"\nrates = [20.0, 5.0]\n\
+        hold = 0.5\n\n[[experiment]]\nid = \"old\"\nage = 600.0\nobserve = [\"stress@20\"]\n[experiment.protocol]\n\
+        [[experiment.protocol.phase]]\nkind = \"sweep\"\nrates = [20.0]\nhold = 0.5\n";
 
     /// The chained columns equal the adjoint's Jacobian (a rheometer's, exact) for an effect the
     /// fitted parameters span (an ageing rate: the yield stress's column times each
@@ -88,14 +109,22 @@ mod tests {
         let fitted = vec!["material.yield_stress".to_string(), "material.viscosity".to_string()];
         let extra: Vec<String> = ["ageing.rate", "thixotropy.a_thix"].iter().map(|s| s.to_string()).collect();
         let all: Vec<String> = fitted.iter().chain(&extra).cloned().collect();
-        let exact = crate::measure::campaign::sensitivity::sensitivity(&model, &data, &exps, Some(&all), 1).unwrap().jacobian.unwrap();
+        let exact = crate::measure::campaign::sensitivity::sensitivity(&model, &data, &exps, Some(&all), 1)
+            .unwrap()
+            .jacobian
+            .unwrap();
         let fit_rows: Vec<Vec<f64>> = exact.iter().map(|r| r[..2].to_vec()).collect();
         let no_scatter = vec![vec![0.0; 2]; fit_rows.len()];
         let cols = chained(&model, &data, &exps, &fitted, (&fit_rows, &no_scatter), &extra).unwrap();
         let rate = &cols[0].as_ref().expect("an ageing rate is spanned by the yield stress").column;
         assert!(rate.iter().any(|v| *v != 0.0), "{rate:?}");
         for (i, r) in exact.iter().enumerate() {
-            assert!((rate[i] - r[2]).abs() <= 1e-9 * r[2].abs().max(1e-300), "row {i}: {} against the adjoint's {}", rate[i], r[2]);
+            assert!(
+                (rate[i] - r[2]).abs() <= 1e-9 * r[2].abs().max(1e-300),
+                "row {i}: {} against the adjoint's {}",
+                rate[i],
+                r[2]
+            );
         }
         assert!(cols[1].is_none(), "thixotropy's build-up adds keys of its own: {:?}", cols[1]);
     }

@@ -48,7 +48,9 @@ pub mod chain;
 pub mod residuals;
 pub mod rounds;
 
-use super::fit::calibrate::{calibrate, calibrate_at, calibrate_from, chi2, chi2_scatter, finish, predicted_drop, standardised, Fit};
+use super::fit::calibrate::{
+    calibrate, calibrate_at, calibrate_from, chi2, chi2_scatter, finish, predicted_drop, standardised, Fit,
+};
 use super::campaign::{expected_runs, Campaign, FitOptions};
 use super::error::{io_error, toml_error, MeasureError};
 use super::observation::Observation;
@@ -207,7 +209,22 @@ impl Candidate {
 }
 
 fn candidate(e: &dyn Effect, score: f64, dof: usize, p_value: f64, verdict: String) -> Candidate {
-    Candidate { effect: e.name().into(), about: e.about().into(), rank: 0, test: test_of(e).into(), score, dof, p_value, fitted_chi2: None, error_ratio: None, fitted: vec![], loo_chi2_base: None, loo_chi2: None, verdict, recommended: false }
+    Candidate {
+        effect: e.name().into(),
+        about: e.about().into(),
+        rank: 0,
+        test: test_of(e).into(),
+        score,
+        dof,
+        p_value,
+        fitted_chi2: None,
+        error_ratio: None,
+        fitted: vec![],
+        loo_chi2_base: None,
+        loo_chi2: None,
+        verdict,
+        recommended: false,
+    }
 }
 
 /// A diagnosis's question: the campaign, the parameters refitted with every candidate, and the
@@ -222,7 +239,12 @@ struct Diagnosing<'c, 'a> {
 /// Which effect `model` lacks, to explain the campaign's data once `fit` is refitted (module
 /// doc); the model's values of the data are known where the campaign's discretisation estimate
 /// ran them.
-pub fn diagnose(c: &Campaign, model: &Model, fit: &[String], opts: &DiagnoseOptions) -> Result<Diagnosis, MeasureError> {
+pub fn diagnose(
+    c: &Campaign,
+    model: &Model,
+    fit: &[String],
+    opts: &DiagnoseOptions,
+) -> Result<Diagnosis, MeasureError> {
     let d = Diagnosing { c, fit, opts };
     let data = c.data;
     let m = data.len();
@@ -241,7 +263,10 @@ pub fn diagnose(c: &Campaign, model: &Model, fit: &[String], opts: &DiagnoseOpti
     let mut scored = score_tests(d, &base, &clock)?;
     clock.timing.score_tests = clock.lap();
     progress.end();
-    progress.begin("likelihood-ratio fits", scored.unreachable.iter().map(|e| expected_runs(data, &fit_names(fit, *e))).sum());
+    progress.begin(
+        "likelihood-ratio fits",
+        scored.unreachable.iter().map(|e| expected_runs(data, &fit_names(fit, *e))).sum(),
+    );
     let (lr, mut prefit) = likelihood_ratio_tests(d, &base, model, &scored.unreachable, &clock)?;
     clock.timing.likelihood_ratio_fits = clock.lap();
     progress.end();
@@ -258,7 +283,10 @@ pub fn diagnose(c: &Campaign, model: &Model, fit: &[String], opts: &DiagnoseOpti
     let mut order: Vec<usize> = (0..cands.len()).collect();
     order.sort_by(|&a, &b| {
         let (ca, cb) = (&cands[a], &cands[b]);
-        key(cb).total_cmp(&key(ca)).then(ca.fitted_chi2.unwrap_or(f64::INFINITY).total_cmp(&cb.fitted_chi2.unwrap_or(f64::INFINITY))).then(a.cmp(&b))
+        key(cb)
+            .total_cmp(&key(ca))
+            .then(ca.fitted_chi2.unwrap_or(f64::INFINITY).total_cmp(&cb.fitted_chi2.unwrap_or(f64::INFINITY)))
+            .then(a.cmp(&b))
     });
     let mut cands: Vec<Candidate> = order.iter().map(|&i| cands[i].clone()).collect();
     let models: Vec<Option<Model>> = order.iter().map(|&i| models[i].clone()).collect();
@@ -334,7 +362,31 @@ fn base_fit(c: &Campaign, model: &Model, fit: &[String]) -> Result<Fit, MeasureE
         None => c.sensitivity(model, None)??.values,
     };
     let c2 = chi2(&v, data);
-    Ok(Fit { names: vec![], start: vec![], values: vec![], uncertainty: vec![], at_bound: vec![], influence: vec![], chi2_start: c2, chi2: c2, reduced_chi2: c2 / m as f64, history: vec![c2], converged: true, observations: m, model_values: v.clone(), jacobian: vec![], scatter: vec![0.0; m], jacobian_scatter: vec![vec![]; m], at_start: Sensitivity { values: v, jacobian: Some(vec![]), scatter: vec![0.0; m], jacobian_scatter: Some(vec![vec![]; m]) }, model: model.clone() })
+    Ok(Fit {
+        names: vec![],
+        start: vec![],
+        values: vec![],
+        uncertainty: vec![],
+        at_bound: vec![],
+        influence: vec![],
+        chi2_start: c2,
+        chi2: c2,
+        reduced_chi2: c2 / m as f64,
+        history: vec![c2],
+        converged: true,
+        observations: m,
+        model_values: v.clone(),
+        jacobian: vec![],
+        scatter: vec![0.0; m],
+        jacobian_scatter: vec![vec![]; m],
+        at_start: Sensitivity {
+            values: v,
+            jacobian: Some(vec![]),
+            scatter: vec![0.0; m],
+            jacobian_scatter: Some(vec![vec![]; m]),
+        },
+        model: model.clone(),
+    })
 }
 
 /// Values and Jacobian, in the base fit's parameters then `extra`, at `with`: the base fit's model
@@ -346,11 +398,22 @@ fn base_fit(c: &Campaign, model: &Model, fit: &[String]) -> Result<Fit, MeasureE
 /// fit's there: [`Differences::Forward`]); elsewhere every column is, from `with`'s values.
 /// `with`'s values are that point's without a run where every added effect is at a start that
 /// `runs_as_model` ([`Effect::start_runs_as_model`]); otherwise they are run, and compared.
-fn beside_base(c: &Campaign, base: &Fit, (from_start, runs_as_model): (bool, bool), with: &Model, extra: &[String]) -> Result<Sensitivity, MeasureError> {
+fn beside_base(
+    c: &Campaign,
+    base: &Fit,
+    (from_start, runs_as_model): (bool, bool),
+    with: &Model,
+    extra: &[String],
+) -> Result<Sensitivity, MeasureError> {
     let (data, exps) = (c.data, c.exps);
     let names: Vec<String> = base.names.iter().chain(extra).cloned().collect();
     let (known, known_jacobian, known_scatter, known_jacobian_scatter) = match from_start {
-        true => (&base.at_start.values, base.at_start.jacobian.as_ref().expect("asked"), &base.at_start.scatter, base.at_start.jacobian_scatter.as_ref().expect("asked")),
+        true => (
+            &base.at_start.values,
+            base.at_start.jacobian.as_ref().expect("asked"),
+            &base.at_start.scatter,
+            base.at_start.jacobian_scatter.as_ref().expect("asked"),
+        ),
         false => (&base.model_values, &base.jacobian, &base.scatter, &base.jacobian_scatter),
     };
     let values = if runs_as_model { known.clone() } else { c.sensitivity(with, None)??.values };
@@ -368,17 +431,21 @@ fn beside_base(c: &Campaign, base: &Fit, (from_start, runs_as_model): (bool, boo
         (s.jacobian.expect("asked"), s.jacobian_scatter.expect("asked"), known_scatter.clone())
     };
     // the known columns, then each extra parameter's, chained or computed
-    let rows = |known: &[Vec<f64>], computed: Vec<Vec<f64>>, pick: fn(&self::chain::Chained) -> &Vec<f64>| -> Vec<Vec<f64>> {
-        computed
-            .into_iter()
-            .enumerate()
-            .map(|(i, computed)| {
-                let mut next = computed.into_iter();
-                let added: Vec<f64> = chained.iter().map(|c| c.as_ref().map_or_else(|| next.next().expect("a computed column"), |c| pick(c)[i])).collect();
-                known[i].iter().copied().chain(added).collect()
-            })
-            .collect()
-    };
+    let rows =
+        |known: &[Vec<f64>], computed: Vec<Vec<f64>>, pick: fn(&self::chain::Chained) -> &Vec<f64>| -> Vec<Vec<f64>> {
+            computed
+                .into_iter()
+                .enumerate()
+                .map(|(i, computed)| {
+                    let mut next = computed.into_iter();
+                    let added: Vec<f64> = chained
+                        .iter()
+                        .map(|c| c.as_ref().map_or_else(|| next.next().expect("a computed column"), |c| pick(c)[i]))
+                        .collect();
+                    known[i].iter().copied().chain(added).collect()
+                })
+                .collect()
+        };
     let jacobian = rows(known_jacobian, computed, |c| &c.column);
     let jacobian_scatter = rows(known_jacobian_scatter, computed_scatter, |c| &c.scatter);
     Ok(Sensitivity { values, jacobian: Some(jacobian), scatter, jacobian_scatter: Some(jacobian_scatter) })
@@ -421,8 +488,10 @@ fn score_tests(d: Diagnosing, base: &Fit, clock: &Clock) -> Result<ScoreTests, M
         cols_of.push((names.len()..names.len() + e.params().len()).collect());
         names.extend(e.params().iter().map(|s| format!("{}.{}", e.name(), s.name)));
     }
-    clock.say(format!("score tests at the nulls of {}", absent.iter().map(|e| e.name()).collect::<Vec<_>>().join(", ")));
-    let at_nulls = beside_base(d.c, base, (false, absent.iter().all(|e| e.start_runs_as_model())), &aug, &names[fit.len()..])?;
+    clock
+        .say(format!("score tests at the nulls of {}", absent.iter().map(|e| e.name()).collect::<Vec<_>>().join(", ")));
+    let at_nulls =
+        beside_base(d.c, base, (false, absent.iter().all(|e| e.start_runs_as_model())), &aug, &names[fit.len()..])?;
     let scale: Vec<f64> = names.iter().map(|n| aug.bounds(n).map(|b| b.scale)).collect::<Result<_, _>>()?;
     let (z, jz) = standardised(&at_nulls.values, at_nulls.jacobian.as_ref().expect("asked"), data, &scale);
     let fcols: Vec<usize> = (0..fit.len()).collect();
@@ -435,7 +504,10 @@ fn score_tests(d: Diagnosing, base: &Fit, clock: &Clock) -> Result<ScoreTests, M
         }
         let jt_v: Vec<f64> = fcols.iter().map(|&c| jz.iter().zip(v).map(|(r, x)| r[c] * x).sum()).collect();
         let coef: Vec<f64> = ff_inv.iter().map(|r| r.iter().zip(&jt_v).map(|(a, b)| a * b).sum()).collect();
-        v.iter().enumerate().map(|(i, x)| x - fcols.iter().zip(&coef).map(|(&c, k)| jz[i][c] * k).sum::<f64>()).collect()
+        v.iter()
+            .enumerate()
+            .map(|(i, x)| x - fcols.iter().zip(&coef).map(|(&c, k)| jz[i][c] * k).sum::<f64>())
+            .collect()
     };
     let zp = project(&z);
 
@@ -453,17 +525,28 @@ fn score_tests(d: Diagnosing, base: &Fit, clock: &Clock) -> Result<ScoreTests, M
             let (s, slope) = (e.params()[i], project(&column(c)).iter().zip(&zp).map(|(a, b)| a * b).sum::<f64>());
             if s.null <= s.lower { slope < 0.0 } else if s.null >= s.upper { slope > 0.0 } else { slope != 0.0 }
         };
-        let kept_params: Vec<(usize, usize)> = cols.iter().copied().enumerate().filter(|&(i, c)| into_bounds(i, c)).collect();
+        let kept_params: Vec<(usize, usize)> =
+            cols.iter().copied().enumerate().filter(|&(i, c)| into_bounds(i, c)).collect();
         let kept: Vec<usize> = kept_params.iter().map(|&(_, c)| c).collect();
-        let at_bound = kept_params.iter().all(|&(i, _)| e.params()[i].null <= e.params()[i].lower || e.params()[i].null >= e.params()[i].upper);
+        let at_bound = kept_params
+            .iter()
+            .all(|&(i, _)| e.params()[i].null <= e.params()[i].lower || e.params()[i].null >= e.params()[i].upper);
         let r: Vec<Vec<f64>> = kept.iter().map(|&c| project(&column(c))).collect();
-        let info: Vec<Vec<f64>> = r.iter().map(|a| r.iter().map(|b| a.iter().zip(b).map(|(x, y)| x * y).sum()).collect()).collect();
+        let info: Vec<Vec<f64>> =
+            r.iter().map(|a| r.iter().map(|b| a.iter().zip(b).map(|(x, y)| x * y).sum()).collect()).collect();
         let g: Vec<f64> = r.iter().map(|a| a.iter().zip(&zp).map(|(x, y)| x * y).sum()).collect();
         // columns the fitted parameters already explain have ~0 left after projection
         let raw: f64 = kept.iter().map(|&c| column(c).iter().map(|x| x * x).sum::<f64>()).fold(0.0, f64::max);
         let (inv, rank) = if kept.is_empty() { (vec![], 0) } else { pinv_sym(&info, 1e-10) };
         let left = info.iter().enumerate().map(|(i, row)| row[i]).fold(0.0, f64::max);
-        let (score, dof) = if rank == 0 || left <= 1e-10 * raw { (0.0, 0) } else { (g.iter().enumerate().map(|(i, gi)| gi * inv[i].iter().zip(&g).map(|(a, b)| a * b).sum::<f64>()).sum(), rank) };
+        let (score, dof) = if rank == 0 || left <= 1e-10 * raw {
+            (0.0, 0)
+        } else {
+            (
+                g.iter().enumerate().map(|(i, gi)| gi * inv[i].iter().zip(&g).map(|(a, b)| a * b).sum::<f64>()).sum(),
+                rank,
+            )
+        };
         // a null inside the bounds is a two-sided test: the full chi^2 tail, without the
         // bound's halving
         let p_value = match (dof, at_bound) {
@@ -471,21 +554,26 @@ fn score_tests(d: Diagnosing, base: &Fit, clock: &Clock) -> Result<ScoreTests, M
             (_, true) => p_value(score, dof),
             (_, false) => chi2_sf(score, dof),
         };
-        let verdict = if !influence {
-            "no influence on these experiments".to_string()
-        } else if dof == 0 && !kept.is_empty() {
-            "indistinguishable from the fitted parameters here".to_string()
-        } else if dof == 0 {
-            "not significant: raising it from its null raises the error".to_string()
-        } else if p_value >= opts.alpha {
-            format!("not significant (p = {p_value:.3})")
-        } else {
-            String::new()
-        };
+        let verdict = score_verdict(influence, (dof, kept.is_empty()), p_value, opts.alpha);
         cands.push(candidate(*e, score, dof, p_value, verdict));
     }
     let columns = absent.iter().map(|e| e.name()).zip(cols_of).collect();
     Ok(ScoreTests { candidates: cands, unreachable, inapplicable, at_nulls, columns })
+}
+
+/// A score test's verdict on a candidate; empty when it is significant at `alpha`, to be fitted.
+fn score_verdict(influence: bool, (dof, none_kept): (usize, bool), p_value: f64, alpha: f64) -> String {
+    if !influence {
+        "no influence on these experiments".to_string()
+    } else if dof == 0 && !none_kept {
+        "indistinguishable from the fitted parameters here".to_string()
+    } else if dof == 0 {
+        "not significant: raising it from its null raises the error".to_string()
+    } else if p_value >= alpha {
+        format!("not significant (p = {p_value:.3})")
+    } else {
+        String::new()
+    }
 }
 
 /// The likelihood ratio of each effect whose null lies at infinity: the effect fitted from its
@@ -527,8 +615,18 @@ fn likelihood_ratio_tests(
             // one Gauss-Newton step from it predicts a drop worth fitting for: without influence
             // (G where every reading is past yield) the fit would only refit the fitted
             // parameters; from the model's values, where they are elsewhere, it may have
-            clock.say(format!("{}: its likelihood ratio, from {}", e.name(), if std::ptr::eq(from, model) { "the model's values" } else { "the base fit's values" }));
-            let start_values = beside_base(c, base, (std::ptr::eq(from, model), e.start_runs_as_model()), &with, &fnames[fit.len()..])?;
+            clock.say(format!(
+                "{}: its likelihood ratio, from {}",
+                e.name(),
+                if std::ptr::eq(from, model) { "the model's values" } else { "the base fit's values" }
+            ));
+            let start_values = beside_base(
+                c,
+                base,
+                (std::ptr::eq(from, model), e.start_runs_as_model()),
+                &with,
+                &fnames[fit.len()..],
+            )?;
             let no_steps = FitOptions { max_iterations: 0, log: false, ..c.opts.clone() };
             let at_start = calibrate_from(&c.with_opts(&no_steps), &with, &fnames, start_values.clone())?;
             let predicted = base.chi2 - at_start.chi2 + gauss_newton_drop(&at_start, data)?;
@@ -551,7 +649,8 @@ fn likelihood_ratio_tests(
         let verdict = if dof == 0 && !reach {
             "no influence on these experiments".to_string()
         } else if let Some(lr) = screened.filter(|_| p >= opts.alpha) {
-            format!("not significant: a Gauss-Newton step from its start predicts LR = {lr:.3}, under {LR_WORTH_FITTING}; not fitted")
+            format!("not significant: a Gauss-Newton step from its start predicts LR = {lr:.3}, under \
+                {LR_WORTH_FITTING}; not fitted")
         } else if dof == 0 {
             "not significant: fitted, it does not lower the error".to_string()
         } else if p >= opts.alpha {
@@ -596,16 +695,15 @@ fn fit_and_check(
             continue;
         }
         if fitted == opts.max_fitted {
-            let done = if prefit.contains_key(&c.effect) { "fitted, not checked by leave-one-out" } else { "not fitted" };
+            let done =
+                if prefit.contains_key(&c.effect) { "fitted, not checked by leave-one-out" } else { "not fitted" };
             c.verdict = format!("significant (p = {:.2e}), {done}: beyond the top {}", c.p_value, opts.max_fitted);
             continue;
         }
         fitted += 1;
         let effect = base.model.effect(&c.effect)?;
-        let fnames = fit_names(fit, effect);
-        let _ = clock.lap();
-        clock.say(format!("{}: fitted{}", c.effect, if opts.leave_one_out { ", then checked by leaving each experiment out" } else { "" }));
-        progress.begin(&format!("{}: fit", c.effect), if prefit.contains_key(&c.effect) { 0 } else { expected_runs(data, &fnames) });
+        let runs = if prefit.contains_key(&c.effect) { 0 } else { expected_runs(data, &fit_names(fit, effect)) };
+        announce_fit(d, &c.effect, runs, clock);
         // after a recommended candidate, a fit made here needs its optimum first: only one that
         // comes close to the leader's Akaike criterion is finished on an exact Jacobian (below);
         // the others' would be 2 p runs of the campaign that nothing reads (a likelihood-ratio
@@ -618,7 +716,10 @@ fn fit_and_check(
         let aic = |f: &Fit| f.chi2 + 2.0 * f.names.len() as f64;
         let f = match &leader {
             Some((name, best)) if lazy && f.chi2 < 0.99 * base.chi2 && aic(&f) < SCREENED_MARGIN * best => {
-                clock.say(format!("{}: within {SCREENED_MARGIN} times {name}'s Akaike criterion; finished on an exact Jacobian", c.effect));
+                clock.say(format!(
+                    "{}: within {SCREENED_MARGIN} times {name}'s Akaike criterion; finished on an exact Jacobian",
+                    c.effect
+                ));
                 finish(d.c, f)?
             }
             _ => f,
@@ -626,7 +727,8 @@ fn fit_and_check(
         clock.timing.candidate_fits += clock.lap();
         progress.end();
         // one run of each experiment left out, and the base model's the first time
-        progress.begin(&format!("{}: leave-one-out", c.effect), if base_loo.is_none() { 2 } else { 1 } * ids.len() as u64);
+        progress
+            .begin(&format!("{}: leave-one-out", c.effect), if base_loo.is_none() { 2 } else { 1 } * ids.len() as u64);
         c.record(&f, base.chi2, m);
         // a fit that moves the error by less than 1 % has not found anything, and is not
         // recommended whatever leaving experiments out would say
@@ -640,7 +742,8 @@ fn fit_and_check(
             c.verdict = "does not lower the error when fitted".to_string();
         } else if let Some((name, best)) = beaten {
             c.verdict = format!(
-                "lowers the error (x {:.3}) but not chosen: chi^2 + 2 k {aic:.4e} against {name}'s {best:.4e} (Akaike), not checked by leave-one-out",
+                "lowers the error (x {:.3}) but not chosen: chi^2 + 2 k {aic:.4e} against {name}'s {best:.4e} \
+                    (Akaike), not checked by leave-one-out",
                 c.error_ratio.unwrap_or(1.0)
             );
         } else if opts.leave_one_out && ids.len() >= 2 {
@@ -655,26 +758,50 @@ fn fit_and_check(
             if c.recommended {
                 leader = Some((c.effect.clone(), aic));
             }
-            c.verdict = if c.recommended {
-                format!("recommended: error x {:.3}, left-out error x {:.3}", c.error_ratio.unwrap_or(1.0), loo / base_loo.expect("set").max(1e-300))
-            } else {
-                "overfits: it lowers the error but does not predict left-out experiments better".to_string()
-            };
+            c.verdict = loo_verdict(c, loo / base_loo.expect("set").max(1e-300));
         } else {
             c.recommended = true;
-            c.verdict = format!("recommended: error x {:.3} (not checked by leave-one-out: {})", c.error_ratio.unwrap_or(1.0), if opts.leave_one_out { "one experiment only" } else { "switched off" });
+            c.verdict = format!(
+                "recommended: error x {:.3} (not checked by leave-one-out: {})",
+                c.error_ratio.unwrap_or(1.0),
+                if opts.leave_one_out { "one experiment only" } else { "switched off" }
+            );
         }
         models[ci] = Some(f.model);
         progress.end();
     }
-
     Ok(models)
+}
+
+/// Says that `effect` is being fitted (then checked by leave-one-out, when the options ask) and
+/// starts its progress bar of `runs` runs.
+fn announce_fit(d: Diagnosing, effect: &str, runs: u64, clock: &mut Clock) {
+    let _ = clock.lap();
+    let then = if d.opts.leave_one_out { ", then checked by leaving each experiment out" } else { "" };
+    clock.say(format!("{effect}: fitted{then}"));
+    d.c.opts.progress.begin(&format!("{effect}: fit"), runs);
+}
+
+/// A fitted candidate's verdict after leave-one-out, its left-out error `ratio` times the base model's.
+fn loo_verdict(c: &Candidate, ratio: f64) -> String {
+    if c.recommended {
+        format!("recommended: error x {:.3}, left-out error x {ratio:.3}", c.error_ratio.unwrap_or(1.0))
+    } else {
+        "overfits: it lowers the error but does not predict left-out experiments better".to_string()
+    }
 }
 
 /// A candidate's fit with the base parameters, its effect from its null; `lazy`: for its optimum
 /// only, on secant Jacobians ([`FitOptions::stop_on_secant`]).
-fn fit_candidate(d: Diagnosing, base: &Fit, effect: &'static dyn Effect, scored: &ScoreTests, lazy: bool) -> Result<Fit, MeasureError> {
-    let fit_opts = FitOptions { uncertainties: d.c.opts.uncertainties && !lazy, stop_on_secant: lazy, ..d.c.opts.clone() };
+fn fit_candidate(
+    d: Diagnosing,
+    base: &Fit,
+    effect: &'static dyn Effect,
+    scored: &ScoreTests,
+    lazy: bool,
+) -> Result<Fit, MeasureError> {
+    let fit_opts =
+        FitOptions { uncertainties: d.c.opts.uncertainties && !lazy, stop_on_secant: lazy, ..d.c.opts.clone() };
     let (c, fnames, with) = (d.c.with_opts(&fit_opts), fit_names(d.fit, effect), base.model.with_effect(effect));
     if scored.at_nulls.values != base.model_values {
         return calibrate(&c, &with, &fnames);
@@ -683,7 +810,9 @@ fn fit_candidate(d: Diagnosing, base: &Fit, effect: &'static dyn Effect, scored:
     // one is here: the same runs, unless an effect at its null moved a value
     let own = &scored.columns.iter().find(|(e, _)| *e == effect.name()).expect("a score-tested effect").1;
     let cols: Vec<usize> = (0..d.fit.len()).chain(own.iter().copied()).collect();
-    let pick = |m: &Option<Vec<Vec<f64>>>| Some(m.as_ref().expect("asked").iter().map(|r| cols.iter().map(|&k| r[k]).collect()).collect());
+    let pick = |m: &Option<Vec<Vec<f64>>>| {
+        Some(m.as_ref().expect("asked").iter().map(|r| cols.iter().map(|&k| r[k]).collect()).collect())
+    };
     let (jacobian, jacobian_scatter) = (pick(&scored.at_nulls.jacobian), pick(&scored.at_nulls.jacobian_scatter));
     calibrate_from(&c, &with, &fnames, Sensitivity { jacobian, jacobian_scatter, ..scored.at_nulls.clone() })
 }
@@ -703,8 +832,15 @@ fn choose(cands: &mut [Candidate]) -> Option<usize> {
     let recommended: Vec<usize> = (0..cands.len()).filter(|&i| cands[i].recommended).collect();
     // leave-one-out is run for all or none of them; compare like with like
     let all_loo = recommended.iter().all(|&i| cands[i].loo_chi2.is_some());
-    let key = |c: &Candidate| if all_loo { c.loo_chi2.unwrap_or(f64::INFINITY) } else { c.fitted_chi2.unwrap_or(f64::INFINITY) };
-    let best = recommended.iter().copied().min_by(|&a, &b| key(&cands[a]).total_cmp(&key(&cands[b])).then(a.cmp(&b)))?;
+    let key = |c: &Candidate| {
+        if all_loo {
+            c.loo_chi2.unwrap_or(f64::INFINITY)
+        } else {
+            c.fitted_chi2.unwrap_or(f64::INFINITY)
+        }
+    };
+    let best =
+        recommended.iter().copied().min_by(|&a, &b| key(&cands[a]).total_cmp(&key(&cands[b])).then(a.cmp(&b)))?;
     let (name, value) = (cands[best].effect.clone(), key(&cands[best]));
     let what = if all_loo { "left-out chi^2" } else { "fitted chi^2" };
     for &i in recommended.iter().filter(|&&i| i != best) {
@@ -718,7 +854,10 @@ fn choose(cands: &mut [Candidate]) -> Option<usize> {
 /// each run with `model`'s `[material]`.
 fn applicable(c: &Campaign, effect: &'static dyn Effect, model: &Model) -> Result<(), MeasureError> {
     let (data, exps) = (c.data, c.exps);
-    model.with_effect(effect).keys(&Covariates::default()).map_err(|m| MeasureError::Effect(format!("in this model, {m}")))?;
+    model
+        .with_effect(effect)
+        .keys(&Covariates::default())
+        .map_err(|m| MeasureError::Effect(format!("in this model, {m}")))?;
     for (id, _) in super::campaign::runner::group(data) {
         if let Some(s) = exps.get(&id).and_then(|x| x.scenario.as_ref()) {
             let path = exps.base_dir.join(s);
@@ -751,7 +890,9 @@ fn leave_one_out(c: &Campaign, f: &Fit, ids: &[String], opts: &DiagnoseOptions) 
     for id in ids {
         let (kept, left): (Vec<usize>, Vec<usize>) = (0..data.len()).partition(|&i| data[i].experiment != *id);
         let test = rows_of(data, &left);
-        let predict = |model: &Model| -> Result<f64, MeasureError> { Ok(chi2(&c.with_data(&test).sensitivity(model, None)??.values, &test)) };
+        let predict = |model: &Model| -> Result<f64, MeasureError> {
+            Ok(chi2(&c.with_data(&test).sensitivity(model, None)??.values, &test))
+        };
         total += if f.names.is_empty() {
             predict(&f.model)?
         } else if opts.exact_refits {
@@ -816,7 +957,9 @@ fn one_step_without(f: &Fit, data: &[Observation], (kept, left): (&[usize], &[us
     let bounds: Vec<_> = f.names.iter().map(|n| f.model.bounds(n)).collect::<Result<_, _>>()?;
     let scale: Vec<f64> = bounds.iter().map(|b| b.scale).collect();
     let (z, jz) = standardised(&f.model_values, &f.jacobian, data, &scale);
-    let pick = |rows: &[usize]| (rows.iter().map(|&i| z[i]).collect::<Vec<f64>>(), rows.iter().map(|&i| jz[i].clone()).collect::<Vec<_>>());
+    let pick = |rows: &[usize]| {
+        (rows.iter().map(|&i| z[i]).collect::<Vec<f64>>(), rows.iter().map(|&i| jz[i].clone()).collect::<Vec<_>>())
+    };
     let (z_kept, jz_kept) = pick(kept);
     let cols: Vec<usize> = (0..f.names.len()).filter(|&i| !f.at_bound[i]).collect();
     let (a, g) = normal_equations(&jz_kept, &z_kept, &cols);
@@ -830,7 +973,11 @@ fn one_step_without(f: &Fit, data: &[Observation], (kept, left): (&[usize], &[us
         model.set(&f.names[i], value)?;
     }
     let (z_left, jz_left) = pick(left);
-    let linear: f64 = z_left.iter().zip(&jz_left).map(|(zi, row)| (zi + row.iter().zip(&taken).map(|(j, t)| j * t).sum::<f64>()).powi(2)).sum();
+    let linear: f64 = z_left
+        .iter()
+        .zip(&jz_left)
+        .map(|(zi, row)| (zi + row.iter().zip(&taken).map(|(j, t)| j * t).sum::<f64>()).powi(2))
+        .sum();
     let scatter: Vec<f64> = left.iter().map(|&i| f.scatter[i]).collect();
     let chi2_scatter = chi2_scatter(&z_left, &scatter, &rows_of(data, left));
     Ok(Step { model, chi2_left_out: z_left.iter().map(|zi| zi * zi).sum(), chi2_predicted: linear, chi2_scatter })
@@ -844,7 +991,14 @@ fn largest_residuals(base: &Fit, data: &[Observation]) -> Vec<String> {
     let mut worst: Vec<&super::compare::Row> = c.rows.iter().collect();
     worst.sort_by(|a, b| b.z.abs().total_cmp(&a.z.abs()));
     for r in worst.iter().take(3) {
-        out.push(format!("largest residual: {} {}: z = {:.2} ({}-predicted by {:.2} %)", r.experiment, r.label(), r.z, if r.residual > 0.0 { "over" } else { "under" }, 100.0 * (r.residual / r.measured).abs()));
+        out.push(format!(
+            "largest residual: {} {}: z = {:.2} ({}-predicted by {:.2} %)",
+            r.experiment,
+            r.label(),
+            r.z,
+            if r.residual > 0.0 { "over" } else { "under" },
+            100.0 * (r.residual / r.measured).abs()
+        ));
     }
     for s in &c.by_observable {
         out.push(format!("observable {}: rms z = {:.2} over {}", s.name, s.rms_z, s.n));
@@ -856,11 +1010,23 @@ fn largest_residuals(base: &Fit, data: &[Observation]) -> Vec<String> {
 pub fn report(d: &Diagnosis) -> String {
     use std::fmt::Write as _;
     let mut s = String::new();
-    let _ = writeln!(s, "base model: chi^2 = {:.4e} over {} observations (rms z {:.3}, p = {:.3e}), fitted: {}", d.base_chi2, d.observations, d.base_rms_z, d.base_p_value, if d.fit.is_empty() { "nothing".into() } else { d.fit.join(", ") });
+    let _ = writeln!(
+        s,
+        "base model: chi^2 = {:.4e} over {} observations (rms z {:.3}, p = {:.3e}), fitted: {}",
+        d.base_chi2,
+        d.observations,
+        d.base_rms_z,
+        d.base_p_value,
+        if d.fit.is_empty() { "nothing".into() } else { d.fit.join(", ") }
+    );
     for (n, v) in &d.base_values {
         let _ = writeln!(s, "  {n} = {v:.6e}");
     }
-    let _ = writeln!(s, "\n{:<4} {:<17} {:<5} {:>12} {:>4} {:>10} {:>12} {:>12}  verdict", "rank", "effect", "test", "statistic", "dof", "p", "error ratio", "left-out");
+    let _ = writeln!(
+        s,
+        "\n{:<4} {:<17} {:<5} {:>12} {:>4} {:>10} {:>12} {:>12}  verdict",
+        "rank", "effect", "test", "statistic", "dof", "p", "error ratio", "left-out"
+    );
     for c in &d.candidates {
         let er = c.error_ratio.map_or("-".into(), |v| format!("{v:.3}"));
         let loo = match (c.loo_chi2, c.loo_chi2_base) {
@@ -868,25 +1034,38 @@ pub fn report(d: &Diagnosis) -> String {
             _ => "-".into(),
         };
         let test = if c.test == "score" { "score" } else { "LR" };
-        let _ = writeln!(s, "{:<4} {:<17} {:<5} {:>12.4e} {:>4} {:>10.3e} {:>12} {:>12}  {}", c.rank, c.effect, test, c.score, c.dof, c.p_value, er, loo, c.verdict);
+        let _ = writeln!(
+            s,
+            "{:<4} {:<17} {:<5} {:>12.4e} {:>4} {:>10.3e} {:>12} {:>12}  {}",
+            c.rank, c.effect, test, c.score, c.dof, c.p_value, er, loo, c.verdict
+        );
         if !c.fitted.is_empty() {
             let fitted: Vec<String> = c.fitted.iter().map(|(n, v)| format!("{n} = {v:.4e}")).collect();
             let _ = writeln!(s, "     fitted: {}", fitted.join(", "));
         }
     }
     if d.candidates.iter().any(|c| c.test != "score") {
-        let _ = writeln!(s, "(LR: likelihood ratio chi^2_base - chi^2_fitted, for an effect whose null lies at infinity)");
+        let _ =
+            writeln!(s, "(LR: likelihood ratio chi^2_base - chi^2_fitted, for an effect whose null lies at infinity)");
     }
-    let _ = writeln!(s, "\nverdict: {}", match d.verdict.as_str() {
-        "unexplained" => "unexplained: the base model does not fit and no effect in the library explains the residuals".to_string(),
-        "explained" => "explained: the base model fits within the uncertainties; no effect is needed".to_string(),
-        v => v.to_string(),
-    });
+    let _ = writeln!(
+        s,
+        "\nverdict: {}",
+        match d.verdict.as_str() {
+            "unexplained" =>
+                "unexplained: the base model does not fit and no effect in the library explains the residuals"
+                    .to_string(),
+            "explained" => "explained: the base model fits within the uncertainties; no effect is needed".to_string(),
+            v => v.to_string(),
+        }
+    );
     for p in &d.pattern {
         let _ = writeln!(s, "  {p}");
     }
     let t = &d.timing;
-    let _ = writeln!(s, "\ntime: base fit {:.1} s, score tests {:.1} s, likelihood-ratio fits {:.1} s, candidates' fits {:.1} s, leave-one-out {:.1} s", t.base_fit, t.score_tests, t.likelihood_ratio_fits, t.candidate_fits, t.leave_one_out);
+    let _ = writeln!(s, "\ntime: base fit {:.1} s, score tests {:.1} s, likelihood-ratio fits {:.1} s, candidates' \
+        fits {:.1} s, leave-one-out {:.1} \
+        s", t.base_fit, t.score_tests, t.likelihood_ratio_fits, t.candidate_fits, t.leave_one_out);
     s
 }
 
@@ -899,10 +1078,20 @@ mod tests {
     #[test]
     fn an_effect_whose_null_the_solver_cannot_run_gets_the_likelihood_ratio_and_the_others_the_score() {
         for e in effects::REGISTRY {
-            let want = if ["elasticity", "compressibility", "wall_friction"].contains(&e.name()) { "likelihood-ratio" } else { "score" };
+            let want = if ["elasticity", "compressibility", "wall_friction"].contains(&e.name()) {
+                "likelihood-ratio"
+            } else {
+                "score"
+            };
             assert_eq!(test_of(*e), want, "{}", e.name());
             // a likelihood-ratio fit starts where the solver runs; a score test at the null
-            let start = e.lr_start(&[("material.shear_modulus".to_string(), 4e5), ("material.bulk_modulus".to_string(), 1e6)].into_iter().collect()).unwrap();
+            let start = e
+                .lr_start(
+                    &[("material.shear_modulus".to_string(), 4e5), ("material.bulk_modulus".to_string(), 1e6)]
+                        .into_iter()
+                        .collect(),
+                )
+                .unwrap();
             assert!(start.iter().all(|v| v.is_finite()), "{}: {start:?}", e.name());
         }
         // the halved tail for one parameter at its bound, the full one for more, none without
@@ -917,14 +1106,17 @@ mod tests {
     fn a_diagnosis_with_progress_events_is_the_diagnosis_without() {
         use super::super::campaign::progress::tests::{check_monotone, Shared};
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/measure/campaign");
-        let (truth, start) = (Model::load(&dir.join("truth_thixotropy.toml")).unwrap(), Model::load(&dir.join("base.toml")).unwrap());
+        let (truth, start) =
+            (Model::load(&dir.join("truth_thixotropy.toml")).unwrap(), Model::load(&dir.join("base.toml")).unwrap());
         let exps = Experiments::load(&dir.join("experiments.toml")).unwrap();
         let data = super::super::compare::synth::synth(&truth, &exps, 0.01, 7, 1).unwrap();
         let fit = vec!["material.yield_stress".to_string(), "material.viscosity".to_string()];
         let out = Shared::default();
         let with = FitOptions { progress: out.progress(0), ..FitOptions::default() };
         let a = diagnose(&Campaign::new(&exps, &data, &with), &start, &fit, &DiagnoseOptions::default()).unwrap();
-        let b = diagnose(&Campaign::new(&exps, &data, &FitOptions::default()), &start, &fit, &DiagnoseOptions::default()).unwrap();
+        let b =
+            diagnose(&Campaign::new(&exps, &data, &FitOptions::default()), &start, &fit, &DiagnoseOptions::default())
+                .unwrap();
         let json = |d: &Diagnosis| {
             let mut v = serde_json::to_value(d).unwrap();
             v.as_object_mut().unwrap().remove("timing");
@@ -933,7 +1125,9 @@ mod tests {
         assert_eq!(json(&a), json(&b));
         let events = out.events();
         check_monotone(&events);
-        for stage in ["base fit", "score tests", "likelihood-ratio fits", "thixotropy: fit", "thixotropy: leave-one-out"] {
+        for stage in
+            ["base fit", "score tests", "likelihood-ratio fits", "thixotropy: fit", "thixotropy: leave-one-out"]
+        {
             assert!(events.iter().any(|e| e.stage == stage), "{stage}: {events:?}");
         }
     }

@@ -56,11 +56,16 @@ pub struct Shape {
 
 /// Least squares of `y` on `cols`: the residual sum of squares, the rank, the coefficients.
 fn fit(y: &[f64], cols: &[Vec<f64>]) -> (f64, usize, Vec<f64>) {
-    let a: Vec<Vec<f64>> = cols.iter().map(|c| cols.iter().map(|d| c.iter().zip(d).map(|(p, q)| p * q).sum()).collect()).collect();
+    let a: Vec<Vec<f64>> =
+        cols.iter().map(|c| cols.iter().map(|d| c.iter().zip(d).map(|(p, q)| p * q).sum()).collect()).collect();
     let g: Vec<f64> = cols.iter().map(|c| c.iter().zip(y).map(|(p, q)| p * q).sum()).collect();
     let (inv, rank) = pinv_sym(&a, 1e-10);
     let coef: Vec<f64> = inv.iter().map(|r| r.iter().zip(&g).map(|(p, q)| p * q).sum()).collect();
-    let rss = y.iter().enumerate().map(|(i, v)| (v - cols.iter().zip(&coef).map(|(c, k)| c[i] * k).sum::<f64>()).powi(2)).sum();
+    let rss = y
+        .iter()
+        .enumerate()
+        .map(|(i, v)| (v - cols.iter().zip(&coef).map(|(c, k)| c[i] * k).sum::<f64>()).powi(2))
+        .sum();
     (rss, rank, coef)
 }
 
@@ -74,7 +79,8 @@ fn f_test(y: &[f64], reduced: &[Vec<f64>], full: &[Vec<f64>]) -> Option<(f64, f6
         return None;
     }
     // an exact fit leaves no scatter: anything the extra columns explain is infinitely significant
-    let f = if r1 > 1e-12 * r0.max(1e-300) { ((r0 - r1).max(0.0) / d1 as f64) / (r1 / d2 as f64) } else { f64::INFINITY };
+    let f =
+        if r1 > 1e-12 * r0.max(1e-300) { ((r0 - r1).max(0.0) / d1 as f64) / (r1 / d2 as f64) } else { f64::INFINITY };
     Some((f, f_sf(f, d1, d2), coef))
 }
 
@@ -172,7 +178,18 @@ fn covariate_shapes(rows: &[Row], c: &Covariate) -> Vec<Tested> {
     // the sign of the last column's coefficient: the slope, or the quadratic term
     let shape = |kind: &str, (f, p, coef): (f64, f64, Vec<f64>), signed: bool| {
         let sign = if signed { coef.last().copied().unwrap_or(0.0).signum() } else { 0.0 };
-        Tested { shape: Shape { covariate: c.name.clone(), kind: kind.into(), n: x.len(), f, p_value: p, sign, text: describe(c, kind, sign, (&x, &z), (f, p)) }, per_experiment }
+        Tested {
+            shape: Shape {
+                covariate: c.name.clone(),
+                kind: kind.into(),
+                n: x.len(),
+                f,
+                p_value: p,
+                sign,
+                text: describe(c, kind, sign, (&x, &z), (f, p)),
+            },
+            per_experiment,
+        }
     };
     let mut out = Vec::new();
     if k == 2 {
@@ -182,7 +199,11 @@ fn covariate_shapes(rows: &[Row], c: &Covariate) -> Vec<Tested> {
     out.extend(f_test(&z, &base, &lin).map(|t| shape("trend", t, true)));
     out.extend(f_test(&z, &lin, &quad).map(|t| shape("curvature", t, true)));
     if k >= 4 {
-        let groups: Vec<Vec<f64>> = quad.iter().cloned().chain(indicators(&level_of).into_iter().map(|c| c.iter().zip(&w).map(|(c, w)| c * w).collect())).collect();
+        let groups: Vec<Vec<f64>> = quad
+            .iter()
+            .cloned()
+            .chain(indicators(&level_of).into_iter().map(|c| c.iter().zip(&w).map(|(c, w)| c * w).collect()))
+            .collect();
         out.extend(f_test(&z, &quad, &groups).map(|t| shape("step", t, false)));
     }
     out
@@ -204,7 +225,8 @@ fn together(rows: &[Row]) -> Option<Shape> {
         })
         .collect();
     let text = format!(
-        "residuals move together within each experiment (F = {f:.1}, p = {p:.1e}): a per-experiment cause the covariates do not describe (a batch, the mix, the set-up); mean z: {}",
+        "residuals move together within each experiment (F = {f:.1}, p = {p:.1e}): a per-experiment cause the \
+            covariates do not describe (a batch, the mix, the set-up); mean z: {}",
         means.join(", ")
     );
     Some(Shape { covariate: "experiment".into(), kind: "together".into(), n: z.len(), f, p_value: p, sign: 0.0, text })
@@ -236,26 +258,40 @@ fn cause(name: &str, kind: &str, sign: f64) -> Option<String> {
     Some(match name {
         "at(stress)" if bends => {
             if sign > 0.0 {
-                "the flow curve is not linear in the rate: the data are concave in it (the model below them at mid rates), as a shear-thinning material's (Herschel-Bulkley, n < 1)".into()
+                "the flow curve is not linear in the rate: the data are concave in it (the model below them at mid \
+                    rates), as a shear-thinning material's (Herschel-Bulkley, n < 1)".into()
             } else {
-                "the flow curve is not linear in the rate: the data are convex in it (the model above them at mid rates), as a shear-thickening material's (Herschel-Bulkley, n > 1)".into()
+                "the flow curve is not linear in the rate: the data are convex in it (the model above them at mid \
+                    rates), as a shear-thickening material's (Herschel-Bulkley, n > 1)".into()
             }
         }
-        "at(stress)" => "the stress grows with the rate at another slope than the model's: the plastic viscosity is off or not fitted".into(),
-        "rest_time" if bends => "the build-up is not linear in the rest time (a structuration that saturates or accelerates)".into(),
-        "rest_time" if falls => "the data stiffen with rest more than the model does: structural build-up at rest (thixotropy)".into(),
+        "at(stress)" => "the stress grows with the rate at another slope than the model's: the plastic viscosity is \
+            off or not fitted".into(),
+        "rest_time" if bends => "the build-up is not linear in the rest time (a structuration that saturates or \
+            accelerates)".into(),
+        "rest_time" if falls => "the data stiffen with rest more than the model does: structural build-up at rest \
+            (thixotropy)".into(),
         "rest_time" => "the model stiffens with rest more than the data do: its build-up at rest is too strong".into(),
-        "age" if bends => "the change with age is not linear in age (a power law or an exponential in age: one can be declared in the model file)".into(),
-        "age" if falls => "the data stiffen with age more than the model does: ageing (hydration) of the yield stress or the viscosity".into(),
+        "age" if bends => "the change with age is not linear in age (a power law or an exponential in age: one can be \
+            declared in the model file)".into(),
+        "age" if falls => "the data stiffen with age more than the model does: ageing (hydration) of the yield stress \
+            or the viscosity".into(),
         "age" => "the model stiffens with age more than the data do: its ageing is too strong".into(),
         _ if name.starts_with("set.") => format!("the response to {} is not the model's", label(name)),
         _ => match name.strip_prefix("at(").and_then(|s| s.strip_suffix(')')) {
-            Some("spread" | "front" | "vx_max" | "kinetic_energy" | "mean_z") if bends => "the flow's course in time bends away from the model's: a time scale the model lacks (thixotropic breakdown, a relaxation, elasticity)".into(),
-            Some("spread" | "front" | "vx_max" | "kinetic_energy" | "mean_z") => "the flow runs faster or slower in time than the model's (viscosity, or breakdown of structure while flowing)".into(),
-            Some(_) => "the deposit changes along the path: something that changes while printing (ageing during the print, the speed, the flow rate)".into(),
-            None if name.starts_with("at2(profile") => "the section's shape across is not the model's: how the layer spreads (yield stress, floor friction)".into(),
-            None if name.starts_with("at2(") => "layers differ from the model's: the load of the layers above (build-up, elasticity)".into(),
-            None => format!("the data depend on {name} in a way the model does not: an effect that reads it can be declared in the model file"),
+            Some("spread" | "front" | "vx_max" | "kinetic_energy" | "mean_z") if bends => "the flow's course in time \
+                bends away from the model's: a time scale the model lacks (thixotropic breakdown, a relaxation, \
+                elasticity)".into(),
+            Some("spread" | "front" | "vx_max" | "kinetic_energy" | "mean_z") => "the flow runs faster or slower in \
+                time than the model's (viscosity, or breakdown of structure while flowing)".into(),
+            Some(_) => "the deposit changes along the path: something that changes while printing (ageing during the \
+                print, the speed, the flow rate)".into(),
+            None if name.starts_with("at2(profile") => "the section's shape across is not the model's: how the layer \
+                spreads (yield stress, floor friction)".into(),
+            None if name.starts_with("at2(") => "layers differ from the model's: the load of the layers above \
+                (build-up, elasticity)".into(),
+            None => format!("the data depend on {name} in a way the model does not: an effect that reads it can be \
+                declared in the model file"),
         },
     })
 }
@@ -291,7 +327,8 @@ fn describe(c: &Covariate, kind: &str, sign: f64, (x, z): (&[f64], &[f64]), (f, 
 pub fn text(shapes: &[Shape]) -> String {
     let mut s = String::new();
     if shapes.is_empty() {
-        let _ = writeln!(s, "\nshape of the residuals: no trend, curvature, step or per-experiment shift is significant");
+        let _ =
+            writeln!(s, "\nshape of the residuals: no trend, curvature, step or per-experiment shift is significant");
         return s;
     }
     let _ = writeln!(s, "\nshape of the residuals:");
@@ -310,7 +347,8 @@ mod tests {
     use rand_distr::{Distribution, StandardNormal};
 
     /// A campaign's layout: six experiments (rest time, age) of three rates each.
-    const EXPERIMENTS: [(f64, f64); 6] = [(0.0, 600.0), (60.0, 1200.0), (300.0, 1800.0), (0.0, 2400.0), (600.0, 3000.0), (0.0, 3600.0)];
+    const EXPERIMENTS: [(f64, f64); 6] =
+        [(0.0, 600.0), (60.0, 1200.0), (300.0, 1800.0), (0.0, 2400.0), (600.0, 3000.0), (0.0, 3600.0)];
     const RATES: [f64; 3] = [20.0, 5.0, 1.0];
 
     /// Rows of the campaign with z = noise + `signal(experiment, rest, age, rate)`, and their
@@ -320,7 +358,12 @@ mod tests {
         let (mut data, mut values, mut covs) = (Vec::new(), Vec::new(), [Vec::new(), Vec::new(), Vec::new()]);
         for (e, (rest, age)) in EXPERIMENTS.iter().enumerate() {
             for rate in RATES {
-                data.push(Observation { experiment: format!("E{e}"), observable: Observable { name: "stress".into(), at: Some(rate), at2: None }, value: 100.0, uncertainty: 1.0 });
+                data.push(Observation {
+                    experiment: format!("E{e}"),
+                    observable: Observable { name: "stress".into(), at: Some(rate), at2: None },
+                    value: 100.0,
+                    uncertainty: 1.0,
+                });
                 let n: f64 = StandardNormal.sample(&mut noise);
                 values.push(100.0 + n + signal(e, *rest, *age, rate));
                 for (c, v) in covs.iter_mut().zip([*rest, *age, rate]) {
@@ -329,14 +372,22 @@ mod tests {
             }
         }
         let names = ["rest_time", "age", "at(stress)"];
-        let covs = covs.into_iter().zip(names).map(|(values, n)| Covariate { name: n.into(), axis: n.into(), values }).collect();
+        let covs = covs
+            .into_iter()
+            .zip(names)
+            .map(|(values, n)| Covariate { name: n.into(), axis: n.into(), values })
+            .collect();
         (comparison(&data, &values).rows, covs)
     }
 
     #[test]
     fn pure_noise_flags_nothing() {
         // at alpha = 0.01 for all tests together, about 1 in 100 noise campaigns flags something
-        let flagged: Vec<(u64, Vec<Shape>)> = (0..300).map(|seed| (seed, campaign(seed, |_, _, _, _| 0.0))).map(|(s, (r, c))| (s, shapes(&r, &c, 0.01))).filter(|(_, sh)| !sh.is_empty()).collect();
+        let flagged: Vec<(u64, Vec<Shape>)> = (0..300)
+            .map(|seed| (seed, campaign(seed, |_, _, _, _| 0.0)))
+            .map(|(s, (r, c))| (s, shapes(&r, &c, 0.01)))
+            .filter(|(_, sh)| !sh.is_empty())
+            .collect();
         assert!(flagged.len() <= 9, "{} of 300 noise campaigns flagged: {:?}", flagged.len(), flagged.first());
         // and the noise scaled up 20 times (uncertainties stated too small) flags the same shapes
         // as unscaled, up to rounding (the texts quote mean z, which scales): the tests are F
@@ -348,7 +399,12 @@ mod tests {
             let scaled: Vec<Row> = rows.iter().map(|r| Row { z: 20.0 * r.z, ..r.clone() }).collect();
             let (a, b) = (shapes(&scaled, &covs, 0.01), shapes(&rows, &covs, 0.01));
             let close = |x: f64, y: f64| (x - y).abs() <= 1e-9 * y.abs();
-            let same = a.len() == b.len() && a.iter().zip(&b).all(|(x, y)| (&x.covariate, &x.kind, x.n, x.sign) == (&y.covariate, &y.kind, y.n, y.sign) && close(x.f, y.f) && close(x.p_value, y.p_value));
+            let same = a.len() == b.len()
+                && a.iter().zip(&b).all(|(x, y)| {
+                    (&x.covariate, &x.kind, x.n, x.sign) == (&y.covariate, &y.kind, y.n, y.sign)
+                        && close(x.f, y.f)
+                        && close(x.p_value, y.p_value)
+                });
             assert!(same, "seed {seed}: scaled {a:#?}\nunscaled {b:#?}");
         }
     }
@@ -371,8 +427,17 @@ mod tests {
         // rate, above at both ends and below at mid rates
         let (rows, covs) = campaign(2, |_, _, _, rate| 4.0 * ((rate.ln() - 5f64.ln()).powi(2) - 1.2));
         let sh = shapes(&rows, &covs, 0.01);
-        let c = sh.iter().find(|s| s.covariate == "at(stress)" && s.kind == "curvature").unwrap_or_else(|| panic!("{sh:#?}"));
-        assert!(c.text.starts_with("residuals bend with shear rate") && c.text.contains("the flow curve is not linear in the rate") && c.text.contains("shear-thinning"), "{}", c.text);
+        let c = sh
+            .iter()
+            .find(|s| s.covariate == "at(stress)" && s.kind == "curvature")
+            .unwrap_or_else(|| panic!("{sh:#?}"));
+        assert!(
+            c.text.starts_with("residuals bend with shear rate")
+                && c.text.contains("the flow curve is not linear in the rate")
+                && c.text.contains("shear-thinning"),
+            "{}",
+            c.text
+        );
         assert!(sh.iter().all(|s| s.covariate != "age" && s.covariate != "rest_time"), "{sh:#?}");
     }
 
@@ -385,12 +450,18 @@ mod tests {
         for (e, tau0) in [100.0, 120.0, 140.0].iter().enumerate() {
             for rate in [40.0, 20.0, 10.0, 5.0, 1.0] {
                 let measured = tau0 + 20.0 * rate;
-                data.push(Observation { experiment: format!("E{e}"), observable: Observable { name: "stress".into(), at: Some(rate), at2: None }, value: measured, uncertainty: 0.01 * measured });
+                data.push(Observation {
+                    experiment: format!("E{e}"),
+                    observable: Observable { name: "stress".into(), at: Some(rate), at2: None },
+                    value: measured,
+                    uncertainty: 0.01 * measured,
+                });
                 values.push(tau0 + 30.0 * rate);
             }
         }
         let rows = comparison(&data, &values).rows;
-        let covs = [Covariate { name: "at(stress)".into(), axis: String::new(), values: rows.iter().map(|r| r.at).collect() }];
+        let covs =
+            [Covariate { name: "at(stress)".into(), axis: String::new(), values: rows.iter().map(|r| r.at).collect() }];
         let sh = shapes(&rows, &covs, 0.01);
         assert!(sh.iter().any(|s| s.kind == "trend") && sh.iter().all(|s| s.kind != "curvature"), "{sh:#?}");
     }
@@ -409,7 +480,11 @@ mod tests {
         let sh = shapes(&rows, &covs, 0.01);
         let s = sh.iter().find(|s| s.covariate == "set.material.water").unwrap_or_else(|| panic!("{sh:#?}"));
         assert_eq!(s.kind, "step");
-        assert!(s.text.contains("residuals step between groups of material.water") && s.text.contains("0.3 at +"), "{}", s.text);
+        assert!(
+            s.text.contains("residuals step between groups of material.water") && s.text.contains("0.3 at +"),
+            "{}",
+            s.text
+        );
         // explained by the key: not reported as a per-experiment cause
         assert!(sh.iter().all(|s| s.kind != "together"), "{sh:#?}");
     }

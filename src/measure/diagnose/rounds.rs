@@ -40,10 +40,24 @@ pub struct Rounds {
 
 /// Diagnose rounds from `model`, each adding the effect the last recommended, until none is or
 /// `max_rounds` have run.
-pub fn rounds(c: &Campaign, model: &Model, fit: &[String], opts: &DiagnoseOptions, max_rounds: usize) -> Result<Rounds, MeasureError> {
+pub fn rounds(
+    c: &Campaign,
+    model: &Model,
+    fit: &[String],
+    opts: &DiagnoseOptions,
+    max_rounds: usize,
+) -> Result<Rounds, MeasureError> {
     let n = c.data.len().max(1) as f64;
     let (mut model, mut fit) = (model.clone(), fit.to_vec());
-    let mut out = Rounds { rounds: vec![], added: vec![], final_chi2: f64::NAN, final_chi2_per_observation: f64::NAN, complete: false, fit: vec![], model: model.clone() };
+    let mut out = Rounds {
+        rounds: vec![],
+        added: vec![],
+        final_chi2: f64::NAN,
+        final_chi2_per_observation: f64::NAN,
+        complete: false,
+        fit: vec![],
+        model: model.clone(),
+    };
     for round in 1..=max_rounds.max(1) {
         // the model's values are known in the first round only (the discretisation estimate's)
         let campaign = if round == 1 { *c } else { Campaign { estimate: None, ..*c } };
@@ -51,10 +65,18 @@ pub fn rounds(c: &Campaign, model: &Model, fit: &[String], opts: &DiagnoseOption
         let before = d.base_chi2;
         let chosen = d.recommended.as_ref().and_then(|e| d.candidates.iter().find(|c| c.effect == *e));
         let (added, after, next) = match (chosen, &d.recommended_model) {
-            (Some(c), Some(m)) => (Some(c.effect.clone()), c.fitted_chi2.unwrap_or(before), Some((m.clone(), m.effect(&c.effect)?))),
+            (Some(c), Some(m)) => {
+                (Some(c.effect.clone()), c.fitted_chi2.unwrap_or(before), Some((m.clone(), m.effect(&c.effect)?)))
+            }
             _ => (None, before, None),
         };
-        out.rounds.push(Round { round, chi2_per_observation_before: before / n, added: added.clone(), chi2_per_observation_after: after / n, diagnosis: d.clone() });
+        out.rounds.push(Round {
+            round,
+            chi2_per_observation_before: before / n,
+            added: added.clone(),
+            chi2_per_observation_after: after / n,
+            diagnosis: d.clone(),
+        });
         out.final_chi2 = after;
         match next {
             Some((m, effect)) => {
@@ -90,9 +112,14 @@ pub fn report(r: &Rounds) -> String {
             Some(e) => format!("add {e}"),
             None => round.diagnosis.verdict.clone(),
         };
-        let _ = writeln!(s, "  round {}: {:.4} -> {what} -> {:.4}", round.round, round.chi2_per_observation_before, round.chi2_per_observation_after);
+        let _ = writeln!(
+            s,
+            "  round {}: {:.4} -> {what} -> {:.4}",
+            round.round, round.chi2_per_observation_before, round.chi2_per_observation_after
+        );
     }
-    let mut chain: Vec<String> = r.rounds.first().map(|x| format!("{:.3}", x.chi2_per_observation_before)).into_iter().collect();
+    let mut chain: Vec<String> =
+        r.rounds.first().map(|x| format!("{:.3}", x.chi2_per_observation_before)).into_iter().collect();
     chain.extend(r.rounds.iter().filter(|x| x.added.is_some()).map(|x| format!("{:.3}", x.chi2_per_observation_after)));
     let _ = writeln!(
         s,

@@ -27,7 +27,8 @@ impl Ageing {
     }
 }
 
-const PARAMS: &[ParamSpec] = &[ParamSpec { name: "rate", null: 0.0, lower: 0.0, upper: f64::INFINITY, scale: 2e-4, unit: "1/s" }];
+const PARAMS: &[ParamSpec] =
+    &[ParamSpec { name: "rate", null: 0.0, lower: 0.0, upper: f64::INFINITY, scale: 2e-4, unit: "1/s" }];
 
 impl Effect for Ageing {
     fn name(&self) -> &'static str {

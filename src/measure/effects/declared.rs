@@ -79,27 +79,42 @@ pub fn is_declaration(table: &toml::Table) -> bool {
 
 /// Read `[effects.NAME]`. `material` is the model's `[material]`, whose numbers bare names
 /// refer to; `line_of(key)` is the line of `sets.KEY` in the model file, when known.
-pub fn declare(name: &str, table: &toml::Table, material: &toml::Table, line_of: &dyn Fn(&str) -> Option<usize>) -> Result<Declaration, MeasureError> {
+pub fn declare(
+    name: &str,
+    table: &toml::Table,
+    material: &toml::Table,
+    line_of: &dyn Fn(&str) -> Option<usize>,
+) -> Result<Declaration, MeasureError> {
     let here = format!("effects.{name}");
     if super::REGISTRY.iter().any(|e| e.name() == name) {
-        return Err(MeasureError::Effect(format!("{here}: '{name}' is an effect of the library; a declared effect (with `sets`) needs a name of its own")));
+        return Err(MeasureError::Effect(format!(
+            "{here}: '{name}' is an effect of the library; a declared effect (with `sets`) needs a name of its own"
+        )));
     }
     if name.contains('.') {
         return Err(MeasureError::Effect(format!("{here}: a declared effect's name cannot contain '.'")));
     }
     let about = match table.get("about") {
         None => format!("declared in the model file: {}", describe_sets(table)),
-        Some(v) => v.as_str().ok_or_else(|| MeasureError::Effect(format!("{here}.about must be a string")))?.to_string(),
+        Some(v) => {
+            v.as_str().ok_or_else(|| MeasureError::Effect(format!("{here}.about must be a string")))?.to_string()
+        }
     };
     let covariates: Vec<String> = match table.get("covariates") {
         None => vec![],
         Some(v) => v
             .as_array()
             .and_then(|a| a.iter().map(|c| c.as_str().map(str::to_string)).collect::<Option<Vec<_>>>())
-            .ok_or_else(|| MeasureError::Effect(format!("{here}.covariates must be a list of names, e.g. covariates = [\"temperature\"]")))?,
+            .ok_or_else(|| {
+                MeasureError::Effect(format!(
+                    "{here}.covariates must be a list of names, e.g. covariates = [\"temperature\"]"
+                ))
+            })?,
     };
     if let Some(c) = covariates.iter().find(|c| ["rest_time", "age"].contains(&c.as_str())) {
-        return Err(MeasureError::Effect(format!("{here}.covariates: '{c}' is always there; list only the covariates experiments declare")));
+        return Err(MeasureError::Effect(format!(
+            "{here}.covariates: '{c}' is always there; list only the covariates experiments declare"
+        )));
     }
     let params = read_params(&here, table.get("params"))?;
     for p in &params {
@@ -111,34 +126,20 @@ pub fn declare(name: &str, table: &toml::Table, material: &toml::Table, line_of:
             None
         };
         if let Some(what) = clash {
-            return Err(MeasureError::Effect(format!("{here}.params: parameter '{}' has the name of {what}; rename it", p.name)));
+            return Err(MeasureError::Effect(format!(
+                "{here}.params: parameter '{}' has the name of {what}; rename it",
+                p.name
+            )));
         }
     }
-    let sets_table = table.get("sets").and_then(|s| s.as_table()).ok_or_else(|| MeasureError::Effect(format!("{here}.sets must be a table of KEY = \"expression\"")))?;
+    let sets_table = table
+        .get("sets")
+        .and_then(|s| s.as_table())
+        .ok_or_else(|| MeasureError::Effect(format!("{here}.sets must be a table of KEY = \"expression\"")))?;
     if sets_table.is_empty() {
         return Err(MeasureError::Effect(format!("{here}.sets sets nothing")));
     }
-    let mut sets = Vec::new();
-    for (key, v) in sets_table {
-        let line = line_of(key).map_or(String::new(), |l| format!(" (line {l})"));
-        let text = v.as_str().ok_or_else(|| MeasureError::Effect(format!("{here}.sets.\"{key}\"{line} must be an expression in a string")))?;
-        let expression = Expression::parse(text).map_err(|e| e.within(format!("{here}.sets.\"{key}\"{line}: in '{text}'")))?;
-        let reads = expression
-            .symbols()
-            .iter()
-            .map(|s| {
-                resolve(s, &params, &covariates, material).ok_or_else(|| {
-                    MeasureError::Effect(format!(
-                        "{here}.sets.\"{key}\"{line}: unknown symbol '{s}' in '{text}'; an expression reads the effect's parameters ({}), rest_time, age, the covariates it lists in `covariates` ({}), a key in full (material.KEY) or a number of [material] by name ({})",
-                        names_or_none(params.iter().map(|p| p.name.as_str())),
-                        names_or_none(covariates.iter().map(String::as_str)),
-                        names_or_none(material.iter().filter(|(_, v)| crate::measure::observation::number(v).is_some()).map(|(k, _)| k.as_str())),
-                    ))
-                })
-            })
-            .collect::<Result<Vec<Read>, MeasureError>>()?;
-        sets.push(Assignment { key: key.clone(), expression, reads });
-    }
+    let sets = read_sets(&here, sets_table, (&params, &covariates, material), line_of)?;
     let mut values: Vec<f64> = params.iter().map(|p| p.null).collect();
     let mut candidate = false;
     for (k, v) in table {
@@ -146,18 +147,68 @@ pub fn declare(name: &str, table: &toml::Table, material: &toml::Table, line_of:
             continue;
         }
         if k == CANDIDATE {
-            candidate = v.as_bool().ok_or_else(|| MeasureError::Effect(format!("{here}.{CANDIDATE} must be true or false")))?;
+            candidate =
+                v.as_bool().ok_or_else(|| MeasureError::Effect(format!("{here}.{CANDIDATE} must be true or false")))?;
             continue;
         }
         let i = params.iter().position(|p| p.name == *k).ok_or_else(|| {
-            MeasureError::Effect(format!("{here}: unknown key '{k}'; a declared effect has {}, {CANDIDATE}, and the values of its parameters ({})", DECLARATION.join(", "), names_or_none(params.iter().map(|p| p.name.as_str()))))
+            MeasureError::Effect(format!(
+                "{here}: unknown key '{k}'; a declared effect has {}, {CANDIDATE}, and the values of its \
+                    parameters ({})",
+                DECLARATION.join(", "),
+                names_or_none(params.iter().map(|p| p.name.as_str()))
+            ))
         })?;
-        values[i] = crate::measure::observation::number(v).ok_or_else(|| MeasureError::Effect(format!("{here}.{k} must be a number")))?;
+        values[i] = crate::measure::observation::number(v)
+            .ok_or_else(|| MeasureError::Effect(format!("{here}.{k} must be a number")))?;
     }
-    let declaration: toml::Table = table.iter().filter(|(k, _)| DECLARATION.contains(&k.as_str())).map(|(k, v)| (k.clone(), v.clone())).collect();
+    let declaration: toml::Table =
+        table.iter().filter(|(k, _)| DECLARATION.contains(&k.as_str())).map(|(k, v)| (k.clone(), v.clone())).collect();
     let effect = intern(name, about, params, sets, declaration);
     effect.check_null(material)?;
     Ok(Declaration { effect, values, candidate })
+}
+
+/// The assignments of a declared effect's `sets` table, each expression parsed and its symbols
+/// resolved against the effect's parameters, its covariates and the material.
+fn read_sets(
+    here: &str,
+    sets_table: &toml::Table,
+    (params, covariates, material): (&[Spec], &[String], &toml::Table),
+    line_of: &dyn Fn(&str) -> Option<usize>,
+) -> Result<Vec<Assignment>, MeasureError> {
+    let mut sets = Vec::new();
+    for (key, v) in sets_table {
+        let line = line_of(key).map_or(String::new(), |l| format!(" (line {l})"));
+        let text = v.as_str().ok_or_else(|| {
+            MeasureError::Effect(format!("{here}.sets.\"{key}\"{line} must be an expression in a string"))
+        })?;
+        let expression =
+            Expression::parse(text).map_err(|e| e.within(format!("{here}.sets.\"{key}\"{line}: in '{text}'")))?;
+        let reads = expression
+            .symbols()
+            .iter()
+            .map(|s| {
+                resolve(s, params, covariates, material).ok_or_else(|| {
+                    MeasureError::Effect(format!(
+                        "{here}.sets.\"{key}\"{line}: unknown symbol '{s}' in '{text}'; an expression reads the \
+                            effect's parameters ({}), rest_time, age, the covariates it lists in `covariates` ({}), a \
+                            key in full (material.KEY) or a number of [material] by name ({})",
+                        names_or_none(params.iter().map(|p| p.name.as_str())),
+                        names_or_none(covariates.iter().map(String::as_str)),
+                        names_or_none(
+                            material
+                                .iter()
+                                .filter(|(_, v)| crate::measure::observation::number(v).is_some())
+                                .map(|(k, _)| k.as_str())
+                        ),
+                    ))
+                })
+            })
+            .collect::<Result<Vec<Read>, MeasureError>>()?;
+        sets.push(Assignment { key: key.clone(), expression, reads });
+    }
+    Ok(sets)
 }
 
 fn names_or_none<'a>(names: impl Iterator<Item = &'a str>) -> String {
@@ -205,7 +256,9 @@ struct Spec {
 }
 
 fn read_params(here: &str, v: Option<&toml::Value>) -> Result<Vec<Spec>, MeasureError> {
-    let t = v.and_then(|v| v.as_table()).ok_or_else(|| MeasureError::Effect(format!("{here}.params must be a table of NAME = {{ null = ..., min = ..., max = ... }}")))?;
+    let t = v.and_then(|v| v.as_table()).ok_or_else(|| {
+        MeasureError::Effect(format!("{here}.params must be a table of NAME = {{ null = ..., min = ..., max = ... }}"))
+    })?;
     if t.is_empty() {
         return Err(MeasureError::Effect(format!("{here}.params: a declared effect needs a parameter")));
     }
@@ -215,13 +268,18 @@ fn read_params(here: &str, v: Option<&toml::Value>) -> Result<Vec<Spec>, Measure
         if name.contains('.') {
             return Err(MeasureError::Effect(format!("{at}: a parameter's name cannot contain '.'")));
         }
-        let spec = spec.as_table().ok_or_else(|| MeasureError::Effect(format!("{at} must be {{ null = ..., min = ..., max = ... }}")))?;
+        let spec = spec
+            .as_table()
+            .ok_or_else(|| MeasureError::Effect(format!("{at} must be {{ null = ..., min = ..., max = ... }}")))?;
         if let Some(k) = spec.keys().find(|k| !["null", "min", "max", "scale", "unit"].contains(&k.as_str())) {
-            return Err(MeasureError::Effect(format!("{at}: unknown key '{k}' (a parameter has null, min, max, scale, unit)")));
+            return Err(MeasureError::Effect(format!(
+                "{at}: unknown key '{k}' (a parameter has null, min, max, scale, unit)"
+            )));
         }
         let num = |k: &str, default: Option<f64>| -> Result<f64, MeasureError> {
             match spec.get(k) {
-                Some(v) => crate::measure::observation::number(v).ok_or_else(|| MeasureError::Effect(format!("{at}.{k} must be a number"))),
+                Some(v) => crate::measure::observation::number(v)
+                    .ok_or_else(|| MeasureError::Effect(format!("{at}.{k} must be a number"))),
                 None => default.ok_or_else(|| MeasureError::Effect(format!("{at}: give {k}"))),
             }
         };
@@ -229,14 +287,18 @@ fn read_params(here: &str, v: Option<&toml::Value>) -> Result<Vec<Spec>, Measure
         let lower = num("min", Some(f64::NEG_INFINITY))?;
         let upper = num("max", Some(f64::INFINITY))?;
         if !(null.is_finite() && lower <= null && null <= upper) || lower >= upper {
-            return Err(MeasureError::Effect(format!("{at}: needs a finite null within min < max (null {null}, min {lower}, max {upper})")));
+            return Err(MeasureError::Effect(format!(
+                "{at}: needs a finite null within min < max (null {null}, min {lower}, max {upper})"
+            )));
         }
         let spread = upper - lower;
         let scale = match spec.get("scale") {
             Some(_) => num("scale", None)?,
             None if spread.is_finite() => spread / 10.0,
             None if null != 0.0 => null.abs(),
-            None => return Err(MeasureError::Effect(format!("{at}: give scale (a typical magnitude, the fit's unit step): its bounds are open and its null is 0"))),
+            None => return Err(MeasureError::Effect(format!(
+                "{at}: give scale (a typical magnitude, the fit's unit step): its bounds are open and its null is 0"
+            ))),
         };
         if !(scale.is_finite() && scale > 0.0) {
             return Err(MeasureError::Effect(format!("{at}.scale must be > 0, got {scale}")));
@@ -256,14 +318,36 @@ fn leak(s: &str) -> &'static str {
 
 /// The one kept copy of a declaration: the same name and declaration give the same effect, so
 /// loading a model again keeps nothing more.
-fn intern(name: &str, about: String, params: Vec<Spec>, sets: Vec<Assignment>, declaration: toml::Table) -> &'static Declared {
+fn intern(
+    name: &str,
+    about: String,
+    params: Vec<Spec>,
+    sets: Vec<Assignment>,
+    declaration: toml::Table,
+) -> &'static Declared {
     static KEPT: Mutex<Vec<&'static Declared>> = Mutex::new(Vec::new());
     let mut kept = KEPT.lock().unwrap_or_else(|e| e.into_inner());
     if let Some(k) = kept.iter().find(|k| k.name == name && k.declaration == declaration) {
         return k;
     }
-    let params: Vec<ParamSpec> = params.into_iter().map(|p| ParamSpec { name: leak(&p.name), null: p.null, lower: p.lower, upper: p.upper, scale: p.scale, unit: leak(&p.unit) }).collect();
-    let k: &'static Declared = Box::leak(Box::new(Declared { name: leak(name), about: leak(&about), params: Box::leak(params.into_boxed_slice()), sets, declaration }));
+    let params: Vec<ParamSpec> = params
+        .into_iter()
+        .map(|p| ParamSpec {
+            name: leak(&p.name),
+            null: p.null,
+            lower: p.lower,
+            upper: p.upper,
+            scale: p.scale,
+            unit: leak(&p.unit),
+        })
+        .collect();
+    let k: &'static Declared = Box::leak(Box::new(Declared {
+        name: leak(name),
+        about: leak(&about),
+        params: Box::leak(params.into_boxed_slice()),
+        sets,
+        declaration,
+    }));
     kept.push(k);
     k
 }
@@ -289,7 +373,9 @@ impl Declared {
                 Read::Param(i) => Ok(p[*i]),
                 Read::RestTime => Ok(x.rest_time),
                 Read::Age => Ok(x.age),
-                Read::Covariate(c) => x.declared.get(c).copied().ok_or_else(|| MeasureError::Effect(format!("effect '{}' reads the covariate '{c}', which the experiment does not declare (covariates = {{ {c} = ... }})", self.name))),
+                Read::Covariate(c) => x.declared.get(c).copied().ok_or_else(|| MeasureError::Effect(format!("effect \
+                    '{}' reads the covariate '{c}', which the experiment does not declare (covariates = {{ {c} = ... \
+                    }})", self.name))),
                 Read::Key(k) => read(keys, self.name, k),
             })
             .collect()
@@ -298,7 +384,10 @@ impl Declared {
     /// Refuse a declaration that does not vanish at its null: each key it sets that the
     /// material gives must come back unchanged, at a few values of the covariates.
     fn check_null(&self, material: &toml::Table) -> Result<(), MeasureError> {
-        let keys: Keys = material.iter().filter_map(|(k, v)| crate::measure::observation::number(v).map(|n| (format!("material.{k}"), n))).collect();
+        let keys: Keys = material
+            .iter()
+            .filter_map(|(k, v)| crate::measure::observation::number(v).map(|n| (format!("material.{k}"), n)))
+            .collect();
         let null: Vec<f64> = self.params.iter().map(|s| s.null).collect();
         for (rest_time, age, c) in [(0.0, 0.0, 0.0), (240.0, 1800.0, 1.0), (600.0, 7200.0, 25.0)] {
             let mut x = Covariates { rest_time, age, ..Default::default() };
@@ -310,12 +399,15 @@ impl Declared {
                 }
             }
             for a in &self.sets {
-                let (Some(&before), Ok(values)) = (keys.get(&a.key), self.values(a, &null, &x, &keys)) else { continue };
+                let (Some(&before), Ok(values)) = (keys.get(&a.key), self.values(a, &null, &x, &keys)) else {
+                    continue;
+                };
                 let after = a.expression.eval(&values);
                 if !((after - before).abs() <= 1e-12 * before.abs().max(1e-300)) {
                     let at: Vec<String> = self.params.iter().map(|s| format!("{} = {}", s.name, s.null)).collect();
                     return Err(MeasureError::Effect(format!(
-                        "effects.{}: at its null ({}) '{}' gives {} = {after}, not the material's {before} (rest_time {rest_time}, age {age}): an effect must vanish at its null",
+                        "effects.{}: at its null ({}) '{}' gives {} = {after}, not the material's {before} (rest_time \
+                            {rest_time}, age {age}): an effect must vanish at its null",
                         self.name,
                         at.join(", "),
                         a.expression.text(),
@@ -337,7 +429,12 @@ fn finite(a: &Assignment, values: &[f64]) -> Result<f64, MeasureError> {
         return Ok(v);
     }
     let at: Vec<String> = a.expression.symbols().iter().zip(values).map(|(s, x)| format!("{s} = {x}")).collect();
-    Err(MeasureError::Effect(format!("'{}' gives {} = {v}, not a finite number (at {})", a.expression.text(), a.key, at.join(", "))))
+    Err(MeasureError::Effect(format!(
+        "'{}' gives {} = {v}, not a finite number (at {})",
+        a.expression.text(),
+        a.key,
+        at.join(", ")
+    )))
 }
 
 impl Effect for Declared {
@@ -351,7 +448,11 @@ impl Effect for Declared {
         self.params
     }
     fn apply(&self, p: &[f64], x: &Covariates, keys: &mut Keys) -> Result<(), MeasureError> {
-        let out: Vec<f64> = self.sets.iter().map(|a| self.values(a, p, x, keys).and_then(|v| finite(a, &v))).collect::<Result<_, _>>()?;
+        let out: Vec<f64> = self
+            .sets
+            .iter()
+            .map(|a| self.values(a, p, x, keys).and_then(|v| finite(a, &v)))
+            .collect::<Result<_, _>>()?;
         for (a, v) in self.sets.iter().zip(out) {
             keys.insert(a.key.clone(), v);
         }
@@ -385,16 +486,21 @@ impl Effect for Declared {
 /// Declarations the registry's tests run on, as a model file gives them.
 #[cfg(test)]
 pub const EXAMPLES: &[&str] = &[
-    "[effects.yield_growth]\nsets = { \"material.yield_stress\" = \"yield_stress * (1 + a * age^b)\" }\nparams = { a = { null = 0, min = 0, max = 1e-2 }, b = { null = 1, min = 0.2, max = 3 } }\n",
-    "[effects.hot_thinning]\ncovariates = [\"temperature\"]\nsets = { \"material.viscosity\" = \"viscosity * exp(-e * (temperature - 20))\" }\nparams = { e = { null = 0, min = -0.2, max = 0.2, unit = \"1/K\" } }\n",
-    "[effects.water]\nsets = { \"material.yield_stress\" = \"yield_stress / (1 + w)^3\", \"material.viscosity\" = \"material.viscosity * exp(-2 * w) + 0 * material.yield_stress\" }\nparams = { w = { null = 0, min = 0, max = 0.5 } }\n",
+    "[effects.yield_growth]\nsets = { \"material.yield_stress\" = \"yield_stress * (1 + a * age^b)\" }\nparams = { a = \
+        { null = 0, min = 0, max = 1e-2 }, b = { null = 1, min = 0.2, max = 3 } }\n",
+    "[effects.hot_thinning]\ncovariates = [\"temperature\"]\nsets = { \"material.viscosity\" = \"viscosity * exp(-e * \
+        (temperature - 20))\" }\nparams = { e = { null = 0, min = -0.2, max = 0.2, unit = \"1/K\" } }\n",
+    "[effects.water]\nsets = { \"material.yield_stress\" = \"yield_stress / (1 + w)^3\", \"material.viscosity\" = \
+        \"material.viscosity * exp(-2 * w) + 0 * material.yield_stress\" }\nparams = { w = { null = 0, min = 0, max = \
+        0.5 } }\n",
 ];
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    const MATERIAL: &str = "kind = \"evp_bingham\"\ndensity = 2300.0\nbulk_modulus = 1e6\npoisson_ratio = 0.3\nviscosity = 20.0\nyield_stress = 100.0\n";
+    const MATERIAL: &str = "kind = \"evp_bingham\"\ndensity = 2300.0\nbulk_modulus = 1e6\npoisson_ratio = 0.3\n\
+        viscosity = 20.0\nyield_stress = 100.0\n";
 
     fn parse(effect: &str) -> Result<Declaration, MeasureError> {
         let t: toml::Table = effect.parse().unwrap();
@@ -416,7 +522,16 @@ mod tests {
         let again = parse(&format!("{}{CANDIDATE} = true\n", EXAMPLES[0])).unwrap();
         assert!(std::ptr::eq(d.effect, again.effect) && again.candidate);
         // written and read back
-        let back: toml::Table = [("effects".to_string(), toml::Value::Table([("yield_growth".to_string(), toml::Value::Table(d.effect.to_table(Some(&d.values))))].into_iter().collect()))].into_iter().collect();
+        let back: toml::Table = [(
+            "effects".to_string(),
+            toml::Value::Table(
+                [("yield_growth".to_string(), toml::Value::Table(d.effect.to_table(Some(&d.values))))]
+                    .into_iter()
+                    .collect(),
+            ),
+        )]
+        .into_iter()
+        .collect();
         let back = parse(&toml::to_string(&back).unwrap()).unwrap();
         assert!(std::ptr::eq(d.effect, back.effect) && back.values == d.values);
     }
@@ -424,7 +539,12 @@ mod tests {
     #[test]
     fn bad_declarations_name_the_symbol_the_expression_and_the_line() {
         let e = parse(&EXAMPLES[0].replace("age^b", "agee^b")).unwrap_err().to_string();
-        assert!(e.contains("unknown symbol 'agee'") && e.contains("'yield_stress * (1 + a * agee^b)'") && e.contains("(line 7)"), "{e}");
+        assert!(
+            e.contains("unknown symbol 'agee'")
+                && e.contains("'yield_stress * (1 + a * agee^b)'")
+                && e.contains("(line 7)"),
+            "{e}"
+        );
         assert!(e.contains("parameters (a, b)") && e.contains("yield_stress"), "{e}");
         for (bad, want) in [
             (EXAMPLES[0].replace("age^b", "age^^b"), "in 'yield_stress * (1 + a * age^^b)': expected a number"),
@@ -433,7 +553,10 @@ mod tests {
             (EXAMPLES[0].replace("yield_growth", "ageing"), "is an effect of the library"),
             (format!("{}c = 1.0\n", EXAMPLES[0]), "unknown key 'c'"),
             (EXAMPLES[1].replace("covariates = [\"temperature\"]\n", ""), "unknown symbol 'temperature'"),
-            (EXAMPLES[0].replace("b = {", "viscosity = {").replace("age^b", "age^viscosity"), "parameter 'viscosity' has the name of a number of [material]"),
+            (
+                EXAMPLES[0].replace("b = {", "viscosity = {").replace("age^b", "age^viscosity"),
+                "parameter 'viscosity' has the name of a number of [material]",
+            ),
             (EXAMPLES[0].replace("min = 0, max = 1e-2", "min = 0"), "give scale"),
         ] {
             let e = parse(&bad).unwrap_err().to_string();

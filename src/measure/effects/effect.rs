@@ -79,7 +79,9 @@ pub trait Effect: Sync {
 
 /// A key an effect reads, or an error naming what the model lacks.
 pub fn read(keys: &Keys, effect: &str, key: &str) -> Result<f64, MeasureError> {
-    keys.get(key).copied().ok_or_else(|| MeasureError::Effect(format!("effect '{effect}' needs {key}, which the model does not set")))
+    keys.get(key)
+        .copied()
+        .ok_or_else(|| MeasureError::Effect(format!("effect '{effect}' needs {key}, which the model does not set")))
 }
 
 /// The model's shear modulus G: its `shear_modulus`, or G = 3 K (1 - 2 nu) / (2 (1 + nu)) from
@@ -87,7 +89,9 @@ pub fn read(keys: &Keys, effect: &str, key: &str) -> Result<f64, MeasureError> {
 /// what the model lacks.
 pub fn shear_modulus(keys: &Keys, effect: &str) -> Result<f64, MeasureError> {
     match keys.get(POISSON_RATIO) {
-        Some(&nu) => Ok(crate::kernels::material::eos::shear_modulus_of(read(keys, effect, BULK_MODULUS)?, None, Some(nu))),
+        Some(&nu) => {
+            Ok(crate::kernels::material::eos::shear_modulus_of(read(keys, effect, BULK_MODULUS)?, None, Some(nu)))
+        }
         None => read(keys, effect, SHEAR_MODULUS),
     }
 }

@@ -74,7 +74,8 @@ mod tests {
         assert!(e.contains("evp_bingham") && e.contains("\"bingham\""), "{e}");
         assert!(Maxwell.check_scenario(&toml::Table::new()).unwrap_err().to_string().contains("not set"));
         // the model's keys make the material: the branch on, or at its null with its state
-        let base = "[material]\nkind = \"evp_bingham\"\ndensity = 2300.0\nbulk_modulus = 1e6\nshear_modulus = 1e5\nviscosity = 20.0\nyield_stress = 100.0\n";
+        let base = "[material]\nkind = \"evp_bingham\"\ndensity = 2300.0\nbulk_modulus = 1e6\nshear_modulus = 1e5\n\
+            viscosity = 20.0\nyield_stress = 100.0\n";
         for (effect, g_m) in [("[effects.maxwell]\nmodulus = 50.0\ntime = 0.3\n", 50.0), ("[effects.maxwell]\n", 0.0)] {
             let model = Model::from_table(&format!("{base}{effect}").parse().unwrap()).unwrap();
             let keys = model.keys(&Covariates::default()).unwrap();

@@ -22,7 +22,9 @@ pub mod thixotropy;
 pub mod viscosity_ageing;
 pub mod wall_friction;
 
-pub use effect::{add_bar, bar, read, shear_modulus, Covariates, Effect, Keys, ParamSpec, BULK_MODULUS, POISSON_RATIO, SHEAR_MODULUS};
+pub use effect::{
+    add_bar, bar, read, shear_modulus, Covariates, Effect, Keys, ParamSpec, BULK_MODULUS, POISSON_RATIO, SHEAR_MODULUS,
+};
 
 /// Every effect of the library, in the order they apply; effects declared in a model file
 /// ([`declared`]) apply after them.
@@ -42,7 +44,10 @@ pub const REGISTRY: &[&dyn Effect] = &[
 
 pub fn find(name: &str) -> Result<&'static dyn Effect, MeasureError> {
     REGISTRY.iter().copied().find(|e| e.name() == name).ok_or_else(|| {
-        MeasureError::Effect(format!("unknown effect '{name}'; known: {}", REGISTRY.iter().map(|e| e.name()).collect::<Vec<_>>().join(", ")))
+        MeasureError::Effect(format!(
+            "unknown effect '{name}'; known: {}",
+            REGISTRY.iter().map(|e| e.name()).collect::<Vec<_>>().join(", ")
+        ))
     })
 }
 
@@ -95,7 +100,11 @@ mod tests {
 
     /// The covariates the tests run at, with the one a declared example reads.
     fn covariates() -> Covariates {
-        Covariates { rest_time: 240.0, age: 1800.0, declared: [("temperature".to_string(), 31.0)].into_iter().collect() }
+        Covariates {
+            rest_time: 240.0,
+            age: 1800.0,
+            declared: [("temperature".to_string(), 31.0)].into_iter().collect(),
+        }
     }
 
     /// J = sum_k w_k keys_k after the effect, against central differences in every parameter
@@ -107,7 +116,8 @@ mod tests {
         let x = covariates();
         for (e, keys) in every_effect().into_iter().flat_map(|e| base_keys().map(|k| (e, k))) {
             // a null at infinity is left for a value the solver runs, as a fit would
-            let p: Vec<f64> = e.params().iter().map(|s| if s.null.is_finite() { s.null } else { 0.0 } + 0.7 * s.scale).collect();
+            let p: Vec<f64> =
+                e.params().iter().map(|s| if s.null.is_finite() { s.null } else { 0.0 } + 0.7 * s.scale).collect();
             let mut out = keys.clone();
             e.apply(&p, &x, &mut out).unwrap();
             let w: Keys = out.keys().enumerate().map(|(i, k)| (k.clone(), 1.0 + 0.37 * i as f64)).collect();
@@ -125,7 +135,13 @@ mod tests {
                 a[i] += h;
                 b[i] -= h;
                 let fd = (j(&a, &keys) - j(&b, &keys)) / (2.0 * h);
-                assert!((pb[i] - fd).abs() <= 1e-6 * fd.abs().max(1.0), "{}.{}: adjoint {} vs {fd}", e.name(), e.params()[i].name, pb[i]);
+                assert!(
+                    (pb[i] - fd).abs() <= 1e-6 * fd.abs().max(1.0),
+                    "{}.{}: adjoint {} vs {fd}",
+                    e.name(),
+                    e.params()[i].name,
+                    pb[i]
+                );
             }
             for k in keys.keys() {
                 let h = 1e-6 * keys[k].abs().max(1.0);
@@ -133,7 +149,12 @@ mod tests {
                 *a.get_mut(k).unwrap() += h;
                 *b.get_mut(k).unwrap() -= h;
                 let fd = (j(&p, &a) - j(&p, &b)) / (2.0 * h);
-                assert!((bar(&kb, k) - fd).abs() <= 1e-6 * fd.abs().max(1.0), "{}: d/d{k}: adjoint {} vs {fd}", e.name(), bar(&kb, k));
+                assert!(
+                    (bar(&kb, k) - fd).abs() <= 1e-6 * fd.abs().max(1.0),
+                    "{}: d/d{k}: adjoint {} vs {fd}",
+                    e.name(),
+                    bar(&kb, k)
+                );
             }
         }
     }
@@ -178,7 +199,8 @@ mod tests {
             }
             with
         };
-        let material = "[material]\nkind = \"evp_bingham\"\ndensity = 2100.0\nbulk_modulus = 5.0e4\nviscosity = 20.0\nyield_stress = 100.0\n";
+        let material = "[material]\nkind = \"evp_bingham\"\ndensity = 2100.0\nbulk_modulus = 5.0e4\nviscosity = 20.0\n\
+            yield_stress = 100.0\n";
         for g in ["poisson_ratio = 0.3", "shear_modulus = 2.3e4"] {
             let base = Model::from_table(&format!("{material}{g}\n").parse().unwrap()).unwrap();
             let own = state(&base);

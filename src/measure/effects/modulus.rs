@@ -22,7 +22,9 @@
 
 use super::super::error::MeasureError;
 use crate::kernels::material::eos::shear_modulus_of_partials;
-use super::effect::{bar, read, shear_modulus, Covariates, Effect, Keys, ParamSpec, BULK_MODULUS, POISSON_RATIO, SHEAR_MODULUS};
+use super::effect::{
+    bar, read, shear_modulus, Covariates, Effect, Keys, ParamSpec, BULK_MODULUS, POISSON_RATIO, SHEAR_MODULUS,
+};
 
 pub struct Modulus {
     name: &'static str,
@@ -34,17 +36,32 @@ pub struct Modulus {
 impl Modulus {
     pub const ELASTICITY: Modulus = Modulus {
         name: "elasticity",
-        about: "elastic response and flow stoppage: shear modulus G of the EVP solid, against a rigid one (G = infinity)",
+        about:
+            "elastic response and flow stoppage: shear modulus G of the EVP solid, against a rigid one (G = infinity)",
         key: "material.shear_modulus",
         // a fresh mortar or concrete at rest: 1e4 to 1e6 Pa; G stays > 0, as the material requires
-        params: &[ParamSpec { name: "shear_modulus", null: f64::INFINITY, lower: 1.0, upper: f64::INFINITY, scale: 1e5, unit: "Pa" }],
+        params: &[ParamSpec {
+            name: "shear_modulus",
+            null: f64::INFINITY,
+            lower: 1.0,
+            upper: f64::INFINITY,
+            scale: 1e5,
+            unit: "Pa",
+        }],
     };
     pub const COMPRESSIBILITY: Modulus = Modulus {
         name: "compressibility",
         about: "compressibility: bulk modulus K of the material, against an incompressible one (K = infinity)",
         key: "material.bulk_modulus",
         // the weakly compressible stand-ins run at 1e5 to 1e7 Pa; K stays > 0, as the material requires
-        params: &[ParamSpec { name: "bulk_modulus", null: f64::INFINITY, lower: 1.0, upper: f64::INFINITY, scale: 1e6, unit: "Pa" }],
+        params: &[ParamSpec {
+            name: "bulk_modulus",
+            null: f64::INFINITY,
+            lower: 1.0,
+            upper: f64::INFINITY,
+            scale: 1e6,
+            unit: "Pa",
+        }],
     };
 }
 
@@ -106,14 +123,17 @@ mod tests {
     use super::*;
     use crate::measure::model::Model;
 
-    const BASE: &str = "[material]\nkind = \"evp_bingham\"\ndensity = 2300.0\nbulk_modulus = 1e6\nshear_modulus = 4e5\nviscosity = 20.0\nyield_stress = 100.0\n";
+    const BASE: &str = "[material]\nkind = \"evp_bingham\"\ndensity = 2300.0\nbulk_modulus = 1e6\nshear_modulus = 4e5\n\
+        viscosity = 20.0\nyield_stress = 100.0\n";
 
     #[test]
     fn its_null_is_the_base_models_stand_in_and_a_finite_modulus_replaces_it() {
         let x = Covariates::default();
         for (e, own, set) in [(Modulus::ELASTICITY, 4e5, 2e4), (Modulus::COMPRESSIBILITY, 1e6, 3e5)] {
             let (name, param, key) = (e.name, e.params[0].name, e.key);
-            for (effect, want) in [(format!("[effects.{name}]\n"), own), (format!("[effects.{name}]\n{param} = {set:e}\n"), set)] {
+            for (effect, want) in
+                [(format!("[effects.{name}]\n"), own), (format!("[effects.{name}]\n{param} = {set:e}\n"), set)]
+            {
                 let model = Model::from_table(&format!("{BASE}{effect}").parse().unwrap()).unwrap();
                 assert_eq!(model.keys(&x).unwrap()[key], want, "{name}");
                 // written and read back, the null (inf) included

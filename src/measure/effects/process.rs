@@ -62,12 +62,18 @@ impl Effect for Process {
     }
     /// It prints, and leaves the field at the effect's null, which the effect replaces.
     fn check_scenario(&self, scenario: &toml::Table) -> Result<(), MeasureError> {
-        let print = scenario.get("print").ok_or_else(|| MeasureError::Effect("acts on the printing process, and this scenario prints nothing (no [print])".into()))?;
+        let print = scenario.get("print").ok_or_else(|| {
+            MeasureError::Effect("acts on the printing process, and this scenario prints nothing (no [print])".into())
+        })?;
         let null = self.params[0].null;
         match print.get(self.field).map(super::super::observation::number) {
             None => Ok(()),
             Some(Some(v)) if v == null => Ok(()),
-            Some(v) => Err(MeasureError::Effect(format!("needs print.{} at its null {null}, and the scenario sets {}", self.field, v.map_or("a non-number".to_string(), |v| v.to_string())))),
+            Some(v) => Err(MeasureError::Effect(format!(
+                "needs print.{} at its null {null}, and the scenario sets {}",
+                self.field,
+                v.map_or("a non-number".to_string(), |v| v.to_string())
+            ))),
         }
     }
 }

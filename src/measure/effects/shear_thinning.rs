@@ -40,7 +40,8 @@ impl Effect for ShearThinning {
         match scenario.get("material").and_then(|m| m.get("kind")).and_then(|k| k.as_str()) {
             Some("bingham" | "papanastasiou_roussel" | "evp_bingham") => Ok(()),
             other => Err(MeasureError::Effect(format!(
-                "needs a Bingham-family material (material.kind = \"bingham\", \"papanastasiou_roussel\" or \"evp_bingham\"), and it is {}",
+                "needs a Bingham-family material (material.kind = \"bingham\", \"papanastasiou_roussel\" or \
+                    \"evp_bingham\"), and it is {}",
                 other.map_or("not set".to_string(), |k| format!("\"{k}\""))
             ))),
         }
@@ -71,13 +72,19 @@ mod tests {
     fn its_gradient_through_the_rheometer_matches_central_differences() {
         let materials = [
             "kind = \"bingham\"\ndensity = 2300.0\nbulk_modulus = 1e6\nviscosity = 25.0\nyield_stress = 80.0\n",
-            "kind = \"papanastasiou_roussel\"\ndensity = 2300.0\nbulk_modulus = 1e6\nviscosity = 25.0\nyield_stress = 80.0\npapanastasiou_m = 100.0\n",
-            "kind = \"evp_bingham\"\ndensity = 2300.0\nbulk_modulus = 1e6\nshear_modulus = 2e4\nviscosity = 25.0\nyield_stress = 80.0\na_thix = 0.3\nalpha = 0.1\n",
+            "kind = \"papanastasiou_roussel\"\ndensity = 2300.0\nbulk_modulus = 1e6\nviscosity = 25.0\nyield_stress = \
+                80.0\npapanastasiou_m = 100.0\n",
+            "kind = \"evp_bingham\"\ndensity = 2300.0\nbulk_modulus = 1e6\nshear_modulus = 2e4\nviscosity = 25.0\n\
+                yield_stress = 80.0\na_thix = 0.3\nalpha = 0.1\n",
         ];
-        let proto: Protocol = toml::from_str("dt = 1e-3\n[[phase]]\nkind = \"sweep\"\nrates = [20.0, 5.0, 1.0, 0.3]\nhold = 0.5\n").unwrap();
+        let proto: Protocol =
+            toml::from_str("dt = 1e-3\n[[phase]]\nkind = \"sweep\"\nrates = [20.0, 5.0, 1.0, 0.3]\nhold = 0.5\n")
+                .unwrap();
         let weights = [1.0, -0.5, 2.0, 0.7];
         let loss = |mat: &str, n: f64| -> (f64, f64) {
-            let model = Model::from_table(&format!("[material]\n{mat}[effects.shear_thinning]\nn = {n}\n").parse().unwrap()).unwrap();
+            let model =
+                Model::from_table(&format!("[material]\n{mat}[effects.shear_thinning]\nn = {n}\n").parse().unwrap())
+                    .unwrap();
             let x = Covariates::default();
             let keys = model.keys(&x).unwrap();
             assert_eq!(keys[KEY], n);

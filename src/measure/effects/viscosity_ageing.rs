@@ -9,7 +9,8 @@ pub struct ViscosityAgeing;
 
 const KEY: &str = "material.viscosity";
 
-const PARAMS: &[ParamSpec] = &[ParamSpec { name: "rate", null: 0.0, lower: 0.0, upper: f64::INFINITY, scale: 2e-4, unit: "1/s" }];
+const PARAMS: &[ParamSpec] =
+    &[ParamSpec { name: "rate", null: 0.0, lower: 0.0, upper: f64::INFINITY, scale: 2e-4, unit: "1/s" }];
 
 impl Effect for ViscosityAgeing {
     fn name(&self) -> &'static str {

@@ -1,5 +1,6 @@
 //! Coulomb friction on the floor the material stands on: the print platform
-//! (`boundary.platform`) when the scenario has one, the `z_min` face otherwise. The wall takes the tangential velocity down by mu times the normal velocity into it (paper 002
+//! (`boundary.platform`) when the scenario has one, the `z_min` face otherwise. The wall takes the tangential velocity
+//! down by mu times the normal velocity into it (paper 002
 //! eq. 35), so the floor lets the material slide once the shear it carries passes mu times the
 //! normal load. Null: a no-slip floor, the base model's, which no finite mu is (a friction wall
 //! still lets go of material moving away from it, and slides wherever the shear passes mu times
@@ -23,7 +24,8 @@ pub fn on_platform(scenario: &toml::Table) -> bool {
     scenario.get("boundary").and_then(|b| b.get("platform")).is_some()
 }
 
-const PARAMS: &[ParamSpec] = &[ParamSpec { name: "mu", null: f64::INFINITY, lower: 0.0, upper: f64::INFINITY, scale: 0.2, unit: "-" }];
+const PARAMS: &[ParamSpec] =
+    &[ParamSpec { name: "mu", null: f64::INFINITY, lower: 0.0, upper: f64::INFINITY, scale: 0.2, unit: "-" }];
 
 impl Effect for WallFriction {
     fn name(&self) -> &'static str {
@@ -53,7 +55,9 @@ impl Effect for WallFriction {
             None => Ok(()),
             Some(toml::Value::String(k)) if k == "no_slip" => Ok(()),
             // a floor that slips or has its own friction is not this effect's null
-            Some(other) => Err(MeasureError::Effect(format!("needs a no-slip floor (its null), and {name} is {other}"))),
+            Some(other) => {
+                Err(MeasureError::Effect(format!("needs a no-slip floor (its null), and {name} is {other}")))
+            }
         }
     }
     fn apply_adjoint(&self, p: &[f64], _: &Covariates, _: &Keys, keys_bar: &mut Keys, p_bar: &mut [f64]) {
@@ -97,10 +101,16 @@ mod tests {
         for (b, key) in [(PLATFORM, PLATFORM_KEY), ("", Z_MIN_KEY)] {
             let mut d = doc(b);
             crate::measure::model::set_path(&mut d, key, 0.4).unwrap();
-            let text = format!("{}\n[domain]\nmin = [0.0, 0.0, 0.0]\nmax = [1.0, 1.0, 1.0]\n[simulation]\ndx = 0.1\nend_time = 0.1\n[material]\nkind = \"newtonian\"\ndensity = 1000.0\nbulk_modulus = 1e5\nviscosity = 1.0\n[memory]\nbudget = \"16 MiB\"\n", toml::to_string(&d).unwrap());
+            let text = format!("{}\n[domain]\nmin = [0.0, 0.0, 0.0]\nmax = [1.0, 1.0, 1.0]\n[simulation]\ndx = 0.1\n\
+                end_time = 0.1\n[material]\nkind = \"newtonian\"\ndensity = 1000.0\nbulk_modulus = 1e5\nviscosity = \
+                1.0\n[memory]\nbudget = \"16 MiB\"\n", toml::to_string(&d).unwrap());
             let sc = crate::scenario::Scenario::parse(&text).unwrap();
             let sim = crate::solver::Simulation::new(&sc).unwrap();
-            assert!(crate::grad::params::known(&sim).iter().any(|k| k == key), "{key}: {:?}", crate::grad::params::known(&sim));
+            assert!(
+                crate::grad::params::known(&sim).iter().any(|k| k == key),
+                "{key}: {:?}",
+                crate::grad::params::known(&sim)
+            );
         }
     }
 }

@@ -1,6 +1,6 @@
 //! `strand calibrate`: a bounded Levenberg-Marquardt fit of named model parameters to
 //! measurements, minimising chi^2 = sum ((model - measured) / uncertainty)^2 with the Jacobian
-//! from the adjoints (`sensitivity.rs`).
+//! from the adjoints (`campaign/sensitivity.rs`).
 //!
 //! Where the campaign runs simulations, whose Jacobian costs 2 p forward runs (or an adjoint's
 //! several) against one for the values, an accepted step updates the Jacobian by Broyden's
@@ -135,7 +135,14 @@ pub const UNFOUNDED: f64 = 2.0;
 /// g^T A^+ g by sum_k (A^+)_kk var g_k. A difference over 3 % of two nearly collinear parameters
 /// (a yield stress and a viscosity seen through a strand's width and height) can promise tens
 /// where no step gives anything; 0 for an adjoint's Jacobian.
-pub fn promised_by_scatter(a: &Mat, z: &[f64], jacobian_scatter: &[Vec<f64>], data: &[Observation], scale: &[f64], cols: &[usize]) -> f64 {
+pub fn promised_by_scatter(
+    a: &Mat,
+    z: &[f64],
+    jacobian_scatter: &[Vec<f64>],
+    data: &[Observation],
+    scale: &[f64],
+    cols: &[usize],
+) -> f64 {
     if cols.is_empty() {
         return 0.0;
     }
@@ -143,7 +150,11 @@ pub fn promised_by_scatter(a: &Mat, z: &[f64], jacobian_scatter: &[Vec<f64>], da
     cols.iter()
         .enumerate()
         .map(|(k, &c)| {
-            let var_g: f64 = z.iter().zip(jacobian_scatter.iter().zip(data)).map(|(z, (r, o))| (z * r[c] * scale[c] / o.uncertainty).powi(2)).sum();
+            let var_g: f64 = z
+                .iter()
+                .zip(jacobian_scatter.iter().zip(data))
+                .map(|(z, (r, o))| (z * r[c] * scale[c] / o.uncertainty).powi(2))
+                .sum();
             inv[k][k] * var_g
         })
         .sum()
@@ -163,7 +174,12 @@ pub fn calibrate(c: &Campaign, model: &Model, names: &[String]) -> Result<Fit, M
 /// gives them (the discretisation error's runs at the model,
 /// [`counted_data`](crate::measure::campaign::resolution::counted_data)): then the start's Jacobian runs only its
 /// differences.
-pub fn calibrate_at(c: &Campaign, model: &Model, values: Option<&[f64]>, names: &[String]) -> Result<Fit, MeasureError> {
+pub fn calibrate_at(
+    c: &Campaign,
+    model: &Model,
+    values: Option<&[f64]>,
+    names: &[String],
+) -> Result<Fit, MeasureError> {
     check(model, names)?;
     let at_start = match values {
         Some(v) => c.jacobian_at(model, names, (v, &Differences::Central))??,
@@ -174,7 +190,12 @@ pub fn calibrate_at(c: &Campaign, model: &Model, values: Option<&[f64]>, names: 
 
 /// [`calibrate`] from a start whose values and Jacobian in `names` are known: `at_start` is
 /// what the engine gives at `model` (a fit's own, or its rows for a subset of its data).
-pub fn calibrate_from(c: &Campaign, model: &Model, names: &[String], at_start: Sensitivity) -> Result<Fit, MeasureError> {
+pub fn calibrate_from(
+    c: &Campaign,
+    model: &Model,
+    names: &[String],
+    at_start: Sensitivity,
+) -> Result<Fit, MeasureError> {
     let (params, start) = check(model, names)?;
     let first = at_start.clone();
     let c2 = chi2(&at_start.values, c.data);
@@ -188,7 +209,8 @@ pub fn calibrate_from(c: &Campaign, model: &Model, names: &[String], at_start: S
 }
 
 /// A fit made for its optimum only ([`FitOptions::uncertainties`](crate::measure::campaign::FitOptions::uncertainties)
-/// off, perhaps [`stop_on_secant`](crate::measure::campaign::FitOptions::stop_on_secant) on), finished as the campaign's options ask: where its Jacobian
+/// off, perhaps [`stop_on_secant`](crate::measure::campaign::FitOptions::stop_on_secant) on), finished as the
+/// campaign's options ask: where its Jacobian
 /// at the end may be a secant update, the engine's exact one there, and the fit taken on from it
 /// until that Jacobian's stop holds (at once, where the secant fit had stopped at the optimum),
 /// so that its uncertainties, and a leave-one-out step on its curvature, come from an exact
@@ -252,7 +274,21 @@ impl<'c, 'a> Fitting<'c, 'a> {
         let history = vec![now.chi2];
         let (simulated, secant) = (campaign.runs_simulations(), campaign.on_secants());
         let clock = std::time::Instant::now();
-        Fitting { campaign, names, params, bounds, scale, now, exact: true, lambda: DAMPING, free: vec![true; n], history, simulated, secant, clock }
+        Fitting {
+            campaign,
+            names,
+            params,
+            bounds,
+            scale,
+            now,
+            exact: true,
+            lambda: DAMPING,
+            free: vec![true; n],
+            history,
+            simulated,
+            secant,
+            clock,
+        }
     }
 
     /// The engine's exact Jacobian where the fit stands.
@@ -297,7 +333,9 @@ impl<'c, 'a> Fitting<'c, 'a> {
             if opts.log {
                 let (lambda, secant) = (self.lambda, if self.exact { "" } else { ", secant Jacobian" });
                 let (step, seconds) = (self.history.len() - 1, self.clock.elapsed().as_secs_f64());
-                opts.progress.log(&format!("step {step}: chi^2 = {c2:.6e} (damping {lambda:.1e}{secant}, {seconds:.1} s into the fit)"));
+                opts.progress.log(&format!(
+                    "step {step}: chi^2 = {c2:.6e} (damping {lambda:.1e}{secant}, {seconds:.1} s into the fit)"
+                ));
             }
             if gain < opts.tolerance || drop < o.negligible {
                 // a negligible drop from a step near the optimum is the optimum: a rough model
@@ -409,12 +447,14 @@ impl<'c, 'a> Fitting<'c, 'a> {
             for (k, &i) in o.cols.iter().enumerate() {
                 trial[i] = (theta[i] + step[k] * bounds[i].scale).clamp(bounds[i].lower, bounds[i].upper);
             }
-            let moved = trial.iter().zip(theta).zip(bounds).map(|((a, b), bd)| ((a - b) / bd.scale).abs()).fold(0.0, f64::max);
+            let moved =
+                trial.iter().zip(theta).zip(bounds).map(|((a, b), bd)| ((a - b) / bd.scale).abs()).fold(0.0, f64::max);
             // the drop the linearisation predicts for the step taken (after the clamp): once the
             // damping leaves less than a negligible one, no step worth a run remains
             let taken: Vec<f64> = o.cols.iter().map(|&i| (trial[i] - theta[i]) / bounds[i].scale).collect();
             let a_taken: Vec<f64> = o.a.iter().map(|r| r.iter().zip(&taken).map(|(x, t)| x * t).sum()).collect();
-            let linear_drop = -taken.iter().zip(o.g.iter().zip(&a_taken)).map(|(t, (gi, at))| t * (2.0 * gi + at)).sum::<f64>();
+            let linear_drop =
+                -taken.iter().zip(o.g.iter().zip(&a_taken)).map(|(t, (gi, at))| t * (2.0 * gi + at)).sum::<f64>();
             if moved < 1e-12 || linear_drop < o.worth_a_try {
                 return Ok(None);
             }
@@ -458,7 +498,12 @@ impl<'c, 'a> Fitting<'c, 'a> {
     fn at_trial(&self, tm: &Model, (trial, tv): (&[f64], Vec<f64>)) -> Result<Option<Sensitivity>, MeasureError> {
         let at = &self.now.at;
         if self.secant {
-            let jacobian = secant_update(at.jacobian.as_ref().expect("asked"), (&self.now.theta, trial), &self.scale, (&at.values, &tv));
+            let jacobian = secant_update(
+                at.jacobian.as_ref().expect("asked"),
+                (&self.now.theta, trial),
+                &self.scale,
+                (&at.values, &tv),
+            );
             // the scatter is the model's near here, as the last exact Jacobian estimated it
             let (scatter, jacobian_scatter) = (at.scatter.clone(), at.jacobian_scatter.clone());
             return Ok(Some(Sensitivity { values: tv, jacobian: Some(jacobian), scatter, jacobian_scatter }));
@@ -479,7 +524,12 @@ fn free_parameters(jz: &[Vec<f64>], z: &[f64], theta: &[f64], bounds: &[Bounds])
         }
         let (a, g) = normal_equations(jz, z, &cols);
         let step = gauss_newton_step(&a, &g, 1e-12);
-        let out: Vec<usize> = cols.iter().zip(&step).filter(|&(&i, &d)| (theta[i] <= bounds[i].lower && d < 0.0) || (theta[i] >= bounds[i].upper && d > 0.0)).map(|(&i, _)| i).collect();
+        let out: Vec<usize> = cols
+            .iter()
+            .zip(&step)
+            .filter(|&(&i, &d)| (theta[i] <= bounds[i].lower && d < 0.0) || (theta[i] >= bounds[i].upper && d > 0.0))
+            .map(|(&i, _)| i)
+            .collect();
         if out.is_empty() {
             return free;
         }
@@ -515,7 +565,8 @@ fn check(model: &Model, names: &[String]) -> Result<(Vec<Parameter>, Vec<f64>), 
     let params: Vec<Parameter> = names.iter().map(|n| model.parameter(n)).collect::<Result<_, _>>()?;
     let start: Vec<f64> = params.iter().map(|p| model.value(p)).collect();
     if let Some((n, v)) = names.iter().zip(&start).find(|(_, v)| !v.is_finite()) {
-        return Err(MeasureError::Fit(format!("{n} starts at {v}, its null at infinity, where there is no gradient to move it by: give it a finite start in the model")));
+        return Err(MeasureError::Fit(format!("{n} starts at {v}, its null at infinity, where there is no gradient to \
+            move it by: give it a finite start in the model")));
     }
     Ok((params, start))
 }
@@ -535,9 +586,18 @@ impl Fit {
 
 /// Standardised residuals z = (model - measured) / uncertainty and their Jacobian in scaled
 /// parameters (columns times the scales).
-pub fn standardised(values: &[f64], jac: &[Vec<f64>], data: &[Observation], scale: &[f64]) -> (Vec<f64>, Vec<Vec<f64>>) {
+pub fn standardised(
+    values: &[f64],
+    jac: &[Vec<f64>],
+    data: &[Observation],
+    scale: &[f64],
+) -> (Vec<f64>, Vec<Vec<f64>>) {
     let z = values.iter().zip(data).map(|(v, o)| (v - o.value) / o.uncertainty).collect();
-    let jz = jac.iter().zip(data).map(|(row, o)| row.iter().zip(scale).map(|(g, s)| g * s / o.uncertainty).collect()).collect();
+    let jz = jac
+        .iter()
+        .zip(data)
+        .map(|(row, o)| row.iter().zip(scale).map(|(g, s)| g * s / o.uncertainty).collect())
+        .collect();
     (z, jz)
 }
 
@@ -557,15 +617,36 @@ pub fn report(f: &Fit) -> String {
         let _ = writeln!(s, "{:<26} {:>14.6e} {:>14.6e} {:>14}", f.names[i], f.start[i], f.values[i], u);
     }
     let rms = |c: f64| (c / f.observations as f64).sqrt();
-    let _ = writeln!(s, "\nchi^2: {:.6e} -> {:.6e} over {} observations (rms z {:.3} -> {:.3}; reduced chi^2 {:.3})", f.chi2_start, f.chi2, f.observations, rms(f.chi2_start), rms(f.chi2), f.reduced_chi2);
-    let _ = writeln!(s, "{} after {} accepted steps", if f.converged { "converged" } else { "stopped at the iteration limit" }, f.history.len() - 1);
+    let _ = writeln!(
+        s,
+        "\nchi^2: {:.6e} -> {:.6e} over {} observations (rms z {:.3} -> {:.3}; reduced chi^2 {:.3})",
+        f.chi2_start,
+        f.chi2,
+        f.observations,
+        rms(f.chi2_start),
+        rms(f.chi2),
+        f.reduced_chi2
+    );
+    let _ = writeln!(
+        s,
+        "{} after {} accepted steps",
+        if f.converged { "converged" } else { "stopped at the iteration limit" },
+        f.history.len() - 1
+    );
     s
 }
 
 /// chi^2 against iteration, as a PNG.
 pub fn plot_convergence(f: &Fit, path: &std::path::Path) -> Result<(), crate::output::plot::PlotError> {
     let pts: Vec<[f64; 2]> = f.history.iter().enumerate().map(|(i, c)| [i as f64, c.max(1e-300).log10()]).collect();
-    crate::output::plot::plot_xy(path, "calibration: log10 chi^2 against accepted step", "accepted step", "log10 chi^2", &[("chi^2".to_string(), pts)], true)
+    crate::output::plot::plot_xy(
+        path,
+        "calibration: log10 chi^2 against accepted step",
+        "accepted step",
+        "log10 chi^2",
+        &[("chi^2".to_string(), pts)],
+        true,
+    )
 }
 
 #[cfg(test)]
@@ -575,8 +656,11 @@ mod tests {
     use crate::measure::campaign::experiments::Experiments;
     use crate::measure::observation::Observable;
 
-    const MODEL: &str = "[material]\nkind = \"bingham\"\ndensity = 2100.0\nbulk_modulus = 1e6\nviscosity = 7.5\nyield_stress = 630.0\n";
-    const EXPS: &str = "[[experiment]]\nid = \"flow\"\nobserve = [\"stress@40\", \"stress@20\", \"stress@5\"]\n[experiment.protocol]\n[[experiment.protocol.phase]]\nkind = \"sweep\"\nrates = [40.0, 20.0, 5.0]\nhold = 0.5\n";
+    const MODEL: &str =
+        "[material]\nkind = \"bingham\"\ndensity = 2100.0\nbulk_modulus = 1e6\nviscosity = 7.5\nyield_stress = 630.0\n";
+    const EXPS: &str = "[[experiment]]\nid = \"flow\"\nobserve = [\"stress@40\", \"stress@20\", \"stress@5\"]\n\
+        [experiment.protocol]\n[[experiment.protocol.phase]]\nkind = \"sweep\"\nrates = [40.0, 20.0, 5.0]\nhold = \
+        0.5\n";
 
     #[test]
     fn the_secant_update_maps_the_step_onto_the_change_and_keeps_the_rest() {
@@ -595,7 +679,8 @@ mod tests {
         let ds = [step[0] / scale[0], step[1] / scale[1]];
         let ortho = [-ds[1] * scale[0], ds[0] * scale[1]];
         for (old, row) in jac.iter().zip(&new) {
-            let (a, b): (f64, f64) = (old.iter().zip(&ortho).map(|(g, d)| g * d).sum(), row.iter().zip(&ortho).map(|(g, d)| g * d).sum());
+            let (a, b): (f64, f64) =
+                (old.iter().zip(&ortho).map(|(g, d)| g * d).sum(), row.iter().zip(&ortho).map(|(g, d)| g * d).sum());
             assert!((a - b).abs() < 1e-12, "{a} against {b}");
         }
         // the second value is linear: its row was right and stays so
@@ -610,7 +695,8 @@ mod tests {
         use rand_distr::{Distribution, StandardNormal};
         let mut rng = crate::measure::compare::synth::noise_source(3);
         let m = 40;
-        let truth: Vec<Vec<f64>> = (0..m).map(|i| vec![1.0 + 0.1 * i as f64, 1.1 + 0.1 * i as f64 + 0.02 * (i % 3) as f64]).collect();
+        let truth: Vec<Vec<f64>> =
+            (0..m).map(|i| vec![1.0 + 0.1 * i as f64, 1.1 + 0.1 * i as f64 + 0.02 * (i % 3) as f64]).collect();
         // residuals at the optimum: the part of a draw the columns do not explain
         let draw: Vec<f64> = (0..m).map(|_| { let n: f64 = StandardNormal.sample(&mut rng); 3.0 * n }).collect();
         let (a, g) = normal_equations(&truth, &draw, &[0, 1]);
@@ -618,11 +704,30 @@ mod tests {
         let z: Vec<f64> = draw.iter().zip(&truth).map(|(d, r)| d + r[0] * step[0] + r[1] * step[1]).collect();
         let (_, g) = normal_equations(&truth, &z, &[0, 1]);
         assert!(g.iter().all(|g| g.abs() < 1e-9), "{g:?}");
-        let data: Vec<Observation> = (0..m).map(|_| Observation { experiment: "x".into(), observable: Observable::parse("width").unwrap(), value: 0.0, uncertainty: 1.0 }).collect();
+        let data: Vec<Observation> = (0..m)
+            .map(|_| Observation {
+                experiment: "x".into(),
+                observable: Observable::parse("width").unwrap(),
+                value: 0.0,
+                uncertainty: 1.0,
+            })
+            .collect();
         let jacobian_scatter = vec![vec![0.02, 0.03]; m];
         let (mut sum, mut said, draws) = (0.0, 0.0, 4000);
         for _ in 0..draws {
-            let noisy: Vec<Vec<f64>> = truth.iter().zip(&jacobian_scatter).map(|(r, s)| r.iter().zip(s).map(|(v, s)| { let n: f64 = StandardNormal.sample(&mut rng); v + s * n }).collect()).collect();
+            let noisy: Vec<Vec<f64>> = truth
+                .iter()
+                .zip(&jacobian_scatter)
+                .map(|(r, s)| {
+                    r.iter()
+                        .zip(s)
+                        .map(|(v, s)| {
+                            let n: f64 = StandardNormal.sample(&mut rng);
+                            v + s * n
+                        })
+                        .collect()
+                })
+                .collect();
             let (a, g) = normal_equations(&noisy, &z, &[0, 1]);
             sum += predicted_drop(&a, &g);
             said += promised_by_scatter(&a, &z, &jacobian_scatter, &data, &[1.0, 1.0], &[0, 1]);
@@ -659,7 +764,10 @@ mod tests {
         let with = flow_curve_fit(&FitOptions { progress: progress.clone(), log: true, ..FitOptions::default() });
         progress.end();
         let without = flow_curve_fit(&FitOptions::default());
-        let bits = |f: &Fit| [&f.values, &f.uncertainty, &f.history, &f.model_values].map(|v| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>());
+        let bits = |f: &Fit| {
+            [&f.values, &f.uncertainty, &f.history, &f.model_values]
+                .map(|v| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>())
+        };
         assert_eq!(bits(&with), bits(&without));
         assert_eq!(with.model.to_toml(), without.model.to_toml());
         let events = out.events();

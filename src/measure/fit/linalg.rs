@@ -77,7 +77,12 @@ pub fn f_sf(f: f64, d1: usize, d2: usize) -> f64 {
 /// Broyden's update of `jac` (at `from`) for a step to `to`, where the values went from `v0` to
 /// `v1`: the least change, in the parameters' scales, after which the Jacobian maps the step onto
 /// the values' change.
-pub fn secant_update(jac: &[Vec<f64>], (from, to): (&[f64], &[f64]), scale: &[f64], (v0, v1): (&[f64], &[f64])) -> Vec<Vec<f64>> {
+pub fn secant_update(
+    jac: &[Vec<f64>],
+    (from, to): (&[f64], &[f64]),
+    scale: &[f64],
+    (v0, v1): (&[f64], &[f64]),
+) -> Vec<Vec<f64>> {
     let dx: Vec<f64> = to.iter().zip(from).map(|(b, a)| b - a).collect();
     let ds: Vec<f64> = dx.iter().zip(scale).map(|(d, s)| d / s).collect();
     let norm2: f64 = ds.iter().map(|d| d * d).sum();
@@ -116,7 +121,14 @@ mod tests {
     #[test]
     fn f_tail_matches_tables() {
         // F(1, d2) = t(d2)^2; tabulated 5 % and 1 % points
-        for (f, d1, d2, p) in [(4.964603, 1, 10, 0.05), (10.04429, 1, 10, 0.01), (3.708265, 3, 10, 0.05), (3.325835, 5, 10, 0.05), (2.866081, 4, 20, 0.05), (6.358873, 2, 15, 0.01)] {
+        for (f, d1, d2, p) in [
+            (4.964603, 1, 10, 0.05),
+            (10.04429, 1, 10, 0.01),
+            (3.708265, 3, 10, 0.05),
+            (3.325835, 5, 10, 0.05),
+            (2.866081, 4, 20, 0.05),
+            (6.358873, 2, 15, 0.01),
+        ] {
             assert!((f_sf(f, d1, d2) - p).abs() < 1e-6, "F({d1}, {d2}) at {f}: {}", f_sf(f, d1, d2));
         }
         // d1 = 2: (1 + 2 f / d2)^(-d2 / 2)
