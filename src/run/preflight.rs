@@ -46,10 +46,10 @@ pub fn scenario_warnings(sc: &Scenario, sim: &Simulation) -> Vec<String> {
     }
     // sleeping material is held still: the failure layer of a wall of a rate-independent
     // elastic-plastic solid (elastic, no viscosity) moves (docs/failure.md)
-    if sc.sleep.is_some() && sc.print.is_some() && sc.observe.as_ref().is_some_and(|o| !o.stations.is_empty()) && {
-        let st = sim.material.stability();
-        st.shear_modulus > 0.0 && st.max_viscosity == 0.0
-    } {
+    let stability = sim.material.stability();
+    let rate_independent_solid = stability.shear_modulus > 0.0 && stability.max_viscosity == 0.0;
+    let printed_to_failure = sc.print.is_some() && sc.observe.as_ref().is_some_and(|o| !o.stations.is_empty());
+    if sc.sleep.is_some() && printed_to_failure && rate_independent_solid {
         w.push(format!(
             "warning: [sleep] holds sleeping material still, and a sleeping {} wall printed to failure does not fail where it \
              fails awake (docs/failure.md \"Sleeping and failure\"); for its failure layer, run it without [sleep]",

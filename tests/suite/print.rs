@@ -411,7 +411,7 @@ fn a_mass_scaled_wall_fails_at_the_same_layer_in_fewer_steps() {
 fn a_sleeping_elastic_wall_printed_to_failure_is_warned_of() {
     let warned = |text: &str| {
         let sc = Scenario::parse(text).unwrap();
-        let sim = strand::solver::Simulation::new(&sc).unwrap();
+        let sim = Simulation::new(&sc).unwrap();
         strand::run::scenario_warnings(&sc, &sim).iter().any(|w| w.contains("Sleeping and failure"))
     };
     let wall = std::fs::read_to_string(format!("{}/fixtures/scenarios/print/early_age_wall.toml", env!("CARGO_MANIFEST_DIR"))).unwrap();
