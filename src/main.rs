@@ -316,6 +316,14 @@ struct PlanArgs {
     /// compare the fastest feasible one and the cost with the plan's.
     #[arg(long, value_name = "NxM")]
     grid_check: Option<String>,
+    /// After the plan, simulate a reduced wall of the planned layer at the planned layer time
+    /// and report whether it stands to the design height x safety factor (docs/planning.md).
+    #[arg(long)]
+    check_wall: bool,
+    /// With --check-wall: simulate the wall at this layer time [s] instead of the plan's (to
+    /// probe the margin).
+    #[arg(long, value_name = "SECONDS", requires = "check_wall")]
+    check_wall_at: Option<f64>,
     /// Points along the map's axes.
     #[arg(long, default_value = "5x5", value_name = "NxM")]
     map_size: String,
@@ -738,11 +746,11 @@ fn rheometer(args: RheometerArgs) -> Result<bool, Failure> {
 
 /// `strand plan`: the settings, their report and scenario, and with --map the printability map.
 fn plan(args: PlanArgs) -> Result<bool, Failure> {
-    let PlanArgs { model, print, targets, out, overwrite, max_evaluations, map, grid_check, map_size, jobs, engine, ram, threads, json } = args;
+    let PlanArgs { model, print, targets, out, overwrite, max_evaluations, map, grid_check, check_wall, check_wall_at, map_size, jobs, engine, ram, threads, json } = args;
     use strand::plan::{self, map as pmap, report};
     let t = plan::targets::Targets::load(&targets)?;
     let out = out.unwrap_or_else(|| print.with_extension("planned.toml"));
-    let (csv, png) = (out.with_extension("map.csv"), out.with_extension("map.png"));
+    let (csv, png, html) = (out.with_extension("map.csv"), out.with_extension("map.png"), out.with_extension("map.html"));
     report::refuse_existing(&out, overwrite)?;
     // a G-code or point-list print is planned on its moves written inline beside --out
     let file = plan::toolpath_file::inline(&print, &out.with_extension("path.toml"), overwrite)?;
@@ -754,26 +762,47 @@ fn plan(args: PlanArgs) -> Result<bool, Failure> {
     if axes.is_some() {
         report::refuse_existing(&csv, overwrite)?;
         report::refuse_existing(&png, overwrite)?;
+        report::refuse_existing(&html, overwrite)?;
+    }
+    // the reduced wall's scenario and outputs, kept for inspection
+    let wall_dir = out.with_extension("wall");
+    if check_wall {
+        report::refuse_existing(&wall_dir, overwrite)?;
     }
     let engine = engine.engine()?;
     let ram_bytes = strand::memory::parse_size(&ram).map_err(|e| format!("--ram: {e}"))?;
     let grad = strand::grad::GradOptions { ram_bytes, disk_bytes: 0, disk_dir: std::env::temp_dir(), threads, schedule: None, until_rest: None };
     let p = plan::plan(&Model::load(&model)?, &scenario, &t, &plan::PlanOptions { grad, max_evaluations, progress: !json })?;
     let missed = p.infeasible();
+    if check_wall && p.wall.is_none() {
+        return Err(Failure { message: "--check-wall: the targets have no [wall]: there is no wall to check".into(), code: 2 });
+    }
+    let wall = match (&missed, check_wall) {
+        (None, true) => Some(plan::wall_check::check(&p, check_wall_at.unwrap_or(p.best().build.layer_time), threads, &wall_dir)?),
+        _ => None,
+    };
     if missed.is_none() {
         if json {
-            println!("{:#}", report::json(&p));
+            let mut v = report::json(&p);
+            if let Some(c) = &wall {
+                v["wall_check"] = serde_json::to_value(c).map_err(|e| e.to_string())?;
+            }
+            println!("{v:#}");
         } else {
             print!("{}", report::text(&p));
         }
+    }
+    if let Some(c) = &wall {
+        eprint!("{}", plan::wall_check::text(c));
     }
     if let Some(axes) = axes {
         let layer_time = p.wall.as_ref().map(|_| p.best().build.layer_time);
         let m = pmap::map(&p.line, &t, p.wall.as_ref(), axes, &p.settings(), layer_time, &engine, jobs)?;
         pmap::write_csv(&m, &csv)?;
         pmap::write_png(&m, &png)?;
+        pmap::write_html(&m, &t, &png, &html)?;
         eprint!("{}", pmap::text(&m));
-        eprintln!("map written to {} and {}", csv.display(), png.display());
+        eprintln!("map written to {}, {} and {}", csv.display(), png.display(), html.display());
     }
     if let Some(e) = missed {
         return Err(Failure { message: e.to_string(), code: 1 });
@@ -788,6 +817,9 @@ fn plan(args: PlanArgs) -> Result<bool, Failure> {
         let written = f.planned_path(&out);
         f.write_planned(&p, &written, overwrite)?;
         eprintln!("{} with the settings written to {} (its moves inline: {})", print.display(), written.display(), f.inlined.display());
+    }
+    if let Some(c) = wall.filter(|c| !c.stands) {
+        return Err(Failure { message: format!("the planned wall did not stand when simulated: {}", plan::wall_check::text(&c).trim_end()), code: 1 });
     }
     Ok(true)
 }

@@ -180,3 +180,60 @@ pub fn text(m: &Map) -> String {
     }
     s
 }
+
+/// `s` with HTML's special characters escaped.
+fn escape(s: &str) -> String {
+    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
+}
+
+/// The map as an HTML page at `path`: the targets, the heat maps (the PNG `png`, linked by its
+/// file name, so the page and its image travel together in one folder) with the region that
+/// meets the targets outlined and the plan's point crossed, and a table of the points, the
+/// feasible ones shaded. Nothing is fetched from elsewhere.
+pub fn write_html(m: &Map, targets: &Targets, png: &Path, path: &Path) -> Result<(), PlanError> {
+    use std::fmt::Write;
+    let [a, b] = m.axes;
+    let l = &targets.layer;
+    let name = png.file_name().map_or_else(|| png.display().to_string(), |n| n.to_string_lossy().into_owned());
+    let mut s = String::from(
+        "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>strand plan: printability map</title>\n<style>\nbody { font-family: sans-serif; margin: 2em auto; max-width: 1280px; padding: 0 1em; }\ntable { border-collapse: collapse; }\nth, td { border: 1px solid #bbb; padding: 0.2em 0.6em; text-align: right; }\nth { background: #eee; }\ntr.feasible { background: #dfd; }\ntr.plan { font-weight: bold; }\nimg { max-width: 100%; }\n</style>\n</head>\n<body>\n<h1>Printability map</h1>\n",
+    );
+    let feasible = m.points.iter().filter(|p| p.feasible).count();
+    let _ = writeln!(
+        s,
+        "<p>{} against {}, {} x {} points. Targets: width {:.2} &plusmn; {:.2} mm, height {:.2} &plusmn; {:.2} mm at the station{}. {feasible} of {} points meet them (outlined in the maps, shaded below); the plan's point is crossed.</p>",
+        a.setting.name(),
+        b.setting.name(),
+        a.n,
+        b.n,
+        l.width * 1e3,
+        l.width_tolerance * 1e3,
+        l.height * 1e3,
+        l.height_tolerance * 1e3,
+        targets.wall.as_ref().map_or(String::new(), |w| format!("; a wall standing to {} m x {}", w.design_height, w.safety_factor)),
+        m.points.len()
+    );
+    let _ = writeln!(s, "<figure><img src=\"{}\" alt=\"heat maps of the layer's width and height and the wall's buildable height\"></figure>", escape(&name));
+    s += "<table>\n<tr><th>speed [mm/s]</th><th>extrusion [mm/s]</th><th>standoff [mm]</th><th>width [mm]</th><th>height [mm]</th><th>buildable [m]</th><th>meets the targets</th></tr>\n";
+    for p in &m.points {
+        let class = match (p.feasible, p.x == m.marked) {
+            (_, true) => " class=\"plan\"",
+            (true, false) => " class=\"feasible\"",
+            _ => "",
+        };
+        let bh = p.buildable.map_or("-".to_string(), |b| format!("{:.3}", b.height));
+        let why = p.error.as_ref().map_or(String::new(), |e| format!(" ({})", escape(e)));
+        let _ = writeln!(
+            s,
+            "<tr{class}><td>{:.2}</td><td>{:.2}</td><td>{:.2}</td><td>{:.3}</td><td>{:.3}</td><td>{bh}</td><td>{}{why}</td></tr>",
+            p.x[0] * 1e3,
+            p.x[1] * 1e3,
+            p.x[2] * 1e3,
+            p.width * 1e3,
+            p.height * 1e3,
+            if p.feasible { "yes" } else { "no" }
+        );
+    }
+    let _ = writeln!(s, "</table>\n<p>The plan's point: speed {:.2} mm/s, extrusion {:.2} mm/s, standoff {:.2} mm.</p>\n</body>\n</html>", m.marked[0] * 1e3, m.marked[1] * 1e3, m.marked[2] * 1e3);
+    std::fs::write(path, s).map_err(|e| PlanError::Io(format!("{}: {e}", path.display())))
+}

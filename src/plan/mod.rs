@@ -30,5 +30,6 @@ pub mod planner;
 pub mod report;
 pub mod targets;
 pub mod toolpath_file;
+pub mod wall_check;
 
 pub use planner::{plan, Plan, PlanOptions};

@@ -1,0 +1,266 @@
+//! The wall checked by simulation (`strand plan --check-wall`): a reduced wall of the planned
+//! layer, simulated with the failure detector (`crate::failure`), confirms or refutes what the
+//! closed form (`constraint.rs`) says of the plan's layer time.
+//!
+//! The claim checked is the closed form's: at layer time T, a wall of layers w x h stands to
+//! the design height times the safety factor, H = design_height x safety_factor. The check stacks
+//! N = ceil(H / h) layers of the print's own pass (its moves up to its last extruding one,
+//! pauses dropped; each layer one h higher, the nozzle travelling back to the pass's start) at
+//! the planned settings, and says the wall stands when the detector finds no failure up to one
+//! layer time after the last layer was laid. The factor is on the height, as the closed form's
+//! constraint puts it: the wall must reach H, not the design height alone.
+//!
+//! What is reduced, openly:
+//! - Time. Layer after layer at T (tens of seconds) is out of reach of an explicit step of a
+//!   fraction of a millisecond, so the rest between layers is compressed by m = T / T_r, with
+//!   T_r the nozzle's time over a layer and its moves back plus [`SETTLE`]: layers start T_r
+//!   apart, and every rate of the material's age clock (`a_thix`, keys ending in `_rate`) is
+//!   multiplied by m and every age (keys ending in `_age`) divided by it, so each layer's
+//!   strength when the next comes (tau0 + A_thix a, the closed form's) is the full wall's. The
+//!   deposit itself is printed at the planned speed and flow, so it builds up m times faster
+//!   while it is laid (at the fixture's 2 Pa/s and m = 10, 20 Pa over a second). Sound when the
+//!   wall settles within T_r (quasi-static, the detector's own premise); viscous stresses are
+//!   not scaled.
+//! - The layer: the print's own pass (a plan's print is a short line), not the design's length.
+//!   The closed forms are of a long straight wall (plane strain), which a pass shorter than the
+//!   wall is tall is not: the check is the more severe for it in collapse (a short wall's ends
+//!   are free) and says nothing of a long wall's buckling.
+//!
+//! The wall's memory is planned before it allocates (`Simulation::new`) and refused over the
+//! print's `[memory] budget`.
+
+use super::constraint::Buildable;
+use super::error::PlanError;
+use super::planner::Plan;
+use crate::failure::Failure;
+use crate::print::toolpath::{Segment, Toolpath};
+use toml::{Table, Value};
+
+/// The rest each reduced layer has after the nozzle's moves, before the next layer [s]: longer
+/// than the settling of a fresh layer on the fixtures (under a second, `crate::failure`) and
+/// than the detector's window.
+pub const SETTLE: f64 = 0.6;
+
+/// The reduced wall and what its simulation found.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct WallCheck {
+    /// Layers stacked and their nominal height [m] (the planned layer's height at the station).
+    pub layers: usize,
+    pub layer_height: f64,
+    /// The height the wall must stand to [m]: design height x safety factor.
+    pub need: f64,
+    /// The layer time checked [s] and the one simulated [s]; the material's age clock runs
+    /// `compression` times faster.
+    pub layer_time: f64,
+    pub simulated_layer_time: f64,
+    pub compression: f64,
+    /// What the closed form says of the same wall.
+    pub closed_form: Buildable,
+    /// The detector's failure, None when the wall stood.
+    pub failure: Option<Failure>,
+    pub stands: bool,
+    /// The run's steps and wall time [s].
+    pub steps: u64,
+    pub seconds: f64,
+}
+
+/// A value of `t` as a float or an integer.
+fn number(v: &Value) -> Option<f64> {
+    v.as_float().or_else(|| v.as_integer().map(|i| i as f64))
+}
+
+fn point(v: &Value) -> Option<[f64; 3]> {
+    let a = v.as_array()?;
+    Some([number(a.first()?)?, number(a.get(1)?)?, number(a.get(2)?)?])
+}
+
+fn array(p: [f64; 3]) -> Value {
+    Value::Array(p.iter().map(|&x| Value::Float(x)).collect())
+}
+
+/// A segment as the TOML of a `[print] path` (the kinds a reduced wall uses).
+fn segment_value(s: &Segment) -> Value {
+    let mut t = Table::new();
+    let mut put = |k: &str, v: Value| {
+        t.insert(k.into(), v);
+    };
+    put("kind", Value::String(s.kind_name().into()));
+    match s {
+        Segment::Print { to, speed, extrusion } => {
+            put("to", array(*to));
+            put("speed", Value::Float(*speed));
+            put("extrusion", Value::Float(*extrusion));
+        }
+        Segment::Travel { to, speed } => {
+            put("to", array(*to));
+            put("speed", Value::Float(*speed));
+        }
+        Segment::Pause { duration } => put("duration", Value::Float(*duration)),
+        Segment::Layer { dz, speed } => {
+            put("dz", Value::Float(*dz));
+            if let Some(v) = speed {
+                put("speed", Value::Float(*v));
+            }
+        }
+        Segment::Arc { .. } => unreachable!("a reduced wall's pass has no arcs (Line refuses extruding arcs; travel arcs are refused below)"),
+    }
+    Value::Table(t)
+}
+
+/// One pass of the print: its moves up to its last extruding one, pauses dropped, refused with
+/// layer changes or arcs (a pass is one layer of straight moves).
+fn pass(path: &[Segment]) -> Result<Vec<Segment>, PlanError> {
+    let last = path.iter().rposition(|s| matches!(s, Segment::Print { .. })).ok_or_else(|| PlanError::Unsupported("--check-wall: the print has no extruding move".into()))?;
+    let moves: Vec<Segment> = path[..=last].iter().filter(|s| !matches!(s, Segment::Pause { .. })).cloned().collect();
+    if moves.iter().any(|s| matches!(s, Segment::Layer { .. } | Segment::Arc { .. })) {
+        return Err(PlanError::Unsupported("--check-wall stacks one pass of straight moves; this print changes layer or moves along arcs (not yet)".into()));
+    }
+    Ok(moves)
+}
+
+/// `s` moved up by `dz`.
+fn raised(s: &Segment, dz: f64) -> Segment {
+    let up = |p: &[f64; 3]| [p[0], p[1], p[2] + dz];
+    match s {
+        Segment::Print { to, speed, extrusion } => Segment::Print { to: up(to), speed: *speed, extrusion: *extrusion },
+        Segment::Travel { to, speed } => Segment::Travel { to: up(to), speed: *speed },
+        other => other.clone(),
+    }
+}
+
+/// The reduced wall's path from `start`: `layers` passes `h` apart, starting `period` apart,
+/// and a last rest of `period`. The nozzle climbs h after each pass and travels back to the
+/// pass's start at the pass's speed.
+fn wall_path(start: [f64; 3], one: &[Segment], layers: usize, h: f64, period: f64, speed: f64) -> Result<Vec<Segment>, PlanError> {
+    let mut path: Vec<Segment> = Vec::new();
+    let end_of = |path: &[Segment]| Toolpath::from_segments(start, path).map(|t| t.end_time()).map_err(|e| PlanError::Unsupported(format!("--check-wall: {e}")));
+    for k in 0..layers {
+        if k > 0 {
+            path.push(Segment::Layer { dz: h, speed: Some(speed) });
+            path.push(Segment::Travel { to: [start[0], start[1], start[2] + k as f64 * h], speed });
+            let wait = k as f64 * period - end_of(&path)?;
+            if wait < -1e-9 * period {
+                return Err(PlanError::Unsupported(format!("--check-wall: a layer's moves take longer than the simulated layer time {period} s")));
+            }
+            path.push(Segment::Pause { duration: wait.max(0.0) });
+        }
+        path.extend(one.iter().map(|s| raised(s, k as f64 * h)));
+    }
+    path.push(Segment::Pause { duration: period });
+    Ok(path)
+}
+
+/// The time one pass and the climb and travel back to its start take, at `speed` [s].
+fn pass_period(start: [f64; 3], one: &[Segment], h: f64, speed: f64) -> Result<f64, PlanError> {
+    let mut moves = one.to_vec();
+    moves.push(Segment::Layer { dz: h, speed: Some(speed) });
+    moves.push(Segment::Travel { to: [start[0], start[1], start[2] + h], speed });
+    Ok(Toolpath::from_segments(start, &moves).map_err(|e| PlanError::Unsupported(format!("--check-wall: {e}")))?.end_time())
+}
+
+/// The reduced wall's scenario for `plan` at layer time `layer_time`, with its layers, layer
+/// height, simulated layer time and compression.
+pub fn scenario(plan: &Plan, layer_time: f64) -> Result<(Table, usize, f64, f64, f64), PlanError> {
+    let wall = plan.targets.wall.as_ref().ok_or_else(|| PlanError::Targets("--check-wall: the targets have no [wall]: there is no wall to check".into()))?;
+    let b = plan.best();
+    let h = b.layer.values[1];
+    let need = wall.design_height * wall.safety_factor;
+    let layers = (need / h * (1.0 - 1e-12)).ceil().max(1.0) as usize;
+    let mut t: Table = plan.line.scenario_text(&b.x)?.parse().map_err(|e| PlanError::Unsupported(format!("--check-wall: the planned scenario: {e}")))?;
+    let bad = |what: &str| PlanError::Unsupported(format!("--check-wall: the planned scenario's {what}"));
+    let print = t.get("print").and_then(Value::as_table).ok_or_else(|| bad("[print] table"))?;
+    let start = print.get("start").and_then(point).ok_or_else(|| bad("print.start"))?;
+    let path: Vec<Segment> = print.get("path").and_then(Value::as_array).ok_or_else(|| bad("print.path"))?.iter().map(|v| v.clone().try_into::<Segment>()).collect::<Result<_, _>>().map_err(|e| bad(&format!("print.path: {e}")))?;
+    let one = pass(&path)?;
+    let speed = b.x[0];
+    let period = pass_period(start, &one, h, speed)? + SETTLE;
+    let (simulated, compression) = if layer_time > period { (period, layer_time / period) } else { (layer_time, 1.0) };
+    let full = wall_path(start, &one, layers, h, simulated, speed)?;
+    let end = Toolpath::from_segments(start, &full).map_err(|e| PlanError::Unsupported(format!("--check-wall: {e}")))?.end_time();
+    let print = t.get_mut("print").and_then(Value::as_table_mut).expect("checked above");
+    print.insert("path".into(), Value::Array(full.iter().map(segment_value).collect()));
+    let z_offset = print.get("z_offset").and_then(number).unwrap_or(0.0);
+    // the material's age clock, m times faster
+    if let Some(m) = t.get_mut("material").and_then(Value::as_table_mut) {
+        for (k, v) in m.iter_mut() {
+            let Some(x) = number(v) else { continue };
+            if k == "a_thix" || k.ends_with("_rate") {
+                *v = Value::Float(x * compression);
+            } else if k.ends_with("_age") {
+                *v = Value::Float(x / compression);
+            }
+        }
+    }
+    let table = |t: &mut Table, k: &str| -> Result<(), PlanError> {
+        t.entry(k.to_string()).or_insert_with(|| Value::Table(Table::new())).as_table_mut().map(|_| ()).ok_or_else(|| bad(&format!("[{k}]")))
+    };
+    for k in ["simulation", "domain", "observe", "output"] {
+        table(&mut t, k)?;
+    }
+    let sim = t["simulation"].as_table_mut().expect("a table");
+    sim.insert("end_time".into(), Value::Float(end));
+    let dx = sim.get("dx").and_then(number).ok_or_else(|| bad("simulation.dx"))?;
+    // the domain reaches the nozzle over the last layer, and a layer more
+    let domain = t["domain"].as_table_mut().expect("a table");
+    let floor = domain.get("min").and_then(point).ok_or_else(|| bad("domain.min"))?[2];
+    let cells = ((start[2] + z_offset + (layers + 1) as f64 * h - floor) / dx).ceil() + 4.0;
+    let mut max = domain.get("max").and_then(point).ok_or_else(|| bad("domain.max"))?;
+    max[2] = max[2].max(floor + cells * dx);
+    domain.insert("max".into(), array(max));
+    let observe = t["observe"].as_table_mut().expect("a table");
+    observe.insert("stations".into(), Value::Array(vec![Value::Float(plan.line.station)]));
+    let mut failure = Table::new();
+    failure.insert("stop_after".into(), Value::Float(SETTLE));
+    observe.insert("failure".into(), Value::Table(failure));
+    let output = t["output"].as_table_mut().expect("a table");
+    output.insert("interval".into(), Value::Float(0.02));
+    output.insert("vtu".into(), Value::Boolean(false));
+    Ok((t, layers, h, simulated, compression))
+}
+
+/// Simulate the reduced wall of `plan` at layer time `layer_time` (the plan's, or another to
+/// probe), `threads` threads, its scenario (`wall.toml`) and outputs (`layers.csv`, the
+/// sections) written to the folder `out`.
+pub fn check(plan: &Plan, layer_time: f64, threads: Option<usize>, out: &std::path::Path) -> Result<WallCheck, PlanError> {
+    let clock = std::time::Instant::now();
+    let (t, layers, h, simulated, compression) = scenario(plan, layer_time)?;
+    let goal = plan.wall.as_ref().ok_or_else(|| PlanError::Targets("--check-wall: the targets have no [wall]".into()))?;
+    let need = goal.need();
+    let closed_form = goal.wall.buildable(plan.best().layer.values[0], h, layer_time, 2.0 * need)?;
+    let io = |e: std::io::Error| PlanError::Io(format!("{}: {e}", out.display()));
+    std::fs::create_dir_all(out).map_err(io)?;
+    std::fs::write(out.join("wall.toml"), toml::to_string(&t).map_err(|e| PlanError::Unsupported(format!("--check-wall: {e}")))?).map_err(io)?;
+    let sc = crate::scenario::Scenario::from_table(t).map_err(|e| PlanError::Unsupported(format!("--check-wall: the reduced wall: {e}")))?;
+    let opts = crate::run::RunOptions { out: out.to_path_buf(), threads, quiet: true, overwrite: true, ..Default::default() };
+    let r = crate::run::run_scenario(&sc, &opts).map_err(|e| PlanError::Unsupported(format!("--check-wall: the reduced wall: {e}")))?;
+    Ok(WallCheck { layers, layer_height: h, need, layer_time, simulated_layer_time: simulated, compression, closed_form, stands: r.failure.is_none(), failure: r.failure, steps: r.steps, seconds: clock.elapsed().as_secs_f64() })
+}
+
+/// The check in one line.
+pub fn text(c: &WallCheck) -> String {
+    let how = format!(
+        "{} layers of {:.2} mm at a layer time of {:.1} s (simulated {:.2} s, the material's age clock {:.1} times faster; {} steps in {:.1} s)",
+        c.layers,
+        c.layer_height * 1e3,
+        c.layer_time,
+        c.simulated_layer_time,
+        c.compression,
+        c.steps,
+        c.seconds
+    );
+    let closed = match c.closed_form.mode {
+        Some(m) if c.closed_form.height < c.need => format!("the closed form: fails by {} at {:.3} m", m.name(), c.closed_form.height),
+        _ => "the closed form: stands".to_string(),
+    };
+    match &c.failure {
+        None => format!("wall check: stands to {:.3} m (design height x safety factor {:.3} m): {how}; {closed}\n", c.layers as f64 * c.layer_height, c.need),
+        Some(f) => format!(
+            "wall check: FAILS by {} in layer {} at t = {:.2} s, standing to {:.3} m, short of the design height x safety factor {:.3} m: {how}; {closed}\n",
+            f.mode.name(),
+            f.layer,
+            f.time,
+            (f.layer - 1) as f64 * c.layer_height,
+            c.need
+        ),
+    }
+}
