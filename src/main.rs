@@ -811,13 +811,18 @@ fn plan(args: PlanArgs) -> Result<bool, Failure> {
         let [n, m] = plan::grid_search::size(&size)?;
         eprint!("{}", plan::grid_search::text(&p, &plan::grid_search::grid_search(&p, [n, m], &engine, jobs)?));
     }
-    report::write_scenario(&p, &out, overwrite)?;
+    // a toolpath file's planned scenario reads the planned file, written first
+    let body = match &file {
+        Some(f) => {
+            let written = f.planned_path(&out);
+            f.write_planned(&p, &written, overwrite)?;
+            eprintln!("{} with the settings written to {} (its moves inline: {})", print.display(), written.display(), f.inlined.display());
+            f.planned_scenario(&p, &written)?
+        }
+        None => p.line.scenario_text(&p.settings())?,
+    };
+    report::write_scenario(&p, &body, &out, overwrite)?;
     eprintln!("scenario with the settings written to {}", out.display());
-    if let Some(f) = &file {
-        let written = f.planned_path(&out);
-        f.write_planned(&p, &written, overwrite)?;
-        eprintln!("{} with the settings written to {} (its moves inline: {})", print.display(), written.display(), f.inlined.display());
-    }
     if let Some(c) = wall.filter(|c| !c.stands) {
         return Err(Failure { message: format!("the planned wall did not stand when simulated: {}", plan::wall_check::text(&c).trim_end()), code: 1 });
     }

@@ -124,7 +124,7 @@ pub fn json(plan: &Plan) -> serde_json::Value {
 
 /// Writes the scenario with the plan's settings applied to `out`, refusing an existing file
 /// unless `overwrite`.
-pub fn write_scenario(plan: &Plan, out: &Path, overwrite: bool) -> Result<(), PlanError> {
+pub fn write_scenario(plan: &Plan, body: &str, out: &Path, overwrite: bool) -> Result<(), PlanError> {
     refuse_existing(out, overwrite)?;
     let b = plan.best();
     let head = format!(
@@ -138,8 +138,7 @@ pub fn write_scenario(plan: &Plan, out: &Path, overwrite: bool) -> Result<(), Pl
         b.layer.values[1],
         plan.line.station
     );
-    let text = plan.line.scenario_text(&b.x)?;
-    std::fs::write(out, head + &text).map_err(|e| PlanError::Io(format!("{}: {e}", out.display())))
+    std::fs::write(out, head + body).map_err(|e| PlanError::Io(format!("{}: {e}", out.display())))
 }
 
 /// An error when `path` exists and may not be overwritten.

@@ -33,6 +33,9 @@ pub struct FilePrint {
     pub source: Source,
     /// The scenario's `print.z_offset` (the printer's own offset, kept in the planned file).
     z_offset: f64,
+    /// The scenario's `print.gcode_options` table, as written (the planned scenario reads the
+    /// planned G-code under them).
+    options: Option<toml::Value>,
     /// The outlet's area [m2] (E of filament, a point list's flow).
     outlet_area: f64,
     /// The scenario with the toolpath inline, which the plan sets.
@@ -69,6 +72,7 @@ pub fn inline(scenario: &Path, inlined: &Path, overwrite: bool) -> Result<Option
     let tp = commanded(&cfg, &base_dir, 0.0)?;
     let path: Vec<toml::Value> = tp.moves().iter().filter_map(segment).collect();
     let print = doc.get_mut("print").and_then(toml::Value::as_table_mut).expect("[print] is a table");
+    let options = print.get("gcode_options").cloned();
     for k in ["gcode", "gcode_options", "points"] {
         print.remove(k);
     }
@@ -78,7 +82,7 @@ pub fn inline(scenario: &Path, inlined: &Path, overwrite: bool) -> Result<Option
     let head = format!("# {} with its toolpath file's moves written inline, for strand plan\n", scenario.display());
     let body = toml::to_string(&doc).map_err(|e| PlanError::Io(e.to_string()))?;
     std::fs::write(inlined, head + &body).map_err(io(inlined))?;
-    Ok(Some(FilePrint { source, z_offset: cfg.z_offset, outlet_area: cfg.nozzle.area(), inlined: inlined.to_path_buf() }))
+    Ok(Some(FilePrint { source, z_offset: cfg.z_offset, options, outlet_area: cfg.nozzle.area(), inlined: inlined.to_path_buf() }))
 }
 
 fn point(p: [f64; 3]) -> toml::Value {
@@ -155,6 +159,39 @@ impl FilePrint {
             Source::Points => points(&tp, &dwells, self.outlet_area, &head)?,
         };
         std::fs::write(out, text).map_err(io(out))
+    }
+
+    /// The planned scenario at `plan`'s settings, its print read from the planned file `file`
+    /// (beside the scenario, so named by its file name): the inline path and start give way to
+    /// the file and the scenario's own `gcode_options`, the printer's `z_offset` is restored (the
+    /// file's heights carry the standoff), and the end time grows by the file's layer dwells.
+    pub fn planned_scenario(&self, plan: &Plan, file: &Path) -> Result<String, PlanError> {
+        let x = plan.settings();
+        let layer_time = plan.wall.as_ref().map(|_| plan.best().build.layer_time);
+        let (_, dwells) = self.planned(&plan.line, &x, layer_time)?;
+        let bad = |what: &str| PlanError::Unsupported(format!("the planned scenario of {}: {what}", self.inlined.display()));
+        let mut doc: toml::Table = plan.line.scenario_text(&x)?.parse().map_err(|e| bad(&format!("{e}")))?;
+        let name = file.file_name().ok_or_else(|| bad("the planned file has no name"))?.to_string_lossy().into_owned();
+        let print = doc.get_mut("print").and_then(toml::Value::as_table_mut).ok_or_else(|| bad("no [print]"))?;
+        for k in ["path", "start"] {
+            print.remove(k);
+        }
+        match self.source {
+            Source::Gcode(_) => {
+                print.insert("gcode".into(), name.into());
+                if let Some(o) = &self.options {
+                    print.insert("gcode_options".into(), o.clone());
+                }
+            }
+            Source::Points => {
+                print.insert("points".into(), name.into());
+            }
+        }
+        print.insert("z_offset".into(), self.z_offset.into());
+        let sim = doc.get_mut("simulation").and_then(toml::Value::as_table_mut).ok_or_else(|| bad("no [simulation]"))?;
+        let end = sim.get("end_time").and_then(toml::Value::as_float).ok_or_else(|| bad("no simulation.end_time"))?;
+        sim.insert("end_time".into(), (end + dwells.iter().map(|d| d.1).sum::<f64>()).into());
+        toml::to_string(&doc).map_err(|e| PlanError::Io(e.to_string()))
     }
 
     /// The file with the plan's settings applied (the layer time's dwells with a wall).
