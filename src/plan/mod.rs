@@ -12,7 +12,8 @@
 //! best setting came. `map.rs` runs the print over a grid of two settings (the printability
 //! map). `toolpath_file.rs` writes a G-code or point-list print inline for the plan, and the
 //! file again with the planned settings. `grid_search.rs` checks a plan against a brute-force
-//! grid of its settings.
+//! grid of its settings; `wall_check.rs` simulates a reduced wall of the planned layer with the
+//! failure detector.
 //!
 //! Imports point one way: `error.rs` and `targets.rs` at the bottom; the print (`line.rs`) and
 //! the wall (`constraint.rs`); the build (`build.rs`); the search (`optimise.rs`); the plan
