@@ -410,7 +410,7 @@ fn grid_ticks(values: &[f64], most: usize) -> Vec<f64> {
     if n <= most {
         return values.to_vec();
     }
-    let stride = (1..n).find(|s| (n - 1) % s == 0 && (n - 1) / s < most).unwrap_or(n - 1);
+    let stride = (1..n).find(|&s| (n - 1).is_multiple_of(s) && (n - 1) / s < most).unwrap_or(n - 1);
     (0..n).step_by(stride).map(|k| values[k]).collect()
 }
 
