@@ -6,7 +6,7 @@ OUT ?= out
 TARGET_DIR := $(if $(CARGO_TARGET_DIR),$(CARGO_TARGET_DIR),target)
 STRAND := $(TARGET_DIR)/release/strand
 
-.PHONY: run test fuzz verify verify-quick bench bench-peer bench-roofline bench-restart bench-kernels bench-case1 bench-layers bench-layers-dwell bench-failure bench-mass-scaling bench-cylinder bench-sleeping-wall bench-convergence bench-nozzle-cells bench-nozzle-body bench-lbox bench-vfunnel bench-print-diagnose bench-observable-scatter bench-plan lbox build fmt clippy clean
+.PHONY: run test fuzz verify verify-quick bench bench-peer bench-roofline bench-restart bench-kernels bench-case1 bench-layers bench-layers-dwell bench-failure bench-mass-scaling bench-cylinder bench-sleeping-wall bench-convergence bench-nozzle-cells bench-nozzle-body bench-lbox bench-vfunnel bench-print-diagnose bench-observable-scatter bench-plan bench-paper000-map lbox build fmt clippy clean
 
 build:
 	$(CARGO) build --release
@@ -132,10 +132,6 @@ bench-nozzle-cells: build
 bench-nozzle-body: build
 	python3 bench/nozzle_body.py --strand $(STRAND) --out $(OUT)/nozzle_body 5 2.5
 
-# A six-print campaign's diagnosis at 8 cells per nozzle diameter (the issue's target: 30
-# minutes on 2 cores): fixtures/measure/print/'s four lines and two walls at 1.5 mm cells against
-# data synthesised from its friction truth at 1 mm, timed by stage (bench/print_diagnose.sh;
-# BENCHMARKS.md "A print campaign's diagnosis").
 # strand plan against a brute-force grid of its settings (BENCHMARKS.md "Planning"): the plan of
 # fixtures/plan alone, then again with an 8x8 grid over speed and extrusion (--jobs 2); each
 # command's wall and CPU seconds (GNU time), the grid's runs and fastest feasible build.
@@ -144,6 +140,17 @@ bench-plan: build
 	/usr/bin/time -f "plan alone: %e s wall, %U+%S CPU s" $(STRAND) plan --model fixtures/plan/truth.toml --print fixtures/plan/line.toml --targets fixtures/plan/targets.toml --out $(OUT)/plan/line.planned.toml --overwrite > /dev/null
 	/usr/bin/time -f "plan and grid: %e s wall, %U+%S CPU s" $(STRAND) plan --model fixtures/plan/truth.toml --print fixtures/plan/line.toml --targets fixtures/plan/targets.toml --out $(OUT)/plan/line.planned.toml --overwrite --grid-check 8x8 --jobs 2 2>&1 >/dev/null | grep -vE "^  (start|kept|trial|refused)"
 
+# Paper 000's five printing cases as a first printability map at 2.5 mm cells (docs/planning.md
+# "Paper 000's five cases"; not in make test: about 20 CPU minutes): the reduced cases, two at a
+# time, width and height at x = 100 mm in $(OUT)/paper000_map/map.csv and map.svg; exits 1 unless
+# the width falls with V/U at H/D = 0.5 (cases 1, 3, 5).
+bench-paper000-map: build
+	python3 bench/paper000_map.py --strand $(STRAND) --out $(OUT)/paper000_map --jobs 2
+
+# A six-print campaign's diagnosis at 8 cells per nozzle diameter (the issue's target: 30
+# minutes on 2 cores): fixtures/measure/print/'s four lines and two walls at 1.5 mm cells against
+# data synthesised from its friction truth at 1 mm, timed by stage (bench/print_diagnose.sh;
+# BENCHMARKS.md "A print campaign's diagnosis").
 bench-print-diagnose: build
 	bash bench/print_diagnose.sh $(STRAND) $(OUT)/print_diagnose
 

@@ -749,6 +749,12 @@ fn plan(args: PlanArgs) -> Result<bool, Failure> {
     let PlanArgs { model, print, targets, out, overwrite, max_evaluations, map, grid_check, check_wall, check_wall_at, map_size, jobs, engine, ram, threads, json } = args;
     use strand::plan::{self, map as pmap, report};
     let t = plan::targets::Targets::load(&targets)?;
+    if check_wall && t.wall.is_none() {
+        return Err(Failure { message: format!("--check-wall: {} has no [wall]: there is no wall to check", targets.display()), code: 2 });
+    }
+    if let Some(lt) = check_wall_at.filter(|lt| !(lt.is_finite() && *lt > 0.0)) {
+        return Err(Failure { message: format!("--check-wall-at {lt}: give a layer time in seconds above 0"), code: 2 });
+    }
     let out = out.unwrap_or_else(|| print.with_extension("planned.toml"));
     let (csv, png, html) = (out.with_extension("map.csv"), out.with_extension("map.png"), out.with_extension("map.html"));
     report::refuse_existing(&out, overwrite)?;
@@ -774,9 +780,6 @@ fn plan(args: PlanArgs) -> Result<bool, Failure> {
     let grad = strand::grad::GradOptions { ram_bytes, disk_bytes: 0, disk_dir: std::env::temp_dir(), threads, schedule: None, until_rest: None };
     let p = plan::plan(&Model::load(&model)?, &scenario, &t, &plan::PlanOptions { grad, max_evaluations, progress: !json })?;
     let missed = p.infeasible();
-    if check_wall && p.wall.is_none() {
-        return Err(Failure { message: "--check-wall: the targets have no [wall]: there is no wall to check".into(), code: 2 });
-    }
     let wall = match (&missed, check_wall) {
         (None, true) => Some(plan::wall_check::check(&p, check_wall_at.unwrap_or(p.best().build.layer_time), threads, &wall_dir)?),
         _ => None,

@@ -10,7 +10,6 @@ use std::sync::OnceLock;
 use plotters::coord::types::RangedCoordf64;
 use plotters::coord::Shift;
 use plotters::prelude::*;
-use plotters::style::text_anchor::{HPos, Pos, VPos};
 use plotters::style::{register_font, FontStyle};
 
 /// DejaVu Sans 2.37, unmodified; licence in `fixtures/fonts/LICENSE-DejaVu.txt`.
@@ -359,23 +358,8 @@ pub fn plot_heat_maps(path: &Path, x_desc: &str, y_desc: &str, panels: &[HeatMap
         };
         let (ex, ey) = (edges(&p.xs), edges(&p.ys));
         let body = area.titled(&p.title, (FAMILY, 18)).map_err(|e| err(&e))?;
-        // ticks at the grid's own values (the cells' centres), at most four along x (a 400-pixel
-        // panel fits about four labels of a few digits each), written with the fewest decimals
-        // that tell them apart; plotters' own ticks fall between the cells
-        let mut chart = ChartBuilder::on(&body).margin(MARGIN).x_label_area_size(X_LABEL_AREA).y_label_area_size(Y_LABEL_AREA).build_cartesian_2d(ex[0]..ex[ex.len() - 1], ey[0]..ey[ey.len() - 1]).map_err(|e| err(&e))?;
-        chart.configure_mesh().disable_mesh().x_labels(0).y_labels(0).x_desc(x_desc).y_desc(y_desc).axis_desc_style((FAMILY, 16)).draw().map_err(|e| err(&e))?;
-        let font = |h: HPos, v: VPos| TextStyle::from((FAMILY, 14).into_font()).pos(Pos::new(h, v));
-        let (fx, fy) = (decimals(&p.xs), decimals(&p.ys));
-        for x in grid_ticks(&p.xs, 4) {
-            let (px, py) = chart.backend_coord(&(x, ey[0]));
-            root.draw(&PathElement::new(vec![(px, py), (px, py + 5)], BLACK)).map_err(|e| err(&e))?;
-            root.draw(&Text::new(format!("{x:.fx$}"), (px, py + 8), font(HPos::Center, VPos::Top))).map_err(|e| err(&e))?;
-        }
-        for y in grid_ticks(&p.ys, 8) {
-            let (px, py) = chart.backend_coord(&(ex[0], y));
-            root.draw(&PathElement::new(vec![(px - 5, py), (px, py)], BLACK)).map_err(|e| err(&e))?;
-            root.draw(&Text::new(format!("{y:.fy$}"), (px - 8, py), font(HPos::Right, VPos::Center))).map_err(|e| err(&e))?;
-        }
+        // a 400-pixel panel fits about four labels of a few digits each
+        let mut chart = xy_chart_with_x_labels(&body, ex[0]..ex[ex.len() - 1], ey[0]..ey[ey.len() - 1], (x_desc, y_desc), 4).map_err(|e| err(&e))?;
         let finite_values = p.values.iter().copied().filter(|v| v.is_finite());
         let (lo, hi) = finite_values.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
         let colour = |v: f64| {
@@ -403,44 +387,9 @@ pub fn plot_heat_maps(path: &Path, x_desc: &str, y_desc: &str, panels: &[HeatMap
     root.present().map_err(|e| err(&e))
 }
 
-/// At most `most` (2 or more) of a grid's values, evenly spaced, the first and the last among
-/// them: every s-th, s the smallest divisor of the intervals' count that leaves few enough.
-fn grid_ticks(values: &[f64], most: usize) -> Vec<f64> {
-    let n = values.len();
-    if n <= most {
-        return values.to_vec();
-    }
-    let stride = (1..n).find(|&s| (n - 1).is_multiple_of(s) && (n - 1) / s < most).unwrap_or(n - 1);
-    (0..n).step_by(stride).map(|k| values[k]).collect()
-}
-
-/// The fewest decimals (up to 6) that write each of `values` within a thousandth of the grid's
-/// spacing, so that neighbouring ticks read apart.
-fn decimals(values: &[f64]) -> usize {
-    let spacing = values.windows(2).map(|w| (w[1] - w[0]).abs()).fold(f64::INFINITY, f64::min);
-    let spacing = if spacing.is_finite() && spacing > 0.0 { spacing } else { values.first().map_or(1.0, |v| v.abs().max(1e-12)) };
-    (0..6).find(|&d| values.iter().all(|v| (format!("{v:.d$}").parse::<f64>().unwrap_or(f64::NAN) - v).abs() <= 1e-3 * spacing)).unwrap_or(6)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// The heat maps' ticks: a grid's own values, at most the count asked, first and last kept,
-    /// written with the fewest decimals that tell neighbours apart.
-    #[test]
-    fn heat_map_ticks_are_the_grid_values_few_and_told_apart() {
-        assert_eq!(grid_ticks(&[50.0, 85.0, 120.0], 4), vec![50.0, 85.0, 120.0]);
-        let v: Vec<f64> = (0..9).map(|k| 30.0 + 6.25 * k as f64).collect();
-        assert_eq!(grid_ticks(&v, 4), vec![v[0], v[4], v[8]]);
-        let v: Vec<f64> = (0..7).map(|k| k as f64).collect();
-        assert_eq!(grid_ticks(&v, 4), vec![0.0, 2.0, 4.0, 6.0]);
-        assert_eq!(grid_ticks(&[0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0], 4), vec![0.0, 7.0]);
-        assert_eq!(decimals(&[50.0, 85.0, 120.0]), 0);
-        assert_eq!(decimals(&[30.0, 42.5, 55.0]), 1);
-        assert_eq!(decimals(&[4.0, 4.25, 4.5]), 2);
-        assert_eq!(decimals(&[0.004, 0.006, 0.008]), 3);
-    }
 
     fn png_size(bytes: &[u8]) -> Option<(u32, u32)> {
         const SIG: [u8; 8] = [0x89, b'P', b'N', b'G', b'\r', b'\n', 0x1a, b'\n'];
