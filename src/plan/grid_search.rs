@@ -60,20 +60,37 @@ pub fn grid_search(plan: &Plan, n: [usize; 2], engine: &Engine, jobs: usize) -> 
     let axes: [Axis; 2] = std::array::from_fn(|k| Axis { setting: plan.free[k].0, bounds: plan.free[k].1, n: n[k] });
     let (cpu, clock) = (crate::run::process_cpu_seconds(), std::time::Instant::now());
     let m = map::map(&plan.line, &plan.targets, None, axes, &plan.settings(), None, engine, jobs)?;
-    let length = plan.targets.layer_length(plan.line.length);
-    let mut points = Vec::new();
-    for point in m.points {
-        let build = match point.error {
-            None => Some(build(plan.wall.as_ref(), length, [point.width, point.height, point.x[0]])?),
-            Some(_) => None,
-        };
-        let feasible = point.feasible && build.as_ref().is_some_and(|b| b.short.is_none());
-        points.push(Graded { point, build, feasible });
-    }
+    let builds = builds(plan, &m.points, jobs)?;
+    let points = m
+        .points
+        .into_iter()
+        .zip(builds)
+        .map(|(point, build)| {
+            let feasible = point.feasible && build.as_ref().is_some_and(|b| b.short.is_none());
+            Graded { point, build, feasible }
+        })
+        .collect();
     // the cost counts the closed forms too (each point's bisections for its layer time)
     let (seconds, cpu_seconds) = (clock.elapsed().as_secs_f64(), crate::run::process_cpu_seconds() - cpu);
     let slack = axes.iter().map(|a| build_derivative(plan, a.setting.index()).abs() * (a.bounds[1] - a.bounds[0]) / (a.n - 1) as f64).sum();
     Ok(GridSearch { axes, points, seconds, cpu_seconds, slack })
+}
+
+/// Each point's build by the closed forms (None where its run gave no layer), `jobs` points at
+/// a time: the layer time's bisections cost about as much as a point's run, and each point's
+/// build is its own, so the order of the answers is the points' whatever the threads.
+fn builds(plan: &Plan, points: &[map::MapPoint], jobs: usize) -> Result<Vec<Option<Build>>, PlanError> {
+    let length = plan.targets.layer_length(plan.line.length);
+    let one = |p: &map::MapPoint| p.error.is_none().then(|| build(plan.wall.as_ref(), length, [p.width, p.height, p.x[0]])).transpose();
+    let chunk = points.len().div_ceil(jobs.max(1)).max(1);
+    std::thread::scope(|s| {
+        let handles: Vec<_> = points.chunks(chunk).map(|c| s.spawn(move || c.iter().map(one).collect::<Result<Vec<_>, _>>())).collect();
+        let mut all = Vec::with_capacity(points.len());
+        for h in handles {
+            all.extend(h.join().expect("a build thread panicked")?);
+        }
+        Ok(all)
+    })
 }
 
 /// The comparison as text: each side's runs and cost, the fastest feasible builds.

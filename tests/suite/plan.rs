@@ -100,7 +100,7 @@ fn targets_no_setting_meets_are_named_with_how_close_the_best_came() {
         r
     };
     // a layer 40 mm wide: the widest the bounds allow is about half of it
-    let (code, _, stderr) = plan(&base.replace("width = 0.017", "width = 0.040"), "3");
+    let (code, _, stderr) = plan(&base.replace("width = 0.017", "width = 0.040"), "2");
     assert_eq!(code, 1, "{stderr}");
     assert!(stderr.contains("no feasible setting: the layer width 40.00 +- 0.80 mm cannot be met within the bounds: the closest setting found"), "{stderr}");
     // a layer time too short for the wall's design height: how tall it stands at the longest
