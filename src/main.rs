@@ -782,6 +782,10 @@ fn plan(args: PlanArgs) -> Result<bool, Failure> {
     let missed = p.infeasible();
     let wall = match (&missed, check_wall) {
         (None, true) => Some(plan::wall_check::check(&p, check_wall_at.unwrap_or(p.best().build.layer_time), threads, &wall_dir)?),
+        (Some(_), true) => {
+            eprintln!("--check-wall: no wall simulated: no setting met the targets");
+            None
+        }
         _ => None,
     };
     if missed.is_none() {
