@@ -77,12 +77,15 @@ pub fn grid_search(plan: &Plan, n: [usize; 2], engine: &Engine, jobs: usize) -> 
 }
 
 /// Each point's build by the closed forms (None where its run gave no layer), `jobs` points at
-/// a time: the layer time's bisections cost about as much as a point's run, and each point's
-/// build is its own, so the order of the answers is the points' whatever the threads.
+/// a time (at most the cores): the layer time's bisections cost about as much as a point's run,
+/// and each point's build is its own, so the answers come in the points' order whatever the
+/// threads.
 fn builds(plan: &Plan, points: &[map::MapPoint], jobs: usize) -> Result<Vec<Option<Build>>, PlanError> {
     let length = plan.targets.layer_length(plan.line.length);
     let one = |p: &map::MapPoint| p.error.is_none().then(|| build(plan.wall.as_ref(), length, [p.width, p.height, p.x[0]])).transpose();
-    let chunk = points.len().div_ceil(jobs.max(1)).max(1);
+    // --jobs counts a scheduler's jobs too; the builds run here, on this machine's cores
+    let threads = jobs.clamp(1, std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let chunk = points.len().div_ceil(threads).max(1);
     std::thread::scope(|s| {
         let handles: Vec<_> = points.chunks(chunk).map(|c| s.spawn(move || c.iter().map(one).collect::<Result<Vec<_>, _>>())).collect();
         let mut all = Vec::with_capacity(points.len());
