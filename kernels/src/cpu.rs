@@ -22,9 +22,54 @@ pub fn has_avx2() -> bool {
 #[derive(Clone, Copy)]
 pub struct AvxLanes(std::arch::x86_64::__m256d);
 
-/// In f32 glam's `Vec3A` already fills one SSE register.
-#[cfg(feature = "f32")]
-pub type AvxLanes = crate::real::V3A;
+/// The node register of P2G in f32: glam's `Vec3A` is one SSE register too, but P2G adds its mass
+/// and momentum to a node as four scalars; this register adds channels 0..4 at once. SSE is part
+/// of the baseline x86-64, so every copy can use it; see [`crate::transfer::NodeLanes`].
+#[cfg(all(target_arch = "x86_64", feature = "f32"))]
+#[derive(Clone, Copy)]
+pub struct SseLanes(std::arch::x86_64::__m128);
+
+/// The lane-by-lane operators of a node register wrapping one SIMD value: add, subtract, and
+/// multiply by a scalar broadcast to every lane (the same IEEE operations as glam's vectors).
+#[cfg(target_arch = "x86_64")]
+macro_rules! lane_operators {
+    ($lanes:ident, $add:ident, $sub:ident, $mul:ident, $splat:ident) => {
+        // SAFETY (every intrinsic): as for the register's `NodeLanes` impl
+        impl std::ops::Add for $lanes {
+            type Output = Self;
+            #[inline(always)]
+            fn add(self, o: Self) -> Self {
+                $lanes(unsafe { $add(self.0, o.0) })
+            }
+        }
+        impl std::ops::Sub for $lanes {
+            type Output = Self;
+            #[inline(always)]
+            fn sub(self, o: Self) -> Self {
+                $lanes(unsafe { $sub(self.0, o.0) })
+            }
+        }
+        impl std::ops::Mul<crate::real::Real> for $lanes {
+            type Output = Self;
+            #[inline(always)]
+            fn mul(self, s: crate::real::Real) -> Self {
+                $lanes(unsafe { $mul(self.0, $splat(s)) })
+            }
+        }
+        impl std::ops::AddAssign for $lanes {
+            #[inline(always)]
+            fn add_assign(&mut self, o: Self) {
+                *self = *self + o;
+            }
+        }
+        impl std::ops::SubAssign for $lanes {
+            #[inline(always)]
+            fn sub_assign(&mut self, o: Self) {
+                *self = *self - o;
+            }
+        }
+    };
+}
 
 #[cfg(all(target_arch = "x86_64", not(feature = "f32")))]
 mod avx_lanes {
@@ -32,7 +77,6 @@ mod avx_lanes {
     use crate::real::{Real, V3};
     use crate::transfer::{NodeLanes, Node};
     use std::arch::x86_64::*;
-    use std::ops::{Add, AddAssign, Mul, Sub, SubAssign};
 
     // SAFETY (every intrinsic below): AvxLanes values exist only in the AVX2 copies of P2G and
     // G2P, which run only on CPUs with AVX2; the loads and stores stay inside the node.
@@ -73,37 +117,54 @@ mod avx_lanes {
         }
     }
 
-    impl Add for AvxLanes {
-        type Output = Self;
+    lane_operators!(AvxLanes, _mm256_add_pd, _mm256_sub_pd, _mm256_mul_pd, _mm256_set1_pd);
+}
+
+#[cfg(all(target_arch = "x86_64", feature = "f32"))]
+mod sse_lanes {
+    use super::SseLanes;
+    use crate::real::{Real, V3};
+    use crate::transfer::{NodeLanes, Node};
+    use std::arch::x86_64::*;
+
+    // SAFETY (every intrinsic below): SSE is part of the baseline x86-64 target; the loads and
+    // stores stay inside the node.
+    impl NodeLanes for SseLanes {
         #[inline(always)]
-        fn add(self, o: Self) -> Self {
-            AvxLanes(unsafe { _mm256_add_pd(self.0, o.0) })
+        fn zero() -> Self {
+            SseLanes(unsafe { _mm_setzero_ps() })
+        }
+        #[inline(always)]
+        fn node<const CH: usize>(n: &Node) -> Self {
+            if CH + 4 <= n.len() {
+                SseLanes(unsafe { _mm_loadu_ps(n.as_ptr().add(CH)) })
+            } else {
+                // the last three channels: load the four ending there, rotate them down one lane
+                let x = unsafe { _mm_loadu_ps(n.as_ptr().add(n.len() - 4)) };
+                SseLanes(unsafe { _mm_shuffle_ps::<0b00_11_10_01>(x, x) })
+            }
+        }
+        #[inline(always)]
+        fn v3(self) -> V3 {
+            let mut a = [0.0; 4];
+            unsafe { _mm_storeu_ps(a.as_mut_ptr(), self.0) };
+            V3::new(a[0], a[1], a[2])
+        }
+        // P2G: lane 0 the mass, lanes 1..4 the momentum, so a node's channels 0..4 take one add
+        #[inline(always)]
+        fn mass_momentum(m: Real, q: V3) -> Self {
+            SseLanes(unsafe { _mm_setr_ps(m, q.x, q.y, q.z) })
+        }
+        #[inline(always)]
+        fn slope(col: V3) -> Self {
+            SseLanes(unsafe { _mm_setr_ps(0.0, col.x, col.y, col.z) })
+        }
+        #[inline(always)]
+        fn scatter(self, node: &mut Node, weight: Real, _: Real) {
+            let add = self * weight;
+            unsafe { _mm_storeu_ps(node.as_mut_ptr(), _mm_add_ps(_mm_loadu_ps(node.as_ptr()), add.0)) };
         }
     }
-    impl Sub for AvxLanes {
-        type Output = Self;
-        #[inline(always)]
-        fn sub(self, o: Self) -> Self {
-            AvxLanes(unsafe { _mm256_sub_pd(self.0, o.0) })
-        }
-    }
-    impl Mul<Real> for AvxLanes {
-        type Output = Self;
-        #[inline(always)]
-        fn mul(self, s: Real) -> Self {
-            AvxLanes(unsafe { _mm256_mul_pd(self.0, _mm256_set1_pd(s)) })
-        }
-    }
-    impl AddAssign for AvxLanes {
-        #[inline(always)]
-        fn add_assign(&mut self, o: Self) {
-            *self = *self + o;
-        }
-    }
-    impl SubAssign for AvxLanes {
-        #[inline(always)]
-        fn sub_assign(&mut self, o: Self) {
-            *self = *self - o;
-        }
-    }
+
+    lane_operators!(SseLanes, _mm_add_ps, _mm_sub_ps, _mm_mul_ps, _mm_set1_ps);
 }
