@@ -29,12 +29,56 @@ pub struct AvxLanes(std::arch::x86_64::__m256d);
 #[derive(Clone, Copy)]
 pub struct SseLanes(std::arch::x86_64::__m128);
 
-/// The lane-by-lane operators of a node register wrapping one SIMD value: add, subtract, and
-/// multiply by a scalar broadcast to every lane (the same IEEE operations as glam's vectors).
+/// A node register wrapping one SIMD value of four lanes, from its intrinsics: the
+/// [`NodeLanes`](crate::transfer::NodeLanes) impl (a node's channels `CH..CH + 4` in one load, the
+/// last three by `$rotate`-ing the four that end there down one lane; P2G's mass in lane 0, so a
+/// node's channels 0..4 take one add) and the lane-by-lane add, subtract and multiply by a
+/// broadcast scalar, the same IEEE operations as glam's vectors.
 #[cfg(target_arch = "x86_64")]
-macro_rules! lane_operators {
-    ($lanes:ident, $add:ident, $sub:ident, $mul:ident, $splat:ident) => {
-        // SAFETY (every intrinsic): as for the register's `NodeLanes` impl
+macro_rules! node_register {
+    ($lanes:ident, $zero:ident, $load:ident, $store:ident, $setr:ident, $add:ident, $sub:ident, $mul:ident, $splat:ident, |$x:ident| $rotate:expr) => {
+        use super::$lanes;
+        use crate::real::{Real, V3};
+        use crate::transfer::{Node, NodeLanes};
+        use std::arch::x86_64::*;
+
+        // SAFETY (every intrinsic below): the register exists only in copies compiled for, and
+        // run on, CPUs with its instructions; the loads and stores stay inside the node.
+        impl NodeLanes for $lanes {
+            #[inline(always)]
+            fn zero() -> Self {
+                $lanes(unsafe { $zero() })
+            }
+            #[inline(always)]
+            fn node<const CH: usize>(n: &Node) -> Self {
+                if CH + 4 <= n.len() {
+                    $lanes(unsafe { $load(n.as_ptr().add(CH)) })
+                } else {
+                    let $x = unsafe { $load(n.as_ptr().add(n.len() - 4)) };
+                    $lanes(unsafe { $rotate })
+                }
+            }
+            #[inline(always)]
+            fn v3(self) -> V3 {
+                let mut a = [0.0; 4];
+                unsafe { $store(a.as_mut_ptr(), self.0) };
+                V3::new(a[0], a[1], a[2])
+            }
+            #[inline(always)]
+            fn mass_momentum(m: Real, q: V3) -> Self {
+                $lanes(unsafe { $setr(m, q.x, q.y, q.z) })
+            }
+            #[inline(always)]
+            fn slope(col: V3) -> Self {
+                $lanes(unsafe { $setr(0.0, col.x, col.y, col.z) })
+            }
+            #[inline(always)]
+            fn scatter(self, node: &mut Node, weight: Real, _: Real) {
+                let add = self * weight;
+                unsafe { $store(node.as_mut_ptr(), $add($load(node.as_ptr()), add.0)) };
+            }
+        }
+
         impl std::ops::Add for $lanes {
             type Output = Self;
             #[inline(always)]
@@ -49,10 +93,10 @@ macro_rules! lane_operators {
                 $lanes(unsafe { $sub(self.0, o.0) })
             }
         }
-        impl std::ops::Mul<crate::real::Real> for $lanes {
+        impl std::ops::Mul<Real> for $lanes {
             type Output = Self;
             #[inline(always)]
-            fn mul(self, s: crate::real::Real) -> Self {
+            fn mul(self, s: Real) -> Self {
                 $lanes(unsafe { $mul(self.0, $splat(s)) })
             }
         }
@@ -73,98 +117,10 @@ macro_rules! lane_operators {
 
 #[cfg(all(target_arch = "x86_64", not(feature = "f32")))]
 mod avx_lanes {
-    use super::AvxLanes;
-    use crate::real::{Real, V3};
-    use crate::transfer::{NodeLanes, Node};
-    use std::arch::x86_64::*;
-
-    // SAFETY (every intrinsic below): AvxLanes values exist only in the AVX2 copies of P2G and
-    // G2P, which run only on CPUs with AVX2; the loads and stores stay inside the node.
-    impl NodeLanes for AvxLanes {
-        #[inline(always)]
-        fn zero() -> Self {
-            AvxLanes(unsafe { _mm256_setzero_pd() })
-        }
-        #[inline(always)]
-        fn node<const CH: usize>(n: &Node) -> Self {
-            if CH + 4 <= n.len() {
-                AvxLanes(unsafe { _mm256_loadu_pd(n.as_ptr().add(CH)) })
-            } else {
-                // the last three channels: load the four ending there, rotate them down one lane
-                let x = unsafe { _mm256_loadu_pd(n.as_ptr().add(n.len() - 4)) };
-                AvxLanes(unsafe { _mm256_permute4x64_pd::<0b00_11_10_01>(x) })
-            }
-        }
-        #[inline(always)]
-        fn v3(self) -> V3 {
-            let mut a = [0.0; 4];
-            unsafe { _mm256_storeu_pd(a.as_mut_ptr(), self.0) };
-            V3::new(a[0], a[1], a[2])
-        }
-        // P2G: lane 0 the mass, lanes 1..4 the momentum, so a node's channels 0..4 take one add
-        #[inline(always)]
-        fn mass_momentum(m: Real, q: V3) -> Self {
-            AvxLanes(unsafe { _mm256_setr_pd(m, q.x, q.y, q.z) })
-        }
-        #[inline(always)]
-        fn slope(col: V3) -> Self {
-            AvxLanes(unsafe { _mm256_setr_pd(0.0, col.x, col.y, col.z) })
-        }
-        #[inline(always)]
-        fn scatter(self, node: &mut Node, weight: Real, _: Real) {
-            let add = self * weight;
-            unsafe { _mm256_storeu_pd(node.as_mut_ptr(), _mm256_add_pd(_mm256_loadu_pd(node.as_ptr()), add.0)) };
-        }
-    }
-
-    lane_operators!(AvxLanes, _mm256_add_pd, _mm256_sub_pd, _mm256_mul_pd, _mm256_set1_pd);
+    node_register!(AvxLanes, _mm256_setzero_pd, _mm256_loadu_pd, _mm256_storeu_pd, _mm256_setr_pd, _mm256_add_pd, _mm256_sub_pd, _mm256_mul_pd, _mm256_set1_pd, |x| _mm256_permute4x64_pd::<0b00_11_10_01>(x));
 }
 
 #[cfg(all(target_arch = "x86_64", feature = "f32"))]
 mod sse_lanes {
-    use super::SseLanes;
-    use crate::real::{Real, V3};
-    use crate::transfer::{NodeLanes, Node};
-    use std::arch::x86_64::*;
-
-    // SAFETY (every intrinsic below): SSE is part of the baseline x86-64 target; the loads and
-    // stores stay inside the node.
-    impl NodeLanes for SseLanes {
-        #[inline(always)]
-        fn zero() -> Self {
-            SseLanes(unsafe { _mm_setzero_ps() })
-        }
-        #[inline(always)]
-        fn node<const CH: usize>(n: &Node) -> Self {
-            if CH + 4 <= n.len() {
-                SseLanes(unsafe { _mm_loadu_ps(n.as_ptr().add(CH)) })
-            } else {
-                // the last three channels: load the four ending there, rotate them down one lane
-                let x = unsafe { _mm_loadu_ps(n.as_ptr().add(n.len() - 4)) };
-                SseLanes(unsafe { _mm_shuffle_ps::<0b00_11_10_01>(x, x) })
-            }
-        }
-        #[inline(always)]
-        fn v3(self) -> V3 {
-            let mut a = [0.0; 4];
-            unsafe { _mm_storeu_ps(a.as_mut_ptr(), self.0) };
-            V3::new(a[0], a[1], a[2])
-        }
-        // P2G: lane 0 the mass, lanes 1..4 the momentum, so a node's channels 0..4 take one add
-        #[inline(always)]
-        fn mass_momentum(m: Real, q: V3) -> Self {
-            SseLanes(unsafe { _mm_setr_ps(m, q.x, q.y, q.z) })
-        }
-        #[inline(always)]
-        fn slope(col: V3) -> Self {
-            SseLanes(unsafe { _mm_setr_ps(0.0, col.x, col.y, col.z) })
-        }
-        #[inline(always)]
-        fn scatter(self, node: &mut Node, weight: Real, _: Real) {
-            let add = self * weight;
-            unsafe { _mm_storeu_ps(node.as_mut_ptr(), _mm_add_ps(_mm_loadu_ps(node.as_ptr()), add.0)) };
-        }
-    }
-
-    lane_operators!(SseLanes, _mm_add_ps, _mm_sub_ps, _mm_mul_ps, _mm_set1_ps);
+    node_register!(SseLanes, _mm_setzero_ps, _mm_loadu_ps, _mm_storeu_ps, _mm_setr_ps, _mm_add_ps, _mm_sub_ps, _mm_mul_ps, _mm_set1_ps, |x| _mm_shuffle_ps::<0b00_11_10_01>(x, x));
 }
