@@ -440,58 +440,58 @@ mod tests {
         (xg, v, c, stress, mass)
     }
 
-    /// The copies of P2G and G2P the tests compare: the reference register [`V3A`], the baseline
+    /// The variants of P2G and G2P the tests compare: the reference register [`V3A`], the baseline
     /// copies' register, the AVX2 copies.
     #[cfg(target_arch = "x86_64")]
     #[derive(Clone, Copy, Debug)]
-    enum Copy {
+    enum Variant {
         Reference,
         Baseline,
         Avx2,
     }
 
     #[cfg(target_arch = "x86_64")]
-    fn p2g_copy<const SPLIT: bool>(copy: Copy, p: &P2gInput, order: &[u32], local: &mut [Node; NEIGHBOURHOOD_NODES]) {
+    fn p2g_copy<const SPLIT: bool>(copy: Variant, p: &P2gInput, order: &[u32], local: &mut [Node; NEIGHBOURHOOD_NODES]) {
         let tp = TransferParams { dx: r(2.5e-3), dt: r(2.5e-5) };
         match copy {
-            Copy::Reference => p2g_block_body::<SPLIT, V3A>([8; 3], order, p, &tp, local),
-            Copy::Baseline => p2g_block_body::<SPLIT, lanes::P2gBaseline>([8; 3], order, p, &tp, local),
+            Variant::Reference => p2g_block_body::<SPLIT, V3A>([8; 3], order, p, &tp, local),
+            Variant::Baseline => p2g_block_body::<SPLIT, lanes::P2gBaseline>([8; 3], order, p, &tp, local),
             // SAFETY: only called where the CPU has AVX2
-            Copy::Avx2 => unsafe { p2g_block_avx2::<SPLIT>([8; 3], order, p, &tp, local) },
+            Variant::Avx2 => unsafe { p2g_block_avx2::<SPLIT>([8; 3], order, p, &tp, local) },
         }
     }
 
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn avx2_copies_give_the_baseline_bits() {
-        let copies: &[Copy] = if crate::cpu::has_avx2() { &[Copy::Reference, Copy::Baseline, Copy::Avx2] } else { &[Copy::Reference, Copy::Baseline] };
+        let copies: &[Variant] = if crate::cpu::has_avx2() { &[Variant::Reference, Variant::Baseline, Variant::Avx2] } else { &[Variant::Reference, Variant::Baseline] };
         let bits = |nodes: &[Node]| nodes.iter().flat_map(|n| n.map(|x| x.to_bits())).collect::<Vec<_>>();
         let (xg, v, c, stress, mass) = scattered_block(300);
         let (vol0, j) = (vec![r(2e-6); 300], vec![r(0.97); 300]);
         let order: Vec<u32> = (0..300u32).rev().collect();
         let tp = TransferParams { dx: r(2.5e-3), dt: r(2.5e-5) };
         let input = P2gInput { xg: &xg, v: &v, c: &c, stress: &stress, mass: &mass, vol0: &vol0, j: &j };
-        let p2g = |copy: Copy| {
+        let p2g = |copy: Variant| {
             let mut local = [[r(0.0); 7]; NEIGHBOURHOOD_NODES];
             p2g_copy::<true>(copy, &input, &order, &mut local);
             let split = bits(&local);
             p2g_copy::<false>(copy, &input, &order, &mut local);
             (split, bits(&local), local)
         };
-        let (split, folded, grid) = p2g(Copy::Reference);
+        let (split, folded, grid) = p2g(Variant::Reference);
         for &copy in &copies[1..] {
             let (s, f, _) = p2g(copy);
             assert!(s == split && f == folded, "P2G, {copy:?} copy");
         }
         for (flip, jbar) in [(r(0.0), None), (r(0.95), Some(&vol0[..]))] {
-            let run = |copy: Copy| {
+            let run = |copy: Variant| {
                 let (mut x, mut vv, mut cc, mut jj) = (xg.clone(), v.clone(), c.clone(), j.clone());
                 let mut out = G2pOutput { xg: &mut x, v: &mut vv, c: &mut cc, j: &mut jj };
                 let vmax = match copy {
-                    Copy::Reference => g2p_block_body::<V3A>([8; 3], &order, &grid, flip, jbar, &tp, &mut out),
-                    Copy::Baseline => g2p_block_body::<lanes::G2pBaseline>([8; 3], &order, &grid, flip, jbar, &tp, &mut out),
+                    Variant::Reference => g2p_block_body::<V3A>([8; 3], &order, &grid, flip, jbar, &tp, &mut out),
+                    Variant::Baseline => g2p_block_body::<lanes::G2pBaseline>([8; 3], &order, &grid, flip, jbar, &tp, &mut out),
                     // SAFETY: only called where the CPU has AVX2
-                    Copy::Avx2 => unsafe { g2p_block_avx2([8; 3], &order, &grid, flip, jbar, &tp, &mut out) },
+                    Variant::Avx2 => unsafe { g2p_block_avx2([8; 3], &order, &grid, flip, jbar, &tp, &mut out) },
                 };
                 let mut all: Vec<Real> = vec![vmax];
                 all.extend(x.iter().chain(&vv).flat_map(|a| a.to_array()));
@@ -499,7 +499,7 @@ mod tests {
                 all.extend(jj);
                 all.iter().map(|a| a.to_bits()).collect::<Vec<_>>()
             };
-            let reference = run(Copy::Reference);
+            let reference = run(Variant::Reference);
             for &copy in &copies[1..] {
                 assert!(run(copy) == reference, "G2P flip {flip}, {copy:?} copy");
             }
