@@ -22,88 +22,105 @@ pub fn has_avx2() -> bool {
 #[derive(Clone, Copy)]
 pub struct AvxLanes(std::arch::x86_64::__m256d);
 
-/// In f32 glam's `Vec3A` already fills one SSE register.
-#[cfg(feature = "f32")]
-pub type AvxLanes = crate::real::V3A;
+/// The node register of P2G in f32: glam's `Vec3A` is one SSE register too, but P2G adds its mass
+/// and momentum to a node as four scalars; this register adds channels 0..4 at once. SSE is part
+/// of the baseline x86-64, so every copy can use it; see [`crate::transfer::NodeLanes`].
+#[cfg(all(target_arch = "x86_64", feature = "f32"))]
+#[derive(Clone, Copy)]
+pub struct SseLanes(std::arch::x86_64::__m128);
+
+/// A node register wrapping one SIMD value of four lanes, from its intrinsics: the
+/// [`NodeLanes`](crate::transfer::NodeLanes) impl (a node's channels `CH..CH + 4` in one load, the
+/// last three by `$rotate`-ing the four that end there down one lane; P2G's mass in lane 0, so a
+/// node's channels 0..4 take one add) and the lane-by-lane add, subtract and multiply by a
+/// broadcast scalar, the same IEEE operations as glam's vectors.
+#[cfg(target_arch = "x86_64")]
+macro_rules! node_register {
+    ($lanes:ident, $zero:ident, $load:ident, $store:ident, $setr:ident, $add:ident, $sub:ident, $mul:ident, $splat:ident, |$x:ident| $rotate:expr) => {
+        use super::$lanes;
+        use crate::real::{Real, V3};
+        use crate::transfer::{Node, NodeLanes};
+        use std::arch::x86_64::*;
+
+        // SAFETY (every intrinsic below): the register exists only in copies compiled for, and
+        // run on, CPUs with its instructions; the loads and stores stay inside the node.
+        impl NodeLanes for $lanes {
+            #[inline(always)]
+            fn zero() -> Self {
+                $lanes(unsafe { $zero() })
+            }
+            #[inline(always)]
+            fn node<const CH: usize>(n: &Node) -> Self {
+                if CH + 4 <= n.len() {
+                    $lanes(unsafe { $load(n.as_ptr().add(CH)) })
+                } else {
+                    let $x = unsafe { $load(n.as_ptr().add(n.len() - 4)) };
+                    $lanes(unsafe { $rotate })
+                }
+            }
+            #[inline(always)]
+            fn v3(self) -> V3 {
+                let mut a = [0.0; 4];
+                unsafe { $store(a.as_mut_ptr(), self.0) };
+                V3::new(a[0], a[1], a[2])
+            }
+            #[inline(always)]
+            fn mass_momentum(m: Real, q: V3) -> Self {
+                $lanes(unsafe { $setr(m, q.x, q.y, q.z) })
+            }
+            #[inline(always)]
+            fn slope(col: V3) -> Self {
+                $lanes(unsafe { $setr(0.0, col.x, col.y, col.z) })
+            }
+            #[inline(always)]
+            fn scatter(self, node: &mut Node, weight: Real, _: Real) {
+                let add = self * weight;
+                unsafe { $store(node.as_mut_ptr(), $add($load(node.as_ptr()), add.0)) };
+            }
+        }
+
+        impl std::ops::Add for $lanes {
+            type Output = Self;
+            #[inline(always)]
+            fn add(self, o: Self) -> Self {
+                $lanes(unsafe { $add(self.0, o.0) })
+            }
+        }
+        impl std::ops::Sub for $lanes {
+            type Output = Self;
+            #[inline(always)]
+            fn sub(self, o: Self) -> Self {
+                $lanes(unsafe { $sub(self.0, o.0) })
+            }
+        }
+        impl std::ops::Mul<Real> for $lanes {
+            type Output = Self;
+            #[inline(always)]
+            fn mul(self, s: Real) -> Self {
+                $lanes(unsafe { $mul(self.0, $splat(s)) })
+            }
+        }
+        impl std::ops::AddAssign for $lanes {
+            #[inline(always)]
+            fn add_assign(&mut self, o: Self) {
+                *self = *self + o;
+            }
+        }
+        impl std::ops::SubAssign for $lanes {
+            #[inline(always)]
+            fn sub_assign(&mut self, o: Self) {
+                *self = *self - o;
+            }
+        }
+    };
+}
 
 #[cfg(all(target_arch = "x86_64", not(feature = "f32")))]
 mod avx_lanes {
-    use super::AvxLanes;
-    use crate::real::{Real, V3};
-    use crate::transfer::{NodeLanes, Node};
-    use std::arch::x86_64::*;
-    use std::ops::{Add, AddAssign, Mul, Sub, SubAssign};
+    node_register!(AvxLanes, _mm256_setzero_pd, _mm256_loadu_pd, _mm256_storeu_pd, _mm256_setr_pd, _mm256_add_pd, _mm256_sub_pd, _mm256_mul_pd, _mm256_set1_pd, |x| _mm256_permute4x64_pd::<0b00_11_10_01>(x));
+}
 
-    // SAFETY (every intrinsic below): AvxLanes values exist only in the AVX2 copies of P2G and
-    // G2P, which run only on CPUs with AVX2; the loads and stores stay inside the node.
-    impl NodeLanes for AvxLanes {
-        #[inline(always)]
-        fn zero() -> Self {
-            AvxLanes(unsafe { _mm256_setzero_pd() })
-        }
-        #[inline(always)]
-        fn node<const CH: usize>(n: &Node) -> Self {
-            if CH + 4 <= n.len() {
-                AvxLanes(unsafe { _mm256_loadu_pd(n.as_ptr().add(CH)) })
-            } else {
-                // the last three channels: load the four ending there, rotate them down one lane
-                let x = unsafe { _mm256_loadu_pd(n.as_ptr().add(n.len() - 4)) };
-                AvxLanes(unsafe { _mm256_permute4x64_pd::<0b00_11_10_01>(x) })
-            }
-        }
-        #[inline(always)]
-        fn v3(self) -> V3 {
-            let mut a = [0.0; 4];
-            unsafe { _mm256_storeu_pd(a.as_mut_ptr(), self.0) };
-            V3::new(a[0], a[1], a[2])
-        }
-        // P2G: lane 0 the mass, lanes 1..4 the momentum, so a node's channels 0..4 take one add
-        #[inline(always)]
-        fn mass_momentum(m: Real, q: V3) -> Self {
-            AvxLanes(unsafe { _mm256_setr_pd(m, q.x, q.y, q.z) })
-        }
-        #[inline(always)]
-        fn slope(col: V3) -> Self {
-            AvxLanes(unsafe { _mm256_setr_pd(0.0, col.x, col.y, col.z) })
-        }
-        #[inline(always)]
-        fn scatter(self, node: &mut Node, weight: Real, _: Real) {
-            let add = self * weight;
-            unsafe { _mm256_storeu_pd(node.as_mut_ptr(), _mm256_add_pd(_mm256_loadu_pd(node.as_ptr()), add.0)) };
-        }
-    }
-
-    impl Add for AvxLanes {
-        type Output = Self;
-        #[inline(always)]
-        fn add(self, o: Self) -> Self {
-            AvxLanes(unsafe { _mm256_add_pd(self.0, o.0) })
-        }
-    }
-    impl Sub for AvxLanes {
-        type Output = Self;
-        #[inline(always)]
-        fn sub(self, o: Self) -> Self {
-            AvxLanes(unsafe { _mm256_sub_pd(self.0, o.0) })
-        }
-    }
-    impl Mul<Real> for AvxLanes {
-        type Output = Self;
-        #[inline(always)]
-        fn mul(self, s: Real) -> Self {
-            AvxLanes(unsafe { _mm256_mul_pd(self.0, _mm256_set1_pd(s)) })
-        }
-    }
-    impl AddAssign for AvxLanes {
-        #[inline(always)]
-        fn add_assign(&mut self, o: Self) {
-            *self = *self + o;
-        }
-    }
-    impl SubAssign for AvxLanes {
-        #[inline(always)]
-        fn sub_assign(&mut self, o: Self) {
-            *self = *self - o;
-        }
-    }
+#[cfg(all(target_arch = "x86_64", feature = "f32"))]
+mod sse_lanes {
+    node_register!(SseLanes, _mm_setzero_ps, _mm_loadu_ps, _mm_storeu_ps, _mm_setr_ps, _mm_add_ps, _mm_sub_ps, _mm_mul_ps, _mm_set1_ps, |x| _mm_shuffle_ps::<0b00_11_10_01>(x, x));
 }
