@@ -18,7 +18,7 @@ use super::line::{Line, Point};
 use super::targets::{Setting, Targets};
 use crate::measure::engine::Engine;
 use crate::measure::observation::{Observable, Observation};
-use crate::measure::runner::{evaluate, find, group, job_threads, par_map_experiments};
+use crate::measure::runner::{evaluate, find, group, job_threads, par_map_experiments, Jobs};
 use crate::output::plot::{plot_heat_maps, HeatMap};
 use std::path::Path;
 
@@ -115,7 +115,7 @@ pub fn map(line: &Line, targets: &Targets, wall: Option<&WallGoal>, axes: [Axis;
             })?
         }
         // a scheduler's jobs: one failing fails the map
-        _ => engine.sensitivity(jobs, &line.model, &data, &exps, None)??.values.chunks(2).map(|v| Ok([v[0], v[1]])).collect(),
+        _ => engine.sensitivity(Jobs::new(jobs), &line.model, &data, &exps, None)??.values.chunks(2).map(|v| Ok([v[0], v[1]])).collect(),
     };
     let l = &targets.layer;
     let length = targets.layer_length(line.length);

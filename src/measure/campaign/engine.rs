@@ -32,7 +32,7 @@ use super::experiments::{Experiment, Experiments};
 use crate::measure::model::Model;
 use crate::measure::observation::{Observable, Observation};
 use super::provenance::{self, exact, plain, Exact, Provenance};
-use super::runner::{find, group};
+use super::runner::{find, group, Jobs};
 use super::sensitivity::{self, Differences, Sensitivity, Valued};
 use std::path::{Path, PathBuf};
 
@@ -106,10 +106,11 @@ impl Engine {
 
     /// The values of every observation under `model`, with their gradients in `names` when
     /// given. `Err` is the engine failing (a job that left no result, named with its log);
-    /// `Ok(Err)` the model's own failure, as a local run gives it.
+    /// `Ok(Err)` the model's own failure, as a local run gives it. Here the experiments run as
+    /// `jobs` says; a scheduler runs them all at once and counts none of them as it goes.
     pub fn sensitivity(
         &self,
-        jobs: usize,
+        jobs: Jobs,
         model: &Model,
         data: &[Observation],
         exps: &Experiments,
@@ -127,7 +128,7 @@ impl Engine {
     /// scheduler's jobs compute them again, to the same bits.
     pub fn jacobian_at(
         &self,
-        jobs: usize,
+        jobs: Jobs,
         model: &Model,
         data: &[Observation],
         exps: &Experiments,

@@ -34,7 +34,9 @@ use super::model::Model;
 use super::observation::Observation;
 use self::progress::Progress;
 use self::resolution::Counted;
+use self::runner::Jobs;
 use self::sensitivity::Differences;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// A campaign's data and experiments, and how they run; borrowed, so a part (a subset of the
 /// data, other options) is a new value over the same things.
@@ -109,8 +111,8 @@ impl<'a> Campaign<'a> {
     /// The engine's values of every observation under `model`, with their gradients in `names`
     /// when given ([`Engine::sensitivity`]), the runs counted into the progress.
     pub fn sensitivity(&self, model: &Model, names: Option<&[String]>) -> Result<Answer, MeasureError> {
-        let runs = runs(self.data, names.map_or(0, |n| 1 + 2 * n.len()).max(1));
-        self.counted(runs, || self.opts.engine.sensitivity(self.opts.jobs, model, self.data, self.exps, names))
+        let per_experiment = names.map_or(0, |n| 1 + 2 * n.len()).max(1);
+        self.counted(per_experiment, |jobs| self.opts.engine.sensitivity(jobs, model, self.data, self.exps, names))
     }
 
     /// The engine's Jacobian at a model whose values are known ([`Engine::jacobian_at`]), the
@@ -123,15 +125,23 @@ impl<'a> Campaign<'a> {
     ) -> Result<Answer, MeasureError> {
         let sides = if matches!(at.1, Differences::Central) { 2 } else { 1 };
         let (opts, data, exps) = (self.opts, self.data, self.exps);
-        self.counted(runs(data, sides * names.len()), || {
-            opts.engine.jacobian_at(opts.jobs, model, data, exps, names, at)
-        })
+        self.counted(sides * names.len(), |jobs| opts.engine.jacobian_at(jobs, model, data, exps, names, at))
     }
 
-    fn counted<T>(&self, runs: u64, evaluate: impl FnOnce() -> T) -> T {
-        self.opts.progress.expect(runs);
-        let answer = evaluate();
-        self.opts.progress.advance(runs);
+    /// `evaluate` counted into the progress: `per_experiment` runs of each of the data's
+    /// experiments expected, and counted as each experiment ends (the rest, of experiments an
+    /// engine does not count as they end, when the evaluation ends).
+    fn counted<T>(&self, per_experiment: usize, evaluate: impl FnOnce(Jobs) -> T) -> T {
+        let (progress, experiments) = (&self.opts.progress, self::runner::group(self.data).len() as u64);
+        let per_experiment = per_experiment as u64;
+        progress.expect(experiments * per_experiment);
+        let ended = AtomicU64::new(0);
+        let done = || {
+            ended.fetch_add(1, Ordering::Relaxed);
+            progress.advance(per_experiment);
+        };
+        let answer = evaluate(Jobs { n: self.opts.jobs, done: &done });
+        progress.advance(experiments.saturating_sub(ended.load(Ordering::Relaxed)) * per_experiment);
         answer
     }
 
@@ -178,3 +188,45 @@ impl Default for FitOptions {
     }
 }
 
+
+#[cfg(test)]
+mod tests {
+    use super::progress::tests::{check_monotone, Shared};
+    use super::*;
+
+    /// An evaluation's runs are counted as each experiment ends, not only when all have: with
+    /// two rheometer experiments and two parameters (1 + 2 x 2 = 5 runs each), the progress
+    /// shows 5 of 10 before 10 of 10, and the answer is the same bits as a silent evaluation's.
+    #[test]
+    fn an_evaluation_counts_each_experiment_as_it_ends() {
+        let model = Model::from_table(
+            &"[material]\nkind = \"bingham\"\ndensity = 2100.0\nbulk_modulus = 1e6\nviscosity = 7.5\n\
+              yield_stress = 630.0\n"
+                .parse()
+                .unwrap(),
+        )
+        .unwrap();
+        let exps: Experiments = toml::from_str(
+            "[[experiment]]\nid = \"fast\"\nobserve = [\"stress@40\"]\n[experiment.protocol]\n\
+             [[experiment.protocol.phase]]\nkind = \"sweep\"\nrates = [40.0]\nhold = 0.5\n\
+             [[experiment]]\nid = \"slow\"\nobserve = [\"stress@5\"]\n[experiment.protocol]\n\
+             [[experiment.protocol.phase]]\nkind = \"sweep\"\nrates = [5.0]\nhold = 0.5\n",
+        )
+        .unwrap();
+        let data = crate::measure::compare::synth::synth(&model, &exps, 0.0, 1, 1).unwrap();
+        let names = vec!["material.yield_stress".to_string(), "material.viscosity".to_string()];
+        let out = Shared::default();
+        let progress = out.progress(1);
+        progress.begin("evaluation", 0);
+        let counted = FitOptions { progress: progress.clone(), ..FitOptions::default() };
+        let with = Campaign::new(&exps, &data, &counted).sensitivity(&model, Some(&names)).unwrap().unwrap();
+        progress.end();
+        let silent = FitOptions::default();
+        let without = Campaign::new(&exps, &data, &silent).sensitivity(&model, Some(&names)).unwrap().unwrap();
+        assert_eq!(format!("{:?}", with), format!("{:?}", without));
+        let events = out.events();
+        check_monotone(&events);
+        let shown: Vec<(u64, u64)> = events.iter().map(|e| (e.done, e.total)).collect();
+        assert!(shown.contains(&(5, 10)) && shown.contains(&(10, 10)), "{shown:?}");
+    }
+}

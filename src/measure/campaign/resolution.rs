@@ -34,7 +34,7 @@
 use crate::measure::error::MeasureError;
 use super::experiments::{Experiment, Experiments, ResolutionTable};
 use crate::measure::observation::{Observable, Observation};
-use super::runner::{evaluate, experiment_keys, find, group, job_threads, par_map_experiments, build_scenario, ungroup};
+use super::runner::{build_scenario, evaluate, experiment_keys, find, group, job_threads, par_map_experiments, ungroup, Jobs};
 use crate::measure::model::Model;
 
 /// The order of convergence p assumed when `[resolution]` gives none: case 1's width at 8, 10
@@ -211,7 +211,7 @@ pub fn counted_data(
     if exps.resolution.is_none() {
         return Ok((data, None));
     }
-    let start_values = super::sensitivity::sensitivity(model, &data, exps, None, jobs)?.values;
+    let start_values = super::sensitivity::sensitivity(model, &data, exps, None, Jobs::new(jobs))?.values;
     let estimates = estimate(model, &data, exps, Some(&start_values), jobs)?.expect("a [resolution] table");
     Ok((counted(&data, &estimates), Some(Counted { data, estimates, start_values })))
 }

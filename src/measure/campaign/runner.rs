@@ -296,6 +296,22 @@ pub fn find<'a>(exps: &'a Experiments, id: &str) -> Result<&'a Experiment, Measu
     })
 }
 
+/// How an evaluation's experiments run here: `n` at a time, and `done` called as each one ends
+/// (the command's progress counts its runs then, not only when the whole evaluation ends: a
+/// Jacobian of a print campaign is minutes of runs).
+#[derive(Clone, Copy)]
+pub struct Jobs<'a> {
+    pub n: usize,
+    pub done: &'a (dyn Fn() + Sync),
+}
+
+impl Jobs<'_> {
+    /// `n` at a time, counted nowhere.
+    pub fn new(n: usize) -> Jobs<'static> {
+        Jobs { n, done: &|| {} }
+    }
+}
+
 /// `f(k)` for each of the experiments `wanted` (`f(k)` runs `wanted[k]`) as independent jobs,
 /// `jobs` at a time, results in index order (the first error by index if any failed), handed out
 /// longest first by the seconds each took last in this process (those not yet run first, in their

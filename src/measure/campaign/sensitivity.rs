@@ -26,7 +26,7 @@ use crate::measure::observables::{observable_plan, reading_index};
 use crate::measure::observation::{Observable, Observation};
 use super::runner::{
     experiment_keys, find, group, job_threads, par_map_experiments, rheometer_setup, scenario_from_table,
-    scenario_table, ungroup,
+    scenario_table, ungroup, Jobs,
 };
 use super::spare::Spare;
 use crate::measure::effects::Keys;
@@ -69,13 +69,13 @@ pub enum Differences {
 }
 
 /// Values of every observation under `model`, with their gradients in `names` when given;
-/// experiments run `jobs` at a time.
+/// experiments run as `jobs` says.
 pub fn sensitivity(
     model: &Model,
     data: &[Observation],
     exps: &Experiments,
     names: Option<&[String]>,
-    jobs: usize,
+    jobs: Jobs,
 ) -> Result<Sensitivity, MeasureError> {
     campaign(model, data, exps, (names, jobs), (None, &Differences::Central))
 }
@@ -88,7 +88,7 @@ pub fn jacobian_at(
     model: &Model,
     data: &[Observation],
     exps: &Experiments,
-    (names, jobs): (&[String], usize),
+    (names, jobs): (&[String], Jobs),
     (values, differences): (&[f64], &Differences),
 ) -> Result<Sensitivity, MeasureError> {
     campaign(model, data, exps, (Some(names), jobs), (Some(values), differences))
@@ -98,23 +98,25 @@ fn campaign(
     model: &Model,
     data: &[Observation],
     exps: &Experiments,
-    (names, jobs): (Option<&[String]>, usize),
+    (names, jobs): (Option<&[String]>, Jobs),
     (known, differences): (Option<&[f64]>, &Differences),
 ) -> Result<Sensitivity, MeasureError> {
     let wanted = group(data);
-    let threads = job_threads(jobs, wanted.len());
+    let threads = job_threads(jobs.n, wanted.len());
     let known = known.map(|v| regroup(data, &wanted, v));
     let scatter = match differences {
         Differences::Central => None,
         Differences::Forward(s) => Some(regroup(data, &wanted, s)),
     };
-    let per = par_map_experiments(&wanted, jobs, |k, spare| {
+    let per = par_map_experiments(&wanted, jobs.n, |k, spare| {
         let given = Given {
             values: known.as_ref().map(|v| &v[k][..]),
             scatter: scatter.as_ref().map(|s| &s[k][..]),
             spare: Some(spare),
         };
-        one_given(model, exps, &wanted[k].0, &wanted[k].1, (names, threads), given)
+        let valued = one_given(model, exps, &wanted[k].0, &wanted[k].1, (names, threads), given);
+        (jobs.done)();
+        valued
     })?;
     Ok(assemble(data, &wanted, &per, names))
 }

@@ -109,7 +109,8 @@ mod tests {
         let fitted = vec!["material.yield_stress".to_string(), "material.viscosity".to_string()];
         let extra: Vec<String> = ["ageing.rate", "thixotropy.a_thix"].iter().map(|s| s.to_string()).collect();
         let all: Vec<String> = fitted.iter().chain(&extra).cloned().collect();
-        let exact = crate::measure::campaign::sensitivity::sensitivity(&model, &data, &exps, Some(&all), 1)
+        let one_job = crate::measure::campaign::runner::Jobs::new(1);
+        let exact = crate::measure::campaign::sensitivity::sensitivity(&model, &data, &exps, Some(&all), one_job)
             .unwrap()
             .jacobian
             .unwrap();
