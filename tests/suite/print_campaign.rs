@@ -35,20 +35,37 @@ fn the_extrusion_factor_and_the_z_offset_gradients_match_central_differences() {
     }
 }
 
-/// Synthesise data from `truth` with `truth_exps` (2 mm cells: finer than the model's 3 mm), keep
+/// `exps` with only the experiments whose id starts with one of `only`, their scenarios named by
+/// absolute paths, written into `dir`: the experiments a test keeps, synthesised alone. The noise
+/// is drawn in the file's order, and the kept ones come first, so their data are the bits the
+/// whole file gives them.
+fn only_experiments(exps: &Path, only: &[&str], dir: &Path) -> std::path::PathBuf {
+    let mut doc: toml::Table = std::fs::read_to_string(exps).unwrap().parse().unwrap();
+    let list = doc["experiment"].as_array_mut().unwrap();
+    let keep = |x: &toml::Value| only.iter().any(|o| x["id"].as_str().unwrap().starts_with(o));
+    let kept = list.iter().filter(|x| keep(x)).count();
+    assert!(list[..kept].iter().all(keep), "the kept experiments must lead {}", exps.display());
+    list.truncate(kept);
+    for x in list.iter_mut() {
+        let scenario = exps.parent().unwrap().join(x["scenario"].as_str().unwrap());
+        x.as_table_mut().unwrap().insert("scenario".into(), scenario.display().to_string().into());
+    }
+    let out = dir.join("experiments.toml");
+    std::fs::write(&out, toml::to_string(&doc).unwrap()).unwrap();
+    out
+}
+
+/// Synthesise data from `truth` with `truth_exps` (2 mm cells: finer than the model's 3 mm) for
 /// the experiments whose id starts with one of `only`, then diagnose the base model against them
 /// with `exps` (and `extra` arguments); the diagnosis as JSON.
 fn diagnose(truth: &str, truth_exps: &str, only: &[&str], exps: &str, extra: &[&str]) -> serde_json::Value {
     let d = measure_fixtures("print");
     let tmp = tempfile::tempdir().unwrap();
-    let all = tmp.path().join("all.csv");
     let t = std::time::Instant::now();
-    let (code, _, err) = strand(&["synth", "--model", s(&d.join(truth)), "--experiments", s(&d.join(truth_exps)), "--noise", "0.01", "--seed", "7", "--out", s(&all), "--jobs", "2"]);
-    assert_eq!(code, 0, "{err}");
-    let text = std::fs::read_to_string(&all).unwrap();
-    let kept: Vec<&str> = text.lines().enumerate().filter(|(i, l)| *i == 0 || only.iter().any(|o| l.starts_with(o))).map(|(_, l)| l).collect();
+    let kept = only_experiments(&d.join(truth_exps), only, tmp.path());
     let data = tmp.path().join("data.csv");
-    std::fs::write(&data, kept.join("\n") + "\n").unwrap();
+    let (code, _, err) = strand(&["synth", "--model", s(&d.join(truth)), "--experiments", s(&kept), "--noise", "0.01", "--seed", "7", "--out", s(&data), "--jobs", "2"]);
+    assert_eq!(code, 0, "{err}");
     let out = tmp.path().join("best.toml");
     let (base, exps) = (d.join("base.toml"), d.join(exps));
     let args = [
