@@ -36,10 +36,12 @@ fn sleep_tables(s: &Sleep) -> Vec<PoolDecl<Sleep>> {
     with_role(s, |r| r == Role::Sparse)
 }
 
-/// Bytes of one stored state of `sim` at its full pool (and full grid, when it sleeps).
+/// Bytes of one stored state of `sim` at its full pool (and as many particle blocks, when it
+/// sleeps).
 pub fn state_bytes(sim: &Simulation) -> usize {
     let p = &sim.particles;
-    let cap = Counts::capacity(p.capacity(), sim.grid.max_blocks());
+    // every particle block holds a particle
+    let cap = Counts::capacity(p.capacity(), sim.grid.max_blocks().min(p.capacity()));
     let particles: usize = stored(p, sim.sleep.is_some()).iter().map(|d| d.bytes_for(p, &cap)).sum();
     let sleep = sim.sleep.as_ref().map_or(0, |s| {
         let tables: usize = sleep_tables(s).iter().map(|d| d.bytes_for(s, &cap)).sum();

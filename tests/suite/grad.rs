@@ -690,7 +690,7 @@ fn a_sleeping_printed_line_gradient_matches_central_differences_and_the_taylor_t
     let obj: Objective = "smooth_width@0.015".parse().unwrap();
     let wrt = keys(&["material.yield_stress", "material.viscosity", "print.path.0.speed"]);
     let r = gradient(&sc, &obj, &wrt, &opts(Some(Kind::StoreAll), dir.path())).unwrap();
-    let replayed = gradient(&sc, &obj, &wrt, &opts(Some(Kind::Revolve { ram_slots: 12, disk_slots: 3 }), dir.path())).unwrap();
+    let replayed = gradient(&sc, &obj, &wrt, &opts(Some(Kind::Revolve { ram_slots: 40, disk_slots: 2 }), dir.path())).unwrap();
     assert!(replayed.forward_steps > r.forward_steps);
     let bits = |g: &[f64]| g.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
     assert_eq!((replayed.value.to_bits(), bits(&replayed.gradient)), (r.value.to_bits(), bits(&r.gradient)), "{:?} against {:?}", replayed.gradient, r.gradient);
