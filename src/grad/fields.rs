@@ -10,15 +10,17 @@
 //! sleeping prefix of the pool and decides from what the previous step left: the masses,
 //! initial volumes and ids (the swaps move them), the sleeping prefix's length, the sleep tables
 //! a restart checkpoint stores (the pools of [`Role::Sparse`], here whole), and the previous
-//! step's per-unit activity with the binning it is indexed by (its particle blocks' keys). A
-//! restart checkpoint, taken in the middle of a step, rebuilds the last two by binning again and
-//! by G2P; a stored state at a step boundary cannot, so it keeps them. With them the replayed
-//! step takes the same sleep decisions as the first forward sweep, bit for bit.
+//! step's per-unit activity (where it lies against the thresholds) with the binning it is
+//! indexed by (its particle blocks' keys). A restart checkpoint, taken in the middle of a step,
+//! rebuilds the last two by binning again and by G2P; a stored state at a step boundary cannot,
+//! so it keeps them. With them the replayed step takes the same sleep decisions as the first
+//! forward sweep, bit for bit.
 
 use crate::grid::EMPTY;
+use crate::kernels::Real;
 use crate::particles::Particles;
 use crate::pools::{with_role, Counts, PoolDecl, Role};
-use crate::sleep::{Sleep, UnitActivity};
+use crate::sleep::{Sleep, EMPTY_UNIT, UNITS};
 use crate::solver::Simulation;
 
 const HEADER: usize = 32;
@@ -50,8 +52,48 @@ pub fn state_bytes(sim: &Simulation) -> usize {
     HEADER + particles + sleep
 }
 
+/// A byte per unit of each particle block: the activity's place against the sleep thresholds.
 fn activity_bytes(particle_blocks: usize) -> usize {
-    particle_blocks * std::mem::size_of::<UnitActivity>()
+    particle_blocks * UNITS
+}
+
+/// The thresholds the sleep update compares a unit's (max speed, max strain rate) with, in the
+/// solver's precision as it takes them (`sleep/passes.rs`): the rest speed, wake speed and
+/// arrive speed (increasing, as the scenario checks), and the rest strain rate.
+fn thresholds(s: &Sleep) -> ([Real; 3], Real) {
+    let c = &s.cfg;
+    ([c.speed as Real, c.wake_speed as Real, c.arrive_speed as Real], c.strain_rate as Real)
+}
+
+/// Which side of each threshold a unit's activity lies on, in a byte: every sleep decision
+/// compares the activity with the thresholds only (`v < rest`, `v > wake`, `v <= wake`,
+/// `v > arrive`, `v <= arrive`, `rate < rest rate`, or empty), so the byte keeps them all, at a
+/// sixteenth of the activity's size.
+fn activity_code(a: [Real; 2], (speeds, rest_rate): ([Real; 3], Real)) -> u8 {
+    if a == EMPTY_UNIT {
+        return u8::MAX;
+    }
+    let class = if a[0] < speeds[0] {
+        0
+    } else if a[0] <= speeds[1] {
+        1
+    } else if a[0] <= speeds[2] {
+        2
+    } else {
+        3
+    };
+    class | ((a[1] >= rest_rate) as u8) << 2
+}
+
+/// An activity on the same side of every threshold as the one `code` was taken from.
+fn activity_of(code: u8, (speeds, rest_rate): ([Real; 3], Real)) -> [Real; 2] {
+    if code == u8::MAX {
+        return EMPTY_UNIT;
+    }
+    // below the rest speed (> 0 when anything is), at it (<= wake), at the arrive speed
+    // (> wake when anything lies between), above every one
+    let v = [0.0, speeds[0], speeds[2], Real::INFINITY][(code & 3) as usize];
+    [v, if code & 4 != 0 { rest_rate } else { 0.0 }]
 }
 
 fn next_slab(sim: &Simulation) -> u64 {
@@ -83,7 +125,10 @@ pub fn save(sim: &Simulation, out: &mut [u8]) {
         for d in sleep_tables(s) {
             put(&mut at, d.live(s, &all));
         }
-        put(&mut at, bytemuck::cast_slice(&s.activity.as_slice()[..npb]));
+        let lim = thresholds(s);
+        for a in s.activity.as_slice()[..npb].iter().flatten() {
+            put(&mut at, &[activity_code(*a, lim)]);
+        }
         put(&mut at, bytemuck::cast_slice(&sim.grid.slot_block.as_slice()[..npb]));
     }
     debug_assert!(at <= out.len());
@@ -123,7 +168,11 @@ pub fn load(sim: &mut Simulation, bytes: &[u8]) -> Result<(), crate::sleep::BadU
     for d in sleep_tables(s) {
         take(&mut at, d.live_mut(s, &all));
     }
-    take(&mut at, bytemuck::cast_slice_mut(&mut s.activity.as_mut_slice()[..npb]));
+    let lim = thresholds(s);
+    for (k, a) in s.activity.as_mut_slice()[..npb].iter_mut().flatten().enumerate() {
+        *a = activity_of(bytes[at + k], lim);
+    }
+    at += activity_bytes(npb);
     s.restored()?;
     // the last binning's particle blocks, in slot order: what the sleep update reads of the grid
     // (the next binning starts from nothing)
