@@ -12,6 +12,9 @@ use crate::scenario::Scenario;
 /// theta = 0).
 pub const REL_STEPS: [f64; 3] = [1e-2, 1e-3, 1e-4];
 
+/// Default steps h of the Taylor test (relative to every parameter at once).
+pub const TAYLOR_STEPS: [f64; 5] = [1e-3, 5e-4, 2.5e-4, 1.25e-4, 6.25e-5];
+
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct ParamCheck {
     pub param: String,
@@ -61,6 +64,19 @@ pub fn check(sc: &Scenario, objective: &Objective, r: &GradResult, threads: Opti
 /// the same parameters at the same values): each perturbed forward run serves every objective,
 /// each taken after its own result's steps, so the check costs what one objective's does.
 pub fn check_many(sc: &Scenario, objectives: &[Objective], results: &[GradResult], threads: Option<usize>, rel_steps: &[f64]) -> Result<Vec<Check>, GradError> {
+    check_many_with(sc, objectives, results, threads, rel_steps, &TAYLOR_STEPS)
+}
+
+/// [`check_many`] with the Taylor test at `taylor_steps` (a run whose discrete choices, such as
+/// which units sleep, move under larger steps needs smaller ones).
+pub fn check_many_with(
+    sc: &Scenario,
+    objectives: &[Objective],
+    results: &[GradResult],
+    threads: Option<usize>,
+    rel_steps: &[f64],
+    taylor_steps: &[f64],
+) -> Result<Vec<Check>, GradError> {
     let Some(r) = results.first() else { return Ok(Vec::new()) };
     if objectives.len() != results.len() || results.iter().any(|o| o.params != r.params || o.values != r.values) {
         return Err(GradError::Objective("check: the results checked together must be of one run's parameters, one per objective".into()));
@@ -90,8 +106,7 @@ pub fn check_many(sc: &Scenario, objectives: &[Objective], results: &[GradResult
     let d: Vec<f64> = r.values.iter().map(|&v| if v != 0.0 { v } else { 1.0 }).collect();
     let j0 = values_at(&r.values)?;
     let mut taylor = vec![Vec::new(); results.len()];
-    for i in 0..5 {
-        let h = 1e-3 / 2f64.powi(i);
+    for &h in taylor_steps {
         let at: Vec<f64> = r.values.iter().zip(&d).map(|(v, d)| v + h * d).collect();
         let jh = values_at(&at)?;
         for (j, o) in results.iter().enumerate() {

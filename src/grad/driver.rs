@@ -68,8 +68,10 @@ pub struct GradResult {
 
 /// A simulation set up for a gradient run (or for the forward runs that check one).
 pub fn prepare(sc: &Scenario, threads: Option<usize>) -> Result<Simulation, GradError> {
-    if sc.sleep.is_some() {
-        return Err(GradError::Unsupported("strand grad needs every particle awake: remove [sleep] (sleeping is not differentiable)".into()));
+    if sc.sleep.as_ref().is_some_and(|s| s.coarsen) {
+        return Err(GradError::Unsupported(
+            "strand grad does not merge sleeping particles: remove [sleep] coarsen (a merge ends particles and averages their state, which the adjoint does not follow)".into(),
+        ));
     }
     if sc.simulation.dt.is_none() {
         return Err(GradError::Unsupported("strand grad needs a fixed time step: set simulation.dt (the gradient holds the step fixed so perturbed runs take the same steps)".into()));
@@ -89,6 +91,11 @@ pub fn prepare(sc: &Scenario, threads: Option<usize>) -> Result<Simulation, Grad
     // one sort by block up front (the step's binning then reorders nothing), then frozen
     sim.freeze_order()?;
     Ok(sim)
+}
+
+/// Units of `sim`'s sleep tables (0 when it does not sleep).
+fn sleep_units(sim: &Simulation) -> usize {
+    sim.sleep.as_ref().map_or(0, |s| s.clocks().len())
 }
 
 /// Steps from t = 0 to the end time, counted with the time-step control's own arithmetic.
@@ -217,9 +224,10 @@ pub fn gradients(sc: &Scenario, seeds: &[Seeded], wrt: &[String], opts: &GradOpt
     }
     let sim = prepare(sc, opts.threads)?;
     let (cap, sl) = (Counts::capacity(sim.particles.capacity(), sim.grid.max_blocks()), sim.particles.state_len);
+    let units = sleep_units(&sim);
     let bytes = |k: usize| {
         let mut plan = MemoryPlan::default();
-        StepAdjoint::plan(&mut plan, &cap, sl, k);
+        StepAdjoint::plan(&mut plan, &cap, sl, units, k);
         plan.total()
     };
     let per_seed = bytes(2) - bytes(1);
@@ -289,9 +297,9 @@ impl Memory {
     fn plan(sim: &Simulation, seeds: usize, opts: &GradOptions) -> Result<Memory, GradError> {
         let (cap, sl) = (sim.particles.capacity(), sim.particles.state_len);
         let mut grad_plan = MemoryPlan::default();
-        StepAdjoint::plan(&mut grad_plan, &Counts::capacity(cap, sim.grid.max_blocks()), sl, seeds);
+        StepAdjoint::plan(&mut grad_plan, &Counts::capacity(cap, sim.grid.max_blocks()), sl, sleep_units(sim), seeds);
         let adjoint_bytes = grad_plan.total();
-        let sbytes = state_bytes(&sim.particles) as u64;
+        let sbytes = state_bytes(sim) as u64;
         if opts.ram_bytes < adjoint_bytes {
             return Err(GradError::Budget { ram_bytes: opts.ram_bytes, adjoint_bytes, state_bytes: sbytes, plan: Box::new(grad_plan) });
         }

@@ -70,6 +70,9 @@ pub enum GradError {
     SlotSize { path: PathBuf, len: usize, expected: usize },
     #[error("the schedule never reached the objective's step")]
     StepNotReached,
+    /// A stored state's sleep tables did not restore.
+    #[error("a stored state of the gradient schedule: {0}")]
+    SleepState(#[from] crate::sleep::BadUnitState),
 }
 
 impl From<ObservableError> for GradError {

@@ -25,9 +25,10 @@ pub struct StepAdjoint {
 }
 
 impl StepAdjoint {
-    /// Bytes shared by all seeds (the tape) into `plan`, and those of `seeds` seeds' adjoints.
-    pub fn plan(plan: &mut MemoryPlan, cap: &Counts, state_len: usize, seeds: usize) {
-        Tape::plan(plan, cap, state_len);
+    /// Bytes shared by all seeds (the tape, with a sleep tape for `sleep_units` units) into
+    /// `plan`, and those of `seeds` seeds' adjoints.
+    pub fn plan(plan: &mut MemoryPlan, cap: &Counts, state_len: usize, sleep_units: usize, seeds: usize) {
+        Tape::plan(plan, cap, state_len, sleep_units);
         for k in 0..seeds {
             Adjoint::plan(plan, k, cap, state_len);
         }

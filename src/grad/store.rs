@@ -39,8 +39,7 @@ impl RamSlots {
 
     fn restore(&self, sim: &mut Simulation, step: u64) -> Result<(), GradError> {
         let k = self.find(step)?;
-        load(sim, &self.pool.as_slice()[k * self.bytes..(k + 1) * self.bytes]);
-        Ok(())
+        Ok(load(sim, &self.pool.as_slice()[k * self.bytes..(k + 1) * self.bytes])?)
     }
 
     fn free(&mut self, step: u64) -> Result<(), GradError> {
@@ -131,7 +130,7 @@ impl DiskSlots {
         if map.len() != self.bytes {
             return Err(GradError::SlotSize { path, len: map.len(), expected: self.bytes });
         }
-        load(sim, &map);
+        load(sim, &map)?;
         self.read += self.bytes as u64;
         Ok(())
     }

@@ -92,7 +92,7 @@ pub use crate::config::SleepConfig;
 pub use at_rest::put_at_rest;
 pub use coarsen::Coarsen;
 pub use holds::{BlockHolds, Holds};
-pub use units::{unit_in_block, UnitActivity, UnitState, EMPTY_UNIT, UNITS, UNIT_CELLS};
+pub use units::{unit_in_block, unit_of_particle, UnitActivity, UnitState, EMPTY_UNIT, UNITS, UNIT_CELLS};
 
 use crate::grid::{GridGeom, NODES_PER_BLOCK};
 use crate::memory::{Backing, MemoryError, MemoryPlan, Pool};
@@ -273,6 +273,12 @@ impl Sleep {
             loaded[self.n_loaded] = u as u32;
             self.n_loaded += 1;
         }
+    }
+
+    /// Each unit's clock (see the field): the gradient's tape keeps them from before a sleep
+    /// update, for the rest the units it wakes had.
+    pub fn clocks(&self) -> &[f32] {
+        self.clock.as_slice()
     }
 
     /// Which nodes the sleeping units hold.

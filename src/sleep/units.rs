@@ -86,6 +86,12 @@ pub fn unit_in_block(origin: [i32; 3], base: [i32; 3]) -> usize {
     ((l[0] * per + l[1]) * per + l[2]) as usize
 }
 
+/// Table index of the unit of a particle at grid position `xg` (by its stencil base).
+#[inline]
+pub fn unit_of_particle(geom: &GridGeom, xg: V3) -> u32 {
+    unit_index(geom, particle_unit(xg))
+}
+
 /// Unit of a particle at grid position `xg` (by its stencil base).
 #[inline]
 pub(super) fn particle_unit(xg: V3) -> [i32; 3] {

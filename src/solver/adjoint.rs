@@ -27,6 +27,10 @@ pub enum Saved {
     Particles,
     /// The grid nodes as P2G left them (the grid update overwrites them).
     Grid,
+    /// Before the sleep update, in a sleeping run: the ids in pool order, the sleeping prefix's
+    /// length and the units' clocks (the update moves particles and ends the rest of the units
+    /// it wakes).
+    Order,
 }
 
 /// The per-particle arrays a step changes, as one group of pools: the tape of one step (the
@@ -70,6 +74,27 @@ impl Fields {
         Fields { prefix: prefix.into(), state_len, ..Default::default() }
     }
 
+    /// Copy particles `r` of `from` in.
+    pub(crate) fn copy_range(&mut self, from: &Fields, r: std::ops::Range<usize>) {
+        let (lo, hi) = (Counts::particles(r.start), Counts::particles(r.end));
+        for (d, s) in self.pools().into_iter().zip(from.pools()) {
+            let (a, b) = (d.bytes_for(self, &lo), d.bytes_for(self, &hi));
+            d.of_mut(self).bytes_mut()[a..b].copy_from_slice(&s.of(from).bytes()[a..b]);
+        }
+    }
+
+    /// Particle `i` of `from` into slot `to(i)`, for particles `0..n`.
+    pub(crate) fn scatter_from(&mut self, from: &Fields, n: usize, to: impl Fn(usize) -> usize) {
+        for (d, s) in self.pools().into_iter().zip(from.pools()) {
+            let w = d.of(self).elem_bytes() * d.per.len(&Counts::particles(1));
+            let (dst, src) = (d.of_mut(self).bytes_mut(), s.of(from).bytes());
+            for i in 0..n {
+                let t = to(i);
+                dst[t * w..(t + 1) * w].copy_from_slice(&src[i * w..(i + 1) * w]);
+            }
+        }
+    }
+
     /// Zero particles `r`.
     pub fn zero_range(&mut self, r: std::ops::Range<usize>) {
         let (from, to) = (Counts::particles(r.start), Counts::particles(r.end));
@@ -100,11 +125,28 @@ pub struct Tape {
     pub(crate) grid_used: usize,
     /// Partial sums of the material parameters' adjoints, one per [`CHUNK`] particles.
     pub(crate) chunks: Vec<[f64; MAX_PARAMS]>,
+    /// A sleeping run's sleep tape ([`Saved::Order`]; empty otherwise): the ids in pool order
+    /// before the sleep update, the pool slot each id had then (filled by the sleep adjoint), and
+    /// the units' clocks.
+    pub(crate) ids_before: Pool<u32>,
+    pub(crate) slot_before: Pool<u32>,
+    pub(crate) clocks_before: Pool<f32>,
+    pub(crate) n_sleep_before: usize,
+    /// Units in the sleep tables (0 when the run does not sleep).
+    sleep_units: usize,
 }
 
 impl Pools for Tape {
     fn pools(&self) -> Vec<PoolDecl<Self>> {
-        vec![PoolDecl::new("grad.grid_tape", Per::Block(NODES_PER_BLOCK), Role::Scratch, |t| &t.grid, |t| &mut t.grid)]
+        let mut v = vec![PoolDecl::<Tape>::new("grad.grid_tape", Per::Block(NODES_PER_BLOCK), Role::Scratch, |t| &t.grid, |t| &mut t.grid)];
+        if self.sleep_units > 0 {
+            v.extend([
+                PoolDecl::<Tape>::new("grad.ids_before_sleep", Per::Particle(1), Role::Scratch, |t| &t.ids_before, |t| &mut t.ids_before),
+                PoolDecl::<Tape>::new("grad.slot_before_sleep", Per::Particle(1), Role::Scratch, |t| &t.slot_before, |t| &mut t.slot_before),
+                PoolDecl::<Tape>::new("grad.clocks_before_sleep", Per::Table(self.sleep_units), Role::Scratch, |t| &t.clocks_before, |t| &mut t.clocks_before),
+            ]);
+        }
+        v
     }
 
     fn plan_memory(&self, plan: &mut MemoryPlan, cap: &Counts) {
@@ -119,14 +161,26 @@ impl Pools for Tape {
 }
 
 impl Tape {
-    /// The tape for particles of `state_len` state values, declared but not mapped.
-    fn declared(state_len: usize) -> Tape {
-        Tape { particles: Fields::declared("grad.tape", state_len), grid: Pool::default(), grid_used: 0, chunks: Vec::new() }
+    /// The tape for particles of `state_len` state values and `sleep_units` sleep units (0: the
+    /// run does not sleep), declared but not mapped.
+    fn declared(state_len: usize, sleep_units: usize) -> Tape {
+        Tape {
+            particles: Fields::declared("grad.tape", state_len),
+            grid: Pool::default(),
+            grid_used: 0,
+            chunks: Vec::new(),
+            ids_before: Pool::default(),
+            slot_before: Pool::default(),
+            clocks_before: Pool::default(),
+            n_sleep_before: 0,
+            sleep_units,
+        }
     }
 
-    /// Bytes of the tape for room `cap` and `state_len` state values into `plan`.
-    pub fn plan(plan: &mut MemoryPlan, cap: &Counts, state_len: usize) {
-        Tape::declared(state_len).plan_memory(plan, cap);
+    /// Bytes of the tape for room `cap`, `state_len` state values and `sleep_units` sleep units
+    /// into `plan`.
+    pub fn plan(plan: &mut MemoryPlan, cap: &Counts, state_len: usize, sleep_units: usize) {
+        Tape::declared(state_len, sleep_units).plan_memory(plan, cap);
     }
 
     /// The tape for `sim`'s pools; fails for a material whose adjoint does not fit the fixed
@@ -135,7 +189,7 @@ impl Tape {
         if sim.material.param_names().len() > MAX_PARAMS || sim.particles.state_len > MAX_STATE {
             return Err(AdjointError::TooManyValues { material: sim.material.name().to_string() });
         }
-        let mut tape = Tape::declared(sim.particles.state_len);
+        let mut tape = Tape::declared(sim.particles.state_len, sim.sleep.as_ref().map_or(0, |s| s.clocks().len()));
         tape.map_pools(&capacity(sim), b)?;
         tape.chunks = vec![[0.0; MAX_PARAMS]; sim.particles.capacity().div_ceil(CHUNK)];
         Ok(tape)
@@ -149,6 +203,12 @@ impl Tape {
                 let used = sim.grid.n_active * crate::grid::NODES_PER_BLOCK;
                 self.grid.as_mut_slice()[..used].copy_from_slice(&sim.grid.nodes.as_slice()[..used]);
                 self.grid_used = used;
+            }
+            Saved::Order => {
+                let (Some(sl), p) = (&sim.sleep, &sim.particles) else { return };
+                self.ids_before.as_mut_slice()[..p.n].copy_from_slice(&p.id.as_slice()[..p.n]);
+                self.clocks_before.as_mut_slice().copy_from_slice(sl.clocks());
+                self.n_sleep_before = p.n_sleep;
             }
         }
     }

@@ -143,8 +143,8 @@ fn drive_adjoint(geom: &GridGeom, d: &NozzleDrive, g: [i32; 3], v: V3, v_bar: V3
 impl Simulation {
     /// The grid update's adjoint on `a.grid_bar` in place, from the grid as P2G left it (in
     /// `tape`) and as the update left it (live); `drive` is the step's nozzle drive. The drive's
-    /// adjoints (with the feed velocity's from the blend's adjoint) go to `toolpath`. Sleeping
-    /// holds have no adjoint (gradient runs keep every particle awake).
+    /// adjoints (with the feed velocity's from the blend's adjoint) go to `toolpath`. A node
+    /// sleeping units hold is set to rest whatever reached it, so its adjoint stops there.
     pub(crate) fn grid_update_adjoint(&self, drive: Option<&NozzleDrive>, tape: &Tape, a: &mut Adjoint, dt: Real, toolpath: Option<&mut dyn ToolpathBar>) {
         let used = tape.grid_used;
         let (before, grid_bar) = (&tape.grid.as_slice()[..used], &mut a.grid_bar.as_mut_slice()[..used]);
@@ -159,8 +159,11 @@ impl Simulation {
         // solids hook (issue 30): the solids where the forward placed them (sim.time is the step's)
         let solids = self.solids.as_ref().map(|z| z.at(self.time, self.printer.as_ref().map(|p| &*p.toolpath)));
         let mut solids_bar = crate::solid::SolidsBar::default();
+        // the holds as the update saw them (the loads after it only mark units to wake)
+        let holds = self.sleep.as_ref().map(|z| z.holds());
         for s in 0..self.grid.n_active {
             let b = geom.block_coords(slot_block[s]);
+            let window = holds.as_ref().and_then(|z| z.block(geom, b));
             let driven = drive.filter(|_| drive_box.is_some_and(|bx| geom.block_overlaps(b, bx)));
             let solid_mask = solids.as_ref().map_or(0, |z| z.block_mask(geom, b));
             for li in 0..NODES_PER_BLOCK {
@@ -176,7 +179,8 @@ impl Simulation {
                 let f = V3::new(n0[4], n0[5], n0[6]);
                 let old = p / m;
                 let g = geom.node_of(b, li);
-                let v = old + f / m + accel * dt;
+                let held = window.as_ref().is_some_and(|w| w.holds(li));
+                let v = if held { V3::ZERO } else { old + f / m + accel * dt };
                 let driven_v = driven.map_or(v, |d| apply_drive(geom, Some(d), g, v));
                 let mut v_bar = V3::new(nb[1], nb[2], nb[3]);
                 if let Some(z) = solids.as_ref().filter(|_| solid_mask != 0) {
@@ -187,6 +191,9 @@ impl Simulation {
                 let mut v_bar = apply_walls_adjoint(geom, walls, g, driven_v, v_bar, bar);
                 if let Some(d) = driven {
                     v_bar = drive_adjoint(geom, d, g, v, v_bar, bar);
+                }
+                if held {
+                    v_bar = V3::ZERO;
                 }
                 let old_bar = V3::new(nb[4], nb[5], nb[6]) + v_bar;
                 for c in 0..3 {

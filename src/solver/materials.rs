@@ -72,7 +72,8 @@ impl Simulation {
     /// pool as the recompute left it (before the blend's adjoint gives G2P's outputs back).
     pub(crate) fn materials_adjoint(&self, tape: &mut Tape, a: &mut Adjoint, dt: Real) {
         let p = &self.particles;
-        let (n, sl) = (p.n, p.state_len);
+        // the sleeping prefix had no update (the sleep update's adjoint passes its adjoints on)
+        let (first, n, sl) = (p.n_sleep, p.n, p.state_len);
         let (c1, j1) = (&p.c.as_slice()[..n], &p.j.as_slice()[..n]);
         let state0 = tape.particles.state.as_slice();
         let mat = &*self.material;
@@ -90,7 +91,7 @@ impl Simulation {
                 // SAFETY: chunk k and its particles belong to this thread.
                 let acc = unsafe { partial.get_mut(k) };
                 *acc = [0.0; MAX_PARAMS];
-                for i in k * CHUNK..((k + 1) * CHUNK).min(n) {
+                for i in (k * CHUNK).max(first)..((k + 1) * CHUNK).min(n) {
                     let mut out_bar = [0.0 as Real; MAX_STATE];
                     out_bar[..sl].copy_from_slice(&next_state[i * sl..(i + 1) * sl]);
                     let mut params = [0.0 as Real; MAX_PARAMS];

@@ -26,6 +26,7 @@ mod neighbourhood;
 mod p2g;
 mod preflight;
 mod setup;
+mod sleep_adjoint;
 mod step;
 mod walls;
 
@@ -89,6 +90,9 @@ pub enum AdjointError {
     Memory(#[from] MemoryError),
     #[error("emission without a printer")]
     NoPrinter,
+    /// A unit woke whose material has no adjoint of waking.
+    #[error("step {step}: sleeping material woke, and the gradient has no adjoint of waking for material {material} in this configuration (an age law or a Maxwell branch): remove [sleep], or make it wake no unit")]
+    Wake { material: String, step: u64 },
     /// A perturbed toolpath puts a different number of a slab's particles inside the domain.
     #[error("slab {slab}: the toolpath parameters' perturbation changes how many of its particles lie inside the domain")]
     SlabCount { slab: u64 },

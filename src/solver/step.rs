@@ -92,18 +92,20 @@ impl Phase {
     /// particle state, the grid update the grid as P2G left it.
     pub fn saves(self) -> Option<Saved> {
         match self {
+            Phase::Sleep => Some(Saved::Order),
             Phase::G2p => Some(Saved::Particles),
             Phase::GridUpdate => Some(Saved::Grid),
             _ => None,
         }
     }
 
-    /// Whether the phase has an adjoint. Sleeping (and with it the loads and the reordering it
-    /// triggers) is refused by gradient runs, which also freeze the pool order; the binning is
-    /// piecewise constant, held fixed; clearing the grid leaves nothing to differentiate (G2P's
-    /// adjoint starts the grid's adjoint from zero).
+    /// Whether the phase has an adjoint. The sleep update's decisions are discrete and held
+    /// fixed, but the particles it moves and puts at rest are not (`sleep_adjoint.rs`); the
+    /// loads only decide which units wake; gradient runs freeze the pool order (no reordering);
+    /// the binning is piecewise constant, held fixed; clearing the grid leaves nothing to
+    /// differentiate (G2P's adjoint starts the grid's adjoint from zero).
     pub fn has_adjoint(self) -> bool {
-        !matches!(self, Phase::Sleep | Phase::Bin | Phase::Reorder | Phase::ClearGrid | Phase::Loads)
+        !matches!(self, Phase::Bin | Phase::Reorder | Phase::ClearGrid | Phase::Loads)
     }
 
     /// Whether an adjoint reads what the phase computes. The material update's outputs (stress
@@ -120,7 +122,7 @@ pub struct Step {
     /// The nozzle drive during the step (a pure function of the step's start time).
     pub drive: Option<NozzleDrive>,
     /// The sleep update moved particles between the awake and sleeping ranges.
-    moved: bool,
+    pub(crate) moved: bool,
     /// Particles before emission, and the first slab it added (for its adjoint).
     pub n_before: usize,
     pub first_slab: u64,
@@ -273,7 +275,8 @@ impl Simulation {
 
     /// The adjoint of one phase of `step` for one objective's adjoint `a`, after the step was
     /// recomputed into `tape` and the live state; `toolpath` takes the adjoints of the
-    /// toolpath's closed forms. Gradient runs keep every particle awake, with the order frozen.
+    /// toolpath's closed forms. Gradient runs freeze the pool order but for the sleep update's
+    /// moves, whose adjoint moves the adjoints back.
     pub fn phase_adjoint(&mut self, phase: Phase, step: &Step, tape: &mut Tape, a: &mut Adjoint, toolpath: Option<&mut dyn ToolpathBar>) -> Result<(), AdjointError> {
         let dt = step.dt as Real;
         // the forward's impulse step: the adjoints carry the same mass scaling
@@ -286,7 +289,8 @@ impl Simulation {
             Phase::G2p => self.g2p_adjoint(tape, a, dt),
             Phase::FollowFeed => self.follow_feed_adjoint(a, dt),
             Phase::Materials => self.materials_adjoint(tape, a, dt),
-            Phase::Sleep | Phase::Bin | Phase::Reorder | Phase::ClearGrid | Phase::Loads => {}
+            Phase::Sleep => self.sleep_adjoint(step.moved, tape, a)?,
+            Phase::Bin | Phase::Reorder | Phase::ClearGrid | Phase::Loads => {}
         }
         Ok(())
     }

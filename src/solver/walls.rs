@@ -226,12 +226,12 @@ pub(crate) unsafe fn mirror_ghost(geom: &GridGeom, walls: &Walls, g: [i32; 3], a
 impl Simulation {
     /// Adjoint of [`keep_inside`] on G2P's positions, on their adjoints `xg_bar`: a coordinate
     /// projected onto a wall (or the platform) no longer depends on anything; a periodic wrap
-    /// shifts by a constant and passes the adjoint through.
+    /// shifts by a constant and passes the adjoint through. Sleeping particles are not moved.
     pub(crate) fn keep_inside_adjoint(&self, xg_bar: &mut [V3]) {
         let geom = &self.grid.geom;
         let x1 = self.particles.xg.as_slice();
         let platform = self.walls.platform;
-        for i in 0..self.particles.n {
+        for i in self.particles.n_sleep..self.particles.n {
             for a in 0..3 {
                 if !geom.periodic[a] && (x1[i][a] == geom.lo[a] as Real || x1[i][a] == geom.hi[a] as Real) {
                     xg_bar[i][a] = 0.0;

@@ -794,6 +794,28 @@ impl Material for EvpBingham {
         }
     }
 
+    /// Without an age law or a Maxwell branch (false otherwise): the rest adds its build-up to
+    /// lambda (state 6), the stress at rest is the deviator held in the state less p(K, J).
+    fn wake_adjoint(&self, _state: &[Real], duration: Real, j: Real, stress_bar: &M3, state_bar: &mut [Real], j_bar: &mut Real, params_bar: &mut [Real]) -> bool {
+        if self.k_law().is_some() || self.maxwell().is_some() {
+            return false;
+        }
+        crate::real::sym_from_slice_adjoint(stress_bar, &mut state_bar[..6]);
+        let p_bar = -(stress_bar.x_axis.x + stress_bar.y_axis.y + stress_bar.z_axis.z);
+        let (k_bar, jb) = self.eos.pressure_adjoint(r(self.bulk_modulus), j, p_bar);
+        *j_bar += jb;
+        // `base_param_names`: bulk_modulus 0, yield_stress 3, a_thix 4
+        params_bar[0] += k_bar;
+        if self.yield_stress > 0.0 {
+            // the build-up A_thix / tau0 times the rest, into lambda (its derivative on the whole
+            // admissible side A_thix >= 0, as `update_adjoint` takes it)
+            let (tau0, rate_bar) = (r(self.yield_stress), state_bar[6] * duration);
+            params_bar[4] += rate_bar / tau0;
+            params_bar[3] -= rate_bar * r(self.a_thix) / (tau0 * tau0);
+        }
+        true
+    }
+
     /// f = tau - (1 + lambda) tau0 (eq. 14) of the EVP element's deviator; the Maxwell branch
     /// does not enter the yield test.
     fn yield_margin(&self, state: &[Real]) -> Real {

@@ -185,6 +185,17 @@ pub trait Material: Send + Sync + std::fmt::Debug {
         self.rest_for(state, duration)
     }
 
+    /// Adjoint of waking a sleeping particle of volume ratio `j` after `duration` asleep: the
+    /// state becomes `state = rest_for_at(before, duration, j)` and the stress `stress_at_rest`
+    /// of it (`state` is the one it wakes with). `state_bar` holds the adjoint of the state after and becomes that of the state before;
+    /// the stress's adjoint `stress_bar` goes to it, to `j_bar` and, with the rest's, to
+    /// `params_bar` (in [`Material::param_names`] order). Returns false, touching nothing, for a
+    /// material (or a configuration of one) without it: a gradient run refuses to wake it.
+    #[allow(clippy::too_many_arguments)]
+    fn wake_adjoint(&self, _state: &[Real], _duration: Real, _j: Real, _stress_bar: &M3, _state_bar: &mut [Real], _j_bar: &mut Real, _params_bar: &mut [Real]) -> bool {
+        false
+    }
+
     /// How far tau = sqrt(J2) of the stress held in `state` may rise before the material
     /// yields [Pa]: the margin a sleeping unit keeps against loads put on it while it sleeps
     /// (the solver's `sleep.rs` wakes it when the load's share passes the margin). Materials
