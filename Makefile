@@ -6,7 +6,7 @@ OUT ?= out
 TARGET_DIR := $(if $(CARGO_TARGET_DIR),$(CARGO_TARGET_DIR),target)
 STRAND := $(TARGET_DIR)/release/strand
 
-.PHONY: run test fuzz verify verify-quick bench bench-peer bench-roofline bench-restart bench-kernels bench-case1 bench-layers bench-layers-dwell bench-failure bench-mass-scaling bench-cylinder bench-sleeping-wall bench-convergence bench-nozzle-cells bench-nozzle-body bench-lbox bench-vfunnel bench-print-diagnose bench-observable-scatter bench-plan bench-paper000-map lbox build fmt clippy clean
+.PHONY: run test fuzz verify verify-quick bench bench-peer bench-roofline bench-restart bench-kernels bench-case1 bench-layers bench-layers-dwell bench-failure bench-mass-scaling bench-cylinder bench-sleeping-wall bench-convergence bench-nozzle-cells bench-nozzle-body bench-lbox bench-vfunnel bench-print-diagnose bench-observable-scatter bench-plan bench-paper000-map lbox build fmt clippy clean bench-user-campaign
 
 build:
 	$(CARGO) build --release
@@ -153,6 +153,14 @@ bench-paper000-map: build
 # BENCHMARKS.md "A print campaign's diagnosis").
 bench-print-diagnose: build
 	bash bench/print_diagnose.sh $(STRAND) $(OUT)/print_diagnose
+
+# A user-style print campaign (fixtures/measure/user_lines/: six lines from a 16 mm nozzle at
+# 2.5 mm cells, no J-bar, a fixed 5e-5 s step, no [sleep]): a fit of the truth's structure from
+# away from it, then the diagnosis from a base model without its effect, each timed
+# (bench/user_campaign.sh; docs/print_campaign.md "A campaign as users write it"; over an hour of
+# runs on 2 cores).
+bench-user-campaign: build
+	bash bench/user_campaign.sh $(STRAND) $(OUT)/user_campaign
 
 # The printed section's width and height, extreme-based and smooth, against a sweep of the yield
 # stress on the print campaign's line (BENCHMARKS.md "Smooth section observables"; pass
