@@ -132,16 +132,15 @@ impl<'a> Campaign<'a> {
     /// experiments expected, and counted as each experiment ends (the rest, of experiments an
     /// engine does not count as they end, when the evaluation ends).
     fn counted<T>(&self, per_experiment: usize, evaluate: impl FnOnce(Jobs) -> T) -> T {
-        let (progress, experiments) = (&self.opts.progress, self::runner::group(self.data).len() as u64);
-        let per_experiment = per_experiment as u64;
-        progress.expect(experiments * per_experiment);
-        let ended = AtomicU64::new(0);
+        let (progress, total) = (&self.opts.progress, runs(self.data, per_experiment));
+        progress.expect(total);
+        let counted = AtomicU64::new(0);
         let done = || {
-            ended.fetch_add(1, Ordering::Relaxed);
-            progress.advance(per_experiment);
+            counted.fetch_add(per_experiment as u64, Ordering::Relaxed);
+            progress.advance(per_experiment as u64);
         };
         let answer = evaluate(Jobs { n: self.opts.jobs, done: &done });
-        progress.advance(experiments.saturating_sub(ended.load(Ordering::Relaxed)) * per_experiment);
+        progress.advance(total.saturating_sub(counted.load(Ordering::Relaxed)));
         answer
     }
 
@@ -187,7 +186,6 @@ impl Default for FitOptions {
         }
     }
 }
-
 
 #[cfg(test)]
 mod tests {
