@@ -78,6 +78,8 @@ path = [
         out += "\n[sleep]\ncoarsen = true\n"
     elif sleep == "speed":
         out += "\n[sleep]\ncoarsen = true\nwake_by_load = false\n"
+    else:
+        out += "\n[sleep]\nenabled = false\n"  # the default would sleep
     out += f"""
 [observe]
 stations = [0.05]

@@ -26,7 +26,7 @@ def scenario(dx_mm, tau0, as_fitted):
     text = open(FIXTURE).read()
     text, n_dx = re.subn(r"(?m)^dx = .*$", f"dx = {dx_mm / 1000.0!r}" + ("\nj_bar = false" if as_fitted else ""), text)
     text, n_tau = re.subn(r"(?m)^yield_stress = .*$", f"yield_stress = {tau0!r}", text)
-    text, n_sleep = re.subn(r"(?m)^\[sleep\]\n", "" if as_fitted else "[sleep]\n", text)
+    text, n_sleep = re.subn(r"(?m)^\[sleep\]\n", "[sleep]\nenabled = false\n" if as_fitted else "[sleep]\n", text)
     if (n_dx, n_tau, n_sleep) != (1, 1, 1):
         sys.exit(f"{FIXTURE} changed: the sweep edits dx, yield_stress and [sleep] and found {n_dx, n_tau, n_sleep}")
     return text

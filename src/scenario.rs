@@ -1,6 +1,7 @@
 //! Scenario files (TOML). Every table rejects unknown keys, and `validate` checks values, so a
 //! typo or a bad number is an error that names the key before anything runs.
 
+use crate::config::sleep::{sleep_by_default, SleepDefault};
 use crate::config::{CheckpointConfig, DiskFullPolicy, ObserveConfig, PrintConfig, SleepConfig};
 use crate::kernels::boundary::WallKind;
 use crate::memory::parse_size;
@@ -31,9 +32,15 @@ pub struct Scenario {
     /// Printing: nozzle, toolpath, emission.
     #[serde(default)]
     pub print: Option<PrintConfig>,
-    /// Sleeping blocks of material at rest.
+    /// Sleeping blocks of material at rest: `None` keeps all material awake. Once the scenario
+    /// is read, a written `[sleep]` is here unless it says `enabled = false`, and an unwritten
+    /// one as [`sleep_by_default`] decides (`sleep_default` says what it decided).
     #[serde(default)]
     pub sleep: Option<SleepConfig>,
+    /// What [`sleep_by_default`] decided for a scenario that writes no `[sleep]` (None when it
+    /// writes one), for the run's log.
+    #[serde(skip)]
+    pub sleep_default: Option<SleepDefault>,
     /// Observables written at each output.
     #[serde(default)]
     pub observe: Option<ObserveConfig>,
@@ -406,10 +413,23 @@ impl Scenario {
         Ok(sc)
     }
 
-    /// Defaults that depend on the rest of the scenario: `[sleep] wake_by_load` is on for prints
-    /// of two or more layers (a toolpath that does not load yet counts as two: the safe side),
-    /// off otherwise (`sleep.rs`).
+    /// Defaults that depend on the rest of the scenario: sleeping itself, without `[sleep]`, as
+    /// [`sleep_by_default`] rules (a material that does not build leaves it off: its error comes
+    /// when the simulation is built), and off with `[sleep] enabled = false`; `[sleep]
+    /// wake_by_load` is on for prints of two or more layers (a toolpath that does not load yet
+    /// counts as two: the safe side), off otherwise (`sleep.rs`).
     fn resolve_defaults(&mut self) {
+        match &self.sleep {
+            None => {
+                let rule = crate::materials::build_material(&self.material).ok().map(|m| sleep_by_default(self.print.is_some(), &*m));
+                if rule.as_ref().is_some_and(|r| r.on) {
+                    self.sleep = Some(SleepConfig::defaults());
+                }
+                self.sleep_default = rule;
+            }
+            Some(z) if !z.enabled => self.sleep = None,
+            Some(_) => {}
+        }
         let Some(z) = &mut self.sleep else { return };
         if z.wake_by_load.is_none() {
             let layers = self.print.as_ref().map_or(0, |p| p.toolpath(&self.base_dir).map_or(2, |t| t.layers().len()));

@@ -1,11 +1,19 @@
-//! The `[sleep]` table: when material at rest sleeps and what wakes it (`sleep.rs` has the rules).
+//! The `[sleep]` table: when material at rest sleeps and what wakes it (`sleep.rs` has the rules),
+//! and whether a scenario that writes no `[sleep]` sleeps ([`sleep_by_default`], the default's
+//! one rule).
 
 use serde::Deserialize;
 use crate::invalid::Invalid;
+use crate::kernels::material::Material;
+use crate::kernels::{Real, M3};
 
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SleepConfig {
+    /// `false`: all material stays awake, whatever the default ([`sleep_by_default`]) would do;
+    /// the other keys are then not used. A written `[sleep]` table is on unless it says this.
+    #[serde(default = "default_enabled")]
+    pub enabled: bool,
     /// Particle speed below which material counts as at rest [m/s].
     #[serde(default = "default_speed")]
     pub speed: f64,
@@ -58,6 +66,9 @@ pub struct SleepConfig {
     pub coarsen: bool,
 }
 
+fn default_enabled() -> bool {
+    true
+}
 fn default_speed() -> f64 {
     // Each emitted slab sends an elastic pulse through deposited EVP material: block maxima of
     // 1e-4-5e-4 m/s pass every slab interval (measured on case 1), so a lower threshold never
@@ -124,7 +135,60 @@ fn default_load_floor() -> f64 {
     20.0
 }
 
+/// Whether a scenario that writes no `[sleep]` sleeps, and why, in a sentence for its log.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SleepDefault {
+    pub on: bool,
+    pub why: String,
+}
+
+/// Materials whose sleeping is measured sound against all awake: `evp_bingham` (a printed
+/// section within 1 % of all awake, `strand verify` case `print_sleep`; a wall printed to
+/// failure fails in the same layer asleep and awake, tests/suite/print.rs; its wake has an
+/// adjoint, so gradient runs sleep too). Not listed: the rate-independent elastic-plastic solids
+/// (`early_age_solid`, `drucker_prager`), whose failure layer moves asleep (docs/failure.md
+/// "Sleeping and failure"), and the plain fluids (`newtonian`, `bingham`,
+/// `papanastasiou_roussel`), which hold no margin to yield for the load test and whose sleeping
+/// nobody has measured.
+pub const SLEEPS_BY_DEFAULT: &[&str] = &["evp_bingham"];
+
+/// The default for a scenario without `[sleep]`, the one rule: a print (`printed`: it has a
+/// `[print]`) of a material in [`SLEEPS_BY_DEFAULT`] sleeps, unless the material's configuration
+/// has no adjoint of waking (`evp_bingham` with an age law or a Maxwell branch), so that a
+/// gradient run of the same scenario sleeps as its forward run does and never stops on a wake;
+/// everything else stays awake. A scenario opts out with `[sleep] enabled = false`, and into
+/// sleeping anywhere by writing `[sleep]`.
+pub fn sleep_by_default(printed: bool, material: &dyn Material) -> SleepDefault {
+    let name = material.name();
+    let (on, why) = if !printed {
+        (false, "sleeping is on by default only in prints (a [print] table)".to_string())
+    } else if !SLEEPS_BY_DEFAULT.contains(&name) {
+        (false, format!("sleeping is on by default only for prints of {}, whose sleeping is measured against all awake; {name} is not", SLEEPS_BY_DEFAULT.join(", ")))
+    } else if !wakes_in_gradients(material) {
+        (false, format!("this {name} (an age law or a Maxwell branch) has no adjoint of waking, so gradient runs could not sleep with it"))
+    } else {
+        (true, format!("a print of {name}, whose sleeping is measured against all awake (the section within 1 %, the same failure layer)"))
+    };
+    SleepDefault { on, why }
+}
+
+/// Whether `material` has an adjoint of waking ([`Material::wake_adjoint`], which answers false
+/// and touches nothing without one; with one it writes into these scratch buffers only).
+fn wakes_in_gradients(material: &dyn Material) -> bool {
+    let mut state = vec![0.0 as Real; material.state_names().len()];
+    material.init_state(&mut state);
+    let mut state_bar = vec![0.0 as Real; state.len()];
+    let mut params_bar = vec![0.0 as Real; material.param_names().len()];
+    let mut j_bar = 0.0 as Real;
+    material.wake_adjoint(&state, 0.0, 1.0, &M3::ZERO, &mut state_bar, &mut j_bar, &mut params_bar)
+}
+
 impl SleepConfig {
+    /// Every key at its default (an empty `[sleep]` table).
+    pub fn defaults() -> SleepConfig {
+        toml::from_str("").expect("every [sleep] key has a default")
+    }
+
     pub fn validate(&self) -> Result<(), Invalid> {
         for (k, v) in [
             ("sleep.speed", self.speed),

@@ -9,7 +9,8 @@ use crate::solver::Simulation;
 /// What a scenario does that its author may not expect, said before it runs, one line each
 /// (`warning: ...` or `note: ...`): a wall moved to the nearest cell face, nothing to simulate,
 /// a body cut by the domain, bodies overlapping, a solid that holds no grid node, a sleeping
-/// elastic wall printed to failure, what the G-code import skipped.
+/// elastic wall printed to failure, what the G-code import skipped, whether a print that writes
+/// no `[sleep]` sleeps and why.
 pub fn scenario_warnings(sc: &Scenario, sim: &Simulation) -> Vec<String> {
     use crate::solver::for_each_lattice_point;
     let mut w = Vec::new();
@@ -95,6 +96,14 @@ pub fn scenario_warnings(sc: &Scenario, sim: &Simulation) -> Vec<String> {
                 w.push(format!("body[{i}] overlaps body[{j}]: {n} of its particles lie inside body[{j}], doubling the material there"));
             }
         }
+    }
+    // a print that writes no [sleep]: whether it sleeps, and why (the default's rule,
+    // `config::sleep::sleep_by_default`)
+    if let Some(d) = sc.sleep_default.as_ref().filter(|_| sc.print.is_some()) {
+        w.push(match d.on {
+            true => format!("note: sleeping is on by default: {}; [sleep] enabled = false keeps all material awake", d.why),
+            false => format!("note: all material stays awake: {}; a [sleep] table lets it sleep", d.why),
+        });
     }
     w.into_iter().map(|x| if x.starts_with("note: ") { x } else { format!("warning: {x}") }).collect()
 }

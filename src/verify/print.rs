@@ -92,7 +92,7 @@ pub fn sleep_agreement(quick: bool, threads: usize) -> Result<Vec<CaseResult>, V
     } else {
         (THREE_LAYERS.to_string(), 0.01)
     };
-    let without = edit(&with, "\n[sleep]\n", "\n")?;
+    let without = edit(&with, "\n[sleep]\n", "\n[sleep]\nenabled = false\n")?;
     let (sa, oa, wa) = run_observed(&with, threads)?;
     let (_, ob, wb) = run_observed(&without, threads)?;
     let (a, b) = (&oa.sections[0], &ob.sections[0]);

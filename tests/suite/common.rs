@@ -60,7 +60,8 @@ budget = "{budget}"
 }
 
 /// A tiny print at 5 mm resolution: a 12 mm nozzle laying `layers` short layers (6 mm high),
-/// with sleeping on or off, on `threads` workers.
+/// with sleeping on or off (`[sleep] enabled = false`: all awake, as the default would not have
+/// it), on `threads` workers.
 pub fn tiny_print(threads: usize, layers: usize, sleep: bool, budget: &str) -> String {
     let mut path = String::new();
     for l in 0..layers {
@@ -106,7 +107,7 @@ vtu = false
 [memory]
 budget = "{budget}"
 "#,
-        sleep = if sleep { "[sleep]\nrest_time = 0.02\ncheck_interval = 16" } else { "" }
+        sleep = if sleep { "[sleep]\nrest_time = 0.02\ncheck_interval = 16" } else { "[sleep]\nenabled = false" }
     )
 }
 

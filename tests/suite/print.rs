@@ -310,7 +310,7 @@ fn tiny_wall(layers: usize, yield_stress: f64, sleep: Option<&str>) -> String {
         .replace("[observe]\nstations = [0.025]", "[boundary]\ny_min = \"symmetry\"\nz_min = \"no_slip\"\n[observe]\nstations = [0.025]\nmirror_y = 0.0\nfailure = { stop_after = 0.5 }")
         .replace("interval = 0.1", "interval = 0.02");
     match sleep {
-        Some(lines) => text.replace("[boundary]", &format!("[sleep]\n{lines}\n[boundary]")),
+        Some(lines) => text.replace("[sleep]\nenabled = false", &format!("[sleep]\n{lines}")),
         None => text,
     }
 }
