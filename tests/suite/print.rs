@@ -101,6 +101,68 @@ fn sleeping_material_skips_work_and_barely_changes_the_result() {
     assert!(wb < 0.9 * wa, "sleeping saved too little: {wb} vs {wa} awake particle-steps");
 }
 
+/// A printed line that writes no `[sleep]` sleeps, as the default rules for a print of
+/// evp_bingham (`config::sleep::sleep_by_default`; issue 52): particles fall asleep (globals.csv's
+/// `asleep`), the particle loops do less work, and the section is within 1 % of the same line
+/// all awake (`[sleep] enabled = false`).
+#[test]
+fn a_line_without_sleep_sleeps_by_default_and_keeps_its_section() {
+    let awake = common::tiny_print(2, 1, false, "256 MiB");
+    let default = awake.replace("[sleep]\nenabled = false\n", "");
+    assert!(!default.contains("[sleep]"), "{default}");
+    let sc = Scenario::parse(&default).unwrap();
+    assert!(sc.sleep.is_some() && sc.sleep_default.as_ref().is_some_and(|d| d.on), "{:?}", sc.sleep_default);
+    let dir = tempfile::tempdir().unwrap();
+    let opts = |d: &str| RunOptions { out: dir.path().join(d), quiet: true, ..Default::default() };
+    let a = run_scenario(&Scenario::parse(&awake).unwrap(), &opts("awake")).unwrap();
+    let b = run_scenario(&sc, &opts("default")).unwrap();
+    let asleep = |d: &str| -> usize {
+        let csv = std::fs::read_to_string(dir.path().join(d).join("globals.csv")).unwrap();
+        let mut rows = csv.lines().filter(|l| !l.starts_with('#'));
+        let col = rows.next().unwrap().split(',').position(|c| c == "asleep").expect("an asleep column");
+        rows.map(|r| r.split(',').nth(col).unwrap().parse::<usize>().unwrap()).max().unwrap()
+    };
+    let (most_default, most_awake) = (asleep("default"), asleep("awake"));
+    let (sa, sb) = (&a.observations.last().unwrap().sections[0], &b.observations.last().unwrap().sections[0]);
+    eprintln!(
+        "asleep at most {most_default} of {} particles; awake particle-steps {} against {} all awake; width {:.3} against {:.3} mm, height {:.3} against {:.3} mm",
+        b.particles, b.awake_particle_steps, a.awake_particle_steps, sb.width * 1e3, sa.width * 1e3, sb.height * 1e3, sa.height * 1e3
+    );
+    assert_eq!(most_awake, 0, "the line with [sleep] enabled = false slept");
+    assert!(most_default > b.particles / 4, "{most_default} of {} particles slept at most", b.particles);
+    assert!(b.awake_particle_steps < a.awake_particle_steps, "{} against {}", b.awake_particle_steps, a.awake_particle_steps);
+    assert!(sa.width > 0.0 && sa.height > 0.0);
+    assert!((sb.width / sa.width - 1.0).abs() < 0.01, "width {} vs {}", sb.width, sa.width);
+    assert!((sb.height / sa.height - 1.0).abs() < 0.01, "height {} vs {}", sb.height, sa.height);
+}
+
+/// The default's rule, read from scenarios (`config::sleep::sleep_by_default`): a print of
+/// evp_bingham sleeps; not one with a Maxwell branch (no adjoint of waking), not an early-age
+/// wall (its failure layer moves asleep), not a Newtonian print, not a scenario without
+/// `[print]`; `[sleep] enabled = false` keeps all awake, and a written `[sleep]` sleeps whatever
+/// the material.
+#[test]
+fn sleeping_is_on_by_default_only_where_the_rule_says() {
+    let read = |text: &str| {
+        let sc = Scenario::parse(text).unwrap();
+        (sc.sleep.is_some(), sc.sleep_default.map(|d| d.on))
+    };
+    let line = common::tiny_print(1, 1, false, "256 MiB").replace("[sleep]\nenabled = false\n", "");
+    assert_eq!(read(&line), (true, Some(true)));
+    let maxwell = line.replace("yield_stress = 630.0", "yield_stress = 630.0\nmaxwell_modulus = 2e3\nmaxwell_time = 0.01");
+    assert_eq!(read(&maxwell), (false, Some(false)));
+    let newtonian = line.replace("kind = \"evp_bingham\"", "kind = \"newtonian\"").replace("poisson_ratio = 0.3\n", "").replace("yield_stress = 630.0\n", "").replace("viscosity = 7.5", "viscosity = 30.0");
+    assert_eq!(read(&newtonian), (false, Some(false)));
+    let root = env!("CARGO_MANIFEST_DIR");
+    let wall = std::fs::read_to_string(format!("{root}/fixtures/scenarios/print/early_age_wall.toml")).unwrap();
+    assert_eq!(read(&wall), (false, Some(false)));
+    assert_eq!(read(&format!("{wall}\n[sleep]\n")), (true, None));
+    let slump = std::fs::read_to_string(format!("{root}/fixtures/scenarios/slump.toml")).unwrap();
+    assert!(!slump.contains("[sleep]"));
+    assert_eq!(read(&slump), (false, Some(false)));
+    assert_eq!(read(&format!("{line}\n[sleep]\nenabled = false\n")), (false, None));
+}
+
 /// Three layers of the wide tiny print: merging the sleeping interior of the first two layers
 /// (`[sleep] coarsen`) leaves the section within 1 % and takes work off the third, and stays
 /// bit-identical across thread counts (the final state's hash on 1 and 2 threads).
