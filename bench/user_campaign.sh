@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The user-style print campaign (issue 52 items 3 and 4; fixtures/measure/user_lines/): six single
-# lines from a 16 mm nozzle at 2.5 mm cells, no J-bar, a fixed step of 5e-5 s, no [sleep], nothing
+# lines from a 16 mm nozzle at 2.5 mm cells, no J-bar, a fixed step of 5e-5 s, no [sleep] (so sleeping by default), nothing
 # lowered for speed. Data synthesised from truth.toml (yield stress 150 Pa, wall friction 0.3) at
 # the same cells with 1 % noise; then, each timed:
 #   1. calibrate with_friction.toml (the truth's structure, started at 120 Pa and mu 0.2),

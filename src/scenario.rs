@@ -414,14 +414,15 @@ impl Scenario {
     }
 
     /// Defaults that depend on the rest of the scenario: sleeping itself, without `[sleep]`, as
-    /// [`sleep_by_default`] rules (a material that does not build leaves it off: its error comes
+    /// [`sleep_by_default`] rules (printed to failure: two or more layers observed at a station) (a material that does not build leaves it off: its error comes
     /// when the simulation is built), and off with `[sleep] enabled = false`; `[sleep]
     /// wake_by_load` is on for prints of two or more layers (a toolpath that does not load yet
     /// counts as two: the safe side), off otherwise (`sleep.rs`).
     fn resolve_defaults(&mut self) {
         match &self.sleep {
             None => {
-                let rule = crate::materials::build_material(&self.material).ok().map(|m| sleep_by_default(self.print.is_some(), &*m));
+                let to_failure = self.printed_layers() >= 2 && self.observe.as_ref().is_some_and(|o| !o.stations.is_empty());
+                let rule = crate::materials::build_material(&self.material).ok().map(|m| sleep_by_default(self.print.is_some(), to_failure, &*m));
                 if rule.as_ref().is_some_and(|r| r.on) {
                     self.sleep = Some(SleepConfig::defaults());
                 }
@@ -430,11 +431,17 @@ impl Scenario {
             Some(z) if !z.enabled => self.sleep = None,
             Some(_) => {}
         }
+        let layers = self.printed_layers();
         let Some(z) = &mut self.sleep else { return };
         if z.wake_by_load.is_none() {
-            let layers = self.print.as_ref().map_or(0, |p| p.toolpath(&self.base_dir).map_or(2, |t| t.layers().len()));
             z.wake_by_load = Some(layers >= 2);
         }
+    }
+
+    /// Layers the toolpath prints: 0 without `[print]`, 2 (the safe side of the defaults that
+    /// read it) when the toolpath does not load yet.
+    fn printed_layers(&self) -> usize {
+        self.print.as_ref().map_or(0, |p| p.toolpath(&self.base_dir).map_or(2, |t| t.layers().len()))
     }
 
     /// Value checks serde cannot express; each message names the key.

@@ -174,7 +174,12 @@ fn check_compatible(sim: &Simulation, ck: &Checkpoint) -> Result<(), RestoreErro
         )));
     }
     if sleeping_differs(sim, ck) {
-        return Err(RestoreError::Mismatch("the checkpoint and the scenario differ in sleeping ([sleep])".into()));
+        return Err(RestoreError::Mismatch(format!(
+            "the checkpoint and the scenario differ in sleeping ([sleep]): the checkpoint's material {}, the scenario's {} \
+             (some prints sleep without [sleep], docs/printing.md \"Sleeping by default\"; [sleep] enabled = false keeps one awake)",
+            if sim.sleep.is_some() { "stays awake" } else { "sleeps" },
+            if sim.sleep.is_some() { "sleeps" } else { "stays awake" }
+        )));
     }
     if super::layout::coarsens(sim) != ck.section(NEXT_ID).is_some() {
         return Err(RestoreError::Mismatch("the checkpoint and the scenario differ in merging sleeping particles ([sleep] coarsen)".into()));

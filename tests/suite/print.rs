@@ -137,9 +137,9 @@ fn a_line_without_sleep_sleeps_by_default_and_keeps_its_section() {
 }
 
 /// The default's rule, read from scenarios (`config::sleep::sleep_by_default`): a print of
-/// evp_bingham sleeps; not one with a Maxwell branch (no adjoint of waking), not an early-age
-/// wall (its failure layer moves asleep), not a Newtonian print, not a scenario without
-/// `[print]`; `[sleep] enabled = false` keeps all awake, and a written `[sleep]` sleeps whatever
+/// evp_bingham sleeps; not one printed to failure (two layers observed at a station), not one
+/// with a Maxwell branch (no adjoint of waking), not an early-age wall (its failure layer moves
+/// asleep), not a Newtonian print, not a scenario without `[print]`; `[sleep] enabled = false` keeps all awake, and a written `[sleep]` sleeps whatever
 /// the material.
 #[test]
 fn sleeping_is_on_by_default_only_where_the_rule_says() {
@@ -149,6 +149,9 @@ fn sleeping_is_on_by_default_only_where_the_rule_says() {
     };
     let line = common::tiny_print(1, 1, false, "256 MiB").replace("[sleep]\nenabled = false\n", "");
     assert_eq!(read(&line), (true, Some(true)));
+    let wall = common::tiny_print(1, 2, false, "256 MiB").replace("[sleep]\nenabled = false\n", "");
+    assert_eq!(read(&wall), (false, Some(false)));
+    assert_eq!(read(&wall.replace("stations = [0.025]", "stations = []")), (true, Some(true)));
     let maxwell = line.replace("yield_stress = 630.0", "yield_stress = 630.0\nmaxwell_modulus = 2e3\nmaxwell_time = 0.01");
     assert_eq!(read(&maxwell), (false, Some(false)));
     let newtonian = line.replace("kind = \"evp_bingham\"", "kind = \"newtonian\"").replace("poisson_ratio = 0.3\n", "").replace("yield_stress = 630.0\n", "").replace("viscosity = 7.5", "viscosity = 30.0");
