@@ -229,7 +229,7 @@ fn a_plan_with_the_standoff_free_moves_along_the_targets_to_a_faster_print() {
 
 /// `--check-wall` (issue 55): a reduced wall of the planned layer (src/plan/wall_check.rs),
 /// simulated with the failure detector, stands to the design height x safety factor at the
-/// plan's layer time (20 s, simulated in 2 s with the strength's age clock 10 times faster), as
+/// plan's layer time (20 s, simulated in 2 s with the material's age clock 10 times faster), as
 /// the closed form says; at 1.4 s (the nozzle's own time and a few hundredths), where the closed
 /// form has it collapse at 19 mm, it is reported failing. A wall 24 mm tall (x 1.5: six layers)
 /// keeps it short; the two walls run side by side. Measured: the short wall fails in layer 6
