@@ -300,16 +300,19 @@ struct PlanArgs {
     #[arg(long)]
     targets: PathBuf,
     /// Where the scenario with the settings applied goes (default: PRINT's name with
-    /// .planned.toml); the map's files go beside it (.map.csv, .map.png).
+    /// .planned.toml); the HTML report goes beside it (.html), and the map's files (.map.csv,
+    /// .map.png).
     #[arg(long)]
     out: Option<PathBuf>,
-    /// Replace --out and the map's files if they exist.
+    /// Replace --out, the report and the map's files if they exist.
     #[arg(long)]
     overwrite: bool,
     /// Runs with gradients at most.
     #[arg(long, default_value_t = 12)]
     max_evaluations: usize,
-    /// The printability map over two settings, e.g. speed,extrusion (their bounds span the axes).
+    /// The printability map over two settings or groups: speed, extrusion, standoff, v/u (speed
+    /// over extrusion speed), h/d (standoff over nozzle diameter), e.g. v/u,h/d; a range as
+    /// v/u=0.8:1.5 (default: what the setting's bounds allow at the plan's point).
     #[arg(long, value_name = "X,Y")]
     map: Option<String>,
     /// After the plan, run a brute-force grid of NxM points over its first two free settings and
@@ -756,19 +759,19 @@ fn plan(args: PlanArgs) -> Result<bool, Failure> {
         return Err(Failure { message: format!("--check-wall-at {lt}: give a layer time in seconds above 0"), code: 2 });
     }
     let out = out.unwrap_or_else(|| print.with_extension("planned.toml"));
-    let (csv, png, html) = (out.with_extension("map.csv"), out.with_extension("map.png"), out.with_extension("map.html"));
+    let (csv, png, html) = (out.with_extension("map.csv"), out.with_extension("map.png"), out.with_extension("html"));
     report::refuse_existing(&out, overwrite)?;
+    report::refuse_existing(&html, overwrite)?;
     // a G-code or point-list print is planned on its moves written inline beside --out
     let file = plan::toolpath_file::inline(&print, &out.with_extension("path.toml"), overwrite)?;
     if let Some(f) = &file {
         report::refuse_existing(&f.planned_path(&out), overwrite)?;
     }
     let scenario = file.as_ref().map_or(print.clone(), |f| f.inlined.clone());
-    let axes = map.as_deref().map(|s| pmap::axes(s, &map_size, &t)).transpose()?;
+    let axes = map.as_deref().map(|s| plan::map_axes::parse(s, &map_size, &t)).transpose()?;
     if axes.is_some() {
         report::refuse_existing(&csv, overwrite)?;
         report::refuse_existing(&png, overwrite)?;
-        report::refuse_existing(&html, overwrite)?;
     }
     // the reduced wall's scenario and outputs, kept for inspection
     let wall_dir = out.with_extension("wall");
@@ -802,15 +805,23 @@ fn plan(args: PlanArgs) -> Result<bool, Failure> {
     if let Some(c) = &wall {
         eprint!("{}", plan::wall_check::text(c));
     }
-    if let Some(axes) = axes {
-        let layer_time = p.wall.as_ref().map(|_| p.best().build.layer_time);
-        let m = pmap::map(&p.line, &t, p.wall.as_ref(), axes, &p.settings(), layer_time, &engine, jobs)?;
-        pmap::write_csv(&m, &csv)?;
-        pmap::write_png(&m, &png)?;
-        pmap::write_html(&m, &t, &png, &html)?;
-        eprint!("{}", pmap::text(&m));
-        eprintln!("map written to {}, {} and {}", csv.display(), png.display(), html.display());
-    }
+    let map = match axes {
+        Some(specs) => {
+            let d = p.line.nozzle;
+            let axes = plan::map_axes::resolve(specs, &t, &p.settings(), d)?;
+            let layer_time = p.wall.as_ref().map(|_| p.best().build.layer_time);
+            let m = pmap::map(&p.line, &t, p.wall.as_ref(), axes, &p.settings(), layer_time, &engine, jobs)?;
+            pmap::write_csv(&m, d, &csv)?;
+            pmap::write_png(&m, &t, &png)?;
+            eprint!("{}", pmap::text(&m, d));
+            eprintln!("map written to {} and {}", csv.display(), png.display());
+            Some(m)
+        }
+        None => None,
+    };
+    let extras = plan::report_html::Extras { missed: missed.as_ref(), wall: wall.as_ref(), map: map.as_ref().map(|m| (m, png.as_path())) };
+    plan::report_html::write(&p, &extras, &html)?;
+    eprintln!("report written to {}", html.display());
     if let Some(e) = missed {
         return Err(Failure { message: e.to_string(), code: 1 });
     }

@@ -265,13 +265,20 @@ pub fn check_update_adjoint<M: Material, F: Fn(&[f64]) -> M>(
     scale.push(1e-2);
     scale.extend_from_slice(state_scale);
     scale.extend_from_slice(param_scale);
+    checked(label, &k, &x, &scale, tol, seed)
+}
+
+/// Both checks of `k` at `x` (inputs perturbed by `scale`): the per-group errors against central
+/// differences, which must be at most `tol`, and the Taylor slope, at least 1.9; printed under
+/// `label`. Returns the worst error.
+fn checked(label: &str, k: &impl Flat, x: &[f64], scale: &[f64], tol: f64, seed: u64) -> f64 {
     let mut rng = Rng(seed);
-    let errs = group_errors(&k, &x, &scale, &mut rng);
+    let errs = group_errors(k, x, scale, &mut rng);
     let worst = errs.iter().map(|e| e.1).fold(0.0, f64::max);
     let report: Vec<String> = errs.iter().map(|(n, e)| format!("{n} {e:.1e}")).collect();
     println!("{label}: max relative error per input group: {}", report.join(", "));
     assert!(worst <= tol, "{label}: adjoint against central differences: {}", report.join(", "));
-    match taylor_slope(&k, &x, &scale, &mut rng) {
+    match taylor_slope(k, x, scale, &mut rng) {
         Some(slope) => {
             println!("{label}: Taylor remainder slope {slope:.3}");
             assert!(slope >= 1.9, "{label}: Taylor remainder slope {slope:.3}, expected 2");
@@ -279,4 +286,86 @@ pub fn check_update_adjoint<M: Material, F: Fn(&[f64]) -> M>(
         None => println!("{label}: linear along the Taylor direction (remainders at rounding level)"),
     }
     worst
+}
+
+/// A sleeping particle's wake as a [`Flat`] map: inputs `[J, state before, params]`, outputs
+/// `[stress at rest (9), state after]` of `rest_for_at` over `duration` then `stress_at_rest`.
+struct MaterialWake<'a, M: Material, F: Fn(&[f64]) -> M> {
+    make: &'a F,
+    n_state: usize,
+    n_params: usize,
+    duration: f64,
+}
+
+impl<M: Material, F: Fn(&[f64]) -> M> MaterialWake<'_, M, F> {
+    fn woken(&self, x: &[f64]) -> (M, Vec<Real>, M3) {
+        let mat = (self.make)(&x[1 + self.n_state..]);
+        let mut state: Vec<Real> = x[1..1 + self.n_state].iter().map(|&v| v as Real).collect();
+        mat.rest_for_at(&mut state, self.duration as Real, x[0] as Real);
+        let stress = mat.stress_at_rest(&state, x[0] as Real);
+        (mat, state, stress)
+    }
+}
+
+impl<M: Material, F: Fn(&[f64]) -> M> Flat for MaterialWake<'_, M, F> {
+    fn forward(&self, x: &[f64]) -> Vec<f64> {
+        let (_, state, stress) = self.woken(x);
+        let mut out: Vec<f64> = stress.to_cols_array().iter().map(|&v| v as f64).collect();
+        out.extend(state.iter().map(|&v| v as f64));
+        out
+    }
+    fn adjoint(&self, x: &[f64], cot: &[f64]) -> Vec<f64> {
+        let (mat, state, _) = self.woken(x);
+        let mut state_bar: Vec<Real> = cot[9..].iter().map(|&v| v as Real).collect();
+        let (mut j_bar, mut params_bar) = (0.0 as Real, vec![0.0 as Real; self.n_params]);
+        let done = mat.wake_adjoint(&state, self.duration as Real, x[0] as Real, &m3(cot), &mut state_bar, &mut j_bar, &mut params_bar);
+        assert!(done, "{}: wake_adjoint refused", mat.name());
+        let mut g = vec![j_bar as f64];
+        g.extend(state_bar.iter().map(|&v| v as f64));
+        g.extend(params_bar.iter().map(|&v| v as f64));
+        g
+    }
+    fn groups(&self) -> Vec<(String, std::ops::Range<usize>)> {
+        let mut g = vec![("J".to_string(), 0..1)];
+        if self.n_state > 0 {
+            g.push(("state".to_string(), 1..1 + self.n_state));
+        }
+        let names = (self.make)(&vec![1.0; self.n_params]).param_names();
+        for (k, name) in names.iter().enumerate() {
+            let i = 1 + self.n_state + k;
+            g.push((name.to_string(), i..i + 1));
+        }
+        g
+    }
+}
+
+/// Check a material's `wake_adjoint` (a sleeping particle of volume ratio `j` woken after
+/// `duration` at rest from `state_before`) against fourth-order central differences, per input
+/// group (J, the state before, each parameter), and the Taylor remainder slope; panics as
+/// [`check_update_adjoint`] does and returns the worst error. `make`, the scales and `tol` as
+/// there; J is perturbed by 1e-2.
+#[allow(clippy::too_many_arguments)]
+pub fn check_wake_adjoint<M: Material, F: Fn(&[f64]) -> M>(
+    label: &str,
+    make: F,
+    params: &[f64],
+    j: f64,
+    duration: f64,
+    state_before: &[f64],
+    state_scale: &[f64],
+    param_scale: &[f64],
+    tol: f64,
+    seed: u64,
+) -> f64 {
+    let n_state = state_before.len();
+    assert_eq!(state_scale.len(), n_state, "{label}: one scale per state entry");
+    assert_eq!(param_scale.len(), params.len(), "{label}: one scale per parameter");
+    let k = MaterialWake { make: &make, n_state, n_params: params.len(), duration };
+    let mut x = vec![j];
+    x.extend_from_slice(state_before);
+    x.extend_from_slice(params);
+    let mut scale = vec![1e-2];
+    scale.extend_from_slice(state_scale);
+    scale.extend_from_slice(param_scale);
+    checked(&format!("{label}, wake"), &k, &x, &scale, tol, seed)
 }

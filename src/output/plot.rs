@@ -14,7 +14,7 @@ use plotters::style::{register_font, FontStyle};
 
 /// DejaVu Sans 2.37, unmodified; licence in `fixtures/fonts/LICENSE-DejaVu.txt`.
 static FONT: &[u8] = include_bytes!("../../fixtures/fonts/DejaVuSans.ttf");
-const FAMILY: &str = "sans-serif";
+pub(super) const FAMILY: &str = "sans-serif";
 
 const SIZE: (u32, u32) = (900, 500);
 
@@ -31,7 +31,7 @@ pub enum PlotError {
 }
 
 /// The drawing error `e` of the plot at `path`.
-fn draw_error(path: &Path) -> impl Fn(&dyn std::fmt::Display) -> PlotError + '_ {
+pub(super) fn draw_error(path: &Path) -> impl Fn(&dyn std::fmt::Display) -> PlotError + '_ {
     move |e| PlotError::Draw { path: path.to_path_buf(), message: e.to_string() }
 }
 const MARGIN: u32 = 15;
@@ -39,7 +39,7 @@ const X_LABEL_AREA: u32 = 45;
 const Y_LABEL_AREA: u32 = 60;
 
 /// Registers the embedded font once per process; plotters looks fonts up by family name.
-fn ensure_font() -> Result<(), PlotError> {
+pub(super) fn ensure_font() -> Result<(), PlotError> {
     static REGISTERED: OnceLock<Result<(), PlotError>> = OnceLock::new();
     REGISTERED
         .get_or_init(|| {
@@ -260,9 +260,9 @@ fn xy_chart<'a, 'b>(body: &'a DrawingArea<BitMapBackend<'b>, Shift>, xr: Range<f
     xy_chart_with_x_labels(body, xr, yr, (x_desc, y_desc), 10)
 }
 
-/// [`xy_chart`] with at most `x_labels` tick labels on the x axis: a narrow panel (a heat map's)
+/// [`xy_chart`] with at most `x_labels` tick labels on the x axis: a narrow panel (a contour map's)
 /// has room for a few only.
-fn xy_chart_with_x_labels<'a, 'b>(
+pub(super) fn xy_chart_with_x_labels<'a, 'b>(
     body: &'a DrawingArea<BitMapBackend<'b>, Shift>,
     xr: Range<f64>,
     yr: Range<f64>,
@@ -320,71 +320,6 @@ fn ranges<'a>(
     } else {
         (y, z, false)
     }
-}
-
-/// One panel of [`plot_heat_maps`]: values on a grid of `xs` x `ys` (row-major, x fastest), the
-/// cells to outline as feasible, and a point to mark.
-pub struct HeatMap {
-    pub title: String,
-    pub xs: Vec<f64>,
-    pub ys: Vec<f64>,
-    pub values: Vec<f64>,
-    pub marked: Vec<bool>,
-    pub point: Option<[f64; 2]>,
-}
-
-/// Heat maps side by side in one PNG (400 x 420 pixels a panel): each grid cell coloured by its
-/// value from blue (the panel's least) to red (its most) and labelled with it, the `marked`
-/// cells outlined in black (the feasible region), `point` as a black cross. Non-finite values
-/// are left grey. `path` must end in `.png`.
-pub fn plot_heat_maps(path: &Path, x_desc: &str, y_desc: &str, panels: &[HeatMap]) -> Result<(), PlotError> {
-    ensure_font()?;
-    if path.extension().is_none_or(|e| e != "png") {
-        return Err(PlotError::NotPng { path: path.to_path_buf() });
-    }
-    let err = draw_error(path);
-    let root = BitMapBackend::new(path, (400 * panels.len().max(1) as u32, 420)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| err(&e))?;
-    for (area, p) in root.split_evenly((1, panels.len().max(1))).iter().zip(panels) {
-        // cell edges halfway between the grid's values
-        let edges = |v: &[f64]| -> Vec<f64> {
-            let n = v.len();
-            let half = |a: f64, b: f64| 0.5 * (a + b);
-            let step = if n > 1 { v[1] - v[0] } else { v[0].abs().max(1e-9) * 0.1 };
-            let mut e = vec![v[0] - 0.5 * step];
-            e.extend((1..n).map(|k| half(v[k - 1], v[k])));
-            e.push(v[n - 1] + 0.5 * if n > 1 { v[n - 1] - v[n - 2] } else { step });
-            e
-        };
-        let (ex, ey) = (edges(&p.xs), edges(&p.ys));
-        let body = area.titled(&p.title, (FAMILY, 18)).map_err(|e| err(&e))?;
-        // a 400-pixel panel fits about four labels of a few digits each
-        let mut chart = xy_chart_with_x_labels(&body, ex[0]..ex[ex.len() - 1], ey[0]..ey[ey.len() - 1], (x_desc, y_desc), 4).map_err(|e| err(&e))?;
-        let finite_values = p.values.iter().copied().filter(|v| v.is_finite());
-        let (lo, hi) = finite_values.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
-        let colour = |v: f64| {
-            if !v.is_finite() {
-                return RGBColor(200, 200, 200);
-            }
-            let t = if hi > lo { (v - lo) / (hi - lo) } else { 0.5 };
-            RGBColor((60.0 + 195.0 * t) as u8, 90, (255.0 - 195.0 * t) as u8)
-        };
-        let nx = p.xs.len();
-        for (k, v) in p.values.iter().enumerate() {
-            let (i, j) = (k % nx, k / nx);
-            let cell = [(ex[i], ey[j]), (ex[i + 1], ey[j + 1])];
-            chart.draw_series(std::iter::once(Rectangle::new(cell, colour(*v).filled()))).map_err(|e| err(&e))?;
-            if p.marked.get(k).copied().unwrap_or(false) {
-                chart.draw_series(std::iter::once(Rectangle::new(cell, BLACK.stroke_width(3)))).map_err(|e| err(&e))?;
-            }
-            let label = if v.is_finite() { format!("{v:.3}") } else { "-".into() };
-            chart.draw_series(std::iter::once(Text::new(label, (p.xs[i], p.ys[j]), (FAMILY, 13).into_font().color(&WHITE)))).map_err(|e| err(&e))?;
-        }
-        if let Some([x, y]) = p.point {
-            chart.draw_series(std::iter::once(Cross::new((x, y), 8, BLACK.stroke_width(3)))).map_err(|e| err(&e))?;
-        }
-    }
-    root.present().map_err(|e| err(&e))
 }
 
 #[cfg(test)]

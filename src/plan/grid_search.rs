@@ -6,7 +6,8 @@
 
 use super::build::{build, Build};
 use super::error::PlanError;
-use super::map::{self, Axis};
+use super::map;
+use super::map_axes::Axis;
 use super::planner::Plan;
 use crate::measure::engine::Engine;
 
@@ -57,7 +58,7 @@ pub fn grid_search(plan: &Plan, n: [usize; 2], engine: &Engine, jobs: usize) -> 
     if plan.free.len() < 2 || n.iter().any(|&k| k < 2) {
         return Err(PlanError::Targets("the grid check needs two free settings and two points or more along each".into()));
     }
-    let axes: [Axis; 2] = std::array::from_fn(|k| Axis { setting: plan.free[k].0, bounds: plan.free[k].1, n: n[k] });
+    let axes: [Axis; 2] = std::array::from_fn(|k| Axis::setting(plan.free[k].0, plan.free[k].1, n[k]));
     let (cpu, clock) = (crate::run::process_cpu_seconds(), std::time::Instant::now());
     let m = map::map(&plan.line, &plan.targets, None, axes, &plan.settings(), None, engine, jobs)?;
     let builds = builds(plan, &m.points, jobs)?;
@@ -72,7 +73,7 @@ pub fn grid_search(plan: &Plan, n: [usize; 2], engine: &Engine, jobs: usize) -> 
         .collect();
     // the cost counts the closed forms too (each point's bisections for its layer time)
     let (seconds, cpu_seconds) = (clock.elapsed().as_secs_f64(), crate::run::process_cpu_seconds() - cpu);
-    let slack = axes.iter().map(|a| build_derivative(plan, a.setting.index()).abs() * (a.bounds[1] - a.bounds[0]) / (a.n - 1) as f64).sum();
+    let slack = axes.iter().map(|a| build_derivative(plan, a.quantity.varied().index()).abs() * (a.bounds[1] - a.bounds[0]) / (a.n - 1) as f64).sum();
     Ok(GridSearch { axes, points, seconds, cpu_seconds, slack })
 }
 
@@ -103,8 +104,8 @@ pub fn text(plan: &Plan, g: &GridSearch) -> String {
         "grid check: {}x{} over {} and {}: {} forward runs and builds in {:.1} s ({:.1} CPU s); the plan: {} gradient runs in {:.1} s\n",
         g.axes[0].n,
         g.axes[1].n,
-        g.axes[0].setting.name(),
-        g.axes[1].setting.name(),
+        g.axes[0].quantity.name(),
+        g.axes[1].quantity.name(),
         g.points.len(),
         g.seconds,
         g.cpu_seconds,

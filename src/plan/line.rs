@@ -50,6 +50,8 @@ pub struct Line {
     pub age: f64,
     /// |g| [m/s2].
     pub gravity: f64,
+    /// The nozzle's outlet, its narrowest width [m] (a circle's diameter): D of H/D.
+    pub nozzle: f64,
 }
 
 /// The layer's width and height [m] at a point, and their gradients in the settings.
@@ -93,7 +95,7 @@ impl Line {
             None => sc.observe.as_ref().and_then(|o| o.stations.first().copied()).ok_or_else(|| PlanError::Targets("layer.station: give the station (x of the section), the scenario has no [observe] stations".into()))?,
         };
         let gravity = sc.simulation.gravity.iter().map(|g| g * g).sum::<f64>().sqrt();
-        Ok(Line { model: model.clone(), path: path.to_path_buf(), nominal, prints, standoff0, end_time, length, station, layer: targets.layer.layer, age, gravity })
+        Ok(Line { model: model.clone(), path: path.to_path_buf(), nominal, prints, standoff0, end_time, length, station, layer: targets.layer.layer, age, gravity, nozzle: p.nozzle.narrowest() })
     }
 
     /// The scenario keys a point sets.

@@ -8,9 +8,9 @@
 //! gradient projection on the adjoint gradients of `strand grad` (`optimise.rs`), with the
 //! predicted layer, the wall's buildable height and failure mode by the closed forms
 //! (`constraint.rs`, `build.rs`), the margins and the sensitivity of each target to each
-//! setting (`report.rs`); or an error naming the target that cannot be met and how close the
-//! best setting came. `map.rs` runs the print over a grid of two settings (the printability
-//! map). `toolpath_file.rs` writes a G-code or point-list print inline for the plan, and the
+//! setting (`report.rs`, and as an HTML page with the map: `report_html.rs`); or an error naming
+//! the target that cannot be met and how close the best setting came. `map.rs` runs the print
+//! over a grid of two settings or their groups V/U and H/D (`map_axes.rs`): the printability map. `toolpath_file.rs` writes a G-code or point-list print inline for the plan, and the
 //! file again with the planned settings. `grid_search.rs` checks a plan against a brute-force
 //! grid of its settings; `wall_check.rs` simulates a reduced wall of the planned layer with the
 //! failure detector.
@@ -26,9 +26,11 @@ pub mod error;
 pub mod grid_search;
 pub mod line;
 pub mod map;
+pub mod map_axes;
 pub mod optimise;
 pub mod planner;
 pub mod report;
+pub mod report_html;
 pub mod targets;
 pub mod toolpath_file;
 pub mod wall_check;

@@ -89,6 +89,18 @@ pub fn text(plan: &Plan) -> String {
         if !plan.buckling_checked {
             s += "  (buckling not checked: the model's [material] has no bulk_modulus and poisson_ratio)\n";
         }
+        if let Some(t) = trust(plan) {
+            let scale = 100.0 * super::constraint::COLLAPSE_FACTOR_ACCURACY;
+            let at = match t.layer_time {
+                Some(lt) => format!("it stands to the design height x safety factor from a layer time of {lt:.1} s"),
+                None => "no layer time within the bounds makes it stand to the design height x safety factor".into(),
+            };
+            s += &format!(
+                "  trust: with the collapse factor {scale:.0} % lower (its accuracy against simulated walls) it stands to {:.3} m ({:.2} x the design height); {at}\n",
+                t.height,
+                t.height / w.design_height
+            );
+        }
     }
     s += "sensitivity: change per +1 % of each setting; in brackets the change of the setting that uses up the tolerance\n";
     s += &format!("  {:<11}", "");
@@ -107,6 +119,28 @@ pub fn text(plan: &Plan) -> String {
     s
 }
 
+/// The wall by the closed form with Prandtl's collapse factor at the low end of its accuracy
+/// (`constraint::COLLAPSE_FACTOR_ACCURACY`): how tall it stands at the plan's layer time, and the
+/// shortest layer time within the bounds at which it stands to the design height x safety factor
+/// even so.
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct Trust {
+    pub factor_scale: f64,
+    pub height: f64,
+    pub layer_time: Option<f64>,
+}
+
+/// The plan's wall with the collapse factor at the low end of its accuracy; None without a wall.
+pub fn trust(plan: &Plan) -> Option<Trust> {
+    let (g, b) = (plan.wall.as_ref()?, plan.best());
+    let factor_scale = 1.0 - super::constraint::COLLAPSE_FACTOR_ACCURACY;
+    let low = g.wall.with_collapse_factor(factor_scale);
+    let [w, h] = b.layer.values;
+    let height = low.buildable(w, h, b.build.layer_time, 2.0 * g.need()).ok()?.height;
+    let layer_time = low.shortest_layer_time(w, h, g.need(), g.layer_time).ok()?.ok();
+    Some(Trust { factor_scale, height, layer_time })
+}
+
 /// The plan as JSON.
 pub fn json(plan: &Plan) -> serde_json::Value {
     let b = plan.best();
@@ -116,6 +150,7 @@ pub fn json(plan: &Plan) -> serde_json::Value {
         "layer": { "width": b.layer.values[0], "height": b.layer.values[1], "station": plan.line.station },
         "build": b.build,
         "sensitivity": sensitivities(plan),
+        "wall_trust": trust(plan),
         "runs": plan.history.len(),
         "seconds": plan.seconds,
         "history": plan.history.iter().map(|e| serde_json::json!({ "x": e.x, "width": e.layer.values[0], "height": e.layer.values[1], "build_time": e.build.build_time, "accepted": e.accepted })).collect::<Vec<_>>(),

@@ -14,23 +14,25 @@
 //! - Time. Layer after layer at T (tens of seconds) is out of reach of an explicit step of a
 //!   fraction of a millisecond, so the rest between layers is compressed by m = T / T_r, with
 //!   T_r the nozzle's time over a layer and its moves back plus [`SETTLE`]: layers start T_r
-//!   apart, and the strength's growth with age ([`STRENGTH_RATES`]: `a_thix`, an early-age
-//!   solid's `cohesion_rate` and `friction_angle_rate`) is multiplied by m, so each layer's
-//!   strength when the next comes (tau0 + A_thix a, the closed form's) is the full wall's. The
-//!   stiffness's age laws keep their rate: the reduced wall is the softer for it (the safe side
-//!   for buckling), and the step the plan fixed stays stable (stiffened m times faster, the
-//!   plan's wall on `fixtures/plan` outran its 0.4 ms step at t = 23 s). The deposit itself is
-//!   printed at the planned speed and flow, so it builds up m times faster while it is laid (at
-//!   the fixture's 2 Pa/s and m = 10, 20 Pa over a second). Sound when the wall settles within
-//!   T_r (quasi-static, the detector's own premise); viscous stresses are not scaled.
+//!   apart, and the material's whole age clock runs m times faster ([`AGE_RATES`] times m,
+//!   [`AGES`] over m: thixotropy's build-up, every age law of the stiffness and the strength), so
+//!   each layer's yield stress and stiffness when the next comes are the full wall's. The print's
+//!   fixed step, chosen for the fresh material, would not stay stable as the stiffness grows m
+//!   times faster (on `fixtures/plan` it blew up at t = 23 s), so it is divided by the growth of
+//!   the elastic wave speed from the fresh material to the wall's oldest (the same Courant
+//!   number throughout). With the strength alone compressed, the stiffness
+//!   of the fixture's 24-layer wall stayed that of a 30 s old wall instead of a 12 minute old one,
+//!   and it failed at 96 mm where the closed form's buckling of so soft a wall is 90 mm
+//!   (docs/planning.md). The deposit itself is printed at the planned speed and flow, so it
+//!   builds up m times faster while it is laid (at the fixture's 2 Pa/s and m = 10, 20 Pa over a
+//!   second). Sound when the wall settles within T_r (quasi-static, the detector's own premise);
+//!   viscous stresses are not scaled.
 //! - The layer: the print's own pass (a plan's print is a short line), not the design's length.
 //!   The closed forms are of a long straight wall (plane strain, Prandtl's squeeze across its
 //!   width only); a pass about as long as the wall is tall is held also along its length by the
 //!   rough base, and stands taller: on `fixtures/plan` (a 40 mm pass at 4 mm cells) a wall of
-//!   six layers stood 32 mm where the closed form has it collapse at 19 mm; yet the 24 layers
-//!   of the fixture's own plan fail at 96 mm where the closed form gives 150 mm
-//!   (docs/planning.md). A wall that stands confirms the plan no more strictly than that; one
-//!   that fails refutes it. Buckling of a long wall is not probed.
+//!   six layers stood 32 mm where the closed form has it collapse at 19 mm. A wall that stands
+//!   confirms the plan no more strictly than that; one that fails refutes it.
 //!
 //! The wall's memory is planned before it allocates (`Simulation::new`) and refused over the
 //! print's `[memory] budget`.
@@ -47,10 +49,24 @@ use toml::{Table, Value};
 /// than the detector's window.
 pub const SETTLE: f64 = 0.6;
 
-/// The material keys of the strength's growth with age [per s], which the reduced wall's
-/// compressed time multiplies: thixotropy's build-up and an early-age solid's cohesion and
-/// friction angle.
-pub const STRENGTH_RATES: &[&str] = &["a_thix", "cohesion_rate", "friction_angle_rate"];
+/// The material keys of its growth with age [per s], which the reduced wall's compressed time
+/// multiplies: thixotropy's build-up, and the rates of the age laws of the bulk modulus (EVP
+/// Bingham) and of an early-age solid's Young's modulus, cohesion and friction angle.
+pub const AGE_RATES: &[&str] = &[
+    "a_thix",
+    "bulk_modulus_rate",
+    "bulk_modulus_late_rate",
+    "youngs_modulus_rate",
+    "youngs_modulus_late_rate",
+    "cohesion_rate",
+    "cohesion_late_rate",
+    "friction_angle_rate",
+    "friction_angle_late_rate",
+];
+
+/// The material keys that are ages [s], which the compressed time divides: a law at age a / m
+/// with its rates m times larger has the value the real law has at age a.
+pub const AGES: &[&str] = &["age_at_start", "max_age", "bulk_modulus_transition_age", "youngs_modulus_transition_age", "cohesion_transition_age", "friction_angle_transition_age"];
 
 /// The reduced wall and what its simulation found.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -60,7 +76,7 @@ pub struct WallCheck {
     pub layer_height: f64,
     /// The height the wall must stand to [m]: design height x safety factor.
     pub need: f64,
-    /// The layer time checked [s] and the one simulated [s]; the strength's age clock runs
+    /// The layer time checked [s] and the one simulated [s]; the material's age clock runs
     /// `compression` times faster.
     pub layer_time: f64,
     pub simulated_layer_time: f64,
@@ -191,11 +207,13 @@ pub fn scenario(plan: &Plan, layer_time: f64) -> Result<(Table, usize, f64, f64,
     let print = t.get_mut("print").and_then(Value::as_table_mut).expect("checked above");
     print.insert("path".into(), Value::Array(full.iter().map(segment_value).collect()));
     let z_offset = print.get("z_offset").and_then(number).unwrap_or(0.0);
-    // the strength's age clock, m times faster
+    // the material's age clock, m times faster
     if let Some(m) = t.get_mut("material").and_then(Value::as_table_mut) {
         for (k, v) in m.iter_mut() {
-            if let (true, Some(x)) = (STRENGTH_RATES.contains(&k.as_str()), number(v)) {
-                *v = Value::Float(x * compression);
+            match (AGE_RATES.contains(&k.as_str()), AGES.contains(&k.as_str()), number(v)) {
+                (true, _, Some(x)) => *v = Value::Float(x * compression),
+                (_, true, Some(x)) => *v = Value::Float(x / compression),
+                _ => {}
             }
         }
     }
@@ -205,8 +223,14 @@ pub fn scenario(plan: &Plan, layer_time: f64) -> Result<(Table, usize, f64, f64,
     for k in ["simulation", "domain", "observe", "output"] {
         table(&mut t, k)?;
     }
+    // the stiffness grows m times faster than the print's fixed step was chosen for: the step
+    // shrinks as the wave speed grows from the fresh material to the wall's oldest
+    let growth = wave_speed_growth(t.get("material").and_then(Value::as_table).ok_or_else(|| bad("[material]"))?, end)?;
     let sim = t["simulation"].as_table_mut().expect("a table");
     sim.insert("end_time".into(), Value::Float(end));
+    if let Some(dt) = sim.get("dt").and_then(number) {
+        sim.insert("dt".into(), Value::Float(dt / growth));
+    }
     let dx = sim.get("dx").and_then(number).ok_or_else(|| bad("simulation.dx"))?;
     // the domain reaches the nozzle over the last layer, and a layer more
     let domain = t["domain"].as_table_mut().expect("a table");
@@ -224,6 +248,18 @@ pub fn scenario(plan: &Plan, layer_time: f64) -> Result<(Table, usize, f64, f64,
     output.insert("interval".into(), Value::Float(0.02));
     output.insert("vtu".into(), Value::Boolean(false));
     Ok((t, layers, h, simulated, compression))
+}
+
+/// How many times faster elastic waves run in the material of `material` (its age clock as the
+/// reduced wall has it) at time `end` than at the start: its stiffest moduli over the ages
+/// reached (`Material::stability_at`), c = sqrt((K + 4 G / 3) / rho).
+fn wave_speed_growth(material: &Table, end: f64) -> Result<f64, PlanError> {
+    let m = crate::materials::build_material(material).map_err(|e| PlanError::Unsupported(format!("--check-wall: the reduced wall's material: {e}")))?;
+    let c = |t: f64| {
+        let s = m.stability_at(t);
+        ((s.bulk_modulus as f64 + 4.0 / 3.0 * s.shear_modulus as f64) / s.density as f64).sqrt()
+    };
+    Ok((c(end) / c(0.0)).max(1.0))
 }
 
 /// Simulate the reduced wall of `plan` at layer time `layer_time` (the plan's, or another to
@@ -247,7 +283,7 @@ pub fn check(plan: &Plan, layer_time: f64, threads: Option<usize>, out: &std::pa
 /// The check in one line.
 pub fn text(c: &WallCheck) -> String {
     let how = format!(
-        "{} layers of {:.2} mm at a layer time of {:.1} s (simulated {:.2} s, the strength's age clock {:.1} times faster; {} steps in {:.1} s)",
+        "{} layers of {:.2} mm at a layer time of {:.1} s (simulated {:.2} s, the material's age clock {:.1} times faster; {} steps in {:.1} s)",
         c.layers,
         c.layer_height * 1e3,
         c.layer_time,

@@ -91,10 +91,12 @@ impl Simulation {
     }
 
     /// Adjoint of [`Simulation::newest_masses`]: the step set the masses and initial volumes of
-    /// particles `set_from..` (the newest slab's to its fraction f, a just completed one's to
-    /// full); their adjoints gathered since are settled here — into the density's, and for the
-    /// newest slab into f's — and cleared, for the earlier steps to gather those of the values
-    /// before. f's adjoint, with the blend's, goes to `toolpath` as the extruded length's.
+    /// the awake particles with ids `set_from..` (the newest slab's to its fraction f, a just
+    /// completed one's to full); their adjoints gathered since are settled here — into the
+    /// density's, and for the newest slab into f's — and cleared, for the earlier steps to gather
+    /// those of the values before. f's adjoint, with the blend's, goes to `toolpath` as the
+    /// extruded length's. The particles are found by id over the awake range, as the forward
+    /// found them: a sleep update may have swapped them to other slots.
     pub(crate) fn newest_masses_adjoint(&self, a: &mut Adjoint, toolpath: Option<&mut dyn ToolpathBar>) {
         let Some(pr) = self.printer.as_ref() else { return };
         let nw = &pr.newest;
@@ -104,15 +106,14 @@ impl Simulation {
             let rho = self.material.density() as f64;
             let vol = pr.particle_volume;
             let (mass_bar, vol0_bar) = (a.mass_bar.as_mut_slice(), a.vol0_bar.as_mut_slice());
-            // without sleeping, emitted particles are never reordered in a gradient run (index =
-            // id); with sleeping, settled slabs are swapped into the sleeping prefix and this range
-            // can hold other particles (the sleeping printed-line gradient test does): not yet
-            // accounted for here (docs/gradients.md, 'Sleeping')
-            for i in nw.set_from as usize..p.n {
-                debug_assert_eq!(p.id.as_slice()[i] as usize, i);
+            let (id, mass) = (p.id.as_slice(), p.mass.as_slice());
+            for i in p.n_sleep..p.n {
+                if id[i] < nw.set_from {
+                    continue;
+                }
                 let (mb, vb) = (mass_bar[i] as f64, vol0_bar[i] as f64);
-                a.density_bar += mb * p.mass.as_slice()[i] as f64 / rho;
-                if i >= nw.first as usize {
+                a.density_bar += mb * mass[i] as f64 / rho;
+                if id[i] >= nw.first {
                     fraction_bar += rho * vol * mb + vol * vb;
                 }
                 (mass_bar[i], vol0_bar[i]) = (0.0, 0.0);

@@ -91,7 +91,7 @@ pub enum AdjointError {
     #[error("emission without a printer")]
     NoPrinter,
     /// A unit woke whose material has no adjoint of waking.
-    #[error("step {step}: sleeping material woke, and the gradient has no adjoint of waking for material {material} in this configuration (an age law or a Maxwell branch): remove [sleep], or make it wake no unit")]
+    #[error("step {step}: sleeping material woke, and the gradient has no adjoint of waking for material {material} in this configuration (waking has one for newtonian, bingham, papanastasiou_roussel and evp_bingham without an age law or a Maxwell branch): remove [sleep], or make it wake no unit")]
     Wake { material: String, step: u64 },
     /// A perturbed toolpath puts a different number of a slab's particles inside the domain.
     #[error("slab {slab}: the toolpath parameters' perturbation changes how many of its particles lie inside the domain")]

@@ -7,8 +7,8 @@ use crate::common::{s, strand};
 use std::path::{Path, PathBuf};
 use strand::measure::model::Model;
 use strand::plan::line::Line;
-use strand::plan::map::{self, Axis};
-use strand::plan::targets::{Setting, Targets};
+use strand::plan::{map, map_axes, report_html};
+use strand::plan::targets::Targets;
 
 fn fixture(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/plan").join(name)
@@ -24,6 +24,11 @@ fn planned_settings_simulated_give_the_target_layer_and_a_standing_wall() {
     assert_eq!(code, 0, "{stderr}");
     let v: serde_json::Value = serde_json::from_str(&stdout).unwrap();
     println!("{stderr}\n{v:#}");
+    // the HTML report beside it: the plan and how far its wall's closed form holds
+    let page = std::fs::read_to_string(dir.path().join("planned.html")).unwrap();
+    assert!(page.contains("predicted wall: stands to") && page.contains("trust: with the collapse factor 10 % lower"), "{page}");
+    let trust = v["wall_trust"]["height"].as_f64().unwrap();
+    assert!(trust < v["build"]["buildable"]["height"].as_f64().unwrap(), "{v:#}");
     let t = Targets::load(&fixture("targets.toml")).unwrap();
     // the search moved from the scenario's settings (its layer is 16.1 mm wide, off the target)
     let speed = v["settings"]["speed"].as_f64().unwrap();
@@ -50,37 +55,52 @@ fn planned_settings_simulated_give_the_target_layer_and_a_standing_wall() {
     assert!(stderr.contains("exists: give --overwrite"), "{stderr}");
 }
 
+/// The map over V/U and H/D (Comminal et al.'s groups): V/U through the speed at the scenario's
+/// extrusion speed, H/D through the standoff over the 12 mm nozzle; 3 x 2 points.
 #[test]
 fn the_map_agrees_with_direct_runs_at_two_of_its_points() {
-    let t = Targets::load(&fixture("targets.toml")).unwrap();
+    let mut t = Targets::load(&fixture("targets.toml")).unwrap();
+    t.settings.standoff = Some([0.0048, 0.0072]);
     let model = Model::load(&fixture("truth.toml")).unwrap();
     let line = Line::new(&model, &fixture("line.toml"), &t).unwrap();
-    let axes = [Axis { setting: Setting::Speed, bounds: [0.06, 0.1], n: 2 }, Axis { setting: Setting::Extrusion, bounds: [0.04, 0.06], n: 3 }];
+    let specs = map_axes::parse("v/u=1.2:2.0,h/d", "3x2", &t).unwrap();
+    let axes = map_axes::resolve(specs, &t, &line.nominal, line.nozzle).unwrap();
+    assert!((axes[1].bounds[0] - 0.4).abs() < 1e-12 && (axes[1].bounds[1] - 0.6).abs() < 1e-12, "H/D spans the standoff's bounds over D: {:?}", axes[1].bounds);
     let m = map::map(&line, &t, None, axes, &line.nominal, None, &strand::measure::engine::Engine::Local, 2).unwrap();
-    print!("{}", map::text(&m));
+    print!("{}", map::text(&m, line.nozzle));
     assert_eq!(m.points.len(), 6);
-    for k in [1, 4] {
+    // each point's settings: U held, V = (V/U) U, H = (H/D) D
+    for (k, p) in m.points.iter().enumerate() {
+        let (r, hd) = ([1.2, 1.6, 2.0][k % 3], [0.4, 0.6][k / 3]);
+        assert_eq!(p.x[1], line.nominal[1]);
+        assert!((p.x[0] - r * line.nominal[1]).abs() < 1e-12 && (p.x[2] - hd * 0.012).abs() < 1e-12, "point {k}: {:?}", p.x);
+    }
+    // the map at two points against the print run directly at their settings, written out
+    for (k, v, h) in [(1, 0.08, 0.0048), (3, 0.06, 0.0072)] {
         let p = &m.points[k];
+        assert!((p.x[0] - v).abs() < 1e-12 && (p.x[2] - h).abs() < 1e-12, "point {k}: {:?}", p.x);
         let direct = line.layer_values(&p.x, None).unwrap();
         println!("point {k}: map {:?}, direct {direct:?}", [p.width, p.height]);
         for (a, b) in [p.width, p.height].iter().zip(direct) {
             assert!((a - b).abs() <= 1e-9 * b.abs(), "point {k}: {a} against {b}");
         }
     }
-    // the width grows with the extrusion speed at each speed (paper 000, Comminal et al.)
-    for i in 0..2 {
-        assert!(m.points[i].width < m.points[2 + i].width && m.points[2 + i].width < m.points[4 + i].width, "{}", map::text(&m));
+    // the width falls as V/U grows at each H/D (paper 000, Comminal et al.)
+    for j in 0..2 {
+        let w: Vec<f64> = (0..3).map(|i| m.points[3 * j + i].width).collect();
+        assert!(w[0] > w[1] && w[1] > w[2], "H/D {}: widths {w:?}\n{}", [0.4, 0.6][j], map::text(&m, line.nozzle));
     }
     let dir = tempfile::tempdir().unwrap();
-    map::write_csv(&m, &dir.path().join("map.csv")).unwrap();
-    map::write_png(&m, &dir.path().join("map.png")).unwrap();
-    map::write_html(&m, &t, &dir.path().join("map.png"), &dir.path().join("map.html")).unwrap();
+    map::write_csv(&m, line.nozzle, &dir.path().join("map.csv")).unwrap();
+    map::write_png(&m, &t, &dir.path().join("map.png")).unwrap();
     let csv = std::fs::read_to_string(dir.path().join("map.csv")).unwrap();
     assert_eq!(csv.lines().count(), 7);
+    assert!(csv.starts_with("speed,extrusion,standoff,v_over_u,h_over_d,"), "{csv}");
     assert!(std::fs::metadata(dir.path().join("map.png")).unwrap().len() > 1000);
-    // the page shows the image beside it and a row a point, and names the point marked
-    let html = std::fs::read_to_string(dir.path().join("map.html")).unwrap();
-    assert!(html.contains("<img src=\"map.png\"") && html.matches("<tr").count() == 7, "{html}");
+    // the report's section holds the image itself and a row a point, and names the point marked
+    let html = report_html::map_section(&m, &t, line.nozzle, &dir.path().join("map.png")).unwrap();
+    assert!(html.contains("<img src=\"data:image/png;base64,iVBORw0KGgo") && html.matches("<tr").count() == 7, "{html}");
+    assert!(html.contains("V/U (speed varied, U = 50.0 mm/s) against H/D (standoff varied, D = 12.0 mm)"), "{html}");
     assert!(html.contains("The plan's point: speed 80.00 mm/s, extrusion 50.00 mm/s"), "{html}");
     let feasible = m.points.iter().filter(|p| p.feasible).count();
     assert!(html.contains(&format!("{feasible} of 6 points meet them")), "{html}");
@@ -91,8 +111,11 @@ fn targets_no_setting_meets_are_named_with_how_close_the_best_came() {
     let dir = tempfile::tempdir().unwrap();
     let (truth, line) = (fixture("truth.toml"), fixture("line.toml"));
     let base = std::fs::read_to_string(fixture("targets.toml")).unwrap();
-    let out = dir.path().join("planned.toml");
+    // each call its own --out: a plan that meets no target still writes its HTML report
+    let calls = std::cell::Cell::new(0);
     let plan = |targets: &str, evaluations: &str| {
+        calls.set(calls.get() + 1);
+        let out = dir.path().join(format!("planned{}.toml", calls.get()));
         let path = dir.path().join("t.toml");
         std::fs::write(&path, targets).unwrap();
         let r = strand(&["plan", "--model", s(&truth), "--print", s(&line), "--targets", s(&path), "--out", s(&out), "--max-evaluations", evaluations]);
@@ -115,7 +138,10 @@ fn targets_no_setting_meets_are_named_with_how_close_the_best_came() {
     let (code, _, stderr) = plan(&base.replace("height_tolerance = 0.0005", "height_tolerance = 0.0"), "1");
     assert_eq!(code, 2, "{stderr}");
     assert!(stderr.contains("layer.height_tolerance = 0: a tolerance of zero"), "{stderr}");
-    assert!(!out.exists());
+    // no scenario is written for a plan that fails; the report of one that ran says why
+    assert!((1..=calls.get()).all(|k| !dir.path().join(format!("planned{k}.toml")).exists()));
+    let page = std::fs::read_to_string(dir.path().join("planned1.html")).unwrap();
+    assert!(page.contains("the layer width 40.00 +- 0.80 mm cannot be met within the bounds") && page.contains("The closest setting found"), "{page}");
 }
 
 /// A G-code print: written inline for the plan, then written again at a point and a layer time;
@@ -203,7 +229,7 @@ fn a_plan_with_the_standoff_free_moves_along_the_targets_to_a_faster_print() {
 
 /// `--check-wall` (issue 55): a reduced wall of the planned layer (src/plan/wall_check.rs),
 /// simulated with the failure detector, stands to the design height x safety factor at the
-/// plan's layer time (20 s, simulated in 2 s with the strength's age clock 10 times faster), as
+/// plan's layer time (20 s, simulated in 2 s with the material's age clock 10 times faster), as
 /// the closed form says; at 1.4 s (the nozzle's own time and a few hundredths), where the closed
 /// form has it collapse at 19 mm, it is reported failing. A wall 24 mm tall (x 1.5: six layers)
 /// keeps it short; the two walls run side by side. Measured: the short wall fails in layer 6

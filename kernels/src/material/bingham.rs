@@ -132,6 +132,14 @@ impl Material for Bingham {
         M3::ZERO - M3::from_diagonal(V3::splat(self.eos.pressure(r(self.bulk_modulus), j)))
     }
 
+    /// Nothing changes at rest: the stress at rest `-p(K, J) I` takes the adjoint to K and J.
+    fn wake_adjoint(&self, _state: &[Real], _duration: Real, j: Real, stress_bar: &M3, _state_bar: &mut [Real], j_bar: &mut Real, params_bar: &mut [Real]) -> bool {
+        let (k_bar, jb) = self.eos.rest_stress_adjoint(r(self.bulk_modulus), j, stress_bar);
+        *j_bar += jb;
+        params_bar[0] += k_bar;
+        true
+    }
+
     /// mu_a at gamma_c, the largest for n <= 1; for n > 1 the power law grows past it,
     /// mu_a(g) <= mu_a(gamma_c) + k (max(g, gamma_c)^(n-1) - gamma_c^(n-1)).
     fn stability(&self) -> StabilityInfo {
@@ -339,6 +347,19 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    /// Waking changes no state; the stress at rest -p(K, J) I takes the adjoint to K and J.
+    #[cfg(not(feature = "f32"))]
+    #[test]
+    fn wake_adjoint_matches_central_differences() {
+        use crate::material::test_util::check_wake_adjoint;
+        for (k, eos) in [Eos::Linear, Eos::Tait { gamma: 7.0 }].into_iter().enumerate() {
+            let make = |p: &[f64]| Bingham { bulk_modulus: p[0], viscosity: p[1], yield_stress: p[2], critical_shear_rate: p[3], flow_index: p[4], eos, ..concrete() };
+            let params = [1.0e6, 20.0, 300.0, 0.01, 1.0];
+            let scale = params.map(|v| 0.1 * v);
+            check_wake_adjoint("bingham", make, &params, 0.995, 2.0, &[], &[], &scale, 1e-6, 41 + k as u64);
         }
     }
 }

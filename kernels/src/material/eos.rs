@@ -6,7 +6,7 @@
 //! Both have tangent bulk modulus K at J = 1; pressure is positive in compression.
 
 use crate::material::MaterialError;
-use crate::real::{r, Real};
+use crate::real::{r, Real, M3};
 use serde::Deserialize;
 
 #[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq)]
@@ -50,6 +50,13 @@ impl Eos {
                 (p_bar * (e - r(1.0)) / g, -p_bar * k * e)
             }
         }
+    }
+
+    /// Adjoint of the stress at rest of a fluid, `-p(k, j) I`: the adjoints `(k_bar, j_bar)` for
+    /// the stress's adjoint `stress_bar`.
+    #[inline]
+    pub fn rest_stress_adjoint(&self, k: Real, j: Real, stress_bar: &M3) -> (Real, Real) {
+        self.pressure_adjoint(k, j, -(stress_bar.x_axis.x + stress_bar.y_axis.y + stress_bar.z_axis.z))
     }
 
     /// Tangent bulk modulus -dp/d(eps_v) at `j`, for stability estimates.

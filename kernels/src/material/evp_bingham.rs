@@ -1891,4 +1891,19 @@ mod tests {
             assert!(slope > 1.9, "Taylor remainder slope {slope:.3}");
         }
     }
+
+    /// Waking without an age law or a Maxwell branch: lambda built up by the rest, the stress at
+    /// rest the held deviator less p(K, J).
+    #[cfg(not(feature = "f32"))]
+    #[test]
+    fn wake_adjoint_matches_central_differences() {
+        use crate::material::test_util::check_wake_adjoint;
+        let state = [100.0, -40.0, -60.0, 80.0, -30.0, 20.0, 0.4, 0.01];
+        let state_scale: Vec<f64> = state.iter().map(|v: &f64| 0.1 * v.abs().max(1e-2)).collect();
+        for (k, (poisson, eos)) in [(false, Eos::Linear), (true, Eos::Tait { gamma: 7.0 })].into_iter().enumerate() {
+            let params = [1e6, if poisson { 0.3 } else { 2e5 }, 7.5, 630.0, 50.0, 0.5, 0.2, 1.0];
+            let scale = params.map(|v| 0.1 * v);
+            check_wake_adjoint("evp_bingham", make(poisson, eos), &params, 0.99, 2.0, &state, &state_scale, &scale, 1e-6, 71 + k as u64);
+        }
+    }
 }

@@ -27,7 +27,7 @@ pub use error::MaterialError;
 #[cfg(test)]
 pub(crate) mod test_util {
     #[cfg(not(feature = "f32"))]
-    pub use crate::adjoint_check::check_update_adjoint;
+    pub use crate::adjoint_check::{check_update_adjoint, check_wake_adjoint};
     use crate::real::{ddot, dev, Real, M3, V3};
 
     /// L with the single entry dv_x/dy = g (glam is column-major: column 1 holds d v / d y).

@@ -73,6 +73,14 @@ impl Material for Newtonian {
         M3::ZERO - M3::from_diagonal(V3::splat(self.eos.pressure(r(self.bulk_modulus), j)))
     }
 
+    /// Nothing changes at rest: the stress at rest `-p(K, J) I` takes the adjoint to K and J.
+    fn wake_adjoint(&self, _state: &[Real], _duration: Real, j: Real, stress_bar: &M3, _state_bar: &mut [Real], j_bar: &mut Real, params_bar: &mut [Real]) -> bool {
+        let (k_bar, jb) = self.eos.rest_stress_adjoint(r(self.bulk_modulus), j, stress_bar);
+        *j_bar += jb;
+        params_bar[0] += k_bar;
+        true
+    }
+
     fn stability(&self) -> StabilityInfo {
         StabilityInfo {
             density: r(self.density),
@@ -231,6 +239,18 @@ mod tests {
                 let label = format!("newtonian, {eos:?}, point {point}");
                 check_update_adjoint(&label, make, &params, l, j, 1e-3, &[], 1.0, &[], &params, 1e-6, seed);
             }
+        }
+    }
+
+    /// Waking changes no state; the stress at rest -p(K, J) I takes the adjoint to K and J.
+    #[cfg(not(feature = "f32"))]
+    #[test]
+    fn wake_adjoint_matches_central_differences() {
+        use crate::material::test_util::check_wake_adjoint;
+        for (k, eos) in [Eos::Linear, Eos::Tait { gamma: 7.0 }].into_iter().enumerate() {
+            let make = |p: &[f64]| Newtonian { bulk_modulus: p[0], viscosity: p[1], eos, ..water() };
+            let params = [1.0e6, 1.0e-3];
+            check_wake_adjoint("newtonian", make, &params, 1.004, 2.0, &[], &[], &params.map(|v| 0.1 * v), 1e-6, 51 + k as u64);
         }
     }
 }

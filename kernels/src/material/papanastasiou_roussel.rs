@@ -344,6 +344,25 @@ impl Material for PapanastasiouRoussel {
         state[0] = (state[0] + self.build_up_rate() * duration).max(r(0.0)).min(r(self.lambda_cap()));
     }
 
+    /// `rest_for` then the stress at rest `-p(K, J) I`. The build-up is linear up to the cap, so
+    /// lambda woken at the cap after a build-up was clamped (its adjoint goes to the cap's
+    /// parameter); otherwise it came through unclamped (its adjoint passes, the rest's goes to
+    /// A_thix / tau0), without build-up too, as `update_adjoint` counts a trial on a bound.
+    fn wake_adjoint(&self, state: &[Real], duration: Real, j: Real, stress_bar: &M3, state_bar: &mut [Real], j_bar: &mut Real, params_bar: &mut [Real]) -> bool {
+        let (k_bar, jb) = self.eos.rest_stress_adjoint(r(self.bulk_modulus), j, stress_bar);
+        *j_bar += jb;
+        params_bar[0] += k_bar;
+        if self.build_up_rate() * duration > r(0.0) && state[0] >= r(self.lambda_cap()) {
+            // `param_names`' entry 6 is whichever value caps lambda
+            params_bar[6] += std::mem::replace(&mut state_bar[0], r(0.0));
+        } else {
+            let (a_thix_bar, tau0_bar) = self.build_up_rate_adjoint(state_bar[0] * duration);
+            params_bar[4] += a_thix_bar;
+            params_bar[2] += tau0_bar;
+        }
+        true
+    }
+
     /// phi <= 1, so with n <= 1 this bounds eta_a for every lambda the update lets through; for
     /// n > 1 the power law's part is k q^(1-n) <= 2^(n-1) k max(g, 1/m)^(n-1) (module docs).
     fn stability(&self) -> StabilityInfo {
@@ -913,6 +932,38 @@ mod tests {
                 "x={x}: {v} vs {}",
                 reference(x)
             );
+        }
+    }
+
+    /// Waking after a rest: lambda built up below the cap (its adjoint to A_thix and tau0),
+    /// clamped at lambda_max, and without thixotropy at and below the cap lambda0.
+    #[cfg(not(feature = "f32"))]
+    #[test]
+    fn wake_adjoint_matches_central_differences() {
+        use crate::material::test_util::check_wake_adjoint;
+        // (label, by lambda_max, A_thix, cap, lambda before); K, eta, tau0, m, alpha, n fixed below
+        let cases = [
+            ("built up below the cap", true, 5.0, 3.0, 1.0),
+            ("clamped at lambda_max", true, 5.0, 3.0, 2.95),
+            ("no thixotropy, below lambda_max", true, 0.0, 3.0, 0.5),
+        ];
+        for (k, (label, by_lambda_max, a_thix, cap, lambda)) in cases.into_iter().enumerate() {
+            let pt = Point {
+                params: [3.3e5, 30.0, 100.0, 10.0, a_thix, 0.5, cap, 1.0],
+                by_lambda_max,
+                eos: TAIT,
+                gamma_dot: 0.0,
+                j: 0.995,
+                dt: 0.0,
+                lambda,
+                unresolved: &[],
+            };
+            // at A_thix = 0 the forward's rate is one-sided (0 below), and the adjoint takes the
+            // admissible side's quotient, as `update_adjoint` does: not a central difference
+            let scale = pt.params.map(|v| 0.1 * v);
+            let state_scale = [0.1 * lambda];
+            let label = format!("papanastasiou_roussel, {label}");
+            check_wake_adjoint(&label, |p: &[f64]| pt.material(p), &pt.params, pt.j, 2.0, &[lambda], &state_scale, &scale, 1e-6, 61 + k as u64);
         }
     }
 }

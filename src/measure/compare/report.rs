@@ -12,6 +12,7 @@ use crate::measure::campaign::experiments::Experiments;
 use crate::measure::model::Model;
 use crate::measure::diagnose::residuals::{Covariate, Shape};
 use crate::measure::campaign::runner::{experiment_keys, find};
+use crate::output::html::{escape, table};
 use crate::output::plot::{plot_measured_model, plot_xy, MeasuredPoint};
 use std::collections::{BTreeSet, HashMap, HashSet};
 use std::fmt::Write as _;
@@ -326,39 +327,6 @@ fn write_trends_csv(path: &Path, trends: &[Trend]) -> Result<(), MeasureError> {
     w.flush().map_err(io_error(path))
 }
 
-/// Text for HTML content or a quoted attribute.
-fn escape(s: &str) -> String {
-    let mut out = String::with_capacity(s.len());
-    for ch in s.chars() {
-        match ch {
-            '&' => out.push_str("&amp;"),
-            '<' => out.push_str("&lt;"),
-            '>' => out.push_str("&gt;"),
-            '"' => out.push_str("&quot;"),
-            '\'' => out.push_str("&#39;"),
-            _ => out.push(ch),
-        }
-    }
-    out
-}
-
-/// A table of already-formatted cells, escaped here.
-fn table(s: &mut String, header: &[&str], rows: impl IntoIterator<Item = (bool, Vec<String>)>) {
-    s.push_str("<table>\n<tr>");
-    for h in header {
-        let _ = write!(s, "<th>{}</th>", escape(h));
-    }
-    s.push_str("</tr>\n");
-    for (flagged, cells) in rows {
-        s.push_str(if flagged { "<tr class=\"flag\">" } else { "<tr>" });
-        for c in cells {
-            let _ = write!(s, "<td>{}</td>", escape(&c));
-        }
-        s.push_str("</tr>\n");
-    }
-    s.push_str("</table>\n");
-}
-
 fn figures(s: &mut String, figs: &[Figure]) {
     for f in figs {
         let _ = writeln!(
@@ -421,9 +389,9 @@ fn html(
             .collect()
     };
     s.push_str("<h2>Per experiment</h2>\n");
-    table(&mut s, &summary_header, summary(&c.by_experiment));
+    table(&mut s, &summary_header, "flag", summary(&c.by_experiment));
     s.push_str("<h2>Per observable</h2>\n");
-    table(&mut s, &summary_header, summary(&c.by_observable));
+    table(&mut s, &summary_header, "flag", summary(&c.by_observable));
 
     let mut worst: Vec<&Row> = c.rows.iter().collect();
     worst.sort_by(|a, b| b.z.abs().total_cmp(&a.z.abs()));
@@ -442,7 +410,7 @@ fn html(
             ],
         )
     });
-    table(&mut s, &["experiment", "observable", "at", "measured", "model", "residual", "z"], worst_rows);
+    table(&mut s, &["experiment", "observable", "at", "measured", "model", "residual", "z"], "flag", worst_rows);
 
     let _ = writeln!(s, "<h2>Trends of z with the covariates</h2>\n<p>Pearson r and least-squares slope of z against \
         each covariate that varies across the data; |r| &gt;= {TREND_R} is flagged as a trend.</p>");
@@ -461,7 +429,7 @@ fn html(
                 ],
             )
         });
-        table(&mut s, &["covariate", "n", "r", "slope", ""], rows);
+        table(&mut s, &["covariate", "n", "r", "slope", ""], "flag", rows);
     }
     let _ = writeln!(s, "<h2>Shape of the residuals</h2>\n<p>Trend, curvature, step between groups, or residuals \
         moving together within an experiment, each an F-test significant at {SHAPES_ALPHA} for all the tests \
