@@ -34,7 +34,7 @@
 use crate::measure::error::MeasureError;
 use super::experiments::{Experiment, Experiments, ResolutionTable};
 use crate::measure::observation::{Observable, Observation};
-use super::runner::{build_scenario, evaluate, experiment_keys, find, group, job_threads, par_map_experiments, ungroup, Jobs};
+use super::runner::{evaluate, find, group, job_threads, par_map_experiments, ungroup, Applied, Jobs};
 use crate::measure::model::Model;
 
 /// The order of convergence p assumed when `[resolution]` gives none: case 1's width at 8, 10
@@ -96,8 +96,7 @@ fn finer(x: &Experiment, table: &ResolutionTable) -> Experiment {
 /// The cell size experiment `x` runs at under `model`.
 fn cell_size(model: &Model, exps: &Experiments, x: &Experiment) -> Result<f64, MeasureError> {
     let path = exps.base_dir.join(x.scenario.as_ref().expect("a simulation"));
-    let keys = experiment_keys(model, x)?;
-    Ok(build_scenario(model, &keys, &path)?.simulation.dx)
+    Ok(Applied::new(model, x)?.scenario(&path)?.simulation.dx)
 }
 
 /// Each observation's discretisation error under `model` (None for a rheometer test), from the

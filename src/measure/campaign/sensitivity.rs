@@ -24,10 +24,7 @@ use crate::measure::error::MeasureError;
 use super::experiments::{Experiment, Experiments};
 use crate::measure::observables::{observable_plan, reading_index};
 use crate::measure::observation::{Observable, Observation};
-use super::runner::{
-    experiment_keys, find, group, job_threads, par_map_experiments, rheometer_setup, scenario_from_table,
-    scenario_table, ungroup, Jobs,
-};
+use super::runner::{find, group, job_threads, par_map_experiments, scenario_from_table, ungroup, Applied, Jobs};
 use super::spare::Spare;
 use crate::measure::effects::Keys;
 use crate::measure::model::{set_path, Model};
@@ -304,12 +301,13 @@ fn simulated(
     given: Given,
 ) -> Result<Vec<Valued>, MeasureError> {
     let (Some(names), Some(_)) = (names, &x.scenario) else {
-        return by_adjoint(model, exps, x, wanted, (names, threads));
+        return by_adjoint(model, &Applied::new(model, x)?, (exps, x), wanted, (names, threads));
     };
-    let keys = experiment_keys(model, x)?;
+    let applied = Applied::new(model, x)?;
+    let keys = &applied.keys;
     let sides = names
         .iter()
-        .map(|n| smooth_step(model, n).and_then(|h| moves(model, x, &keys, n, h)))
+        .map(|n| smooth_step(model, n).and_then(|h| moves(model, x, keys, n, h)))
         .collect::<Result<Vec<_>, _>>()?;
     let sides: Vec<Option<Sides>> = match given.scatter {
         Some(_) => sides.into_iter().map(|s| s.map(Sides::one_side)).collect(),
@@ -325,10 +323,16 @@ fn simulated(
         names.iter().zip(&from_the_adjoint).filter(|(_, a)| **a).map(|(n, _)| n.clone()).collect();
     let at_model = match given.values {
         Some(v) if adjoint.is_empty() => v.iter().map(|&v| Valued::new(v, None)).collect(),
-        _ => by_adjoint(model, exps, x, wanted, ((!adjoint.is_empty()).then_some(&adjoint[..]), threads))?,
+        _ => {
+            let asked = (!adjoint.is_empty()).then_some(&adjoint[..]);
+            by_adjoint(model, &applied, (exps, x), wanted, (asked, threads))?
+        }
     };
     let values: Vec<f64> = at_model.iter().map(|v| v.value).collect();
-    let run = |m: &Model| Ok(by_adjoint(m, exps, x, wanted, (None, threads))?.into_iter().map(|v| v.value).collect());
+    let run = |m: &Model| {
+        let values = by_adjoint(m, &Applied::new(m, x)?, (exps, x), wanted, (None, threads))?;
+        Ok(values.into_iter().map(|v| v.value).collect())
+    };
     let differenced: Vec<Option<Sides>> =
         sides.into_iter().zip(&by_differences).map(|(s, &d)| s.filter(|_| d)).collect();
     let Central { columns, scatter, column_scatter } =
@@ -382,7 +386,7 @@ fn differenced(
         None => run(model)?,
     };
     let Some(names) = names else { return Ok(values.into_iter().map(|v| Valued::new(v, None)).collect()) };
-    let keys = experiment_keys(model, x)?;
+    let keys = Applied::new(model, x)?.keys;
     let mut rows = vec![vec![0.0; names.len()]; wanted.len()];
     for (j, name) in names.iter().enumerate() {
         let (p, b) = (model.get(name)?, model.bounds(name)?);
@@ -453,7 +457,7 @@ fn moves(model: &Model, x: &Experiment, keys: &Keys, name: &str, h: f64) -> Resu
     let mut moved = |v: f64| -> Result<Option<Model>, MeasureError> {
         let mut m = model.clone();
         m.set(name, v)?;
-        let there = experiment_keys(&m, x)?;
+        let there = Applied::new(&m, x)?.keys;
         toolpath |= there.iter().any(|(k, v)| k.starts_with("print.") && keys.get(k) != Some(v));
         Ok((v != p && there != *keys).then_some(m))
     };
@@ -532,14 +536,16 @@ struct Central {
     column_scatter: Vec<Vec<f64>>,
 }
 
+/// Values of `wanted` from experiment `x`'s run under `model` (`applied` to it) and, with `names`,
+/// their gradients by the adjoints: the simulation's or the rheometer's, then the model's effects.
 fn by_adjoint(
     model: &Model,
-    exps: &Experiments,
-    x: &Experiment,
+    applied: &Applied,
+    (exps, x): (&Experiments, &Experiment),
     wanted: &[Observable],
     (names, threads): (Option<&[String]>, Option<usize>),
 ) -> Result<Vec<Valued>, MeasureError> {
-    let keys = experiment_keys(model, x)?;
+    let keys = &applied.keys;
     // an override cuts the key from the model
     let chain = |mut keys_bar: Keys| -> Result<Vec<f64>, MeasureError> {
         for k in x.set.keys() {
@@ -550,7 +556,7 @@ fn by_adjoint(
     match (&x.scenario, &x.protocol) {
         (Some(s), _) => {
             let path = exps.base_dir.join(s);
-            let doc = scenario_table(model, &keys, &path)?;
+            let doc = applied.scenario_table(&path)?;
             let whole = scenario_from_table(doc.clone(), &path)?;
             let end = whole.simulation.end_time;
             // each model key with the scenario key it landed on (the floor's friction on the
@@ -609,7 +615,7 @@ fn by_adjoint(
             Ok(out.into_iter().map(|v| v.expect("every observation valued")).collect())
         }
         (None, Some(p)) => {
-            let (material, proto) = rheometer_setup(model, &keys, &exps.base_dir, p)?;
+            let (material, proto) = applied.rheometer_setup(&exps.base_dir, p)?;
             let rh = Rheometer::new(&*material, &proto)?;
             let readings = rh.run();
             wanted
@@ -746,7 +752,7 @@ mod tests {
         let names: Vec<String> =
             ["material.yield_stress", "material.viscosity", "ageing.rate"].map(String::from).to_vec();
         let fd = differenced(&m, &e, x, &wanted, (Some(&names), None), None).unwrap();
-        let adj = by_adjoint(&m, &e, x, &wanted, (Some(&names), None)).unwrap();
+        let adj = by_adjoint(&m, &Applied::new(&m, x).unwrap(), (&e, x), &wanted, (Some(&names), None)).unwrap();
         for (f, a) in fd.iter().zip(&adj) {
             let (v, va) = (f.value, a.value);
             assert!((v - va).abs() <= 1e-9 * va.abs(), "{v} against {va}");
@@ -762,7 +768,7 @@ mod tests {
         let aged: Experiments = toml::from_str(&EXPS.replace("observe = ", "age = 100.0\nobserve = ")).unwrap();
         let x = find(&aged, "flow").unwrap();
         let fd = differenced(&m, &aged, x, &wanted, (Some(&names), None), None).unwrap();
-        let adj = by_adjoint(&m, &aged, x, &wanted, (Some(&names), None)).unwrap();
+        let adj = by_adjoint(&m, &Applied::new(&m, x).unwrap(), (&aged, x), &wanted, (Some(&names), None)).unwrap();
         for (f, a) in fd.iter().zip(&adj) {
             let (g, ga) = (f.gradient.as_ref().unwrap(), a.gradient.as_ref().unwrap());
             assert!(
@@ -792,7 +798,7 @@ mod tests {
         // two material parameters; the extrusion factor's is differenced either way
         assert!(by_differences_is_cheaper(2 * 2, wanted.len()));
         let fd = experiment(&m, &e, x, &wanted, (Some(&names), Some(1)), Given::default()).unwrap();
-        let adj = by_adjoint(&m, &e, x, &wanted, (Some(&names), Some(1))).unwrap();
+        let adj = by_adjoint(&m, &Applied::new(&m, x).unwrap(), (&e, x), &wanted, (Some(&names), Some(1))).unwrap();
         // the values known (a calibration's accepted trial), the same Jacobian without their run
         let values: Vec<f64> = fd.iter().map(|v| v.value).collect();
         let given = Given { values: Some(&values), ..Given::default() };
@@ -872,7 +878,8 @@ mod tests {
             ["material.bulk_modulus"].map(String::from).into_iter().chain(names.iter().cloned()).collect();
         assert!(!by_differences_is_cheaper(2 * 3, 1));
         let hybrid = experiment(&m, &e, x, &wanted[..1], (Some(&more), Some(1)), Given::default()).unwrap();
-        let adj = by_adjoint(&m, &e, x, &wanted[..1], (Some(&more[..3]), Some(1))).unwrap();
+        let applied = Applied::new(&m, x).unwrap();
+        let adj = by_adjoint(&m, &applied, (&e, x), &wanted[..1], (Some(&more[..3]), Some(1))).unwrap();
         let (row, adj_row) = (hybrid[0].gradient.as_ref().unwrap(), adj[0].gradient.as_ref().unwrap());
         assert_eq!(&row[..3], &adj_row[..], "the material's columns from the adjoint");
         assert_eq!(row[3], fd[0].gradient.as_ref().unwrap()[2], "the extrusion factor's from differences");
