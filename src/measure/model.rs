@@ -310,15 +310,6 @@ impl Model {
         }
     }
 
-    /// The material an experiment runs with, before its keys are set: the model's, less every
-    /// number whose `material.KEY` the keys lack (an effect removed it: the moduli replace
-    /// `poisson_ratio` by `shear_modulus`).
-    pub fn material_for(&self, keys: &Keys) -> toml::Table {
-        let mut m = self.material.clone();
-        m.retain(|k, v| super::observation::number(v).is_none() || keys.contains_key(&format!("material.{k}")));
-        m
-    }
-
     /// The scenario keys of one experiment (before its `set` overrides).
     pub fn keys(&self, x: &Covariates) -> Result<Keys, MeasureError> {
         self.keys_traced(x).map(|(keys, _)| keys)

@@ -26,8 +26,9 @@ use std::path::Path;
 
 /// A model applied to one experiment: the scenario keys it runs with (the model's for the
 /// experiment's covariates, then the experiment's own `set` overrides), the `[material]` it runs
-/// with ([`Model::material_for`] those keys) and the effects switched on, which its scenario must
-/// accept. Built once for an experiment and a model: the experiment's runs, its scenario and the
+/// with before its keys are set (the model's, less every number whose `material.KEY` the keys
+/// lack: an effect removed it, as the moduli replace `poisson_ratio` by `shear_modulus`) and the
+/// effects switched on, which its scenario must accept. Built once for an experiment and a model: the experiment's runs, its scenario and the
 /// record of it are made from it, not from the model again.
 #[derive(Clone)]
 pub struct Applied {
@@ -48,7 +49,11 @@ impl Applied {
 
     /// `model` run with scenario keys `keys` (its own for some covariates).
     pub fn with_keys(model: &Model, keys: Keys) -> Applied {
-        Applied { material: model.material_for(&keys), effects: model.effects.iter().map(|(e, _)| *e).collect(), keys }
+        let mut material = model.material.clone();
+        material.retain(|k, v| {
+            crate::measure::observation::number(v).is_none() || keys.contains_key(&format!("material.{k}"))
+        });
+        Applied { material, effects: model.effects.iter().map(|(e, _)| *e).collect(), keys }
     }
 
     /// The scenario table of a simulation experiment: the file's, with the model's `[material]`
@@ -80,24 +85,13 @@ impl Applied {
         scenario_from_table(self.scenario_table(scenario)?, scenario)
     }
 
-    /// The material of a rheometer experiment (the model's, with its `material.*` keys; walls and
-    /// the printing process do not reach a rheometer) and its protocol.
+    /// The material of a rheometer experiment (see [`Applied::material`]) and its protocol.
     pub fn rheometer_setup(
         &self,
         base: &Path,
         protocol: &toml::Value,
     ) -> Result<(Box<dyn Material>, Protocol), MeasureError> {
-        let mut mat = self.material.clone();
-        for (k, v) in &self.keys {
-            match k.strip_prefix("material.") {
-                Some(key) => {
-                    mat.insert(key.to_string(), toml::Value::Float(*v));
-                }
-                None if k.starts_with("boundary.") || k.starts_with("print.") => {}
-                None => return Err(MeasureError::Run(format!("set.{k}: a rheometer test takes material keys only"))),
-            }
-        }
-        let material = crate::materials::build_material(&mat)?;
+        let material = self.material()?;
         let proto: Protocol = match protocol {
             toml::Value::String(file) => {
                 let p = base.join(file);
@@ -110,6 +104,22 @@ impl Applied {
                 .map_err(|e: toml::de::Error| MeasureError::Run(format!("protocol: {}", e.message())))?,
         };
         Ok((material, proto))
+    }
+
+    /// The material a rheometer test runs: the model's, with its `material.*` keys set (walls and
+    /// the printing process do not reach a rheometer; another key is refused).
+    pub fn material(&self) -> Result<Box<dyn Material>, MeasureError> {
+        let mut mat = self.material.clone();
+        for (k, v) in &self.keys {
+            match k.strip_prefix("material.") {
+                Some(key) => {
+                    mat.insert(key.to_string(), toml::Value::Float(*v));
+                }
+                None if k.starts_with("boundary.") || k.starts_with("print.") => {}
+                None => return Err(MeasureError::Run(format!("set.{k}: a rheometer test takes material keys only"))),
+            }
+        }
+        Ok(crate::materials::build_material(&mat)?)
     }
 }
 

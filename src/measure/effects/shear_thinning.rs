@@ -88,11 +88,7 @@ mod tests {
             let x = Covariates::default();
             let keys = model.keys(&x).unwrap();
             assert_eq!(keys[KEY], n);
-            let mut table = model.material_for(&keys);
-            for (k, v) in &keys {
-                table.insert(k.strip_prefix("material.").unwrap().to_string(), toml::Value::Float(*v));
-            }
-            let m = crate::materials::build_material(&table).unwrap();
+            let m = crate::measure::campaign::runner::Applied::with_keys(&model, keys).material().unwrap();
             let rh = Rheometer::new(&*m, &proto).unwrap();
             let (readings, grad) = rh.gradient(&weights).unwrap();
             let kb: Keys = m.param_names().iter().map(|p| format!("material.{p}")).zip(grad).collect();
