@@ -28,8 +28,9 @@ use std::path::Path;
 /// experiment's covariates, then the experiment's own `set` overrides), the `[material]` it runs
 /// with before its keys are set (the model's, less every number whose `material.KEY` the keys
 /// lack: an effect removed it, as the moduli replace `poisson_ratio` by `shear_modulus`) and the
-/// effects switched on, which its scenario must accept. Built once for an experiment and a model: the experiment's runs, its scenario and the
-/// record of it are made from it, not from the model again.
+/// effects switched on, which its scenario must accept. Built once for an experiment and a model:
+/// the experiment's runs, its scenario and the record of it are made from it, not from the model
+/// again.
 #[derive(Clone)]
 pub struct Applied {
     pub keys: Keys,

@@ -28,7 +28,7 @@ pub fn chained(
     (jacobian, jacobian_scatter): (&[Vec<f64>], &[Vec<f64>]),
     extra: &[String],
 ) -> Result<Vec<Option<Chained>>, MeasureError> {
-    let all: Vec<String> = fitted.iter().chain(extra).cloned().collect();
+    let all = model.parameters(&fitted.iter().chain(extra).cloned().collect::<Vec<_>>())?;
     let fcols: Vec<usize> = (0..fitted.len()).collect();
     let mut columns: Vec<Option<Chained>> =
         vec![Some(Chained { column: vec![0.0; data.len()], scatter: vec![0.0; data.len()] }); extra.len()];

@@ -92,7 +92,8 @@ mod tests {
             let rh = Rheometer::new(&*m, &proto).unwrap();
             let (readings, grad) = rh.gradient(&weights).unwrap();
             let kb: Keys = m.param_names().iter().map(|p| format!("material.{p}")).zip(grad).collect();
-            let g = model.keys_adjoint(&x, kb, &["shear_thinning.n".to_string()]).unwrap()[0];
+            let n = model.parameters(&["shear_thinning.n".to_string()]).unwrap();
+            let g = model.keys_adjoint(&x, kb, &n).unwrap()[0];
             (readings.iter().zip(weights).map(|(r, w)| w * r.stress).sum(), g)
         };
         for mat in materials {

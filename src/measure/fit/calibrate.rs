@@ -458,10 +458,8 @@ impl<'c, 'a> Fitting<'c, 'a> {
             if moved < 1e-12 || linear_drop < o.worth_a_try {
                 return Ok(None);
             }
-            let mut tm = self.now.model.clone();
-            for (p, v) in self.params.iter().zip(&trial) {
-                tm.set_value(p, *v);
-            }
+            let values: Vec<(&Parameter, f64)> = self.params.iter().zip(trial.iter().copied()).collect();
+            let tm = self.now.model.edited(&[], &values);
             let tv = match c.sensitivity(&tm, None)? {
                 Ok(t) => t.values,
                 Err(e) => {
@@ -562,8 +560,8 @@ fn check(model: &Model, names: &[String]) -> Result<(Vec<Parameter>, Vec<f64>), 
     if names.is_empty() {
         return Err(MeasureError::Fit("nothing to fit: name the parameters (--fit P1,P2,...)".into()));
     }
-    let params: Vec<Parameter> = names.iter().map(|n| model.parameter(n)).collect::<Result<_, _>>()?;
-    let start: Vec<f64> = params.iter().map(|p| model.value(p)).collect();
+    let params = model.parameters(names)?;
+    let start: Vec<f64> = params.iter().map(|p| p.value).collect();
     if let Some((n, v)) = names.iter().zip(&start).find(|(_, v)| !v.is_finite()) {
         return Err(MeasureError::Fit(format!("{n} starts at {v}, its null at infinity, where there is no gradient to \
             move it by: give it a finite start in the model")));
