@@ -180,11 +180,6 @@ impl Model {
         }
     }
 
-    /// Every effect the model can take: the library's, then the declared ones.
-    pub fn available(&self) -> Vec<&'static dyn Effect> {
-        effects::REGISTRY.iter().copied().chain(self.declared.iter().map(|d| *d as &dyn Effect)).collect()
-    }
-
     /// Every parameter: the material's numbers, then each effect's.
     pub fn param_names(&self) -> Vec<String> {
         let mut n: Vec<String> = self

@@ -344,7 +344,8 @@ fn a_failure_layers_column_resolves_its_staircase() {
 /// slumps (simulations, so secant steps), fitted from the base model away from their truth.
 #[test]
 fn a_fit_finished_on_an_exact_jacobian_ends_where_a_full_fit_does() {
-    use strand::measure::calibrate::{calibrate, finish};
+    use strand::measure::calibrate::calibrate;
+    use strand::measure::diagnose::finish;
     use strand::measure::campaign::{Campaign, FitOptions};
     use strand::measure::sensitivity::{jacobian_at, Differences};
     use strand::measure::{experiments::Experiments, model::Model, synth::synth};

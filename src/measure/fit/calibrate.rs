@@ -208,24 +208,6 @@ pub fn calibrate_from(
     fit.result(Started { start, chi2: c2, at: first }, converged)
 }
 
-/// A fit made for its optimum only ([`FitOptions::uncertainties`](crate::measure::campaign::FitOptions::uncertainties)
-/// off, perhaps [`stop_on_secant`](crate::measure::campaign::FitOptions::stop_on_secant) on), finished as the
-/// campaign's options ask: where its Jacobian
-/// at the end may be a secant update, the engine's exact one there, and the fit taken on from it
-/// until that Jacobian's stop holds (at once, where the secant fit had stopped at the optimum),
-/// so that its uncertainties, and a leave-one-out step on its curvature, come from an exact
-/// Jacobian as a fit made with uncertainties does. The fit keeps its start and history.
-pub fn finish(c: &Campaign, f: Fit) -> Result<Fit, MeasureError> {
-    if !(c.opts.uncertainties && !c.opts.stop_on_secant && c.on_secants()) {
-        return Ok(f);
-    }
-    let exact = c.jacobian_at(&f.model, &f.names, (&f.model_values, &Differences::Central))??;
-    let mut finished = calibrate_from(c, &f.model, &f.names, exact)?;
-    finished.history = f.history.iter().chain(&finished.history[1..]).copied().collect();
-    (finished.start, finished.chi2_start, finished.at_start) = (f.start, f.chi2_start, f.at_start);
-    Ok(finished)
-}
-
 /// Where a fit started: the parameters, chi^2, and the values and Jacobian there.
 struct Started {
     start: Vec<f64>,
@@ -567,19 +549,6 @@ fn check(model: &Model, names: &[String]) -> Result<(Vec<Parameter>, Vec<f64>), 
             move it by: give it a finite start in the model")));
     }
     Ok((params, start))
-}
-
-impl Fit {
-    /// The values and Jacobian at the fit's end, for the observations `rows` (indices into its
-    /// data): where a fit of a subset of the data starts from this one.
-    pub fn at_end(&self, rows: &[usize]) -> Sensitivity {
-        Sensitivity {
-            values: rows.iter().map(|&i| self.model_values[i]).collect(),
-            jacobian: Some(rows.iter().map(|&i| self.jacobian[i].clone()).collect()),
-            scatter: rows.iter().map(|&i| self.scatter[i]).collect(),
-            jacobian_scatter: Some(rows.iter().map(|&i| self.jacobian_scatter[i].clone()).collect()),
-        }
-    }
 }
 
 /// Standardised residuals z = (model - measured) / uncertainty and their Jacobian in scaled
