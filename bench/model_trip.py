@@ -11,7 +11,8 @@ name and the callee's parameter at that place is of a model-carrying type. A cal
 its name: in the caller's file first, then among the functions of that name in the whole tree
 when exactly one (a method: one among the methods of that name whose parameter fits); a call
 whose callee the program chooses as it runs (a trait's method with several implementations) is
-not followed. A call by a type's path (`Type::f(...)`, `Self::f(...)`) names that type's function. Each function is walked once, depth first, in the order in which the code is
+not followed. A call by a type's path (`Type::f(...)`, `Self::f(...)`) names that type's function;
+a method's receiver that is a parameter of the caller has that parameter's type. Each function is walked once, depth first, in the order in which the code is
 written.
 
 The walk is a list of events, the file of each: entering a callee, and coming back to the
@@ -263,6 +264,10 @@ def receiver_type(caller, receiver, structs):
     r = receiver.strip().lstrip("&*")
     if r == "self":
         return caller.owner
+    for name, ty in caller.params:
+        if name == r:
+            found = re.findall(r"\b[A-Z]\w*", ty)
+            return found[-1] if found else ""
     m = re.match(r"^self\.(\w+)$", r)
     if m and caller.owner in structs:
         for part in split_top(structs[caller.owner]):
