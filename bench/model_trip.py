@@ -12,7 +12,8 @@ its name: in the caller's file first, then among the functions of that name in t
 when exactly one (a method: one among the methods of that name whose parameter fits); a call
 whose callee the program chooses as it runs (a trait's method with several implementations) is
 not followed. A call by a type's path (`Type::f(...)`, `Self::f(...)`) names that type's function;
-a method's receiver that is a parameter of the caller has that parameter's type. Each function is walked once, depth first, in the order in which the code is
+a method's receiver that is a parameter of the caller has that parameter's type; a call by a
+module's path (`runner::evaluate(...)`) names a function of that module's file. Each function is walked once, depth first, in the order in which the code is
 written.
 
 The walk is a list of events, the file of each: entering a callee, and coming back to the
@@ -236,7 +237,13 @@ def calls(body):
             # an associated function called by its type's path (`Type::f(...)`, `Self::f(...)`):
             # the receiver is the path, and the callee is that type's
             path = re.search(r"\b([A-Z]\w*)\s*::\s*$", body[:m.start()])
-            receiver = path.group(1) + "::" if path else ""
+            module = re.search(r"\b([a-z_]\w*)\s*::\s*$", body[:m.start()])
+            if path:
+                receiver = path.group(1) + "::"
+            elif module and module.group(1) not in ("crate", "super", "self"):
+                receiver = "mod:" + module.group(1)
+            else:
+                receiver = ""
         yield m.start(), name, bool(m.group(1)), receiver, args
 
 
@@ -286,6 +293,10 @@ def resolve(fns_by_name, caller, call, at, held, structs):
         cands = [f for f in fns_by_name.get(name, []) if f.owner == ty]
     else:
         cands = [f for f in fns_by_name.get(name, []) if bool(f.owner) == is_method]
+        if receiver.startswith("mod:"):
+            module = receiver[4:]
+            stem = lambda f: os.path.basename(os.path.dirname(f)) if f.endswith("/mod.rs") else os.path.basename(f)[:-3]
+            cands = [f for f in cands if stem(f.file) == module] or cands
     cands = [f for f in cands if at < len(f.params) and carries(f.params[at][1], held)]
     if len(cands) > 1 and is_method:
         ty = receiver_type(caller, receiver, structs)

@@ -199,7 +199,7 @@ pub struct Counted {
 
 /// What calibrate and diagnose fit: `data` with the discretisation errors at `model` counted
 /// ([`counted`]), and what was counted; `data` unchanged without `[resolution]`. The model's own
-/// runs are a fit's (fixed step, every particle awake: [`sensitivity`](super::sensitivity)), so
+/// runs are a fit's (fixed step, every particle awake: [`evaluate`](super::sensitivity::evaluate)), so
 /// the fit from this model takes their values as its start's.
 pub fn counted_data(
     model: &Model,
@@ -210,7 +210,7 @@ pub fn counted_data(
     if exps.resolution.is_none() {
         return Ok((data, None));
     }
-    let start_values = super::sensitivity::sensitivity(model, &data, exps, None, Jobs::new(jobs))?.values;
+    let start_values = super::sensitivity::evaluate(model, &data, exps, (None, Jobs::new(jobs)), None)?.values;
     let estimates = estimate(model, &data, exps, Some(&start_values), jobs)?.expect("a [resolution] table");
     Ok((counted(&data, &estimates), Some(Counted { data, estimates, start_values })))
 }

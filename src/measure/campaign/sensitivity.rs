@@ -66,38 +66,22 @@ pub enum Differences {
 }
 
 /// Values of every observation under `model`, with their gradients in `names` when given;
-/// experiments run as `jobs` says.
-pub fn sensitivity(
-    model: &Model,
-    data: &[Observation],
-    exps: &Experiments,
-    names: Option<&[String]>,
-    jobs: Jobs,
-) -> Result<Sensitivity, MeasureError> {
-    campaign(model, data, exps, (names, jobs), (None, &Differences::Central))
-}
-
-/// [`sensitivity`] in `names` at a model whose values are known (`values`, in the data's order,
-/// as [`sensitivity`] gives them there: a calibration's accepted trial). An experiment whose
-/// Jacobian is all differences takes them instead of running the model again: one run of its
-/// 1 + 2 p (or 1 + p, [`Differences::Forward`]).
-pub fn jacobian_at(
-    model: &Model,
-    data: &[Observation],
-    exps: &Experiments,
-    (names, jobs): (&[String], Jobs),
-    (values, differences): (&[f64], &Differences),
-) -> Result<Sensitivity, MeasureError> {
-    campaign(model, data, exps, (Some(names), jobs), (Some(values), differences))
-}
-
-fn campaign(
+/// experiments run as `jobs` says. `at`: the values at `model` where they are known (in the
+/// data's order, as this gives them there: a calibration's accepted trial) and how a simulation's
+/// Jacobian is differenced; an experiment whose Jacobian is all differences then takes them
+/// instead of running the model again (one run of its 1 + 2 p, or 1 + p:
+/// [`Differences::Forward`]). Without, the values are run and differences are central.
+pub fn evaluate(
     model: &Model,
     data: &[Observation],
     exps: &Experiments,
     (names, jobs): (Option<&[String]>, Jobs),
-    (known, differences): (Option<&[f64]>, &Differences),
+    at: Option<(&[f64], &Differences)>,
 ) -> Result<Sensitivity, MeasureError> {
+    let (known, differences) = match at {
+        Some((values, differences)) => (Some(values), differences),
+        None => (None, &Differences::Central),
+    };
     let wanted = group(data);
     let threads = job_threads(jobs.n, wanted.len());
     let known = known.map(|v| regroup(data, &wanted, v));
@@ -140,7 +124,7 @@ pub fn regroup(data: &[Observation], wanted: &[(String, Vec<Observable>)], value
 }
 
 /// One experiment's values of `wanted` and, with `names`, their gradients (one-sided where
-/// `scatter`, its values' known scatter, is given): the unit of work [`sensitivity`] runs side
+/// `scatter`, its values' known scatter, is given): the unit of work [`evaluate`] runs side
 /// by side and a scheduler's job runs alone (`engine.rs`).
 pub fn one(
     model: &Model,

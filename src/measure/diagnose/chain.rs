@@ -110,7 +110,7 @@ mod tests {
         let extra: Vec<String> = ["ageing.rate", "thixotropy.a_thix"].iter().map(|s| s.to_string()).collect();
         let all: Vec<String> = fitted.iter().chain(&extra).cloned().collect();
         let one_job = crate::measure::campaign::runner::Jobs::new(1);
-        let exact = crate::measure::campaign::sensitivity::sensitivity(&model, &data, &exps, Some(&all), one_job)
+        let exact = crate::measure::campaign::sensitivity::evaluate(&model, &data, &exps, (Some(&all), one_job), None)
             .unwrap()
             .jacobian
             .unwrap();

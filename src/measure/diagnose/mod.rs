@@ -469,7 +469,8 @@ fn score_tests(d: Diagnosing, base: &Fit, clock: &Clock) -> Result<ScoreTests, M
     let mut absent: Vec<&'static dyn Effect> = Vec::new();
     let mut unreachable: Vec<&'static dyn Effect> = Vec::new();
     let mut inapplicable: Vec<Candidate> = Vec::new();
-    for e in super::effects::available(&base.model.declared).into_iter().filter(|e| !base.model.has(e.name())) {
+    let available = super::effects::declared::available(&base.model.declared);
+    for e in available.into_iter().filter(|e| !base.model.has(e.name())) {
         match applicable(d.c, e, &base.model) {
             Ok(()) if !e.null_at_infinity() => absent.push(e),
             Ok(()) => unreachable.push(e),

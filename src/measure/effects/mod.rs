@@ -51,11 +51,6 @@ pub fn find(name: &str) -> Result<&'static dyn Effect, MeasureError> {
     })
 }
 
-/// Every effect a model can take: the library's, then those its file declares (`declared`).
-pub fn available(declared: &[&'static declared::Declared]) -> Vec<&'static dyn Effect> {
-    REGISTRY.iter().copied().chain(declared.iter().map(|d| *d as &dyn Effect)).collect()
-}
-
 /// Where `key` lands in a scenario (its TOML document): the floor's friction
 /// ([`wall_friction::KEY`]) on the platform the material is printed on when the scenario has
 /// one, on the `z_min` face otherwise; every other key where it says.
