@@ -33,7 +33,7 @@ use crate::measure::model::Model;
 use crate::measure::observation::{Observable, Observation};
 use super::provenance::{self, exact, plain, Exact, Provenance};
 use super::runner::{find, group, Jobs};
-use super::sensitivity::{self, Differences, Sensitivity, Valued};
+use super::sensitivity::{self, Differences, Known, Sensitivity, Valued};
 use std::path::{Path, PathBuf};
 
 /// The preset schedulers and their command templates: GNU parallel on this machine, a Slurm job
@@ -116,7 +116,7 @@ impl Engine {
         jobs: Jobs,
         model: &Model,
         (data, exps): (&[Observation], &Experiments),
-        (names, at): (Option<&[String]>, Option<(&[f64], &Differences)>),
+        (names, at): (Option<&[String]>, Known),
     ) -> Result<Answer, MeasureError> {
         match self {
             Engine::Local => Ok(sensitivity::evaluate(model, data, exps, (names, jobs), at)),

@@ -65,6 +65,10 @@ pub enum Differences {
     Forward(Vec<f64>),
 }
 
+/// The values at a model where they are known (in the data's order), and how a simulation's
+/// Jacobian is differenced there ([`evaluate`]).
+pub type Known<'a> = Option<(&'a [f64], &'a Differences)>;
+
 /// Values of every observation under `model`, with their gradients in `names` when given;
 /// experiments run as `jobs` says. `at`: the values at `model` where they are known (in the
 /// data's order, as this gives them there: a calibration's accepted trial) and how a simulation's
@@ -76,7 +80,7 @@ pub fn evaluate(
     data: &[Observation],
     exps: &Experiments,
     (names, jobs): (Option<&[String]>, Jobs),
-    at: Option<(&[f64], &Differences)>,
+    at: Known,
 ) -> Result<Sensitivity, MeasureError> {
     let (known, differences) = match at {
         Some((values, differences)) => (Some(values), differences),
