@@ -11,7 +11,9 @@ name and the callee's parameter at that place is of a model-carrying type. A cal
 its name: in the caller's file first, then among the functions of that name in the whole tree
 when exactly one (a method: one among the methods of that name whose parameter fits); a call
 whose callee the program chooses as it runs (a trait's method with several implementations) is
-not followed. Each function is walked once, depth first, in the order in which the code is
+not followed. A call by a type's path (`Type::f(...)`, `Self::f(...)`) names that type's function;
+a method's receiver that is a parameter of the caller has that parameter's type; a call by a
+module's path (`runner::evaluate(...)`) names a function of that module's file. Each function is walked once, depth first, in the order in which the code is
 written.
 
 The walk is a list of events, the file of each: entering a callee, and coming back to the
@@ -231,6 +233,17 @@ def calls(body):
                     break
                 j -= 1
             receiver = body[j + 1:m.start()]
+        else:
+            # an associated function called by its type's path (`Type::f(...)`, `Self::f(...)`):
+            # the receiver is the path, and the callee is that type's
+            path = re.search(r"\b([A-Z]\w*)\s*::\s*$", body[:m.start()])
+            module = re.search(r"\b([a-z_]\w*)\s*::\s*$", body[:m.start()])
+            if path:
+                receiver = path.group(1) + "::"
+            elif module and module.group(1) not in ("crate", "super", "self"):
+                receiver = "mod:" + module.group(1)
+            else:
+                receiver = ""
         yield m.start(), name, bool(m.group(1)), receiver, args
 
 
@@ -258,6 +271,10 @@ def receiver_type(caller, receiver, structs):
     r = receiver.strip().lstrip("&*")
     if r == "self":
         return caller.owner
+    for name, ty in caller.params:
+        if name == r:
+            found = re.findall(r"\b[A-Z]\w*", ty)
+            return found[-1] if found else ""
     m = re.match(r"^self\.(\w+)$", r)
     if m and caller.owner in structs:
         for part in split_top(structs[caller.owner]):
@@ -271,7 +288,15 @@ def receiver_type(caller, receiver, structs):
 def resolve(fns_by_name, caller, call, at, held, structs):
     """The one function a call names, or None (unknown, or chosen as the program runs)."""
     _, name, is_method, receiver, _ = call
-    cands = [f for f in fns_by_name.get(name, []) if bool(f.owner) == is_method]
+    if receiver.endswith("::"):
+        ty = caller.owner if receiver == "Self::" else receiver[:-2]
+        cands = [f for f in fns_by_name.get(name, []) if f.owner == ty]
+    else:
+        cands = [f for f in fns_by_name.get(name, []) if bool(f.owner) == is_method]
+        if receiver.startswith("mod:"):
+            module = receiver[4:]
+            stem = lambda f: os.path.basename(os.path.dirname(f)) if f.endswith("/mod.rs") else os.path.basename(f)[:-3]
+            cands = [f for f in cands if stem(f.file) == module] or cands
     cands = [f for f in cands if at < len(f.params) and carries(f.params[at][1], held)]
     if len(cands) > 1 and is_method:
         ty = receiver_type(caller, receiver, structs)

@@ -180,11 +180,6 @@ impl Model {
         }
     }
 
-    /// Every effect the model can take: the library's, then the declared ones.
-    pub fn available(&self) -> Vec<&'static dyn Effect> {
-        effects::REGISTRY.iter().copied().chain(self.declared.iter().map(|d| *d as &dyn Effect)).collect()
-    }
-
     /// Every parameter: the material's numbers, then each effect's.
     pub fn param_names(&self) -> Vec<String> {
         let mut n: Vec<String> = self
@@ -224,12 +219,33 @@ impl Model {
         Ok(Slot::Effect(e, p))
     }
 
-    /// Parameter `name`, its key parsed and located once, with its bounds and unit here.
-    pub fn parameter(&self, name: &str) -> Result<Parameter, MeasureError> {
-        let slot = self.locate(name)?;
-        let (bounds, unit) = (self.bounds_at(&slot), self.unit_at(&slot));
-        let key = Key::parse(name).expect("located");
-        Ok(Parameter { key, slot, bounds, unit })
+    /// Parameters `names`, each key parsed and located once, with its value, bounds and unit here.
+    pub fn parameters(&self, names: &[String]) -> Result<Vec<Parameter>, MeasureError> {
+        names
+            .iter()
+            .map(|name| {
+                let slot = self.locate(name)?;
+                let (value, bounds, unit) = (self.value_at(&slot), self.bounds_at(&slot), self.unit_at(&slot));
+                let key = Key::parse(name).expect("located");
+                Ok(Parameter { key, slot, value, bounds, unit })
+            })
+            .collect()
+    }
+
+    /// The model edited: `effects` switched on, each at its null (one on already stays as it
+    /// is), then each parameter of `values` set. Every edit of a model's numbers goes through
+    /// here: diagnosis's candidate effects and their starts, a fit's trial steps, a difference's
+    /// sides. The parameters of `values` are resolved ([`Model::parameters`]) in a model with the
+    /// effects of the edited one.
+    pub fn edited(&self, effects: &[&'static dyn Effect], values: &[(&Parameter, f64)]) -> Model {
+        let mut m = self.clone();
+        for e in effects {
+            m = m.with_effect(*e);
+        }
+        for (p, v) in values {
+            m.set_at(&p.slot, *v);
+        }
+        m
     }
 
     pub fn get(&self, name: &str) -> Result<f64, MeasureError> {
@@ -240,16 +256,6 @@ impl Model {
         let slot = self.locate(name)?;
         self.set_at(&slot, v);
         Ok(())
-    }
-
-    /// The value of parameter `p` (resolved in this model or one with the same effects).
-    pub fn value(&self, p: &Parameter) -> f64 {
-        self.value_at(&p.slot)
-    }
-
-    /// Set parameter `p` (resolved in this model or one with the same effects) to `v`.
-    pub fn set_value(&mut self, p: &Parameter, v: f64) {
-        self.set_at(&p.slot, v)
     }
 
     fn value_at(&self, slot: &Slot) -> f64 {
@@ -310,15 +316,6 @@ impl Model {
         }
     }
 
-    /// The material an experiment runs with, before its keys are set: the model's, less every
-    /// number whose `material.KEY` the keys lack (an effect removed it: the moduli replace
-    /// `poisson_ratio` by `shear_modulus`).
-    pub fn material_for(&self, keys: &Keys) -> toml::Table {
-        let mut m = self.material.clone();
-        m.retain(|k, v| super::observation::number(v).is_none() || keys.contains_key(&format!("material.{k}")));
-        m
-    }
-
     /// The scenario keys of one experiment (before its `set` overrides).
     pub fn keys(&self, x: &Covariates) -> Result<Keys, MeasureError> {
         self.keys_traced(x).map(|(keys, _)| keys)
@@ -349,23 +346,26 @@ impl Model {
         Ok((keys, before))
     }
 
-    /// d(objective)/d(parameter) for `names`, given the adjoints of the keys [`Model::keys`]
-    /// returned for covariates `x`.
-    pub fn keys_adjoint(&self, x: &Covariates, mut keys_bar: Keys, names: &[String]) -> Result<Vec<f64>, MeasureError> {
+    /// d(objective)/d(parameter) for `params` (resolved in this model), given the adjoints of the
+    /// keys [`Model::keys`] returned for covariates `x`.
+    pub fn keys_adjoint(
+        &self,
+        x: &Covariates,
+        mut keys_bar: Keys,
+        params: &[Parameter],
+    ) -> Result<Vec<f64>, MeasureError> {
         let (_, before) = self.keys_traced(x)?;
         let mut effect_bar: Vec<Vec<f64>> = self.effects.iter().map(|(_, p)| vec![0.0; p.len()]).collect();
         for (i, (e, p)) in self.effects.iter().enumerate().rev() {
             e.apply_adjoint(p, x, &before[i], &mut keys_bar, &mut effect_bar[i]);
         }
-        names
+        Ok(params
             .iter()
-            .map(|n| {
-                Ok(match self.locate(n)? {
-                    Slot::Material(k) => effects::bar(&keys_bar, &format!("material.{k}")),
-                    Slot::Effect(e, p) => effect_bar[e][p],
-                })
+            .map(|p| match &p.slot {
+                Slot::Material(k) => effects::bar(&keys_bar, &format!("material.{k}")),
+                Slot::Effect(e, i) => effect_bar[*e][*i],
             })
-            .collect()
+            .collect())
     }
 
     /// The model file.
@@ -392,14 +392,15 @@ impl Model {
     }
 }
 
-/// A model's parameter, its key parsed once ([`Model::parameter`]): a material number or an
-/// effect's parameter, with its bounds and unit (a material number's, as the model it was
-/// resolved in gives them). It reads and sets that model, and every model with the same effects
-/// (a fit's trial models).
+/// A model's parameter, its key parsed once ([`Model::parameters`]): a material number or an
+/// effect's parameter, with its value, bounds and unit in the model it was resolved in (a
+/// material number's bounds and unit follow its value). It sets that model, and every model with
+/// the same effects (a fit's trial models: [`Model::edited`]).
 #[derive(Clone, Debug)]
 pub struct Parameter {
     pub key: Key,
     slot: Slot,
+    pub value: f64,
     pub bounds: Bounds,
     pub unit: f64,
 }

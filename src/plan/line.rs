@@ -20,7 +20,7 @@ use crate::grad::GradOptions;
 use crate::observables::Objective;
 use crate::measure::experiments::{Experiment, Experiments};
 use crate::measure::model::Model;
-use crate::measure::runner::{build_scenario, experiment_keys, scenario_text};
+use crate::measure::runner::Applied;
 use crate::print::toolpath::{MoveKind, Segment, Toolpath};
 use crate::scenario::Scenario;
 use std::path::{Path, PathBuf};
@@ -66,7 +66,7 @@ impl Line {
     pub fn new(model: &Model, path: &Path, targets: &Targets) -> Result<Line, PlanError> {
         let age = targets.wall.as_ref().map_or(0.0, |w| w.age_at_start);
         let x = Experiment { id: "plan".into(), scenario: Some(path.to_path_buf()), protocol: None, set: toml::Table::new(), observe: Vec::new(), rest_time: 0.0, age, covariates: Default::default() };
-        let sc = build_scenario(model, &experiment_keys(model, &x)?, path)?;
+        let sc = Applied::new(model, &x)?.scenario(path)?;
         let p = sc.print.as_ref().ok_or_else(|| PlanError::Unsupported(format!("{}: no [print] table: a plan sets a print's settings", path.display())))?;
         if p.path.is_empty() {
             return Err(PlanError::Unsupported(format!("{}: a plan sets an inline [print] path (`strand plan` writes a G-code or point-list toolpath inline first: plan::toolpath_file)", path.display())));
@@ -149,12 +149,12 @@ impl Line {
     pub fn scenario_text(&self, x: &Point) -> Result<String, PlanError> {
         let e = self.campaign(&[*x]);
         let path = e.base_dir.join(e.experiment[0].scenario.as_ref().expect("a simulation"));
-        Ok(scenario_text(&self.model, &experiment_keys(&self.model, &e.experiment[0])?, &path)?)
+        Ok(Applied::new(&self.model, &e.experiment[0])?.scenario_text(&path)?)
     }
 
     pub fn scenario(&self, x: &Point) -> Result<Scenario, PlanError> {
         let e = self.campaign(&[*x]);
-        Ok(build_scenario(&self.model, &experiment_keys(&self.model, &e.experiment[0])?, &self.path)?)
+        Ok(Applied::new(&self.model, &e.experiment[0])?.scenario(&self.path)?)
     }
 
     /// Plan the memory of every point of `xs` before any runs (`measure::preflight`).

@@ -75,7 +75,7 @@ pub fn map(line: &Line, targets: &Targets, wall: Option<&WallGoal>, axes: [Axis;
             })?
         }
         // a scheduler's jobs: one failing fails the map
-        _ => engine.sensitivity(Jobs::new(jobs), &line.model, &data, &exps, None)??.values.chunks(2).map(|v| Ok([v[0], v[1]])).collect(),
+        _ => engine.evaluate(Jobs::new(jobs), &line.model, (&data, &exps), (None, None))??.values.chunks(2).map(|v| Ok([v[0], v[1]])).collect(),
     };
     let l = &targets.layer;
     let length = targets.layer_length(line.length);

@@ -344,9 +344,10 @@ fn a_failure_layers_column_resolves_its_staircase() {
 /// slumps (simulations, so secant steps), fitted from the base model away from their truth.
 #[test]
 fn a_fit_finished_on_an_exact_jacobian_ends_where_a_full_fit_does() {
-    use strand::measure::calibrate::{calibrate, finish};
+    use strand::measure::calibrate::calibrate;
+    use strand::measure::diagnose::finish;
     use strand::measure::campaign::{Campaign, FitOptions};
-    use strand::measure::sensitivity::{jacobian_at, Differences};
+    use strand::measure::sensitivity::{evaluate, Differences};
     use strand::measure::{experiments::Experiments, model::Model, synth::synth};
     let d = measure_fixtures("slump");
     let exps = Experiments::load(&d.join("experiments.toml")).unwrap();
@@ -367,7 +368,7 @@ fn a_fit_finished_on_an_exact_jacobian_ends_where_a_full_fit_does() {
     println!("finished: {:?} +/- {:?}, chi^2 {} ({:?})", finished.values, finished.uncertainty, finished.chi2, finished.history);
     // the lazy fit ends on a secant Jacobian, the finished one on the engine's at its values, to
     // the bit
-    let exact_at = |f: &strand::measure::calibrate::Fit| jacobian_at(&f.model, &data, &exps, (&names, strand::measure::runner::Jobs::new(2)), (&f.model_values, &Differences::Central)).unwrap().jacobian.unwrap();
+    let exact_at = |f: &strand::measure::calibrate::Fit| evaluate(&f.model, &data, &exps, (Some(&names), strand::measure::runner::Jobs::new(2)), Some((&f.model_values, &Differences::Central))).unwrap().jacobian.unwrap();
     assert_ne!(lazy.jacobian, exact_at(&lazy), "the lazy fit ended on an exact Jacobian: nothing to finish");
     assert_eq!(finished.jacobian, exact_at(&finished));
     // it keeps the lazy fit's start and history, and goes on only downhill

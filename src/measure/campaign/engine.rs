@@ -33,7 +33,7 @@ use crate::measure::model::Model;
 use crate::measure::observation::{Observable, Observation};
 use super::provenance::{self, exact, plain, Exact, Provenance};
 use super::runner::{find, group, Jobs};
-use super::sensitivity::{self, Differences, Sensitivity, Valued};
+use super::sensitivity::{self, Differences, Known, Sensitivity, Valued};
 use std::path::{Path, PathBuf};
 
 /// The preset schedulers and their command templates: GNU parallel on this machine, a Slurm job
@@ -105,41 +105,24 @@ impl Engine {
     }
 
     /// The values of every observation under `model`, with their gradients in `names` when
-    /// given. `Err` is the engine failing (a job that left no result, named with its log);
-    /// `Ok(Err)` the model's own failure, as a local run gives it. Here the experiments run as
-    /// `jobs` says; a scheduler runs them all at once and counts none of them as it goes.
-    pub fn sensitivity(
+    /// given, at a model whose values are known where `at` gives them (as
+    /// [`sensitivity::evaluate`] takes them). `Err` is the engine failing (a job that left no
+    /// result, named with its log); `Ok(Err)` the model's own failure, as a local run gives it.
+    /// Here the experiments run as `jobs` says, and those differenced throughout take the known
+    /// values instead of running them again; a scheduler runs them all at once, computes the
+    /// values again (to the same bits) and counts none of them as it goes.
+    pub fn evaluate(
         &self,
         jobs: Jobs,
         model: &Model,
-        data: &[Observation],
-        exps: &Experiments,
-        names: Option<&[String]>,
+        (data, exps): (&[Observation], &Experiments),
+        (names, at): (Option<&[String]>, Known),
     ) -> Result<Answer, MeasureError> {
         match self {
-            Engine::Local => Ok(sensitivity::sensitivity(model, data, exps, names, jobs)),
-            Engine::Scheduler(s) => s.sensitivity(model, data, exps, names, None),
-        }
-    }
-
-    /// The Jacobian in `names` at `model`, whose values the engine has just given (`values`: a
-    /// calibration's accepted trial), its simulations differenced as `differences` says. Here
-    /// the experiments differenced throughout take the values instead of running them again; a
-    /// scheduler's jobs compute them again, to the same bits.
-    pub fn jacobian_at(
-        &self,
-        jobs: Jobs,
-        model: &Model,
-        data: &[Observation],
-        exps: &Experiments,
-        names: &[String],
-        (values, differences): (&[f64], &Differences),
-    ) -> Result<Answer, MeasureError> {
-        match self {
-            Engine::Local => Ok(sensitivity::jacobian_at(model, data, exps, (names, jobs), (values, differences))),
-            Engine::Scheduler(s) => s.sensitivity(model, data, exps, Some(names), match differences {
-                Differences::Central => None,
-                Differences::Forward(scatter) => Some(scatter),
+            Engine::Local => Ok(sensitivity::evaluate(model, data, exps, (names, jobs), at)),
+            Engine::Scheduler(s) => s.sensitivity(model, data, exps, names, match at {
+                Some((_, Differences::Forward(scatter))) => Some(scatter),
+                _ => None,
             }),
         }
     }
@@ -230,7 +213,7 @@ fn tail(path: &Path, none: &str) -> String {
 }
 
 impl Scheduler {
-    /// As [`Engine::sensitivity`]; `scatter` (in the data's order) makes the differences
+    /// As [`Engine::evaluate`]; `scatter` (in the data's order) makes the differences
     /// one-sided ([`Differences::Forward`]).
     fn sensitivity(
         &self,

@@ -109,13 +109,14 @@ impl<'a> Campaign<'a> {
     }
 
     /// The engine's values of every observation under `model`, with their gradients in `names`
-    /// when given ([`Engine::sensitivity`]), the runs counted into the progress.
+    /// when given ([`Engine::evaluate`]), the runs counted into the progress.
     pub fn sensitivity(&self, model: &Model, names: Option<&[String]>) -> Result<Answer, MeasureError> {
         let per_experiment = names.map_or(0, |n| 1 + 2 * n.len()).max(1);
-        self.counted(per_experiment, |jobs| self.opts.engine.sensitivity(jobs, model, self.data, self.exps, names))
+        let (engine, data, exps) = (&self.opts.engine, self.data, self.exps);
+        self.counted(per_experiment, |jobs| engine.evaluate(jobs, model, (data, exps), (names, None)))
     }
 
-    /// The engine's Jacobian at a model whose values are known ([`Engine::jacobian_at`]), the
+    /// The engine's Jacobian at a model whose values are known ([`Engine::evaluate`]), the
     /// runs counted into the progress.
     pub fn jacobian_at(
         &self,
@@ -124,8 +125,8 @@ impl<'a> Campaign<'a> {
         at: (&[f64], &Differences),
     ) -> Result<Answer, MeasureError> {
         let sides = if matches!(at.1, Differences::Central) { 2 } else { 1 };
-        let (opts, data, exps) = (self.opts, self.data, self.exps);
-        self.counted(sides * names.len(), |jobs| opts.engine.jacobian_at(jobs, model, data, exps, names, at))
+        let (engine, data, exps) = (&self.opts.engine, self.data, self.exps);
+        self.counted(sides * names.len(), |jobs| engine.evaluate(jobs, model, (data, exps), (Some(names), Some(at))))
     }
 
     /// `evaluate` counted into the progress: `per_experiment` runs of each of the data's

@@ -13,7 +13,7 @@
 use crate::measure::error::MeasureError;
 use super::experiments::{Experiment, Experiments, ResolutionTable};
 use crate::measure::model::Model;
-use super::runner::{build_scenario, experiment_keys};
+use super::runner::Applied;
 use crate::scenario::Scenario;
 
 /// What the up-front planning saw: the experiments that print (whose cell size's discretisation
@@ -65,8 +65,7 @@ pub fn plan_experiments<'a>(
 /// Experiment `x`'s scenario under `model`, as the runner builds it.
 fn scenario_of(model: &Model, exps: &Experiments, x: &Experiment) -> Result<Scenario, MeasureError> {
     let path = exps.base_dir.join(x.scenario.as_ref().expect("a simulation"));
-    let keys = experiment_keys(model, x)?;
-    build_scenario(model, &keys, &path)
+    Applied::new(model, x)?.scenario(&path)
 }
 
 /// Experiment `x`'s finer run of `[resolution]`. When it cannot be built though `x` can, the

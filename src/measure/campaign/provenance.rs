@@ -11,7 +11,7 @@
 use crate::measure::error::{io_error, MeasureError};
 use super::experiments::{Experiment, Experiments};
 use crate::measure::model::Model;
-use super::runner::{experiment_keys, scenario_text};
+use super::runner::Applied;
 use std::path::Path;
 
 /// The layout of saved results and job files; raise it whenever they change meaning.
@@ -86,7 +86,7 @@ fn resolved(model: &Model, exps: &Experiments, x: &Experiment) -> String {
     let r = match (&x.scenario, &x.protocol) {
         (Some(s), _) => {
             let path = exps.base_dir.join(s);
-            experiment_keys(model, x).and_then(|keys| scenario_text(model, &keys, &path)).map(|text| {
+            Applied::new(model, x).and_then(|applied| applied.scenario_text(&path)).map(|text| {
                 let gcode = gcode_of(&text, &path);
                 text + &gcode
             })

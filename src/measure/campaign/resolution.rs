@@ -34,7 +34,7 @@
 use crate::measure::error::MeasureError;
 use super::experiments::{Experiment, Experiments, ResolutionTable};
 use crate::measure::observation::{Observable, Observation};
-use super::runner::{build_scenario, evaluate, experiment_keys, find, group, job_threads, par_map_experiments, ungroup, Jobs};
+use super::runner::{evaluate, find, group, job_threads, par_map_experiments, ungroup, Applied, Jobs};
 use crate::measure::model::Model;
 
 /// The order of convergence p assumed when `[resolution]` gives none: case 1's width at 8, 10
@@ -96,8 +96,7 @@ fn finer(x: &Experiment, table: &ResolutionTable) -> Experiment {
 /// The cell size experiment `x` runs at under `model`.
 fn cell_size(model: &Model, exps: &Experiments, x: &Experiment) -> Result<f64, MeasureError> {
     let path = exps.base_dir.join(x.scenario.as_ref().expect("a simulation"));
-    let keys = experiment_keys(model, x)?;
-    Ok(build_scenario(model, &keys, &path)?.simulation.dx)
+    Ok(Applied::new(model, x)?.scenario(&path)?.simulation.dx)
 }
 
 /// Each observation's discretisation error under `model` (None for a rheometer test), from the
@@ -200,7 +199,7 @@ pub struct Counted {
 
 /// What calibrate and diagnose fit: `data` with the discretisation errors at `model` counted
 /// ([`counted`]), and what was counted; `data` unchanged without `[resolution]`. The model's own
-/// runs are a fit's (fixed step, every particle awake: [`sensitivity`](super::sensitivity)), so
+/// runs are a fit's (fixed step, every particle awake: [`evaluate`](super::sensitivity::evaluate)), so
 /// the fit from this model takes their values as its start's.
 pub fn counted_data(
     model: &Model,
@@ -211,7 +210,7 @@ pub fn counted_data(
     if exps.resolution.is_none() {
         return Ok((data, None));
     }
-    let start_values = super::sensitivity::sensitivity(model, &data, exps, None, Jobs::new(jobs))?.values;
+    let start_values = super::sensitivity::evaluate(model, &data, exps, (None, Jobs::new(jobs)), None)?.values;
     let estimates = estimate(model, &data, exps, Some(&start_values), jobs)?.expect("a [resolution] table");
     Ok((counted(&data, &estimates), Some(Counted { data, estimates, start_values })))
 }

@@ -9,7 +9,7 @@
 //! `jobs` at a time, and give the same numbers however many run together.
 
 use crate::measure::error::{io_error, toml_error, MeasureError};
-use crate::measure::effects::Keys;
+use crate::measure::effects::{Effect, Keys};
 use super::experiments::{Experiment, Experiments};
 use crate::measure::front::FrontTrace;
 use crate::measure::passing::PassingTrace;
@@ -24,14 +24,104 @@ use crate::scenario::Scenario;
 use crate::solver::Simulation;
 use std::path::Path;
 
-/// The scenario keys experiment `x` runs with: the model's for its covariates, then its own
-/// `set` overrides.
-pub fn experiment_keys(model: &Model, x: &Experiment) -> Result<Keys, MeasureError> {
-    let mut keys = model.keys(&x.covariates())?;
-    for (k, v) in &x.set {
-        keys.insert(k.clone(), number(v));
+/// A model applied to one experiment: the scenario keys it runs with (the model's for the
+/// experiment's covariates, then the experiment's own `set` overrides), the `[material]` it runs
+/// with before its keys are set (the model's, less every number whose `material.KEY` the keys
+/// lack: an effect removed it, as the moduli replace `poisson_ratio` by `shear_modulus`) and the
+/// effects switched on, which its scenario must accept. Built once for an experiment and a model:
+/// the experiment's runs, its scenario and the record of it are made from it, not from the model
+/// again.
+#[derive(Clone)]
+pub struct Applied {
+    pub keys: Keys,
+    material: toml::Table,
+    effects: Vec<&'static dyn Effect>,
+}
+
+impl Applied {
+    /// `model` applied to experiment `x`.
+    pub fn new(model: &Model, x: &Experiment) -> Result<Applied, MeasureError> {
+        let mut keys = model.keys(&x.covariates())?;
+        for (k, v) in &x.set {
+            keys.insert(k.clone(), number(v));
+        }
+        Ok(Applied::with_keys(model, keys))
     }
-    Ok(keys)
+
+    /// `model` run with scenario keys `keys` (its own for some covariates).
+    pub fn with_keys(model: &Model, keys: Keys) -> Applied {
+        let mut material = model.material.clone();
+        material.retain(|k, v| {
+            crate::measure::observation::number(v).is_none() || keys.contains_key(&format!("material.{k}"))
+        });
+        Applied { material, effects: model.effects.iter().map(|(e, _)| *e).collect(), keys }
+    }
+
+    /// The scenario table of a simulation experiment: the file's, with the model's `[material]`
+    /// in place of its own and every key set.
+    pub fn scenario_table(&self, scenario: &Path) -> Result<toml::Table, MeasureError> {
+        let text = std::fs::read_to_string(scenario).map_err(io_error(scenario))?;
+        let mut doc: toml::Table = text.parse().map_err(toml_error(scenario))?;
+        doc.insert("material".into(), toml::Value::Table(self.material.clone()));
+        for e in &self.effects {
+            e.check_scenario(&doc)
+                .map_err(|m| MeasureError::Effect(format!("effect '{}' {m} in {}", e.name(), scenario.display())))?;
+        }
+        for (k, v) in &self.keys {
+            let at = crate::measure::effects::placed(k, &doc);
+            set_path(&mut doc, &at, *v).map_err(|e| e.within(format!("set.{k}")))?;
+        }
+        Ok(doc)
+    }
+
+    /// The text of [`Applied::scenario_table`]: what a saved result records of the scenario it
+    /// ran.
+    pub fn scenario_text(&self, scenario: &Path) -> Result<String, MeasureError> {
+        Ok(toml::to_string(&self.scenario_table(scenario)?)?)
+    }
+
+    /// The scenario a simulation experiment runs: [`Applied::scenario_table`], read as a scenario
+    /// from the table (no text written and read back per run).
+    pub fn scenario(&self, scenario: &Path) -> Result<Scenario, MeasureError> {
+        scenario_from_table(self.scenario_table(scenario)?, scenario)
+    }
+
+    /// The material of a rheometer experiment (see [`Applied::material`]) and its protocol.
+    pub fn rheometer_setup(
+        &self,
+        base: &Path,
+        protocol: &toml::Value,
+    ) -> Result<(Box<dyn Material>, Protocol), MeasureError> {
+        let material = self.material()?;
+        let proto: Protocol = match protocol {
+            toml::Value::String(file) => {
+                let p = base.join(file);
+                let text = std::fs::read_to_string(&p).map_err(io_error(&p))?;
+                toml::from_str(&text).map_err(|e| MeasureError::Run(format!("{}: {}", p.display(), e.message())))?
+            }
+            v => v
+                .clone()
+                .try_into()
+                .map_err(|e: toml::de::Error| MeasureError::Run(format!("protocol: {}", e.message())))?,
+        };
+        Ok((material, proto))
+    }
+
+    /// The material a rheometer test runs: the model's, with its `material.*` keys set (walls and
+    /// the printing process do not reach a rheometer; another key is refused).
+    pub fn material(&self) -> Result<Box<dyn Material>, MeasureError> {
+        let mut mat = self.material.clone();
+        for (k, v) in &self.keys {
+            match k.strip_prefix("material.") {
+                Some(key) => {
+                    mat.insert(key.to_string(), toml::Value::Float(*v));
+                }
+                None if k.starts_with("boundary.") || k.starts_with("print.") => {}
+                None => return Err(MeasureError::Run(format!("set.{k}: a rheometer test takes material keys only"))),
+            }
+        }
+        Ok(crate::materials::build_material(&mat)?)
+    }
 }
 
 /// An override's value (validated as a number when the experiments were loaded).
@@ -48,44 +138,16 @@ pub fn evaluate(
     wanted: &[Observable],
     threads: Option<usize>,
 ) -> Result<Vec<f64>, MeasureError> {
-    let r = experiment_keys(model, x).and_then(|keys| match (&x.scenario, &x.protocol) {
-        (Some(s), _) => simulate(model, &keys, &exps.base_dir.join(s), wanted, threads),
+    let r = Applied::new(model, x).and_then(|applied| match (&x.scenario, &x.protocol) {
+        (Some(s), _) => simulate(&applied, &exps.base_dir.join(s), wanted, threads),
         (None, Some(p)) => {
-            let (material, proto) = rheometer_setup(model, &keys, &exps.base_dir, p)?;
+            let (material, proto) = applied.rheometer_setup(&exps.base_dir, p)?;
             let readings = Rheometer::new(&*material, &proto)?.run();
             wanted.iter().map(|o| reading_index(o, &readings).map(|k| readings[k].stress)).collect()
         }
         (None, None) => Err(MeasureError::Run("neither scenario nor protocol".into())),
     });
     r.map_err(|e| e.within(format!("experiment '{}'", x.id)))
-}
-
-/// The scenario table of a simulation experiment: the file's, with the model's `[material]` in
-/// place of its own and every key set.
-pub fn scenario_table(model: &Model, keys: &Keys, scenario: &Path) -> Result<toml::Table, MeasureError> {
-    let text = std::fs::read_to_string(scenario).map_err(io_error(scenario))?;
-    let mut doc: toml::Table = text.parse().map_err(toml_error(scenario))?;
-    doc.insert("material".into(), toml::Value::Table(model.material_for(keys)));
-    for (e, _) in &model.effects {
-        e.check_scenario(&doc)
-            .map_err(|m| MeasureError::Effect(format!("effect '{}' {m} in {}", e.name(), scenario.display())))?;
-    }
-    for (k, v) in keys {
-        let at = crate::measure::effects::placed(k, &doc);
-        set_path(&mut doc, &at, *v).map_err(|e| e.within(format!("set.{k}")))?;
-    }
-    Ok(doc)
-}
-
-/// The text of [`scenario_table`]: what a saved result records of the scenario it ran.
-pub fn scenario_text(model: &Model, keys: &Keys, scenario: &Path) -> Result<String, MeasureError> {
-    Ok(toml::to_string(&scenario_table(model, keys, scenario)?)?)
-}
-
-/// The scenario a simulation experiment runs: [`scenario_table`], read as a scenario from the
-/// table (no text written and read back per run).
-pub fn build_scenario(model: &Model, keys: &Keys, scenario: &Path) -> Result<Scenario, MeasureError> {
-    scenario_from_table(scenario_table(model, keys, scenario)?, scenario)
 }
 
 /// The scenario of table `doc`, read from file `scenario`: its files relative to the file's
@@ -108,13 +170,12 @@ fn as_experiment(mut sc: Scenario, scenario: &Path) -> Scenario {
 }
 
 fn simulate(
-    model: &Model,
-    keys: &Keys,
+    applied: &Applied,
     scenario: &Path,
     wanted: &[Observable],
     threads: Option<usize>,
 ) -> Result<Vec<f64>, MeasureError> {
-    let mut sc = build_scenario(model, keys, scenario)?;
+    let mut sc = applied.scenario(scenario)?;
     if let Some(t) = threads {
         sc.simulation.threads = t;
     }
@@ -190,39 +251,6 @@ fn step_to(sim: &mut Simulation, t: f64, history: &mut Histories) -> Result<(), 
         }
     }
     Ok(())
-}
-
-/// The material of a rheometer experiment (the model's, with its `material.*` keys; walls and the
-/// printing process do not reach a rheometer) and its protocol.
-pub fn rheometer_setup(
-    model: &Model,
-    keys: &Keys,
-    base: &Path,
-    protocol: &toml::Value,
-) -> Result<(Box<dyn Material>, Protocol), MeasureError> {
-    let mut mat = model.material_for(keys);
-    for (k, v) in keys {
-        match k.strip_prefix("material.") {
-            Some(key) => {
-                mat.insert(key.to_string(), toml::Value::Float(*v));
-            }
-            None if k.starts_with("boundary.") || k.starts_with("print.") => {}
-            None => return Err(MeasureError::Run(format!("set.{k}: a rheometer test takes material keys only"))),
-        }
-    }
-    let material = crate::materials::build_material(&mat)?;
-    let proto: Protocol = match protocol {
-        toml::Value::String(file) => {
-            let p = base.join(file);
-            let text = std::fs::read_to_string(&p).map_err(io_error(&p))?;
-            toml::from_str(&text).map_err(|e| MeasureError::Run(format!("{}: {}", p.display(), e.message())))?
-        }
-        v => v
-            .clone()
-            .try_into()
-            .map_err(|e: toml::de::Error| MeasureError::Run(format!("protocol: {}", e.message())))?,
-    };
-    Ok((material, proto))
 }
 
 /// The observations grouped by experiment, in order of first appearance.

@@ -24,13 +24,10 @@ use crate::measure::error::MeasureError;
 use super::experiments::{Experiment, Experiments};
 use crate::measure::observables::{observable_plan, reading_index};
 use crate::measure::observation::{Observable, Observation};
-use super::runner::{
-    experiment_keys, find, group, job_threads, par_map_experiments, rheometer_setup, scenario_from_table,
-    scenario_table, ungroup, Jobs,
-};
+use super::runner::{find, group, job_threads, par_map_experiments, scenario_from_table, ungroup, Applied, Jobs};
 use super::spare::Spare;
 use crate::measure::effects::Keys;
-use crate::measure::model::{set_path, Model};
+use crate::measure::model::{set_path, Model, Parameter};
 use super::rheometer::Rheometer;
 use crate::grad::driver::Seeded;
 use crate::grad::{driver, params, GradOptions};
@@ -68,39 +65,27 @@ pub enum Differences {
     Forward(Vec<f64>),
 }
 
+/// The values at a model where they are known (in the data's order), and how a simulation's
+/// Jacobian is differenced there ([`evaluate`]).
+pub type Known<'a> = Option<(&'a [f64], &'a Differences)>;
+
 /// Values of every observation under `model`, with their gradients in `names` when given;
-/// experiments run as `jobs` says.
-pub fn sensitivity(
-    model: &Model,
-    data: &[Observation],
-    exps: &Experiments,
-    names: Option<&[String]>,
-    jobs: Jobs,
-) -> Result<Sensitivity, MeasureError> {
-    campaign(model, data, exps, (names, jobs), (None, &Differences::Central))
-}
-
-/// [`sensitivity`] in `names` at a model whose values are known (`values`, in the data's order,
-/// as [`sensitivity`] gives them there: a calibration's accepted trial). An experiment whose
-/// Jacobian is all differences takes them instead of running the model again: one run of its
-/// 1 + 2 p (or 1 + p, [`Differences::Forward`]).
-pub fn jacobian_at(
-    model: &Model,
-    data: &[Observation],
-    exps: &Experiments,
-    (names, jobs): (&[String], Jobs),
-    (values, differences): (&[f64], &Differences),
-) -> Result<Sensitivity, MeasureError> {
-    campaign(model, data, exps, (Some(names), jobs), (Some(values), differences))
-}
-
-fn campaign(
+/// experiments run as `jobs` says. `at`: the values at `model` where they are known (in the
+/// data's order, as this gives them there: a calibration's accepted trial) and how a simulation's
+/// Jacobian is differenced; an experiment whose Jacobian is all differences then takes them
+/// instead of running the model again (one run of its 1 + 2 p, or 1 + p:
+/// [`Differences::Forward`]). Without, the values are run and differences are central.
+pub fn evaluate(
     model: &Model,
     data: &[Observation],
     exps: &Experiments,
     (names, jobs): (Option<&[String]>, Jobs),
-    (known, differences): (Option<&[f64]>, &Differences),
+    at: Known,
 ) -> Result<Sensitivity, MeasureError> {
+    let (known, differences) = match at {
+        Some((values, differences)) => (Some(values), differences),
+        None => (None, &Differences::Central),
+    };
     let wanted = group(data);
     let threads = job_threads(jobs.n, wanted.len());
     let known = known.map(|v| regroup(data, &wanted, v));
@@ -143,7 +128,7 @@ pub fn regroup(data: &[Observation], wanted: &[(String, Vec<Observable>)], value
 }
 
 /// One experiment's values of `wanted` and, with `names`, their gradients (one-sided where
-/// `scatter`, its values' known scatter, is given): the unit of work [`sensitivity`] runs side
+/// `scatter`, its values' known scatter, is given): the unit of work [`evaluate`] runs side
 /// by side and a scheduler's job runs alone (`engine.rs`).
 pub fn one(
     model: &Model,
@@ -165,7 +150,10 @@ fn one_given(
     given: Given,
 ) -> Result<Vec<Valued>, MeasureError> {
     let x = find(exps, id)?;
-    experiment(model, exps, x, wanted, (names, threads), given).map_err(|e| e.within(format!("experiment '{id}'")))
+    let params = names.map(|n| model.parameters(n)).transpose();
+    params
+        .and_then(|params| experiment(model, exps, x, wanted, (params.as_deref(), threads), given))
+        .map_err(|e| e.within(format!("experiment '{id}'")))
 }
 
 /// The experiments' results ([`one`] each, in `wanted`'s order) in the data's order.
@@ -226,8 +214,8 @@ pub const DIFFERENCE_STEP_SMOOTH: f64 = 0.03;
 /// larger: 3 % of a viscosity fitted to 1e-5 Pa s moves the model by less than its particle
 /// noise, and a difference over it is that noise over a tiny step, a column 10^4 times the
 /// others that a Gauss-Newton step follows and the model then refuses.
-fn smooth_step(model: &Model, name: &str) -> Result<f64, MeasureError> {
-    Ok(DIFFERENCE_STEP_SMOOTH * model.get(name)?.abs().max(model.unit(name)?))
+fn smooth_step(p: &Parameter) -> f64 {
+    DIFFERENCE_STEP_SMOOTH * p.value.abs().max(p.unit)
 }
 
 /// What one experiment's adjoint costs, in forward runs of it: a share every observation's
@@ -252,12 +240,12 @@ fn experiment(
     exps: &Experiments,
     x: &Experiment,
     wanted: &[Observable],
-    (names, threads): (Option<&[String]>, Option<usize>),
+    (params, threads): (Option<&[Parameter]>, Option<usize>),
     given: Given,
 ) -> Result<Vec<Valued>, MeasureError> {
     let (adjoint, other): (Vec<usize>, Vec<usize>) = (0..wanted.len()).partition(|&k| has_adjoint(&wanted[k]));
     if other.is_empty() {
-        return simulated(model, exps, x, wanted, (names, threads), given);
+        return simulated(model, exps, x, wanted, (params, threads), given);
     }
     let pick = |ks: &[usize]| ks.iter().map(|&k| wanted[k].clone()).collect::<Vec<_>>();
     let part = |v: Option<&[f64]>, ks: &[usize]| v.map(|v| ks.iter().map(|&k| v[k]).collect::<Vec<f64>>());
@@ -267,7 +255,7 @@ fn experiment(
         exps,
         x,
         &pick(&other),
-        (names, threads),
+        (params, threads),
         part(given.values, &other).as_deref(),
     )?) {
         out[k] = Some(v);
@@ -279,7 +267,7 @@ fn experiment(
             exps,
             x,
             &pick(&adjoint),
-            (names, threads),
+            (params, threads),
             Given { values: values.as_deref(), scatter: scatter.as_deref(), spare: given.spare },
         )?) {
             out[k] = Some(v);
@@ -300,17 +288,15 @@ fn simulated(
     exps: &Experiments,
     x: &Experiment,
     wanted: &[Observable],
-    (names, threads): (Option<&[String]>, Option<usize>),
+    (params, threads): (Option<&[Parameter]>, Option<usize>),
     given: Given,
 ) -> Result<Vec<Valued>, MeasureError> {
-    let (Some(names), Some(_)) = (names, &x.scenario) else {
-        return by_adjoint(model, exps, x, wanted, (names, threads));
+    let (Some(params), Some(_)) = (params, &x.scenario) else {
+        return by_adjoint(model, &Applied::new(model, x)?, (exps, x), wanted, (params, threads));
     };
-    let keys = experiment_keys(model, x)?;
-    let sides = names
-        .iter()
-        .map(|n| smooth_step(model, n).and_then(|h| moves(model, x, &keys, n, h)))
-        .collect::<Result<Vec<_>, _>>()?;
+    let applied = Applied::new(model, x)?;
+    let keys = &applied.keys;
+    let sides = params.iter().map(|p| moves(model, x, keys, p, smooth_step(p))).collect::<Result<Vec<_>, _>>()?;
     let sides: Vec<Option<Sides>> = match given.scatter {
         Some(_) => sides.into_iter().map(|s| s.map(Sides::one_side)).collect(),
         None => sides,
@@ -321,14 +307,20 @@ fn simulated(
     let by_differences: Vec<bool> = sides.iter().map(|s| s.as_ref().is_some_and(|s| all || s.toolpath)).collect();
     // a parameter that leaves the experiment as it is has a zero column, from neither
     let from_the_adjoint: Vec<bool> = sides.iter().zip(&by_differences).map(|(s, &d)| s.is_some() && !d).collect();
-    let adjoint: Vec<String> =
-        names.iter().zip(&from_the_adjoint).filter(|(_, a)| **a).map(|(n, _)| n.clone()).collect();
+    let adjoint: Vec<Parameter> =
+        params.iter().zip(&from_the_adjoint).filter(|(_, a)| **a).map(|(p, _)| p.clone()).collect();
     let at_model = match given.values {
         Some(v) if adjoint.is_empty() => v.iter().map(|&v| Valued::new(v, None)).collect(),
-        _ => by_adjoint(model, exps, x, wanted, ((!adjoint.is_empty()).then_some(&adjoint[..]), threads))?,
+        _ => {
+            let asked = (!adjoint.is_empty()).then_some(&adjoint[..]);
+            by_adjoint(model, &applied, (exps, x), wanted, (asked, threads))?
+        }
     };
     let values: Vec<f64> = at_model.iter().map(|v| v.value).collect();
-    let run = |m: &Model| Ok(by_adjoint(m, exps, x, wanted, (None, threads))?.into_iter().map(|v| v.value).collect());
+    let run = |m: &Model| {
+        let values = by_adjoint(m, &Applied::new(m, x)?, (exps, x), wanted, (None, threads))?;
+        Ok(values.into_iter().map(|v| v.value).collect())
+    };
     let differenced: Vec<Option<Sides>> =
         sides.into_iter().zip(&by_differences).map(|(s, &d)| s.filter(|_| d)).collect();
     let Central { columns, scatter, column_scatter } =
@@ -370,7 +362,7 @@ fn differenced(
     exps: &Experiments,
     x: &Experiment,
     wanted: &[Observable],
-    (names, threads): (Option<&[String]>, Option<usize>),
+    (params, threads): (Option<&[Parameter]>, Option<usize>),
     known: Option<&[f64]>,
 ) -> Result<Vec<Valued>, MeasureError> {
     const WIDEST: f64 = 0.4;
@@ -381,11 +373,11 @@ fn differenced(
         Some(v) => v.to_vec(),
         None => run(model)?,
     };
-    let Some(names) = names else { return Ok(values.into_iter().map(|v| Valued::new(v, None)).collect()) };
-    let keys = experiment_keys(model, x)?;
-    let mut rows = vec![vec![0.0; names.len()]; wanted.len()];
-    for (j, name) in names.iter().enumerate() {
-        let (p, b) = (model.get(name)?, model.bounds(name)?);
+    let Some(params) = params else { return Ok(values.into_iter().map(|v| Valued::new(v, None)).collect()) };
+    let keys = Applied::new(model, x)?.keys;
+    let mut rows = vec![vec![0.0; params.len()]; wanted.len()];
+    for (j, param) in params.iter().enumerate() {
+        let (p, b) = (param.value, param.bounds);
         let side = |m: Option<Model>| m.map_or(Ok(values.clone()), |m| run(&m));
         let (mut h, widest) =
             if p != 0.0 { (DIFFERENCE_STEP * p.abs(), WIDEST * p.abs()) } else { (b.scale, WIDEST_AT_NULL * b.scale) };
@@ -393,7 +385,7 @@ fn differenced(
         let mut stair = vec![f64::INFINITY; wanted.len()];
         let mut resolved = vec![false; wanted.len()];
         for widened in 0.. {
-            let Some(Sides { lo: (lo, m_lo), hi: (hi, m_hi), .. }) = moves(model, x, &keys, name, h)? else { break };
+            let Some(Sides { lo: (lo, m_lo), hi: (hi, m_hi), .. }) = moves(model, x, &keys, param, h)? else { break };
             let (v_lo, v_hi) = match (side(m_lo), side(m_hi)) {
                 (Ok(a), Ok(c)) => (a, c),
                 (Err(e), _) | (_, Err(e)) if widened == 0 => return Err(e),
@@ -446,14 +438,13 @@ impl Sides {
 /// `name` moved to p +- h, each side held within the parameter's bounds, with the models there
 /// (None for a side at p, or one that leaves this experiment's scenario keys as they are). None
 /// when neither side changes the experiment: its column is 0 without a run.
-fn moves(model: &Model, x: &Experiment, keys: &Keys, name: &str, h: f64) -> Result<Option<Sides>, MeasureError> {
-    let (p, b) = (model.get(name)?, model.bounds(name)?);
+fn moves(model: &Model, x: &Experiment, keys: &Keys, param: &Parameter, h: f64) -> Result<Option<Sides>, MeasureError> {
+    let (p, b) = (param.value, param.bounds);
     let (lo, hi) = ((p - h).max(b.lower), (p + h).min(b.upper));
     let mut toolpath = false;
     let mut moved = |v: f64| -> Result<Option<Model>, MeasureError> {
-        let mut m = model.clone();
-        m.set(name, v)?;
-        let there = experiment_keys(&m, x)?;
+        let m = model.edited(&[], &[(param, v)]);
+        let there = Applied::new(&m, x)?.keys;
         toolpath |= there.iter().any(|(k, v)| k.starts_with("print.") && keys.get(k) != Some(v));
         Ok((v != p && there != *keys).then_some(m))
     };
@@ -532,30 +523,32 @@ struct Central {
     column_scatter: Vec<Vec<f64>>,
 }
 
+/// Values of `wanted` from experiment `x`'s run under `model` (`applied` to it) and, with `names`,
+/// their gradients by the adjoints: the simulation's or the rheometer's, then the model's effects.
 fn by_adjoint(
     model: &Model,
-    exps: &Experiments,
-    x: &Experiment,
+    applied: &Applied,
+    (exps, x): (&Experiments, &Experiment),
     wanted: &[Observable],
-    (names, threads): (Option<&[String]>, Option<usize>),
+    (params, threads): (Option<&[Parameter]>, Option<usize>),
 ) -> Result<Vec<Valued>, MeasureError> {
-    let keys = experiment_keys(model, x)?;
+    let keys = &applied.keys;
     // an override cuts the key from the model
     let chain = |mut keys_bar: Keys| -> Result<Vec<f64>, MeasureError> {
         for k in x.set.keys() {
             keys_bar.remove(k);
         }
-        model.keys_adjoint(&x.covariates(), keys_bar, names.expect("gradients asked"))
+        model.keys_adjoint(&x.covariates(), keys_bar, params.expect("gradients asked"))
     };
     match (&x.scenario, &x.protocol) {
         (Some(s), _) => {
             let path = exps.base_dir.join(s);
-            let doc = scenario_table(model, &keys, &path)?;
+            let doc = applied.scenario_table(&path)?;
             let whole = scenario_from_table(doc.clone(), &path)?;
             let end = whole.simulation.end_time;
             // each model key with the scenario key it landed on (the floor's friction on the
             // platform or the z_min face)
-            let (wrt, placed): (Vec<String>, Vec<String>) = match names {
+            let (wrt, placed): (Vec<String>, Vec<String>) = match params {
                 Some(_) => {
                     let known = params::known(&driver::prepare(&whole, threads)?);
                     keys.keys()
@@ -585,7 +578,7 @@ fn by_adjoint(
                 until_rest: None,
             };
             let mut out: Vec<Option<Valued>> = vec![None; plans.len()];
-            if names.is_none() {
+            if params.is_none() {
                 for (&k, v) in shared.iter().zip(driver::forward_values(&whole, &seeds, threads)?) {
                     out[k] = Some(Valued::new(v, None));
                 }
@@ -598,7 +591,7 @@ fn by_adjoint(
                 let mut at_t = doc.clone();
                 set_path(&mut at_t, "simulation.end_time", *t)?;
                 let sc = scenario_from_table(at_t, &path)?;
-                out[k] = Some(if names.is_none() {
+                out[k] = Some(if params.is_none() {
                     let steps = driver::count_steps(&driver::prepare(&sc, threads)?);
                     Valued::new(driver::forward_value(&sc, obj, threads, steps)?, None)
                 } else {
@@ -609,14 +602,14 @@ fn by_adjoint(
             Ok(out.into_iter().map(|v| v.expect("every observation valued")).collect())
         }
         (None, Some(p)) => {
-            let (material, proto) = rheometer_setup(model, &keys, &exps.base_dir, p)?;
+            let (material, proto) = applied.rheometer_setup(&exps.base_dir, p)?;
             let rh = Rheometer::new(&*material, &proto)?;
             let readings = rh.run();
             wanted
                 .iter()
                 .map(|o| {
                     let k = reading_index(o, &readings)?;
-                    if names.is_none() {
+                    if params.is_none() {
                         return Ok(Valued::new(readings[k].stress, None));
                     }
                     let mut w = vec![0.0; readings.len()];
@@ -646,6 +639,7 @@ mod tests {
     #[test]
     fn a_parameter_fitted_towards_0_is_differenced_over_its_unit() {
         let mut m = Model::from_table(&MODEL.parse().unwrap()).unwrap();
+        let smooth_step = |m: &Model, name: &str| m.parameters(&[name.into()]).map(|p| smooth_step(&p[0]));
         assert_eq!(smooth_step(&m, "material.viscosity").unwrap(), 0.03 * 7.5);
         m.set("material.viscosity", 1e-5).unwrap();
         assert_eq!(smooth_step(&m, "material.viscosity").unwrap(), 0.03 * 7.5);
@@ -745,8 +739,9 @@ mod tests {
         let wanted = [Observable::parse("stress@20").unwrap(), Observable::parse("stress@5").unwrap()];
         let names: Vec<String> =
             ["material.yield_stress", "material.viscosity", "ageing.rate"].map(String::from).to_vec();
-        let fd = differenced(&m, &e, x, &wanted, (Some(&names), None), None).unwrap();
-        let adj = by_adjoint(&m, &e, x, &wanted, (Some(&names), None)).unwrap();
+        let params = m.parameters(&names).unwrap();
+        let fd = differenced(&m, &e, x, &wanted, (Some(&params[..]), None), None).unwrap();
+        let adj = by_adjoint(&m, &Applied::new(&m, x).unwrap(), (&e, x), &wanted, (Some(&params[..]), None)).unwrap();
         for (f, a) in fd.iter().zip(&adj) {
             let (v, va) = (f.value, a.value);
             assert!((v - va).abs() <= 1e-9 * va.abs(), "{v} against {va}");
@@ -757,12 +752,13 @@ mod tests {
             assert_eq!(g[2], 0.0);
         }
         let values: Vec<f64> = fd.iter().map(|v| v.value).collect();
-        assert_eq!(differenced(&m, &e, x, &wanted, (Some(&names), None), Some(&values)).unwrap(), fd);
+        assert_eq!(differenced(&m, &e, x, &wanted, (Some(&params[..]), None), Some(&values)).unwrap(), fd);
         // at age 100 s ageing moves the yield stress: d stress / d rate = tau0 age, one-sided
         let aged: Experiments = toml::from_str(&EXPS.replace("observe = ", "age = 100.0\nobserve = ")).unwrap();
         let x = find(&aged, "flow").unwrap();
-        let fd = differenced(&m, &aged, x, &wanted, (Some(&names), None), None).unwrap();
-        let adj = by_adjoint(&m, &aged, x, &wanted, (Some(&names), None)).unwrap();
+        let fd = differenced(&m, &aged, x, &wanted, (Some(&params[..]), None), None).unwrap();
+        let applied = Applied::new(&m, x).unwrap();
+        let adj = by_adjoint(&m, &applied, (&aged, x), &wanted, (Some(&params[..]), None)).unwrap();
         for (f, a) in fd.iter().zip(&adj) {
             let (g, ga) = (f.gradient.as_ref().unwrap(), a.gradient.as_ref().unwrap());
             assert!(
@@ -789,14 +785,15 @@ mod tests {
         let wanted: Vec<Observable> = x.observe.iter().map(|o| Observable::parse(o).unwrap()).collect();
         let names: Vec<String> =
             ["material.yield_stress", "material.viscosity", "extrusion_factor.factor"].map(String::from).to_vec();
+        let (params, applied) = (m.parameters(&names).unwrap(), Applied::new(&m, x).unwrap());
         // two material parameters; the extrusion factor's is differenced either way
         assert!(by_differences_is_cheaper(2 * 2, wanted.len()));
-        let fd = experiment(&m, &e, x, &wanted, (Some(&names), Some(1)), Given::default()).unwrap();
-        let adj = by_adjoint(&m, &e, x, &wanted, (Some(&names), Some(1))).unwrap();
+        let fd = experiment(&m, &e, x, &wanted, (Some(&params[..]), Some(1)), Given::default()).unwrap();
+        let adj = by_adjoint(&m, &applied, (&e, x), &wanted, (Some(&params[..]), Some(1))).unwrap();
         // the values known (a calibration's accepted trial), the same Jacobian without their run
         let values: Vec<f64> = fd.iter().map(|v| v.value).collect();
         let given = Given { values: Some(&values), ..Given::default() };
-        let known = experiment(&m, &e, x, &wanted, (Some(&names), Some(1)), given).unwrap();
+        let known = experiment(&m, &e, x, &wanted, (Some(&params[..]), Some(1)), given).unwrap();
         assert_eq!(known, fd);
         let p: Vec<f64> = names.iter().map(|n| m.get(n).unwrap()).collect();
         let mut by_name = std::collections::BTreeMap::new();
@@ -834,7 +831,7 @@ mod tests {
         // ones to first order, the scatter the one given
         let scatter: Vec<f64> = fd.iter().map(|v| v.scatter).collect();
         let given = Given { values: Some(&values), scatter: Some(&scatter), spare: None };
-        let forward = experiment(&m, &e, x, &wanted, (Some(&names), Some(1)), given).unwrap();
+        let forward = experiment(&m, &e, x, &wanted, (Some(&params[..]), Some(1)), given).unwrap();
         for ((o, f), (c, s)) in wanted.iter().zip(&forward).zip(fd.iter().zip(&scatter)) {
             assert_eq!((f.value, f.scatter), (c.value, *s));
             let (gf, gc) = (f.gradient.as_ref().unwrap(), c.gradient.as_ref().unwrap());
@@ -868,11 +865,11 @@ mod tests {
         }
         // with more parameters than differences pay for, the material's columns come from the
         // adjoint and the toolpath's from differences
-        let more: Vec<String> =
-            ["material.bulk_modulus"].map(String::from).into_iter().chain(names.iter().cloned()).collect();
+        let more = ["material.bulk_modulus".to_string()].into_iter().chain(names.iter().cloned()).collect::<Vec<_>>();
+        let more = m.parameters(&more).unwrap();
         assert!(!by_differences_is_cheaper(2 * 3, 1));
-        let hybrid = experiment(&m, &e, x, &wanted[..1], (Some(&more), Some(1)), Given::default()).unwrap();
-        let adj = by_adjoint(&m, &e, x, &wanted[..1], (Some(&more[..3]), Some(1))).unwrap();
+        let hybrid = experiment(&m, &e, x, &wanted[..1], (Some(&more[..]), Some(1)), Given::default()).unwrap();
+        let adj = by_adjoint(&m, &applied, (&e, x), &wanted[..1], (Some(&more[..3]), Some(1))).unwrap();
         let (row, adj_row) = (hybrid[0].gradient.as_ref().unwrap(), adj[0].gradient.as_ref().unwrap());
         assert_eq!(&row[..3], &adj_row[..], "the material's columns from the adjoint");
         assert_eq!(row[3], fd[0].gradient.as_ref().unwrap()[2], "the extrusion factor's from differences");

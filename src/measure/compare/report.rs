@@ -11,7 +11,7 @@ use crate::measure::compare::{Comparison, Row};
 use crate::measure::campaign::experiments::Experiments;
 use crate::measure::model::Model;
 use crate::measure::diagnose::residuals::{Covariate, Shape};
-use crate::measure::campaign::runner::{experiment_keys, find};
+use crate::measure::campaign::runner::{find, Applied};
 use crate::output::html::{escape, table};
 use crate::output::plot::{plot_measured_model, plot_xy, MeasuredPoint};
 use std::collections::{BTreeSet, HashMap, HashSet};
@@ -48,7 +48,7 @@ pub fn covariates(rows: &[Row], exps: &Experiments, model: &Model) -> Result<Vec
         if !keys.contains_key(r.experiment.as_str()) {
             let x = find(exps, &r.experiment)?;
             set_names.extend(x.set.keys().cloned());
-            keys.insert(&r.experiment, experiment_keys(model, x)?);
+            keys.insert(&r.experiment, Applied::new(model, x)?.keys);
         }
     }
     type Of<'a> = &'a dyn Fn(&crate::measure::campaign::experiments::Experiment) -> f64;

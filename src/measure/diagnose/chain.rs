@@ -28,7 +28,7 @@ pub fn chained(
     (jacobian, jacobian_scatter): (&[Vec<f64>], &[Vec<f64>]),
     extra: &[String],
 ) -> Result<Vec<Option<Chained>>, MeasureError> {
-    let all: Vec<String> = fitted.iter().chain(extra).cloned().collect();
+    let all = model.parameters(&fitted.iter().chain(extra).cloned().collect::<Vec<_>>())?;
     let fcols: Vec<usize> = (0..fitted.len()).collect();
     let mut columns: Vec<Option<Chained>> =
         vec![Some(Chained { column: vec![0.0; data.len()], scatter: vec![0.0; data.len()] }); extra.len()];
@@ -110,7 +110,7 @@ mod tests {
         let extra: Vec<String> = ["ageing.rate", "thixotropy.a_thix"].iter().map(|s| s.to_string()).collect();
         let all: Vec<String> = fitted.iter().chain(&extra).cloned().collect();
         let one_job = crate::measure::campaign::runner::Jobs::new(1);
-        let exact = crate::measure::campaign::sensitivity::sensitivity(&model, &data, &exps, Some(&all), one_job)
+        let exact = crate::measure::campaign::sensitivity::evaluate(&model, &data, &exps, (Some(&all), one_job), None)
             .unwrap()
             .jacobian
             .unwrap();

@@ -48,9 +48,7 @@ pub mod chain;
 pub mod residuals;
 pub mod rounds;
 
-use super::fit::calibrate::{
-    calibrate, calibrate_at, calibrate_from, chi2, chi2_scatter, finish, predicted_drop, standardised, Fit,
-};
+use super::fit::calibrate::{calibrate_at, calibrate_from, chi2, chi2_scatter, predicted_drop, standardised, Fit};
 use super::campaign::{expected_runs, Campaign, FitOptions};
 use super::error::{io_error, toml_error, MeasureError};
 use super::observation::Observation;
@@ -148,7 +146,7 @@ pub const SCREENED_MARGIN: f64 = 2.0;
 /// chi^2's drop one undamped Gauss-Newton step from `f`'s end predicts: g^T (J^T J)^+ g, with J
 /// and the residuals standardised.
 fn gauss_newton_drop(f: &Fit, data: &[Observation]) -> Result<f64, MeasureError> {
-    let scale: Vec<f64> = f.names.iter().map(|n| f.model.bounds(n).map(|b| b.scale)).collect::<Result<_, _>>()?;
+    let scale: Vec<f64> = f.model.parameters(&f.names)?.iter().map(|p| p.bounds.scale).collect();
     let (z, jz) = standardised(&f.model_values, &f.jacobian, data, &scale);
     let (a, g) = normal_equations(&jz, &z, &(0..f.names.len()).collect::<Vec<_>>());
     Ok(predicted_drop(&a, &g))
@@ -471,17 +469,15 @@ fn score_tests(d: Diagnosing, base: &Fit, clock: &Clock) -> Result<ScoreTests, M
     let mut absent: Vec<&'static dyn Effect> = Vec::new();
     let mut unreachable: Vec<&'static dyn Effect> = Vec::new();
     let mut inapplicable: Vec<Candidate> = Vec::new();
-    for e in base.model.available().into_iter().filter(|e| !base.model.has(e.name())) {
+    let available = super::effects::declared::available(&base.model.declared);
+    for e in available.into_iter().filter(|e| !base.model.has(e.name())) {
         match applicable(d.c, e, &base.model) {
             Ok(()) if !e.null_at_infinity() => absent.push(e),
             Ok(()) => unreachable.push(e),
             Err(why) => inapplicable.push(candidate(e, 0.0, 0, 1.0, format!("not applicable: {why}"))),
         }
     }
-    let mut aug = base.model.clone();
-    for e in &absent {
-        aug = aug.with_effect(*e);
-    }
+    let aug = base.model.edited(&absent, &[]);
     let mut names: Vec<String> = fit.to_vec();
     let mut cols_of: Vec<Vec<usize>> = Vec::new();
     for e in &absent {
@@ -492,7 +488,7 @@ fn score_tests(d: Diagnosing, base: &Fit, clock: &Clock) -> Result<ScoreTests, M
         .say(format!("score tests at the nulls of {}", absent.iter().map(|e| e.name()).collect::<Vec<_>>().join(", ")));
     let at_nulls =
         beside_base(d.c, base, (false, absent.iter().all(|e| e.start_runs_as_model())), &aug, &names[fit.len()..])?;
-    let scale: Vec<f64> = names.iter().map(|n| aug.bounds(n).map(|b| b.scale)).collect::<Result<_, _>>()?;
+    let scale: Vec<f64> = aug.parameters(&names)?.iter().map(|p| p.bounds.scale).collect();
     let (z, jz) = standardised(&at_nulls.values, at_nulls.jacobian.as_ref().expect("asked"), data, &scale);
     let fcols: Vec<usize> = (0..fit.len()).collect();
     let (ff, _) = normal_equations(&jz, &z, &fcols);
@@ -607,10 +603,9 @@ fn likelihood_ratio_tests(
             // a modulus's stand-in is the G or K of the model it starts from, which runs as that
             // model does
             let start = e.lr_start(&from.keys(&Covariates::default())?)?;
-            let mut with = from.with_effect(*e);
-            for (n, v) in fnames[fit.len()..].iter().zip(&start) {
-                with.set(n, *v)?;
-            }
+            let on = from.edited(&[*e], &[]);
+            let params = on.parameters(&fnames[fit.len()..])?;
+            let with = on.edited(&[], &params.iter().zip(start).collect::<Vec<_>>());
             // the start's Jacobian, and the fit only where the effect reaches the data there and
             // one Gauss-Newton step from it predicts a drop worth fitting for: without influence
             // (G where every reading is past yield) the fit would only refit the fitted
@@ -791,6 +786,24 @@ fn loo_verdict(c: &Candidate, ratio: f64) -> String {
     }
 }
 
+/// A fit made for its optimum only ([`FitOptions::uncertainties`] off, perhaps
+/// [`stop_on_secant`](FitOptions::stop_on_secant) on: a candidate screened after a recommended
+/// one), finished as the campaign's options ask: where its Jacobian at the end may be a secant
+/// update, the engine's exact one there, and the fit taken on from it until that Jacobian's stop
+/// holds (at once, where the secant fit had stopped at the optimum), so that its uncertainties,
+/// and a leave-one-out step on its curvature, come from an exact Jacobian as a fit made with
+/// uncertainties does. The fit keeps its start and history.
+pub fn finish(c: &Campaign, f: Fit) -> Result<Fit, MeasureError> {
+    if !(c.opts.uncertainties && !c.opts.stop_on_secant && c.on_secants()) {
+        return Ok(f);
+    }
+    let exact = c.jacobian_at(&f.model, &f.names, (&f.model_values, &Differences::Central))??;
+    let mut finished = calibrate_from(c, &f.model, &f.names, exact)?;
+    finished.history = f.history.iter().chain(&finished.history[1..]).copied().collect();
+    (finished.start, finished.chi2_start, finished.at_start) = (f.start, f.chi2_start, f.at_start);
+    Ok(finished)
+}
+
 /// A candidate's fit with the base parameters, its effect from its null; `lazy`: for its optimum
 /// only, on secant Jacobians ([`FitOptions::stop_on_secant`]).
 fn fit_candidate(
@@ -802,9 +815,9 @@ fn fit_candidate(
 ) -> Result<Fit, MeasureError> {
     let fit_opts =
         FitOptions { uncertainties: d.c.opts.uncertainties && !lazy, stop_on_secant: lazy, ..d.c.opts.clone() };
-    let (c, fnames, with) = (d.c.with_opts(&fit_opts), fit_names(d.fit, effect), base.model.with_effect(effect));
+    let (c, fnames, with) = (d.c.with_opts(&fit_opts), fit_names(d.fit, effect), base.model.edited(&[effect], &[]));
     if scored.at_nulls.values != base.model_values {
-        return calibrate(&c, &with, &fnames);
+        return calibrate_at(&c, &with, None, &fnames);
     }
     // from the score tests' Jacobian, taken where every absent effect is at its null, as this
     // one is here: the same runs, unless an effect at its null moved a value
@@ -855,7 +868,7 @@ fn choose(cands: &mut [Candidate]) -> Option<usize> {
 fn applicable(c: &Campaign, effect: &'static dyn Effect, model: &Model) -> Result<(), MeasureError> {
     let (data, exps) = (c.data, c.exps);
     model
-        .with_effect(effect)
+        .edited(&[effect], &[])
         .keys(&Covariates::default())
         .map_err(|m| MeasureError::Effect(format!("in this model, {m}")))?;
     for (id, _) in super::campaign::runner::group(data) {
@@ -914,7 +927,18 @@ fn leave_one_out(c: &Campaign, f: &Fit, ids: &[String], opts: &DiagnoseOptions) 
 /// only the optimum counts ([`FitOptions::uncertainties`] off).
 fn refit(c: &Campaign, f: &Fit, kept: &[usize]) -> Result<Model, MeasureError> {
     let (opts, rows) = (FitOptions { uncertainties: false, ..c.opts.clone() }, rows_of(c.data, kept));
-    Ok(calibrate_from(&c.with_data(&rows).with_opts(&opts), &f.model, &f.names, f.at_end(kept))?.model)
+    Ok(calibrate_from(&c.with_data(&rows).with_opts(&opts), &f.model, &f.names, at_end(f, kept))?.model)
+}
+
+/// The values and Jacobian at the end of fit `f`, for the observations `rows` (indices into its
+/// data): where a fit of a subset of the data starts from `f`.
+fn at_end(f: &Fit, rows: &[usize]) -> Sensitivity {
+    Sensitivity {
+        values: rows.iter().map(|&i| f.model_values[i]).collect(),
+        jacobian: Some(rows.iter().map(|&i| f.jacobian[i].clone()).collect()),
+        scatter: rows.iter().map(|&i| f.scatter[i]).collect(),
+        jacobian_scatter: Some(rows.iter().map(|&i| f.jacobian_scatter[i].clone()).collect()),
+    }
 }
 
 /// The observations `rows` (indices into `data`), in their order.
@@ -954,7 +978,8 @@ impl Step {
 /// into `data`), from `f`'s own values and Jacobian, with the left-out experiment's observations
 /// `left`.
 fn one_step_without(f: &Fit, data: &[Observation], (kept, left): (&[usize], &[usize])) -> Result<Step, MeasureError> {
-    let bounds: Vec<_> = f.names.iter().map(|n| f.model.bounds(n)).collect::<Result<_, _>>()?;
+    let params = f.model.parameters(&f.names)?;
+    let bounds: Vec<_> = params.iter().map(|p| p.bounds).collect();
     let scale: Vec<f64> = bounds.iter().map(|b| b.scale).collect();
     let (z, jz) = standardised(&f.model_values, &f.jacobian, data, &scale);
     let pick = |rows: &[usize]| {
@@ -964,14 +989,15 @@ fn one_step_without(f: &Fit, data: &[Observation], (kept, left): (&[usize], &[us
     let cols: Vec<usize> = (0..f.names.len()).filter(|&i| !f.at_bound[i]).collect();
     let (a, g) = normal_equations(&jz_kept, &z_kept, &cols);
     let step = gauss_newton_step(&a, &g, 1e-12);
-    let mut model = f.model.clone();
     // the step taken in scaled parameters, after the clamp to the bounds
     let mut taken = vec![0.0; f.names.len()];
+    let mut stepped = Vec::with_capacity(cols.len());
     for (k, &i) in cols.iter().enumerate() {
         let value = (f.values[i] + step[k] * scale[i]).clamp(bounds[i].lower, bounds[i].upper);
         taken[i] = (value - f.values[i]) / scale[i];
-        model.set(&f.names[i], value)?;
+        stepped.push((&params[i], value));
     }
+    let model = f.model.edited(&[], &stepped);
     let (z_left, jz_left) = pick(left);
     let linear: f64 = z_left
         .iter()

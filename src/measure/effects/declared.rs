@@ -483,6 +483,11 @@ impl Effect for Declared {
     }
 }
 
+/// Every effect a model can take: the library's, then those its file declares (`declared`).
+pub fn available(declared: &[&'static Declared]) -> Vec<&'static dyn Effect> {
+    super::REGISTRY.iter().copied().chain(declared.iter().map(|d| *d as &dyn Effect)).collect()
+}
+
 /// Declarations the registry's tests run on, as a model file gives them.
 #[cfg(test)]
 pub const EXAMPLES: &[&str] = &[

@@ -169,7 +169,7 @@ mod tests {
     #[test]
     fn every_effect_at_its_start_runs_as_the_model_without_it() {
         use crate::measure::model::Model;
-        use crate::measure::campaign::runner::build_scenario;
+        use crate::measure::campaign::runner::Applied;
         let line = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/measure/print/line.toml");
         let dir = tempfile::tempdir().unwrap();
         let short = dir.path().join("line.toml");
@@ -178,7 +178,7 @@ mod tests {
         std::fs::write(&short, text.replace("end_time = 0.9", "end_time = 0.3")).unwrap();
         let x = covariates();
         let state = |m: &Model| -> Vec<u64> {
-            let mut sc = build_scenario(m, &m.keys(&x).unwrap(), &short).unwrap();
+            let mut sc = Applied::with_keys(m, m.keys(&x).unwrap()).scenario(&short).unwrap();
             sc.simulation.threads = 1;
             let mut sim = crate::solver::Simulation::new(&sc).unwrap();
             let end = sc.simulation.end_time;

@@ -153,12 +153,8 @@ mod tests {
         let nu = BASE.replace("shear_modulus = 4e5", "poisson_ratio = 0.3");
         let base = Model::from_table(&nu.parse().unwrap()).unwrap();
         let moduli = |m: &Model| {
-            let keys = m.keys(&x).unwrap();
-            let mut mat = m.material_for(&keys);
-            for (k, v) in &keys {
-                mat.insert(k.strip_prefix("material.").unwrap().to_string(), toml::Value::Float(*v));
-            }
-            let s = crate::materials::build_material(&mat).unwrap().stability();
+            let applied = crate::measure::campaign::runner::Applied::with_keys(m, m.keys(&x).unwrap());
+            let s = applied.material().unwrap().stability();
             (s.shear_modulus as f64, s.bulk_modulus as f64)
         };
         let (g, k) = moduli(&base);

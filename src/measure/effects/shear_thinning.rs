@@ -88,15 +88,12 @@ mod tests {
             let x = Covariates::default();
             let keys = model.keys(&x).unwrap();
             assert_eq!(keys[KEY], n);
-            let mut table = model.material_for(&keys);
-            for (k, v) in &keys {
-                table.insert(k.strip_prefix("material.").unwrap().to_string(), toml::Value::Float(*v));
-            }
-            let m = crate::materials::build_material(&table).unwrap();
+            let m = crate::measure::campaign::runner::Applied::with_keys(&model, keys).material().unwrap();
             let rh = Rheometer::new(&*m, &proto).unwrap();
             let (readings, grad) = rh.gradient(&weights).unwrap();
             let kb: Keys = m.param_names().iter().map(|p| format!("material.{p}")).zip(grad).collect();
-            let g = model.keys_adjoint(&x, kb, &["shear_thinning.n".to_string()]).unwrap()[0];
+            let n = model.parameters(&["shear_thinning.n".to_string()]).unwrap();
+            let g = model.keys_adjoint(&x, kb, &n).unwrap()[0];
             (readings.iter().zip(weights).map(|(r, w)| w * r.stress).sum(), g)
         };
         for mat in materials {

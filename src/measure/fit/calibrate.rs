@@ -208,24 +208,6 @@ pub fn calibrate_from(
     fit.result(Started { start, chi2: c2, at: first }, converged)
 }
 
-/// A fit made for its optimum only ([`FitOptions::uncertainties`](crate::measure::campaign::FitOptions::uncertainties)
-/// off, perhaps [`stop_on_secant`](crate::measure::campaign::FitOptions::stop_on_secant) on), finished as the
-/// campaign's options ask: where its Jacobian
-/// at the end may be a secant update, the engine's exact one there, and the fit taken on from it
-/// until that Jacobian's stop holds (at once, where the secant fit had stopped at the optimum),
-/// so that its uncertainties, and a leave-one-out step on its curvature, come from an exact
-/// Jacobian as a fit made with uncertainties does. The fit keeps its start and history.
-pub fn finish(c: &Campaign, f: Fit) -> Result<Fit, MeasureError> {
-    if !(c.opts.uncertainties && !c.opts.stop_on_secant && c.on_secants()) {
-        return Ok(f);
-    }
-    let exact = c.jacobian_at(&f.model, &f.names, (&f.model_values, &Differences::Central))??;
-    let mut finished = calibrate_from(c, &f.model, &f.names, exact)?;
-    finished.history = f.history.iter().chain(&finished.history[1..]).copied().collect();
-    (finished.start, finished.chi2_start, finished.at_start) = (f.start, f.chi2_start, f.at_start);
-    Ok(finished)
-}
-
 /// Where a fit started: the parameters, chi^2, and the values and Jacobian there.
 struct Started {
     start: Vec<f64>,
@@ -458,10 +440,8 @@ impl<'c, 'a> Fitting<'c, 'a> {
             if moved < 1e-12 || linear_drop < o.worth_a_try {
                 return Ok(None);
             }
-            let mut tm = self.now.model.clone();
-            for (p, v) in self.params.iter().zip(&trial) {
-                tm.set_value(p, *v);
-            }
+            let values: Vec<(&Parameter, f64)> = self.params.iter().zip(trial.iter().copied()).collect();
+            let tm = self.now.model.edited(&[], &values);
             let tv = match c.sensitivity(&tm, None)? {
                 Ok(t) => t.values,
                 Err(e) => {
@@ -562,26 +542,13 @@ fn check(model: &Model, names: &[String]) -> Result<(Vec<Parameter>, Vec<f64>), 
     if names.is_empty() {
         return Err(MeasureError::Fit("nothing to fit: name the parameters (--fit P1,P2,...)".into()));
     }
-    let params: Vec<Parameter> = names.iter().map(|n| model.parameter(n)).collect::<Result<_, _>>()?;
-    let start: Vec<f64> = params.iter().map(|p| model.value(p)).collect();
+    let params = model.parameters(names)?;
+    let start: Vec<f64> = params.iter().map(|p| p.value).collect();
     if let Some((n, v)) = names.iter().zip(&start).find(|(_, v)| !v.is_finite()) {
         return Err(MeasureError::Fit(format!("{n} starts at {v}, its null at infinity, where there is no gradient to \
             move it by: give it a finite start in the model")));
     }
     Ok((params, start))
-}
-
-impl Fit {
-    /// The values and Jacobian at the fit's end, for the observations `rows` (indices into its
-    /// data): where a fit of a subset of the data starts from this one.
-    pub fn at_end(&self, rows: &[usize]) -> Sensitivity {
-        Sensitivity {
-            values: rows.iter().map(|&i| self.model_values[i]).collect(),
-            jacobian: Some(rows.iter().map(|&i| self.jacobian[i].clone()).collect()),
-            scatter: rows.iter().map(|&i| self.scatter[i]).collect(),
-            jacobian_scatter: Some(rows.iter().map(|&i| self.jacobian_scatter[i].clone()).collect()),
-        }
-    }
 }
 
 /// Standardised residuals z = (model - measured) / uncertainty and their Jacobian in scaled
