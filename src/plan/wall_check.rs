@@ -20,10 +20,8 @@
 //!   fixed step, chosen for the fresh material, would not stay stable as the stiffness grows m
 //!   times faster (on `fixtures/plan` it blew up at t = 23 s), so it is divided by the growth of
 //!   the elastic wave speed from the fresh material to the wall's oldest (the same Courant
-//!   number throughout). With the strength alone compressed, the stiffness
-//!   of the fixture's 24-layer wall stayed that of a 30 s old wall instead of a 12 minute old one,
-//!   and it failed at 96 mm where the closed form's buckling of so soft a wall is 90 mm
-//!   (docs/planning.md). The deposit itself is printed at the planned speed and flow, so it
+//!   number throughout); a wall whose stiffness kept its real rate would be a far younger,
+//!   softer wall than the one planned. The deposit itself is printed at the planned speed and flow, so it
 //!   builds up m times faster while it is laid (at the fixture's 2 Pa/s and m = 10, 20 Pa over a
 //!   second). Sound when the wall settles within T_r (quasi-static, the detector's own premise);
 //!   viscous stresses are not scaled.
