@@ -12,7 +12,8 @@ its name: in the caller's file first, then among the functions of that name in t
 when exactly one (a method: one among the methods of that name whose parameter fits); a call
 whose callee the program chooses as it runs (a trait's method with several implementations) is
 not followed. A call by a type's path (`Type::f(...)`, `Self::f(...)`) names that type's function;
-a method's receiver that is a parameter of the caller has that parameter's type; a call by a
+a method's receiver that is a parameter of the caller, or a field of `self`, has that one's type, and a
+field whose type carries no model hands none on; a call by a
 module's path (`runner::evaluate(...)`) names a function of that module's file. Each function is walked once, depth first, in the order in which the code is
 written.
 
@@ -320,8 +321,10 @@ def walk(fns, held, structs, start):
         for call in calls(fn.body):
             _, name, is_method, receiver, args = call
             given = []
-            if is_method:
-                if names_in(receiver) & holds:
+            if is_method and names_in(receiver) & holds:
+                # a field of a carrier (`self.campaign`) carries the model only if its type does
+                ty = receiver_type(fn, receiver, structs) if receiver.strip().lstrip("&*").startswith("self.") else ""
+                if not ty or ty in held:
                     given.append(("self", 0))
             for k, a in enumerate(args):
                 if names_in(a) & holds:

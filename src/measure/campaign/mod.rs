@@ -108,25 +108,23 @@ impl<'a> Campaign<'a> {
         self.estimate.map(|c| &c.start_values[..])
     }
 
-    /// The engine's values of every observation under `model`, with their gradients in `names`
-    /// when given ([`Engine::evaluate`]), the runs counted into the progress.
-    pub fn sensitivity(&self, model: &Model, names: Option<&[String]>) -> Result<Answer, MeasureError> {
-        let per_experiment = names.map_or(0, |n| 1 + 2 * n.len()).max(1);
-        let (engine, data, exps) = (&self.opts.engine, self.data, self.exps);
-        self.counted(per_experiment, |jobs| engine.evaluate(jobs, model, (data, exps), (names, None)))
-    }
-
-    /// The engine's Jacobian at a model whose values are known ([`Engine::evaluate`]), the
-    /// runs counted into the progress.
-    pub fn jacobian_at(
+    /// The engine's values of every observation under `model` and, with `names`, their gradients
+    /// in them ([`Engine::evaluate`]); with `at`, the values known there and the differences to
+    /// take, only the Jacobian's runs. The runs are counted into the progress.
+    pub fn evaluate(
         &self,
         model: &Model,
-        names: &[String],
-        at: (&[f64], &Differences),
+        names: Option<&[String]>,
+        at: Option<(&[f64], &Differences)>,
     ) -> Result<Answer, MeasureError> {
-        let sides = if matches!(at.1, Differences::Central) { 2 } else { 1 };
+        let n = names.map_or(0, <[String]>::len);
+        let per_experiment = match at {
+            None => (1 + 2 * n).max(1),
+            Some((_, Differences::Central)) => 2 * n,
+            Some((_, Differences::Forward(_))) => n,
+        };
         let (engine, data, exps) = (&self.opts.engine, self.data, self.exps);
-        self.counted(sides * names.len(), |jobs| engine.evaluate(jobs, model, (data, exps), (Some(names), Some(at))))
+        self.counted(per_experiment, |jobs| engine.evaluate(jobs, model, (data, exps), (names, at)))
     }
 
     /// `evaluate` counted into the progress: `per_experiment` runs of each of the data's
@@ -218,10 +216,10 @@ mod tests {
         let progress = out.progress(1);
         progress.begin("evaluation", 0);
         let counted = FitOptions { progress: progress.clone(), ..FitOptions::default() };
-        let with = Campaign::new(&exps, &data, &counted).sensitivity(&model, Some(&names)).unwrap().unwrap();
+        let with = Campaign::new(&exps, &data, &counted).evaluate(&model, Some(&names), None).unwrap().unwrap();
         progress.end();
         let silent = FitOptions::default();
-        let without = Campaign::new(&exps, &data, &silent).sensitivity(&model, Some(&names)).unwrap().unwrap();
+        let without = Campaign::new(&exps, &data, &silent).evaluate(&model, Some(&names), None).unwrap().unwrap();
         assert_eq!(format!("{:?}", with), format!("{:?}", without));
         let events = out.events();
         check_monotone(&events);

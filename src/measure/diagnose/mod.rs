@@ -357,7 +357,7 @@ fn base_fit(c: &Campaign, model: &Model, fit: &[String]) -> Result<Fit, MeasureE
     let (data, m) = (c.data, c.data.len());
     let v = match c.start_values() {
         Some(v) => v.to_vec(),
-        None => c.sensitivity(model, None)??.values,
+        None => c.evaluate(model, None, None)??.values,
     };
     let c2 = chi2(&v, data);
     Ok(Fit {
@@ -414,9 +414,9 @@ fn beside_base(
         ),
         false => (&base.model_values, &base.jacobian, &base.scatter, &base.jacobian_scatter),
     };
-    let values = if runs_as_model { known.clone() } else { c.sensitivity(with, None)??.values };
+    let values = if runs_as_model { known.clone() } else { c.evaluate(with, None, None)??.values };
     if values != *known || base.names.is_empty() || extra.is_empty() {
-        return c.jacobian_at(with, &names, (&values, &Differences::Central))?;
+        return c.evaluate(with, Some(&names), Some((&values, &Differences::Central)))?;
     }
     // an effect's columns the fitted parameters' give through the keys take no run
     let chained = self::chain::chained(with, data, exps, &base.names, (known_jacobian, known_jacobian_scatter), extra)?;
@@ -425,7 +425,7 @@ fn beside_base(
         (vec![vec![]; data.len()], vec![vec![]; data.len()], known_scatter.clone())
     } else {
         // one-sided: at the base fit's values, whose scatter its central differences estimated
-        let s = c.jacobian_at(with, &run, (&values, &Differences::Forward(known_scatter.clone())))??;
+        let s = c.evaluate(with, Some(&run), Some((&values, &Differences::Forward(known_scatter.clone()))))??;
         (s.jacobian.expect("asked"), s.jacobian_scatter.expect("asked"), known_scatter.clone())
     };
     // the known columns, then each extra parameter's, chained or computed
@@ -797,7 +797,7 @@ pub fn finish(c: &Campaign, f: Fit) -> Result<Fit, MeasureError> {
     if !(c.opts.uncertainties && !c.opts.stop_on_secant && c.on_secants()) {
         return Ok(f);
     }
-    let exact = c.jacobian_at(&f.model, &f.names, (&f.model_values, &Differences::Central))??;
+    let exact = c.evaluate(&f.model, Some(&f.names), Some((&f.model_values, &Differences::Central)))??;
     let mut finished = calibrate_from(c, &f.model, &f.names, exact)?;
     finished.history = f.history.iter().chain(&finished.history[1..]).copied().collect();
     (finished.start, finished.chi2_start, finished.at_start) = (f.start, f.chi2_start, f.at_start);
@@ -904,7 +904,7 @@ fn leave_one_out(c: &Campaign, f: &Fit, ids: &[String], opts: &DiagnoseOptions) 
         let (kept, left): (Vec<usize>, Vec<usize>) = (0..data.len()).partition(|&i| data[i].experiment != *id);
         let test = rows_of(data, &left);
         let predict = |model: &Model| -> Result<f64, MeasureError> {
-            Ok(chi2(&c.with_data(&test).sensitivity(model, None)??.values, &test))
+            Ok(chi2(&c.with_data(&test).evaluate(model, None, None)??.values, &test))
         };
         total += if f.names.is_empty() {
             predict(&f.model)?

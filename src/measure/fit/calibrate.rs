@@ -181,10 +181,7 @@ pub fn calibrate_at(
     names: &[String],
 ) -> Result<Fit, MeasureError> {
     check(model, names)?;
-    let at_start = match values {
-        Some(v) => c.jacobian_at(model, names, (v, &Differences::Central))??,
-        None => c.sensitivity(model, Some(names))??,
-    };
+    let at_start = c.evaluate(model, Some(names), values.map(|v| (v, &Differences::Central)))??;
     calibrate_from(c, model, names, at_start)
 }
 
@@ -275,7 +272,7 @@ impl<'c, 'a> Fitting<'c, 'a> {
 
     /// The engine's exact Jacobian where the fit stands.
     fn exact_at(&self) -> Result<Sensitivity, MeasureError> {
-        self.campaign.jacobian_at(&self.now.model, self.names, (&self.now.at.values, &Differences::Central))?
+        self.campaign.evaluate(&self.now.model, Some(self.names), Some((&self.now.at.values, &Differences::Central)))?
     }
 
     /// Steps until the fit converges (true) or reaches the iteration limit (false).
@@ -442,7 +439,7 @@ impl<'c, 'a> Fitting<'c, 'a> {
             }
             let values: Vec<(&Parameter, f64)> = self.params.iter().zip(trial.iter().copied()).collect();
             let tm = self.now.model.edited(&[], &values);
-            let tv = match c.sensitivity(&tm, None)? {
+            let tv = match self.campaign.evaluate(&tm, None, None)? {
                 Ok(t) => t.values,
                 Err(e) => {
                     if opts.log {
@@ -488,7 +485,7 @@ impl<'c, 'a> Fitting<'c, 'a> {
             let (scatter, jacobian_scatter) = (at.scatter.clone(), at.jacobian_scatter.clone());
             return Ok(Some(Sensitivity { values: tv, jacobian: Some(jacobian), scatter, jacobian_scatter }));
         }
-        Ok(self.campaign.jacobian_at(tm, self.names, (&tv, &Differences::Central))?.ok())
+        Ok(self.campaign.evaluate(tm, Some(self.names), Some((&tv, &Differences::Central)))?.ok())
     }
 }
 
