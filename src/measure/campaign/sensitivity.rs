@@ -291,10 +291,10 @@ fn simulated(
     (params, threads): (Option<&[Parameter]>, Option<usize>),
     given: Given,
 ) -> Result<Vec<Valued>, MeasureError> {
-    let (Some(params), Some(_)) = (params, &x.scenario) else {
-        return by_adjoint(model, &Applied::new(model, x)?, (exps, x), wanted, (params, threads));
-    };
     let applied = Applied::new(model, x)?;
+    let (Some(params), Some(_)) = (params, &x.scenario) else {
+        return by_adjoint(model, &applied, (exps, x), wanted, (params, threads));
+    };
     let keys = &applied.keys;
     let sides = params.iter().map(|p| moves(model, x, keys, p, smooth_step(p))).collect::<Result<Vec<_>, _>>()?;
     let sides: Vec<Option<Sides>> = match given.scatter {
