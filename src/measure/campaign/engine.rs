@@ -32,7 +32,7 @@ use super::experiments::{Experiment, Experiments};
 use crate::measure::model::Model;
 use crate::measure::observation::{Observable, Observation};
 use super::provenance::{self, exact, plain, Exact, Provenance};
-use super::runner::{find, group, Jobs};
+use super::runner::{find, group, Applied, Jobs};
 use super::sensitivity::{self, Differences, Known, Sensitivity, Valued};
 use std::path::{Path, PathBuf};
 
@@ -275,9 +275,10 @@ impl Scheduler {
         names: Option<&[String]>,
         scatter: Option<&[f64]>,
     ) -> Result<Job, MeasureError> {
+        let model_text = model.to_toml();
         Ok(Job {
-            provenance: Provenance::of(model, exps, x),
-            model: model.to_toml(),
+            provenance: Provenance::of_applied(&model_text, Applied::new(model, x).as_ref(), exps, x),
+            model: model_text,
             experiment: toml::to_string(x).map_err(|e| MeasureError::from(e).within(format!("experiment '{}'", x.id)))?,
             // an experiments file named without a folder sits in the current one
             base_dir: std::path::absolute(Path::new(".").join(&exps.base_dir)).map_err(io_error(&exps.base_dir))?,

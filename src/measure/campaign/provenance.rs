@@ -43,11 +43,22 @@ pub fn hash(text: &str) -> String {
 impl Provenance {
     /// The provenance of experiment `x` under `model` as the files stand now.
     pub fn of(model: &Model, exps: &Experiments, x: &Experiment) -> Provenance {
+        Provenance::of_applied(&model.to_toml(), Applied::new(model, x).as_ref(), exps, x)
+    }
+
+    /// [`Provenance::of`] from what a job already holds: the model's text ([`Model::to_toml`])
+    /// and the model applied to `x`, or why it could not be.
+    pub fn of_applied(
+        model_text: &str,
+        applied: Result<&Applied, &MeasureError>,
+        exps: &Experiments,
+        x: &Experiment,
+    ) -> Provenance {
         let entry = toml::to_string(x).unwrap_or_else(|e| format!("error: {e}"));
         Provenance {
             format: format(),
-            model: hash(&model.to_toml()),
-            scenario: hash(&resolved(model, exps, x)),
+            model: hash(model_text),
+            scenario: hash(&resolved(applied, exps, x)),
             experiment: hash(&entry),
         }
     }
@@ -82,14 +93,17 @@ impl Provenance {
 /// The text a result of `x` depends on besides the model and its own entry: the resolved
 /// scenario and its G-code, or the rheometer protocol; an error in resolving it is part of the
 /// text (the evaluation fails the same way).
-fn resolved(model: &Model, exps: &Experiments, x: &Experiment) -> String {
+fn resolved(applied: Result<&Applied, &MeasureError>, exps: &Experiments, x: &Experiment) -> String {
     let r = match (&x.scenario, &x.protocol) {
         (Some(s), _) => {
             let path = exps.base_dir.join(s);
-            Applied::new(model, x).and_then(|applied| applied.scenario_text(&path)).map(|text| {
-                let gcode = gcode_of(&text, &path);
-                text + &gcode
-            })
+            match applied {
+                Ok(applied) => applied.scenario_text(&path).map(|text| {
+                    let gcode = gcode_of(&text, &path);
+                    text + &gcode
+                }),
+                Err(e) => return format!("error: {e}"),
+            }
         }
         (None, Some(toml::Value::String(file))) => {
             let p = exps.base_dir.join(file);
