@@ -35,6 +35,23 @@ impl Takes {
             Takes::StationAndLayer => "@X:K",
         }
     }
+
+    /// What the first coordinate is, as a report's axis names it.
+    pub fn at_meaning(self) -> &'static str {
+        match self {
+            Takes::Nothing => "time [s]",
+            _ => "station x [m]",
+        }
+    }
+
+    /// What the second coordinate (after `:`) is, as a report's axis names it.
+    pub fn at2_meaning(self) -> &'static str {
+        match self {
+            Takes::StationAndY => "lateral position y [m]",
+            Takes::StationAndLayer => "layer (1 = the bottom one)",
+            _ => "second coordinate",
+        }
+    }
 }
 
 /// One observable: what it is called, what it takes, whether measurement campaigns may observe

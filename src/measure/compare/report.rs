@@ -12,6 +12,7 @@ use crate::measure::campaign::experiments::Experiments;
 use crate::measure::model::Model;
 use crate::measure::diagnose::residuals::{Covariate, Shape};
 use crate::measure::campaign::runner::{find, Applied};
+use crate::measure::observables::RHEOMETER_OBSERVABLES;
 use crate::output::html::{escape, table};
 use crate::output::plot::{plot_measured_model, plot_xy, MeasuredPoint};
 use std::collections::{BTreeSet, HashMap, HashSet};
@@ -92,24 +93,18 @@ pub fn covariates(rows: &[Row], exps: &Experiments, model: &Model) -> Result<Vec
     Ok(out)
 }
 
-/// What `at` is for an observable (see `observables.rs`).
+/// What `at` is for an observable: a rheometer's shear rate, or what its kind takes
+/// (`crate::observables`).
 fn at_meaning(observable: &str) -> &'static str {
-    match observable {
-        "stress" => "shear rate [1/s]",
-        "width" | "height" | "smooth_width" | "smooth_height" | "level" | "profile" | "layer_height"
-        | "layer_width" => "station x [m]",
-        "spread" | "front" => "time [s]",
-        _ => "at",
+    if RHEOMETER_OBSERVABLES.contains(&observable) {
+        return "shear rate [1/s]";
     }
+    crate::observables::kind(observable).map_or("at", |k| k.takes.at_meaning())
 }
 
 /// What the second coordinate (after `:`) is for an observable.
 fn at2_meaning(observable: &str) -> &'static str {
-    match observable {
-        "profile" => "lateral position y [m]",
-        "layer_height" | "layer_width" => "layer (1 = the bottom one)",
-        _ => "second coordinate",
-    }
+    crate::observables::kind(observable).map_or("second coordinate", |k| k.takes.at2_meaning())
 }
 
 /// Observable names in order of first appearance.
