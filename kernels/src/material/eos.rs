@@ -52,11 +52,13 @@ impl Eos {
         }
     }
 
-    /// Adjoint of the stress at rest of a fluid, `-p(k, j) I`: the adjoints `(k_bar, j_bar)` for
-    /// the stress's adjoint `stress_bar`.
+    /// Adjoint of the stress at rest of a fluid, `-p(k, j) I`: adds the adjoints of `k` and `j`
+    /// for the stress's adjoint `stress_bar` to `k_bar` and `j_bar`.
     #[inline]
-    pub fn rest_stress_adjoint(&self, k: Real, j: Real, stress_bar: &M3) -> (Real, Real) {
-        self.pressure_adjoint(k, j, -(stress_bar.x_axis.x + stress_bar.y_axis.y + stress_bar.z_axis.z))
+    pub fn add_rest_stress_adjoint(&self, k: Real, j: Real, stress_bar: &M3, k_bar: &mut Real, j_bar: &mut Real) {
+        let (kb, jb) = self.pressure_adjoint(k, j, -(stress_bar.x_axis.x + stress_bar.y_axis.y + stress_bar.z_axis.z));
+        *k_bar += kb;
+        *j_bar += jb;
     }
 
     /// Tangent bulk modulus -dp/d(eps_v) at `j`, for stability estimates.

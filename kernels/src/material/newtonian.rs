@@ -75,9 +75,7 @@ impl Material for Newtonian {
 
     /// Nothing changes at rest: the stress at rest `-p(K, J) I` takes the adjoint to K and J.
     fn wake_adjoint(&self, _state: &[Real], _duration: Real, j: Real, stress_bar: &M3, _state_bar: &mut [Real], j_bar: &mut Real, params_bar: &mut [Real]) -> bool {
-        let (k_bar, jb) = self.eos.rest_stress_adjoint(r(self.bulk_modulus), j, stress_bar);
-        *j_bar += jb;
-        params_bar[0] += k_bar;
+        self.eos.add_rest_stress_adjoint(r(self.bulk_modulus), j, stress_bar, &mut params_bar[0], j_bar);
         true
     }
 

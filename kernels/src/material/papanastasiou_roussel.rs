@@ -349,9 +349,7 @@ impl Material for PapanastasiouRoussel {
     /// parameter); otherwise it came through unclamped (its adjoint passes, the rest's goes to
     /// A_thix / tau0), without build-up too, as `update_adjoint` counts a trial on a bound.
     fn wake_adjoint(&self, state: &[Real], duration: Real, j: Real, stress_bar: &M3, state_bar: &mut [Real], j_bar: &mut Real, params_bar: &mut [Real]) -> bool {
-        let (k_bar, jb) = self.eos.rest_stress_adjoint(r(self.bulk_modulus), j, stress_bar);
-        *j_bar += jb;
-        params_bar[0] += k_bar;
+        self.eos.add_rest_stress_adjoint(r(self.bulk_modulus), j, stress_bar, &mut params_bar[0], j_bar);
         if self.build_up_rate() * duration > r(0.0) && state[0] >= r(self.lambda_cap()) {
             // `param_names`' entry 6 is whichever value caps lambda
             params_bar[6] += std::mem::replace(&mut state_bar[0], r(0.0));
