@@ -92,7 +92,12 @@ impl Wall {
     /// The same wall with Prandtl's collapse factor times `scale` (1 - [`COLLAPSE_FACTOR_ACCURACY`]:
     /// the pessimistic end of what the simulated walls bear out).
     pub fn with_collapse_factor(&self, scale: f64) -> Wall {
-        Wall { model: self.model.clone(), factor_scale: scale, ..*self }
+        Wall { model: self.model.clone(), factor_scale: self.factor_scale * scale, ..*self }
+    }
+
+    /// Prandtl's collapse factor's multiplier (1 unless a simulated wall calibrated it).
+    pub fn collapse_factor_scale(&self) -> f64 {
+        self.factor_scale
     }
 
     /// Whether the material's stiffness is known (buckling is then checked).
