@@ -19,12 +19,14 @@
 //! factor moves the height 17 % on fixtures/plan), but the layer time is not: there the
 //! calibrated factor moves T by a few percent. The height stood is counted in whole layers (the
 //! failed one left out), so the factor is calibrated low and the next wall errs towards standing.
-//! The layer shape does not depend on the layer time (the line is one pass), so the layer's
-//! settings stay the plan's; only the layer time and the build change (`build::simulated`). A
-//! wall that stands at a shorter layer time stands at a longer one (older, stronger layers below),
-//! so a first layer time under the layer time's floor (a probe) is raised to the floor when it
-//! stands.
-
+//! The simulation refutes the closed form, never relaxes it: the reduced wall is a short pass
+//! (`wall_check.rs`), which a short wall stands taller on than the closed form's long wall, so no
+//! round after the first is shorter than the plan's layer time, and the plan's layer time only
+//! ever grows. A wall that stands at a shorter layer time stands at a longer one (older, stronger
+//! layers below), so a first round under the plan's layer time (a probe, `--check-wall-at`) that
+//! stands leaves the plan as it is. The layer shape does not depend on the layer time (the line
+//! is one pass), so the layer's settings stay the plan's; only the layer time and the build
+//! change (`build::simulated`), and the closed form's factor becomes the calibrated one.
 use super::build;
 use super::constraint::{Buildable, Wall};
 use super::error::PlanError;
@@ -61,10 +63,14 @@ pub struct Rounds {
     pub max_rounds: usize,
     /// The design height x safety factor [m].
     pub need: f64,
-    /// A wall stood: the layer time the plan now has [s] (the standing round's, raised to the
-    /// layer time's floor), and the closed form's calibrated factor multiplier.
+    /// A wall stood: the layer time the plan now has [s] (the standing round's, or the plan's
+    /// own when that is longer).
     pub layer_time: Option<f64>,
+    /// The last failed round's factor multiplier (1 when none failed).
     pub factor_scale: f64,
+    /// Whether the plan took the rounds' layer time and factor (a wall stood only longer than
+    /// the plan's layer time).
+    pub changed: bool,
     /// No wall stood: the next layer time the calibrated closed form asks for, or, when none
     /// within the bounds does, how tall it has the wall stand at the longest.
     pub next: Option<f64>,
@@ -152,8 +158,8 @@ fn shortest(wall: &Wall, [w, h]: [f64; 2], need: f64, factor: &dyn Fn(f64) -> f6
 }
 
 /// The next layer time after the failed rounds `fits` (layer time, calibrated factor; longest
-/// last): the shortest in (the longest failed, `hi`] with the factor s_k, or after two failures
-/// the secant through the last two.
+/// last): the shortest in [`floor`, `hi`], and past the longest failed, with the factor s_k, or
+/// after two failures the secant through the last two.
 fn next(wall: &Wall, layer: [f64; 2], need: f64, fits: &[(f64, f64)], [floor, hi]: [f64; 2]) -> Result<Result<f64, Buildable>, PlanError> {
     let (t1, s1) = *fits.last().expect("a failed round");
     let slope = match fits {
@@ -180,9 +186,10 @@ pub fn drive(plan: &mut Plan, first: f64, max_rounds: usize, threads: Option<usi
     let (layer, speed, planned) = (b.layer.values, b.x[0], b.build.layer_time);
     let length = plan.targets.layer_length(plan.line.length);
     let [lo, hi] = goal.layer_time;
-    let floor = lo.max(length / speed);
+    // no round after the first shorter than the plan's layer time (itself over its floor)
+    let floor = lo.max(length / speed).max(planned);
     let need = goal.need();
-    let mut r = Rounds { rounds: Vec::new(), max_rounds, need, layer_time: None, factor_scale: 1.0, next: None, unreachable: None, longest: hi };
+    let mut r = Rounds { rounds: Vec::new(), max_rounds, need, layer_time: None, factor_scale: 1.0, changed: false, next: None, unreachable: None, longest: hi };
     let mut fits: Vec<(f64, f64)> = Vec::new();
     let mut t = first;
     for k in 1..=max_rounds {
@@ -213,10 +220,11 @@ pub fn drive(plan: &mut Plan, first: f64, max_rounds: usize, threads: Option<usi
             }
             continue;
         }
-        let layer_time = t.max(floor);
+        let layer_time = t.max(planned);
         r.layer_time = Some(layer_time);
         r.next = None;
-        if !fits.is_empty() || layer_time != planned {
+        r.changed = layer_time > planned;
+        if r.changed {
             let goal = plan.wall.as_mut().expect("checked above");
             goal.wall = goal.wall.with_collapse_factor(r.factor_scale);
             let at = plan.history.iter().rposition(|e| e.accepted).expect("the start is accepted");
@@ -244,14 +252,13 @@ pub fn text(r: &Rounds) -> String {
 /// The rounds' outcome in a line.
 pub fn outcome(r: &Rounds) -> String {
     match (r.layer_time, r.refusal()) {
-        (Some(t), _) => {
-            format!(
-                "wall: stands when simulated (round {} of at most {}); the plan's layer time is {t:.2} s, its closed form's collapse factor x {:.4}\n",
-                r.rounds.len(),
-                r.max_rounds,
-                r.factor_scale
-            )
-        }
+        (Some(t), _) if r.changed => format!(
+            "wall: stands when simulated (round {} of at most {}); the plan's layer time is now {t:.2} s, its closed form's collapse factor x {:.4}\n",
+            r.rounds.len(),
+            r.max_rounds,
+            r.factor_scale
+        ),
+        (Some(t), _) => format!("wall: stands when simulated (round {} of at most {}); the plan's layer time stays {t:.2} s\n", r.rounds.len(), r.max_rounds),
         (None, Some(e)) => format!("wall: {e}\n"),
         (None, None) => String::new(),
     }
