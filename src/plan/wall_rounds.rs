@@ -28,7 +28,7 @@
 //! is one pass), so the layer's settings stay the plan's; only the layer time and the build
 //! change (`build::simulated`), and the closed form's factor becomes the calibrated one.
 use super::build;
-use super::constraint::{Buildable, Wall};
+use super::constraint::{Buildable, Wall, COLLAPSE_FACTOR_ACCURACY};
 use super::error::PlanError;
 use super::planner::Plan;
 use super::wall_check::{self, WallCheck};
@@ -98,8 +98,16 @@ impl Rounds {
             ),
             (None, None) => String::new(),
         };
+        // a longer layer time that left the wall no taller: its failure is not the closed form's
+        let stalled = match &self.rounds[..] {
+            [.., a, b] if b.layer_time > a.layer_time && b.stood_to <= a.stood_to => format!(
+                "; at {:.2} s it stood no taller than at {:.2} s ({:.3} m): the simulated failure does not follow the closed form's collapse there, and a longer layer time alone may not make it stand",
+                b.layer_time, a.layer_time, b.stood_to
+            ),
+            _ => String::new(),
+        };
         Some(PlanError::Infeasible(format!(
-            "the wall did not stand when simulated in {} round{} (--wall-rounds {}): the last, at a layer time of {:.2} s, stood {:.3} m of the {:.3} m asked (design height x safety factor), {:.0} % of it; {what}",
+            "the wall did not stand when simulated in {} round{} (--wall-rounds {}): the last, at a layer time of {:.2} s, stood {:.3} m of the {:.3} m asked (design height x safety factor), {:.0} % of it; {what}{stalled}",
             self.rounds.len(),
             if self.rounds.len() == 1 { "" } else { "s" },
             self.max_rounds,
@@ -159,14 +167,18 @@ fn shortest(wall: &Wall, [w, h]: [f64; 2], need: f64, factor: &dyn Fn(f64) -> f6
 
 /// The next layer time after the failed rounds `fits` (layer time, calibrated factor; longest
 /// last): the shortest in [`floor`, `hi`], and past the longest failed, with the factor s_k, or
-/// after two failures the secant through the last two.
+/// after two failures the secant through the last two. The secant's factor is held within the
+/// closed form's accuracy ([`COLLAPSE_FACTOR_ACCURACY`]) of the factors the rounds found: a line
+/// through two nearby rounds would otherwise run to any factor over a long layer time.
 fn next(wall: &Wall, layer: [f64; 2], need: f64, fits: &[(f64, f64)], [floor, hi]: [f64; 2]) -> Result<Result<f64, Buildable>, PlanError> {
     let (t1, s1) = *fits.last().expect("a failed round");
     let slope = match fits {
         [.., (t0, s0), _] if t1 > *t0 => (s1 - s0) / (t1 - t0),
         _ => 0.0,
     };
-    let factor = move |t: f64| (s1 + slope * (t - t1)).clamp(FACTOR_RANGE[0], FACTOR_RANGE[1]);
+    let (min, max) = fits.iter().fold((f64::INFINITY, 0.0f64), |(a, b), &(_, s)| (a.min(s), b.max(s)));
+    let range = [(min * (1.0 - COLLAPSE_FACTOR_ACCURACY)).max(FACTOR_RANGE[0]), (max * (1.0 + COLLAPSE_FACTOR_ACCURACY)).min(FACTOR_RANGE[1])];
+    let factor = move |t: f64| (s1 + slope * (t - t1)).clamp(range[0], range[1]);
     // strictly past the failed layer time: no round simulates one twice
     shortest(wall, layer, need, &factor, [floor.max(t1 * (1.0 + 1e-3)), hi])
 }
