@@ -275,3 +275,37 @@ pub fn outcome(r: &Rounds) -> String {
         (None, None) => String::new(),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::measure::model::Model;
+
+    /// fixtures/plan/truth.toml's material: 150 Pa building up by 2 Pa/s.
+    fn wall() -> Wall {
+        let t = "[material]\nkind = \"evp_bingham\"\ndensity = 2100.0\nbulk_modulus = 5e4\npoisson_ratio = 0.3\nviscosity = 20.0\nyield_stress = 150.0\nbulk_modulus_rate = 500.0\n[effects.thixotropy]\na_thix = 2.0\n";
+        Wall::of(&Model::from_table(&t.parse().unwrap()).unwrap(), 0.0, 9.81).unwrap()
+    }
+
+    #[test]
+    fn the_calibrated_closed_form_puts_the_height_stood_and_asks_a_longer_layer_time() {
+        let (w, layer, need) = (wall(), [0.017, 0.0064], 0.15);
+        let planned = w.shortest_layer_time(layer[0], layer[1], need, [5.0, 600.0]).unwrap().unwrap();
+        // a wall that stood 90 mm at the plan's layer time: a factor under 1 that puts 90 mm there
+        let s = calibrate(&w, layer, planned, 0.09, 2.0 * need).unwrap();
+        let at = w.with_collapse_factor(s).buildable(layer[0], layer[1], planned, 2.0 * need).unwrap().height;
+        assert!(s < 1.0 && (at / 0.09 - 1.0).abs() < 1e-3, "factor {s}: {at} m");
+        // the next layer time stands by the calibrated form, and is longer
+        let t2 = next(&w, layer, need, &[(planned, s)], [planned, 600.0]).unwrap().unwrap();
+        let h2 = w.with_collapse_factor(s).buildable(layer[0], layer[1], t2, 2.0 * need).unwrap().height;
+        assert!(t2 > planned && h2 >= need * (1.0 - 1e-9), "{t2} s after {planned} s: {h2} m");
+        // a second failure there, no taller: the secant's factor falls (at most to 10 % under the
+        // lowest found), so the next layer time is longer again, and stands with s2 itself
+        let s2 = calibrate(&w, layer, t2, 0.09, 2.0 * need).unwrap();
+        let t3 = next(&w, layer, need, &[(planned, s), (t2, s2)], [planned, 600.0]).unwrap().unwrap();
+        let h3 = w.with_collapse_factor(s2).buildable(layer[0], layer[1], t3, 2.0 * need).unwrap().height;
+        assert!(s2 < s && t3 > t2 && h3 >= need * (1.0 - 1e-6), "{s2} after {s}; {t3} s after {t2} s: {h3} m");
+        // a height out of any factor's reach in the range: its end
+        assert_eq!(calibrate(&w, layer, planned, 0.0, 2.0 * need).unwrap(), FACTOR_RANGE[0]);
+    }
+}
