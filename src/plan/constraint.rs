@@ -159,27 +159,31 @@ impl Wall {
 
     /// The shortest layer time in `[lo, hi]` at which the wall stands to `need` [m], or the
     /// height it reaches at `hi` when even that is short.
-    pub fn shortest_layer_time(&self, w: f64, h: f64, need: f64, [lo, hi]: [f64; 2]) -> Result<Result<f64, Buildable>, PlanError> {
-        let max = 2.0 * need;
-        let stands = |t: f64| self.buildable(w, h, t, max).map(|b| (b.height >= need, b));
-        if stands(lo)?.0 {
-            return Ok(Ok(lo));
-        }
-        let (ok, at_hi) = stands(hi)?;
-        if !ok {
-            return Ok(Err(at_hi));
-        }
-        let (mut a, mut b) = (lo, hi);
-        while b - a > 1e-9 * b {
-            let m = 0.5 * (a + b);
-            if stands(m)?.0 {
-                b = m;
-            } else {
-                a = m;
-            }
-        }
-        Ok(Ok(b))
+    pub fn shortest_layer_time(&self, w: f64, h: f64, need: f64, bounds: [f64; 2]) -> Result<Result<f64, Buildable>, PlanError> {
+        shortest_time(&|t| self.buildable(w, h, t, 2.0 * need).map(|b| (b.height >= need, b)), bounds, 1e-9)
     }
+}
+
+/// The shortest layer time in `[lo, hi]` at which `stands` holds, by bisection to `tol` of it (a
+/// wall stands taller as its layer time grows), or the wall at `hi` when even that is short.
+pub fn shortest_time(stands: &dyn Fn(f64) -> Result<(bool, Buildable), PlanError>, [lo, hi]: [f64; 2], tol: f64) -> Result<Result<f64, Buildable>, PlanError> {
+    if stands(lo)?.0 {
+        return Ok(Ok(lo));
+    }
+    let (ok, at_hi) = stands(hi)?;
+    if !ok {
+        return Ok(Err(at_hi));
+    }
+    let (mut a, mut b) = (lo, hi);
+    while b - a > tol * b {
+        let m = 0.5 * (a + b);
+        if stands(m)?.0 {
+            b = m;
+        } else {
+            a = m;
+        }
+    }
+    Ok(Ok(b))
 }
 
 #[cfg(test)]
