@@ -36,6 +36,8 @@ pub enum Bound {
     Nozzle,
     /// The wall's failure.
     Failure,
+    /// The shortest layer time at which the simulated wall stood (`wall_rounds.rs`).
+    Simulated,
 }
 
 /// A point's build.
@@ -72,16 +74,32 @@ pub fn build(goal: Option<&WallGoal>, length: f64, [w, h, speed]: [f64; 3]) -> R
         Ok(_) => (floor, if nozzle >= lo { Bound::Nozzle } else { Bound::LowerBound }, None),
         Err(best) => (hi.max(floor), Bound::Failure, Some(best)),
     };
+    at(g, [floor, hi], [w, h, speed], t, bound, short)
+}
+
+/// The build of a layer `w` x `h` printed at `speed` over `length` metres a layer, at the layer
+/// time `t` at which a simulated wall of it stood (`wall_rounds.rs`); the layer time's
+/// derivatives are the closed form's, with `goal`'s collapse factor.
+pub fn simulated(g: &WallGoal, length: f64, [w, h, speed]: [f64; 3], t: f64) -> Result<Build, PlanError> {
+    let [lo, hi] = g.layer_time;
+    at(g, [lo.max(length / speed), hi], [w, h, speed], t, Bound::Simulated, None)
+}
+
+/// The build at the layer time `t`, bound by `bound`, with the floor of the layer time (its
+/// lower bound or the nozzle's time) and its upper bound.
+fn at(g: &WallGoal, [floor, hi]: [f64; 2], [w, h, speed]: [f64; 3], t: f64, bound: Bound, short: Option<Buildable>) -> Result<Build, PlanError> {
+    let failure = |w: f64, h: f64| g.wall.shortest_layer_time(w, h, g.need(), [floor, hi.max(floor)]);
     let layers = g.design_height / h;
     // dT/dw, dT/dh by central differences of the closed form (its bisection resolves 1e-9 of T)
-    let (dt_dw, dt_dh) = if bound == Bound::Failure && short.is_none() {
+    let (dt_dw, dt_dh) = if matches!(bound, Bound::Failure | Bound::Simulated) && short.is_none() {
         let eps = 1e-4;
         let at = |w: f64, h: f64| -> Result<f64, PlanError> { Ok(failure(w, h)?.unwrap_or(hi)) };
         ((at(w * (1.0 + eps), h)? - at(w * (1.0 - eps), h)?) / (2.0 * eps * w), (at(w, h * (1.0 + eps))? - at(w, h * (1.0 - eps))?) / (2.0 * eps * h))
     } else {
         (0.0, 0.0)
     };
-    let dt_dv = if bound == Bound::Nozzle { -nozzle / speed } else { 0.0 };
+    // at the nozzle's bound t = length / speed
+    let dt_dv = if bound == Bound::Nozzle { -t / speed } else { 0.0 };
     let gradient = [layers * dt_dw, layers * dt_dh - layers * t / h, layers * dt_dv];
     let buildable = Some(g.wall.buildable(w, h, t, 2.0 * g.need())?);
     Ok(Build { layer_time: t, bound, build_time: layers * t, gradient, layer_time_gradient: [dt_dw, dt_dh, dt_dv], buildable, short })

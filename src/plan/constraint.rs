@@ -28,7 +28,8 @@ at which the layers gain strength as fast as the wall gains weight (alpha A_thix
 runs to infinity, and a small error in alpha moves it far: the report gives the height with alpha 10 % lower \
 (COLLAPSE_FACTOR_ACCURACY) and the layer time at which the wall stands even so. On fixtures/plan's own targets the \
 plan's 150 mm falls to 94 mm with alpha 5 % lower and to 67 mm with 10 % lower, and the simulated reduced wall failed \
-at 90-96 mm. A wall that stands only with the nominal alpha is unproven; --check-wall simulates it.";
+at 90-96 mm at layer times of 30 to 38 s alike (docs/planning.md). A wall that stands only with the nominal alpha is unproven; --check-wall simulates it, and lengthens the layer time \
+until a simulated wall stands.";
 
 /// How far Prandtl's collapse factor held against the simulated walls (docs/failure.md, "The
 /// closed-form criterion": the yield onset within 10 % of it at three build rates).
@@ -92,7 +93,12 @@ impl Wall {
     /// The same wall with Prandtl's collapse factor times `scale` (1 - [`COLLAPSE_FACTOR_ACCURACY`]:
     /// the pessimistic end of what the simulated walls bear out).
     pub fn with_collapse_factor(&self, scale: f64) -> Wall {
-        Wall { model: self.model.clone(), factor_scale: scale, ..*self }
+        Wall { model: self.model.clone(), factor_scale: self.factor_scale * scale, ..*self }
+    }
+
+    /// Prandtl's collapse factor's multiplier (1 unless a simulated wall calibrated it).
+    pub fn collapse_factor_scale(&self) -> f64 {
+        self.factor_scale
     }
 
     /// Whether the material's stiffness is known (buckling is then checked).
@@ -153,27 +159,31 @@ impl Wall {
 
     /// The shortest layer time in `[lo, hi]` at which the wall stands to `need` [m], or the
     /// height it reaches at `hi` when even that is short.
-    pub fn shortest_layer_time(&self, w: f64, h: f64, need: f64, [lo, hi]: [f64; 2]) -> Result<Result<f64, Buildable>, PlanError> {
-        let max = 2.0 * need;
-        let stands = |t: f64| self.buildable(w, h, t, max).map(|b| (b.height >= need, b));
-        if stands(lo)?.0 {
-            return Ok(Ok(lo));
-        }
-        let (ok, at_hi) = stands(hi)?;
-        if !ok {
-            return Ok(Err(at_hi));
-        }
-        let (mut a, mut b) = (lo, hi);
-        while b - a > 1e-9 * b {
-            let m = 0.5 * (a + b);
-            if stands(m)?.0 {
-                b = m;
-            } else {
-                a = m;
-            }
-        }
-        Ok(Ok(b))
+    pub fn shortest_layer_time(&self, w: f64, h: f64, need: f64, bounds: [f64; 2]) -> Result<Result<f64, Buildable>, PlanError> {
+        shortest_time(&|t| self.buildable(w, h, t, 2.0 * need).map(|b| (b.height >= need, b)), bounds, 1e-9)
     }
+}
+
+/// The shortest layer time in `[lo, hi]` at which `stands` holds, by bisection to `tol` of it (a
+/// wall stands taller as its layer time grows), or the wall at `hi` when even that is short.
+pub fn shortest_time(stands: &dyn Fn(f64) -> Result<(bool, Buildable), PlanError>, [lo, hi]: [f64; 2], tol: f64) -> Result<Result<f64, Buildable>, PlanError> {
+    if stands(lo)?.0 {
+        return Ok(Ok(lo));
+    }
+    let (ok, at_hi) = stands(hi)?;
+    if !ok {
+        return Ok(Err(at_hi));
+    }
+    let (mut a, mut b) = (lo, hi);
+    while b - a > tol * b {
+        let m = 0.5 * (a + b);
+        if stands(m)?.0 {
+            b = m;
+        } else {
+            a = m;
+        }
+    }
+    Ok(Ok(b))
 }
 
 #[cfg(test)]

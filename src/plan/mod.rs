@@ -13,7 +13,8 @@
 //! over a grid of two settings or their groups V/U and H/D (`map_axes.rs`): the printability map. `toolpath_file.rs` writes a G-code or point-list print inline for the plan, and the
 //! file again with the planned settings. `grid_search.rs` checks a plan against a brute-force
 //! grid of its settings; `wall_check.rs` simulates a reduced wall of the planned layer with the
-//! failure detector.
+//! failure detector, and `wall_rounds.rs` drives the plan's layer time by it, calibrating the
+//! closed form's collapse factor round after round until a simulated wall stands.
 //!
 //! Imports point one way: `error.rs` and `targets.rs` at the bottom; the print (`line.rs`) and
 //! the wall (`constraint.rs`); the build (`build.rs`); the search (`optimise.rs`); the plan
@@ -34,5 +35,6 @@ pub mod report_html;
 pub mod targets;
 pub mod toolpath_file;
 pub mod wall_check;
+pub mod wall_rounds;
 
 pub use planner::{plan, Plan, PlanOptions};

@@ -66,6 +66,7 @@ pub fn text(plan: &Plan) -> String {
             super::build::Bound::Failure => "the shortest at which the wall stands",
             super::build::Bound::Nozzle => "the nozzle's time over the layer",
             super::build::Bound::LowerBound => "its lower bound",
+            super::build::Bound::Simulated => "the shortest at which the simulated wall stood, --check-wall",
         };
         s += &format!("  layer time {:>9.2} s     ({why}{bounds})\n", b.build.layer_time);
         s += &format!("build: {:.0} layers of {:.2} mm to {} m in {:.0} s\n", w.design_height / b.layer.values[1], b.layer.values[1] * 1e3, w.design_height, b.build.build_time);
@@ -86,6 +87,9 @@ pub fn text(plan: &Plan) -> String {
             w.design_height,
             w.safety_factor
         );
+        if let Some(g) = plan.wall.as_ref().filter(|g| g.wall.collapse_factor_scale() != 1.0) {
+            s += &format!("  (the closed form's collapse factor x {:.4}, calibrated on the simulated wall)\n", g.wall.collapse_factor_scale());
+        }
         if !plan.buckling_checked {
             s += "  (buckling not checked: the model's [material] has no bulk_modulus and poisson_ratio)\n";
         }

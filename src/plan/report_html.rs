@@ -1,6 +1,6 @@
 //! The plan as one self-contained HTML page (`OUT.html` beside the planned scenario): the plan's
 //! report as `report.rs` gives it (or why no setting met the targets), how far the wall's closed
-//! form can be trusted, the simulated wall when `--check-wall` ran, and with `--map` the
+//! form can be trusted, the simulated walls when `--check-wall` ran, and with `--map` the
 //! printability map: its contour plots, embedded in the page (`output::html`), and a table of its
 //! points, those meeting the targets shaded. Nothing is fetched from elsewhere and no file
 //! beside it is needed, so the page can be moved, mailed or archived alone.
@@ -9,7 +9,7 @@ use super::error::PlanError;
 use super::map::Map;
 use super::planner::Plan;
 use super::targets::Targets;
-use super::wall_check::WallCheck;
+use super::wall_rounds::Rounds;
 use crate::output::html::{embedded_png, escape, table};
 use std::fmt::Write as _;
 use std::path::Path;
@@ -18,7 +18,8 @@ use std::path::Path;
 pub struct Extras<'a> {
     /// Why no setting met the targets (the plan's report is then the best point's).
     pub missed: Option<&'a PlanError>,
-    pub wall: Option<&'a WallCheck>,
+    /// The walls simulated with `--check-wall`, round after round.
+    pub wall: Option<&'a Rounds>,
     /// The map and its PNG.
     pub map: Option<(&'a Map, &'a Path)>,
 }
@@ -45,7 +46,7 @@ pub fn write(plan: &Plan, extras: &Extras, path: &Path) -> Result<(), PlanError>
         let _ = writeln!(s, "<h2>The wall's closed form</h2>\n<p>{}</p>", escape(super::constraint::TRUST));
     }
     if let Some(c) = extras.wall {
-        let _ = writeln!(s, "<h2>The wall simulated</h2>\n<pre>{}</pre>", escape(&super::wall_check::text(c)));
+        let _ = writeln!(s, "<h2>The wall simulated</h2>\n<pre>{}</pre>", escape(&super::wall_rounds::text(c)));
     }
     if let Some((m, png)) = extras.map {
         s.push_str(&map_section(m, &plan.targets, plan.line.nozzle, png)?);
