@@ -934,7 +934,8 @@ mod tests {
     #[test]
     fn dispatched_adjoints_give_the_baseline_bits() {
         let g2p = |flip: Real, j_bar: bool, use_forward: bool| G2p { flip, j_bar, use_forward };
-        let kernels: [(&dyn Flat, fn(&mut Rng) -> Vec<Real>); 8] = [
+        type Point = fn(&mut Rng) -> Vec<Real>;
+        let kernels: [(&dyn Flat, Point); 8] = [
             (&P2g::<false>, p2g_point),
             (&P2g::<true>, p2g_point),
             (&g2p(0.0, false, false), g2p_point),
