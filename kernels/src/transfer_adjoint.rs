@@ -154,6 +154,38 @@ pub fn p2g_block_adjoint<const SPLIT: bool>(
     local_bar: &[Node; NEIGHBOURHOOD_NODES],
     out: &mut P2gAdjoint,
 ) {
+    #[cfg(target_arch = "x86_64")]
+    if crate::cpu::has_avx2() {
+        // SAFETY: the CPU has AVX2.
+        return unsafe { p2g_block_adjoint_avx2::<SPLIT>(origin, order, p, tp, local_bar, out) };
+    }
+    p2g_block_adjoint_body::<SPLIT>(origin, order, p, tp, local_bar, out)
+}
+
+/// [`p2g_block_adjoint`] compiled for AVX2 (see [`crate::cpu`]: the same IEEE operations, the
+/// same bits).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn p2g_block_adjoint_avx2<const SPLIT: bool>(
+    origin: [i32; 3],
+    order: &[u32],
+    p: &P2gInput,
+    tp: &TransferParams,
+    local_bar: &[Node; NEIGHBOURHOOD_NODES],
+    out: &mut P2gAdjoint,
+) {
+    p2g_block_adjoint_body::<SPLIT>(origin, order, p, tp, local_bar, out)
+}
+
+#[inline(always)]
+fn p2g_block_adjoint_body<const SPLIT: bool>(
+    origin: [i32; 3],
+    order: &[u32],
+    p: &P2gInput,
+    tp: &TransferParams,
+    local_bar: &[Node; NEIGHBOURHOOD_NODES],
+    out: &mut P2gAdjoint,
+) {
     let dx = tp.dx;
     let stress_scale = -tp.dt * r(4.0) / (dx * dx);
     let mut stress_scale_bar = r(0.0);
@@ -283,22 +315,60 @@ pub fn g2p_block_adjoint(
     inp: &G2pAdjointIn,
     out: &mut G2pAdjointOut,
 ) {
+    #[cfg(target_arch = "x86_64")]
+    if crate::cpu::has_avx2() {
+        // SAFETY: the CPU has AVX2.
+        return unsafe { g2p_block_adjoint_avx2(origin, order, flip, j_bar, tp, inp, out) };
+    }
+    g2p_block_adjoint_body(origin, order, flip, j_bar, tp, inp, out)
+}
+
+/// [`g2p_block_adjoint`] compiled for AVX2 (see [`crate::cpu`]: the same IEEE operations, the
+/// same bits).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn g2p_block_adjoint_avx2(
+    origin: [i32; 3],
+    order: &[u32],
+    flip: Real,
+    j_bar: Option<&[Real]>,
+    tp: &TransferParams,
+    inp: &G2pAdjointIn,
+    out: &mut G2pAdjointOut,
+) {
+    g2p_block_adjoint_body(origin, order, flip, j_bar, tp, inp, out)
+}
+
+#[inline(always)]
+fn g2p_block_adjoint_body(
+    origin: [i32; 3],
+    order: &[u32],
+    flip: Real,
+    j_bar: Option<&[Real]>,
+    tp: &TransferParams,
+    inp: &G2pAdjointIn,
+    out: &mut G2pAdjointOut,
+) {
     let dx = tp.dx;
     let inv_dx = r(1.0) / dx;
     let c_scale = r(4.0) * inv_dx * inv_dx;
     let move_scale = tp.dt * inv_dx;
 
-    let particle = |pi: usize| match inp.forward {
-        Some((v, c)) if flip == r(0.0) => g2p_particle_from(origin, tp, inp.xg[pi], v[pi], &c[pi]),
-        _ => g2p_particle(origin, inp.local, tp, inp.xg[pi]),
-    };
+    // a function, not a closure: it inlines into (and takes the target features of) each copy
+    #[inline(always)]
+    fn particle(origin: [i32; 3], flip: Real, tp: &TransferParams, inp: &G2pAdjointIn, pi: usize) -> G2pParticle {
+        match inp.forward {
+            Some((v, c)) if flip == r(0.0) => g2p_particle_from(origin, tp, inp.xg[pi], v[pi], &c[pi]),
+            _ => g2p_particle(origin, inp.local, tp, inp.xg[pi]),
+        }
+    }
     let mut cell_vj = [r(0.0); BLOCK_EDGE * BLOCK_EDGE * BLOCK_EDGE];
     let mut cell_v = [r(0.0); BLOCK_EDGE * BLOCK_EDGE * BLOCK_EDGE];
     let mut cell_j_bar_sum = [r(0.0); BLOCK_EDGE * BLOCK_EDGE * BLOCK_EDGE];
     if let Some(vol0) = j_bar {
         for &pi in order {
             let pi = pi as usize;
-            let g = particle(pi);
+            let g = particle(origin, flip, tp, inp, pi);
             if let Some(k) = cell_of(origin, g.xg_new) {
                 cell_vj[k] += vol0[pi] * (inp.j[pi] * (r(1.0) + tp.dt * g.tr_c));
                 cell_v[k] += vol0[pi];
@@ -313,7 +383,7 @@ pub fn g2p_block_adjoint(
     let mut move_scale_bar = r(0.0);
     for &pi in order {
         let pi = pi as usize;
-        let g = particle(pi);
+        let g = particle(origin, flip, tp, inp, pi);
         let st = &g.stencil;
         let growth = r(1.0) + tp.dt * g.tr_c;
         // adjoint of J after the growth, before the cell average
@@ -494,6 +564,12 @@ mod tests {
         x.iter().zip(d).map(|(x, d)| x + h * d).collect()
     }
 
+    thread_local! {
+        /// Whether this test thread's [`Flat::adjoint`]s run the baseline copies of the kernels'
+        /// adjoints rather than the copies the CPU dispatches to.
+        static BASELINE: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+    }
+
     /// A transfer kernel as a map of its flattened inputs, with its adjoint.
     trait Flat {
         fn groups(&self) -> Vec<Group>;
@@ -538,7 +614,8 @@ mod tests {
             let (mut xg_bar, mut v_bar, mut c_bar, mut stress_bar) = (v3s(a(0)), v3s(a(1)), m3s(a(2)), m3s(a(3)));
             let (mut mass_bar, mut vol0_bar, mut jac_bar) = (a(4).to_vec(), a(5).to_vec(), a(6).to_vec());
             let (mut dt_bar, mut dx_bar) = (a(7)[0], a(8)[0]);
-            p2g_block_adjoint::<SPLIT>(
+            let kernel = if BASELINE.get() { p2g_block_adjoint_body::<SPLIT> } else { p2g_block_adjoint::<SPLIT> };
+            kernel(
                 ORIGIN,
                 &ORDER,
                 &p,
@@ -635,7 +712,8 @@ mod tests {
                 dx_bar: &mut dx_bar,
             };
             let tp = TransferParams { dt: s(5)[0], dx: s(6)[0] };
-            g2p_block_adjoint(ORIGIN, &ORDER, self.flip, self.j_bar.then_some(s(3)), &tp, &inp, &mut out);
+            let kernel = if BASELINE.get() { g2p_block_adjoint_body } else { g2p_block_adjoint };
+            kernel(ORIGIN, &ORDER, self.flip, self.j_bar.then_some(s(3)), &tp, &inp, &mut out);
             flat_v3(&xg_bar)
                 .chain(flat_v3(&v_bar))
                 .chain(jac_bar)
@@ -847,6 +925,39 @@ mod tests {
             let recomputed = g2p_particle(ORIGIN, &local, &TransferParams { dt: DT, dx: DX }, xg[p]);
             assert_eq!(recomputed.xg_new.to_array().as_slice(), &after[3 * p..3 * p + 3]);
             assert_eq!(j[p] * (1.0 + DT * recomputed.tr_c), after[15 * N + p]);
+        }
+    }
+
+    /// The copies the CPU dispatches to (AVX2 where it has it) give the baseline copies' bits,
+    /// for every variant of both adjoints, at scattered points, output adjoints and
+    /// accumulators.
+    #[test]
+    fn dispatched_adjoints_give_the_baseline_bits() {
+        let g2p = |flip: Real, j_bar: bool, use_forward: bool| G2p { flip, j_bar, use_forward };
+        type Point = fn(&mut Rng) -> Vec<Real>;
+        let kernels: [(&dyn Flat, Point); 8] = [
+            (&P2g::<false>, p2g_point),
+            (&P2g::<true>, p2g_point),
+            (&g2p(0.0, false, false), g2p_point),
+            (&g2p(0.0, false, true), g2p_point),
+            (&g2p(0.95, false, false), g2p_point),
+            (&g2p(0.0, true, false), g2p_point),
+            (&g2p(0.0, true, true), g2p_point),
+            (&g2p(0.95, true, false), g2p_point),
+        ];
+        let mut rng = Rng(11);
+        let bits = |x: &[Real]| x.iter().map(|a| a.to_bits()).collect::<Vec<_>>();
+        for (k, (kernel, point)) in kernels.iter().enumerate() {
+            for _ in 0..4 {
+                let x = point(&mut rng);
+                let cot = rng.vec(kernel.forward(&x).len(), -1.0, 1.0);
+                let acc = rng.vec(x.len(), -1.0, 1.0);
+                let dispatched = kernel.adjoint(&x, &cot, &acc);
+                BASELINE.set(true);
+                let baseline = kernel.adjoint(&x, &cot, &acc);
+                BASELINE.set(false);
+                assert!(bits(&dispatched) == bits(&baseline), "kernel {k}: the dispatched copy's bits differ");
+            }
         }
     }
 
