@@ -128,6 +128,10 @@ pub struct Sleep {
     pub activity: Pool<UnitActivity>,
     /// Units asleep now.
     pub sleeping_units: usize,
+    /// Units woken since the run began: by load (`wake_by_load`), by material (awake material
+    /// entering them or fast material next to them), by the nozzle tube. For the run's log;
+    /// no checkpoint keeps them.
+    pub woken_by: [u64; 3],
     /// The load tables, `load` to `reactions`, are empty unless loads are tested. Sleeping
     /// unit: the load on it [N], averaged over `load_time` (an exponential average, brought up
     /// to date whenever a step loads it).
@@ -224,6 +228,7 @@ impl Sleep {
             asleep_in_block: Pool::default(),
             activity: Pool::default(),
             sleeping_units: 0,
+            woken_by: [0; 3],
             load: Pool::default(),
             load_step: Pool::default(),
             margin: Pool::default(),

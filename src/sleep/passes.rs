@@ -107,6 +107,8 @@ impl Sleep {
             wake(u, state, woken, &mut n_woken);
         }
         self.n_loaded = 0;
+        self.woken_by[0] += n_woken as u64;
+        let by_load = n_woken;
         for s in 0..npb {
             for (k, &[v, rate]) in activity[s].iter().enumerate() {
                 let u = slot_block[s] * UNITS as u32 + k as u32;
@@ -137,6 +139,8 @@ impl Sleep {
                 }
             }
         }
+        self.woken_by[1] += (n_woken - by_load) as u64;
+        let by_material = n_woken;
         if let Some(bx) = keep_awake {
             // units whose stencil reach (one unit further) touches the tube
             let lo = unit_of_point(geom, bx.0, -1);
@@ -157,6 +161,7 @@ impl Sleep {
                 }
             }
         }
+        self.woken_by[2] += (n_woken - by_material) as u64;
         n_woken
     }
 
