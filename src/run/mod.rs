@@ -4,6 +4,7 @@
 
 mod checkpoints;
 mod error;
+mod layer_cost;
 mod outputs;
 mod preflight;
 mod previous;
@@ -23,6 +24,7 @@ use crate::memory::fmt_bytes;
 use crate::scenario::Scenario;
 use crate::solver::{DtLimit, SimError, Simulation};
 use checkpoints::Checkpoints;
+use layer_cost::LayerCost;
 use outputs::Outputs;
 use previous::clear_previous_run;
 use progress::progress_bar;
@@ -100,6 +102,8 @@ pub struct Run<'a> {
     first_step: u64,
     last_line: Instant,
     resume_cmd: String,
+    /// The print's cost per layer, for the log.
+    layer_cost: LayerCost,
 }
 
 /// What opening a run gives: the run, or the summary of a resumed run that had already finished.
@@ -191,7 +195,9 @@ impl<'a> Run<'a> {
         let bar = progress_bar(opts, ((end - sim.time) / dt0).ceil().max(1.0) as u64);
         let first_step = sim.step;
         let last_line = Instant::now();
-        let run = Run { opts, sc, sim, outputs, ckpts, signals, bar, resumed_from, pending, end, first_step, last_line, resume_cmd };
+        let starts = sim.printer.as_ref().map_or(Vec::new(), |p| p.toolpath.layers().iter().map(|l| l.1).collect());
+        let layer_cost = LayerCost::new(starts, &sim);
+        let run = Run { opts, sc, sim, outputs, ckpts, signals, bar, resumed_from, pending, end, first_step, last_line, resume_cmd, layer_cost };
         Ok(Opened::Run(Box::new(run)))
     }
 
@@ -234,6 +240,9 @@ impl<'a> Run<'a> {
         }
         self.sim.last_dt = dt;
         self.sim.last_limit = limit;
+        if let Some(line) = self.layer_cost.after_step(&self.sim) {
+            self.opts.say(line);
+        }
         self.show_progress();
         Ok(())
     }
@@ -325,6 +334,9 @@ impl<'a> Run<'a> {
             if let Err(e) = r {
                 return Err(self.stopped(e));
             }
+        }
+        if self.layer_cost.counting() {
+            self.opts.say(self.layer_cost.finish_layer(&self.sim));
         }
         let (sim, opts) = (&self.sim, self.opts);
         let wall = self.outputs.start.elapsed().as_secs_f64();

@@ -107,6 +107,8 @@ impl Sleep {
             wake(u, state, woken, &mut n_woken);
         }
         self.n_loaded = 0;
+        self.woken_by[0] += n_woken as u64;
+        let by_load = n_woken;
         for s in 0..npb {
             for (k, &[v, rate]) in activity[s].iter().enumerate() {
                 let u = slot_block[s] * UNITS as u32 + k as u32;
@@ -137,6 +139,8 @@ impl Sleep {
                 }
             }
         }
+        self.woken_by[1] += (n_woken - by_load) as u64;
+        let by_material = n_woken;
         if let Some(bx) = keep_awake {
             // units whose stencil reach (one unit further) touches the tube
             let lo = unit_of_point(geom, bx.0, -1);
@@ -157,6 +161,7 @@ impl Sleep {
                 }
             }
         }
+        self.woken_by[2] += (n_woken - by_material) as u64;
         n_woken
     }
 
@@ -200,6 +205,9 @@ impl Sleep {
                     if loads {
                         self.margin.as_mut_slice()[u as usize] = 0.0;
                         self.base.as_mut_slice()[u as usize] = f32::NAN;
+                        if self.column_loads {
+                            self.weight.as_mut_slice()[u as usize] = 0.0;
+                        }
                         self.load.as_mut_slice()[u as usize] = [0.0; 3];
                         self.load_step.as_mut_slice()[u as usize] = step as u32;
                     }
@@ -250,6 +258,12 @@ impl Sleep {
                 // zero, so that checkpoints store only sleeping units' entries
                 (load[u as usize], load_step[u as usize], margin[u as usize], base[u as usize]) = ([0.0; 3], 0, 0.0, 0.0);
             }
+            if self.column_loads {
+                let weight = self.weight.as_mut_slice();
+                for &u in &woken[..woke] {
+                    weight[u as usize] = 0.0;
+                }
+            }
         }
     }
 
@@ -273,6 +287,9 @@ impl Sleep {
                     // summed here, counted in the unit's load (still zero), divided below
                     margin[u as usize] += material.yield_margin(&particles.state.as_slice()[k * sl..(k + 1) * sl]) as f32;
                     self.load.as_mut_slice()[u as usize][0] += 1.0;
+                    if self.column_loads {
+                        self.weight.as_mut_slice()[u as usize] += particles.mass.as_slice()[k] as f32 * self.g;
+                    }
                 }
                 particles.n_sleep += 1;
             }
