@@ -67,66 +67,41 @@ impl Sleep {
         }
         let (down_axis, sign) = self.down.expect("checked above");
         let (state, asleep_since, margin) = (states_mut(self.state.as_mut_slice()), self.clock.as_slice(), self.margin.as_slice());
-        let column_loads = self.column_loads;
-        let (base, weight) = (self.base.as_mut_slice(), self.weight.as_slice());
-        let weight_of = |w: u32| if column_loads { weight[w as usize] } else { 0.0 };
+        let base = self.base.as_mut_slice();
         let loaded = self.loaded.as_mut_slice();
         let tau = self.cfg.load_time;
         let (floor, fraction) = (self.cfg.load_floor as f32, self.cfg.load_fraction as f32);
         let column = geom.nb[down_axis] * UNITS_PER_EDGE as i32;
-        // the sleeping unit next to unit c along the down axis (`step` = sign: below, -sign:
-        // above), if any (a column asleep all round a periodic axis ends where it began)
-        let next_asleep = |c: [i32; 3], step: i32, state: &[UnitState]| {
-            let mut n = c;
-            n[down_axis] += step;
-            let n = wrap_unit(geom, n);
-            (unit_in_table(geom, n) && state[unit_index(geom, n) as usize].is_asleep()).then_some(n)
-        };
         for &u in &touched[..n_touched] {
             let l = load[u as usize];
             // the average has run since the unit fell asleep, from zero: unbias it
             let slept = now - asleep_since[u as usize] as f64;
-            let w8 = if tau > 0.0 { 1.0 - (-slept / tau).exp() } else { 1.0 };
-            if w8 < 0.9 {
+            let weight = if tau > 0.0 { 1.0 - (-slept / tau).exp() } else { 1.0 };
+            if weight < 0.9 {
                 continue;
             }
-            let size = (l[0] * l[0] + l[1] * l[1] + l[2] * l[2]).sqrt() / w8 as f32;
-            // the weight of the sleeping units above u, which rests on no node
-            let mut above = 0.0f32;
-            let mut c = unit_coords(geom, u);
-            for _ in 1..if column_loads { column } else { 1 } {
-                let Some(n) = next_asleep(c, -sign, state) else { break };
-                above += weight_of(unit_index(geom, n));
-                c = n;
-            }
+            let size = (l[0] * l[0] + l[1] * l[1] + l[2] * l[2]).sqrt() / weight as f32;
             if base[u as usize].is_nan() {
-                base[u as usize] = size + above;
+                base[u as usize] = size;
                 continue;
             }
-            // down the sleeping column from u: the load each unit carries is the load on u and
-            // the weights of the sleeping units above it; only what was added since it fell
-            // asleep counts (the rest is in its frozen stress). The deepest unit whose margin
-            // that passes wakes, with the column above it.
-            let mut carried = size + above;
+            // only what was added since: the load it fell asleep under is in its stress
+            let t = LOAD_SHARE * self.per_area * (size - base[u as usize]);
+            // the deepest unit of the sleeping column from u down whose margin the load passes
             let mut c = unit_coords(geom, u);
             let (mut w, mut deepest) = (u, None);
             for depth in 1.. {
-                if column_loads && base[w as usize].is_nan() {
-                    // a unit whose own nodes took no load since it fell asleep (it slept under
-                    // sleeping units): what it carries when a load first reaches it
-                    base[w as usize] = carried;
-                }
-                // without column loads, the load added on u, against every unit's margin
-                let added = if column_loads { carried - base[w as usize] } else { size - base[u as usize] };
-                let t = LOAD_SHARE * self.per_area * added;
                 let gain = material.strength_gain((now - asleep_since[w as usize] as f64).max(0.0) as Real) as f32;
                 if t > fraction * (margin[w as usize].max(0.0) + gain) + floor {
                     deepest = Some(c[down_axis]);
                 }
-                carried += weight_of(w);
-                let Some(n) = next_asleep(c, sign, state).filter(|_| depth < column) else { break };
-                c = n;
-                w = unit_index(geom, n);
+                c[down_axis] += sign;
+                let next = wrap_unit(geom, c);
+                // (a column asleep all round a periodic axis ends where it began)
+                if depth == column || !unit_in_table(geom, next) || !state[unit_index(geom, next) as usize].is_asleep() {
+                    break;
+                }
+                w = unit_index(geom, next);
             }
             let Some(last) = deepest else { continue };
             let mut c = unit_coords(geom, u);

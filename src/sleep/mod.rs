@@ -53,12 +53,7 @@
 //! The load reaches through the sleeping material below the unit, so it wakes the contiguous
 //! sleeping units under it in its column down to the deepest whose margin it passes: a layer at
 //! its yield stress at the bottom wakes under the next layer's weight, one that has built up
-//! enough strength stays asleep. With a material whose margin is many layers' weight
-//! (`Material::column_loads`: `early_age_solid`) each unit of the column is tested against what
-//! the column added on it since it fell asleep: the load on the top and the weights of the
-//! sleeping units between, whose own weight rests on no node. Why: tested against the top's load
-//! alone, a deep unit never saw the layers that had fallen asleep above it, and a reduced
-//! cylinder asleep stood 32 layers where it fails in layer 23 awake.
+//! enough strength stays asleep.
 //!
 //! Why units and not the grid's 4-cell blocks: the awake region is what moves plus a one-unit
 //! halo around it (the calm and wake tests look at the 26 neighbours), and a printed layer is
@@ -146,14 +141,10 @@ pub struct Sleep {
     /// Sleeping unit: the mean margin to yield of its particles when it fell asleep [Pa] (the
     /// least is near zero in material that just stopped flowing; see `load_floor`).
     margin: Pool<f32>,
-    /// Sleeping unit: the load its frozen stress already carries [N], from the material that
-    /// lay on it when it fell asleep: |load| once its average had run long enough to be unbiased,
-    /// plus the weight of the sleeping units then above it in its column (NaN before).
+    /// Sleeping unit: |load| [N] once its average had run long enough to be unbiased (NaN
+    /// before): the load its frozen stress already carries, from the material that lay on it
+    /// when it fell asleep.
     base: Pool<f32>,
-    /// Sleeping unit: the weight of its particles [N]. Why: a sleeping unit's weight rests on
-    /// no node, so the load a unit below it carries is the load on the column's top plus the
-    /// weights of the sleeping units between (`loads.rs`).
-    weight: Pool<f32>,
     /// Units the last step loaded past their margin (state `Loaded`), for the next update.
     loaded: Pool<u32>,
     n_loaded: usize,
@@ -162,11 +153,6 @@ pub struct Sleep {
     reactions: Pool<[f32; 3]>,
     /// Axis and sign of gravity (down), when gravity lies along an axis and loads are tested.
     down: Option<(usize, i32)>,
-    /// |gravity| [m/s^2].
-    g: f32,
-    /// Whether loads are tested on the whole column ([`crate::kernels::material::Material::column_loads`]; `weight`
-    /// exists only then).
-    column_loads: bool,
     /// 1 / (a unit's face area) [1/m^2].
     per_area: f32,
     /// Merging scratch, with `coarsen`.
@@ -192,9 +178,6 @@ impl Pools for Sleep {
                 decl("sleep.margin", units, Sparse, |s| &s.margin, |s| &mut s.margin),
                 decl("sleep.base", units, Sparse, |s| &s.base, |s| &mut s.base),
             ]);
-            if self.column_loads {
-                v.push(decl("sleep.weight", units, Sparse, |s| &s.weight, |s| &mut s.weight));
-            }
         }
         v.extend([
             decl("sleep.woken", units, Scratch, |s| &s.woken, |s| &mut s.woken),
@@ -237,8 +220,6 @@ impl Sleep {
         Sleep {
             coarsen: cfg.coarsen.then(|| Coarsen::declared(geom)),
             down: cfg.down(gravity),
-            g: gravity.iter().map(|x| x * x).sum::<f64>().sqrt() as f32,
-            column_loads: false,
             cfg,
             table_len: geom.table_len(),
             state: Pool::default(),
@@ -252,19 +233,11 @@ impl Sleep {
             load_step: Pool::default(),
             margin: Pool::default(),
             base: Pool::default(),
-            weight: Pool::default(),
             loaded: Pool::default(),
             n_loaded: 0,
             reactions: Pool::default(),
             per_area: (1.0 / (face * face)) as f32,
         }
-    }
-
-    /// The same tables, testing loads on the whole column when `on` (the material's
-    /// [`crate::kernels::material::Material::column_loads`]; before the tables are mapped).
-    pub fn with_column_loads(mut self, on: bool) -> Self {
-        self.column_loads = on;
-        self
     }
 
     /// Tables for `geom`'s domain with `max_blocks` grid slots and room for `capacity`

@@ -205,9 +205,6 @@ impl Sleep {
                     if loads {
                         self.margin.as_mut_slice()[u as usize] = 0.0;
                         self.base.as_mut_slice()[u as usize] = f32::NAN;
-                        if self.column_loads {
-                            self.weight.as_mut_slice()[u as usize] = 0.0;
-                        }
                         self.load.as_mut_slice()[u as usize] = [0.0; 3];
                         self.load_step.as_mut_slice()[u as usize] = step as u32;
                     }
@@ -258,12 +255,6 @@ impl Sleep {
                 // zero, so that checkpoints store only sleeping units' entries
                 (load[u as usize], load_step[u as usize], margin[u as usize], base[u as usize]) = ([0.0; 3], 0, 0.0, 0.0);
             }
-            if self.column_loads {
-                let weight = self.weight.as_mut_slice();
-                for &u in &woken[..woke] {
-                    weight[u as usize] = 0.0;
-                }
-            }
         }
     }
 
@@ -287,9 +278,6 @@ impl Sleep {
                     // summed here, counted in the unit's load (still zero), divided below
                     margin[u as usize] += material.yield_margin(&particles.state.as_slice()[k * sl..(k + 1) * sl]) as f32;
                     self.load.as_mut_slice()[u as usize][0] += 1.0;
-                    if self.column_loads {
-                        self.weight.as_mut_slice()[u as usize] += particles.mass.as_slice()[k] as f32 * self.g;
-                    }
                 }
                 particles.n_sleep += 1;
             }
