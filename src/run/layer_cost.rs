@@ -27,8 +27,9 @@ pub(super) struct LayerCost {
 impl LayerCost {
     /// Counting for a print whose layers start at `starts` (none: nothing is counted).
     pub(super) fn new(starts: Vec<f64>, sim: &Simulation) -> Self {
-        let mut c = LayerCost { starts, layer: 0, step0: 0, time0: 0.0, cpu0: 0.0, awake0: 0, asleep_steps: 0, block_steps: 0, woken0: [0; 3] };
-        c.layer = c.starts.iter().take_while(|&&t| t <= sim.time).count().saturating_sub(1);
+        // a resumed run counts from the layer it stands in
+        let layer = starts.iter().take_while(|&&t| t <= sim.time).count().saturating_sub(1);
+        let mut c = LayerCost { starts, layer, step0: 0, time0: 0.0, cpu0: 0.0, awake0: 0, asleep_steps: 0, block_steps: 0, woken0: [0; 3] };
         c.restart(sim);
         c
     }
