@@ -5,15 +5,15 @@
 //! The claim checked is the closed form's: at layer time T, a wall of layers w x h stands to
 //! the design height times the safety factor, H = design_height x safety_factor. The check stacks
 //! N = ceil(H / h) layers of the print's own pass (its moves up to its last extruding one,
-//! pauses dropped; each layer one h higher, the nozzle travelling back to the pass's start) at
-//! the planned settings, and says the wall stands when the detector finds no failure up to one
+//! pauses dropped; each layer one h higher, printed back along the pass from where the last
+//! ended, [`wall_path`]) at the planned settings, and says the wall stands when the detector finds no failure up to one
 //! layer time after the last layer was laid. The factor is on the height, as the closed form's
 //! constraint puts it: the wall must reach H, not the design height alone.
 //!
 //! What is reduced, openly:
 //! - Time. Layer after layer at T (tens of seconds) is out of reach of an explicit step of a
 //!   fraction of a millisecond, so the rest between layers is compressed by m = T / T_r, with
-//!   T_r the nozzle's time over a layer and its moves back plus [`SETTLE`]: layers start T_r
+//!   T_r the nozzle's time over a layer and its climb plus [`SETTLE`]: layers start T_r
 //!   apart, and the material's whole age clock runs m times faster ([`AGE_RATES`] times m,
 //!   [`AGES`] over m: thixotropy's build-up, every age law of the stiffness and the strength), so
 //!   each layer's yield stress and stiffness when the next comes are the full wall's. The print's
@@ -154,32 +154,61 @@ fn raised(s: &Segment, dz: f64) -> Segment {
 }
 
 /// The reduced wall's path from `start`: `layers` passes `h` apart, starting `period` apart,
-/// and a last rest of `period`. The nozzle climbs h after each pass and travels back to the
-/// pass's start at the pass's speed.
-fn wall_path(start: [f64; 3], one: &[Segment], layers: usize, h: f64, period: f64, speed: f64) -> Result<Vec<Segment>, PlanError> {
+/// and a last rest of `period`. After each pass the nozzle climbs h at `climb` speed and prints
+/// the next layer back along the pass, as short walls are printed: a nozzle travelling back to
+/// the pass's start would pass over the fresh layer, and its tube, which moves the grid's nodes
+/// inside it at its own velocity, drags that layer's top along (measured on `fixtures/plan`:
+/// lumps carried from the pass's end dropped on the wall, and a top lost at the station). The
+/// time between two layers at a station a distance d from the pass's middle then alternates by
+/// +-2 d / speed about the layer time (its mean).
+fn wall_path(start: [f64; 3], one: &[Segment], layers: usize, h: f64, period: f64, climb: f64) -> Result<Vec<Segment>, PlanError> {
+    let back = backwards(start, one);
     let mut path: Vec<Segment> = Vec::new();
     let end_of = |path: &[Segment]| Toolpath::from_segments(start, path).map(|t| t.end_time()).map_err(|e| PlanError::Unsupported(format!("--check-wall: {e}")));
     for k in 0..layers {
         if k > 0 {
-            path.push(Segment::Layer { dz: h, speed: Some(speed) });
-            path.push(Segment::Travel { to: [start[0], start[1], start[2] + k as f64 * h], speed });
+            path.push(Segment::Layer { dz: h, speed: Some(climb) });
             let wait = k as f64 * period - end_of(&path)?;
             if wait < -1e-9 * period {
                 return Err(PlanError::Unsupported(format!("--check-wall: a layer's moves take longer than the simulated layer time {period} s")));
             }
-            path.push(Segment::Pause { duration: wait.max(0.0) });
+            if wait > 0.0 {
+                path.push(Segment::Pause { duration: wait });
+            }
         }
-        path.extend(one.iter().map(|s| raised(s, k as f64 * h)));
+        let pass = if k % 2 == 0 { one } else { &back };
+        path.extend(pass.iter().map(|s| raised(s, k as f64 * h)));
     }
     path.push(Segment::Pause { duration: period });
     Ok(path)
 }
 
-/// The time one pass and the climb and travel back to its start take, at `speed` [s].
-fn pass_period(start: [f64; 3], one: &[Segment], h: f64, speed: f64) -> Result<f64, PlanError> {
+/// The pass `one` from `start` run backwards: the same moves, last first, each ending where it
+/// began (the pass's moves are straight: [`pass`] refuses the rest).
+fn backwards(start: [f64; 3], one: &[Segment]) -> Vec<Segment> {
+    let mut from = start;
+    let mut ends = Vec::with_capacity(one.len());
+    for s in one {
+        ends.push(from);
+        if let Segment::Print { to, .. } | Segment::Travel { to, .. } = s {
+            from = *to;
+        }
+    }
+    one.iter()
+        .zip(ends)
+        .rev()
+        .map(|(s, to)| match s {
+            Segment::Print { speed, extrusion, .. } => Segment::Print { to, speed: *speed, extrusion: *extrusion },
+            Segment::Travel { speed, .. } => Segment::Travel { to, speed: *speed },
+            other => other.clone(),
+        })
+        .collect()
+}
+
+/// The time one pass and the climb after it take, climbing at `climb` [s].
+fn pass_period(start: [f64; 3], one: &[Segment], h: f64, climb: f64) -> Result<f64, PlanError> {
     let mut moves = one.to_vec();
-    moves.push(Segment::Layer { dz: h, speed: Some(speed) });
-    moves.push(Segment::Travel { to: [start[0], start[1], start[2] + h], speed });
+    moves.push(Segment::Layer { dz: h, speed: Some(climb) });
     Ok(Toolpath::from_segments(start, &moves).map_err(|e| PlanError::Unsupported(format!("--check-wall: {e}")))?.end_time())
 }
 
@@ -197,10 +226,10 @@ pub fn scenario(plan: &Plan, layer_time: f64) -> Result<(Table, usize, f64, f64,
     let start = print.get("start").and_then(point).ok_or_else(|| bad("print.start"))?;
     let path: Vec<Segment> = print.get("path").and_then(Value::as_array).ok_or_else(|| bad("print.path"))?.iter().map(|v| v.clone().try_into::<Segment>()).collect::<Result<_, _>>().map_err(|e| bad(&format!("print.path: {e}")))?;
     let one = pass(&path)?;
-    let speed = b.x[0];
-    let period = pass_period(start, &one, h, speed)? + SETTLE;
+    let climb = b.x[0];
+    let period = pass_period(start, &one, h, climb)? + SETTLE;
     let (simulated, compression) = if layer_time > period { (period, layer_time / period) } else { (layer_time, 1.0) };
-    let full = wall_path(start, &one, layers, h, simulated, speed)?;
+    let full = wall_path(start, &one, layers, h, simulated, climb)?;
     let end = Toolpath::from_segments(start, &full).map_err(|e| PlanError::Unsupported(format!("--check-wall: {e}")))?.end_time();
     let print = t.get_mut("print").and_then(Value::as_table_mut).expect("checked above");
     print.insert("path".into(), Value::Array(full.iter().map(segment_value).collect()));
@@ -304,5 +333,32 @@ pub fn text(c: &WallCheck) -> String {
             (f.layer - 1) as f64 * c.layer_height,
             c.need
         ),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_pass_run_backwards_ends_where_it_began_and_alternates_in_the_wall() {
+        let s = [0.0, 0.0, 0.01];
+        let one = [Segment::Travel { to: [0.01, 0.0, 0.01], speed: 0.2 }, Segment::Print { to: [0.05, 0.0, 0.01], speed: 0.05, extrusion: 0.04 }];
+        let back = backwards(s, &one);
+        assert!(matches!(back[0], Segment::Print { to, speed, extrusion } if to == [0.01, 0.0, 0.01] && speed == 0.05 && extrusion == 0.04), "{back:?}");
+        assert!(matches!(back[1], Segment::Travel { to, speed } if to == s && speed == 0.2), "{back:?}");
+        // three layers 0.006 apart, 1.5 s apart: forward (its print after the 0.05 s travel),
+        // backward, forward
+        let path = wall_path(s, &one, 3, 0.006, 1.5, 0.05).unwrap();
+        let t = Toolpath::from_segments(s, &path).unwrap();
+        let starts: Vec<(f64, f64)> = t.layers().iter().map(|l| (l.0, l.1)).collect();
+        assert_eq!(starts.len(), 3, "{starts:?}");
+        for (k, (z, t0)) in starts.iter().enumerate() {
+            assert!((z - (0.01 + 0.006 * k as f64)).abs() < 1e-12 && (t0 - (1.5 * k as f64 + if k % 2 == 0 { 0.05 } else { 0.0 })).abs() < 1e-9, "layer {k}: {starts:?}");
+        }
+        let last = t.moves().iter().rev().find(|m| m.kind == crate::print::toolpath::MoveKind::Print).unwrap();
+        assert!((last.to[0] - 0.05).abs() < 1e-12, "the third layer runs forward again: {last:?}");
+        // a layer time shorter than the moves is refused
+        assert!(wall_path(s, &one, 3, 0.006, 0.5, 0.05).is_err());
     }
 }
