@@ -414,4 +414,25 @@ mod tests {
         // a layer time shorter than the moves is refused
         assert!(wall_path(s, &one, 3, 0.006, 0.5, 0.05).is_err());
     }
+
+    #[test]
+    fn the_wall_is_cut_at_its_pass_s_ends_by_symmetry_planes() {
+        let text = "[domain]\nmin = [-0.02, 0.0, 0.0]\nmax = [0.08, 0.03, 0.05]\n[boundary]\ny_min = \"symmetry\"\nplatform = { z = 0.003, xy_min = [-0.02, 0.0], xy_max = [0.08, 0.03] }\n";
+        let s = [0.0, 0.0, 0.01];
+        let one = [Segment::Print { to: [0.04, 0.0, 0.01], speed: 0.05, extrusion: 0.04 }];
+        let mut t: Table = text.parse().unwrap();
+        mirror_ends(&mut t, s, &one, 0.025).unwrap();
+        assert_eq!(point(&t["domain"]["min"]), Some([0.0, 0.0, 0.0]));
+        assert_eq!(point(&t["domain"]["max"]), Some([0.04, 0.03, 0.05]));
+        let b = &t["boundary"];
+        assert!(b["x_min"].as_str() == Some("symmetry") && b["x_max"].as_str() == Some("symmetry") && b["y_min"].as_str() == Some("symmetry"), "{b:?}");
+        assert_eq!(b["platform"]["xy_min"][0].as_float(), Some(0.0));
+        assert_eq!(b["platform"]["xy_max"][0].as_float(), Some(0.04));
+        // a station beyond the pass's ends, or a pass leaving its line, is refused by name
+        let e = mirror_ends(&mut text.parse().unwrap(), s, &one, 0.05).unwrap_err().to_string();
+        assert!(e.contains("the station x = 0.05 m lies outside the pass's ends"), "{e}");
+        let bent = [Segment::Print { to: [0.04, 0.01, 0.01], speed: 0.05, extrusion: 0.04 }];
+        let e = mirror_ends(&mut text.parse().unwrap(), s, &bent, 0.025).unwrap_err().to_string();
+        assert!(e.contains("a slice of a long straight wall along x") && e.contains("y = 0.01 m"), "{e}");
+    }
 }
