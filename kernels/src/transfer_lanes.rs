@@ -22,57 +22,90 @@ use wide::{R, W};
 /// equal [`crate::bspline::floor_i32`] (f32 holds every integer up to 2^24).
 const SMALL: Real = 4_194_304.0; // 2^22
 
-/// The 256-bit register of one quantity of W particles, from its intrinsics. Only ever built
-/// inside the AVX2 copy of G2P (which is where the intrinsics inline), so every `unsafe` below
-/// runs on a CPU with AVX2.
-#[cfg(not(feature = "f32"))]
-mod wide {
-    use crate::real::Real;
-    use std::arch::x86_64::*;
+/// The 256-bit register `R` of one quantity of W particles, from its intrinsics: lane-by-lane
+/// add, subtract, multiply, floor and max, the same IEEE operations as the scalars'. Only ever
+/// built inside the AVX2 copy of G2P (which is where the intrinsics inline), so every `unsafe`
+/// in it runs on a CPU with AVX2. `gather3` is each precision's own.
+macro_rules! wide_register {
+    ($w:expr, $reg:ty, $all:expr, $set1:ident, $loadu:ident, $storeu:ident, $floor:ident, $max:ident, $andnot:ident, $cmp:ident, $movemask:ident, $add:ident, $sub:ident, $mul:ident, |$x:ident, $a:ident| $to_i32:expr) => {
+        use crate::real::Real;
+        use std::arch::x86_64::*;
 
-    pub const W: usize = 4;
-    #[derive(Clone, Copy)]
-    pub struct R(__m256d);
+        pub const W: usize = $w;
+        #[derive(Clone, Copy)]
+        pub struct R($reg);
 
-    impl R {
-        #[inline(always)]
-        pub fn splat(x: Real) -> R {
-            R(unsafe { _mm256_set1_pd(x) })
-        }
-        #[inline(always)]
-        pub fn from_array(a: [Real; W]) -> R {
-            R(unsafe { _mm256_loadu_pd(a.as_ptr()) })
-        }
-        #[inline(always)]
-        pub fn to_array(self) -> [Real; W] {
-            let mut a = [0.0; W];
-            unsafe { _mm256_storeu_pd(a.as_mut_ptr(), self.0) };
-            a
-        }
-        #[inline(always)]
-        pub fn floor(self) -> R {
-            R(unsafe { _mm256_floor_pd(self.0) })
-        }
-        /// Lane by lane the larger of the two, `other` where `self` is NaN.
-        #[inline(always)]
-        pub fn max_or(self, other: R) -> R {
-            R(unsafe { _mm256_max_pd(self.0, other.0) })
-        }
-        /// Whether every lane's magnitude is below `bound` (false for NaN).
-        #[inline(always)]
-        pub fn all_abs_below(self, bound: Real) -> bool {
-            unsafe {
-                let abs = _mm256_andnot_pd(_mm256_set1_pd(-0.0), self.0);
-                _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_LT_OQ>(abs, _mm256_set1_pd(bound))) == 0b1111
+        impl R {
+            #[inline(always)]
+            pub fn splat(x: Real) -> R {
+                R(unsafe { $set1(x) })
+            }
+            #[inline(always)]
+            pub fn from_array(a: [Real; W]) -> R {
+                R(unsafe { $loadu(a.as_ptr()) })
+            }
+            #[inline(always)]
+            pub fn to_array(self) -> [Real; W] {
+                let mut a = [0.0; W];
+                unsafe { $storeu(a.as_mut_ptr(), self.0) };
+                a
+            }
+            #[inline(always)]
+            pub fn floor(self) -> R {
+                R(unsafe { $floor(self.0) })
+            }
+            /// Lane by lane the larger of the two, `other` where `self` is NaN.
+            #[inline(always)]
+            pub fn max_or(self, other: R) -> R {
+                R(unsafe { $max(self.0, other.0) })
+            }
+            /// Whether every lane's magnitude is below `bound` (false for NaN).
+            #[inline(always)]
+            pub fn all_abs_below(self, bound: Real) -> bool {
+                unsafe {
+                    let abs = $andnot($set1(-0.0), self.0);
+                    $movemask($cmp::<_CMP_LT_OQ>(abs, $set1(bound))) == $all
+                }
+            }
+            /// The lanes as integers; exact for integral lanes below 2^31.
+            #[inline(always)]
+            pub fn to_i32(self) -> [i32; W] {
+                let mut $a = [0i32; W];
+                let $x = self.0;
+                unsafe { $to_i32 };
+                $a
             }
         }
-        /// The lanes as integers; exact for integral lanes below 2^31.
-        #[inline(always)]
-        pub fn to_i32(self) -> [i32; W] {
-            let mut a = [0i32; W];
-            unsafe { _mm_storeu_si128(a.as_mut_ptr().cast(), _mm256_cvtpd_epi32(self.0)) };
-            a
+
+        impl std::ops::Add for R {
+            type Output = R;
+            #[inline(always)]
+            fn add(self, o: R) -> R {
+                R(unsafe { $add(self.0, o.0) })
+            }
         }
+        impl std::ops::Sub for R {
+            type Output = R;
+            #[inline(always)]
+            fn sub(self, o: R) -> R {
+                R(unsafe { $sub(self.0, o.0) })
+            }
+        }
+        impl std::ops::Mul for R {
+            type Output = R;
+            #[inline(always)]
+            fn mul(self, o: R) -> R {
+                R(unsafe { $mul(self.0, o.0) })
+            }
+        }
+    };
+}
+
+#[cfg(not(feature = "f32"))]
+mod wide {
+    wide_register!(4, __m256d, 0b1111, _mm256_set1_pd, _mm256_loadu_pd, _mm256_storeu_pd, _mm256_floor_pd, _mm256_max_pd, _mm256_andnot_pd, _mm256_cmp_pd, _mm256_movemask_pd, _mm256_add_pd, _mm256_sub_pd, _mm256_mul_pd, |x, a| _mm_storeu_si128(a.as_mut_ptr().cast(), _mm256_cvtpd_epi32(x)));
+
+    impl R {
         /// `[x, y, z]`: lane l of each holds `p[l][0]`, `p[l][1]`, `p[l][2]`.
         ///
         /// # Safety
@@ -87,79 +120,13 @@ mod wide {
             [R(_mm256_unpacklo_pd(xy02, xy13)), R(_mm256_unpackhi_pd(xy02, xy13)), R(_mm256_unpackhi_pd(yz02, yz13))]
         }
     }
-
-    impl std::ops::Add for R {
-        type Output = R;
-        #[inline(always)]
-        fn add(self, o: R) -> R {
-            R(unsafe { _mm256_add_pd(self.0, o.0) })
-        }
-    }
-    impl std::ops::Sub for R {
-        type Output = R;
-        #[inline(always)]
-        fn sub(self, o: R) -> R {
-            R(unsafe { _mm256_sub_pd(self.0, o.0) })
-        }
-    }
-    impl std::ops::Mul for R {
-        type Output = R;
-        #[inline(always)]
-        fn mul(self, o: R) -> R {
-            R(unsafe { _mm256_mul_pd(self.0, o.0) })
-        }
-    }
 }
 
-/// See the f64 `wide`: the same register of 8 f32 lanes.
 #[cfg(feature = "f32")]
 mod wide {
-    use crate::real::Real;
-    use std::arch::x86_64::*;
-
-    pub const W: usize = 8;
-    #[derive(Clone, Copy)]
-    pub struct R(__m256);
+    wide_register!(8, __m256, 0xff, _mm256_set1_ps, _mm256_loadu_ps, _mm256_storeu_ps, _mm256_floor_ps, _mm256_max_ps, _mm256_andnot_ps, _mm256_cmp_ps, _mm256_movemask_ps, _mm256_add_ps, _mm256_sub_ps, _mm256_mul_ps, |x, a| _mm256_storeu_si256(a.as_mut_ptr().cast(), _mm256_cvtps_epi32(x)));
 
     impl R {
-        #[inline(always)]
-        pub fn splat(x: Real) -> R {
-            R(unsafe { _mm256_set1_ps(x) })
-        }
-        #[inline(always)]
-        pub fn from_array(a: [Real; W]) -> R {
-            R(unsafe { _mm256_loadu_ps(a.as_ptr()) })
-        }
-        #[inline(always)]
-        pub fn to_array(self) -> [Real; W] {
-            let mut a = [0.0; W];
-            unsafe { _mm256_storeu_ps(a.as_mut_ptr(), self.0) };
-            a
-        }
-        #[inline(always)]
-        pub fn floor(self) -> R {
-            R(unsafe { _mm256_floor_ps(self.0) })
-        }
-        /// Lane by lane the larger of the two, `other` where `self` is NaN.
-        #[inline(always)]
-        pub fn max_or(self, other: R) -> R {
-            R(unsafe { _mm256_max_ps(self.0, other.0) })
-        }
-        /// Whether every lane's magnitude is below `bound` (false for NaN).
-        #[inline(always)]
-        pub fn all_abs_below(self, bound: Real) -> bool {
-            unsafe {
-                let abs = _mm256_andnot_ps(_mm256_set1_ps(-0.0), self.0);
-                _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LT_OQ>(abs, _mm256_set1_ps(bound))) == 0xff
-            }
-        }
-        /// The lanes as integers; exact for integral lanes below 2^31.
-        #[inline(always)]
-        pub fn to_i32(self) -> [i32; W] {
-            let mut a = [0i32; W];
-            unsafe { _mm256_storeu_si256(a.as_mut_ptr().cast(), _mm256_cvtps_epi32(self.0)) };
-            a
-        }
         /// `[x, y, z]`: lane l of each holds `p[l][0]`, `p[l][1]`, `p[l][2]`.
         ///
         /// # Safety
@@ -175,28 +142,6 @@ mod wide {
             let (t0, t1) = (_mm256_unpacklo_ps(r0, r1), _mm256_unpackhi_ps(r0, r1));
             let (t2, t3) = (_mm256_unpacklo_ps(r2, r3), _mm256_unpackhi_ps(r2, r3));
             [R(_mm256_shuffle_ps::<0xee>(t0, t2)), R(_mm256_shuffle_ps::<0x44>(t1, t3)), R(_mm256_shuffle_ps::<0xee>(t1, t3))]
-        }
-    }
-
-    impl std::ops::Add for R {
-        type Output = R;
-        #[inline(always)]
-        fn add(self, o: R) -> R {
-            R(unsafe { _mm256_add_ps(self.0, o.0) })
-        }
-    }
-    impl std::ops::Sub for R {
-        type Output = R;
-        #[inline(always)]
-        fn sub(self, o: R) -> R {
-            R(unsafe { _mm256_sub_ps(self.0, o.0) })
-        }
-    }
-    impl std::ops::Mul for R {
-        type Output = R;
-        #[inline(always)]
-        fn mul(self, o: R) -> R {
-            R(unsafe { _mm256_mul_ps(self.0, o.0) })
         }
     }
 }
