@@ -11,6 +11,8 @@ pub mod bspline;
 pub mod cpu;
 pub mod material;
 pub mod transfer;
+#[cfg(target_arch = "x86_64")]
+mod transfer_lanes;
 pub mod transfer_adjoint;
 pub mod boundary;
 

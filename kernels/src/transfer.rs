@@ -300,7 +300,8 @@ pub fn g2p_block(
     g2p_block_body::<lanes::G2pBaseline>(origin, order, local, flip, j_bar, tp, out)
 }
 
-/// [`g2p_block`] compiled for AVX2 (see [`crate::cpu`]: the same IEEE operations, the same bits).
+/// [`g2p_block`] compiled for AVX2, several particles at once (see [`crate::transfer_lanes`] and
+/// [`crate::cpu`]: the same IEEE operations, the same bits).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 unsafe fn g2p_block_avx2(
@@ -312,7 +313,7 @@ unsafe fn g2p_block_avx2(
     tp: &TransferParams,
     out: &mut G2pOutput,
 ) -> Real {
-    g2p_block_body::<lanes::G2pAvx2>(origin, order, local, flip, j_bar, tp, out)
+    crate::transfer_lanes::g2p_block_lanes::<lanes::G2pAvx2>(origin, order, local, flip, j_bar, tp, out)
 }
 
 #[inline(always)]
@@ -325,52 +326,94 @@ fn g2p_block_body<L: NodeLanes>(
     tp: &TransferParams,
     out: &mut G2pOutput,
 ) -> Real {
-    let dx = tp.dx;
-    let inv_dx = r(1.0) / dx;
-    let c_scale = r(4.0) * inv_dx * inv_dx;
     let mut vmax2: Real = r(0.0);
-    // J-bar: sums of V0 J and V0 per cell of this block, by the particles' new stencil base
-    let mut cell_vj = [r(0.0); BLOCK_EDGE * BLOCK_EDGE * BLOCK_EDGE];
-    let mut cell_v = [r(0.0); BLOCK_EDGE * BLOCK_EDGE * BLOCK_EDGE];
-    let cell_of = |xg: V3| -> Option<usize> {
-        let (b, _) = base_and_fx(xg);
-        let l = [b[0] - origin[0], b[1] - origin[1], b[2] - origin[2]];
-        let inside = l.iter().all(|&k| (0..BLOCK_EDGE as i32).contains(&k));
-        inside.then(|| (l[0] as usize * BLOCK_EDGE + l[1] as usize) * BLOCK_EDGE + l[2] as usize)
-    };
+    let mut cells = JBarCells::new();
     for &pi in order {
         let pi = pi as usize;
-        let (base, fx) = base_and_fx(out.xg[pi]);
-        let w = weights(fx);
-        let (oi, oj, ok) = (
-            (base[0] - origin[0]) as usize,
-            (base[1] - origin[1]) as usize,
-            (base[2] - origin[2]) as usize,
-        );
-        let (v, bmat) = gather_velocity::<1, L>(local, [oi, oj, ok], fx, &w, dx);
-        let dv = if flip > r(0.0) { v - gather_velocity::<4, L>(local, [oi, oj, ok], fx, &w, dx).0 } else { V3::ZERO };
-        let cm = bmat * c_scale;
-        out.c[pi] = cm;
-        out.xg[pi] += v * (tp.dt * inv_dx);
-        let v = if flip > r(0.0) { (out.v[pi] + dv) * flip + v * (r(1.0) - flip) } else { v };
-        out.v[pi] = v;
-        out.j[pi] *= r(1.0) + tp.dt * (cm.x_axis.x + cm.y_axis.y + cm.z_axis.z);
-        vmax2 = vmax2.max(v.length_squared());
-        if let (Some(vol0), Some(k)) = (j_bar, cell_of(out.xg[pi])) {
-            cell_vj[k] += vol0[pi] * out.j[pi];
-            cell_v[k] += vol0[pi];
+        vmax2 = vmax2.max(g2p_particle::<L>(pi, origin, local, flip, tp, out));
+        if let Some(vol0) = j_bar {
+            cells.add(jbar_cell(origin, out.xg[pi]), vol0[pi], out.j[pi]);
         }
     }
     if j_bar.is_some() {
         for &pi in order {
-            // a cell holding only massless particles (a slab that just began to enter) keeps J
-            match cell_of(out.xg[pi as usize]) {
-                Some(k) if cell_v[k] > r(0.0) => out.j[pi as usize] = cell_vj[k] / cell_v[k],
-                _ => {}
+            if let Some(j) = cells.average(jbar_cell(origin, out.xg[pi as usize])) {
+                out.j[pi as usize] = j;
             }
         }
     }
     vmax2.sqrt()
+}
+
+/// One particle's G2P up to the J-bar average (see [`g2p_block`]): writes its C, position,
+/// velocity and J, and returns its squared speed. `L` as in [`gather_velocity`].
+#[inline(always)]
+pub(crate) fn g2p_particle<L: NodeLanes>(pi: usize, origin: [i32; 3], local: &[Node; NEIGHBOURHOOD_NODES], flip: Real, tp: &TransferParams, out: &mut G2pOutput) -> Real {
+    let dx = tp.dx;
+    let inv_dx = r(1.0) / dx;
+    let c_scale = r(4.0) * inv_dx * inv_dx;
+    let (base, fx) = base_and_fx(out.xg[pi]);
+    let w = weights(fx);
+    let (oi, oj, ok) = (
+        (base[0] - origin[0]) as usize,
+        (base[1] - origin[1]) as usize,
+        (base[2] - origin[2]) as usize,
+    );
+    let (v, bmat) = gather_velocity::<1, L>(local, [oi, oj, ok], fx, &w, dx);
+    let dv = if flip > r(0.0) { v - gather_velocity::<4, L>(local, [oi, oj, ok], fx, &w, dx).0 } else { V3::ZERO };
+    let cm = bmat * c_scale;
+    out.c[pi] = cm;
+    out.xg[pi] += v * (tp.dt * inv_dx);
+    let v = if flip > r(0.0) { (out.v[pi] + dv) * flip + v * (r(1.0) - flip) } else { v };
+    out.v[pi] = v;
+    out.j[pi] *= r(1.0) + tp.dt * (cm.x_axis.x + cm.y_axis.y + cm.z_axis.z);
+    v.length_squared()
+}
+
+/// The J-bar cell of a block whose first node is `origin` that a particle at `xg` (after the
+/// move) falls in: its stencil base's cell, `None` outside the block.
+#[inline(always)]
+pub(crate) fn jbar_cell(origin: [i32; 3], xg: V3) -> Option<usize> {
+    let (b, _) = base_and_fx(xg);
+    jbar_cell_of_base(origin, b)
+}
+
+/// [`jbar_cell`] from the stencil base.
+#[inline(always)]
+pub(crate) fn jbar_cell_of_base(origin: [i32; 3], b: [i32; 3]) -> Option<usize> {
+    let l = [b[0] - origin[0], b[1] - origin[1], b[2] - origin[2]];
+    let inside = l.iter().all(|&k| (0..BLOCK_EDGE as i32).contains(&k));
+    inside.then(|| (l[0] as usize * BLOCK_EDGE + l[1] as usize) * BLOCK_EDGE + l[2] as usize)
+}
+
+/// J-bar's sums of V0 J and V0 per cell of one block, added in particle order.
+pub(crate) struct JBarCells {
+    vj: [Real; BLOCK_EDGE * BLOCK_EDGE * BLOCK_EDGE],
+    v: [Real; BLOCK_EDGE * BLOCK_EDGE * BLOCK_EDGE],
+}
+
+impl JBarCells {
+    #[inline(always)]
+    pub(crate) fn new() -> Self {
+        JBarCells { vj: [r(0.0); BLOCK_EDGE * BLOCK_EDGE * BLOCK_EDGE], v: [r(0.0); BLOCK_EDGE * BLOCK_EDGE * BLOCK_EDGE] }
+    }
+    /// Adds a particle of volume `vol0` and ratio `j` to `cell` (nothing outside the block).
+    #[inline(always)]
+    pub(crate) fn add(&mut self, cell: Option<usize>, vol0: Real, j: Real) {
+        if let Some(k) = cell {
+            self.vj[k] += vol0 * j;
+            self.v[k] += vol0;
+        }
+    }
+    /// The cell's average J; `None` outside the block and for a cell holding only massless
+    /// particles (a slab that just began to enter), whose particles keep their J.
+    #[inline(always)]
+    pub(crate) fn average(&self, cell: Option<usize>) -> Option<Real> {
+        match cell {
+            Some(k) if self.v[k] > r(0.0) => Some(self.vj[k] / self.v[k]),
+            _ => None,
+        }
+    }
 }
 
 #[cfg(test)]
@@ -458,6 +501,55 @@ mod tests {
             Variant::Baseline => p2g_block_body::<SPLIT, lanes::P2gBaseline>([8; 3], order, p, &tp, local),
             // SAFETY: only called where the CPU has AVX2
             Variant::Avx2 => unsafe { p2g_block_avx2::<SPLIT>([8; 3], order, p, &tp, local) },
+        }
+    }
+
+    /// The AVX2 copy of G2P takes several particles at once: groups cut short at the end of the
+    /// block, a group holding a particle whose stencil leaves the block (that group runs one
+    /// particle at a time), particles moving out of their J-bar cell or out of the block, with
+    /// and without FLIP and J-bar, all give the one-particle body's bits.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn g2p_lanes_give_the_one_particle_bits() {
+        if !crate::cpu::has_avx2() {
+            return;
+        }
+        let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut u = move || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            r((seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0)
+        };
+        let mut grid = [[r(0.0); 7]; NEIGHBOURHOOD_NODES];
+        for n in grid.iter_mut() {
+            *n = [r(1.0) + u(), u(), u(), u(), u(), u(), u()];
+        }
+        let (mut xg, v, c, _, _) = scattered_block(37);
+        xg[5] = V3::new(r(9.0), r(9.0), r(12.7)); // stencil base (8, 8, 12): past the block along z
+        let vol0: Vec<Real> = (0..37).map(|k| r(1e-6 * (k % 5) as f64)).collect(); // some massless
+        let j = vec![r(0.97); 37];
+        // a step of up to half a cell: particles change cells and leave the block
+        let tp = TransferParams { dx: r(2.5e-3), dt: r(1.25e-3) };
+        for n in [1usize, 3, 8, 9, 37] {
+            // all 37 in a scrambled order, or a run of n from particle 10
+            let order: Vec<u32> = if n == 37 { (0..37).map(|k| (k * 7) % 37).collect() } else { (10..10 + n as u32).collect() };
+            for (flip, jbar) in [(r(0.0), None), (r(0.0), Some(&vol0[..])), (r(0.95), None), (r(0.95), Some(&vol0[..]))] {
+                let run = |lanes: bool| {
+                    let (mut x, mut vv, mut cc, mut jj) = (xg.clone(), v.clone(), c.clone(), j.clone());
+                    let mut out = G2pOutput { xg: &mut x, v: &mut vv, c: &mut cc, j: &mut jj };
+                    let vmax = if lanes {
+                        // SAFETY: the CPU has AVX2
+                        unsafe { g2p_block_avx2([8; 3], &order, &grid, flip, jbar, &tp, &mut out) }
+                    } else {
+                        g2p_block_body::<V3A>([8; 3], &order, &grid, flip, jbar, &tp, &mut out)
+                    };
+                    let mut all: Vec<Real> = vec![vmax];
+                    all.extend(x.iter().chain(&vv).flat_map(|a| a.to_array()));
+                    all.extend(cc.iter().flat_map(|m| m.to_cols_array()));
+                    all.extend(jj);
+                    all.iter().map(|a| a.to_bits()).collect::<Vec<_>>()
+                };
+                assert!(run(true) == run(false), "{n} particles, flip {flip}, J-bar {}", jbar.is_some());
+            }
         }
     }
 

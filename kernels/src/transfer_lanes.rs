@@ -1,0 +1,380 @@
+//! G2P over several particles at once: the body of [`crate::transfer::g2p_block`]'s AVX2 copy,
+//! each particle's arithmetic in one lane of a 256-bit register (4 particles in f64, 8 in f32).
+//!
+//! Enters: one particle block's `order`, its neighbourhood nodes, the particle state. Leaves the
+//! same outputs as the one-particle body ([`crate::transfer::g2p_particle`]), bit for bit: every
+//! lane performs that body's IEEE operations in the same order (no FMA, each sum in the same
+//! order), and the J-bar cell sums are added particle by particle in `order`. A group any of
+//! whose stencils leaves the block, or whose coordinates are not finite and small, runs through
+//! the one-particle body instead, so such input behaves exactly as there.
+//!
+//! Staging: a group's positions, velocities and J are loaded lane by lane; a stencil node's three
+//! channels for the group are loaded 128 bits per particle and transposed into one register per
+//! channel.
+
+use crate::real::{r, Real, M3, V3};
+use crate::transfer::{g2p_particle, jbar_cell, jbar_cell_of_base, local_index, G2pOutput, JBarCells, Node, NodeLanes, TransferParams, BLOCK_EDGE, NEIGHBOURHOOD_NODES};
+use std::array::from_fn;
+use wide::{R, W};
+
+/// Lanes whose stencil coordinate `xg - 0.5` reaches this many cells run through the
+/// one-particle body: below it, a lane's `floor` and its conversion to an integer are exact and
+/// equal [`crate::bspline::floor_i32`] (f32 holds every integer up to 2^24).
+const SMALL: Real = 4_194_304.0; // 2^22
+
+/// The 256-bit register `R` of one quantity of W particles, from its intrinsics: lane-by-lane
+/// add, subtract, multiply, floor and max, the same IEEE operations as the scalars'. Only ever
+/// built inside the AVX2 copy of G2P (which is where the intrinsics inline), so every `unsafe`
+/// in it runs on a CPU with AVX2. `gather3` is each precision's own.
+macro_rules! wide_register {
+    ($w:expr, $reg:ty, $all:expr, $set1:ident, $loadu:ident, $storeu:ident, $floor:ident, $max:ident, $andnot:ident, $cmp:ident, $movemask:ident, $add:ident, $sub:ident, $mul:ident, |$x:ident, $a:ident| $to_i32:expr) => {
+        use crate::real::Real;
+        use std::arch::x86_64::*;
+
+        pub const W: usize = $w;
+        #[derive(Clone, Copy)]
+        pub struct R($reg);
+
+        impl R {
+            #[inline(always)]
+            pub fn splat(x: Real) -> R {
+                R(unsafe { $set1(x) })
+            }
+            #[inline(always)]
+            pub fn from_array(a: [Real; W]) -> R {
+                R(unsafe { $loadu(a.as_ptr()) })
+            }
+            #[inline(always)]
+            pub fn to_array(self) -> [Real; W] {
+                let mut a = [0.0; W];
+                unsafe { $storeu(a.as_mut_ptr(), self.0) };
+                a
+            }
+            #[inline(always)]
+            pub fn floor(self) -> R {
+                R(unsafe { $floor(self.0) })
+            }
+            /// Lane by lane the larger of the two, `other` where `self` is NaN.
+            #[inline(always)]
+            pub fn max_or(self, other: R) -> R {
+                R(unsafe { $max(self.0, other.0) })
+            }
+            /// Whether every lane's magnitude is below `bound` (false for NaN).
+            #[inline(always)]
+            pub fn all_abs_below(self, bound: Real) -> bool {
+                unsafe {
+                    let abs = $andnot($set1(-0.0), self.0);
+                    $movemask($cmp::<_CMP_LT_OQ>(abs, $set1(bound))) == $all
+                }
+            }
+            /// The lanes as integers; exact for integral lanes below 2^31.
+            #[inline(always)]
+            pub fn to_i32(self) -> [i32; W] {
+                let mut $a = [0i32; W];
+                let $x = self.0;
+                unsafe { $to_i32 };
+                $a
+            }
+        }
+
+        impl std::ops::Add for R {
+            type Output = R;
+            #[inline(always)]
+            fn add(self, o: R) -> R {
+                R(unsafe { $add(self.0, o.0) })
+            }
+        }
+        impl std::ops::Sub for R {
+            type Output = R;
+            #[inline(always)]
+            fn sub(self, o: R) -> R {
+                R(unsafe { $sub(self.0, o.0) })
+            }
+        }
+        impl std::ops::Mul for R {
+            type Output = R;
+            #[inline(always)]
+            fn mul(self, o: R) -> R {
+                R(unsafe { $mul(self.0, o.0) })
+            }
+        }
+    };
+}
+
+#[cfg(not(feature = "f32"))]
+mod wide {
+    wide_register!(4, __m256d, 0b1111, _mm256_set1_pd, _mm256_loadu_pd, _mm256_storeu_pd, _mm256_floor_pd, _mm256_max_pd, _mm256_andnot_pd, _mm256_cmp_pd, _mm256_movemask_pd, _mm256_add_pd, _mm256_sub_pd, _mm256_mul_pd, |x, a| _mm_storeu_si128(a.as_mut_ptr().cast(), _mm256_cvtpd_epi32(x)));
+
+    impl R {
+        /// `[x, y, z]`: lane l of each holds `p[l][0]`, `p[l][1]`, `p[l][2]`.
+        ///
+        /// # Safety
+        /// `p[l] - 1 ..= p[l] + 2` are readable for every lane (this copy reads `p[l][0..3]`).
+        #[inline(always)]
+        pub unsafe fn gather3(p: [*const Real; W]) -> [R; 3] {
+            // [x0 y0 | x2 y2], [x1 y1 | x3 y3], [y0 z0 | y2 z2], [y1 z1 | y3 z3]
+            let xy02 = _mm256_insertf128_pd::<1>(_mm256_castpd128_pd256(_mm_loadu_pd(p[0])), _mm_loadu_pd(p[2]));
+            let xy13 = _mm256_insertf128_pd::<1>(_mm256_castpd128_pd256(_mm_loadu_pd(p[1])), _mm_loadu_pd(p[3]));
+            let yz02 = _mm256_insertf128_pd::<1>(_mm256_castpd128_pd256(_mm_loadu_pd(p[0].add(1))), _mm_loadu_pd(p[2].add(1)));
+            let yz13 = _mm256_insertf128_pd::<1>(_mm256_castpd128_pd256(_mm_loadu_pd(p[1].add(1))), _mm_loadu_pd(p[3].add(1)));
+            [R(_mm256_unpacklo_pd(xy02, xy13)), R(_mm256_unpackhi_pd(xy02, xy13)), R(_mm256_unpackhi_pd(yz02, yz13))]
+        }
+    }
+}
+
+#[cfg(feature = "f32")]
+mod wide {
+    wide_register!(8, __m256, 0xff, _mm256_set1_ps, _mm256_loadu_ps, _mm256_storeu_ps, _mm256_floor_ps, _mm256_max_ps, _mm256_andnot_ps, _mm256_cmp_ps, _mm256_movemask_ps, _mm256_add_ps, _mm256_sub_ps, _mm256_mul_ps, |x, a| _mm256_storeu_si256(a.as_mut_ptr().cast(), _mm256_cvtps_epi32(x)));
+
+    impl R {
+        /// `[x, y, z]`: lane l of each holds `p[l][0]`, `p[l][1]`, `p[l][2]`.
+        ///
+        /// # Safety
+        /// `p[l] - 1 ..= p[l] + 2` are readable for every lane.
+        #[inline(always)]
+        pub unsafe fn gather3(p: [*const Real; W]) -> [R; 3] {
+            // lanes k and k + 4 of a register hold particles k and k + 4: [_ x y z | _ x y z]
+            let r0 = _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(_mm_loadu_ps(p[0].sub(1))), _mm_loadu_ps(p[4].sub(1)));
+            let r1 = _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(_mm_loadu_ps(p[1].sub(1))), _mm_loadu_ps(p[5].sub(1)));
+            let r2 = _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(_mm_loadu_ps(p[2].sub(1))), _mm_loadu_ps(p[6].sub(1)));
+            let r3 = _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(_mm_loadu_ps(p[3].sub(1))), _mm_loadu_ps(p[7].sub(1)));
+            // [_0 _1 x0 x1], [y0 y1 z0 z1], [_2 _3 x2 x3], [y2 y3 z2 z3] in each half
+            let (t0, t1) = (_mm256_unpacklo_ps(r0, r1), _mm256_unpackhi_ps(r0, r1));
+            let (t2, t3) = (_mm256_unpacklo_ps(r2, r3), _mm256_unpackhi_ps(r2, r3));
+            [R(_mm256_shuffle_ps::<0xee>(t0, t2)), R(_mm256_shuffle_ps::<0x44>(t1, t3)), R(_mm256_shuffle_ps::<0xee>(t1, t3))]
+        }
+    }
+}
+
+/// The three components of a vector of each lane's particle.
+///
+/// # Safety
+/// The CPU has AVX2 (as for every function below: compiled for it, so that the intrinsics and
+/// the closures inline).
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn lanes_of(p: &[usize; W], of: &[V3]) -> [R; 3] {
+    let mut a = [[r(0.0); W]; 3];
+    for l in 0..W {
+        let x = of[p[l]];
+        (a[0][l], a[1][l], a[2][l]) = (x.x, x.y, x.z);
+    }
+    [R::from_array(a[0]), R::from_array(a[1]), R::from_array(a[2])]
+}
+
+/// Each lane's stencil base, where every lane's coordinate is small (see [`SMALL`]).
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn bases(xg: &[R; 3]) -> Option<[[i32; 3]; W]> {
+    let half = R::splat(r(0.5));
+    let s = [xg[0] - half, xg[1] - half, xg[2] - half];
+    if !(s[0].all_abs_below(SMALL) && s[1].all_abs_below(SMALL) && s[2].all_abs_below(SMALL)) {
+        return None;
+    }
+    let b = [s[0].floor().to_i32(), s[1].floor().to_i32(), s[2].floor().to_i32()];
+    let mut base = [[0; 3]; W];
+    for l in 0..W {
+        base[l] = [b[0][l], b[1][l], b[2][l]];
+    }
+    Some(base)
+}
+
+/// [`crate::transfer::gather_velocity`] of W particles: the velocity `v[ch]` and, with `B`, the
+/// sums `m[k][ch] = sum w v_i e_k` of B's columns, from the channels `CH..CH + 3` of the stencils
+/// whose first nodes are `node0`; `w[k][d]` are the weights.
+///
+/// # Safety
+/// `node0[l] + local_index(2, 2, 2) < NEIGHBOURHOOD_NODES` for every lane; `CH` is 1 or 4; AVX2.
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn gather<const CH: usize, const B: bool>(local: &[Node; NEIGHBOURHOOD_NODES], node0: &[usize; W], w: &[[R; 3]; 3]) -> ([R; 3], [[R; 3]; 3]) {
+    let zero = R::splat(r(0.0));
+    let mut v = [zero; 3];
+    let mut m = [[zero; 3]; 3];
+    let nodes = local.as_ptr().cast::<Real>();
+    let channels = std::mem::size_of::<Node>() / std::mem::size_of::<Real>();
+    for a in 0..3 {
+        let (mut t0, mut tb, mut tc) = ([zero; 3], [zero; 3], [zero; 3]);
+        for b in 0..3 {
+            let row = local_index(a, b, 0);
+            // node c of the row, times its weight; SAFETY: the stencil's nodes lie in `local`
+            // (the caller's promise), and channels CH - 1 ..= CH + 2 in their node
+            let mut n = [[zero; 3]; 3];
+            for (c, n) in n.iter_mut().enumerate() {
+                let mut p = [nodes; W];
+                for l in 0..W {
+                    p[l] = nodes.add((node0[l] + row + c) * channels + CH);
+                }
+                let g = R::gather3(p);
+                for ch in 0..3 {
+                    n[ch] = g[ch] * w[c][2];
+                }
+            }
+            let [n0, n1, n2] = n;
+            for ch in 0..3 {
+                let s0 = n0[ch] + n1[ch] + n2[ch];
+                t0[ch] = t0[ch] + s0 * w[b][1];
+                if B {
+                    tc[ch] = tc[ch] + (n2[ch] - n0[ch]) * w[b][1];
+                    match b {
+                        0 => tb[ch] = tb[ch] - s0 * w[0][1],
+                        2 => tb[ch] = tb[ch] + s0 * w[2][1],
+                        _ => {}
+                    }
+                }
+            }
+        }
+        for ch in 0..3 {
+            v[ch] = v[ch] + t0[ch] * w[a][0];
+            if B {
+                m[1][ch] = m[1][ch] + tb[ch] * w[a][0];
+                m[2][ch] = m[2][ch] + tc[ch] * w[a][0];
+                match a {
+                    0 => m[0][ch] = m[0][ch] - t0[ch] * w[0][0],
+                    2 => m[0][ch] = m[0][ch] + t0[ch] * w[2][0],
+                    _ => {}
+                }
+            }
+        }
+    }
+    (v, m)
+}
+
+/// [`crate::transfer::g2p_block`]'s body over W particles at a time; `L` is the register of the
+/// one-particle body that the groups the lanes cannot take run through. `order` holds distinct
+/// particles (as every particle block's does).
+///
+/// # Safety
+/// The CPU has AVX2.
+#[target_feature(enable = "avx2")]
+#[inline]
+pub(crate) unsafe fn g2p_block_lanes<L: NodeLanes>(
+    origin: [i32; 3],
+    order: &[u32],
+    local: &[Node; NEIGHBOURHOOD_NODES],
+    flip: Real,
+    j_bar: Option<&[Real]>,
+    tp: &TransferParams,
+    out: &mut G2pOutput,
+) -> Real {
+    let dx = tp.dx;
+    let inv_dx = r(1.0) / dx;
+    let c_scale = r(4.0) * inv_dx * inv_dx;
+    let splat = R::splat;
+    let mut vmax2 = splat(r(0.0));
+    let mut vmax2_one: Real = r(0.0);
+    let mut cells = JBarCells::new();
+    for group in order.chunks(W) {
+        let n = group.len();
+        // lanes past the group repeat its last particle, and are not written back
+        let p: [usize; W] = from_fn(|l| group[l.min(n - 1)] as usize);
+        let xg = lanes_of(&p, &*out.xg);
+        // each lane's first stencil node in `local`, if every stencil lies in the block
+        let node0 = bases(&xg).and_then(|b| {
+            let mut node0 = [0; W];
+            for l in 0..W {
+                let o = [b[l][0].wrapping_sub(origin[0]), b[l][1].wrapping_sub(origin[1]), b[l][2].wrapping_sub(origin[2])];
+                if !o.iter().all(|&k| (0..BLOCK_EDGE as i32).contains(&k)) {
+                    return None;
+                }
+                node0[l] = local_index(o[0] as usize, o[1] as usize, o[2] as usize);
+            }
+            Some(node0)
+        });
+        let Some(node0) = node0 else {
+            for &pi in group {
+                let pi = pi as usize;
+                vmax2_one = vmax2_one.max(g2p_particle::<L>(pi, origin, local, flip, tp, out));
+                if let Some(vol0) = j_bar {
+                    cells.add(jbar_cell(origin, out.xg[pi]), vol0[pi], out.j[pi]);
+                }
+            }
+            continue;
+        };
+        // bspline::base_and_fx and weights, lane by lane (explicit loops, no closures: every
+        // register operation stays inline in this AVX2 function)
+        let (one, half) = (splat(r(1.0)), splat(r(0.5)));
+        let (mut fx, mut centre, mut w) = ([one; 3], [one; 3], [[one; 3]; 3]);
+        for d in 0..3 {
+            fx[d] = xg[d] - (xg[d] - half).floor();
+            centre[d] = fx[d] - one;
+            let a = splat(r(1.5)) - fx[d];
+            w[0][d] = a * a * half;
+            w[1][d] = splat(r(0.75)) - centre[d] * centre[d];
+            let c = fx[d] - half;
+            w[2][d] = c * c * half;
+        }
+        // SAFETY: every stencil lies in the block, so in `local`
+        let (mut v, m) = gather::<1, true>(local, &node0, &w);
+        // C = B 4/dx^2, B's column k = dx (m_k - v (fx_k - 1))
+        let mut cm = [[one; 3]; 3];
+        for k in 0..3 {
+            for ch in 0..3 {
+                cm[k][ch] = (m[k][ch] - v[ch] * centre[k]) * splat(dx) * splat(c_scale);
+            }
+        }
+        let mut xg_new = [one; 3];
+        for ch in 0..3 {
+            xg_new[ch] = xg[ch] + v[ch] * splat(tp.dt * inv_dx);
+        }
+        if flip > r(0.0) {
+            // SAFETY: as above
+            let v_old = gather::<4, false>(local, &node0, &w).0;
+            let vp = lanes_of(&p, &*out.v);
+            for ch in 0..3 {
+                v[ch] = (vp[ch] + (v[ch] - v_old[ch])) * splat(flip) + v[ch] * splat(r(1.0) - flip);
+            }
+        }
+        let mut j = [r(0.0); W];
+        for l in 0..W {
+            j[l] = out.j[p[l]];
+        }
+        let j = R::from_array(j) * (one + splat(tp.dt) * (cm[0][0] + cm[1][1] + cm[2][2]));
+        vmax2 = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).max_or(vmax2);
+        let mut cm_l = [[[r(0.0); W]; 3]; 3];
+        let (mut xg_l, mut v_l) = ([[r(0.0); W]; 3], [[r(0.0); W]; 3]);
+        for k in 0..3 {
+            for ch in 0..3 {
+                cm_l[k][ch] = cm[k][ch].to_array();
+            }
+            xg_l[k] = xg_new[k].to_array();
+            v_l[k] = v[k].to_array();
+        }
+        let j = j.to_array();
+        for l in 0..n {
+            let pi = p[l];
+            let col = |k: usize| V3::new(cm_l[k][0][l], cm_l[k][1][l], cm_l[k][2][l]);
+            out.c[pi] = M3::from_cols(col(0), col(1), col(2));
+            out.xg[pi] = V3::new(xg_l[0][l], xg_l[1][l], xg_l[2][l]);
+            out.v[pi] = V3::new(v_l[0][l], v_l[1][l], v_l[2][l]);
+            out.j[pi] = j[l];
+        }
+        if let Some(vol0) = j_bar {
+            let b = bases(&xg_new);
+            for (l, &pi) in p[..n].iter().enumerate() {
+                let cell = match b {
+                    Some(b) => jbar_cell_of_base(origin, b[l]),
+                    None => jbar_cell(origin, out.xg[pi]),
+                };
+                cells.add(cell, vol0[pi], out.j[pi]);
+            }
+        }
+    }
+    if j_bar.is_some() {
+        for group in order.chunks(W) {
+            let n = group.len();
+            let p: [usize; W] = from_fn(|l| group[l.min(n - 1)] as usize);
+            let b = bases(&lanes_of(&p, &*out.xg));
+            for (l, &pi) in p[..n].iter().enumerate() {
+                let cell = match b {
+                    Some(b) => jbar_cell_of_base(origin, b[l]),
+                    None => jbar_cell(origin, out.xg[pi]),
+                };
+                if let Some(j) = cells.average(cell) {
+                    out.j[pi] = j;
+                }
+            }
+        }
+    }
+    vmax2.to_array().into_iter().fold(vmax2_one, Real::max).sqrt()
+}
