@@ -6,8 +6,8 @@
 //! the design height times the safety factor, H = design_height x safety_factor. The check stacks
 //! N = ceil(H / h) layers of the print's own pass (its moves up to its last extruding one,
 //! pauses dropped; each layer one h higher, printed back along the pass from where the last
-//! ended, [`wall_path`]) at the planned settings, and says the wall stands when the detector finds no failure up to one
-//! layer time after the last layer was laid. The factor is on the height, as the closed form's
+//! ended, [`wall_path`]) at the planned settings, and says the wall stands when the detector
+//! finds no failure up to one layer time after the last layer was laid. The factor is on the height, as the closed form's
 //! constraint puts it: the wall must reach H, not the design height alone.
 //!
 //! What is reduced, openly:
@@ -158,12 +158,11 @@ fn raised(s: &Segment, dz: f64) -> Segment {
 
 /// The reduced wall's path from `start`: `layers` passes `h` apart, starting `period` apart,
 /// and a last rest of `period`. After each pass the nozzle climbs h at `climb` speed and prints
-/// the next layer back along the pass, as short walls are printed: a nozzle travelling back to
-/// the pass's start would pass over the fresh layer, and its tube, which moves the grid's nodes
-/// inside it at its own velocity, drags that layer's top along (measured on `fixtures/plan`:
-/// lumps carried from the pass's end dropped on the wall, and a top lost at the station). The
-/// time between two layers at a station a distance d from the pass's middle then alternates by
-/// +-2 d / speed about the layer time (its mean).
+/// the next layer back along the pass: a nozzle travelling back to the pass's start would pass
+/// over the fresh layer, and its tube, which moves the grid's nodes inside it at its own
+/// velocity, would drag that layer's top along. The time between two layers at a station a
+/// distance d from the pass's middle alternates by +-2 d / v (v the pass's speed) about
+/// `period`, its mean.
 fn wall_path(start: [f64; 3], one: &[Segment], layers: usize, h: f64, period: f64, climb: f64) -> Result<Vec<Segment>, PlanError> {
     let back = backwards(start, one);
     let mut path: Vec<Segment> = Vec::new();
