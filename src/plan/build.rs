@@ -24,6 +24,12 @@ impl WallGoal {
     pub fn need(&self) -> f64 {
         self.design_height * self.safety_factor
     }
+
+    /// The shortest layer time in `[floor, hi]` (hi raised to the floor) at which a wall of
+    /// layers `w` x `h` stands to [`WallGoal::need`], or what it reaches at the longest.
+    fn shortest_layer_time(&self, w: f64, h: f64, [floor, hi]: [f64; 2]) -> Result<Result<f64, Buildable>, PlanError> {
+        self.wall.shortest_layer_time(w, h, self.need(), [floor, hi.max(floor)])
+    }
 }
 
 /// What bounds the layer time.
@@ -68,8 +74,7 @@ pub fn build(goal: Option<&WallGoal>, length: f64, [w, h, speed]: [f64; 3]) -> R
     };
     let [lo, hi] = g.layer_time;
     let floor = lo.max(nozzle);
-    let failure = |w: f64, h: f64| g.wall.shortest_layer_time(w, h, g.need(), [floor, hi.max(floor)]);
-    let (t, bound, short) = match failure(w, h)? {
+    let (t, bound, short) = match g.shortest_layer_time(w, h, [floor, hi])? {
         Ok(t) if t > floor => (t, Bound::Failure, None),
         Ok(_) => (floor, if nozzle >= lo { Bound::Nozzle } else { Bound::LowerBound }, None),
         Err(best) => (hi.max(floor), Bound::Failure, Some(best)),
@@ -88,12 +93,11 @@ pub fn simulated(g: &WallGoal, length: f64, [w, h, speed]: [f64; 3], t: f64) -> 
 /// The build at the layer time `t`, bound by `bound`, with the floor of the layer time (its
 /// lower bound or the nozzle's time) and its upper bound.
 fn at(g: &WallGoal, [floor, hi]: [f64; 2], [w, h, speed]: [f64; 3], t: f64, bound: Bound, short: Option<Buildable>) -> Result<Build, PlanError> {
-    let failure = |w: f64, h: f64| g.wall.shortest_layer_time(w, h, g.need(), [floor, hi.max(floor)]);
     let layers = g.design_height / h;
     // dT/dw, dT/dh by central differences of the closed form (its bisection resolves 1e-9 of T)
     let (dt_dw, dt_dh) = if matches!(bound, Bound::Failure | Bound::Simulated) && short.is_none() {
         let eps = 1e-4;
-        let at = |w: f64, h: f64| -> Result<f64, PlanError> { Ok(failure(w, h)?.unwrap_or(hi)) };
+        let at = |w: f64, h: f64| -> Result<f64, PlanError> { Ok(g.shortest_layer_time(w, h, [floor, hi])?.unwrap_or(hi)) };
         ((at(w * (1.0 + eps), h)? - at(w * (1.0 - eps), h)?) / (2.0 * eps * w), (at(w, h * (1.0 + eps))? - at(w, h * (1.0 - eps))?) / (2.0 * eps * h))
     } else {
         (0.0, 0.0)

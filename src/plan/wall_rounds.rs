@@ -18,13 +18,13 @@
 //! simulation bears out is extrapolated along the layer time. The closed form is steep in the
 //! factor near the layer time at which the wall would never collapse (1 % on the factor moves the
 //! height 17 % on fixtures/plan), but the layer time it asks is not. A wall whose simulated
-//! failure does not follow the closed form (on fixtures/plan's own targets: the same height at
-//! layer times 27 % apart, docs/planning.md) does not converge; the refusal says so. The height
+//! failure does not follow the closed form (a longer layer time leaving it no taller) does not
+//! converge; the refusal says so. The height
 //! stood is counted in whole layers (the failed one left out), so the factor is calibrated low and
 //! the next wall errs towards standing.
 //!
-//! The simulation refutes the closed form, never relaxes it: the reduced wall is a short pass
-//! (`wall_check.rs`), and a short wall stands taller than the closed form's long wall, so no
+//! The simulation refutes the closed form, never relaxes it: the reduced wall stands on a rough
+//! base that the closed form's squeeze leaves out (`wall_check.rs`), and taller, so no
 //! round after the first is shorter than the plan's layer time, and the plan's layer time only
 //! ever grows. A wall that stands at a shorter layer time stands at a longer one (older, stronger
 //! layers below), so a first round under the plan's layer time (a probe, `--check-wall-at`) that
@@ -39,7 +39,7 @@ use super::planner::Plan;
 use super::wall_check::{self, WallCheck};
 use std::path::Path;
 
-/// Rounds at most by default (`--wall-rounds`): each is a reduced wall, 240-560 s on
+/// Rounds at most by default (`--wall-rounds`): each is a reduced wall, about 600 s on
 /// fixtures/plan's own targets.
 pub const DEFAULT_ROUNDS: usize = 3;
 

@@ -13,7 +13,7 @@ use crate::solver::Simulation;
 pub(super) struct LayerCost {
     /// Start time of each layer of the toolpath, in order.
     starts: Vec<f64>,
-    /// The layer in progress (0-based), or `starts.len()` before the first starts.
+    /// The layer in progress (0-based; the first also before it starts).
     layer: usize,
     step0: u64,
     time0: f64,
