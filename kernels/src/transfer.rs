@@ -157,6 +157,25 @@ pub(crate) fn p2g_particle<const SPLIT: bool, L: NodeLanes>(
         (base[1] - origin[1]) as usize,
         (base[2] - origin[2]) as usize,
     );
+    p2g_scatter::<SPLIT, L>(local, local_index(oi, oj, ok), &w, m, q0, [ax, ay, az], i0, [ix, iy, iz]);
+}
+
+/// Adds one particle's mass, momentum and (with SPLIT) impulse to its 27 stencil nodes, the first
+/// of which is local node `node0`: the weights `w`, the mass `m`, the momentum `q0` at the
+/// stencil centre and its slopes `q[k]` along axis k (per unit offset), the same for the impulse.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+pub(crate) fn p2g_scatter<const SPLIT: bool, L: NodeLanes>(
+    local: &mut [Node; NEIGHBOURHOOD_NODES],
+    node0: usize,
+    w: &[V3; 3],
+    m: Real,
+    q0: L,
+    q: [L; 3],
+    i0: V3,
+    i: [V3; 3],
+) {
+    let ([ax, ay, az], [ix, iy, iz]) = (q, i);
     for a in 0..3 {
         let ea = a as Real - r(1.0);
         let (qa, ia) = (q0 + ax * ea, i0 + ix * ea);
@@ -164,7 +183,7 @@ pub(crate) fn p2g_particle<const SPLIT: bool, L: NodeLanes>(
             let eb = b as Real - r(1.0);
             let wab = w[a].x * w[b].y;
             let (qab, iab) = (qa + ay * eb, ia + iy * eb);
-            let row = local_index(oi + a, oj + b, ok);
+            let row = node0 + local_index(a, b, 0);
             for c in 0..3 {
                 let ec = c as Real - r(1.0);
                 let weight = wab * w[c].z;
