@@ -14,6 +14,8 @@ pub mod transfer;
 #[cfg(target_arch = "x86_64")]
 mod transfer_lanes;
 pub mod transfer_adjoint;
+#[cfg(target_arch = "x86_64")]
+mod transfer_adjoint_lanes;
 pub mod boundary;
 
 pub use real::{Real, M3, V3};

@@ -102,7 +102,7 @@ macro_rules! wide_register {
 }
 
 #[cfg(not(feature = "f32"))]
-mod wide {
+pub(crate) mod wide {
     wide_register!(4, __m256d, 0b1111, _mm256_set1_pd, _mm256_loadu_pd, _mm256_storeu_pd, _mm256_floor_pd, _mm256_max_pd, _mm256_andnot_pd, _mm256_cmp_pd, _mm256_movemask_pd, _mm256_add_pd, _mm256_sub_pd, _mm256_mul_pd, |x, a| _mm_storeu_si128(a.as_mut_ptr().cast(), _mm256_cvtpd_epi32(x)));
 
     impl R {
@@ -123,7 +123,7 @@ mod wide {
 }
 
 #[cfg(feature = "f32")]
-mod wide {
+pub(crate) mod wide {
     wide_register!(8, __m256, 0xff, _mm256_set1_ps, _mm256_loadu_ps, _mm256_storeu_ps, _mm256_floor_ps, _mm256_max_ps, _mm256_andnot_ps, _mm256_cmp_ps, _mm256_movemask_ps, _mm256_add_ps, _mm256_sub_ps, _mm256_mul_ps, |x, a| _mm256_storeu_si256(a.as_mut_ptr().cast(), _mm256_cvtps_epi32(x)));
 
     impl R {
