@@ -155,8 +155,9 @@ bench-print-diagnose: build
 	bash bench/print_diagnose.sh $(STRAND) $(OUT)/print_diagnose
 
 # A user-style print campaign (fixtures/measure/user_lines/: six lines from a 16 mm nozzle at
-# 2.5 mm cells, no J-bar, a fixed 5e-5 s step, no [sleep]): a fit of the truth's structure from
-# away from it, then the diagnosis from a base model without its effect, each timed
+# 2.5 mm cells, no J-bar, a fixed 5e-5 s step, no [sleep]): the diagnosis from a base model
+# without the truth's effect, through GNU parallel, timed, with what it takes on 8 and 32 cores
+# from its job logs; then a fit of the truth's structure from away from it
 # (bench/user_campaign.sh; docs/print_campaign.md "A campaign as users write it"; over an hour of
 # runs on 2 cores).
 bench-user-campaign: build

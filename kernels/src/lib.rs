@@ -16,6 +16,8 @@ mod transfer_lanes;
 #[cfg(target_arch = "x86_64")]
 mod p2g_lanes;
 pub mod transfer_adjoint;
+#[cfg(target_arch = "x86_64")]
+mod transfer_adjoint_lanes;
 pub mod boundary;
 
 pub use real::{Real, M3, V3};

@@ -97,11 +97,12 @@ fn outer(a: V3, b: V3) -> M3 {
 }
 
 /// A particle's quadratic stencil within a block neighbourhood.
-struct Stencil {
+#[derive(Clone, Copy)]
+pub(crate) struct Stencil {
     /// Local indices of the base node along each axis.
-    base: [usize; 3],
-    fx: V3,
-    w: [V3; 3],
+    pub(crate) base: [usize; 3],
+    pub(crate) fx: V3,
+    pub(crate) w: [V3; 3],
 }
 
 impl Stencil {
@@ -162,8 +163,8 @@ pub fn p2g_block_adjoint<const SPLIT: bool>(
     p2g_block_adjoint_body::<SPLIT>(origin, order, p, tp, local_bar, out)
 }
 
-/// [`p2g_block_adjoint`] compiled for AVX2 (see [`crate::cpu`]: the same IEEE operations, the
-/// same bits).
+/// [`p2g_block_adjoint`] compiled for AVX2, several particles' node sweeps at once (see
+/// [`crate::transfer_adjoint_lanes`]: the same IEEE operations, the same bits).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 unsafe fn p2g_block_adjoint_avx2<const SPLIT: bool>(
@@ -174,11 +175,11 @@ unsafe fn p2g_block_adjoint_avx2<const SPLIT: bool>(
     local_bar: &[Node; NEIGHBOURHOOD_NODES],
     out: &mut P2gAdjoint,
 ) {
-    p2g_block_adjoint_body::<SPLIT>(origin, order, p, tp, local_bar, out)
+    crate::transfer_adjoint_lanes::p2g_block_adjoint_lanes::<SPLIT>(origin, order, p, tp, local_bar, out)
 }
 
 #[inline(always)]
-fn p2g_block_adjoint_body<const SPLIT: bool>(
+pub(crate) fn p2g_block_adjoint_body<const SPLIT: bool>(
     origin: [i32; 3],
     order: &[u32],
     p: &P2gInput,
@@ -186,73 +187,136 @@ fn p2g_block_adjoint_body<const SPLIT: bool>(
     local_bar: &[Node; NEIGHBOURHOOD_NODES],
     out: &mut P2gAdjoint,
 ) {
-    let dx = tp.dx;
-    let stress_scale = -tp.dt * r(4.0) / (dx * dx);
-    let mut stress_scale_bar = r(0.0);
-    let mut dx_bar = r(0.0);
+    let mut sums = P2gSums::default();
     for &pi in order {
         let pi = pi as usize;
-        let st = Stencil::new(origin, p.xg[pi]);
+        let q = P2gParticle::new::<SPLIT>(origin, p, tp, pi);
+        let sweep = p2g_adjoint_nodes::<SPLIT>(&q, tp.dx, local_bar);
+        p2g_adjoint_finish::<SPLIT>(&q, &sweep, p, tp, pi, out, &mut sums);
+    }
+    sums.add_to(tp, out);
+}
+
+/// The adjoints P2G's adjoint sums over the whole block, particle by particle in `order`.
+#[derive(Default)]
+pub(crate) struct P2gSums {
+    stress_scale_bar: Real,
+    dx_bar: Real,
+}
+
+impl P2gSums {
+    /// Adds the block's sums to the adjoints of dt and dx, through `stress_scale = -4 dt / dx^2`.
+    #[inline(always)]
+    pub(crate) fn add_to(&self, tp: &TransferParams, out: &mut P2gAdjoint) {
+        let dx = tp.dx;
+        let stress_scale = -tp.dt * r(4.0) / (dx * dx);
+        *out.dt_bar += self.stress_scale_bar * r(-4.0) / (dx * dx);
+        *out.dx_bar += self.dx_bar - r(2.0) * self.stress_scale_bar * stress_scale / dx;
+    }
+}
+
+/// What one particle added to its stencil's nodes in P2G, recomputed.
+#[derive(Clone, Copy)]
+pub(crate) struct P2gParticle {
+    pub(crate) stencil: Stencil,
+    pub(crate) m: Real,
+    pub(crate) vol: Real,
+    pub(crate) impulse_scale: Real,
+    pub(crate) impulse: M3,
+    /// `m C`, plus the impulse unless `SPLIT`.
+    pub(crate) affine: M3,
+    pub(crate) mv: V3,
+}
+
+impl P2gParticle {
+    #[inline(always)]
+    pub(crate) fn new<const SPLIT: bool>(origin: [i32; 3], p: &P2gInput, tp: &TransferParams, pi: usize) -> Self {
+        let dx = tp.dx;
+        let stress_scale = -tp.dt * r(4.0) / (dx * dx);
         let m = p.mass[pi];
         let vol = p.vol0[pi] * p.j[pi];
         let impulse_scale = stress_scale * vol;
         let impulse = p.stress[pi] * impulse_scale;
         let affine = if SPLIT { p.c[pi] * m } else { p.c[pi] * m + impulse };
-        let mv = p.v[pi] * m;
-        let (affine_t, impulse_t) = (affine.transpose(), impulse.transpose());
-
-        let mut m_bar = r(0.0);
-        let mut mv_bar = V3::ZERO;
-        let mut affine_bar = M3::ZERO;
-        let mut impulse_bar = M3::ZERO;
-        let mut w_bar = [V3::ZERO; 3];
-        let mut imp_sum = V3::ZERO;
-        for (a, b, c) in stencil_nodes() {
-            let weight = st.weight(a, b, c);
-            let dpos = st.offset(a, b, c) * dx;
-            let nb = &local_bar[st.node(a, b, c)];
-            let mom_bar = V3::new(nb[1], nb[2], nb[3]);
-            let mut weight_bar = nb[0] * m + mom_bar.dot(mv + affine * dpos);
-            m_bar += weight * nb[0];
-            mv_bar += mom_bar * weight;
-            affine_bar += outer(mom_bar * weight, dpos);
-            if SPLIT {
-                let imp_bar = V3::new(nb[4], nb[5], nb[6]);
-                weight_bar += imp_bar.dot(impulse * dpos);
-                imp_sum += imp_bar * weight;
-                impulse_bar += outer(imp_bar * weight, dpos);
-            }
-            st.weight_adjoint(a, b, c, weight_bar, &mut w_bar);
-        }
-        // the node sums make the adjoint through dpos = (node - fx) dx need no work per node:
-        // -dx (A^T sum_i w_i mom_bar_i) for fx and <A, A_bar> / dx for dx (A the affine matrix,
-        // A_bar its adjoint so far), and the same for the impulse
-        let mut fx_bar = -(affine_t * mv_bar) * dx;
-        dx_bar += ddot(&affine, &affine_bar) / dx;
-        if SPLIT {
-            fx_bar -= (impulse_t * imp_sum) * dx;
-            dx_bar += ddot(&impulse, &impulse_bar) / dx;
-        }
-
-        if !SPLIT {
-            // the impulse was folded into the affine matrix
-            impulse_bar += affine_bar;
-        }
-        out.c_bar[pi] += affine_bar * m;
-        out.v_bar[pi] += mv_bar * m;
-        out.mass_bar[pi] += m_bar + ddot(&affine_bar, &p.c[pi]) + mv_bar.dot(p.v[pi]);
-        out.stress_bar[pi] += impulse_bar * impulse_scale;
-        let impulse_scale_bar = ddot(&impulse_bar, &p.stress[pi]);
-        stress_scale_bar += impulse_scale_bar * vol;
-        let vol_bar = impulse_scale_bar * stress_scale;
-        out.vol0_bar[pi] += vol_bar * p.j[pi];
-        out.jac_bar[pi] += vol_bar * p.vol0[pi];
-        // fx = xg - base with the base held constant
-        out.xg_bar[pi] += fx_bar + weights_adjoint(st.fx, &w_bar);
+        P2gParticle { stencil: Stencil::new(origin, p.xg[pi]), m, vol, impulse_scale, impulse, affine, mv: p.v[pi] * m }
     }
-    // stress_scale = -4 dt / dx^2
-    *out.dt_bar += stress_scale_bar * r(-4.0) / (dx * dx);
-    *out.dx_bar += dx_bar - r(2.0) * stress_scale_bar * stress_scale / dx;
+}
+
+/// The sums of one particle's sweep over its 27 stencil nodes.
+pub(crate) struct P2gSweep {
+    pub(crate) m_bar: Real,
+    pub(crate) mv_bar: V3,
+    pub(crate) affine_bar: M3,
+    /// With `SPLIT`: the impulse's adjoint and `sum w imp_bar_i`.
+    pub(crate) impulse_bar: M3,
+    pub(crate) imp_sum: V3,
+    /// Adjoints of the per-axis weights.
+    pub(crate) w_bar: [V3; 3],
+}
+
+/// The sweep over one particle's 27 stencil nodes, reading the adjoints of what it added to them.
+#[inline(always)]
+pub(crate) fn p2g_adjoint_nodes<const SPLIT: bool>(q: &P2gParticle, dx: Real, local_bar: &[Node; NEIGHBOURHOOD_NODES]) -> P2gSweep {
+    let st = &q.stencil;
+    let (m, mv, affine, impulse) = (q.m, q.mv, q.affine, q.impulse);
+    let mut m_bar = r(0.0);
+    let mut mv_bar = V3::ZERO;
+    let mut affine_bar = M3::ZERO;
+    let mut impulse_bar = M3::ZERO;
+    let mut w_bar = [V3::ZERO; 3];
+    let mut imp_sum = V3::ZERO;
+    for (a, b, c) in stencil_nodes() {
+        let weight = st.weight(a, b, c);
+        let dpos = st.offset(a, b, c) * dx;
+        let nb = &local_bar[st.node(a, b, c)];
+        let mom_bar = V3::new(nb[1], nb[2], nb[3]);
+        let mut weight_bar = nb[0] * m + mom_bar.dot(mv + affine * dpos);
+        m_bar += weight * nb[0];
+        mv_bar += mom_bar * weight;
+        affine_bar += outer(mom_bar * weight, dpos);
+        if SPLIT {
+            let imp_bar = V3::new(nb[4], nb[5], nb[6]);
+            weight_bar += imp_bar.dot(impulse * dpos);
+            imp_sum += imp_bar * weight;
+            impulse_bar += outer(imp_bar * weight, dpos);
+        }
+        st.weight_adjoint(a, b, c, weight_bar, &mut w_bar);
+    }
+    P2gSweep { m_bar, mv_bar, affine_bar, impulse_bar, imp_sum, w_bar }
+}
+
+/// Adds particle `pi`'s adjoints, given its sweep's sums, to `out` and its terms to `sums`.
+#[inline(always)]
+pub(crate) fn p2g_adjoint_finish<const SPLIT: bool>(q: &P2gParticle, sweep: &P2gSweep, p: &P2gInput, tp: &TransferParams, pi: usize, out: &mut P2gAdjoint, sums: &mut P2gSums) {
+    let dx = tp.dx;
+    let stress_scale = -tp.dt * r(4.0) / (dx * dx);
+    let (m, affine, impulse) = (q.m, q.affine, q.impulse);
+    let (affine_bar, mut impulse_bar, mv_bar) = (sweep.affine_bar, sweep.impulse_bar, sweep.mv_bar);
+    // the node sums make the adjoint through dpos = (node - fx) dx need no work per node:
+    // -dx (A^T sum_i w_i mom_bar_i) for fx and <A, A_bar> / dx for dx (A the affine matrix,
+    // A_bar its adjoint so far), and the same for the impulse
+    let mut fx_bar = -(affine.transpose() * mv_bar) * dx;
+    sums.dx_bar += ddot(&affine, &affine_bar) / dx;
+    if SPLIT {
+        fx_bar -= (impulse.transpose() * sweep.imp_sum) * dx;
+        sums.dx_bar += ddot(&impulse, &impulse_bar) / dx;
+    }
+
+    if !SPLIT {
+        // the impulse was folded into the affine matrix
+        impulse_bar += affine_bar;
+    }
+    out.c_bar[pi] += affine_bar * m;
+    out.v_bar[pi] += mv_bar * m;
+    out.mass_bar[pi] += sweep.m_bar + ddot(&affine_bar, &p.c[pi]) + mv_bar.dot(p.v[pi]);
+    out.stress_bar[pi] += impulse_bar * q.impulse_scale;
+    let impulse_scale_bar = ddot(&impulse_bar, &p.stress[pi]);
+    sums.stress_scale_bar += impulse_scale_bar * q.vol;
+    let vol_bar = impulse_scale_bar * stress_scale;
+    out.vol0_bar[pi] += vol_bar * p.j[pi];
+    out.jac_bar[pi] += vol_bar * p.vol0[pi];
+    // fx = xg - base with the base held constant
+    out.xg_bar[pi] += fx_bar + weights_adjoint(q.stencil.fx, &sweep.w_bar);
 }
 
 /// One particle's G2P up to the J-bar average, as [`crate::transfer::g2p_block`] computes it.
@@ -323,8 +387,8 @@ pub fn g2p_block_adjoint(
     g2p_block_adjoint_body(origin, order, flip, j_bar, tp, inp, out)
 }
 
-/// [`g2p_block_adjoint`] compiled for AVX2 (see [`crate::cpu`]: the same IEEE operations, the
-/// same bits).
+/// [`g2p_block_adjoint`] compiled for AVX2, several particles' node sweeps at once (see
+/// [`crate::transfer_adjoint_lanes`]: the same IEEE operations, the same bits).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 unsafe fn g2p_block_adjoint_avx2(
@@ -336,11 +400,11 @@ unsafe fn g2p_block_adjoint_avx2(
     inp: &G2pAdjointIn,
     out: &mut G2pAdjointOut,
 ) {
-    g2p_block_adjoint_body(origin, order, flip, j_bar, tp, inp, out)
+    crate::transfer_adjoint_lanes::g2p_block_adjoint_lanes(origin, order, flip, j_bar, tp, inp, out)
 }
 
 #[inline(always)]
-fn g2p_block_adjoint_body(
+pub(crate) fn g2p_block_adjoint_body(
     origin: [i32; 3],
     order: &[u32],
     flip: Real,
@@ -349,107 +413,189 @@ fn g2p_block_adjoint_body(
     inp: &G2pAdjointIn,
     out: &mut G2pAdjointOut,
 ) {
+    let cells = G2pCells::of(origin, order, flip, j_bar, tp, inp);
+    let mut sums = G2pSums::default();
+    for &pi in order {
+        let pi = pi as usize;
+        let s = g2p_adjoint_start(origin, flip, j_bar, tp, inp, &cells, pi, out, &mut sums);
+        let w_bar = g2p_adjoint_nodes(&s, flip, tp.dx, inp.local, out.local_bar);
+        g2p_adjoint_finish(&s, &w_bar, pi, out);
+    }
+    sums.add_to(tp, out);
+}
+
+/// A function, not a closure: it inlines into (and takes the target features of) each copy.
+#[inline(always)]
+fn g2p_adjoint_particle(origin: [i32; 3], flip: Real, tp: &TransferParams, inp: &G2pAdjointIn, pi: usize) -> G2pParticle {
+    match inp.forward {
+        Some((v, c)) if flip == r(0.0) => g2p_particle_from(origin, tp, inp.xg[pi], v[pi], &c[pi]),
+        _ => g2p_particle(origin, inp.local, tp, inp.xg[pi]),
+    }
+}
+
+/// The J-bar sums of each cell of the block after the move: `sum V0 J`, `sum V0` and the sum of
+/// the output adjoints of J (all zero without J-bar).
+pub(crate) struct G2pCells {
+    vj: [Real; BLOCK_EDGE * BLOCK_EDGE * BLOCK_EDGE],
+    v: [Real; BLOCK_EDGE * BLOCK_EDGE * BLOCK_EDGE],
+    j_bar_sum: [Real; BLOCK_EDGE * BLOCK_EDGE * BLOCK_EDGE],
+}
+
+impl G2pCells {
+    #[inline(always)]
+    pub(crate) fn of(origin: [i32; 3], order: &[u32], flip: Real, j_bar: Option<&[Real]>, tp: &TransferParams, inp: &G2pAdjointIn) -> Self {
+        let mut cells = G2pCells {
+            vj: [r(0.0); BLOCK_EDGE * BLOCK_EDGE * BLOCK_EDGE],
+            v: [r(0.0); BLOCK_EDGE * BLOCK_EDGE * BLOCK_EDGE],
+            j_bar_sum: [r(0.0); BLOCK_EDGE * BLOCK_EDGE * BLOCK_EDGE],
+        };
+        if let Some(vol0) = j_bar {
+            for &pi in order {
+                let pi = pi as usize;
+                let g = g2p_adjoint_particle(origin, flip, tp, inp, pi);
+                if let Some(k) = cell_of(origin, g.xg_new) {
+                    cells.vj[k] += vol0[pi] * (inp.j[pi] * (r(1.0) + tp.dt * g.tr_c));
+                    cells.v[k] += vol0[pi];
+                    cells.j_bar_sum[k] += inp.jac_bar[pi];
+                }
+            }
+        }
+        cells
+    }
+}
+
+/// The adjoints G2P's adjoint sums over the whole block, particle by particle in `order`.
+#[derive(Default)]
+pub(crate) struct G2pSums {
+    dt_bar: Real,
+    dx_bar: Real,
+    c_scale_bar: Real,
+    move_scale_bar: Real,
+}
+
+impl G2pSums {
+    /// Adds the block's sums to the adjoints of dt and dx, through `move_scale = dt / dx` and
+    /// `c_scale = 4 / dx^2`.
+    #[inline(always)]
+    pub(crate) fn add_to(&self, tp: &TransferParams, out: &mut G2pAdjointOut) {
+        let inv_dx = r(1.0) / tp.dx;
+        let c_scale = r(4.0) * inv_dx * inv_dx;
+        let move_scale = tp.dt * inv_dx;
+        *out.dt_bar += self.dt_bar + self.move_scale_bar * inv_dx;
+        *out.dx_bar += self.dx_bar - (self.move_scale_bar * move_scale + r(2.0) * self.c_scale_bar * c_scale) * inv_dx;
+    }
+}
+
+/// One particle's adjoint before its sweep over the 27 stencil nodes: what the sweep reads.
+#[derive(Clone, Copy)]
+pub(crate) struct G2pNodeSweep {
+    pub(crate) stencil: Stencil,
+    /// The node velocity's sensitivity apart from B's: `v_grid_bar + dv_bar`.
+    pub(crate) v_sens: V3,
+    /// The adjoint of the FLIP increment (zero under APIC).
+    pub(crate) dv_bar: V3,
+    /// The adjoint of `B = sum w v_i dpos^T`.
+    pub(crate) bmat_bar: M3,
+    /// The particle's position adjoint apart from the weights': the moved position's adjoint
+    /// plus the adjoint through `dpos`.
+    pub(crate) xg_bar: V3,
+}
+
+/// Particle `pi`'s adjoint through the J-bar average, the growth of J, C, the move and FLIP: adds
+/// the adjoints of its J, V0 and v to `out` and its terms to `sums`, and returns what the node
+/// sweep reads.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn g2p_adjoint_start(
+    origin: [i32; 3],
+    flip: Real,
+    j_bar: Option<&[Real]>,
+    tp: &TransferParams,
+    inp: &G2pAdjointIn,
+    cells: &G2pCells,
+    pi: usize,
+    out: &mut G2pAdjointOut,
+    sums: &mut G2pSums,
+) -> G2pNodeSweep {
     let dx = tp.dx;
     let inv_dx = r(1.0) / dx;
     let c_scale = r(4.0) * inv_dx * inv_dx;
     let move_scale = tp.dt * inv_dx;
-
-    // a function, not a closure: it inlines into (and takes the target features of) each copy
-    #[inline(always)]
-    fn particle(origin: [i32; 3], flip: Real, tp: &TransferParams, inp: &G2pAdjointIn, pi: usize) -> G2pParticle {
-        match inp.forward {
-            Some((v, c)) if flip == r(0.0) => g2p_particle_from(origin, tp, inp.xg[pi], v[pi], &c[pi]),
-            _ => g2p_particle(origin, inp.local, tp, inp.xg[pi]),
+    let g = g2p_adjoint_particle(origin, flip, tp, inp, pi);
+    let growth = r(1.0) + tp.dt * g.tr_c;
+    // adjoint of J after the growth, before the cell average
+    let j_grown_bar = match (j_bar, cell_of(origin, g.xg_new)) {
+        (Some(vol0), Some(k)) if cells.v[k] > r(0.0) => {
+            let inv_v = r(1.0) / cells.v[k];
+            let j_grown = inp.j[pi] * growth;
+            out.vol0_bar[pi] += cells.j_bar_sum[k] * (j_grown - cells.vj[k] * inv_v) * inv_v;
+            cells.j_bar_sum[k] * vol0[pi] * inv_v
         }
-    }
-    let mut cell_vj = [r(0.0); BLOCK_EDGE * BLOCK_EDGE * BLOCK_EDGE];
-    let mut cell_v = [r(0.0); BLOCK_EDGE * BLOCK_EDGE * BLOCK_EDGE];
-    let mut cell_j_bar_sum = [r(0.0); BLOCK_EDGE * BLOCK_EDGE * BLOCK_EDGE];
-    if let Some(vol0) = j_bar {
-        for &pi in order {
-            let pi = pi as usize;
-            let g = particle(origin, flip, tp, inp, pi);
-            if let Some(k) = cell_of(origin, g.xg_new) {
-                cell_vj[k] += vol0[pi] * (inp.j[pi] * (r(1.0) + tp.dt * g.tr_c));
-                cell_v[k] += vol0[pi];
-                cell_j_bar_sum[k] += inp.jac_bar[pi];
-            }
+        _ => inp.jac_bar[pi],
+    };
+    out.jac_bar[pi] += j_grown_bar * growth;
+    let tr_c_bar = j_grown_bar * inp.j[pi] * tp.dt;
+    sums.dt_bar += j_grown_bar * inp.j[pi] * g.tr_c;
+    let cm_bar = inp.c_bar[pi] + M3::from_diagonal(V3::splat(tr_c_bar));
+    sums.c_scale_bar += ddot(&cm_bar, &g.bmat);
+    let bmat_bar = cm_bar * c_scale;
+
+    let xg_new_bar = inp.xg_bar[pi];
+    sums.move_scale_bar += xg_new_bar.dot(g.v);
+    let (mut v_grid_bar, dv_bar) = if flip > r(0.0) {
+        let v_new_bar = inp.v_bar[pi];
+        out.v_bar[pi] += v_new_bar * flip;
+        (v_new_bar * (r(1.0) - flip), v_new_bar * flip)
+    } else {
+        (inp.v_bar[pi], V3::ZERO)
+    };
+    v_grid_bar += xg_new_bar * move_scale;
+    // B = sum_i w_i v_i dpos_i^T with dpos_i = (node_i - fx) dx: summed over the nodes, the
+    // adjoint through dpos is -dx B_bar^T v (v the gathered velocity) for fx, and
+    // <B_bar, B> / dx for dx, so it needs no work per node
+    let fx_bar = -(bmat_bar.transpose() * g.v) * dx;
+    sums.dx_bar += ddot(&bmat_bar, &g.bmat) * inv_dx;
+    G2pNodeSweep { stencil: g.stencil, v_sens: v_grid_bar + dv_bar, dv_bar, bmat_bar, xg_bar: xg_new_bar + fx_bar }
+}
+
+/// The sweep over one particle's 27 stencil nodes: adds the adjoints of the node velocities it
+/// read to `local_bar` and returns the adjoints of its per-axis weights.
+#[inline(always)]
+pub(crate) fn g2p_adjoint_nodes(s: &G2pNodeSweep, flip: Real, dx: Real, local: &[Node; NEIGHBOURHOOD_NODES], local_bar: &mut [Node; NEIGHBOURHOOD_NODES]) -> [V3; 3] {
+    let st = &s.stencil;
+    let mut w_bar = [V3::ZERO; 3];
+    for (a, b, c) in stencil_nodes() {
+        let weight = st.weight(a, b, c);
+        let dpos = st.offset(a, b, c) * dx;
+        let node = st.node(a, b, c);
+        let n = &local[node];
+        let vi = V3::new(n[1], n[2], n[3]);
+        // the node velocity enters v, dv and B each times the weight
+        let vi_sens = s.v_sens + s.bmat_bar * dpos;
+        let mut weight_bar = vi.dot(vi_sens);
+        let vi_bar = vi_sens * weight;
+        let nb = &mut local_bar[node];
+        nb[1] += vi_bar.x;
+        nb[2] += vi_bar.y;
+        nb[3] += vi_bar.z;
+        if flip > r(0.0) {
+            let v_old = V3::new(n[4], n[5], n[6]);
+            weight_bar -= v_old.dot(s.dv_bar);
+            let v_old_bar = s.dv_bar * weight;
+            nb[4] -= v_old_bar.x;
+            nb[5] -= v_old_bar.y;
+            nb[6] -= v_old_bar.z;
         }
+        st.weight_adjoint(a, b, c, weight_bar, &mut w_bar);
     }
+    w_bar
+}
 
-    let mut dt_bar = r(0.0);
-    let mut dx_bar = r(0.0);
-    let mut c_scale_bar = r(0.0);
-    let mut move_scale_bar = r(0.0);
-    for &pi in order {
-        let pi = pi as usize;
-        let g = particle(origin, flip, tp, inp, pi);
-        let st = &g.stencil;
-        let growth = r(1.0) + tp.dt * g.tr_c;
-        // adjoint of J after the growth, before the cell average
-        let j_grown_bar = match (j_bar, cell_of(origin, g.xg_new)) {
-            (Some(vol0), Some(k)) if cell_v[k] > r(0.0) => {
-                let inv_v = r(1.0) / cell_v[k];
-                let j_grown = inp.j[pi] * growth;
-                out.vol0_bar[pi] += cell_j_bar_sum[k] * (j_grown - cell_vj[k] * inv_v) * inv_v;
-                cell_j_bar_sum[k] * vol0[pi] * inv_v
-            }
-            _ => inp.jac_bar[pi],
-        };
-        out.jac_bar[pi] += j_grown_bar * growth;
-        let tr_c_bar = j_grown_bar * inp.j[pi] * tp.dt;
-        dt_bar += j_grown_bar * inp.j[pi] * g.tr_c;
-        let cm_bar = inp.c_bar[pi] + M3::from_diagonal(V3::splat(tr_c_bar));
-        c_scale_bar += ddot(&cm_bar, &g.bmat);
-        let bmat_bar = cm_bar * c_scale;
-
-        let xg_new_bar = inp.xg_bar[pi];
-        move_scale_bar += xg_new_bar.dot(g.v);
-        let (mut v_grid_bar, dv_bar) = if flip > r(0.0) {
-            let v_new_bar = inp.v_bar[pi];
-            out.v_bar[pi] += v_new_bar * flip;
-            (v_new_bar * (r(1.0) - flip), v_new_bar * flip)
-        } else {
-            (inp.v_bar[pi], V3::ZERO)
-        };
-        v_grid_bar += xg_new_bar * move_scale;
-
-        let mut w_bar = [V3::ZERO; 3];
-        for (a, b, c) in stencil_nodes() {
-            let weight = st.weight(a, b, c);
-            let dpos = st.offset(a, b, c) * dx;
-            let node = st.node(a, b, c);
-            let n = &inp.local[node];
-            let vi = V3::new(n[1], n[2], n[3]);
-            // the node velocity enters v, dv and B each times the weight
-            let vi_sens = v_grid_bar + dv_bar + bmat_bar * dpos;
-            let mut weight_bar = vi.dot(vi_sens);
-            let vi_bar = vi_sens * weight;
-            let nb = &mut out.local_bar[node];
-            nb[1] += vi_bar.x;
-            nb[2] += vi_bar.y;
-            nb[3] += vi_bar.z;
-            if flip > r(0.0) {
-                let v_old = V3::new(n[4], n[5], n[6]);
-                weight_bar -= v_old.dot(dv_bar);
-                let v_old_bar = dv_bar * weight;
-                nb[4] -= v_old_bar.x;
-                nb[5] -= v_old_bar.y;
-                nb[6] -= v_old_bar.z;
-            }
-            st.weight_adjoint(a, b, c, weight_bar, &mut w_bar);
-        }
-        // B = sum_i w_i v_i dpos_i^T with dpos_i = (node_i - fx) dx: summed over the nodes, the
-        // adjoint through dpos is -dx B_bar^T v (v the gathered velocity) for fx, and
-        // <B_bar, B> / dx for dx, so it needs no work per node
-        let fx_bar = -(bmat_bar.transpose() * g.v) * dx;
-        dx_bar += ddot(&bmat_bar, &g.bmat) * inv_dx;
-        // fx = xg - base with the base held constant
-        out.xg_bar[pi] += xg_new_bar + fx_bar + weights_adjoint(st.fx, &w_bar);
-    }
-    // move_scale = dt / dx, c_scale = 4 / dx^2
-    *out.dt_bar += dt_bar + move_scale_bar * inv_dx;
-    *out.dx_bar += dx_bar - (move_scale_bar * move_scale + r(2.0) * c_scale_bar * c_scale) * inv_dx;
+/// Adds particle `pi`'s position adjoint, given the adjoints `w_bar` of its per-axis weights.
+#[inline(always)]
+pub(crate) fn g2p_adjoint_finish(s: &G2pNodeSweep, w_bar: &[V3; 3], pi: usize, out: &mut G2pAdjointOut) {
+    // fx = xg - base with the base held constant
+    out.xg_bar[pi] += s.xg_bar + weights_adjoint(s.stencil.fx, w_bar);
 }
 
 /// The adjoints against their forward kernels, each flattened to a map of one vector of inputs:
