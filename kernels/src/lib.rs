@@ -13,6 +13,8 @@ pub mod material;
 pub mod transfer;
 #[cfg(target_arch = "x86_64")]
 mod transfer_lanes;
+#[cfg(target_arch = "x86_64")]
+mod p2g_lanes;
 pub mod transfer_adjoint;
 #[cfg(target_arch = "x86_64")]
 mod transfer_adjoint_lanes;

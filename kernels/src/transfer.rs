@@ -92,7 +92,8 @@ pub fn p2g_block<const SPLIT: bool>(
     p2g_block_body::<SPLIT, lanes::P2gBaseline>(origin, order, p, tp, local)
 }
 
-/// [`p2g_block`] compiled for AVX2 (see [`crate::cpu`]: the same IEEE operations, the same bits).
+/// [`p2g_block`] compiled for AVX2, several particles at once (see [`crate::p2g_lanes`] and
+/// [`crate::cpu`]: the same IEEE operations, the same bits).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 unsafe fn p2g_block_avx2<const SPLIT: bool>(
@@ -102,7 +103,7 @@ unsafe fn p2g_block_avx2<const SPLIT: bool>(
     tp: &TransferParams,
     local: &mut [Node; NEIGHBOURHOOD_NODES],
 ) {
-    p2g_block_body::<SPLIT, lanes::P2gAvx2>(origin, order, p, tp, local)
+    crate::p2g_lanes::p2g_block_lanes::<SPLIT, lanes::P2gAvx2>(origin, order, p, tp, local)
 }
 
 #[inline(always)]
@@ -113,48 +114,86 @@ fn p2g_block_body<const SPLIT: bool, L: NodeLanes>(
     tp: &TransferParams,
     local: &mut [Node; NEIGHBOURHOOD_NODES],
 ) {
-    let dx = tp.dx;
-    let stress_scale = -tp.dt * r(4.0) / (dx * dx);
+    let stress_scale = p2g_stress_scale(tp);
     for &pi in order {
-        let pi = pi as usize;
-        let (base, fx) = base_and_fx(p.xg[pi]);
-        let w = weights(fx);
-        let m = p.mass[pi];
-        let vol = p.vol0[pi] * p.j[pi];
-        let impulse = p.stress[pi] * (stress_scale * vol);
-        let affine = if SPLIT { p.c[pi] * m } else { p.c[pi] * m + impulse };
-        // A node's momentum is affine in its offset e = (a, b, c) - 1 from the stencil centre:
-        // mv + affine (e - (fx - 1)) dx. Building it axis by axis costs three additions per node
-        // instead of a matrix-vector product.
-        let centre = (fx - V3::ONE) * dx;
-        let (ax, ay, az) = (L::slope(affine.x_axis * dx), L::slope(affine.y_axis * dx), L::slope(affine.z_axis * dx));
-        let q0 = L::mass_momentum(m, p.v[pi] * m - affine * centre);
-        let (ix, iy, iz) = (impulse.x_axis * dx, impulse.y_axis * dx, impulse.z_axis * dx);
-        let i0 = if SPLIT { -(impulse * centre) } else { V3::ZERO };
-        let (oi, oj, ok) = (
-            (base[0] - origin[0]) as usize,
-            (base[1] - origin[1]) as usize,
-            (base[2] - origin[2]) as usize,
-        );
-        for a in 0..3 {
-            let ea = a as Real - r(1.0);
-            let (qa, ia) = (q0 + ax * ea, i0 + ix * ea);
-            for b in 0..3 {
-                let eb = b as Real - r(1.0);
-                let wab = w[a].x * w[b].y;
-                let (qab, iab) = (qa + ay * eb, ia + iy * eb);
-                let row = local_index(oi + a, oj + b, ok);
-                for c in 0..3 {
-                    let ec = c as Real - r(1.0);
-                    let weight = wab * w[c].z;
-                    let node = &mut local[row + c];
-                    (qab + az * ec).scatter(node, weight, m);
-                    if SPLIT {
-                        let imp = (iab + iz * ec) * weight;
-                        node[4] += imp.x;
-                        node[5] += imp.y;
-                        node[6] += imp.z;
-                    }
+        p2g_particle::<SPLIT, L>(pi as usize, origin, p, tp, stress_scale, local);
+    }
+}
+
+/// The factor `-dt 4/dx^2` of P2G's stress impulse, times a particle's stress and volume.
+#[inline(always)]
+pub(crate) fn p2g_stress_scale(tp: &TransferParams) -> Real {
+    -tp.dt * r(4.0) / (tp.dx * tp.dx)
+}
+
+/// One particle's P2G (see [`p2g_block`]) into the neighbourhood of the block whose first node
+/// is `origin`; `stress_scale` from [`p2g_stress_scale`]. `L` as in [`NodeLanes`].
+#[inline(always)]
+pub(crate) fn p2g_particle<const SPLIT: bool, L: NodeLanes>(
+    pi: usize,
+    origin: [i32; 3],
+    p: &P2gInput,
+    tp: &TransferParams,
+    stress_scale: Real,
+    local: &mut [Node; NEIGHBOURHOOD_NODES],
+) {
+    let dx = tp.dx;
+    let (base, fx) = base_and_fx(p.xg[pi]);
+    let w = weights(fx);
+    let m = p.mass[pi];
+    let vol = p.vol0[pi] * p.j[pi];
+    let impulse = p.stress[pi] * (stress_scale * vol);
+    let affine = if SPLIT { p.c[pi] * m } else { p.c[pi] * m + impulse };
+    // A node's momentum is affine in its offset e = (a, b, c) - 1 from the stencil centre:
+    // mv + affine (e - (fx - 1)) dx. Building it axis by axis costs three additions per node
+    // instead of a matrix-vector product.
+    let centre = (fx - V3::ONE) * dx;
+    let (ax, ay, az) = (L::slope(affine.x_axis * dx), L::slope(affine.y_axis * dx), L::slope(affine.z_axis * dx));
+    let q0 = L::mass_momentum(m, p.v[pi] * m - affine * centre);
+    let (ix, iy, iz) = (impulse.x_axis * dx, impulse.y_axis * dx, impulse.z_axis * dx);
+    let i0 = if SPLIT { -(impulse * centre) } else { V3::ZERO };
+    let (oi, oj, ok) = (
+        (base[0] - origin[0]) as usize,
+        (base[1] - origin[1]) as usize,
+        (base[2] - origin[2]) as usize,
+    );
+    p2g_scatter::<SPLIT, L>(local, local_index(oi, oj, ok), &w, m, q0, [ax, ay, az], i0, [ix, iy, iz]);
+}
+
+/// Adds one particle's mass, momentum and (with SPLIT) impulse to its 27 stencil nodes, the first
+/// of which is local node `node0`: the weights `w`, the mass `m`, the momentum `q0` at the
+/// stencil centre and its slopes `q[k]` along axis k (per unit offset), the same for the impulse.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+pub(crate) fn p2g_scatter<const SPLIT: bool, L: NodeLanes>(
+    local: &mut [Node; NEIGHBOURHOOD_NODES],
+    node0: usize,
+    w: &[V3; 3],
+    m: Real,
+    q0: L,
+    q: [L; 3],
+    i0: V3,
+    i: [V3; 3],
+) {
+    let ([ax, ay, az], [ix, iy, iz]) = (q, i);
+    for a in 0..3 {
+        let ea = a as Real - r(1.0);
+        let (qa, ia) = (q0 + ax * ea, i0 + ix * ea);
+        for b in 0..3 {
+            let eb = b as Real - r(1.0);
+            let wab = w[a].x * w[b].y;
+            let (qab, iab) = (qa + ay * eb, ia + iy * eb);
+            let row = node0 + local_index(a, b, 0);
+            for c in 0..3 {
+                let ec = c as Real - r(1.0);
+                let weight = wab * w[c].z;
+                let node = &mut local[row + c];
+                (qab + az * ec).scatter(node, weight, m);
+                if SPLIT {
+                    let imp = (iab + iz * ec) * weight;
+                    node[4] += imp.x;
+                    node[5] += imp.y;
+                    node[6] += imp.z;
                 }
             }
         }
@@ -483,6 +522,20 @@ mod tests {
         (xg, v, c, stress, mass)
     }
 
+    /// Nodes whose channels are scattered in [-1, 1), the mass channel's shifted by `mass_shift`.
+    #[cfg(target_arch = "x86_64")]
+    fn scattered_nodes(mut seed: u64, mass_shift: Real) -> [Node; NEIGHBOURHOOD_NODES] {
+        let mut u = move || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            r((seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0)
+        };
+        let mut nodes = [[r(0.0); 7]; NEIGHBOURHOOD_NODES];
+        for n in nodes.iter_mut() {
+            *n = [mass_shift + u(), u(), u(), u(), u(), u(), u()];
+        }
+        nodes
+    }
+
     /// The variants of P2G and G2P the tests compare: the reference register [`V3A`], the baseline
     /// copies' register, the AVX2 copies.
     #[cfg(target_arch = "x86_64")]
@@ -514,15 +567,7 @@ mod tests {
         if !crate::cpu::has_avx2() {
             return;
         }
-        let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
-        let mut u = move || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            r((seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0)
-        };
-        let mut grid = [[r(0.0); 7]; NEIGHBOURHOOD_NODES];
-        for n in grid.iter_mut() {
-            *n = [r(1.0) + u(), u(), u(), u(), u(), u(), u()];
-        }
+        let grid = scattered_nodes(0x9e37_79b9_7f4a_7c15, r(1.0));
         let (mut xg, v, c, _, _) = scattered_block(37);
         xg[5] = V3::new(r(9.0), r(9.0), r(12.7)); // stencil base (8, 8, 12): past the block along z
         let vol0: Vec<Real> = (0..37).map(|k| r(1e-6 * (k % 5) as f64)).collect(); // some massless
@@ -549,6 +594,50 @@ mod tests {
                     all.iter().map(|a| a.to_bits()).collect::<Vec<_>>()
                 };
                 assert!(run(true) == run(false), "{n} particles, flip {flip}, J-bar {}", jbar.is_some());
+            }
+        }
+    }
+
+    /// The AVX2 copy of P2G takes several particles at once: groups cut short at the end of the
+    /// block, groups holding a particle whose stencil leaves the block (those run one particle at
+    /// a time), particles on a cell's edge, scrambled orders that revisit nodes from several
+    /// lanes, into nodes already holding sums, folded and SPLIT, all give the one-particle
+    /// body's bits.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn p2g_lanes_give_the_one_particle_bits() {
+        if !crate::cpu::has_avx2() {
+            return;
+        }
+        let start = scattered_nodes(0x6a09_e667_f3bc_c909, r(0.0));
+        let (mut xg, v, c, stress, mass) = scattered_block(41);
+        xg[5] = V3::new(r(9.0), r(9.0), r(12.7)); // stencil base (8, 8, 12): past the block along z
+        xg[20] = V3::new(r(9.0), r(12.6), r(9.0)); // base y 12: past the block along y
+        xg[12] = V3::new(r(8.5), r(11.5), r(12.0)); // on cell edges: bases 8 and 11 exactly
+        xg[13] = V3::new(r(12.5) - r(12.5) * Real::EPSILON, r(9.5), r(10.25)); // just inside at x
+        let vol0: Vec<Real> = (0..41).map(|k| r(2e-6 * (k % 5) as f64)).collect(); // some volumeless
+        let j: Vec<Real> = (0..41).map(|k| r(0.95) + r(0.01) * (k % 7) as Real).collect();
+        let tp = TransferParams { dx: r(2.5e-3), dt: r(2.5e-5) };
+        let input = P2gInput { xg: &xg, v: &v, c: &c, stress: &stress, mass: &mass, vol0: &vol0, j: &j };
+        let bits = |nodes: &[Node]| nodes.iter().flat_map(|n| n.map(|x| x.to_bits())).collect::<Vec<_>>();
+        for n in [1usize, 3, 4, 8, 9, 17, 41] {
+            // all 41 in a scrambled order, or a run of n from particle 2 (which holds 5, 12, 13)
+            let order: Vec<u32> = if n == 41 { (0..41).map(|k| (k * 11) % 41).collect() } else { (2..2 + n as u32).collect() };
+            for split in [false, true] {
+                let run = |lanes: bool| {
+                    let mut local = start;
+                    match (lanes, split) {
+                        // SAFETY: the CPU has AVX2
+                        (true, false) => unsafe { p2g_block_avx2::<false>([8; 3], &order, &input, &tp, &mut local) },
+                        (true, true) => unsafe { p2g_block_avx2::<true>([8; 3], &order, &input, &tp, &mut local) },
+                        (false, false) => p2g_block_body::<false, V3A>([8; 3], &order, &input, &tp, &mut local),
+                        (false, true) => p2g_block_body::<true, V3A>([8; 3], &order, &input, &tp, &mut local),
+                    }
+                    bits(&local)
+                };
+                let reference = run(false);
+                assert!(reference != bits(&start), "{n} particles add something");
+                assert!(run(true) == reference, "{n} particles, SPLIT {split}");
             }
         }
     }

@@ -24,8 +24,8 @@ const SMALL: Real = 4_194_304.0; // 2^22
 
 /// The 256-bit register `R` of one quantity of W particles, from its intrinsics: lane-by-lane
 /// add, subtract, multiply, floor and max, the same IEEE operations as the scalars'. Only ever
-/// built inside the AVX2 copy of G2P (which is where the intrinsics inline), so every `unsafe`
-/// in it runs on a CPU with AVX2. `gather3` is each precision's own.
+/// built inside the AVX2 copies of G2P and P2G (which is where the intrinsics inline), so every
+/// `unsafe` in it runs on a CPU with AVX2. `gather3` is each precision's own.
 macro_rules! wide_register {
     ($w:expr, $reg:ty, $all:expr, $set1:ident, $loadu:ident, $storeu:ident, $floor:ident, $max:ident, $andnot:ident, $cmp:ident, $movemask:ident, $add:ident, $sub:ident, $mul:ident, |$x:ident, $a:ident| $to_i32:expr) => {
         use crate::real::Real;
@@ -153,7 +153,7 @@ pub(crate) mod wide {
 /// the closures inline).
 #[target_feature(enable = "avx2")]
 #[inline]
-unsafe fn lanes_of(p: &[usize; W], of: &[V3]) -> [R; 3] {
+pub(crate) unsafe fn lanes_of(p: &[usize; W], of: &[V3]) -> [R; 3] {
     let mut a = [[r(0.0); W]; 3];
     for l in 0..W {
         let x = of[p[l]];
@@ -177,6 +177,43 @@ unsafe fn bases(xg: &[R; 3]) -> Option<[[i32; 3]; W]> {
         base[l] = [b[0][l], b[1][l], b[2][l]];
     }
     Some(base)
+}
+
+/// Each lane's first stencil node in the neighbourhood of the block whose first node is
+/// `origin`, if every lane's stencil lies in that block (and every coordinate is small).
+#[target_feature(enable = "avx2")]
+#[inline]
+pub(crate) unsafe fn stencil_starts(origin: [i32; 3], xg: &[R; 3]) -> Option<[usize; W]> {
+    let b = bases(xg)?;
+    let mut node0 = [0; W];
+    for l in 0..W {
+        let o = [b[l][0].wrapping_sub(origin[0]), b[l][1].wrapping_sub(origin[1]), b[l][2].wrapping_sub(origin[2])];
+        if !o.iter().all(|&k| (0..BLOCK_EDGE as i32).contains(&k)) {
+            return None;
+        }
+        node0[l] = local_index(o[0] as usize, o[1] as usize, o[2] as usize);
+    }
+    Some(node0)
+}
+
+/// [`crate::bspline::base_and_fx`]'s `fx` and [`crate::bspline::weights`] lane by lane, where
+/// [`stencil_starts`] holds: `w[k][d]` for node offset `k`, axis `d` (explicit loops, no
+/// closures: every register operation stays inline in the AVX2 callers).
+#[target_feature(enable = "avx2")]
+#[inline]
+pub(crate) unsafe fn fx_and_weights(xg: &[R; 3]) -> ([R; 3], [[R; 3]; 3]) {
+    let (one, half) = (R::splat(r(1.0)), R::splat(r(0.5)));
+    let (mut fx, mut w) = ([one; 3], [[one; 3]; 3]);
+    for d in 0..3 {
+        fx[d] = xg[d] - (xg[d] - half).floor();
+        let a = R::splat(r(1.5)) - fx[d];
+        w[0][d] = a * a * half;
+        let b = fx[d] - one;
+        w[1][d] = R::splat(r(0.75)) - b * b;
+        let c = fx[d] - half;
+        w[2][d] = c * c * half;
+    }
+    (fx, w)
 }
 
 /// [`crate::transfer::gather_velocity`] of W particles: the velocity `v[ch]` and, with `B`, the
@@ -269,19 +306,7 @@ pub(crate) unsafe fn g2p_block_lanes<L: NodeLanes>(
         // lanes past the group repeat its last particle, and are not written back
         let p: [usize; W] = from_fn(|l| group[l.min(n - 1)] as usize);
         let xg = lanes_of(&p, &*out.xg);
-        // each lane's first stencil node in `local`, if every stencil lies in the block
-        let node0 = bases(&xg).and_then(|b| {
-            let mut node0 = [0; W];
-            for l in 0..W {
-                let o = [b[l][0].wrapping_sub(origin[0]), b[l][1].wrapping_sub(origin[1]), b[l][2].wrapping_sub(origin[2])];
-                if !o.iter().all(|&k| (0..BLOCK_EDGE as i32).contains(&k)) {
-                    return None;
-                }
-                node0[l] = local_index(o[0] as usize, o[1] as usize, o[2] as usize);
-            }
-            Some(node0)
-        });
-        let Some(node0) = node0 else {
+        let Some(node0) = stencil_starts(origin, &xg) else {
             for &pi in group {
                 let pi = pi as usize;
                 vmax2_one = vmax2_one.max(g2p_particle::<L>(pi, origin, local, flip, tp, out));
@@ -291,19 +316,9 @@ pub(crate) unsafe fn g2p_block_lanes<L: NodeLanes>(
             }
             continue;
         };
-        // bspline::base_and_fx and weights, lane by lane (explicit loops, no closures: every
-        // register operation stays inline in this AVX2 function)
-        let (one, half) = (splat(r(1.0)), splat(r(0.5)));
-        let (mut fx, mut centre, mut w) = ([one; 3], [one; 3], [[one; 3]; 3]);
-        for d in 0..3 {
-            fx[d] = xg[d] - (xg[d] - half).floor();
-            centre[d] = fx[d] - one;
-            let a = splat(r(1.5)) - fx[d];
-            w[0][d] = a * a * half;
-            w[1][d] = splat(r(0.75)) - centre[d] * centre[d];
-            let c = fx[d] - half;
-            w[2][d] = c * c * half;
-        }
+        let (fx, w) = fx_and_weights(&xg);
+        let one = splat(r(1.0));
+        let centre = [fx[0] - one, fx[1] - one, fx[2] - one];
         // SAFETY: every stencil lies in the block, so in `local`
         let (mut v, m) = gather::<1, true>(local, &node0, &w);
         // C = B 4/dx^2, B's column k = dx (m_k - v (fx_k - 1))
