@@ -26,7 +26,10 @@ cylinder" has both results; the run's JSON summary is kept as OUT/summary.json.
 
 Usage:
     cylinder.py [--strand PATH] [--out DIR] [--dx 0.01] [--layers 40] [--mass-scaling 100]
-                [--threads 2] [--sleep] [--deposit laid|extruded] [--write FILE]
+                [--threads 2] [--sleep [--sleep-keys 'load_fraction = 0.25']]
+                [--deposit laid|extruded] [--cohesion-factor 1] [--write FILE]
+(--cohesion-factor: a check of sleeping or of the cell size at another strength, not the
+prediction; the scenario says so.)
 """
 import argparse
 import json
@@ -99,10 +102,10 @@ SOURCES = """\
 # {stop:.1f} s after the failure."""
 
 
-def scenario(dx, layers, s, amp=0.001, sleep=False, deposit="laid"):
+def scenario(dx, layers, s, amp=0.001, sleep=False, deposit="laid", cohesion_factor=1.0, sleep_keys=""):
     nozzle_d = 0.04
     extrusion = SPEED * WIDTH * HEIGHT / (math.pi * nozzle_d ** 2 / 4.0)
-    c_over_e = cohesion_per_modulus()
+    c_over_e = cohesion_per_modulus() * cohesion_factor
     rise = 0.05  # the layer change's vertical speed [m/s]
     path = []
     for k in range(layers):
@@ -115,13 +118,20 @@ def scenario(dx, layers, s, amp=0.001, sleep=False, deposit="laid"):
     end = layers * period
     stop = 2.0 * period
     args = f" --dx {dx} --layers {layers} --mass-scaling {s} --deposit {deposit}" + (" --sleep" if sleep else "")
+    if cohesion_factor != 1.0:
+        args += f" --cohesion-factor {cohesion_factor:g}"
+    if sleep_keys:
+        args += f" --sleep-keys '{sleep_keys}'"
     head = SOURCES.format(args=args, phi=PHI, ratio=STRAIN_AT_STRENGTH, c_over_e=c_over_e, c0=c_over_e * E0,
                           c_rate=c_over_e * E_RATE, amp_mm=amp * 1e3, s=s, stop=stop,
                           sleeping="sleeping on (defaults; it failed a layer later than all awake)" if sleep
                           else "all material awake, the reference")
+    if cohesion_factor != 1.0:
+        head += (f"\n#\n# A check, not the prediction: the cohesion above is {cohesion_factor:g} times the chosen one "
+                 f"(unconfined strength {STRAIN_AT_STRENGTH * cohesion_factor:.1%} of E).")
     top = HEIGHT * layers + 0.1
     half = RADIUS + 0.05
-    sleep_table = "\n[sleep]\n" if sleep else ""
+    sleep_table = f"\n[sleep]\n{sleep_keys}\n" if sleep else ""
     deposit_table = f'{{ kind = "laid", width = {WIDTH}, height = {HEIGHT} }}' if deposit == "laid" else '{ kind = "extruded" }'
     return f"""{head}
 name = "cylinder-wolfs2018"
@@ -185,9 +195,15 @@ def main():
                     help="let material at rest sleep: faster; it failed a layer later than all awake (BENCHMARKS.md)")
     ap.add_argument("--deposit", choices=["laid", "extruded"], default="laid",
                     help="lay each layer at rest in its 40 x 10 mm section (the paper's activation model), or extrude it")
+    ap.add_argument("--cohesion-factor", type=float, default=1.0,
+                    help="the chosen cohesion times this (a check of sleeping or of the cell size at another strength; not the prediction)")
+    ap.add_argument("--sleep-keys", default="", help="keys of the [sleep] table, with --sleep (e.g. 'load_fraction = 0.25')")
     ap.add_argument("--write", help="only write the scenario to this file")
     a = ap.parse_args()
-    text = scenario(a.dx, a.layers, a.mass_scaling, sleep=a.sleep, deposit=a.deposit)
+    if a.sleep_keys and not a.sleep:
+        sys.exit("--sleep-keys needs --sleep")
+    text = scenario(a.dx, a.layers, a.mass_scaling, sleep=a.sleep, deposit=a.deposit,
+                    cohesion_factor=a.cohesion_factor, sleep_keys=a.sleep_keys)
     if a.write:
         with open(a.write, "w") as f:
             f.write(text)
