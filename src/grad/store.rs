@@ -1,6 +1,6 @@
 //! Where the checkpoint schedule keeps its stored states: a fixed number of RAM slots in one
-//! mapped pool, and disk slots as files written by the disk writer (`writer.rs`) and read back
-//! through mmap.
+//! mapped pool, and disk slots at fixed offsets of one file, written by the disk writer
+//! (`writer.rs`) and read back with positioned reads.
 //!
 //! Disk writes overlap the forward sweep: `store` hands a copy to the writer and returns; only a
 //! `restore` or `free` of a state still in flight waits for it. Two staging buffers circulate
@@ -12,6 +12,8 @@ use super::schedule::Tier;
 use crate::memory::{Backing, MemoryError, Pool};
 use crate::solver::Simulation;
 use crate::writer::Writer;
+use std::collections::HashMap;
+use std::os::unix::fs::FileExt;
 use std::path::{Path, PathBuf};
 
 pub struct RamSlots {
@@ -49,40 +51,75 @@ impl RamSlots {
     }
 }
 
-/// Writes a state (the buffer) into the slot of its step (the job), reporting the step.
-type SlotWriter = Writer<Vec<u8>, u64, Result<u64, GradError>>;
+/// Writes a state (the buffer) at its slot's offset (the job: step, slot), reporting the step.
+type SlotWriter = Writer<Vec<u8>, (u64, usize), Result<u64, GradError>>;
 
+/// The disk tier: one file of `slots` fixed-size slots, written at their offsets by the writer
+/// thread and read back with positioned reads. A slot is reused in place once its state is
+/// freed, so a store costs one positioned write and a free costs nothing: no file is created,
+/// mapped or removed per state (that cost dominated the tier when each state had its own file).
+///
+/// Nothing is synced to the device: the file is the scratch tape of one gradient run, read back
+/// by the same process and removed when it ends, so durability buys nothing, and a crash loses
+/// the run whatever is on disk. The page cache may therefore hold recently written slots; the
+/// RAM cap counts only this process's own buffers (the two staging buffers, which also serve the
+/// reads).
 pub struct DiskSlots {
-    dir: PathBuf,
+    path: PathBuf,
+    file: std::fs::File,
     bytes: usize,
     writer: Option<SlotWriter>,
+    /// Slot of each stored (or in-flight) step.
+    slot_of: HashMap<u64, usize>,
+    /// Slots holding nothing, taken from the end.
+    free_slots: Vec<usize>,
     in_flight: Vec<u64>,
-    on_disk: Vec<u64>,
     /// Bytes written and read, for the report.
     pub written: u64,
     pub read: u64,
 }
 
-fn slot_path(dir: &Path, step: u64) -> PathBuf {
-    dir.join(format!("grad_state_{step:012}.bin"))
-}
+/// Buffers the disk tier holds in RAM, in stored states: the writer's two staging buffers (a
+/// restore reads into one of them).
+pub const DISK_TIER_BUFFERS: u64 = 2;
 
 impl DiskSlots {
-    pub fn new(dir: &Path, bytes: usize) -> Result<DiskSlots, GradError> {
+    /// A tier of `slots` states of `bytes` in a new file in `dir` (named by the process, so two
+    /// runs sharing a folder do not meet; an existing file of that name is refused, not
+    /// overwritten).
+    pub fn new(dir: &Path, bytes: usize, slots: usize) -> Result<DiskSlots, GradError> {
         std::fs::create_dir_all(dir).map_err(io_err("gradient checkpoint folder", dir))?;
-        let wdir = dir.to_path_buf();
-        let write = move |data: &Vec<u8>, &step: &u64| {
-            let path = slot_path(&wdir, step);
-            std::fs::write(&path, data).map(|_| step).map_err(io_err("writing", &path))
+        let path = dir.join(format!("grad_states_{}.bin", std::process::id()));
+        let file = std::fs::OpenOptions::new().read(true).write(true).create_new(true).open(&path).map_err(io_err("creating", &path))?;
+        let out = file.try_clone().map_err(io_err("opening", &path))?;
+        let wpath = path.clone();
+        let write = move |data: &Vec<u8>, &(step, slot): &(u64, usize)| {
+            out.write_all_at(data, (slot * data.len()) as u64).map(|_| step).map_err(io_err("writing", &wpath))
         };
-        let writer = Writer::spawn("grad-writer", vec![vec![0u8; bytes]; 2], 4, write).map_err(GradError::WriterStart)?;
-        Ok(DiskSlots { dir: dir.to_path_buf(), bytes, writer: Some(writer), in_flight: Vec::new(), on_disk: Vec::new(), written: 0, read: 0 })
+        let writer = Writer::spawn("grad-writer", vec![vec![0u8; bytes]; DISK_TIER_BUFFERS as usize], 4, write).map_err(GradError::WriterStart);
+        let writer = match writer {
+            Ok(w) => w,
+            Err(e) => {
+                let _ = std::fs::remove_file(&path);
+                return Err(e);
+            }
+        };
+        Ok(DiskSlots {
+            path,
+            file,
+            bytes,
+            writer: Some(writer),
+            slot_of: HashMap::with_capacity(slots),
+            free_slots: (0..slots).rev().collect(),
+            in_flight: Vec::new(),
+            written: 0,
+            read: 0,
+        })
     }
 
     fn settle(&mut self, r: Result<u64, GradError>) -> Result<(), GradError> {
         let step = r?;
         self.in_flight.retain(|&s| s != step);
-        self.on_disk.push(step);
         self.written += self.bytes as u64;
         Ok(())
     }
@@ -109,12 +146,18 @@ impl DiskSlots {
         Ok(())
     }
 
+    fn slot(&self, step: u64) -> Result<usize, GradError> {
+        self.slot_of.get(&step).copied().ok_or(GradError::NoDiskCheckpoint(step))
+    }
+
     fn store(&mut self, sim: &Simulation) -> Result<(), GradError> {
         self.collect()?;
+        let slot = self.free_slots.pop().ok_or(GradError::DiskSlotsFull)?;
         let mut data = self.writer()?.buffer().ok_or(GradError::WriterStopped)?;
         save(sim, &mut data);
+        self.slot_of.insert(sim.step, slot);
         self.in_flight.push(sim.step);
-        if !self.writer()?.submit(data, sim.step) {
+        if !self.writer()?.submit(data, (sim.step, slot)) {
             return Err(GradError::WriterStopped);
         }
         Ok(())
@@ -122,35 +165,35 @@ impl DiskSlots {
 
     fn restore(&mut self, sim: &mut Simulation, step: u64) -> Result<(), GradError> {
         self.wait_for(step)?;
-        let path = slot_path(&self.dir, step);
-        let file = std::fs::File::open(&path).map_err(io_err("reading", &path))?;
-        // SAFETY: the file is ours, complete (its write was acknowledged) and not modified while
-        // mapped.
-        let map = unsafe { memmap2::Mmap::map(&file) }.map_err(io_err("mapping", &path))?;
-        if map.len() != self.bytes {
-            return Err(GradError::SlotSize { path, len: map.len(), expected: self.bytes });
-        }
-        load(sim, &map)?;
+        let slot = self.slot(step)?;
+        let mut data = self.writer()?.buffer().ok_or(GradError::WriterStopped)?;
+        let got = self.file.read_exact_at(&mut data, (slot * self.bytes) as u64);
+        let loaded = match got {
+            Ok(()) => load(sim, &data).map_err(GradError::from),
+            Err(e) => Err(io_err("reading", &self.path)(e)),
+        };
+        self.writer()?.give_back(data);
+        loaded?;
         self.read += self.bytes as u64;
         Ok(())
     }
 
     fn free(&mut self, step: u64) -> Result<(), GradError> {
+        // the slot is reused only once its write is done
         self.wait_for(step)?;
-        self.on_disk.retain(|&s| s != step);
-        let path = slot_path(&self.dir, step);
-        std::fs::remove_file(&path).map_err(io_err("removing", &path))
+        let slot = self.slot(step)?;
+        self.slot_of.remove(&step);
+        self.free_slots.push(slot);
+        Ok(())
     }
 }
 
 impl Drop for DiskSlots {
     fn drop(&mut self) {
         if let Some(w) = self.writer.take() {
-            self.on_disk.extend(w.finish().into_iter().flatten());
+            drop(w.finish());
         }
-        for s in self.on_disk.iter().chain(&self.in_flight) {
-            let _ = std::fs::remove_file(slot_path(&self.dir, *s));
-        }
+        let _ = std::fs::remove_file(&self.path);
     }
 }
 
