@@ -60,12 +60,6 @@ pub enum GradError {
     DiskSlotsFull,
     #[error("the schedule uses disk checkpoints but no disk tier is set up")]
     NoDiskTier,
-    #[error("starting the gradient checkpoint writer: {0}")]
-    WriterStart(std::io::Error),
-    #[error("the gradient checkpoint writer is closed")]
-    WriterClosed,
-    #[error("the gradient checkpoint writer stopped")]
-    WriterStopped,
     /// Creating the checkpoint folder or file, or writing or reading a stored state:
     /// `what` names the act.
     #[error("{what} {}: {source}", path.display())]
