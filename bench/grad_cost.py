@@ -4,7 +4,9 @@ RAM cap (the schedule chosen by strand), and the reverse sweep's cost per step a
 step (a 64-particle block, then the 2,048-particle Poiseuille channel). Prints Markdown tables;
 run from the repository root after `cargo build --release`:
 
-    python3 bench/grad_cost.py [--cap "4 MiB"] [--threads 1]
+    python3 bench/grad_cost.py [--cap "4 MiB"] [--disk "64 MiB"] [--threads 1] [--exe PATH]
+
+With --disk the block's rows also have a disk tier of that size (in a temporary folder).
 """
 import argparse, json, subprocess, tempfile, os
 
@@ -54,8 +56,12 @@ def main():
     ap.add_argument("--cap", default="4 MiB")
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--steps", default="10000,100000,1000000")
+    ap.add_argument("--disk", default=None, help="a disk tier for the block's rows, e.g. '64 MiB'")
+    ap.add_argument("--exe", default=os.path.join(os.path.dirname(__file__), "..", "target", "release", "strand"))
+    ap.add_argument("--no-channel", action="store_true", help="the block's rows only")
     a = ap.parse_args()
-    exe = os.path.join(os.path.dirname(__file__), "..", "target", "release", "strand")
+    exe = a.exe
+    disk = ["--disk", a.disk] if a.disk else []
     print(f"| N steps | schedule | forward steps run | peak RAM slots | wall [s] | forward step [us] | reverse step [us] | reverse / forward step | gradient / one forward run |")
     print("|---|---|---|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as d:
@@ -63,7 +69,9 @@ def main():
             path = os.path.join(d, f"s{n}.toml")
             with open(path, "w") as f:
                 f.write(SCENARIO.format(end=n * 5e-5, threads=a.threads))
-            print(row(exe, path, ["--objective", "mean_z", "--wrt", "material.viscosity,body.0.velocity.x", "--ram", a.cap], d), flush=True)
+            print(row(exe, path, ["--objective", "mean_z", "--wrt", "material.viscosity,body.0.velocity.x", "--ram", a.cap, *disk], d), flush=True)
+        if a.no_channel:
+            return
         print()
         print("Poiseuille channel, 2,048 particles, d vx_max / d (F, eta), 2 threads:")
         print()

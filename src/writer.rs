@@ -1,6 +1,5 @@
-//! The one disk writer: a background thread that writes jobs while the stepper goes on. Restart
-//! checkpoints (`checkpoint/writer.rs`) and the gradient schedule's disk slots
-//! (`grad/store.rs`) both use it.
+//! The one disk writer: a background thread that writes jobs while the stepper goes on (restart
+//! checkpoints, `checkpoint/writer.rs`).
 //!
 //! A fixed set of buffers circulates: the stepper takes a free one, fills it (a memcpy) and
 //! submits it with its job; the thread writes it, gives the buffer back and reports how the

@@ -14,7 +14,7 @@ use super::params::{parse, Param};
 use crate::key::Key;
 use super::schedule::{choose, Action, Budget, Kind, OnlineSchedule, Plan};
 use super::step_adjoint::StepAdjoint;
-use super::store::{DiskSlots, RamSlots, Store};
+use super::store::{DiskSlots, RamSlots, Store, DISK_TIER_BUFFERS};
 use super::GradError;
 use crate::memory::{fmt_bytes, Backing, MemoryPlan};
 use crate::pools::Counts;
@@ -303,7 +303,10 @@ impl Memory {
         if opts.ram_bytes < adjoint_bytes {
             return Err(GradError::Budget { ram_bytes: opts.ram_bytes, adjoint_bytes, state_bytes: sbytes, plan: Box::new(grad_plan) });
         }
-        let budget = Budget { state_bytes: sbytes, ram_bytes: opts.ram_bytes - adjoint_bytes, disk_bytes: opts.disk_bytes };
+        // a disk tier's staging buffers are RAM: with a disk budget they come out of the RAM one
+        let staging = if opts.disk_bytes >= sbytes { DISK_TIER_BUFFERS * sbytes } else { 0 };
+        let ram_bytes = (opts.ram_bytes - adjoint_bytes).saturating_sub(staging);
+        let budget = Budget { state_bytes: sbytes, ram_bytes, disk_bytes: opts.disk_bytes };
         Ok(Memory { adjoint_bytes, state_bytes: sbytes, budget })
     }
 }
@@ -329,7 +332,7 @@ impl Executor<'_> {
         let sbytes = memory.state_bytes as usize;
         self.store = Some(Store {
             ram: RamSlots::new(ram_slots, sbytes, backing)?,
-            disk: if disk_slots > 0 { Some(DiskSlots::new(&opts.disk_dir, sbytes)?) } else { None },
+            disk: if disk_slots > 0 { Some(DiskSlots::new(&opts.disk_dir, sbytes, disk_slots)?) } else { None },
         });
         if n_steps == 0 {
             self.seed_initial(n0)?;

@@ -54,20 +54,16 @@ pub enum GradError {
     NoRamCheckpoint(u64),
     #[error("the RAM checkpoint slots are all taken")]
     RamSlotsFull,
+    #[error("no disk checkpoint of step {0}")]
+    NoDiskCheckpoint(u64),
+    #[error("the disk checkpoint slots are all taken")]
+    DiskSlotsFull,
     #[error("the schedule uses disk checkpoints but no disk tier is set up")]
     NoDiskTier,
-    #[error("starting the gradient checkpoint writer: {0}")]
-    WriterStart(std::io::Error),
-    #[error("the gradient checkpoint writer is closed")]
-    WriterClosed,
-    #[error("the gradient checkpoint writer stopped")]
-    WriterStopped,
-    /// Creating the checkpoint folder, or writing, reading, mapping or removing a stored state:
+    /// Creating the checkpoint folder or file, or writing or reading a stored state:
     /// `what` names the act.
     #[error("{what} {}: {source}", path.display())]
     Io { what: &'static str, path: PathBuf, source: std::io::Error },
-    #[error("{} has {len} bytes, expected {expected}", path.display())]
-    SlotSize { path: PathBuf, len: usize, expected: usize },
     #[error("the schedule never reached the objective's step")]
     StepNotReached,
     /// A stored state's sleep tables did not restore.

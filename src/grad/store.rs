@@ -1,17 +1,14 @@
 //! Where the checkpoint schedule keeps its stored states: a fixed number of RAM slots in one
-//! mapped pool, and disk slots as files written by the disk writer (`writer.rs`) and read back
-//! through mmap.
-//!
-//! Disk writes overlap the forward sweep: `store` hands a copy to the writer and returns; only a
-//! `restore` or `free` of a state still in flight waits for it. Two staging buffers circulate
-//! between the stepper and the writer, so a third store in a row waits for the first write.
+//! mapped pool, and disk slots at fixed offsets of one file (`DiskSlots` says why it writes
+//! synchronously and never syncs).
 
 use super::error::{io_err, GradError};
 use super::fields::{load, save};
 use super::schedule::Tier;
 use crate::memory::{Backing, MemoryError, Pool};
 use crate::solver::Simulation;
-use crate::writer::Writer;
+use std::collections::HashMap;
+use std::os::unix::fs::FileExt;
 use std::path::{Path, PathBuf};
 
 pub struct RamSlots {
@@ -49,108 +46,85 @@ impl RamSlots {
     }
 }
 
-/// Writes a state (the buffer) into the slot of its step (the job), reporting the step.
-type SlotWriter = Writer<Vec<u8>, u64, Result<u64, GradError>>;
-
+/// The disk tier: one file of `slots` fixed-size slots, each state written at its slot's offset
+/// and read back from it. A slot is reused in place once its state is freed, so a store costs
+/// one positioned write and a free costs nothing: no file is created, mapped or removed per state.
+///
+/// Writes are synchronous and nothing is synced to the device: the file is the scratch tape of
+/// one gradient run, read back by the same process and removed when it ends, so durability buys
+/// nothing (a crash loses the run whatever is on disk), and a write lands in the page cache at
+/// memory speed. Handing each state to a writer thread instead costs two thread wake-ups per
+/// state, more than the copy it overlaps (a 64-particle state is 12.5 KiB and a step 30 us).
+/// The RAM cap counts this process's own buffer (one state, the staging of writes and reads);
+/// the page cache is the kernel's.
 pub struct DiskSlots {
-    dir: PathBuf,
-    bytes: usize,
-    writer: Option<SlotWriter>,
-    in_flight: Vec<u64>,
-    on_disk: Vec<u64>,
+    path: PathBuf,
+    file: std::fs::File,
+    /// One stored state: what is being written or was just read.
+    staging: Vec<u8>,
+    /// Slot of each stored step.
+    slot_of: HashMap<u64, usize>,
+    /// Slots holding nothing, taken from the end.
+    free_slots: Vec<usize>,
     /// Bytes written and read, for the report.
     pub written: u64,
     pub read: u64,
 }
 
-fn slot_path(dir: &Path, step: u64) -> PathBuf {
-    dir.join(format!("grad_state_{step:012}.bin"))
-}
+/// Buffers the disk tier holds in RAM, in stored states.
+pub const DISK_TIER_BUFFERS: u64 = 1;
 
 impl DiskSlots {
-    pub fn new(dir: &Path, bytes: usize) -> Result<DiskSlots, GradError> {
+    /// A tier of `slots` states of `bytes` in a new file in `dir` (named by the process, so two
+    /// runs sharing a folder do not meet; an existing file of that name is refused, not
+    /// overwritten).
+    pub fn new(dir: &Path, bytes: usize, slots: usize) -> Result<DiskSlots, GradError> {
         std::fs::create_dir_all(dir).map_err(io_err("gradient checkpoint folder", dir))?;
-        let wdir = dir.to_path_buf();
-        let write = move |data: &Vec<u8>, &step: &u64| {
-            let path = slot_path(&wdir, step);
-            std::fs::write(&path, data).map(|_| step).map_err(io_err("writing", &path))
-        };
-        let writer = Writer::spawn("grad-writer", vec![vec![0u8; bytes]; 2], 4, write).map_err(GradError::WriterStart)?;
-        Ok(DiskSlots { dir: dir.to_path_buf(), bytes, writer: Some(writer), in_flight: Vec::new(), on_disk: Vec::new(), written: 0, read: 0 })
+        let path = dir.join(format!("grad_states_{}.bin", std::process::id()));
+        let file = std::fs::OpenOptions::new().read(true).write(true).create_new(true).open(&path).map_err(io_err("creating", &path))?;
+        Ok(DiskSlots {
+            path,
+            file,
+            staging: vec![0u8; bytes],
+            slot_of: HashMap::with_capacity(slots),
+            free_slots: (0..slots).rev().collect(),
+            written: 0,
+            read: 0,
+        })
     }
 
-    fn settle(&mut self, r: Result<u64, GradError>) -> Result<(), GradError> {
-        let step = r?;
-        self.in_flight.retain(|&s| s != step);
-        self.on_disk.push(step);
-        self.written += self.bytes as u64;
-        Ok(())
-    }
-
-    fn writer(&mut self) -> Result<&mut SlotWriter, GradError> {
-        self.writer.as_mut().ok_or(GradError::WriterClosed)
-    }
-
-    /// Settle the writes that are done.
-    fn collect(&mut self) -> Result<(), GradError> {
-        while let Some(r) = self.writer()?.poll() {
-            self.settle(r)?;
-        }
-        Ok(())
-    }
-
-    /// Wait until `step` (if in flight) is on disk; collect any other finished writes.
-    fn wait_for(&mut self, step: u64) -> Result<(), GradError> {
-        self.collect()?;
-        while self.in_flight.contains(&step) {
-            let r = self.writer()?.wait().ok_or(GradError::WriterStopped)?;
-            self.settle(r)?;
-        }
-        Ok(())
+    fn offset(&self, slot: usize) -> u64 {
+        (slot * self.staging.len()) as u64
     }
 
     fn store(&mut self, sim: &Simulation) -> Result<(), GradError> {
-        self.collect()?;
-        let mut data = self.writer()?.buffer().ok_or(GradError::WriterStopped)?;
-        save(sim, &mut data);
-        self.in_flight.push(sim.step);
-        if !self.writer()?.submit(data, sim.step) {
-            return Err(GradError::WriterStopped);
-        }
+        let slot = self.free_slots.pop().ok_or(GradError::DiskSlotsFull)?;
+        save(sim, &mut self.staging);
+        self.file.write_all_at(&self.staging, self.offset(slot)).map_err(io_err("writing", &self.path))?;
+        self.slot_of.insert(sim.step, slot);
+        self.written += self.staging.len() as u64;
         Ok(())
     }
 
     fn restore(&mut self, sim: &mut Simulation, step: u64) -> Result<(), GradError> {
-        self.wait_for(step)?;
-        let path = slot_path(&self.dir, step);
-        let file = std::fs::File::open(&path).map_err(io_err("reading", &path))?;
-        // SAFETY: the file is ours, complete (its write was acknowledged) and not modified while
-        // mapped.
-        let map = unsafe { memmap2::Mmap::map(&file) }.map_err(io_err("mapping", &path))?;
-        if map.len() != self.bytes {
-            return Err(GradError::SlotSize { path, len: map.len(), expected: self.bytes });
-        }
-        load(sim, &map)?;
-        self.read += self.bytes as u64;
+        let slot = *self.slot_of.get(&step).ok_or(GradError::NoDiskCheckpoint(step))?;
+        let at = self.offset(slot);
+        self.file.read_exact_at(&mut self.staging, at).map_err(io_err("reading", &self.path))?;
+        load(sim, &self.staging)?;
+        self.read += self.staging.len() as u64;
         Ok(())
     }
 
     fn free(&mut self, step: u64) -> Result<(), GradError> {
-        self.wait_for(step)?;
-        self.on_disk.retain(|&s| s != step);
-        let path = slot_path(&self.dir, step);
-        std::fs::remove_file(&path).map_err(io_err("removing", &path))
+        let slot = self.slot_of.remove(&step).ok_or(GradError::NoDiskCheckpoint(step))?;
+        self.free_slots.push(slot);
+        Ok(())
     }
 }
 
 impl Drop for DiskSlots {
     fn drop(&mut self) {
-        if let Some(w) = self.writer.take() {
-            self.on_disk.extend(w.finish().into_iter().flatten());
-        }
-        for s in self.on_disk.iter().chain(&self.in_flight) {
-            let _ = std::fs::remove_file(slot_path(&self.dir, *s));
-        }
+        let _ = std::fs::remove_file(&self.path);
     }
 }
 
