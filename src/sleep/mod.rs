@@ -29,7 +29,8 @@
 //! Why on by default for multi-layer prints: under the speed rule alone, a layer asleep under a
 //! stack that grows slowly enough never sees fast material next to it, and stays frozen while the
 //! weight above passes its yield stress; the print would stand where it collapses awake. The load
-//! test wakes it when the added load approaches its margin (`load_fraction`, half by default),
+//! test wakes it when the added load approaches its margin (`load_fraction`, half by default, a
+//! quarter with column loads below),
 //! so sleeping does not hide a plastic collapse (tests/suite/print.rs prints a wall to failure with and without sleeping; the cost against
 //! the speed rule is in BENCHMARKS.md "Printing to failure").
 //!
@@ -53,7 +54,26 @@
 //! The load reaches through the sleeping material below the unit, so it wakes the contiguous
 //! sleeping units under it in its column down to the deepest whose margin it passes: a layer at
 //! its yield stress at the bottom wakes under the next layer's weight, one that has built up
-//! enough strength stays asleep.
+//! enough strength stays asleep. With a material whose margin is many layers' weight
+//! (`Material::column_loads`: `early_age_solid`) each unit of the column is tested against what
+//! the column added on it since it fell asleep: the load on the top and the weights of the
+//! sleeping units between, whose own weight rests on no node. Why: tested against the top's load
+//! alone, a deep unit never saw the layers that had fallen asleep above it, and a reduced
+//! cylinder asleep stood 32 layers where it fails in layer 23 awake. Three rules keep that
+//! sound. A column is walked from its top only (a unit under sleeping ones takes on its own
+//! nodes only what presses on its sides). A held node's load goes to the column it lies in the
+//! middle of, not shared among the columns holding it (shared, a column's weight counted partly
+//! on its neighbour, then came back as an added load when that weight fell asleep: spurious
+//! wakes). And a unit keeps the compression its column added since it fell asleep, which its
+//! particles' stress takes when they wake (`Material::take_column_load`): without it a deep
+//! unit woke without the weight of the layers laid while it slept, took it at once (a step
+//! load), and the printed cylinder asleep fell in layer 8 where it stands to 24 awake. The
+//! sleeping part is held rigid while the awake part deforms, so such a material wakes at a
+//! quarter of its margin by default, not half: the cylinder at three strengths fails asleep
+//! within a layer of awake with a quarter, up to three layers off with half (the figures at
+//! `config::sleep`'s default). The failure layer still moves with these estimates (22 with
+//! node loads shared evenly), and the laid early-age wall fails two layers early asleep, which
+//! is why sleeping is no default for such a print.
 //!
 //! Why units and not the grid's 4-cell blocks: the awake region is what moves plus a one-unit
 //! halo around it (the calm and wake tests look at the 26 neighbours), and a printed layer is
@@ -141,10 +161,18 @@ pub struct Sleep {
     /// Sleeping unit: the mean margin to yield of its particles when it fell asleep [Pa] (the
     /// least is near zero in material that just stopped flowing; see `load_floor`).
     margin: Pool<f32>,
-    /// Sleeping unit: |load| [N] once its average had run long enough to be unbiased (NaN
-    /// before): the load its frozen stress already carries, from the material that lay on it
-    /// when it fell asleep.
+    /// Sleeping unit: the load its frozen stress already carries [N], from the material that
+    /// lay on it when it fell asleep: |load| once its average had run long enough to be unbiased,
+    /// plus the weight of the sleeping units then above it in its column (NaN before).
     base: Pool<f32>,
+    /// Sleeping unit: the weight of its particles [N]. Why: a sleeping unit's weight rests on
+    /// no node, so the load a unit below it carries is the load on the column's top plus the
+    /// weights of the sleeping units between (`loads.rs`).
+    weight: Pool<f32>,
+    /// Sleeping unit (with `column_loads`): the compression its column added on it since it fell
+    /// asleep [Pa], as last measured; its particles' stress takes it when they wake
+    /// ([`crate::kernels::material::Material::take_column_load`]).
+    pressed: Pool<f32>,
     /// Units the last step loaded past their margin (state `Loaded`), for the next update.
     loaded: Pool<u32>,
     n_loaded: usize,
@@ -153,6 +181,11 @@ pub struct Sleep {
     reactions: Pool<[f32; 3]>,
     /// Axis and sign of gravity (down), when gravity lies along an axis and loads are tested.
     down: Option<(usize, i32)>,
+    /// |gravity| [m/s^2].
+    g: f32,
+    /// Whether loads are tested on the whole column ([`crate::kernels::material::Material::column_loads`]; `weight`
+    /// `pressed` exist only then).
+    column_loads: bool,
     /// 1 / (a unit's face area) [1/m^2].
     per_area: f32,
     /// Merging scratch, with `coarsen`.
@@ -178,6 +211,12 @@ impl Pools for Sleep {
                 decl("sleep.margin", units, Sparse, |s| &s.margin, |s| &mut s.margin),
                 decl("sleep.base", units, Sparse, |s| &s.base, |s| &mut s.base),
             ]);
+            if self.column_loads {
+                v.extend([
+                    decl("sleep.weight", units, Sparse, |s| &s.weight, |s| &mut s.weight),
+                    decl("sleep.pressed", units, Sparse, |s| &s.pressed, |s| &mut s.pressed),
+                ]);
+            }
         }
         v.extend([
             decl("sleep.woken", units, Scratch, |s| &s.woken, |s| &mut s.woken),
@@ -220,6 +259,8 @@ impl Sleep {
         Sleep {
             coarsen: cfg.coarsen.then(|| Coarsen::declared(geom)),
             down: cfg.down(gravity),
+            g: gravity.iter().map(|x| x * x).sum::<f64>().sqrt() as f32,
+            column_loads: false,
             cfg,
             table_len: geom.table_len(),
             state: Pool::default(),
@@ -233,11 +274,20 @@ impl Sleep {
             load_step: Pool::default(),
             margin: Pool::default(),
             base: Pool::default(),
+            weight: Pool::default(),
+            pressed: Pool::default(),
             loaded: Pool::default(),
             n_loaded: 0,
             reactions: Pool::default(),
             per_area: (1.0 / (face * face)) as f32,
         }
+    }
+
+    /// The same tables, testing loads on the whole column when `on` (the material's
+    /// [`crate::kernels::material::Material::column_loads`]; before the tables are mapped).
+    pub fn with_column_loads(mut self, on: bool) -> Self {
+        self.column_loads = on;
+        self
     }
 
     /// Tables for `geom`'s domain with `max_blocks` grid slots and room for `capacity`

@@ -205,6 +205,10 @@ impl Sleep {
                     if loads {
                         self.margin.as_mut_slice()[u as usize] = 0.0;
                         self.base.as_mut_slice()[u as usize] = f32::NAN;
+                        if self.column_loads {
+                            self.weight.as_mut_slice()[u as usize] = 0.0;
+                            self.pressed.as_mut_slice()[u as usize] = 0.0;
+                        }
                         self.load.as_mut_slice()[u as usize] = [0.0; 3];
                         self.load_step.as_mut_slice()[u as usize] = step as u32;
                     }
@@ -219,6 +223,8 @@ impl Sleep {
     /// `wake_grace`.
     fn wake_particles(&mut self, grid: &Grid, particles: &mut Particles, material: &dyn Material, now: f64, woke: usize) {
         let geom = &grid.geom;
+        // the down axis, when woken particles take the load their column added while they slept
+        let pressed_axis = self.down.filter(|_| self.column_loads && self.tests_loads()).map(|(a, _)| a);
         let state = states_mut(self.state.as_mut_slice());
         let clock = self.clock.as_mut_slice();
         let woken = self.woken.as_slice();
@@ -239,6 +245,9 @@ impl Sleep {
                 let j = particles.j.as_slice()[i];
                 let st = &mut particles.state.as_mut_slice()[i * sl..(i + 1) * sl];
                 material.rest_for_at(st, clock[u as usize] as Real, j);
+                if let Some(axis) = pressed_axis {
+                    material.take_column_load(st, axis, self.pressed.as_slice()[u as usize] as Real);
+                }
                 particles.stress.as_mut_slice()[i] = material.stress_at_rest(st, particles.j.as_slice()[i]);
                 particles.n_sleep -= 1;
                 particles.swap(i, particles.n_sleep);
@@ -254,6 +263,12 @@ impl Sleep {
             for &u in &woken[..woke] {
                 // zero, so that checkpoints store only sleeping units' entries
                 (load[u as usize], load_step[u as usize], margin[u as usize], base[u as usize]) = ([0.0; 3], 0, 0.0, 0.0);
+            }
+            if self.column_loads {
+                let (weight, pressed) = (self.weight.as_mut_slice(), self.pressed.as_mut_slice());
+                for &u in &woken[..woke] {
+                    (weight[u as usize], pressed[u as usize]) = (0.0, 0.0);
+                }
             }
         }
     }
@@ -278,6 +293,9 @@ impl Sleep {
                     // summed here, counted in the unit's load (still zero), divided below
                     margin[u as usize] += material.yield_margin(&particles.state.as_slice()[k * sl..(k + 1) * sl]) as f32;
                     self.load.as_mut_slice()[u as usize][0] += 1.0;
+                    if self.column_loads {
+                        self.weight.as_mut_slice()[u as usize] += particles.mass.as_slice()[k] as f32 * self.g;
+                    }
                 }
                 particles.n_sleep += 1;
             }

@@ -53,7 +53,7 @@ impl Simulation {
         let mut particles = Particles::declared(state_len);
         let mut grid = Grid::declared(geom);
         let mut scratch = Scratch::declared(max_blocks, state_len);
-        let mut sleep = scenario.sleep.as_ref().map(|cfg| Sleep::declared(cfg.clone(), &grid.geom, scenario.simulation.gravity));
+        let mut sleep = scenario.sleep.as_ref().map(|cfg| Sleep::declared(cfg.clone(), &grid.geom, scenario.simulation.gravity).with_column_loads(material.column_loads()));
         let mut solids = crate::solid::Solids::declared(&scenario.solids, scenario.simulation.dx, nozzle)?;
 
         let capacity = Counts::capacity(cap, max_blocks);

@@ -484,3 +484,34 @@ fn a_sleeping_elastic_wall_printed_to_failure_is_warned_of() {
     assert!(!warned(&wall));
     assert!(!warned(&tiny_wall(5, 100.0, Some("rest_time = 0.02"))));
 }
+
+/// A wall of an early-age solid asleep (`[sleep]`, the laid wall of `early_age_wall.toml` at four
+/// times its cohesion, so that ten layers stay far from its strength): each new layer's weight
+/// wakes the sleeping material under it only where the load added on its column nears that
+/// material's margin to yield, so the awake work per layer stays near that of the first layers
+/// as the wall grows. Why: with a margin of 0 any added load woke the whole column under it down
+/// to the bed, and the printed cylinder's cost per layer grew with its height (issue 51;
+/// BENCHMARKS.md "The printed cylinder"): 8.6 times from layers 2-3 to 9-10 here.
+#[test]
+fn a_sleeping_early_age_wall_costs_no_more_per_layer_as_it_grows() {
+    let wall = std::fs::read_to_string(format!("{}/fixtures/scenarios/print/early_age_wall.toml", env!("CARGO_MANIFEST_DIR"))).unwrap();
+    assert!(wall.contains("cohesion = 250.0"));
+    let strong = wall.replace("cohesion = 250.0", "cohesion = 1000.0");
+    let mut s = Simulation::new(&Scenario::parse(&format!("{strong}\n[sleep]\n")).unwrap()).unwrap();
+    let starts: Vec<f64> = s.printer.as_ref().unwrap().toolpath.layers().iter().map(|l| l.1).collect();
+    let layers = 10;
+    // awake particle-steps of each layer, from its start to the next one's
+    let mut work = Vec::new();
+    for w in starts.windows(2).take(layers) {
+        let before = s.awake_particle_steps;
+        while s.time < w[1] * (1.0 - 1e-12) {
+            s.step_until(w[1]).unwrap();
+        }
+        work.push((s.awake_particle_steps - before) as f64);
+    }
+    eprintln!("awake particle-steps per layer: {work:?}");
+    // layers 2-3 are the first laid on sleeping material; the last two lie on a wall four times as tall
+    let early = (work[1] + work[2]) / 2.0;
+    let late = (work[layers - 2] + work[layers - 1]) / 2.0;
+    assert!(late < 1.5 * early, "awake particle-steps per layer grew from {early} (layers 2-3) to {late} (layers {}-{layers})", layers - 1);
+}

@@ -288,6 +288,20 @@ pub(crate) fn trial(c: &Consts, grad_v: &M3, dt: Real, sigma_old: &M3) -> (M3, M
     (sigma_tr, rot)
 }
 
+/// How far tau may rise at the stress held in `state` (its first 6 reals) before the cone or
+/// the cutoff is reached, at this mean stress: min(-f_s, sigma_t - sigma_m) [Pa] (negative
+/// outside). Why at this mean stress: a load that presses on the material raises tau by at
+/// most its share and the cone's strength with its pressure, so the margin is a lower bound
+/// for it; a load that pulls moves sigma_m towards the cutoff by no more than tau rises (a
+/// uniaxial traction adds t / 3 to sigma_m and t / sqrt3 to tau), hence the cutoff's margin.
+pub(crate) fn yield_margin(c: &Consts, state: &[Real]) -> Real {
+    let sigma = sym_from_slice(&state[..6]);
+    let sm = trace(&sigma) / r(3.0);
+    let s = dev(&sigma);
+    let tau = (r(0.5) * ddot(&s, &s)).sqrt();
+    (c.k_phi - c.q_phi * sm - tau).min(c.sigma_t - sm)
+}
+
 /// One step of the return map on a state whose first 7 reals are the stress (6) and eps_p,
 /// updated in place; returns the new stress.
 #[inline]

@@ -36,8 +36,11 @@
 //!   end would pass 90 deg), and is not differentiated (the age, held fixed, is then
 //!   `max_age`, and the laws' derivative in age is 0).
 //! * **Sleeping.** `rest_for` ages the particle by the time it slept (the material keeps ageing
-//!   while it sleeps). `yield_margin` and `strength_gain` keep the trait's defaults, as
-//!   `drucker_prager` does: any load added to a sleeping unit wakes it (conservative).
+//!   while it sleeps). `yield_margin` is the held stress's distance to the cone or the cutoff of
+//!   its age, and `column_loads` is on: a sleeping unit wakes when the load its column added on it
+//!   since it fell asleep nears that margin (module notes of `src/sleep/`), not under any load
+//!   (which woke the whole wall under every new layer); waking, it takes that load in its stress
+//!   (`take_column_load`). `strength_gain` stays 0 (a lower bound).
 //!
 //! Adjoint: the return map's adjoint gives the adjoints of the constants; [`Cone::adjoint`]
 //! chains them to (K, G, phi, psi, c, cutoff), and those to the law parameters at the particle's
@@ -56,7 +59,7 @@ use std::sync::OnceLock;
 use serde::Deserialize;
 
 use crate::material::age_law::{bare, check_ages, law_age, AgeLaw, LawKeys};
-use crate::material::drucker_prager::{apex, return_map, return_map_adjoint, Cone};
+use crate::material::drucker_prager::{apex, return_map, return_map_adjoint, yield_margin, Cone};
 use crate::material::eos::{shear_modulus_of, shear_modulus_of_partials};
 use crate::material::{non_negative, positive, Material, MaterialError, StabilityInfo, UpdateAdjoint};
 use crate::real::{r, sym_from_slice, Real, M3};
@@ -317,6 +320,29 @@ impl Material for EarlyAgeSolid {
     /// Sleeping material keeps ageing.
     fn rest_for(&self, state: &mut [Real], duration: Real) {
         state[7] += duration;
+    }
+
+    /// The distance of the held stress to the cone or the cutoff of the particle's age, at its
+    /// mean stress (`drucker_prager::yield_margin`). Why not 0 (any load wakes): a layer
+    /// at rest under the ones above it then sleeps until their added weight nears its strength,
+    /// instead of waking with the whole wall under every new layer (the printed cylinder,
+    /// BENCHMARKS.md). `strength_gain` stays 0: the cohesion's growth while asleep is left out
+    /// of the margin, which keeps it a lower bound.
+    // a real conversion in the f32 build
+    #[allow(clippy::unnecessary_cast)]
+    fn yield_margin(&self, state: &[Real]) -> Real {
+        yield_margin(&self.cone_at(state[7] as f64).consts(), state)
+    }
+
+    /// Its margin is many layers' weight: the column's load must reach the deep units.
+    fn column_loads(&self) -> bool {
+        true
+    }
+
+    /// The held stress takes the column's added weight as a uniaxial compression along the
+    /// down axis (a free-standing wall under a vertical load), on top of what it held.
+    fn take_column_load(&self, state: &mut [Real], axis: usize, traction: Real) {
+        state[axis] -= traction;
     }
 
     fn stability(&self) -> StabilityInfo {

@@ -205,6 +205,26 @@ pub trait Material: Send + Sync + std::fmt::Debug {
         0.0
     }
 
+    /// Whether the sleep update tests each sleeping unit against the load its column added on
+    /// it since it fell asleep (the load on the column's top and the weights of the sleeping
+    /// units between), not only against the load on the top. A material whose
+    /// [`Material::yield_margin`] stays well above the weight of a layer needs it: its deep units
+    /// stay asleep under the first layers, and must wake as the stack above nears their
+    /// strength. The others keep false, the rule measured with `evp_bingham` (whose margin is
+    /// near 0 where flow has just stopped, so the first load on a column wakes it).
+    fn column_loads(&self) -> bool {
+        false
+    }
+
+    /// A particle waking from sleep takes the compressive stress `traction` [Pa, >= 0] along
+    /// `axis` (down) that its column added on it while it slept (with
+    /// [`Material::column_loads`]). Why: the stress of a sleeping particle is frozen, so a deep
+    /// unit that slept under layers laid and fallen asleep above it wakes without their weight
+    /// in its stress, and takes it at once: a step load, which overshoots to twice its static
+    /// effect and, under mass scaling, threw a printed cylinder down ten layers early. Materials
+    /// whose stress does not live in their state keep the default, which does nothing.
+    fn take_column_load(&self, _state: &mut [Real], _axis: usize, _traction: Real) {}
+
     /// Yield stress gained by `duration` at rest (structural build-up) [Pa], no more than
     /// [`Material::rest_for`] gives any particle: what a sleeping unit's margin grows by while
     /// it sleeps.
