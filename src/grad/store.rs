@@ -75,12 +75,14 @@ pub struct DiskSlots {
 pub const DISK_TIER_BUFFERS: u64 = 1;
 
 impl DiskSlots {
-    /// A tier of `slots` states of `bytes` in a new file in `dir` (named by the process, so two
-    /// runs sharing a folder do not meet; an existing file of that name is refused, not
-    /// overwritten).
+    /// A tier of `slots` states of `bytes` in a new file in `dir` (named by the process and the
+    /// tier's number in it, so two runs sharing a folder, or two gradients of one calibration's
+    /// threads, do not meet; an existing file of that name is refused, not overwritten).
     pub fn new(dir: &Path, bytes: usize, slots: usize) -> Result<DiskSlots, GradError> {
         std::fs::create_dir_all(dir).map_err(io_err("gradient checkpoint folder", dir))?;
-        let path = dir.join(format!("grad_states_{}.bin", std::process::id()));
+        static TIERS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+        let tier = TIERS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let path = dir.join(format!("grad_states_{}_{tier}.bin", std::process::id()));
         let file = std::fs::OpenOptions::new().read(true).write(true).create_new(true).open(&path).map_err(io_err("creating", &path))?;
         Ok(DiskSlots {
             path,
