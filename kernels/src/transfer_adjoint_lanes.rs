@@ -21,6 +21,7 @@ use crate::transfer_adjoint::{
     P2gParticle, P2gSums, P2gSweep,
 };
 use crate::transfer_lanes::wide::{R, W};
+use crate::transfer_lanes::{node_channels, CHANNELS};
 use std::array::from_fn;
 
 /// The 27 stencil nodes' offsets from the stencil's base node in a neighbourhood, in the order
@@ -35,31 +36,11 @@ const STENCIL_OFFSETS: [usize; 27] = {
     o
 };
 
-/// Real values per node, the stride of a node's channels in memory.
-const CHANNELS: usize = std::mem::size_of::<Node>() / std::mem::size_of::<Real>();
-
 /// Each lane's first stencil node in the neighbourhood, if every lane's stencil lies in the block.
 #[inline(always)]
 fn stencil_starts(base: [[usize; 3]; W]) -> Option<[usize; W]> {
     let inside = base.iter().all(|b| b.iter().all(|&k| k < BLOCK_EDGE));
     inside.then(|| from_fn(|l| local_index(base[l][0], base[l][1], base[l][2])))
-}
-
-/// Channels `CH..CH + 3` of node `k` of each lane's stencil, one register per channel.
-///
-/// # Safety
-/// `node0[l] + local_index(2, 2, 2) < NEIGHBOURHOOD_NODES` for every lane, `CH` is 1 or 4; AVX2.
-#[target_feature(enable = "avx2")]
-#[inline]
-unsafe fn node_channels<const CH: usize>(local: &[Node; NEIGHBOURHOOD_NODES], node0: &[usize; W], k: usize) -> [R; 3] {
-    let nodes = local.as_ptr().cast::<Real>();
-    let mut p = [nodes; W];
-    for l in 0..W {
-        // SAFETY: the node lies in `local` (the caller's promise); `gather3` reads channels
-        // CH - 1 ..= CH + 2 of it
-        p[l] = nodes.add((node0[l] + STENCIL_OFFSETS[k]) * CHANNELS + CH);
-    }
-    R::gather3(p)
 }
 
 /// [`crate::transfer_adjoint::g2p_block_adjoint`]'s body over W particles at a time: the
@@ -185,7 +166,7 @@ unsafe fn g2p_sweeps(
                 let k = (a * 3 + b) * 3 + c;
                 let weight = wab * w[c][2];
                 // SAFETY: the caller's promise
-                let vi = node_channels::<1>(local, node0, k);
+                let vi = node_channels::<1>(local, node0, STENCIL_OFFSETS[k]);
                 let mut vi_sens = [zero; 3];
                 for ch in 0..3 {
                     vi_sens[ch] = v_sens[ch] + (bxy[ch] + bmat_bar[2][ch] * dpos[2][c]);
@@ -195,7 +176,7 @@ unsafe fn g2p_sweeps(
                     v_bar[k][ch] = (vi_sens[ch] * weight).to_array();
                 }
                 if flip > r(0.0) {
-                    let v_old = node_channels::<4>(local, node0, k);
+                    let v_old = node_channels::<4>(local, node0, STENCIL_OFFSETS[k]);
                     weight_bar = weight_bar - (v_old[0] * dv_bar[0] + v_old[1] * dv_bar[1] + v_old[2] * dv_bar[2]);
                     for ch in 0..3 {
                         v_old_bar[k][ch] = (dv_bar[ch] * weight).to_array();
@@ -316,7 +297,7 @@ unsafe fn p2g_sweeps<const SPLIT: bool>(q: &[P2gParticle; W], dx: Real, local_ba
                 let weight = wab * w[c][2];
                 let d = [dpos[0][a], dpos[1][b], dpos[2][c]];
                 // SAFETY: the caller's promise
-                let mom_bar = node_channels::<1>(local_bar, node0, k);
+                let mom_bar = node_channels::<1>(local_bar, node0, STENCIL_OFFSETS[k]);
                 let mut mass_bar = [r(0.0); W];
                 for l in 0..W {
                     mass_bar[l] = *nodes.add((node0[l] + STENCIL_OFFSETS[k]) * CHANNELS);
@@ -333,7 +314,7 @@ unsafe fn p2g_sweeps<const SPLIT: bool>(q: &[P2gParticle; W], dx: Real, local_ba
                     }
                 }
                 if SPLIT {
-                    let imp_bar = node_channels::<4>(local_bar, node0, k);
+                    let imp_bar = node_channels::<4>(local_bar, node0, STENCIL_OFFSETS[k]);
                     weight_bar = weight_bar + dot(&imp_bar, &mul_dpos(&ixy, &impulse, d[2]));
                     for ch in 0..3 {
                         let iw = imp_bar[ch] * weight;

@@ -222,27 +222,41 @@ pub(crate) unsafe fn fx_and_weights(xg: &[R; 3]) -> ([R; 3], [[R; 3]; 3]) {
 ///
 /// # Safety
 /// `node0[l] + local_index(2, 2, 2) < NEIGHBOURHOOD_NODES` for every lane; `CH` is 1 or 4; AVX2.
+/// Real values per node, the stride of a node's channels in memory.
+pub(crate) const CHANNELS: usize = std::mem::size_of::<Node>() / std::mem::size_of::<Real>();
+
+/// Channels `CH..CH + 3` of the node `offset` past each lane's first stencil node `node0[l]`,
+/// one register per channel.
+///
+/// # Safety
+/// `node0[l] + offset < NEIGHBOURHOOD_NODES` for every lane, `CH` is 1 or 4 (`gather3` reads
+/// channels `CH - 1 ..= CH + 2`); AVX2.
+#[target_feature(enable = "avx2")]
+#[inline]
+pub(crate) unsafe fn node_channels<const CH: usize>(local: &[Node; NEIGHBOURHOOD_NODES], node0: &[usize; W], offset: usize) -> [R; 3] {
+    let nodes = local.as_ptr().cast::<Real>();
+    let mut p = [nodes; W];
+    for l in 0..W {
+        p[l] = nodes.add((node0[l] + offset) * CHANNELS + CH);
+    }
+    R::gather3(p)
+}
+
 #[target_feature(enable = "avx2")]
 #[inline]
 unsafe fn gather<const CH: usize, const B: bool>(local: &[Node; NEIGHBOURHOOD_NODES], node0: &[usize; W], w: &[[R; 3]; 3]) -> ([R; 3], [[R; 3]; 3]) {
     let zero = R::splat(r(0.0));
     let mut v = [zero; 3];
     let mut m = [[zero; 3]; 3];
-    let nodes = local.as_ptr().cast::<Real>();
-    let channels = std::mem::size_of::<Node>() / std::mem::size_of::<Real>();
     for a in 0..3 {
         let (mut t0, mut tb, mut tc) = ([zero; 3], [zero; 3], [zero; 3]);
         for b in 0..3 {
             let row = local_index(a, b, 0);
             // node c of the row, times its weight; SAFETY: the stencil's nodes lie in `local`
-            // (the caller's promise), and channels CH - 1 ..= CH + 2 in their node
+            // (the caller's promise)
             let mut n = [[zero; 3]; 3];
             for (c, n) in n.iter_mut().enumerate() {
-                let mut p = [nodes; W];
-                for l in 0..W {
-                    p[l] = nodes.add((node0[l] + row + c) * channels + CH);
-                }
-                let g = R::gather3(p);
+                let g = node_channels::<CH>(local, node0, row + c);
                 for ch in 0..3 {
                     n[ch] = g[ch] * w[c][2];
                 }
