@@ -79,14 +79,22 @@ fn calibrate_and_diagnose_through_gnu_parallel_are_bit_identical_to_local_and_a_
     assert!(err.contains(", 6 jobs submitted (0 collected from earlier runs)"), "{err}");
     std::fs::write(&proto, std::fs::read_to_string(&proto).unwrap().replace("hold = 0.6", "hold = 0.5")).unwrap();
 
-    // diagnose: the score tests, the likelihood-ratio fits and the verdict, to the bit
-    let diagnose = |extra: &[&str]| strand_in(&[&["diagnose"], &INPUTS[..], &FIT[..], &["--json", "--no-loo", "--max-fitted", "1"], extra].concat(), &d);
+    // diagnose: the score tests, the likelihood-ratio fits, leave-one-out and the verdict, to the bit
+    let diagnose = |extra: &[&str]| strand_in(&[&["diagnose"], &INPUTS[..], &FIT[..], &["--json", "--max-fitted", "1"], extra].concat(), &d);
     let (code, local, err) = diagnose(&[]);
     assert_eq!(code, 0, "{err}");
     let v: serde_json::Value = serde_json::from_str(&local).unwrap();
     assert_eq!(v["verdict"], "add thixotropy", "{v:#}");
     let (code, engine, err) = diagnose(&["--engine", "parallel", "--engine-dir", "diagnose"]);
     assert_eq!(code, 0, "{err}");
+    // the likelihood-ratio fits run side by side, their evaluations submitted together (a batch
+    // of more than one evaluation's six jobs), and so do the base model's and the candidate's
+    // leave-one-out checks (one after another they would be twelve batches of one job)
+    let jobs: Vec<usize> = err
+        .lines()
+        .filter_map(|l| l.strip_prefix("engine: batch ")?.split(", ").nth(1)?.split(' ').next()?.parse().ok())
+        .collect();
+    assert!(jobs.iter().any(|&n| n > 6 && n % 6 == 0) && jobs.iter().filter(|&&n| n == 1).count() < 6, "{jobs:?}\n{err}");
     // everything but the stages' wall-clock times
     let untimed = |json: &str| {
         let mut v: serde_json::Value = serde_json::from_str(json).unwrap();

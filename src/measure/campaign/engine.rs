@@ -33,8 +33,10 @@ use crate::measure::model::Model;
 use crate::measure::observation::{Observable, Observation};
 use super::provenance::{self, exact, plain, Exact, Provenance};
 use super::runner::{find, group, Applied, Jobs};
+use super::gather::{Gather, Request, Submitted};
 use super::sensitivity::{self, Differences, Known, Sensitivity, Valued};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// The preset schedulers and their command templates: GNU parallel on this machine, a Slurm job
 /// array, a HyperQueue task array (docs/distributed.md).
@@ -56,7 +58,8 @@ pub enum Engine {
 /// An existing scheduler, driven by a command template run with `bash -c` once per evaluation
 /// of a campaign. In the template `{jobs}` is the file of commands (a line per job), `{task}`
 /// the job array's task script, `{n}` the number of jobs and `{dir}` the engine's folder, paths
-/// shell-quoted; the command returns once every job has finished (or failed).
+/// shell-quoted; the command returns once every job has finished (or failed). Evaluations made
+/// side by side ([`Engine::side_by_side`]) are submitted together (`gather.rs`).
 #[derive(Clone, Debug)]
 pub struct Scheduler {
     pub template: String,
@@ -65,6 +68,7 @@ pub struct Scheduler {
     pub exe: PathBuf,
     /// Threads per job (None: all the job is given).
     pub threads: Option<usize>,
+    pub gather: Arc<Gather>,
 }
 
 /// The model's answer for a campaign: the values (and Jacobian), or why the model cannot give
@@ -101,7 +105,18 @@ impl Engine {
         let dir = std::path::absolute(dir)
             .map_err(|e| MeasureError::Io(e).within(format!("--engine-dir {}", dir.display())))?;
         let exe = std::path::absolute(exe).map_err(io_error(exe))?;
-        Ok(Engine::Scheduler(Scheduler { template, dir, exe, threads }))
+        Ok(Engine::Scheduler(Scheduler { template, dir, exe, threads, gather: Arc::default() }))
+    }
+
+    /// `f(0) .. f(n - 1)`, tasks that may evaluate through this engine, and their results in
+    /// order. A scheduler runs them side by side and submits their evaluations together
+    /// (`gather.rs`); here they run one after another, each with all the jobs (side by side they
+    /// would share the cores and the memory budget each experiment is planned within).
+    pub fn side_by_side<T: Send>(&self, n: usize, f: impl Fn(usize) -> T + Sync) -> Vec<T> {
+        match self {
+            Engine::Local => (0..n).map(f).collect(),
+            Engine::Scheduler(s) => s.gather.side_by_side(n, f),
+        }
     }
 
     /// The values of every observation under `model`, with their gradients in `names` when
@@ -290,71 +305,31 @@ impl Scheduler {
         })
     }
 
-    /// Write a batch of the `pending` jobs and run the scheduler's command on it; every job
-    /// must leave its result, or the error names each one missing with its log.
+    /// Submit the `pending` jobs, with the evaluations made beside this one (`gather.rs`); every
+    /// job must leave its result, or the error names each one missing with its log.
     fn submit(
         &self,
         wanted: &[(String, Vec<Observable>)],
         pending: &[(usize, String, Job)],
         collected: usize,
     ) -> Result<(), MeasureError> {
-        let batches = self.dir.join("batches");
-        let mut number = 1;
-        let lines_path = loop {
-            let p = batches.join(format!("{number:04}.txt"));
-            match std::fs::OpenOptions::new().write(true).create_new(true).open(&p) {
-                Ok(_) => break p,
-                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => number += 1,
-                Err(e) => return Err(io_error(&p)(e)),
-            }
-        };
         let path = |sub: &str, key: &str, ext: &str| self.dir.join(sub).join(format!("{key}.{ext}"));
-        let mut lines = String::new();
-        for (_, key, _) in pending {
-            lines += &format!(
-                "{} evaluate {} --out {} >> {} 2>&1\n",
-                quote(&self.exe),
-                quote(&path("jobs", key, "json")),
-                quote(&path("results", key, "json")),
-                quote(&path("logs", key, "log"))
-            );
-        }
-        std::fs::write(&lines_path, &lines).map_err(io_error(&lines_path))?;
-        let task = lines_path.with_extension("sh");
-        let script = format!(
-            "#!/bin/bash\n# Job K of batch {number:04}: bash {0} K, or a job array's task (K from the scheduler)\n\
-                k=${{1:-${{SLURM_ARRAY_TASK_ID:-${{HQ_TASK_ID:?no task index: give it as the first argument}}}}}}\nsed \
-                -n \"${{k}}p\" {1} | bash\n",
-            quote(&task),
-            quote(&lines_path)
-        );
-        std::fs::write(&task, script).map_err(io_error(&task))?;
-        #[cfg(unix)]
-        {
-            use std::os::unix::fs::PermissionsExt;
-            std::fs::set_permissions(&task, std::fs::Permissions::from_mode(0o755)).map_err(io_error(&task))?;
-        }
-        let command = self
-            .template
-            .replace("{jobs}", &quote(&lines_path))
-            .replace("{task}", &quote(&task))
-            .replace("{n}", &pending.len().to_string())
-            .replace("{dir}", &quote(&self.dir));
-        let log = lines_path.with_extension("log");
-        let out = std::fs::File::create(&log).map_err(io_error(&log))?;
-        let err = out.try_clone().map_err(MeasureError::Io)?;
-        eprintln!(
-            "engine: batch {number:04}, {} jobs submitted ({collected} collected from earlier runs): {command}",
-            pending.len()
-        );
-        let status = std::process::Command::new("bash")
-            .arg("-c")
-            .arg(&command)
-            .stdin(std::process::Stdio::null())
-            .stdout(out)
-            .stderr(err)
-            .status()
-            .map_err(|source| MeasureError::EngineStart { command: command.clone(), source })?;
+        let lines = pending
+            .iter()
+            .map(|(_, key, _)| {
+                format!(
+                    "{} evaluate {} --out {} >> {} 2>&1",
+                    quote(&self.exe),
+                    quote(&path("jobs", key, "json")),
+                    quote(&path("results", key, "json")),
+                    quote(&path("logs", key, "log"))
+                )
+            })
+            .collect();
+        let ran = self
+            .gather
+            .submit(Request { lines, collected }, |lines, collected| self.run_batch(lines, collected))
+            .map_err(MeasureError::Engine)?;
         let missing: Vec<String> = pending
             .iter()
             .filter(|(_, key, _)| !path("results", key, "json").exists())
@@ -372,16 +347,73 @@ impl Scheduler {
             return Ok(());
         }
         Err(MeasureError::Engine(format!(
-            "the engine's command {} and {} of {} jobs left no result:\n{}\n  the command: {command}\n  its output: \
+            "the engine's command {} and {} of {} jobs left no result:\n{}\n  the command: {}\n  its output: \
                 {}{}\nThe results computed are kept in {}: run the same command again to compute only what is missing.",
-            status.code().map_or("was stopped by a signal".to_string(), |c| format!("exited with status {c}")),
+            ran.status,
             missing.len(),
             pending.len(),
             missing.join("\n"),
-            log.display(),
-            tail(&log, "empty"),
+            ran.command,
+            ran.log.display(),
+            tail(&ran.log, "empty"),
             self.dir.join("results").display()
         )))
+    }
+
+    /// Write a batch of job command `lines` and run the scheduler's command on it; `collected`
+    /// results of the evaluations in it were collected from earlier runs. The error is the
+    /// command's failing to start.
+    fn run_batch(&self, lines: &[String], collected: usize) -> Result<Submitted, String> {
+        let batches = self.dir.join("batches");
+        let mut number = 1;
+        let lines_path = loop {
+            let p = batches.join(format!("{number:04}.txt"));
+            match std::fs::OpenOptions::new().write(true).create_new(true).open(&p) {
+                Ok(_) => break p,
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => number += 1,
+                Err(e) => return Err(io_error(&p)(e).to_string()),
+            }
+        };
+        let text: String = lines.iter().map(|l| format!("{l}\n")).collect();
+        std::fs::write(&lines_path, &text).map_err(|e| io_error(&lines_path)(e).to_string())?;
+        let task = lines_path.with_extension("sh");
+        let script = format!(
+            "#!/bin/bash\n# Job K of batch {number:04}: bash {0} K, or a job array's task (K from the scheduler)\n\
+                k=${{1:-${{SLURM_ARRAY_TASK_ID:-${{HQ_TASK_ID:?no task index: give it as the first argument}}}}}}\nsed \
+                -n \"${{k}}p\" {1} | bash\n",
+            quote(&task),
+            quote(&lines_path)
+        );
+        std::fs::write(&task, script).map_err(|e| io_error(&task)(e).to_string())?;
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            std::fs::set_permissions(&task, std::fs::Permissions::from_mode(0o755))
+                .map_err(|e| io_error(&task)(e).to_string())?;
+        }
+        let command = self
+            .template
+            .replace("{jobs}", &quote(&lines_path))
+            .replace("{task}", &quote(&task))
+            .replace("{n}", &lines.len().to_string())
+            .replace("{dir}", &quote(&self.dir));
+        let log = lines_path.with_extension("log");
+        let out = std::fs::File::create(&log).map_err(|e| io_error(&log)(e).to_string())?;
+        let err = out.try_clone().map_err(|e| MeasureError::Io(e).to_string())?;
+        eprintln!(
+            "engine: batch {number:04}, {} jobs submitted ({collected} collected from earlier runs): {command}",
+            lines.len()
+        );
+        let status = std::process::Command::new("bash")
+            .arg("-c")
+            .arg(&command)
+            .stdin(std::process::Stdio::null())
+            .stdout(out)
+            .stderr(err)
+            .status()
+            .map_err(|source| MeasureError::EngineStart { command: command.clone(), source }.to_string())?;
+        let status = status.code().map_or("was stopped by a signal".to_string(), |c| format!("exited with status {c}"));
+        Ok(Submitted { number, command, status, log })
     }
 }
 
@@ -531,6 +563,7 @@ mod tests {
             dir: PathBuf::from("unused"),
             exe: PathBuf::from("strand"),
             threads: None,
+            gather: Arc::default(),
         };
         let names = vec!["material.viscosity".to_string()];
         let job = s
@@ -580,6 +613,7 @@ mod tests {
             dir: dir.path().join("jobs"),
             exe: PathBuf::from("strand"),
             threads: None,
+            gather: Arc::default(),
         };
         let job =
             s.job(&model, &exps, &exps.experiment[0], &[Observable::parse("spread").unwrap()], None, None).unwrap();

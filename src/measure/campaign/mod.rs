@@ -18,6 +18,7 @@
 
 pub mod engine;
 pub mod experiments;
+pub mod gather;
 pub mod preflight;
 pub mod progress;
 pub mod provenance;

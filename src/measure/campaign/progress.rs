@@ -21,6 +21,9 @@ pub const LINE_EVERY: f64 = 30.0;
 #[derive(Clone, Default)]
 pub struct Progress {
     meter: Option<Arc<Mutex<Meter>>>,
+    /// What this handle's log lines begin with: the task they come from, where tasks run side by
+    /// side ([`Progress::labelled`]).
+    label: Option<Arc<str>>,
 }
 
 impl std::fmt::Debug for Progress {
@@ -110,6 +113,7 @@ impl Progress {
         let shown = (String::new(), 0, 0, 0, 0);
         Progress {
             meter: Some(Arc::new(Mutex::new(Meter { sink, shown, began: now, stages: 0, stages_done: 0, stage }))),
+            label: None,
         }
     }
 
@@ -159,8 +163,26 @@ impl Progress {
         });
     }
 
+    /// The same progress, whose log lines begin with `label` (after this handle's own): the lines
+    /// of tasks that run side by side, such as a diagnosis's fits, tell which task they are from.
+    pub fn labelled(&self, label: &str) -> Progress {
+        let label = match &self.label {
+            Some(l) => format!("{l}: {label}"),
+            None => label.to_string(),
+        };
+        Progress { meter: self.meter.clone(), label: Some(label.into()) }
+    }
+
     /// A line of the command's log on stderr, above the bars where they are drawn.
     pub fn log(&self, line: &str) {
+        let labelled;
+        let line = match &self.label {
+            Some(l) => {
+                labelled = format!("{l}: {line}");
+                &labelled
+            }
+            None => line,
+        };
         match &self.meter {
             Some(m) => match &m.lock().unwrap_or_else(|e| e.into_inner()).sink {
                 Sink::Bars { multi, .. } => multi.suspend(|| eprintln!("{line}")),

@@ -586,82 +586,103 @@ fn likelihood_ratio_tests(
     unreachable: &[&'static dyn Effect],
     clock: &Clock,
 ) -> Result<(Vec<Candidate>, std::collections::BTreeMap<String, Fit>), MeasureError> {
-    let (c, data, fit, opts) = (d.c, d.c.data, d.fit, d.opts);
-    let m = data.len();
+    // the effects' fits are independent: a scheduler runs their evaluations together
+    let tested =
+        d.c.opts.engine.side_by_side(unreachable.len(), |k| likelihood_ratio(d, base, model, unreachable[k], clock));
     let mut cands = Vec::new();
     let mut prefit: std::collections::BTreeMap<String, Fit> = Default::default();
-    for e in unreachable {
-        let fnames = fit_names(fit, *e);
-        let mut best: Option<Fit> = None;
-        let mut screened: Option<f64> = None;
-        // the model's own values are the base fit's when the fit stayed at its start
-        let moved = base.values != base.start;
-        for from in if fit.is_empty() || !moved { vec![&base.model] } else { vec![&base.model, model] } {
-            if best.as_ref().is_some_and(|b| p_value(base.chi2 - b.chi2, e.params().len()) < opts.alpha) {
-                break;
-            }
-            // a modulus's stand-in is the G or K of the model it starts from, which runs as that
-            // model does
-            let start = e.lr_start(&from.keys(&Covariates::default())?)?;
-            let on = from.edited(&[*e], &[]);
-            let params = on.parameters(&fnames[fit.len()..])?;
-            let with = on.edited(&[], &params.iter().zip(start).collect::<Vec<_>>());
-            // the start's Jacobian, and the fit only where the effect reaches the data there and
-            // one Gauss-Newton step from it predicts a drop worth fitting for: without influence
-            // (G where every reading is past yield) the fit would only refit the fitted
-            // parameters; from the model's values, where they are elsewhere, it may have
-            clock.say(format!(
-                "{}: its likelihood ratio, from {}",
-                e.name(),
-                if std::ptr::eq(from, model) { "the model's values" } else { "the base fit's values" }
-            ));
-            let start_values = beside_base(
-                c,
-                base,
-                (std::ptr::eq(from, model), e.start_runs_as_model()),
-                &with,
-                &fnames[fit.len()..],
-            )?;
-            let no_steps = FitOptions { max_iterations: 0, log: false, ..c.opts.clone() };
-            let at_start = calibrate_from(&c.with_opts(&no_steps), &with, &fnames, start_values.clone())?;
-            let predicted = base.chi2 - at_start.chi2 + gauss_newton_drop(&at_start, data)?;
-            let informed = at_start.influence[fit.len()..].iter().any(|&i| i);
-            let (f, unfitted) = match !informed || predicted < LR_WORTH_FITTING {
-                true => (at_start, Some(predicted)),
-                false => (calibrate_from(c, &with, &fnames, start_values)?, None),
-            };
-            if best.as_ref().is_none_or(|b| f.chi2 < b.chi2) {
-                best = Some(f);
-                screened = unfitted;
-            }
-        }
-        let f = best.expect("one start at least");
-        // a drop within round-off is a fit that found nothing to move (no influence)
-        let lr = if base.chi2 - f.chi2 > 1e-9 * base.chi2 { base.chi2 - f.chi2 } else { 0.0 };
-        let dof = if lr > 0.0 { e.params().len() } else { 0 };
-        let p = p_value(lr, dof);
-        let reach = f.influence[fit.len()..].iter().any(|&i| i);
-        let verdict = if dof == 0 && !reach {
-            "no influence on these experiments".to_string()
-        } else if let Some(lr) = screened.filter(|_| p >= opts.alpha) {
-            format!("not significant: a Gauss-Newton step from its start predicts LR = {lr:.3}, under \
-                {LR_WORTH_FITTING}; not fitted")
-        } else if dof == 0 {
-            "not significant: fitted, it does not lower the error".to_string()
-        } else if p >= opts.alpha {
-            format!("not significant (p = {p:.3})")
-        } else {
-            String::new()
-        };
-        let mut c = candidate(*e, lr, dof, p, verdict);
-        // a screened effect's start is no fit: nothing to report as fitted or to refit from
-        if screened.is_none() {
-            c.record(&f, base.chi2, m);
+    for (e, t) in unreachable.iter().zip(tested) {
+        let (c, f) = t?;
+        if let Some(f) = f {
             prefit.insert(e.name().to_string(), f);
         }
         cands.push(c);
     }
     Ok((cands, prefit))
+}
+
+/// One effect's likelihood ratio ([`likelihood_ratio_tests`]): its candidate, and its fit where
+/// one was made.
+fn likelihood_ratio(
+    d: Diagnosing,
+    base: &Fit,
+    model: &Model,
+    e: &'static dyn Effect,
+    clock: &Clock,
+) -> Result<(Candidate, Option<Fit>), MeasureError> {
+    let (data, fit, opts) = (d.c.data, d.fit, d.opts);
+    let labelled = FitOptions { progress: d.c.opts.progress.labelled(e.name()), ..d.c.opts.clone() };
+    let c = &d.c.with_opts(&labelled);
+    let m = data.len();
+    let fnames = fit_names(fit, e);
+    let mut best: Option<Fit> = None;
+    let mut screened: Option<f64> = None;
+    // the model's own values are the base fit's when the fit stayed at its start
+    let moved = base.values != base.start;
+    for from in if fit.is_empty() || !moved { vec![&base.model] } else { vec![&base.model, model] } {
+        if best.as_ref().is_some_and(|b| p_value(base.chi2 - b.chi2, e.params().len()) < opts.alpha) {
+            break;
+        }
+        // a modulus's stand-in is the G or K of the model it starts from, which runs as that
+        // model does
+        let start = e.lr_start(&from.keys(&Covariates::default())?)?;
+        let on = from.edited(&[e], &[]);
+        let params = on.parameters(&fnames[fit.len()..])?;
+        let with = on.edited(&[], &params.iter().zip(start).collect::<Vec<_>>());
+        // the start's Jacobian, and the fit only where the effect reaches the data there and
+        // one Gauss-Newton step from it predicts a drop worth fitting for: without influence
+        // (G where every reading is past yield) the fit would only refit the fitted
+        // parameters; from the model's values, where they are elsewhere, it may have
+        clock.say(format!(
+            "{}: its likelihood ratio, from {}",
+            e.name(),
+            if std::ptr::eq(from, model) { "the model's values" } else { "the base fit's values" }
+        ));
+        let start_values = beside_base(
+            c,
+            base,
+            (std::ptr::eq(from, model), e.start_runs_as_model()),
+            &with,
+            &fnames[fit.len()..],
+        )?;
+        let no_steps = FitOptions { max_iterations: 0, log: false, ..c.opts.clone() };
+        let at_start = calibrate_from(&c.with_opts(&no_steps), &with, &fnames, start_values.clone())?;
+        let predicted = base.chi2 - at_start.chi2 + gauss_newton_drop(&at_start, data)?;
+        let informed = at_start.influence[fit.len()..].iter().any(|&i| i);
+        let (f, unfitted) = match !informed || predicted < LR_WORTH_FITTING {
+            true => (at_start, Some(predicted)),
+            false => (calibrate_from(c, &with, &fnames, start_values)?, None),
+        };
+        if best.as_ref().is_none_or(|b| f.chi2 < b.chi2) {
+            best = Some(f);
+            screened = unfitted;
+        }
+    }
+    let f = best.expect("one start at least");
+    // a drop within round-off is a fit that found nothing to move (no influence)
+    let lr = if base.chi2 - f.chi2 > 1e-9 * base.chi2 { base.chi2 - f.chi2 } else { 0.0 };
+    let dof = if lr > 0.0 { e.params().len() } else { 0 };
+    let p = p_value(lr, dof);
+    let reach = f.influence[fit.len()..].iter().any(|&i| i);
+    let verdict = if dof == 0 && !reach {
+        "no influence on these experiments".to_string()
+    } else if let Some(lr) = screened.filter(|_| p >= opts.alpha) {
+        format!("not significant: a Gauss-Newton step from its start predicts LR = {lr:.3}, under \
+            {LR_WORTH_FITTING}; not fitted")
+    } else if dof == 0 {
+        "not significant: fitted, it does not lower the error".to_string()
+    } else if p >= opts.alpha {
+        format!("not significant (p = {p:.3})")
+    } else {
+        String::new()
+    };
+    let mut c = candidate(e, lr, dof, p, verdict);
+    // a screened effect's start is no fit: nothing to report as fitted or to refit from
+    if screened.is_some() {
+        return Ok((c, None));
+    }
+    c.record(&f, base.chi2, m);
+    Ok((c, Some(f)))
 }
 
 /// Fit the significant candidates, best first, up to `max_fitted` (a likelihood-ratio effect's
@@ -742,10 +763,22 @@ fn fit_and_check(
                 c.error_ratio.unwrap_or(1.0)
             );
         } else if opts.leave_one_out && ids.len() >= 2 {
+            // the base model's checks (the first time) and this candidate's are independent
+            let checked: Vec<(&Fit, &str)> =
+                if base_loo.is_none() { vec![(base, "the base model"), (&f, &c.effect)] } else { vec![(&f, &c.effect)] };
+            let mut loos = d
+                .c
+                .opts
+                .engine
+                .side_by_side(checked.len(), |k| {
+                    let labelled = FitOptions { progress: d.c.opts.progress.labelled(checked[k].1), ..d.c.opts.clone() };
+                    leave_one_out(&d.c.with_opts(&labelled), checked[k].0, &ids, opts)
+                })
+                .into_iter();
             if base_loo.is_none() {
-                base_loo = Some(leave_one_out(d.c, base, &ids, opts)?);
+                base_loo = Some(loos.next().expect("checked")?);
             }
-            let loo = leave_one_out(d.c, &f, &ids, opts)?;
+            let loo = loos.next().expect("checked")?;
             clock.timing.leave_one_out += clock.lap();
             c.loo_chi2_base = base_loo;
             c.loo_chi2 = Some(loo);
@@ -898,29 +931,35 @@ fn applicable(c: &Campaign, effect: &'static dyn Effect, model: &Model) -> Resul
 /// experiment in all, against a calibration each for refits. With `exact_refits` every experiment
 /// is left out of a full refit.
 fn leave_one_out(c: &Campaign, f: &Fit, ids: &[String], opts: &DiagnoseOptions) -> Result<f64, MeasureError> {
+    // each experiment's check is independent: a scheduler runs them together
+    let each = c.opts.engine.side_by_side(ids.len(), |k| {
+        let labelled = FitOptions { progress: c.opts.progress.labelled(&format!("without '{}'", ids[k])), ..c.opts.clone() };
+        left_out(&c.with_opts(&labelled), f, &ids[k], opts)
+    });
+    each.into_iter().try_fold(0.0, |total, chi2| Ok(total + chi2?))
+}
+
+/// The chi^2 of experiment `id` predicted by the fit `f` refitted without it ([`leave_one_out`]).
+fn left_out(c: &Campaign, f: &Fit, id: &str, opts: &DiagnoseOptions) -> Result<f64, MeasureError> {
     let data = c.data;
-    let mut total = 0.0;
-    for id in ids {
-        let (kept, left): (Vec<usize>, Vec<usize>) = (0..data.len()).partition(|&i| data[i].experiment != *id);
-        let test = rows_of(data, &left);
-        let predict = |model: &Model| -> Result<f64, MeasureError> {
-            Ok(chi2(&c.with_data(&test).evaluate(model, None, None)??.values, &test))
-        };
-        total += if f.names.is_empty() {
-            predict(&f.model)?
-        } else if opts.exact_refits {
-            predict(&refit(c, f, &kept)?)?
+    let (kept, left): (Vec<usize>, Vec<usize>) = (0..data.len()).partition(|&i| data[i].experiment != id);
+    let test = rows_of(data, &left);
+    let predict = |model: &Model| -> Result<f64, MeasureError> {
+        Ok(chi2(&c.with_data(&test).evaluate(model, None, None)??.values, &test))
+    };
+    if f.names.is_empty() {
+        predict(&f.model)
+    } else if opts.exact_refits {
+        predict(&refit(c, f, &kept)?)
+    } else {
+        let step = one_step_without(f, data, (&kept, &left))?;
+        let left_out = predict(&step.model)?;
+        if step.trusted(left_out) {
+            Ok(left_out)
         } else {
-            let step = one_step_without(f, data, (&kept, &left))?;
-            let left_out = predict(&step.model)?;
-            if step.trusted(left_out) {
-                left_out
-            } else {
-                predict(&refit(c, f, &kept)?)?
-            }
-        };
+            predict(&refit(c, f, &kept)?)
+        }
     }
-    Ok(total)
 }
 
 /// `f` refitted to the observations `kept` of its data, from its own values and Jacobian there;
