@@ -50,6 +50,7 @@ impl Simulation {
                 let b = geom.block_coords(slot_block[s]);
                 let window = holds.as_ref().and_then(|z| z.block(geom, b));
                 let driven = drive_box.is_some_and(|bx| geom.block_overlaps(b, bx));
+                let walled = walls.reach(geom, b);
                 // SAFETY: each slot belongs to one thread.
                 let blk = unsafe { nodes.slice_mut(s * NODES_PER_BLOCK..(s + 1) * NODES_PER_BLOCK) };
                 // the reaction of each held node: the momentum holding it removes, over dt
@@ -88,7 +89,9 @@ impl Simulation {
                     if driven {
                         v = apply_drive(geom, drive, g, v);
                     }
-                    v = apply_walls(geom, walls, g, v);
+                    if walled {
+                        v = apply_walls(geom, walls, g, v);
+                    }
                     if let (Some(z), Some(r)) = (solids.as_ref().filter(|_| solid_mask != 0), solid_react.as_deref_mut()) {
                         v = z.apply(solid_mask, geom.node_position(g), m, v, r); // solids hook (issue 30)
                     }
@@ -166,6 +169,7 @@ impl Simulation {
             let window = holds.as_ref().and_then(|z| z.block(geom, b));
             let driven = drive.filter(|_| drive_box.is_some_and(|bx| geom.block_overlaps(b, bx)));
             let solid_mask = solids.as_ref().map_or(0, |z| z.block_mask(geom, b));
+            let walled = walls.reach(geom, b);
             for li in 0..NODES_PER_BLOCK {
                 let at = s * NODES_PER_BLOCK + li;
                 let n0 = &before[at];
@@ -185,10 +189,10 @@ impl Simulation {
                 let mut v_bar = V3::new(nb[1], nb[2], nb[3]);
                 if let Some(z) = solids.as_ref().filter(|_| solid_mask != 0) {
                     // solids hook (issue 30): they act after the walls
-                    let walled = apply_walls(geom, walls, g, driven_v);
-                    v_bar = z.apply_adjoint(solid_mask, geom.node_position(g), walled, v_bar, &mut solids_bar);
+                    let after_walls = if walled { apply_walls(geom, walls, g, driven_v) } else { driven_v };
+                    v_bar = z.apply_adjoint(solid_mask, geom.node_position(g), after_walls, v_bar, &mut solids_bar);
                 }
-                let mut v_bar = apply_walls_adjoint(geom, walls, g, driven_v, v_bar, bar);
+                let mut v_bar = if walled { apply_walls_adjoint(geom, walls, g, driven_v, v_bar, bar) } else { v_bar };
                 if let Some(d) = driven {
                     v_bar = drive_adjoint(geom, d, g, v, v_bar, bar);
                 }

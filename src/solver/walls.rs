@@ -33,6 +33,18 @@ impl Walls {
     }
 }
 
+impl Walls {
+    /// Whether a node of block `b` can take a wall condition ([`wall_sequence`]): one lies on or
+    /// beyond a wall of a walled axis, or there is a platform. Elsewhere the walls leave every
+    /// velocity as it is, and the grid update skips them.
+    #[inline]
+    pub(crate) fn reach(&self, geom: &GridGeom, b: [i32; 3]) -> bool {
+        let edge = BLOCK_EDGE as i32;
+        self.platform.is_some()
+            || (0..3).any(|a| !geom.periodic[a] && (b[a] * edge <= PAD || b[a] * edge + edge - 1 >= geom.cells[a] - PAD))
+    }
+}
+
 /// Wall conditions for the node at grid index `g`.
 #[inline]
 pub(crate) fn apply_walls(geom: &GridGeom, walls: &Walls, g: [i32; 3], v: V3) -> V3 {
@@ -172,6 +184,7 @@ impl Simulation {
 /// zero) and the sign of each component (negated for no-slip, the normal one for free-slip; a
 /// corner negates once per wall). None when `g` is no ghost, or a ghost of a friction wall, which
 /// keeps its own velocity.
+#[inline]
 fn ghost_source(geom: &GridGeom, walls: &Walls, g: [i32; 3], table: &[u32]) -> Option<(Option<usize>, [Real; 3])> {
     let mut mirror = g;
     let mut sign = [1.0 as Real; 3];
@@ -209,11 +222,15 @@ fn ghost_source(geom: &GridGeom, walls: &Walls, g: [i32; 3], table: &[u32]) -> O
 /// # Safety
 /// Only this node may be written concurrently; non-ghost nodes must not be written meanwhile.
 pub(crate) unsafe fn mirror_ghost(geom: &GridGeom, walls: &Walls, g: [i32; 3], at: usize, nodes: &SharedSlice<Node>, table: &[u32]) {
-    let Some((src, sign)) = ghost_source(geom, walls, g, table) else { return };
+    // most nodes beyond a wall are empty: their mass first, the mirror only where it counts
+    if !(0..3).any(|a| geom.beyond_wall(a, g[a])) {
+        return;
+    }
     let node = nodes.get_mut(at);
     if node[0] <= 0.0 {
         return;
     }
+    let Some((src, sign)) = ghost_source(geom, walls, g, table) else { return };
     let v = src.map_or([0.0; 3], |i| {
         let s = &nodes.as_slice()[i];
         [s[1], s[2], s[3]]
