@@ -41,7 +41,7 @@ impl Walls {
     pub(crate) fn reach(&self, geom: &GridGeom, b: [i32; 3]) -> bool {
         let edge = BLOCK_EDGE as i32;
         self.platform.is_some()
-            || (0..3).any(|a| !geom.periodic[a] && (b[a] * edge <= PAD || b[a] * edge + edge - 1 >= geom.cells[a] - PAD))
+            || (0..3).any(|a| !geom.periodic[a] && (b[a] * edge <= PAD || b[a] * edge + edge > geom.cells[a] - PAD))
     }
 }
 
