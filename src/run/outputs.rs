@@ -320,7 +320,7 @@ impl Outputs<'_> {
             r.write(self.out).map_err(RunError::Report)?;
         }
         let extruding = sim.printer.as_ref().is_some_and(|p| p.plan.laid.is_none());
-        self.watch_inertia(&g, extruding);
+        self.watch_inertia(&g, extruding, sim.sleep.as_ref().is_some_and(|z| z.tests_loads()));
         Ok(())
     }
 
@@ -329,8 +329,9 @@ impl Outputs<'_> {
     /// [`judged_from`] on. Only with
     /// s > 1: at s = 1 the inertia is the material's own and there is nothing to lower. Not
     /// after a detected failure: the collapse that follows is dynamic by nature. A print that
-    /// extrudes (`extruding`) is told that a laid deposit brings no momentum from the nozzle.
-    fn watch_inertia(&mut self, g: &Globals, extruding: bool) {
+    /// extrudes (`extruding`) is told that a laid deposit brings no momentum from the nozzle; one
+    /// whose sleeping units wake by their load (`waking_by_load`), that waking can set them moving.
+    fn watch_inertia(&mut self, g: &Globals, extruding: bool, waking_by_load: bool) {
         if g.time < self.inertia.from || self.reporter.as_ref().is_some_and(|r| r.failure.is_some_and(|f| f.time <= g.time)) {
             return;
         }
@@ -343,7 +344,7 @@ impl Outputs<'_> {
             w.warned = true;
             eprintln!(
                 "warning: at t = {:.4} s the kinetic energy of the scaled inertia is {:.1} % of the external work \
-                 (more than {:.0} %): simulation.mass_scaling = {} is making the motion dynamic; lower mass_scaling{}",
+                 (more than {:.0} %): simulation.mass_scaling = {} is making the motion dynamic; lower mass_scaling{}{}",
                 g.time,
                 100.0 * g.kinetic_to_external,
                 100.0 * KINETIC_TO_EXTERNAL_WARN,
@@ -351,6 +352,12 @@ impl Outputs<'_> {
                 if extruding {
                     ", or, where the layer's shape is not the question, lay the deposit (print.deposit = { kind = \"laid\", ... }): \
                      extruded material arrives with the scaled momentum flux s rho V^2 of the nozzle's motion, a laid one with none"
+                } else {
+                    ""
+                },
+                if waking_by_load {
+                    ", or compare a run without [sleep]: units woken by their load take the column's load at once, which \
+                     can set them moving (docs/failure.md \"Sleeping and failure\")"
                 } else {
                     ""
                 }
