@@ -12,7 +12,7 @@
 //! planned before any run (`preflight.rs`); one experiment under a model, a simulation or a
 //! virtual rheometer (`runner.rs`, `rheometer.rs`); values and gradients (`sensitivity.rs`, idle
 //! workers lent to the experiments still running: `spare.rs`); where the experiments run
-//! (`engine.rs`) and what a saved result was computed from (`provenance.rs`); the
+//! (`engine.rs`; independent evaluations submitted together: `gather.rs`) and what a saved result was computed from (`provenance.rs`); the
 //! discretisation error counted beside the measurement uncertainty (`resolution.rs`); a long
 //! command's progress (`progress.rs`).
 

@@ -39,6 +39,11 @@
 //! 4. When no effect is recommended and the base model does not fit (chi^2 beyond its `alpha`
 //!    quantile) the verdict is "unexplained", with the pattern of the residuals.
 //!
+//! Under a scheduler the likelihood-ratio fits, and the leave-one-out checks of the base model
+//! and of a candidate, are independent and run side by side, their evaluations submitted
+//! together ([`Engine::side_by_side`](super::campaign::engine::Engine::side_by_side)); the
+//! results are the same bits.
+//!
 //! In: a campaign, a model and the parameters to refit. Out: a [`Diagnosis`] (candidates ranked,
 //! a verdict, the recommended model), or with `--rounds` the loop run to its end (`rounds.rs`).
 //! Beside it: Jacobian columns the keys give without a run (`chain.rs`) and the residuals'
