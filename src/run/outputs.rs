@@ -356,8 +356,8 @@ impl Outputs<'_> {
                     ""
                 },
                 if waking_by_load {
-                    ", or compare a run without [sleep]: units woken by their load take the column's load at once, which \
-                     can set them moving (docs/failure.md \"Sleeping and failure\")"
+                    ", or compare a run without [sleep]: sleeping units are held rigid and, woken by their load, take it \
+                     at once (docs/failure.md \"Sleeping and failure\")"
                 } else {
                     ""
                 }

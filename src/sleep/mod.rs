@@ -69,11 +69,9 @@
 //! unit woke without the weight of the layers laid while it slept, took it at once (a step
 //! load), and the printed cylinder asleep fell in layer 8 where it stands to 24 awake. The
 //! sleeping part is held rigid while the awake part deforms, so such a material wakes at a
-//! quarter of its margin by default, not half: the cylinder at three strengths fails asleep
-//! within a layer of awake with a quarter, up to three layers off with half (the figures at
-//! `config::sleep`'s default). The failure layer still moves with these estimates (22 with
-//! node loads shared evenly), and the laid early-age wall fails two layers early asleep, which
-//! is why sleeping is no default for such a print.
+//! quarter of its margin by default, not half; even so the cylinder fails asleep one to five
+//! layers before it fails awake, and the laid early-age wall two (the figures at
+//! `config::sleep`'s default), which is why sleeping is no default for such a print.
 //!
 //! Why units and not the grid's 4-cell blocks: the awake region is what moves plus a one-unit
 //! halo around it (the calm and wake tests look at the 26 neighbours), and a printed layer is

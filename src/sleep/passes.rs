@@ -82,7 +82,7 @@ impl Sleep {
             self.wake_particles(grid, particles, material, now, woke);
         }
         if slept > 0 {
-            self.put_particles_to_sleep(grid, particles, material, woke, slept);
+            self.put_particles_to_sleep(grid, particles, material, (woke, slept), step);
         }
         woke > 0 || slept > 0
     }
@@ -273,10 +273,13 @@ impl Sleep {
         }
     }
 
-    /// The particles of the `slept` units just fallen asleep (`woken[woke..woke + slept]`) move
-    /// into the sleeping prefix, put at rest; with the load test, each unit takes the mean margin
-    /// to yield of its particles; with `coarsen`, their interior merges.
-    fn put_particles_to_sleep(&mut self, grid: &Grid, particles: &mut Particles, material: &dyn Material, woke: usize, slept: usize) {
+    /// The awake particles of sleeping units move into the sleeping prefix, put at rest: those of
+    /// the `slept` units just fallen asleep at `step` (`woken[woke..woke + slept]`), and any that
+    /// came into a unit asleep since earlier (a laid column emitted into it). With the load test,
+    /// each unit just fallen asleep takes the mean margin to yield of its particles; a unit
+    /// asleep since earlier keeps its margin and its load, and with column loads takes a joining
+    /// particle's weight. With `coarsen`, their interior merges.
+    fn put_particles_to_sleep(&mut self, grid: &Grid, particles: &mut Particles, material: &dyn Material, (woke, slept): (usize, usize), step: u64) {
         let geom = &grid.geom;
         let loads = self.tests_loads();
         let state = states_mut(self.state.as_mut_slice());
@@ -290,9 +293,14 @@ impl Sleep {
                 let k = particles.n_sleep;
                 put_at_rest(particles, k, material);
                 if loads {
-                    // summed here, counted in the unit's load (still zero), divided below
-                    margin[u as usize] += material.yield_margin(&particles.state.as_slice()[k * sl..(k + 1) * sl]) as f32;
-                    self.load.as_mut_slice()[u as usize][0] += 1.0;
+                    // a unit just fallen asleep: the sleep pass set its load step to this one (the
+                    // load test sets it only at later steps). Its particles' margins are summed
+                    // here, counted in its load (still zero), divided below; a unit asleep since
+                    // earlier holds a load that the count would corrupt
+                    if self.load_step.as_slice()[u as usize] == step as u32 {
+                        margin[u as usize] += material.yield_margin(&particles.state.as_slice()[k * sl..(k + 1) * sl]) as f32;
+                        self.load.as_mut_slice()[u as usize][0] += 1.0;
+                    }
                     if self.column_loads {
                         self.weight.as_mut_slice()[u as usize] += particles.mass.as_slice()[k] as f32 * self.g;
                     }

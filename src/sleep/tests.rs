@@ -391,3 +391,39 @@ fn a_sleeping_early_age_column_wakes_with_the_load_added_on_it() {
     let sigma_zz = particles.stress.as_slice()[0].z_axis.z;
     assert!((sigma_zz - (-500.0 - want as Real)).abs() < 0.03 * want as Real, "sigma_zz {sigma_zz} Pa, want {}", -500.0 - want);
 }
+
+/// A particle put to sleep into a unit asleep since earlier (a laid column emitted into it)
+/// joins it with its weight only: the unit's load and its margin to yield stay as they were.
+/// (The count of a falling unit's particles, kept in its load's first component, was left in
+/// such a unit's load and read as a force along x: woken units took 100 kPa for 0.4 kPa.)
+#[test]
+fn a_particle_joining_a_sleeping_unit_leaves_its_load_and_margin() {
+    let g = geom([false; 3]);
+    let text = "kind = \"early_age_solid\"\ndensity = 2000.0\npoisson_ratio = 0.3\nyoungs_modulus = 6.0e4\nfriction_angle_deg = 20.0\ncohesion = 250.0\n";
+    let mat = crate::materials::build_material(&text.parse::<toml::Table>().unwrap()).unwrap();
+    let cfg: SleepConfig = toml::from_str("wake_by_load = true").unwrap();
+    let mut s = Sleep::declared(cfg, &g, [0.0, 0.0, -9.81]).with_column_loads(true);
+    s.map_pools(&Counts::capacity(1, g.table_len()), &Backing::default()).unwrap();
+    let (falling, asleep) = ([2, 1, 4], [2, 1, 2]);
+    let (f, a) = (unit_index(&g, falling) as usize, unit_index(&g, asleep) as usize);
+    states_mut(s.state.as_mut_slice())[a] = UnitState::Asleep;
+    (s.clock.as_mut_slice()[a], s.margin.as_mut_slice()[a], s.base.as_mut_slice()[a], s.weight.as_mut_slice()[a]) = (0.0, 700.0, 3.0, 2.0);
+    (s.load.as_mut_slice()[a], s.load_step.as_mut_slice()[a]) = ([0.0, 0.0, -3.0], 900);
+    s.recount();
+    // another unit, at rest long enough, falls asleep in this update
+    s.clock.as_mut_slice()[f] = 1.0;
+    let grid = grid_with(&g, &[falling.map(|c| c.div_euclid(BLOCK_EDGE as i32 / UNIT_CELLS))], 1);
+    let mut act = [EMPTY_UNIT; UNITS];
+    act[f % UNITS] = [0.0, 0.0];
+    s.activity.as_mut_slice()[0] = act;
+    // one awake particle of 0.5 kg in the unit asleep since earlier
+    let mut particles = Particles::new(1, mat.state_names().len(), &Backing::default()).unwrap();
+    (particles.n, particles.n_sleep) = (1, 0);
+    particles.xg.as_mut_slice()[0] = V3::new(5.0, 3.0, 5.0);
+    particles.j.as_mut_slice()[0] = 1.0;
+    particles.mass.as_mut_slice()[0] = 0.5;
+    assert!(s.update(&grid, &mut particles, &*mat, 1e-3, 1.0, 1000, true, None));
+    assert_eq!((states(s.state.as_slice())[f], particles.n_sleep), (UnitState::Asleep, 1));
+    assert_eq!((s.load.as_slice()[a], s.margin.as_slice()[a]), ([0.0, 0.0, -3.0], 700.0));
+    assert!((s.weight.as_slice()[a] - (2.0 + 0.5 * 9.81)).abs() < 1e-5, "weight {}", s.weight.as_slice()[a]);
+}
