@@ -216,12 +216,6 @@ pub(crate) unsafe fn fx_and_weights(xg: &[R; 3]) -> ([R; 3], [[R; 3]; 3]) {
     (fx, w)
 }
 
-/// [`crate::transfer::gather_velocity`] of W particles: the velocity `v[ch]` and, with `B`, the
-/// sums `m[k][ch] = sum w v_i e_k` of B's columns, from the channels `CH..CH + 3` of the stencils
-/// whose first nodes are `node0`; `w[k][d]` are the weights.
-///
-/// # Safety
-/// `node0[l] + local_index(2, 2, 2) < NEIGHBOURHOOD_NODES` for every lane; `CH` is 1 or 4; AVX2.
 /// Real values per node, the stride of a node's channels in memory.
 pub(crate) const CHANNELS: usize = std::mem::size_of::<Node>() / std::mem::size_of::<Real>();
 
@@ -237,11 +231,18 @@ pub(crate) unsafe fn node_channels<const CH: usize>(local: &[Node; NEIGHBOURHOOD
     let nodes = local.as_ptr().cast::<Real>();
     let mut p = [nodes; W];
     for l in 0..W {
+        // SAFETY: the node lies in `local` (the caller's promise)
         p[l] = nodes.add((node0[l] + offset) * CHANNELS + CH);
     }
     R::gather3(p)
 }
 
+/// [`crate::transfer::gather_velocity`] of W particles: the velocity `v[ch]` and, with `B`, the
+/// sums `m[k][ch] = sum w v_i e_k` of B's columns, from the channels `CH..CH + 3` of the stencils
+/// whose first nodes are `node0`; `w[k][d]` are the weights.
+///
+/// # Safety
+/// `node0[l] + local_index(2, 2, 2) < NEIGHBOURHOOD_NODES` for every lane; `CH` is 1 or 4; AVX2.
 #[target_feature(enable = "avx2")]
 #[inline]
 unsafe fn gather<const CH: usize, const B: bool>(local: &[Node; NEIGHBOURHOOD_NODES], node0: &[usize; W], w: &[[R; 3]; 3]) -> ([R; 3], [[R; 3]; 3]) {
