@@ -319,7 +319,7 @@ fn a_load_wakes_at_its_fraction_of_the_margin() {
 /// a woken particle's stress takes it along the down axis. A unit under a sleeping one, loaded
 /// on its own nodes (from the side), tests nothing. Why: a deep unit woke without the weight of
 /// the layers laid on the column while it slept, took it at once, and the printed cylinder
-/// fell ten layers early (BENCHMARKS.md "The printed cylinder").
+/// fell in layer 11, not 24 (module notes of `sleep`).
 #[test]
 fn a_sleeping_early_age_column_wakes_with_the_load_added_on_it() {
     let g = geom([false; 3]);
