@@ -106,12 +106,14 @@ pub(crate) unsafe fn p2g_block_lanes<const SPLIT: bool, L: NodeLanes>(
         }
         let one = splat(r(1.0));
         let centre = [(fx[0] - one) * splat(dx), (fx[1] - one) * splat(dx), (fx[2] - one) * splat(dx)];
-        // the slopes of momentum and impulse along axis k: `[k][ch]`
+        // the slopes of momentum and (split) impulse along axis k: `[k][ch]`
         let (mut qk, mut ik) = ([[one; 3]; 3], [[one; 3]; 3]);
         for k in 0..3 {
             for ch in 0..3 {
                 qk[k][ch] = affine[k][ch] * splat(dx);
-                ik[k][ch] = impulse[k][ch] * splat(dx);
+                if SPLIT {
+                    ik[k][ch] = impulse[k][ch] * splat(dx);
+                }
             }
         }
         let (mut q0, mut i0) = ([one; 3], [one; 3]);

@@ -15,13 +15,13 @@
 
 use crate::real::{r, Real, V3};
 use crate::real::M3;
-use crate::transfer::{local_index, Node, P2gInput, TransferParams, BLOCK_EDGE, NEIGHBOURHOOD_EDGE, NEIGHBOURHOOD_NODES};
+use crate::transfer::{Node, P2gInput, TransferParams, NEIGHBOURHOOD_EDGE, NEIGHBOURHOOD_NODES};
 use crate::transfer_adjoint::{
     g2p_adjoint_finish, g2p_adjoint_nodes, g2p_adjoint_start, p2g_adjoint_finish, p2g_adjoint_nodes, G2pAdjointIn, G2pAdjointOut, G2pCells, G2pNodeSweep, G2pSums, P2gAdjoint,
     P2gParticle, P2gSums, P2gSweep,
 };
 use crate::transfer_lanes::wide::{R, W};
-use crate::transfer_lanes::{node_channels, CHANNELS};
+use crate::transfer_lanes::{node_channels, starts_in_block, CHANNELS};
 use std::array::from_fn;
 
 /// The 27 stencil nodes' offsets from the stencil's base node in a neighbourhood, in the order
@@ -35,13 +35,6 @@ const STENCIL_OFFSETS: [usize; 27] = {
     }
     o
 };
-
-/// Each lane's first stencil node in the neighbourhood, if every lane's stencil lies in the block.
-#[inline(always)]
-fn stencil_starts(base: [[usize; 3]; W]) -> Option<[usize; W]> {
-    let inside = base.iter().all(|b| b.iter().all(|&k| k < BLOCK_EDGE));
-    inside.then(|| from_fn(|l| local_index(base[l][0], base[l][1], base[l][2])))
-}
 
 /// [`crate::transfer_adjoint::g2p_block_adjoint`]'s body over W particles at a time: the
 /// one-particle code up to each particle's node sweep (its J-bar, growth, C, move and FLIP
@@ -80,7 +73,7 @@ pub(crate) unsafe fn g2p_block_adjoint_lanes(
         for l in n..W {
             s[l] = s[n - 1];
         }
-        let Some(node0) = stencil_starts(from_fn(|l| s[l].stencil.base)) else {
+        let Some(node0) = starts_in_block(from_fn(|l| s[l].stencil.base)) else {
             for l in 0..n {
                 let w_bar = g2p_adjoint_nodes(&s[l], flip, dx, inp.local, out.local_bar);
                 g2p_adjoint_finish(&s[l], &w_bar, p[l], out);
@@ -213,7 +206,7 @@ pub(crate) unsafe fn p2g_block_adjoint_lanes<const SPLIT: bool>(
         let pi: [usize; W] = from_fn(|l| group[l.min(n - 1)] as usize);
         // lanes past the group repeat its last particle, and are not written back
         let q: [P2gParticle; W] = from_fn(|l| P2gParticle::new::<SPLIT>(origin, p, tp, pi[l]));
-        let Some(node0) = stencil_starts(from_fn(|l| q[l].stencil.base)) else {
+        let Some(node0) = starts_in_block(from_fn(|l| q[l].stencil.base)) else {
             for l in 0..n {
                 let sweep = p2g_adjoint_nodes::<SPLIT>(&q[l], tp.dx, local_bar);
                 p2g_adjoint_finish::<SPLIT>(&q[l], &sweep, p, tp, pi[l], out, &mut sums);

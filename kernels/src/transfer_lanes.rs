@@ -185,15 +185,16 @@ unsafe fn bases(xg: &[R; 3]) -> Option<[[i32; 3]; W]> {
 #[inline]
 pub(crate) unsafe fn stencil_starts(origin: [i32; 3], xg: &[R; 3]) -> Option<[usize; W]> {
     let b = bases(xg)?;
-    let mut node0 = [0; W];
-    for l in 0..W {
-        let o = [b[l][0].wrapping_sub(origin[0]), b[l][1].wrapping_sub(origin[1]), b[l][2].wrapping_sub(origin[2])];
-        if !o.iter().all(|&k| (0..BLOCK_EDGE as i32).contains(&k)) {
-            return None;
-        }
-        node0[l] = local_index(o[0] as usize, o[1] as usize, o[2] as usize);
-    }
-    Some(node0)
+    // a base below the block wraps to a large offset, which lies outside it too
+    starts_in_block(from_fn(|l| from_fn(|a| b[l][a].wrapping_sub(origin[a]) as usize)))
+}
+
+/// Each lane's first stencil node in its block's neighbourhood, from the lanes' stencil bases
+/// relative to the block's first node, if every lane's stencil lies in the block.
+#[inline(always)]
+pub(crate) fn starts_in_block(base: [[usize; 3]; W]) -> Option<[usize; W]> {
+    let inside = base.iter().all(|b| b.iter().all(|&k| k < BLOCK_EDGE));
+    inside.then(|| from_fn(|l| local_index(base[l][0], base[l][1], base[l][2])))
 }
 
 /// [`crate::bspline::base_and_fx`]'s `fx` and [`crate::bspline::weights`] lane by lane, where
