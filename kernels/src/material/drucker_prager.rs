@@ -122,13 +122,49 @@ pub(crate) struct Cone {
     pub(crate) cutoff: Option<f64>,
 }
 
+/// What a cone's constants take from its two angles: their trigonometry, the costly part of
+/// [`Cone::consts`]. A material whose moduli and cohesion vary from particle to particle but
+/// whose angles do not (an early-age solid with a constant friction angle) builds it once per
+/// batch; the constants come out the same bits either way.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Angles {
+    sin_phi: f64,
+    cos_phi: f64,
+    /// phi > 0 in radians: a cone with an apex.
+    has_apex: bool,
+    q_phi: f64,
+    q_psi: f64,
+    alpha_p: f64,
+}
+
+impl Angles {
+    pub(crate) fn of(phi_deg: f64, psi_deg: f64) -> Angles {
+        let phi = phi_deg.to_radians();
+        let q_phi = cone_slope(phi_deg);
+        Angles { sin_phi: phi.sin(), cos_phi: phi.cos(), has_apex: phi > 0.0, q_phi, q_psi: cone_slope(psi_deg), alpha_p: (1.0 + q_phi * q_phi).sqrt() - q_phi }
+    }
+
+    /// [`apex`] for these angles.
+    pub(crate) fn apex(&self, cohesion: f64) -> f64 {
+        if self.has_apex {
+            cohesion * self.cos_phi / self.sin_phi
+        } else {
+            f64::INFINITY
+        }
+    }
+}
+
 impl Cone {
     pub(crate) fn consts(&self) -> Consts {
-        let s = self.phi_deg.to_radians().sin();
-        let q_phi = cone_slope(self.phi_deg);
-        let k_phi = 6.0 * self.cohesion * self.phi_deg.to_radians().cos()
-            / (3f64.sqrt() * (3.0 + s));
-        let sigma_t = self.cutoff.unwrap_or_else(|| apex(self.cohesion, self.phi_deg));
+        self.consts_with(&Angles::of(self.phi_deg, self.psi_deg))
+    }
+
+    /// [`Cone::consts`] with the trigonometry of its angles given (`angles` must be those of
+    /// `phi_deg` and `psi_deg`).
+    pub(crate) fn consts_with(&self, angles: &Angles) -> Consts {
+        let (s, q_phi) = (angles.sin_phi, angles.q_phi);
+        let k_phi = 6.0 * self.cohesion * angles.cos_phi / (3f64.sqrt() * (3.0 + s));
+        let sigma_t = self.cutoff.unwrap_or_else(|| angles.apex(self.cohesion));
         // q_phi = 0 has an infinite default cutoff; the corner shear stress is then just k_phi.
         // The floor absorbs the slack validate() allows above the apex.
         let tau_p = if q_phi > 0.0 {
@@ -141,10 +177,10 @@ impl Cone {
             g: r(self.g),
             q_phi: r(q_phi),
             k_phi: r(k_phi),
-            q_psi: r(cone_slope(self.psi_deg)),
+            q_psi: r(angles.q_psi),
             sigma_t: r(sigma_t),
             tau_p: r(tau_p),
-            alpha_p: r((1.0 + q_phi * q_phi).sqrt() - q_phi),
+            alpha_p: r(angles.alpha_p),
         }
     }
 
