@@ -180,6 +180,9 @@ pub struct Sleep {
     pressed: Pool<f32>,
     /// Units the last step loaded past their margin (state `Loaded`), for the next update.
     loaded: Pool<u32>,
+    /// Unit just fallen asleep: how many of its particles' margins `margin` sums, until the sum
+    /// becomes their mean (scratch of the sleep pass).
+    count: Pool<u32>,
     n_loaded: usize,
     /// Per grid node of the last grid update: the reaction of a held node [N] (zero elsewhere;
     /// written only in blocks near a sleeping unit).
@@ -233,6 +236,7 @@ impl Pools for Sleep {
         if self.tests_loads() {
             v.extend([
                 decl("sleep.loaded", units, Scratch, |s| &s.loaded, |s| &mut s.loaded),
+                decl("sleep.count", units, Scratch, |s| &s.count, |s| &mut s.count),
                 decl("sleep.reactions", Per::Block(NODES_PER_BLOCK), Scratch, |s| &s.reactions, |s| &mut s.reactions),
             ]);
         }
@@ -282,6 +286,7 @@ impl Sleep {
             weight: Pool::default(),
             pressed: Pool::default(),
             loaded: Pool::default(),
+            count: Pool::default(),
             n_loaded: 0,
             reactions: Pool::default(),
             per_area: (1.0 / (face * face)) as f32,

@@ -295,11 +295,10 @@ impl Sleep {
                 if loads {
                     // a unit just fallen asleep: the sleep pass set its load step to this one (the
                     // load test sets it only at later steps). Its particles' margins are summed
-                    // here, counted in its load (still zero), divided below; a unit asleep since
-                    // earlier holds a load that the count would corrupt
+                    // and counted here, divided below; a unit asleep since earlier keeps its margin
                     if self.load_step.as_slice()[u as usize] == step as u32 {
                         margin[u as usize] += material.yield_margin(&particles.state.as_slice()[k * sl..(k + 1) * sl]) as f32;
-                        self.load.as_mut_slice()[u as usize][0] += 1.0;
+                        self.count.as_mut_slice()[u as usize] += 1;
                     }
                     if self.column_loads {
                         self.weight.as_mut_slice()[u as usize] += particles.mass.as_slice()[k] as f32 * self.g;
@@ -310,10 +309,10 @@ impl Sleep {
         }
         if loads {
             // the mean margin of each unit's particles
-            let load = self.load.as_mut_slice();
+            let count = self.count.as_mut_slice();
             for &u in &self.woken.as_slice()[woke..woke + slept] {
-                margin[u as usize] /= load[u as usize][0].max(1.0);
-                load[u as usize][0] = 0.0;
+                margin[u as usize] /= count[u as usize].max(1) as f32;
+                count[u as usize] = 0;
             }
         }
         if let Some(c) = &mut self.coarsen {
