@@ -60,10 +60,9 @@
 //! sleeping units between, whose own weight rests on no node. Why: tested against the top's load
 //! alone, a deep unit never saw the layers that had fallen asleep above it, and the printed
 //! cylinder asleep (bench/cylinder.py, 10 mm cells) stood all 40 layers where it fails in layer
-//! 24 awake. Three rules keep that
-//! sound. A column is walked from its top only (a unit under sleeping ones takes on its own
-//! nodes only what presses on its sides). A held node's load goes to the column it lies in the
-//! middle of, not shared among the columns holding it (shared, a column's weight counted partly
+//! 24 awake. Three rules keep that sound. A column is walked from its top only (a unit under
+//! sleeping ones takes on its own nodes only what presses on its sides). A held node's load goes
+//! to the column it lies in the middle of, not shared among the columns holding it (shared, a column's weight counted partly
 //! on its neighbour, then came back as an added load when that weight fell asleep: spurious
 //! wakes). And a unit keeps the compression its column added since it fell asleep, which its
 //! particles' stress takes when they wake (`Material::take_column_load`): without it a deep

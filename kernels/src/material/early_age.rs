@@ -333,7 +333,8 @@ impl Material for EarlyAgeSolid {
     }
 
     /// Same as `update` particle by particle, the trigonometry of a friction angle that does not
-    /// change with age done once per batch (a third of the material update's time).
+    /// change with age done once per batch (its sines and cosines were a quarter of the update's
+    /// time on the printed cylinder of bench/cylinder.py).
     // a real conversion in the f32 build
     #[allow(clippy::unnecessary_cast)]
     fn update_batch(&self, grad_v: &[M3], _j: &[Real], dt: Real, state: &mut [Real], stress: &mut [M3]) {
