@@ -62,9 +62,9 @@
 //! cylinder asleep (bench/cylinder.py, 10 mm cells) stood all 40 layers where it fails in layer
 //! 24 awake. Three rules keep that sound. A column is walked from its top only (a unit under
 //! sleeping ones takes on its own nodes only what presses on its sides). A held node's load goes
-//! to the column it lies in the middle of, not shared among the columns holding it (shared, a column's weight counted partly
-//! on its neighbour, then came back as an added load when that weight fell asleep: spurious
-//! wakes). And a unit keeps the compression its column added since it fell asleep, which its
+//! to the column it lies in the middle of, not shared among the columns holding it (shared, a
+//! column's weight counted partly on its neighbour, then came back as an added load when that
+//! weight fell asleep: spurious wakes). And a unit keeps the compression its column added since it fell asleep, which its
 //! particles' stress takes when they wake (`Material::take_column_load`): without it a deep
 //! unit woke without the weight of the layers laid while it slept, took it at once (a step
 //! load), and the printed cylinder asleep fell in layer 11 where it stands to 24 awake. The
