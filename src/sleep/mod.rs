@@ -45,35 +45,34 @@
 //! what those nodes take from it each step (the momentum they remove, over dt) is the load on the
 //! sleeping units holding them. Averaged over `load_time`, that force over a unit's face is a
 //! traction t, and a traction adds at most |t| / sqrt(3) to tau = sqrt(J2) under a column (it is
-//! that for a vertical load on a free-standing column; the triangle inequality bounds the sum
-//! with the stress already there). Only the load added since the unit fell asleep counts: what
-//! lay on it then is in its frozen stress. A unit sleeps with the mean margin to yield of its
-//! particles ([`Material::yield_margin`]), which grows while it sleeps as its material builds up
-//! structure ([`Material::strength_gain`]), and a load must pass `load_fraction` of that
-//! margin by `load_floor` (a load the unit takes at once overshoots to twice its static effect).
-//! The load reaches through the sleeping material below the unit, so it wakes the contiguous
-//! sleeping units under it in its column down to the deepest whose margin it passes: a layer at
-//! its yield stress at the bottom wakes under the next layer's weight, one that has built up
-//! enough strength stays asleep. With a material whose margin is many layers' weight
-//! (`Material::column_loads`: `early_age_solid`) each unit of the column is tested against what
-//! the column added on it since it fell asleep: the load on the top and the weights of the
-//! sleeping units between, whose own weight rests on no node. Why: tested against the top's load
-//! alone, a deep unit never saw the layers that had fallen asleep above it, and the printed
-//! cylinder asleep (bench/cylinder.py, 10 mm cells) stood all 40 layers where it fails in layer
-//! 24 awake. Three rules keep that sound. A column is walked from its top only (a unit under
-//! sleeping ones takes on its own nodes only what presses on its sides). A held node's load goes
-//! to the column it lies in the middle of, not shared among the columns holding it (shared, a
-//! column's weight counted partly on its neighbour, then came back as an added load when that
-//! weight fell asleep: spurious wakes). And a unit keeps the compression its column added since it fell asleep, which its
-//! particles' stress takes when they wake (`Material::take_column_load`): without it a deep
-//! unit woke without the weight of the layers laid while it slept, took it at once (a step
-//! load), and the printed cylinder asleep fell in layer 11 where it stands to 24 awake. The
-//! sleeping part is held rigid while the awake part deforms, so such a material wakes at a
-//! quarter of its margin by default, not half; even so the cylinder fails asleep one to five
-//! layers before it fails awake, and the laid early-age wall two (the figures at
-//! `config::sleep`'s default), which is why sleeping is no default for such a print. The layer
-//! asleep is also erratic under the sleep keys: the laid wall, which fails in layer 19 awake
-//! (also at cfl 0.27 and mass scaling 3.5), fails asleep anywhere from 14 to 19 as
+//! that for a vertical load on a free-standing column; the triangle inequality bounds the sum with
+//! the stress already there). Only the load added since the unit fell asleep counts: what lay on it
+//! then is in its frozen stress. A unit sleeps with the mean margin to yield of its particles
+//! ([`Material::yield_margin`]), which grows while it sleeps as its material builds up structure
+//! ([`Material::strength_gain`]), and a load must pass `load_fraction` of that margin by
+//! `load_floor` (a load the unit takes at once overshoots to twice its static effect). The load
+//! reaches through the sleeping material below the unit, so it wakes the contiguous sleeping units
+//! under it in its column down to the deepest whose margin it passes: a layer at its yield stress
+//! at the bottom wakes under the next layer's weight, one that has built up enough strength stays
+//! asleep. With a material whose margin is many layers' weight (`Material::column_loads`:
+//! `early_age_solid`) each unit of the column is tested against what the column added on it since
+//! it fell asleep: the load on the top and the weights of the sleeping units between, whose own
+//! weight rests on no node. Why: tested against the top's load alone, a deep unit never saw the
+//! layers that had fallen asleep above it, and the printed cylinder asleep (bench/cylinder.py, 10
+//! mm cells) stood all 40 layers where it fails in layer 24 awake. Three rules keep that sound. A
+//! column is walked from its top only (a unit under sleeping ones takes on its own nodes only what
+//! presses on its sides). A held node's load goes to the column it lies in the middle of, not
+//! shared among the columns holding it (shared, a column's weight counted partly on its neighbour,
+//! then came back as an added load when that weight fell asleep: spurious wakes). And a unit keeps
+//! the compression its column added since it fell asleep, which its particles' stress takes when
+//! they wake (`Material::take_column_load`): without it a deep unit woke without the weight of the
+//! layers laid while it slept, took it at once (a step load), and the printed cylinder asleep fell
+//! in layer 11 where it stands to 24 awake. The sleeping part is held rigid while the awake part
+//! deforms, so such a material wakes at a quarter of its margin by default, not half; even so the
+//! cylinder fails asleep one to five layers before it fails awake, and the laid early-age wall two
+//! (the figures at `config::sleep`'s default), which is why sleeping is no default for such a
+//! print. The layer asleep is also erratic under the sleep keys: the laid wall, which fails in
+//! layer 19 awake (also at cfl 0.27 and mass scaling 3.5), fails asleep anywhere from 14 to 19 as
 //! `load_fraction`, `load_floor`, `wake_grace` or `speed` change, often by buckling. Units hold
 //! particles by their stencil base, half a cell off the wall's mid-plane, so sleep and wake
 //! decisions are not symmetric across a wall: awake its section stays centred within 0.005 mm to
