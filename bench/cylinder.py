@@ -145,7 +145,7 @@ mass_scaling = {s}
 
 [domain]
 min = [{-half:.2f}, {-half:.2f}, 0.0]
-max = [{half:.2f}, {half:.2f}, {math.ceil(top / dx) * dx:.3f}]
+max = [{half:.2f}, {half:.2f}, {math.ceil(top / dx) * dx:.6g}]
 
 [boundary]
 z_min = "no_slip"
