@@ -79,8 +79,8 @@ pub struct DruckerPrager {
     pub tension_cutoff: Option<f64>,
 }
 
-/// Constants of the return map, derived once per batch (per particle for a material whose
-/// parameters change from particle to particle, `early_age.rs`).
+/// Constants of the return map, derived once per batch (once per run of particles of one age for
+/// a material whose parameters change with the particle's age, `early_age.rs`).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Consts {
     pub(crate) k: Real,
