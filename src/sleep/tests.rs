@@ -394,8 +394,9 @@ fn a_sleeping_early_age_column_wakes_with_the_load_added_on_it() {
 
 /// A particle put to sleep into a unit asleep since earlier (a laid column emitted into it)
 /// joins it with its weight only: the unit's load and its margin to yield stay as they were.
-/// (The count of a falling unit's particles, kept in its load's first component, was left in
-/// such a unit's load and read as a force along x: woken units took 100 kPa for 0.4 kPa.)
+/// Why: anything else added to that load is read as a force (a particle count left there woke
+/// the printed cylinder's units with 100 kPa for 0.4 kPa), and the margin is the mean of the
+/// particles that fell asleep with the unit.
 #[test]
 fn a_particle_joining_a_sleeping_unit_leaves_its_load_and_margin() {
     let g = geom([false; 3]);
