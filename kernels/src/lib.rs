@@ -12,6 +12,8 @@ pub mod cpu;
 pub mod material;
 pub mod transfer;
 #[cfg(target_arch = "x86_64")]
+mod wide;
+#[cfg(target_arch = "x86_64")]
 mod transfer_lanes;
 #[cfg(target_arch = "x86_64")]
 mod p2g_lanes;

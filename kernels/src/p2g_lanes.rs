@@ -1,6 +1,6 @@
 //! P2G over several particles at once: the body of [`crate::transfer::p2g_block`]'s AVX2 copy,
 //! each particle's arithmetic in one lane of a 256-bit register (4 particles in f64, 8 in f32;
-//! the register is [`crate::transfer_lanes`]'s).
+//! the register is [`crate::wide`]'s).
 //!
 //! Enters: one particle block's `order`, the particle state, the block's neighbourhood buffer.
 //! Leaves the same node sums as the one-particle body ([`crate::transfer::p2g_particle`]), bit
@@ -18,7 +18,7 @@
 
 use crate::real::{r, Real, M3, V3};
 use crate::transfer::{p2g_particle, p2g_scatter, p2g_stress_scale, Node, NodeLanes, P2gInput, TransferParams, NEIGHBOURHOOD_NODES};
-use crate::transfer_lanes::wide::{R, W};
+use crate::wide::{R, W};
 use crate::transfer_lanes::{fx_and_weights, lanes_of, stencil_starts};
 use std::array::from_fn;
 

@@ -1,7 +1,7 @@
 //! The transfer adjoints over several particles at once: the bodies of the AVX2 copies of
 //! [`crate::transfer_adjoint`]'s kernels, each particle's sweep over its 27 stencil nodes in one
 //! lane of a 256-bit register (4 particles in f64, 8 in f32; the register is
-//! [`crate::transfer_lanes`]'s).
+//! [`crate::wide`]'s).
 //!
 //! Enters: one particle block's `order`, its neighbourhood (and its adjoint), the particle state
 //! and output adjoints. Leaves the same adjoints as the one-particle bodies, bit for bit: every
@@ -20,7 +20,7 @@ use crate::transfer_adjoint::{
     g2p_adjoint_finish, g2p_adjoint_nodes, g2p_adjoint_start, p2g_adjoint_finish, p2g_adjoint_nodes, G2pAdjointIn, G2pAdjointOut, G2pCells, G2pNodeSweep, G2pSums, P2gAdjoint,
     P2gParticle, P2gSums, P2gSweep,
 };
-use crate::transfer_lanes::wide::{R, W};
+use crate::wide::{R, W};
 use crate::transfer_lanes::{node_channels, starts_in_block, CHANNELS};
 use std::array::from_fn;
 

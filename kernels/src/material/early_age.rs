@@ -59,7 +59,7 @@ use std::sync::OnceLock;
 use serde::Deserialize;
 
 use crate::material::age_law::{bare, check_ages, law_age, AgeLaw, LawKeys};
-use crate::material::drucker_prager::{apex, return_map, return_map_adjoint, yield_margin, Angles, Cone, Consts};
+use crate::material::drucker_prager::{apex, return_map, return_map_adjoint, return_map_batch, yield_margin, Angles, Cone, Consts};
 use crate::material::eos::{shear_modulus_of, shear_modulus_of_partials};
 use crate::material::{non_negative, positive, Material, MaterialError, StabilityInfo, UpdateAdjoint};
 use crate::real::{r, sym_from_slice, Real, M3};
@@ -335,33 +335,31 @@ impl Material for EarlyAgeSolid {
     /// Same as `update` particle by particle, with the constants of the return map built once
     /// for a run of particles of one age (particles laid in one step share their age to the bit:
     /// 86 % of the particles of the printed cylinder of bench/cylinder.py follow one of their own
-    /// age in the pool), and the trigonometry of a friction angle that does not change with age
-    /// once per batch.
+    /// age in the pool), the trigonometry of a friction angle that does not change with age once
+    /// per batch, and the elastic steps in lanes (`drucker_prager_lanes.rs`).
     // a real conversion in the f32 build
     #[allow(clippy::unnecessary_cast)]
     fn update_batch(&self, grad_v: &[M3], _j: &[Real], dt: Real, state: &mut [Real], stress: &mut [M3]) {
         let fixed = self.fixed_angles();
-        let consts_at = |age: Real| {
-            let cone = self.cone_at_with(age as f64, fixed.as_ref());
-            match &fixed {
-                Some(angles) => cone.consts_with(angles),
-                None => cone.consts(),
-            }
-        };
         // the age whose constants `last` holds: built from the same bits, they are the same
         let mut last: Option<(Real, Consts)> = None;
-        for (p, (l, out)) in grad_v.iter().zip(stress.iter_mut()).enumerate() {
-            let st = &mut state[p * STATE_LEN..(p + 1) * STATE_LEN];
+        return_map_batch(grad_v, dt, state, STATE_LEN, stress, |st| {
             let age = st[7];
-            let c = match last {
+            match last {
                 Some((a, c)) if a.to_bits() == age.to_bits() => c,
                 _ => {
-                    let c = consts_at(age);
+                    let cone = self.cone_at_with(age as f64, fixed.as_ref());
+                    let c = match &fixed {
+                        Some(angles) => cone.consts_with(angles),
+                        None => cone.consts(),
+                    };
                     last = Some((age, c));
                     c
                 }
-            };
-            *out = return_map(&c, l, dt, st);
+            }
+        });
+        // the age advances after the step that read it
+        for st in state.chunks_exact_mut(STATE_LEN).take(grad_v.len()) {
             st[7] += dt;
         }
     }
@@ -553,16 +551,17 @@ mod tests {
     }
 
     /// The batch, which builds the constants once for a run of particles of one age and a fixed
-    /// friction angle's trigonometry once, gives `update`'s bits particle by particle: runs of
-    /// one to three particles of many ages, through elastic, shear, tension and apex returns,
-    /// with the angle fixed or growing, with and without a cutoff.
+    /// friction angle's trigonometry once, and takes elastic steps in lanes, gives `update`'s bits
+    /// particle by particle: runs of one to three particles of many ages, through elastic, shear,
+    /// tension and apex returns, with the angle fixed or growing, with and without a cutoff.
     #[test]
     fn the_batch_is_update_bit_for_bit() {
         for (phi_rate, cutoff, psi) in [(0.0, None, 0.0), (0.0, Some(1.5e3), 5.0), (0.01, None, 0.0), (0.01, Some(1.5e3), 5.0)] {
             let m = EarlyAgeSolid { friction_angle_rate: phi_rate, tension_cutoff: cutoff, dilatancy_angle_deg: psi, max_age: Some(3600.0), ..wolfs() };
             assert!(m.validate().is_ok());
             assert_eq!(m.fixed_angles().is_some(), phi_rate == 0.0);
-            let n = 64;
+            // whole groups of lanes and a tail, in f64 and f32
+            let n = 67;
             let mut one: Vec<Real> = (0..n).flat_map(|p| start(&m, M3::ZERO, 60.0 * (p * p % 7 + p / 3) as f64)).collect();
             let mut batch = one.clone();
             let mut plastic = false;

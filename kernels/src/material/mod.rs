@@ -16,6 +16,8 @@ pub mod papanastasiou_roussel;
 pub mod evp_bingham;
 pub mod maxwell;
 pub mod drucker_prager;
+#[cfg(target_arch = "x86_64")]
+mod drucker_prager_lanes;
 pub mod age_law;
 pub mod early_age;
 pub mod error;
