@@ -27,7 +27,8 @@ All material stays awake by default, the reference: sleeping (`--sleep`) costs 3
 Usage:
     cylinder.py [--strand PATH] [--out DIR] [--dx 0.01] [--layers 40] [--mass-scaling 100]
                 [--threads 2] [--sleep [--sleep-keys 'load_fraction = 0.25']]
-                [--deposit laid|extruded] [--cohesion-factor 1] [--write FILE]
+                [--deposit laid|extruded] [--cohesion-factor 1] [--cone-match compression|extension]
+                [--write FILE]
 (--cohesion-factor: a check of sleeping or of the cell size at another strength, not the
 prediction; the scenario says so.)
 """
@@ -84,6 +85,8 @@ SOURCES = """\
 #   is {ratio:.0%} of E at every age (a strain at strength of {ratio:.0%}, the order early-age
 #   unconfined compression tests of printable mortars report): c(t) = {c_over_e:.5f} E(t),
 #   cohesion {c0:.1f} Pa + {c_rate:.4f} Pa/s. No dilatancy; the tension cutoff at the cone's apex.
+# - the Drucker-Prager cone that stands for the paper's Mohr-Coulomb criterion:
+#   {match_reason}
 # - the imperfection the paper assumed: a radial ovalisation cos(2 theta) growing linearly to
 #   {amp_mm} mm at the 300 mm the cylinder reached, the order of a gantry printer's placement scatter.
 # - the mix's age when the print starts: 0 (the laws' clock starts with the print).
@@ -102,7 +105,18 @@ SOURCES = """\
 # {stop:.1f} s after the failure."""
 
 
-def scenario(dx, layers, s, amp=0.001, sleep=False, deposit="laid", cohesion_factor=1.0, sleep_keys=""):
+MATCH_REASONS = {
+    "compression": ("`cone_match = \"compression\"`, the cone through Mohr-Coulomb's triaxial-compression\n"
+                    "#   vertices: it has Mohr-Coulomb's strength in unconfined compression, the stress of a\n"
+                    "#   free-standing wall under its own weight (docs/materials.md \"cone_match\"), so the\n"
+                    "#   strength chosen above is the model's. The extension-matched cone (the default) has\n"
+                    "#   3 (1 - sin phi) / (3 - sin phi) = 74 % of it there (--cone-match extension)."),
+    "extension": ("`cone_match = \"extension\"`: a check, not the prediction; its unconfined strength\n"
+                  "#   is 3 (1 - sin phi) / (3 - sin phi) = 74 % of the strength chosen above."),
+}
+
+
+def scenario(dx, layers, s, amp=0.001, sleep=False, deposit="laid", cohesion_factor=1.0, sleep_keys="", cone_match="compression"):
     nozzle_d = 0.04
     extrusion = SPEED * WIDTH * HEIGHT / (math.pi * nozzle_d ** 2 / 4.0)
     c_over_e = cohesion_per_modulus() * cohesion_factor
@@ -122,8 +136,10 @@ def scenario(dx, layers, s, amp=0.001, sleep=False, deposit="laid", cohesion_fac
         args += f" --cohesion-factor {cohesion_factor:g}"
     if sleep_keys:
         args += f" --sleep-keys '{sleep_keys}'"
+    if cone_match != "compression":
+        args += f" --cone-match {cone_match}"
     head = SOURCES.format(args=args, phi=PHI, ratio=STRAIN_AT_STRENGTH, c_over_e=c_over_e, c0=c_over_e * E0,
-                          c_rate=c_over_e * E_RATE, amp_mm=amp * 1e3, s=s, stop=stop,
+                          c_rate=c_over_e * E_RATE, amp_mm=amp * 1e3, s=s, stop=stop, match_reason=MATCH_REASONS[cone_match],
                           sleeping="sleeping on (defaults; it fails five layers earlier than all awake)" if sleep
                           else "all material awake, the reference")
     if cohesion_factor != 1.0:
@@ -159,6 +175,7 @@ youngs_modulus_rate = {E_RATE:.4f}
 cohesion = {c_over_e * E0:.3f}
 cohesion_rate = {c_over_e * E_RATE:.6f}
 friction_angle_deg = {PHI}
+cone_match = "{cone_match}"
 
 [print]
 nozzle = {{ shape = "circle", diameter = {nozzle_d} }}
@@ -198,12 +215,14 @@ def main():
     ap.add_argument("--cohesion-factor", type=float, default=1.0,
                     help="the chosen cohesion times this (a check of sleeping or of the cell size at another strength; not the prediction)")
     ap.add_argument("--sleep-keys", default="", help="keys of the [sleep] table, with --sleep (e.g. 'load_fraction = 0.25')")
+    ap.add_argument("--cone-match", choices=["compression", "extension"], default="compression",
+                    help="the Drucker-Prager cone for the Mohr-Coulomb criterion (compression: Mohr-Coulomb's unconfined strength, the prediction)")
     ap.add_argument("--write", help="only write the scenario to this file")
     a = ap.parse_args()
     if a.sleep_keys and not a.sleep:
         sys.exit("--sleep-keys needs --sleep")
     text = scenario(a.dx, a.layers, a.mass_scaling, sleep=a.sleep, deposit=a.deposit,
-                    cohesion_factor=a.cohesion_factor, sleep_keys=a.sleep_keys)
+                    cohesion_factor=a.cohesion_factor, sleep_keys=a.sleep_keys, cone_match=a.cone_match)
     if a.write:
         with open(a.write, "w") as f:
             f.write(text)

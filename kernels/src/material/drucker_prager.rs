@@ -4,16 +4,26 @@
 //! With tension positive, sigma_m = tr(sigma)/3, s = dev(sigma), tau = sqrt(s:s / 2):
 //!
 //! ```text
-//! q_phi = 6 sin(phi) / (sqrt3 (3 + sin phi)),  k_phi = 6 c cos(phi) / (sqrt3 (3 + sin phi)),
-//! q_psi = 6 sin(psi) / (sqrt3 (3 + sin psi))                                  (A, params)
+//! q_phi = 6 sin(phi) / (sqrt3 (3 + m sin phi)),  k_phi = 6 c cos(phi) / (sqrt3 (3 + m sin phi)),
+//! q_psi = 6 sin(psi) / (sqrt3 (3 + m sin psi))                  (A, params; 002 has m = 1)
 //! f_s = tau + q_phi sigma_m - k_phi       shear yield, plastic potential tau + q_psi sigma_m (41)
 //! f_t = sigma_m - sigma_t                 tension cutoff, associated                        (42)
 //! h   = tau - tau_P - alpha_P (sigma_m - sigma_t),  tau_P = k_phi - q_phi sigma_t,
 //!       alpha_P = sqrt(1 + q_phi^2) - q_phi                                          (43, 44)
 //! ```
 //!
-//! The cone passes through the Mohr-Coulomb triaxial-extension vertices: at yield, q / p =
-//! sqrt3 q_phi = 6 sin(phi) / (3 + sin(phi)) for c = 0, with q = sqrt(3 J2) and p = -sigma_m.
+//! `cone_match` says which vertices of the Mohr-Coulomb hexagon the cone passes through (its
+//! potential's cone the same for psi): `extension` (m = 1, the default and 002's), the triaxial-
+//! extension vertices: at yield q / p = sqrt3 q_phi = 6 sin(phi) / (3 + sin(phi)) for c = 0, with
+//! q = sqrt(3 J2) and p = -sigma_m; inside Mohr-Coulomb but at those vertices, and short of it
+//! most at the compression vertices: there its q at a given p is (3 - sin phi) / (3 + sin phi)
+//! of Mohr-Coulomb's, and its unconfined compressive strength 6 c cos(phi) / (3 - sin(phi)) is
+//! 3 (1 - sin phi) / (3 - sin phi) of Mohr-Coulomb's 2 c cos(phi) / (1 - sin(phi)) (2.12 c against
+//! 2.86 c at 20 deg). `compression` (m = -1), the triaxial-compression vertices: q / p = 6 sin(phi)
+//! / (3 - sin(phi)), Mohr-Coulomb's strength wherever two principal stresses are equal and the
+//! third the most compressive (unconfined and triaxial compression: a wall or a column under its
+//! own weight), and outside Mohr-Coulomb elsewhere (its q up to (3 + sin phi) / (3 - sin phi) of
+//! Mohr-Coulomb's at the extension vertices). The apex c cot(phi) is the same for both.
 //! `tension_cutoff` sigma_t defaults to the cone apex c cot(phi) (no cutoff when phi = 0) and may
 //! not exceed it.
 //!
@@ -77,6 +87,29 @@ pub struct DruckerPrager {
     /// Tensile strength sigma_t of the mean stress [Pa]; defaults to the cone apex c cot(phi).
     #[serde(default)]
     pub tension_cutoff: Option<f64>,
+    /// The Mohr-Coulomb vertices the cone passes through (module notes).
+    #[serde(default)]
+    pub cone_match: ConeMatch,
+}
+
+/// Which vertices of the Mohr-Coulomb hexagon the Drucker-Prager cone passes through (module
+/// notes): `extension` (the default) or `compression`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ConeMatch {
+    #[default]
+    Extension,
+    Compression,
+}
+
+impl ConeMatch {
+    /// m of the module notes: the sign of sin(phi) in the cone's denominator 3 + m sin(phi).
+    fn m(self) -> f64 {
+        match self {
+            ConeMatch::Extension => 1.0,
+            ConeMatch::Compression => -1.0,
+        }
+    }
 }
 
 /// Constants of the return map, derived once per batch (once per run of particles of one age for
@@ -93,9 +126,9 @@ pub(crate) struct Consts {
     pub(crate) alpha_p: Real,
 }
 
-fn cone_slope(angle_deg: f64) -> f64 {
+fn cone_slope(angle_deg: f64, matched: ConeMatch) -> f64 {
     let s = angle_deg.to_radians().sin();
-    6.0 * s / (3f64.sqrt() * (3.0 + s))
+    6.0 * s / (3f64.sqrt() * (3.0 + matched.m() * s))
 }
 
 /// Mean stress of the cone apex, k_phi / q_phi = c cot(phi); infinite for phi = 0.
@@ -120,6 +153,7 @@ pub(crate) struct Cone {
     pub(crate) psi_deg: f64,
     pub(crate) cohesion: f64,
     pub(crate) cutoff: Option<f64>,
+    pub(crate) matched: ConeMatch,
 }
 
 /// What a cone's constants take from its two angles: their trigonometry, the costly part of
@@ -130,6 +164,8 @@ pub(crate) struct Cone {
 pub(crate) struct Angles {
     sin_phi: f64,
     cos_phi: f64,
+    /// 3 + m sin(phi), k_phi's denominator over sqrt3 (module notes).
+    den_phi: f64,
     /// phi > 0 in radians: a cone with an apex.
     has_apex: bool,
     q_phi: f64,
@@ -138,10 +174,18 @@ pub(crate) struct Angles {
 }
 
 impl Angles {
-    pub(crate) fn of(phi_deg: f64, psi_deg: f64) -> Angles {
+    pub(crate) fn of(phi_deg: f64, psi_deg: f64, matched: ConeMatch) -> Angles {
         let phi = phi_deg.to_radians();
-        let q_phi = cone_slope(phi_deg);
-        Angles { sin_phi: phi.sin(), cos_phi: phi.cos(), has_apex: phi > 0.0, q_phi, q_psi: cone_slope(psi_deg), alpha_p: (1.0 + q_phi * q_phi).sqrt() - q_phi }
+        let q_phi = cone_slope(phi_deg, matched);
+        Angles {
+            sin_phi: phi.sin(),
+            cos_phi: phi.cos(),
+            den_phi: 3.0 + matched.m() * phi.sin(),
+            has_apex: phi > 0.0,
+            q_phi,
+            q_psi: cone_slope(psi_deg, matched),
+            alpha_p: (1.0 + q_phi * q_phi).sqrt() - q_phi,
+        }
     }
 
     /// [`apex`] for these angles.
@@ -156,14 +200,14 @@ impl Angles {
 
 impl Cone {
     pub(crate) fn consts(&self) -> Consts {
-        self.consts_with(&Angles::of(self.phi_deg, self.psi_deg))
+        self.consts_with(&Angles::of(self.phi_deg, self.psi_deg, self.matched))
     }
 
     /// [`Cone::consts`] with the trigonometry of its angles given (`angles` must be those of
-    /// `phi_deg` and `psi_deg`).
+    /// `phi_deg`, `psi_deg` and `matched`).
     pub(crate) fn consts_with(&self, angles: &Angles) -> Consts {
-        let (s, q_phi) = (angles.sin_phi, angles.q_phi);
-        let k_phi = 6.0 * self.cohesion * angles.cos_phi / (3f64.sqrt() * (3.0 + s));
+        let q_phi = angles.q_phi;
+        let k_phi = 6.0 * self.cohesion * angles.cos_phi / (3f64.sqrt() * angles.den_phi);
         let sigma_t = self.cutoff.unwrap_or_else(|| angles.apex(self.cohesion));
         // q_phi = 0 has an infinite default cutoff; the corner shear stress is then just k_phi.
         // The floor absorbs the slack validate() allows above the apex.
@@ -195,8 +239,10 @@ impl Cone {
         let to_rad = std::f64::consts::PI / 180.0;
         let phi = self.phi_deg.to_radians();
         let (sp, cp) = (phi.sin(), phi.cos());
-        let q_phi = cone_slope(self.phi_deg);
-        let k_phi = 6.0 * self.cohesion * cp / (3f64.sqrt() * (3.0 + sp));
+        let m = self.matched.m();
+        let den = 3.0 + m * sp;
+        let q_phi = cone_slope(self.phi_deg, self.matched);
+        let k_phi = 6.0 * self.cohesion * cp / (3f64.sqrt() * den);
         let sigma_t = self.cutoff.unwrap_or_else(|| apex(self.cohesion, self.phi_deg));
         // tau_P = max(k_phi - q_phi sigma_t, 0), or k_phi without friction
         if q_phi > 0.0 {
@@ -208,14 +254,14 @@ impl Cone {
         } else {
             k_phi_bar += tau_p_bar;
         }
-        // d cone_slope / d angle_deg, with s = sin(angle): 18 / (sqrt3 (3 + s)^2) cos(angle) pi/180
+        // d cone_slope / d angle_deg, with s = sin(angle): 18 / (sqrt3 (3 + m s)^2) cos(angle) pi/180
         let slope_rate = |deg: f64| {
             let a = deg.to_radians();
-            18.0 / (3f64.sqrt() * (3.0 + a.sin()).powi(2)) * a.cos() * to_rad
+            18.0 / (3f64.sqrt() * (3.0 + m * a.sin()).powi(2)) * a.cos() * to_rad
         };
         let mut phi_bar = q_phi_bar * slope_rate(self.phi_deg);
-        let mut c_bar = k_phi_bar * 6.0 * cp / (3f64.sqrt() * (3.0 + sp));
-        phi_bar += k_phi_bar * 6.0 * self.cohesion / 3f64.sqrt() * (-sp * (3.0 + sp) - cp * cp) / (3.0 + sp).powi(2) * to_rad;
+        let mut c_bar = k_phi_bar * 6.0 * cp / (3f64.sqrt() * den);
+        phi_bar += k_phi_bar * 6.0 * self.cohesion / 3f64.sqrt() * (-sp * den - m * cp * cp) / (den * den) * to_rad;
         let psi_bar = q_psi_bar * slope_rate(self.psi_deg);
         let mut cut_bar = 0.0;
         if self.cutoff.is_some() {
@@ -288,6 +334,7 @@ impl DruckerPrager {
             psi_deg: self.dilatancy_angle_deg,
             cohesion: self.cohesion,
             cutoff: self.tension_cutoff,
+            matched: self.cone_match,
         }
     }
 
@@ -641,6 +688,7 @@ mod tests {
             dilatancy_angle_deg: 0.0,
             cohesion: 0.0,
             tension_cutoff: None,
+            cone_match: ConeMatch::Extension,
         }
     }
 
@@ -675,32 +723,60 @@ mod tests {
         (sigma, last)
     }
 
+    /// Triaxial compression (two principal stresses equal, the third the most compressive) ends
+    /// on the cone at q / p = 6 sin(phi) / (3 + m sin(phi)): the extension-matched cone's ratio
+    /// below Mohr-Coulomb's, the compression-matched cone's Mohr-Coulomb's own.
     #[test]
-    fn isochoric_triaxial_compression_ends_on_the_cone_with_extension_matched_q_over_p() {
-        let m = sand();
-        let p0 = 1.0e5 as Real;
-        let mut st = start(&m, iso(-p0));
-        let (e, dt) = (1.0 as Real, 1e-5 as Real);
-        // Axial (z) shortening at constant volume: the mean stress stays -p0 while q grows.
-        let l = M3::from_diagonal(V3::new(0.5 * e, 0.5 * e, -e));
-        let (sigma, deps) = drive(&m, &mut st, l, dt, 3000);
-        let p = -mean(&sigma);
-        let q = 3f64.sqrt() as Real * tau_of(&sigma);
-        let s = sin_deg(30.0);
-        let m_ext = 6.0 * s / (3.0 + s);
-        assert!((p - p0).abs() < EPS * p0, "p = {p}");
-        assert!(
-            (q / p - m_ext).abs() < EPS,
-            "q/p = {}, expected {m_ext}",
-            q / p
-        );
-        // Triaxial compression: the axial stress is the most compressive, laterals equal.
-        assert!(
-            sigma.z_axis.z < sigma.x_axis.x && (sigma.x_axis.x - sigma.y_axis.y).abs() < EPS * p0
-        );
-        // Perfect plasticity at steady state: the whole strain increment is plastic,
-        // eps_eq = sqrt(2/3 D:D) dt = e dt.
-        assert!((deps - e * dt).abs() < INC * e * dt, "deps = {deps}");
+    fn isochoric_triaxial_compression_ends_on_the_cone_of_its_match() {
+        for (matched, m_sign) in [(ConeMatch::Extension, 1.0), (ConeMatch::Compression, -1.0)] {
+            let m = DruckerPrager { cone_match: matched, ..sand() };
+            let p0 = 1.0e5 as Real;
+            let mut st = start(&m, iso(-p0));
+            let (e, dt) = (1.0 as Real, 1e-5 as Real);
+            // Axial (z) shortening at constant volume: the mean stress stays -p0 while q grows.
+            let l = M3::from_diagonal(V3::new(0.5 * e, 0.5 * e, -e));
+            let (sigma, deps) = drive(&m, &mut st, l, dt, 3000);
+            let p = -mean(&sigma);
+            let q = 3f64.sqrt() as Real * tau_of(&sigma);
+            let s = sin_deg(30.0);
+            let ratio = 6.0 * s / (3.0 + m_sign * s);
+            assert!((p - p0).abs() < EPS * p0, "{matched:?}: p = {p}");
+            assert!((q / p - ratio).abs() < EPS, "{matched:?}: q/p = {}, expected {ratio}", q / p);
+            // Triaxial compression: the axial stress is the most compressive, laterals equal.
+            assert!(sigma.z_axis.z < sigma.x_axis.x && (sigma.x_axis.x - sigma.y_axis.y).abs() < EPS * p0);
+            // Mohr-Coulomb (c = 0): (s1 - s3) / 2 + (s1 + s3) / 2 sin(phi) is 0 on its surface
+            let mc = (sigma.x_axis.x - sigma.z_axis.z) / 2.0 + (sigma.x_axis.x + sigma.z_axis.z) / 2.0 * s;
+            assert_eq!(mc.abs() < EPS * p0, matched == ConeMatch::Compression, "{matched:?}: Mohr-Coulomb residual {mc}");
+            // Perfect plasticity at steady state: the whole strain increment is plastic,
+            // eps_eq = sqrt(2/3 D:D) dt = e dt.
+            assert!((deps - e * dt).abs() < INC * e * dt, "deps = {deps}");
+        }
+    }
+
+    /// Unconfined compression: at Mohr-Coulomb's strength f = 2 c cos(phi) / (1 - sin(phi)) the
+    /// compression-matched cone is reached (a margin of 0); the extension-matched one is reached
+    /// at 3 (1 - sin phi) / (3 - sin phi) of f, and at f the stress is outside it (module notes).
+    #[test]
+    fn unconfined_compressive_strength_of_each_match() {
+        for (phi, c) in [(20.0f64, 2.0e3f64), (35.0, 5.0e2)] {
+            let (sp, cp) = (phi.to_radians().sin(), phi.to_radians().cos());
+            let f = 2.0 * c * cp / (1.0 - sp);
+            let state = [0.0, 0.0, -f as Real, 0.0, 0.0, 0.0, 0.0];
+            let tol = if cfg!(feature = "f32") { 1e-5 } else { 1e-9 } * f as Real;
+            for matched in [ConeMatch::Compression, ConeMatch::Extension] {
+                let m = DruckerPrager { friction_angle_deg: phi, cohesion: c, cone_match: matched, ..sand() };
+                let margin = yield_margin(&m.consts(), &state);
+                if matched == ConeMatch::Compression {
+                    assert!(margin.abs() < tol, "phi {phi}: margin {margin} at Mohr-Coulomb's strength");
+                } else {
+                    let f_ext = f * 3.0 * (1.0 - sp) / (3.0 - sp);
+                    let state_ext = [0.0, 0.0, -f_ext as Real, 0.0, 0.0, 0.0, 0.0];
+                    assert!(margin < -0.1 * f as Real / 3f64.sqrt() as Real, "phi {phi}: margin {margin}");
+                    let margin_ext = yield_margin(&m.consts(), &state_ext);
+                    assert!(margin_ext.abs() < tol, "phi {phi}: margin {margin_ext} at 3 (1 - s) / (3 - s) of it");
+                }
+            }
+        }
     }
 
     #[test]
@@ -992,7 +1068,7 @@ mod tests {
     fn adjoint_matches_central_differences_in_every_zone() {
         use crate::adjoint_check::Rng;
         use crate::material::test_util::check_update_adjoint;
-        fn make(poisson: bool, cut: bool) -> impl Fn(&[f64]) -> DruckerPrager {
+        fn make(poisson: bool, cut: bool, cone_match: ConeMatch) -> impl Fn(&[f64]) -> DruckerPrager {
             move |p: &[f64]| DruckerPrager {
                 density: 2000.0,
                 bulk_modulus: p[0],
@@ -1002,6 +1078,7 @@ mod tests {
                 dilatancy_angle_deg: p[3],
                 cohesion: p[4],
                 tension_cutoff: cut.then(|| p[5]),
+                cone_match,
             }
         }
         // A stress of mean sm and tau = size along the deviator of `u`.
@@ -1029,8 +1106,11 @@ mod tests {
             ("apex", "corner point", false, false, with(&g, &[30.0, 10.0, 1e4]), 3e4, 1e3),
             ("apex, nu", "corner point", true, false, with(&nu, &[30.0, 10.0, 1e4]), 3e4, 1e3),
             ("corner at the apex", "corner point", false, false, with(&g, &[30.0, 0.0, 1e4]), 2.5e4, 2e4),
+            ("shear, compression-matched", "shear", true, false, with(&nu, &[30.0, 10.0, 1e4]), -1e4, 3e4),
+            ("apex, compression-matched", "corner point", false, false, with(&g, &[30.0, 10.0, 1e4]), 3e4, 1e3),
         ];
         for (k, (label, zone, poisson, cut, params, sm, tau)) in cases.into_iter().enumerate() {
+            let cone_match = if label.ends_with("compression-matched") { ConeMatch::Compression } else { ConeMatch::Extension };
             let mut rng = Rng(7 + k as u64);
             // psi = 0 is the edge of its range, and nothing on the cutoff depends on it
             let scale: Vec<f64> = params.iter().enumerate().map(|(i, v)| if i == 3 && *v == 0.0 { 0.0 } else { v.abs().max(1.0) * 0.01 }).collect();
@@ -1046,9 +1126,9 @@ mod tests {
                 let u: Vec<f64> = u0.iter().map(|x| x + rng.uniform(-0.1, 0.1)).collect();
                 let state = stress(sm * rng.uniform(0.95, 1.05), tau * rng.uniform(0.95, 1.05), &u);
                 let label = format!("{label} #{i}");
-                assert_eq!(zone_of(&make(poisson, cut)(&params), &l, 1e-4, &state), zone, "{label}");
+                assert_eq!(zone_of(&make(poisson, cut, cone_match)(&params), &l, 1e-4, &state), zone, "{label}");
                 let state_scale: Vec<f64> = state.iter().map(|v| v.abs().max(1.0) * 0.01).collect();
-                check_update_adjoint(&label, make(poisson, cut), &params, l, 1.0, 1e-4, &state, 0.1, &state_scale, &scale, 1e-6, 50 + 10 * k as u64 + i);
+                check_update_adjoint(&label, make(poisson, cut, cone_match), &params, l, 1.0, 1e-4, &state, 0.1, &state_scale, &scale, 1e-6, 50 + 10 * k as u64 + i);
             }
         }
     }

@@ -59,7 +59,7 @@ use std::sync::OnceLock;
 use serde::Deserialize;
 
 use crate::material::age_law::{bare, check_ages, law_age, AgeLaw, LawKeys};
-use crate::material::drucker_prager::{apex, return_map, return_map_adjoint, return_map_batch, yield_margin, Angles, Cone, Consts};
+use crate::material::drucker_prager::{apex, return_map, return_map_adjoint, return_map_batch, yield_margin, Angles, Cone, ConeMatch, Consts};
 use crate::material::eos::{shear_modulus_of, shear_modulus_of_partials};
 use crate::material::{non_negative, positive, Material, MaterialError, StabilityInfo, UpdateAdjoint};
 use crate::real::{r, sym_from_slice, Real, M3};
@@ -122,6 +122,10 @@ pub struct EarlyAgeSolid {
     /// The age the laws stop at [s] (older particles keep its parameters); absent: none.
     #[serde(default)]
     pub max_age: Option<f64>,
+    /// The Mohr-Coulomb vertices the cone passes through at every age: `extension` (the
+    /// default) or `compression` (`drucker_prager.rs`).
+    #[serde(default)]
+    pub cone_match: ConeMatch,
 }
 
 const E_KEYS: LawKeys = LawKeys {
@@ -202,7 +206,7 @@ impl EarlyAgeSolid {
         let phi = self.phi_law();
         let fixed = phi.rate == 0.0 && phi.late.is_none_or(|(late, _)| late == 0.0);
         // p0 + 0 a is p0 + 0 at every finite age: value(0) is every age's angle to the bit
-        fixed.then(|| Angles::of(phi.value(0.0), self.dilatancy_angle_deg))
+        fixed.then(|| Angles::of(phi.value(0.0), self.dilatancy_angle_deg, self.cone_match))
     }
 
     /// [`EarlyAgeSolid::cone_at`], the apex taken from `fixed` when given (the angles'
@@ -220,6 +224,7 @@ impl EarlyAgeSolid {
             cohesion: c,
             // sigma_t = min(tension_cutoff, apex): the apex branch is `None`
             cutoff: self.tension_cutoff.filter(|&t| t <= fixed.map_or_else(|| apex(c, phi), |f| f.apex(c))),
+            matched: self.cone_match,
         }
     }
 
@@ -492,6 +497,7 @@ mod tests {
             tension_cutoff: None,
             age_at_start: 0.0,
             max_age: None,
+            cone_match: ConeMatch::Extension,
         }
     }
 
@@ -517,12 +523,12 @@ mod tests {
     }
 
     /// With every rate 0 the material is `drucker_prager` with K = E / (3 (1 - 2 nu)) and the
-    /// same nu, bit for bit: same stress and state every step, through elastic, shear, tension
-    /// and apex returns, with and without a cutoff.
+    /// same nu and cone match, bit for bit: same stress and state every step, through elastic,
+    /// shear, tension and apex returns, with and without a cutoff.
     #[test]
     fn at_constant_age_it_is_drucker_prager_bit_for_bit() {
-        for (cutoff, psi) in [(None, 0.0), (Some(1.5e3), 5.0)] {
-            let m = EarlyAgeSolid { youngs_modulus_rate: 0.0, cohesion_rate: 0.0, tension_cutoff: cutoff, dilatancy_angle_deg: psi, age_at_start: 300.0, ..wolfs() };
+        for (cutoff, psi, cone_match) in [(None, 0.0, ConeMatch::Extension), (Some(1.5e3), 5.0, ConeMatch::Extension), (Some(1.5e3), 5.0, ConeMatch::Compression)] {
+            let m = EarlyAgeSolid { youngs_modulus_rate: 0.0, cohesion_rate: 0.0, tension_cutoff: cutoff, dilatancy_angle_deg: psi, age_at_start: 300.0, cone_match, ..wolfs() };
             assert!(m.validate().is_ok());
             let dp = DruckerPrager {
                 density: m.density,
@@ -533,6 +539,7 @@ mod tests {
                 dilatancy_angle_deg: psi,
                 cohesion: m.cohesion,
                 tension_cutoff: cutoff,
+                cone_match,
             };
             assert!(dp.validate().is_ok());
             let mut a = [0.0 as Real; 8];
@@ -716,7 +723,7 @@ mod tests {
 
     /// Every law bilinear (kinks at 600 s), the friction angle growing, optionally a cutoff.
     fn bilinear(cut: bool) -> EarlyAgeSolid {
-        from_params(&bilinear_params(cut), cut)
+        from_params(&bilinear_params(cut), cut, ConeMatch::Extension)
     }
 
     fn bilinear_params(cut: bool) -> Vec<f64> {
@@ -727,7 +734,7 @@ mod tests {
         p
     }
 
-    fn from_params(p: &[f64], cut: bool) -> EarlyAgeSolid {
+    fn from_params(p: &[f64], cut: bool, cone_match: ConeMatch) -> EarlyAgeSolid {
         EarlyAgeSolid {
             density: 2070.0,
             youngs_modulus: p[0],
@@ -747,6 +754,7 @@ mod tests {
             age_at_start: p[14],
             tension_cutoff: cut.then(|| p[15]),
             max_age: Some(3600.0),
+            cone_match,
         }
     }
 
@@ -779,13 +787,21 @@ mod tests {
             ("shear, cutoff given", true, -1e3, 5e3, false),
             ("apex", false, 1.5e4, 300.0, true),
             ("tension on the given cutoff", true, 3e3, 300.0, false),
+            ("shear, compression-matched", false, -1e3, 5e3, false),
+            ("apex, compression-matched", false, 1.5e4, 300.0, true),
         ];
         let mut seed = 100;
         for (label, cut, sm, tau, trace_free) in cases {
             let params = bilinear_params(cut);
-            let make = move |p: &[f64]| from_params(p, cut);
+            let cone_match = if label.ends_with("compression-matched") { ConeMatch::Compression } else { ConeMatch::Extension };
+            let make = move |p: &[f64]| from_params(p, cut, cone_match);
             assert!(make(&params).validate().is_ok());
-            let scale: Vec<f64> = params.iter().map(|v| v.abs().max(1.0) * 0.01).collect();
+            let mut scale: Vec<f64> = params.iter().map(|v| v.abs().max(1.0) * 0.01).collect();
+            // a rate moves its parameter by the rate's step times the age: 10 % of the rate keeps
+            // that above the rounding of the differences (as the Taylor test below)
+            for i in [1, 2, 5, 6, 9, 10] {
+                scale[i] *= 10.0;
+            }
             for age in [300.0, 599.0, 900.0] {
                 seed += 1;
                 let mut rng = Rng(seed);
@@ -829,7 +845,7 @@ mod tests {
         for i in [3, 7, 11] {
             x[i] = 601.0;
         }
-        let run = MaterialRun::new(|p: &[f64]| from_params(p, true), ls.into_iter().map(|l| (l, 1.0)).collect(), 2.0, &x);
+        let run = MaterialRun::new(|p: &[f64]| from_params(p, true, ConeMatch::Extension), ls.into_iter().map(|l| (l, 1.0)).collect(), 2.0, &x);
         let (states, _) = run.states(&x);
         let last = states.last().unwrap();
         assert!(last[6] > 0.0 && states[20][6] == 0.0, "elastic first, then plastic: eps_p {} -> {}", states[20][6], last[6]);
