@@ -20,8 +20,8 @@ wall's quasi-static response: an extruded deposit under s = 100 arrives with a m
 10 mm cells put 4 cells across the 40 mm wall, the resolution at which the suite's buckling test
 meets Greenhill's height within 10 %; a laid layer needs no cells of its own for its shape.
 
-All material stays awake by default, the reference: sleeping (`--sleep`) costs 39 CPU s against
-2,761 and fails five layers earlier (docs/failure.md "Sleeping and failure"). BENCHMARKS.md
+All material stays awake by default, the reference: sleeping (`--sleep`) costs 62 CPU s against
+1,733 and fails four layers earlier (docs/failure.md "Sleeping and failure"). BENCHMARKS.md
 "The printed cylinder" has both results; the run's JSON summary is kept as OUT/summary.json.
 
 Usage:
@@ -140,7 +140,7 @@ def scenario(dx, layers, s, amp=0.001, sleep=False, deposit="laid", cohesion_fac
         args += f" --cone-match {cone_match}"
     head = SOURCES.format(args=args, phi=PHI, ratio=STRAIN_AT_STRENGTH, c_over_e=c_over_e, c0=c_over_e * E0,
                           c_rate=c_over_e * E_RATE, amp_mm=amp * 1e3, s=s, stop=stop, match_reason=MATCH_REASONS[cone_match],
-                          sleeping="sleeping on (defaults; it fails five layers earlier than all awake)" if sleep
+                          sleeping="sleeping on (defaults; it fails four layers earlier than all awake)" if sleep
                           else "all material awake, the reference")
     if cohesion_factor != 1.0:
         head += (f"\n#\n# A check, not the prediction: the cohesion above is {cohesion_factor:g} times the chosen one "
@@ -209,7 +209,7 @@ def main():
     ap.add_argument("--mass-scaling", type=float, default=100.0)
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--sleep", action="store_true",
-                    help="let material at rest sleep: faster; it fails five layers earlier than all awake (BENCHMARKS.md)")
+                    help="let material at rest sleep: faster; it fails four layers earlier than all awake (BENCHMARKS.md)")
     ap.add_argument("--deposit", choices=["laid", "extruded"], default="laid",
                     help="lay each layer at rest in its 40 x 10 mm section (the paper's activation model), or extrude it")
     ap.add_argument("--cohesion-factor", type=float, default=1.0,
