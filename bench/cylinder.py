@@ -105,14 +105,21 @@ SOURCES = """\
 # {stop:.1f} s after the failure."""
 
 
+def extension_share(phi_deg=PHI):
+    """The extension-matched cone's unconfined compressive strength over Mohr-Coulomb's,
+    3 (1 - sin phi) / (3 - sin phi) (docs/materials.md "cone_match")."""
+    sp = math.sin(math.radians(phi_deg))
+    return 3.0 * (1.0 - sp) / (3.0 - sp)
+
+
 MATCH_REASONS = {
     "compression": ("`cone_match = \"compression\"`, the cone through Mohr-Coulomb's triaxial-compression\n"
                     "#   vertices: it has Mohr-Coulomb's strength in unconfined compression, the stress of a\n"
                     "#   free-standing wall under its own weight (docs/materials.md \"cone_match\"), so the\n"
                     "#   strength chosen above is the model's. The extension-matched cone (the default) has\n"
-                    "#   3 (1 - sin phi) / (3 - sin phi) = 74 % of it there (--cone-match extension)."),
+                    "#   3 (1 - sin phi) / (3 - sin phi) = {share:.0%} of it there (--cone-match extension)."),
     "extension": ("`cone_match = \"extension\"`: a check, not the prediction; its unconfined strength\n"
-                  "#   is 3 (1 - sin phi) / (3 - sin phi) = 74 % of the strength chosen above."),
+                  "#   is 3 (1 - sin phi) / (3 - sin phi) = {share:.0%} of the strength chosen above."),
 }
 
 
@@ -139,7 +146,7 @@ def scenario(dx, layers, s, amp=0.001, sleep=False, deposit="laid", cohesion_fac
     if cone_match != "compression":
         args += f" --cone-match {cone_match}"
     head = SOURCES.format(args=args, phi=PHI, ratio=STRAIN_AT_STRENGTH, c_over_e=c_over_e, c0=c_over_e * E0,
-                          c_rate=c_over_e * E_RATE, amp_mm=amp * 1e3, s=s, stop=stop, match_reason=MATCH_REASONS[cone_match],
+                          c_rate=c_over_e * E_RATE, amp_mm=amp * 1e3, s=s, stop=stop, match_reason=MATCH_REASONS[cone_match].format(share=extension_share()),
                           sleeping="sleeping on (defaults; it fails four layers earlier than all awake)" if sleep
                           else "all material awake, the reference")
     if cohesion_factor != 1.0:
