@@ -18,9 +18,12 @@ pub const NEIGHBOURHOOD_EDGE: usize = BLOCK_EDGE + 2;
 /// Nodes in a neighbourhood.
 pub const NEIGHBOURHOOD_NODES: usize = NEIGHBOURHOOD_EDGE * NEIGHBOURHOOD_EDGE * NEIGHBOURHOOD_EDGE;
 
+/// Nodes from a stencil's first node to its last, in a neighbourhood buffer.
+pub(crate) const STENCIL_SPAN: usize = local_index(2, 2, 2) + 1;
+
 /// Index of local node (i, j, k) in a neighbourhood buffer.
 #[inline(always)]
-pub fn local_index(i: usize, j: usize, k: usize) -> usize {
+pub const fn local_index(i: usize, j: usize, k: usize) -> usize {
     (i * NEIGHBOURHOOD_EDGE + j) * NEIGHBOURHOOD_EDGE + k
 }
 
@@ -176,25 +179,36 @@ pub(crate) fn p2g_scatter<const SPLIT: bool, L: NodeLanes>(
     i: [V3; 3],
 ) {
     let ([ax, ay, az], [ix, iy, iz]) = (q, i);
-    for a in 0..3 {
-        let ea = a as Real - r(1.0);
-        let (qa, ia) = (q0 + ax * ea, i0 + ix * ea);
-        for b in 0..3 {
-            let eb = b as Real - r(1.0);
-            let wab = w[a].x * w[b].y;
-            let (qab, iab) = (qa + ay * eb, ia + iy * eb);
-            let row = node0 + local_index(a, b, 0);
-            for c in 0..3 {
-                let ec = c as Real - r(1.0);
-                let weight = wab * w[c].z;
-                let node = &mut local[row + c];
-                (qab + az * ec).scatter(node, weight, m);
-                if SPLIT {
-                    let imp = (iab + iz * ec) * weight;
-                    node[4] += imp.x;
-                    node[5] += imp.y;
-                    node[6] += imp.z;
-                }
+    // the stencil's span as an array: every node index below is a constant once the planes are
+    // unrolled, so none is checked at run time (the one check is this conversion)
+    let stencil: &mut [Node; STENCIL_SPAN] = (&mut local[node0..node0 + STENCIL_SPAN]).try_into().unwrap();
+    // a-planes unrolled by hand: the offsets e become constants (no conversion per plane)
+    let plane = p2g_scatter_plane::<SPLIT, L>;
+    plane(stencil, 0, w, m, q0 + ax * r(-1.0), [ay, az], i0 + ix * r(-1.0), [iy, iz]);
+    plane(stencil, 1, w, m, q0 + ax * r(0.0), [ay, az], i0 + ix * r(0.0), [iy, iz]);
+    plane(stencil, 2, w, m, q0 + ax * r(1.0), [ay, az], i0 + ix * r(1.0), [iy, iz]);
+}
+
+/// [`p2g_scatter`]'s nodes of the stencil's `a`-plane, whose momentum and impulse at offset
+/// `(b, c) = 1` are `qa` and `ia`.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn p2g_scatter_plane<const SPLIT: bool, L: NodeLanes>(stencil: &mut [Node; STENCIL_SPAN], a: usize, w: &[V3; 3], m: Real, qa: L, [ay, az]: [L; 2], ia: V3, [iy, iz]: [V3; 2]) {
+    for b in 0..3 {
+        let eb = b as Real - r(1.0);
+        let wab = w[a].x * w[b].y;
+        let (qab, iab) = (qa + ay * eb, ia + iy * eb);
+        let row = local_index(a, b, 0);
+        for c in 0..3 {
+            let ec = c as Real - r(1.0);
+            let weight = wab * w[c].z;
+            let node = &mut stencil[row + c];
+            (qab + az * ec).scatter(node, weight, m);
+            if SPLIT {
+                let imp = (iab + iz * ec) * weight;
+                node[4] += imp.x;
+                node[5] += imp.y;
+                node[6] += imp.z;
             }
         }
     }
