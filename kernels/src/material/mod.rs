@@ -18,6 +18,10 @@ pub mod maxwell;
 pub mod drucker_prager;
 #[cfg(target_arch = "x86_64")]
 mod drucker_prager_lanes;
+#[cfg(target_arch = "x86_64")]
+mod evp_bingham_lanes;
+#[cfg(target_arch = "x86_64")]
+mod lanes;
 pub mod age_law;
 pub mod early_age;
 pub mod error;
