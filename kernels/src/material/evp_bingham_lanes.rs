@@ -11,7 +11,7 @@
 //! (no FMA; sums in the same order), so each lane holds the bits `EvpBingham::update` leaves.
 //! The Tait EOS's exponential runs lane by lane through the one-particle code.
 
-use crate::material::lanes::{add, ddot, dev, diagonal, jaumann_rotation, load_column, load_matrices, load_sym, mul, scale, skew, store_matrices, sub, sym, sym_packed, transpose};
+use crate::material::lanes::{add, ddot, dev, diagonal, jaumann_rotation, load_column, load_matrices, load_sym, mul, pressure, scale, skew, store_matrices, sub, sym, sym_packed, transpose};
 use crate::material::Eos;
 use crate::real::{r, Real, M3};
 use crate::wide::{R, W};
@@ -115,17 +115,6 @@ pub(crate) unsafe fn updates(c: &Consts, grad_v: &[M3], j: &[Real], dt: Real, st
             row[7] += gamma_p_dt[l];
         }
     }
-    let mut jl = [r(0.0); W];
-    jl.copy_from_slice(&j[..W]);
-    let p = match c.eos {
-        Eos::Linear => splat(c.k) * (one / R::from_array(jl) - one),
-        eos => {
-            let mut p = [r(0.0); W];
-            for l in 0..W {
-                p[l] = eos.pressure(c.k, jl[l]);
-            }
-            R::from_array(p)
-        }
-    };
+    let p = pressure(c.eos, c.k, j);
     store_matrices(&sub(&s, &diagonal(p)), stress);
 }

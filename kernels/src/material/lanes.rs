@@ -9,6 +9,7 @@
 //! into the AVX2 caller (a closure is compiled on its own, without AVX2, and its intrinsics
 //! become calls).
 
+use crate::material::Eos;
 use crate::real::{r, Real, M3};
 use crate::wide::{R, W};
 
@@ -193,4 +194,22 @@ pub(crate) fn load_column(state: &[Real], stride: usize, i: usize) -> R {
         *a = state[l * stride + i];
     }
     R::from_array(a)
+}
+
+/// `Eos::pressure(k, j[l])` of W particles (`j.len() == W`): the linear EOS in lanes, Tait's
+/// exponential lane by lane through the one-particle code.
+#[inline(always)]
+pub(crate) fn pressure(eos: Eos, k: Real, j: &[Real]) -> R {
+    let mut jl = [r(0.0); W];
+    jl.copy_from_slice(&j[..W]);
+    match eos {
+        Eos::Linear => R::splat(k) * (R::splat(r(1.0)) / R::from_array(jl) - R::splat(r(1.0))),
+        eos => {
+            let mut p = [r(0.0); W];
+            for l in 0..W {
+                p[l] = eos.pressure(k, jl[l]);
+            }
+            R::from_array(p)
+        }
+    }
 }
