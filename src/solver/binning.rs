@@ -6,6 +6,7 @@ use super::{SimError, Simulation};
 use crate::memory::Pool;
 use crate::particles::Particles;
 use crate::pools::{Per, PoolDecl, Pools, Role};
+use std::sync::atomic::AtomicU32;
 
 /// Buffers the binning and the parallel phases share.
 #[derive(Default)]
@@ -25,6 +26,10 @@ pub(crate) struct Scratch {
     pub(crate) colour_blocks: Pool<u32>,
     pub(crate) colour_cum: Pool<u32>,
     pub(crate) colour_start: [usize; 9],
+    /// The P2G pass that last added each particle block's neighbourhood to the grid (see
+    /// `p2g.rs`), and the number of the current pass.
+    pub(crate) flushed: Pool<u32>,
+    pub(crate) p2g_pass: u32,
     permute: Pool<u8>,
 }
 
@@ -40,6 +45,7 @@ impl Pools for Scratch {
             PoolDecl::new("scratch.neighbours", Per::Block(1), scratch, |s| &s.nbr, |s| &mut s.nbr),
             PoolDecl::new("scratch.colour_blocks", Per::Block(1), scratch, |s| &s.colour_blocks, |s| &mut s.colour_blocks),
             PoolDecl::new("scratch.colour_cum", Per::Block(1), scratch, |s| &s.colour_cum, |s| &mut s.colour_cum),
+            PoolDecl::new("scratch.flushed", Per::Block(1), scratch, |s| &s.flushed, |s| &mut s.flushed),
             PoolDecl::new("scratch.permute", Per::Particle(permute), scratch, |s| &s.permute, |s| &mut s.permute),
         ]
     }
@@ -50,6 +56,27 @@ impl Scratch {
     /// declared but not mapped ([`Pools::map_pools`] maps them).
     pub(super) fn declared(max_blocks: usize, state_len: usize) -> Self {
         Scratch { max_blocks, state_len, ..Default::default() }
+    }
+}
+
+impl Scratch {
+    /// The number of a new P2G pass (never 0, which the flags hold when mapped); the flags are
+    /// cleared when the count wraps, so no flag can hold a pass from before.
+    pub(crate) fn next_p2g_pass(&mut self) -> u32 {
+        self.p2g_pass = self.p2g_pass.wrapping_add(1);
+        if self.p2g_pass == 0 {
+            self.flushed.as_mut_slice().fill(0);
+            self.p2g_pass = 1;
+        }
+        self.p2g_pass
+    }
+
+    /// The flags of [`Scratch::flushed`] as atomics, for P2G's threads to share.
+    pub(crate) fn flushed_flags(flushed: &mut Pool<u32>) -> &[AtomicU32] {
+        let f = flushed.as_mut_slice();
+        // SAFETY: AtomicU32 has u32's size and alignment, and the exclusive borrow makes the
+        // atomics the only access while the view lives
+        unsafe { std::slice::from_raw_parts(f.as_mut_ptr().cast::<AtomicU32>(), f.len()) }
     }
 }
 
