@@ -3,8 +3,8 @@
 //! multiply, divide, square root, floor, max; no FMA), so a lane computes what the one-particle
 //! code computes, to the bit. Only ever built inside functions compiled for AVX2 (which is where
 //! its intrinsics inline), so every `unsafe` in it runs on a CPU with AVX2. The transfers'
-//! lanes (`transfer_lanes.rs`, `p2g_lanes.rs`, `transfer_adjoint_lanes.rs`) and the return map's
-//! (`material/drucker_prager_lanes.rs`) use it.
+//! lanes (`transfer_lanes.rs`, `p2g_lanes.rs`, `transfer_adjoint_lanes.rs`) and the materials'
+//! (`material/lanes.rs`, `drucker_prager_lanes.rs`, `evp_bingham_lanes.rs`) use it.
 
 /// The register `R`, from its intrinsics. `gather3` is each precision's own.
 macro_rules! wide_register {
