@@ -63,6 +63,17 @@ macro_rules! wide_register {
             pub fn le_mask(self, o: R) -> u32 {
                 unsafe { $movemask($cmp::<_CMP_LE_OQ>(self.0, o.0)) as u32 }
             }
+            /// Lane l of `if_set` where bit l of `mask` is set, else lane l of `otherwise`.
+            #[inline(always)]
+            pub fn select(mask: u32, if_set: R, otherwise: R) -> R {
+                let (a, mut c) = (if_set.to_array(), otherwise.to_array());
+                for l in 0..W {
+                    if mask & (1 << l) != 0 {
+                        c[l] = a[l];
+                    }
+                }
+                R::from_array(c)
+            }
             /// The lanes as integers; exact for integral lanes below 2^31.
             #[inline(always)]
             pub fn to_i32(self) -> [i32; W] {

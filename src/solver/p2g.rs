@@ -64,15 +64,15 @@ impl Simulation {
                 let i = next.fetch_add(1, Relaxed);
                 let Some(&s) = in_colour_order.get(i) else { break };
                 let s = s as usize;
-                let b = geom.block_coords(slot_block[s]);
+                let origin = block_origin(geom, slot_block[s]);
                 local.iter_mut().for_each(|n| *n = [0.0; 7]);
                 let ord = &order[starts[s] as usize..starts[s + 1] as usize];
                 if split {
-                    p2g_block::<true>(block_origin(geom, slot_block[s]), ord, &input, &tp, &mut local);
+                    p2g_block::<true>(origin, ord, &input, &tp, &mut local);
                 } else {
-                    p2g_block::<false>(block_origin(geom, slot_block[s]), ord, &input, &tp, &mut local);
+                    p2g_block::<false>(origin, ord, &input, &tp, &mut local);
                 }
-                for t in overlapping_before(geom, table, npb, b) {
+                for t in overlapping_before(geom, table, npb, geom.block_coords(slot_block[s])) {
                     wait_for_pass(&flushed[t as usize], pass);
                 }
                 // SAFETY: a block whose neighbourhood overlaps this one's is of another colour (blocks

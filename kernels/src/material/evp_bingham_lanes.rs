@@ -59,43 +59,16 @@ pub(crate) unsafe fn updates(c: &Consts, grad_v: &[M3], j: &[Real], dt: Real, st
         let xi = eta + dt_r * (g + alpha * (tau0 - tau_tr));
         let zeta = two * alpha * dt_r * (dt_r * g + eta);
         let root = (xi * xi + two * zeta * f_tr).sqrt();
-        let by_sum = (two * f_tr / (xi + root)).to_array();
-        let by_zeta = ((root - xi) / zeta).to_array();
-        let xi_positive = zero.lt_mask(xi);
-        let mut gp = [r(0.0); W];
-        for l in 0..W {
-            gp[l] = if xi_positive & (1 << l) != 0 { by_sum[l] } else { by_zeta[l] };
-        }
-        let gamma_p = R::from_array(gp);
+        let gamma_p = R::select(zero.lt_mask(xi), two * f_tr / (xi + root), (root - xi) / zeta);
         let tau = tau_tr - dt_r * g * gamma_p;
-        let s_plastic = scale(&s_tr, tau / tau_tr);
-        let lambda_plastic = (lambda_tr / (one + dt_r * alpha * gamma_p)).to_array();
+        let ratio = tau / tau_tr;
+        for col in 0..3 {
+            for row in 0..3 {
+                s[col][row] = R::select(plastic, s_tr[col][row] * ratio, s_tr[col][row]);
+            }
+        }
+        lambda = R::select(plastic, lambda_tr / (one + dt_r * alpha * gamma_p), lambda_tr);
         gamma_p_dt = (gamma_p * dt_r).to_array();
-        let (mut lam, mut s_cols) = (lambda.to_array(), [[[r(0.0); W]; 3]; 3]);
-        let mut p_cols = [[[r(0.0); W]; 3]; 3];
-        for col in 0..3 {
-            for row in 0..3 {
-                s_cols[col][row] = s[col][row].to_array();
-                p_cols[col][row] = s_plastic[col][row].to_array();
-            }
-        }
-        for l in 0..W {
-            if plastic & (1 << l) == 0 {
-                continue;
-            }
-            lam[l] = lambda_plastic[l];
-            for col in 0..3 {
-                for row in 0..3 {
-                    s_cols[col][row][l] = p_cols[col][row][l];
-                }
-            }
-        }
-        lambda = R::from_array(lam);
-        for col in 0..3 {
-            for row in 0..3 {
-                s[col][row] = R::from_array(s_cols[col][row]);
-            }
-        }
     }
 
     // the state, and the stress s - p I
